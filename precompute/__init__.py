@@ -1,0 +1,16 @@
+"""Thin Film SH precompute core.
+
+Pure numpy + colour-science: spectral thin-film optics, microfacet BRDFs, spherical
+harmonics and table baking. This package never imports ``bpy``; it runs standalone
+(``python -m precompute``) and inside Blender alike.
+
+Conventions used throughout (see ``docs/conventions.md``):
+
+- wavelengths λ in nanometres, thicknesses d in nanometres;
+- complex refractive index N = n + i·k with k ≥ 0 for absorbing media
+  (time dependence e^{-iωt});
+- angles given as cosines in [0, 1];
+- arrays broadcast, with the wavelength on the last axis.
+"""
+
+__all__ = ["brdf", "optics", "sh", "spectra"]
