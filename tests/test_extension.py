@@ -1,0 +1,180 @@
+"""The repository as a Blender extension: manifest, built package, registration in a real bpy.
+
+Blender's own extension tool (``blender_ext.py``, shipped inside the ``bpy`` wheel) validates the
+manifest and builds the package; the add-on is then imported under its extension id from a
+symlink and registered in the ``bpy`` module. bpy is imported only in this module, and only by
+the tests that need a Blender session.
+"""
+
+import ast
+import importlib
+import importlib.util
+import os
+import subprocess
+import sys
+import tomllib
+import zipfile
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.blender
+
+REPO = Path(__file__).resolve().parent.parent
+MANIFEST = tomllib.loads((REPO / "blender_manifest.toml").read_text(encoding="utf-8"))
+EXTENSION_ID = MANIFEST["id"]
+REGISTER_CYCLES = 10
+
+
+def _bpy_scripts_dir() -> Path:
+    """``bpy/<version>/scripts`` of the installed bpy wheel, found without importing bpy."""
+    spec = importlib.util.find_spec("bpy")
+    assert spec is not None and spec.submodule_search_locations, "the bpy module is not installed"
+    (bpy_dir,) = spec.submodule_search_locations
+    found = sorted(Path(bpy_dir).glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+    assert found, f"blender_ext.py not found under {bpy_dir}"
+    return found[-1].parents[3]
+
+
+def _blender_ext(*args: str) -> subprocess.CompletedProcess:
+    """Run Blender's extension command-line tool with this interpreter."""
+    tool = _bpy_scripts_dir() / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+    return subprocess.run(
+        [sys.executable, str(tool), *args], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+def _valid_tags() -> str:
+    """Blender's list of allowed tags (the standalone tool checks none unless given one)."""
+    tags = _bpy_scripts_dir() / "modules" / "_bpy_internal" / "extensions" / "tags.py"
+    assert tags.is_file(), tags
+    return str(tags)
+
+
+def test_manifest_passes_blenders_validator():
+    result = _blender_ext("validate", "--valid-tags", _valid_tags(), str(REPO))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "Success" in result.stdout
+
+
+def test_built_package_is_valid_and_holds_only_the_addon(tmp_path):
+    archive = tmp_path / f"{EXTENSION_ID}-{MANIFEST['version']}.zip"
+    result = _blender_ext(
+        "build", "--source-dir", str(REPO), "--output-filepath", str(archive), "--valid-tags", _valid_tags()
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+
+    result = _blender_ext("validate", "--valid-tags", _valid_tags(), str(archive))
+    assert result.returncode == 0, result.stdout + result.stderr
+
+    with zipfile.ZipFile(archive) as zf:
+        names = zf.namelist()
+    for required in ("blender_manifest.toml", "__init__.py", "addon/__init__.py", "precompute/__init__.py"):
+        assert required in names
+    excluded_tops = {"tests", "benchmarks", "docs", "scripts", "out", "build", "dist"}
+    leaked = [
+        n
+        for n in names
+        if n.split("/")[0] in excluded_tops
+        or any(part.startswith(".") or part == "__pycache__" for part in n.split("/"))
+        or n.endswith((".pyc", ".blend1", ".zip"))
+        or n in ("pyproject.toml", "requirements.txt", "requirements-dev.txt")
+    ]
+    assert not leaked, f"development files in the package: {leaked}"
+
+
+def test_root_init_only_forwards_to_addon():
+    """The repository root is the extension package: its __init__ must stay a thin forwarder."""
+    tree = ast.parse((REPO / "__init__.py").read_text(encoding="utf-8"))
+    body = list(tree.body)
+    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+        body = body[1:]  # docstring
+    imports = [n for n in body if isinstance(n, ast.ImportFrom)]
+    assert imports and all(n.level == 1 and n.module == "addon" for n in imports)
+    names = {alias.name for n in imports for alias in n.names}
+    assert {"register", "unregister"} <= names
+    others = [n for n in body if not isinstance(n, ast.ImportFrom)]
+    assert all(
+        isinstance(n, ast.Assign) and [t.id for t in n.targets if isinstance(t, ast.Name)] == ["__all__"]
+        for n in others
+    ), "the root __init__.py may only import from .addon (and set __all__)"
+
+
+# --- in a real Blender session ----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def bpy():
+    import bpy as bpy_module  # Blender as a Python module: never mocked
+
+    return bpy_module
+
+
+@pytest.fixture
+def extension(bpy, tmp_path):
+    """The repository imported as the package ``thinfilm_sh`` (as Blender would name it)."""
+    link = tmp_path / EXTENSION_ID
+    os.symlink(REPO, link, target_is_directory=True)
+    sys.path.insert(0, str(tmp_path))
+    try:
+        module = importlib.import_module(EXTENSION_ID)
+        assert Path(module.__file__).resolve() == REPO / "__init__.py"
+        yield module
+    finally:
+        module = sys.modules.get(EXTENSION_ID)
+        if module is not None:
+            module.unregister()
+        sys.path.remove(str(tmp_path))
+        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
+            del sys.modules[name]
+
+
+def _registered(classes):
+    return [cls.__name__ for cls in classes if cls.is_registered]
+
+
+def test_register_unregister_cycles_leave_nothing_behind(bpy, extension):
+    addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+    classes = addon.classes
+    assert classes, "addon.classes is empty"
+    prefs_classes = [cls for cls in classes if issubclass(cls, bpy.types.AddonPreferences)]
+    assert len(prefs_classes) == 1
+    assert prefs_classes[0].bl_idname == EXTENSION_ID  # add-on preferences are keyed by the package
+
+    types_before = set(dir(bpy.types))
+    class_names = {cls.__name__ for cls in classes}
+    for cycle in range(REGISTER_CYCLES):
+        extension.register()
+        assert _registered(classes) == [cls.__name__ for cls in classes], f"cycle {cycle}"
+        # Panels, operators, menus, ... show up in bpy.types; nothing else may.
+        assert set(dir(bpy.types)) - types_before <= class_names
+        extension.register()  # a second call must be harmless
+        extension.unregister()
+        assert _registered(classes) == [], f"cycle {cycle}"
+        assert set(dir(bpy.types)) == types_before, f"cycle {cycle}"
+        extension.unregister()  # and so must a second unregister
+
+
+def test_preferences_hold_the_cache_directory(bpy, extension, tmp_path):
+    addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+    extension.register()
+    addons = bpy.context.preferences.addons
+    assert addons.get(EXTENSION_ID) is None
+    assert addon.preferences() is None
+    assert addon.cache_dir() == addon.default_cache_dir() != ""
+
+    # Enable it the way Blender's preferences do: an add-on entry keyed by the package name.
+    entry = addons.new()
+    try:
+        entry.module = EXTENSION_ID
+        prefs = addon.preferences()
+        assert prefs is not None and isinstance(prefs, bpy.types.AddonPreferences)
+        prop = prefs.bl_rna.properties["cache_dir"]
+        assert (prop.subtype, prop.default) == ("DIR_PATH", "")
+        assert prefs.cache_dir == "" and addon.cache_dir() == addon.default_cache_dir()
+        prefs.cache_dir = str(tmp_path)
+        assert addon.cache_dir() == str(tmp_path)
+    finally:
+        addons.remove(entry)
+        extension.unregister()
+    assert addons.get(EXTENSION_ID) is None
