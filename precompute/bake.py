@@ -95,7 +95,9 @@ def lagrange_matrix(nodes: np.ndarray, weights: np.ndarray, x: np.ndarray) -> np
 
 def u_nodes(degree: int) -> np.ndarray:
     """All interpolation nodes: ``degree`` Chebyshev points in each interval of U_EDGES, (U,)."""
-    return np.concatenate([chebyshev_nodes(degree, a, b)[0] for a, b in zip(U_EDGES[:-1], U_EDGES[1:])])
+    return np.concatenate(
+        [chebyshev_nodes(degree, a, b)[0] for a, b in zip(U_EDGES[:-1], U_EDGES[1:], strict=False)]
+    )
 
 
 def u_interpolation_matrix(degree: int, u: np.ndarray) -> np.ndarray:
@@ -103,7 +105,7 @@ def u_interpolation_matrix(degree: int, u: np.ndarray) -> np.ndarray:
     u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
     out = np.zeros((u.size, degree * (len(U_EDGES) - 1)))
     piece = np.clip(np.searchsorted(U_EDGES, u, side="right") - 1, 0, len(U_EDGES) - 2)
-    for j, (a, b) in enumerate(zip(U_EDGES[:-1], U_EDGES[1:])):
+    for j, (a, b) in enumerate(zip(U_EDGES[:-1], U_EDGES[1:], strict=False)):
         sel = piece == j
         if np.any(sel):
             nodes, bw = chebyshev_nodes(degree, a, b)
@@ -120,8 +122,14 @@ def half_vector_nodes(alpha: float, n_theta: int = N_THETA, n_phi: int = N_PHI):
     cos_h = 1.0 / np.sqrt(1.0 + tan2)
     sin_h = np.sqrt(np.maximum(0.0, 1.0 - cos_h * cos_h))
     phi = np.pi * (np.arange(n_phi) + 0.5) / n_phi
-    h = np.stack([sin_h[:, None] * np.cos(phi), sin_h[:, None] * np.sin(phi),
-                  np.broadcast_to(cos_h[:, None], (n_theta, n_phi))], axis=-1).reshape(-1, 3)
+    h = np.stack(
+        [
+            sin_h[:, None] * np.cos(phi),
+            sin_h[:, None] * np.sin(phi),
+            np.broadcast_to(cos_h[:, None], (n_theta, n_phi)),
+        ],
+        axis=-1,
+    ).reshape(-1, 3)
     w = np.repeat(2.0 * s * ws, n_phi) / n_phi  # ∫ over φ ∈ (0, 2π) = 2 × ∫ over (0, π), /2π·2π
     return h, w
 
@@ -144,8 +152,9 @@ def transfer_samples(cos_o: float, alpha: float, l_max: int, n_theta: int = N_TH
 
 
 @functools.lru_cache(maxsize=32)
-def microfacet_kernel(roughness: float, l_max: int, view_samples: int, u_degree: int,
-                      n_theta: int = N_THETA, n_phi: int = N_PHI) -> np.ndarray:
+def microfacet_kernel(
+    roughness: float, l_max: int, view_samples: int, u_degree: int, n_theta: int = N_THETA, n_phi: int = N_PHI
+) -> np.ndarray:
     """K (A, K_coeffs, U): SH projection of D G₂ ℓ_k(u) cos / (4 cos cos) per view angle. Cached."""
     alpha = float(brdf.alpha_from_roughness(roughness))
     out = []
@@ -202,7 +211,9 @@ def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_m
         scale = 1.0 / comp.to_xyz()[1]  # Y = 1, as illuminant_spd
         smooth = comp.evaluate_smooth(wl) * scale
         lines = np.asarray(comp.spike_wavelengths_nm, dtype=float)
-        line_xyz = spectra.cmfs(lines) * (np.asarray(comp.spike_powers) * scale)[:, None] / spectra.cmf_integrals()
+        line_xyz = (
+            spectra.cmfs(lines) * (np.asarray(comp.spike_powers) * scale)[:, None] / spectra.cmf_integrals()
+        )
         rgb_w = np.concatenate([(spectra.xyz_weights(wl) @ m.T) * smooth[:, None], line_xyz @ m.T])
         line_basis = np.stack([np.interp(lines, wl, b) for b in basis])
         basis = np.concatenate([basis, line_basis], axis=1)
@@ -219,9 +230,11 @@ def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_m
 # ----------------------------------------------------------------------------------------------
 def optical_path_nm(material: Material) -> float:
     """Upper bound of the round-trip optical path 2 Σ |N_j| d_j over the film (nm), at max thickness."""
-    wl = np.array([spectra.WAVELENGTH_MIN_NM if hasattr(spectra, "WAVELENGTH_MIN_NM") else constants.WAVELENGTH_MIN_NM])
+    wl = np.array(
+        [spectra.WAVELENGTH_MIN_NM if hasattr(spectra, "WAVELENGTH_MIN_NM") else constants.WAVELENGTH_MIN_NM]
+    )
     total = 0.0
-    for i, (model, d) in enumerate(zip(material.indices()[1:-1], material.thicknesses())):
+    for i, (model, d) in enumerate(zip(material.indices()[1:-1], material.thicknesses(), strict=False)):
         if i == 0 and material.varies:
             d = max(d, material.thickness_range_nm[1])
         total += float(np.abs(model.index(wl))[0]) * d
@@ -233,7 +246,10 @@ def auto_wavelength_count(material: Material) -> tuple[int, str]:
     opd = optical_path_nm(material)
     span = 2.0 * np.pi * opd * (1.0 / constants.WAVELENGTH_MIN_NM - 1.0 / constants.WAVELENGTH_MAX_NM)
     count = int(min(4096, max(48, math.ceil(span / constants.MAX_PHASE_STEP))))
-    return count, f"optical path {opd:.0f} nm → {span / (2 * np.pi):.1f} fringes over 360–830 nm → {count} samples"
+    return (
+        count,
+        f"optical path {opd:.0f} nm → {span / (2 * np.pi):.1f} fringes over 360–830 nm → {count} samples",
+    )
 
 
 def auto_thickness_samples(material: Material) -> tuple[int, str]:
@@ -267,7 +283,10 @@ def auto_sh_order(material: Material, target: float = 0.10) -> tuple[int, str]:
     for l_max in range(2, 9):
         err = lobe_truncation_error(material.roughness, l_max)
         if err <= target:
-            return l_max, f"roughness {material.roughness:g}: band-{l_max} truncation error {err:.3f} ≤ {target}"
+            return (
+                l_max,
+                f"roughness {material.roughness:g}: band-{l_max} truncation error {err:.3f} ≤ {target}",
+            )
     err = lobe_truncation_error(material.roughness, 8)
     return 8, f"roughness {material.roughness:g}: lobe needs more than band 8 (error {err:.3f} at 8)"
 
@@ -291,7 +310,9 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str, opd_nm
         nodes = u_nodes(degree)
         fine = u_nodes(2 * degree + 1)
         test = fine[fine >= U_TEST_MIN]
-        both = reflectance_sweep(indices, thickness_sets, wavelengths_nm, np.concatenate([nodes, test]), method=method)
+        both = reflectance_sweep(
+            indices, thickness_sets, wavelengths_nm, np.concatenate([nodes, test]), method=method
+        )
         at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
         interp = np.matmul(u_interpolation_matrix(degree, test), at_nodes)
         err = float(np.max(np.abs(interp - exact))) / max(float(exact.max()), 1e-6)
@@ -340,17 +361,27 @@ class BakeResult:
             "view_samples": int(self.view_angles_rad.size),
             "thickness_axis_nm": [float(self.thicknesses_nm[0]), float(self.thicknesses_nm[-1])],
             "thickness_samples": int(self.thicknesses_nm.size),
-            "wavelength_grid_nm": [float(self.wavelengths_nm[0]), float(self.wavelengths_nm[-1]),
-                                   int(self.wavelengths_nm.size)],
+            "wavelength_grid_nm": [
+                float(self.wavelengths_nm[0]),
+                float(self.wavelengths_nm[-1]),
+                int(self.wavelengths_nm.size),
+            ],
             "u_nodes": self.u_nodes,
             "quadrature": [N_THETA, N_PHI],
         }
 
     def summary(self) -> dict:
-        return {"shape": list(self.data.shape), "bytes_float32": int(self.data.size * 4),
-                "sh_order": self.sh_order, "view_samples": int(self.view_angles_rad.size),
-                "thickness_samples": int(self.thicknesses_nm.size), "wavelengths": int(self.wavelengths_nm.size),
-                "u_nodes": self.u_nodes, "reasons": self.reasons, "timings_s": self.timings_s}
+        return {
+            "shape": list(self.data.shape),
+            "bytes_float32": int(self.data.size * 4),
+            "sh_order": self.sh_order,
+            "view_samples": int(self.view_angles_rad.size),
+            "thickness_samples": int(self.thicknesses_nm.size),
+            "wavelengths": int(self.wavelengths_nm.size),
+            "u_nodes": self.u_nodes,
+            "reasons": self.reasons,
+            "timings_s": self.timings_s,
+        }
 
 
 @dataclass(frozen=True)
@@ -428,7 +459,9 @@ def bake(material: Material, progress=None) -> BakeResult:
     t0 = time.perf_counter()
     report = progress or (lambda fraction, text: None)
     p = plan(material)
-    wl, g = spectral_quadrature(p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode)
+    wl, g = spectral_quadrature(
+        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
+    )
     indices = material.indices()
     sets, axis = thickness_sets(material, p.thickness_samples)
     method = _method(material)
@@ -448,17 +481,29 @@ def bake(material: Material, progress=None) -> BakeResult:
     a, k, u = kernel.shape
     data = (kernel.reshape(a * k, u) @ rg).reshape(a, k, r_nodes.shape[0], 3, 3).transpose(2, 0, 1, 3, 4)
     if material.base_color is not None:
-        data = data + _diffuse_term(material, p.sh_order, view_cosines(p.view_samples), r_nodes, u_count, g, wl)
+        data = data + _diffuse_term(
+            material, p.sh_order, view_cosines(p.view_samples), r_nodes, u_count, g, wl
+        )
     if material.colour_mode == "per_channel":
         data = np.einsum("taikk->taik", data)
     t4 = time.perf_counter()
     report(1.0, "done")
-    reasons = dict(p.reasons, u_nodes=f"{u_count} Chebyshev nodes in each of {len(U_EDGES) - 1} graded intervals: "
-                                      f"interpolation error {u_err:.1e} (relative)")
-    return BakeResult(data=data, material=material, sh_order=p.sh_order, view_angles_rad=view_angles(p.view_samples),
-                      thicknesses_nm=axis, wavelengths_nm=wl, u_nodes=u_count, reasons=reasons,
-                      timings_s={"reflectance": t2 - t1, "kernel": t3 - t2, "contract": t4 - t3,
-                                 "total": t4 - t0})
+    reasons = dict(
+        p.reasons,
+        u_nodes=f"{u_count} Chebyshev nodes in each of {len(U_EDGES) - 1} graded intervals: "
+        f"interpolation error {u_err:.1e} (relative)",
+    )
+    return BakeResult(
+        data=data,
+        material=material,
+        sh_order=p.sh_order,
+        view_angles_rad=view_angles(p.view_samples),
+        thicknesses_nm=axis,
+        wavelengths_nm=wl,
+        u_nodes=u_count,
+        reasons=reasons,
+        timings_s={"reflectance": t2 - t1, "kernel": t3 - t2, "contract": t4 - t3, "total": t4 - t0},
+    )
 
 
 def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PHI) -> BakeResult:
@@ -470,7 +515,9 @@ def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PH
     """
     t0 = time.perf_counter()
     p = plan(material)
-    wl, g = spectral_quadrature(p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode)
+    wl, g = spectral_quadrature(
+        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
+    )
     indices = material.indices()
     sets, axis = thickness_sets(material, p.thickness_samples)
     method = _method(material)
@@ -498,6 +545,14 @@ def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PH
             out[t, a] = np.einsum("iw,wkc->ikc", f, g)
     if material.colour_mode == "per_channel":
         out = np.einsum("taikk->taik", out)
-    return BakeResult(data=out, material=material, sh_order=p.sh_order, view_angles_rad=view_angles(p.view_samples),
-                      thicknesses_nm=axis, wavelengths_nm=wl, u_nodes=0, reasons=p.reasons,
-                      timings_s={"total": time.perf_counter() - t0})
+    return BakeResult(
+        data=out,
+        material=material,
+        sh_order=p.sh_order,
+        view_angles_rad=view_angles(p.view_samples),
+        thicknesses_nm=axis,
+        wavelengths_nm=wl,
+        u_nodes=0,
+        reasons=p.reasons,
+        timings_s={"total": time.perf_counter() - t0},
+    )

@@ -136,13 +136,21 @@ def ggx_importance_grid(alpha: float, n_theta: int = 256, n_phi: int = 128):
     tan2 = alpha * alpha * xi / np.maximum(1.0 - xi, 1e-300)
     cos_h = 1.0 / np.sqrt(1.0 + tan2)
     sin_h = np.sqrt(np.maximum(0.0, 1.0 - cos_h * cos_h))
-    h = np.stack(np.broadcast_arrays(sin_h[:, None] * np.cos(phi)[None, :], sin_h[:, None] * np.sin(phi)[None, :],
-                                     cos_h[:, None] + 0 * phi[None, :]), axis=-1)
+    h = np.stack(
+        np.broadcast_arrays(
+            sin_h[:, None] * np.cos(phi)[None, :],
+            sin_h[:, None] * np.sin(phi)[None, :],
+            cos_h[:, None] + 0 * phi[None, :],
+        ),
+        axis=-1,
+    )
     w = (w_theta[:, None] * np.full(n_phi, 1.0 / n_phi)[None, :]).reshape(-1)
     return h.reshape(-1, 3), w
 
 
-def directional_albedo(cos_o, roughness, film_reflectance, n_theta: int = 256, n_phi: int = 128) -> np.ndarray:
+def directional_albedo(
+    cos_o, roughness, film_reflectance, n_theta: int = 256, n_phi: int = 128
+) -> np.ndarray:
     """∫ f_spec(ωi, ωo) cosθi dωi over the hemisphere for each view cosine, shape (len(cos_o), W).
 
     Integrated in half-vector space: f cosθi dωi = D G₂ R(ωo·h) (ωo·h) / cosθo dωh, so with

@@ -32,10 +32,12 @@ def _index_model(name: str, spec):
         raise ValueError(f"{name} must be an index, got {spec!r}")
     if isinstance(spec, (int, float)):
         n, k = float(spec), 0.0
-    elif isinstance(spec, (list, tuple)) and len(spec) == 2 and all(isinstance(v, (int, float)) for v in spec):
+    elif (
+        isinstance(spec, (list, tuple)) and len(spec) == 2 and all(isinstance(v, (int, float)) for v in spec)
+    ):
         n, k = float(spec[0]), float(spec[1])
     elif isinstance(spec, dict) and len(spec) == 1:
-        (kind, value), = spec.items()
+        ((kind, value),) = spec.items()
         if kind == "cauchy":
             coeffs = list(value) + [0.0] * (3 - len(value))
             if not math.isfinite(coeffs[0]) or coeffs[0] <= 0:
@@ -48,8 +50,12 @@ def _index_model(name: str, spec):
 
             return metals.get_metal(value)
         if kind == "table":
-            return TabulatedIndex(tuple(map(float, value["wavelengths_nm"])), tuple(map(float, value["n"])),
-                                  tuple(map(float, value.get("k", [0.0] * len(value["n"])))), name=name)
+            return TabulatedIndex(
+                tuple(map(float, value["wavelengths_nm"])),
+                tuple(map(float, value["n"])),
+                tuple(map(float, value.get("k", [0.0] * len(value["n"])))),
+                name=name,
+            )
         raise ValueError(f"{name}: unknown index kind {kind!r} (use cauchy, sellmeier, metal or table)")
     else:
         raise ValueError(f"{name} must be n, [n, k] or a dict such as {{'metal': 'gold'}}, got {spec!r}")
@@ -58,7 +64,9 @@ def _index_model(name: str, spec):
     if n <= 0:
         raise ValueError(f"{name} must have n > 0, got {n!r}")
     if k < 0:
-        raise ValueError(f"{name} has a negative extinction coefficient k = {k!r} (absorbing media need k ≥ 0)")
+        raise ValueError(
+            f"{name} has a negative extinction coefficient k = {k!r} (absorbing media need k ≥ 0)"
+        )
     return ConstantIndex(n, k)
 
 
@@ -104,8 +112,10 @@ class Material:
     quality: Quality = field(default_factory=Quality)
 
     def __post_init__(self):
-        layers = tuple(l if isinstance(l, Layer) else Layer(**l) if isinstance(l, dict) else Layer(*l)
-                       for l in self.layers)
+        layers = tuple(
+            l if isinstance(l, Layer) else Layer(**l) if isinstance(l, dict) else Layer(*l)
+            for l in self.layers
+        )
         object.__setattr__(self, "layers", layers)
         if not isinstance(self.quality, Quality):
             object.__setattr__(self, "quality", Quality(**dict(self.quality)))
@@ -114,7 +124,11 @@ class Material:
     # ----------------------------------------------------------------------------------------
     def validate(self) -> None:
         """Raise ValueError naming the first invalid parameter."""
-        if not isinstance(self.ambient, (int, float)) or not math.isfinite(self.ambient) or self.ambient < 1.0:
+        if (
+            not isinstance(self.ambient, (int, float))
+            or not math.isfinite(self.ambient)
+            or self.ambient < 1.0
+        ):
             raise ValueError(f"ambient must be a real index ≥ 1 (air 1.0, water 1.33), got {self.ambient!r}")
         for i, layer in enumerate(self.layers):
             _index_model(f"layers[{i}].index", layer.index)
@@ -123,26 +137,45 @@ class Material:
                 raise ValueError(f"layers[{i}].thickness_nm must be finite and ≥ 0, got {d!r}")
         _index_model("substrate", self.substrate)
         r = self.roughness
-        if isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) or not 0.0 <= r <= 1.0:
+        if (
+            isinstance(r, bool)
+            or not isinstance(r, (int, float))
+            or not math.isfinite(r)
+            or not 0.0 <= r <= 1.0
+        ):
             raise ValueError(f"roughness must lie in [0, 1], got {r!r}")
         if self.thickness_range_nm is not None:
             if not self.layers:
                 raise ValueError("thickness_range_nm needs at least one film layer")
-            lo, hi = (self.thickness_range_nm + (None, None))[:2] if len(self.thickness_range_nm) == 2 else (None, None)
+            lo, hi = (
+                (self.thickness_range_nm + (None, None))[:2]
+                if len(self.thickness_range_nm) == 2
+                else (None, None)
+            )
             if lo is None or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (lo, hi)):
-                raise ValueError(f"thickness_range_nm must be (min, max) finite numbers, got {self.thickness_range_nm!r}")
+                raise ValueError(
+                    f"thickness_range_nm must be (min, max) finite numbers, got {self.thickness_range_nm!r}"
+                )
             if not 0 <= lo < hi:
                 raise ValueError(f"thickness_range_nm needs 0 ≤ min < max, got {self.thickness_range_nm!r}")
         if self.base_color is not None:
-            if len(self.base_color) != 3 or not all(isinstance(v, (int, float)) and 0 <= v <= 1 for v in self.base_color):
+            if len(self.base_color) != 3 or not all(
+                isinstance(v, (int, float)) and 0 <= v <= 1 for v in self.base_color
+            ):
                 raise ValueError(f"base_color must be three values in [0, 1], got {self.base_color!r}")
         _checks.choice("model", self.model, MODELS)
         _checks.choice("colour_mode", self.colour_mode, COLOUR_MODES)
         if self.model == "glassner2000" and len(self.layers) != 1:
-            raise ValueError("model 'glassner2000' is the paper's single-film approximation: use exactly one layer")
+            raise ValueError(
+                "model 'glassner2000' is the paper's single-film approximation: use exactly one layer"
+            )
         q = self.quality
-        for name, lo, hi in (("sh_order", 0, MAX_SH_ORDER), ("view_samples", 2, 512),
-                             ("thickness_samples", 2, 512), ("wavelength_count", 3, 8192)):
+        for name, lo, hi in (
+            ("sh_order", 0, MAX_SH_ORDER),
+            ("view_samples", 2, 512),
+            ("thickness_samples", 2, 512),
+            ("wavelength_count", 3, 8192),
+        ):
             v = getattr(q, name)
             if v != AUTO:
                 _checks.positive_int(f"quality.{name}", v, minimum=lo, maximum=hi)
@@ -154,8 +187,11 @@ class Material:
     # ----------------------------------------------------------------------------------------
     def indices(self) -> list:
         """Dispersion models from ambient to substrate."""
-        return ([ConstantIndex(float(self.ambient))] + [_index_model(f"layers[{i}].index", l.index)
-                for i, l in enumerate(self.layers)] + [_index_model("substrate", self.substrate)])
+        return (
+            [ConstantIndex(float(self.ambient))]
+            + [_index_model(f"layers[{i}].index", l.index) for i, l in enumerate(self.layers)]
+            + [_index_model("substrate", self.substrate)]
+        )
 
     def thicknesses(self) -> list[float]:
         return [float(l.thickness_nm) for l in self.layers]
@@ -192,30 +228,42 @@ def _beetle_layers(pairs: int = 8) -> tuple:
     # Chitin (n ≈ 1.56) / melanised chitin (n ≈ 1.68 + 0.05i) reflectors, after Stavenga et al.
     # (2011), J. R. Soc. Interface 8, 1246 ("Coloration principles of nymphaline butterflies"),
     # and Kinoshita (2008), *Structural Colors in the Realm of Nature*, ch. 5.
-    return tuple(Layer(1.56 if i % 2 == 0 else [1.68, 0.05], 95.0 if i % 2 == 0 else 80.0) for i in range(2 * pairs))
+    return tuple(
+        Layer(1.56 if i % 2 == 0 else [1.68, 0.05], 95.0 if i % 2 == 0 else 80.0) for i in range(2 * pairs)
+    )
 
 
 #: Named presets; each value documents where its numbers come from.
 PRESETS: dict[str, Material] = {
     # Water film in air; soap lowers the surface tension, not the index (n ≈ 1.33).
-    "soap_film": Material(layers=(Layer(1.33, 500.0),), substrate=1.0, roughness=0.05,
-                          thickness_range_nm=(0.0, 1000.0)),
+    "soap_film": Material(
+        layers=(Layer(1.33, 500.0),), substrate=1.0, roughness=0.05, thickness_range_nm=(0.0, 1000.0)
+    ),
     # Mineral oil (n ≈ 1.47) on water (1.33); slicks are 0.1–1 µm thick.
-    "oil_on_water": Material(layers=(Layer(1.47, 300.0),), substrate=1.33, roughness=0.1,
-                             thickness_range_nm=(100.0, 800.0)),
+    "oil_on_water": Material(
+        layers=(Layer(1.47, 300.0),), substrate=1.33, roughness=0.1, thickness_range_nm=(100.0, 800.0)
+    ),
     # Anodic TiO₂ (n ≈ 2.4–2.7 across the visible; Cauchy fit to anatase, DeVore 1951 JOSA 41, 416)
     # on titanium (Johnson & Christy 1974). 20–150 nm oxide gives gold → purple → blue → green.
-    "anodised_titanium": Material(layers=(Layer({"cauchy": [2.30, 0.045, 0.0]}, 75.0),),
-                                  substrate={"metal": "titanium"}, roughness=0.25,
-                                  thickness_range_nm=(20.0, 150.0)),
+    "anodised_titanium": Material(
+        layers=(Layer({"cauchy": [2.30, 0.045, 0.0]}, 75.0),),
+        substrate={"metal": "titanium"},
+        roughness=0.25,
+        thickness_range_nm=(20.0, 150.0),
+    ),
     # Heat tint: an iron-oxide layer (Fe₃O₄/Fe₂O₃, n ≈ 2.6 + 0.3i) on iron; 20–100 nm gives
     # straw → bronze → purple → blue as temperature rises.
-    "heat_tinted_steel": Material(layers=(Layer([2.6, 0.3], 60.0),), substrate={"metal": "iron"},
-                                  roughness=0.3, thickness_range_nm=(20.0, 100.0)),
+    "heat_tinted_steel": Material(
+        layers=(Layer([2.6, 0.3], 60.0),),
+        substrate={"metal": "iron"},
+        roughness=0.3,
+        thickness_range_nm=(20.0, 100.0),
+    ),
     "beetle_multilayer": Material(layers=_beetle_layers(), substrate=1.56, roughness=0.35),
     # The paper's coated car window: a ~quarter-wave MgF₂ (1.38) coating on glass (1.52).
-    "coated_car_window": Material(layers=(Layer(1.38, 140.0),), substrate=1.52, roughness=0.15,
-                                  thickness_range_nm=(100.0, 300.0)),
+    "coated_car_window": Material(
+        layers=(Layer(1.38, 140.0),), substrate=1.52, roughness=0.15, thickness_range_nm=(100.0, 300.0)
+    ),
 }
 
 

@@ -45,8 +45,11 @@ def albedo_rgb(result, t=0):
 
 
 def test_l0_entry_is_the_directional_albedo_of_an_independent_quadrature():
-    material = Material(layers=(Layer(1.33, 350.0),), roughness=0.4,
-                        quality=Quality(sh_order=2, view_samples=7, wavelength_count=64))
+    material = Material(
+        layers=(Layer(1.33, 350.0),),
+        roughness=0.4,
+        quality=Quality(sh_order=2, view_samples=7, wavelength_count=64),
+    )
     result = bake.bake(material)
     wl, g = bake.spectral_quadrature(64, material.colour_space, "E", "spectral")
     film = lambda c: reflectance(material.indices(), material.thicknesses(), wl, c)  # noqa: E731
@@ -63,8 +66,9 @@ HARD = {
     "normal and grazing views": Material(roughness=0.3, quality=Quality(view_samples=91)),
     "zero thickness": Material(layers=(Layer(1.5, 0.0),), substrate=1.5, roughness=0.3),
     "20 µm film": Material(layers=(Layer(1.33, 20000.0),), roughness=0.3),
-    "film below the ambient (TIR)": Material(ambient=1.5, layers=(Layer(1.2, 300.0),), substrate=1.5,
-                                            roughness=0.3),
+    "film below the ambient (TIR)": Material(
+        ambient=1.5, layers=(Layer(1.2, 300.0),), substrate=1.5, roughness=0.3
+    ),
     "gold": Material(layers=(Layer(1.4, 100.0),), substrate={"metal": "gold"}, roughness=0.2),
     "roughness 0.02": Material(roughness=0.02, quality=Quality(sh_order=8)),
     "roughness 1": Material(roughness=1.0),
@@ -85,10 +89,22 @@ def test_hard_cases_are_finite_and_physically_bounded(name):
 
 
 def test_zero_thickness_film_equals_the_bare_substrate():
-    film = bake.bake(Material(layers=(Layer(2.0, 0.0),), substrate=1.5, roughness=0.3,
-                              quality=Quality(sh_order=3, view_samples=9, wavelength_count=48)))
-    bare = bake.bake(Material(layers=(), substrate=1.5, roughness=0.3,
-                              quality=Quality(sh_order=3, view_samples=9, wavelength_count=48)))
+    film = bake.bake(
+        Material(
+            layers=(Layer(2.0, 0.0),),
+            substrate=1.5,
+            roughness=0.3,
+            quality=Quality(sh_order=3, view_samples=9, wavelength_count=48),
+        )
+    )
+    bare = bake.bake(
+        Material(
+            layers=(),
+            substrate=1.5,
+            roughness=0.3,
+            quality=Quality(sh_order=3, view_samples=9, wavelength_count=48),
+        )
+    )
     assert np.max(np.abs(film.data - bare.data)) <= 1e-12
 
 
@@ -110,7 +126,8 @@ def test_spectral_quadrature_integrates_illuminants_including_lines(count, tol):
             expected = np.ones(3)
         else:
             expected = spectra.xyz_to_rgb_matrix("Linear Rec.709") @ spectra.spectrum_to_xyz(
-                s, lam, weights=np.gradient(lam))
+                s, lam, weights=np.gradient(lam)
+            )
         # Lines are exact nodes; what remains is the smooth part sampled once per cell against the
         # cell-integrated CMFs: measured 2.8e-3 (FL) / 6.9e-4 (D65) at 48 cells, 6e-4 at 256,
         # against a Riemann sum of the 5 nm table (itself good to ~2e-4).
@@ -134,8 +151,10 @@ def test_automatic_choices_follow_the_physics():
     assert thick.wavelength_count > 10 * thin.wavelength_count >= 10 * 48
     assert thin.thickness_samples == 1  # constant thickness → 1-D table
     varying = bake.plan(Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 2000.0)))
-    assert varying.thickness_samples > bake.plan(
-        Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 200.0))).thickness_samples
+    assert (
+        varying.thickness_samples
+        > bake.plan(Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 200.0))).thickness_samples
+    )
     orders = [bake.plan(Material(roughness=r)).sh_order for r in (0.1, 0.4, 0.7, 1.0)]
     # Glossy lobes need the most bands; at α = 1 masking sharpens the lobe's edge again, so
     # the order is not strictly monotonic (measured 8, 8, 3, 4) — only rough < glossy holds.

@@ -50,8 +50,11 @@ def stacks(draw):
     films = []
     for _ in range(layers):
         kind = draw(st.sampled_from(["dielectric", "low", "metal", "equal"]))
-        films.append({"dielectric": draw(dielectric), "low": draw(low_index), "metal": draw(metal),
-                      "equal": None}[kind])
+        films.append(
+            {"dielectric": draw(dielectric), "low": draw(low_index), "metal": draw(metal), "equal": None}[
+                kind
+            ]
+        )
     substrate = draw(st.one_of(dielectric, metal))
     films = [substrate if f is None else f for f in films]  # "equal": film index = substrate's
     d = [draw(thickness) for _ in range(layers)]
@@ -170,8 +173,10 @@ def test_dispersion_models():
     as_array = reflectance([1.0, cauchy.index(wl), 1.0], [300.0], wl, [0.7])
     as_model = reflectance([1.0, cauchy, 1.0], [300.0], wl, [0.7])
     assert np.array_equal(as_array, as_model)
-    assert np.array_equal(reflectance([1.0, ConstantIndex(1.4), 1.0], [200.0], wl, [1.0]),
-                          reflectance([1.0, 1.4, 1.0], [200.0], wl, [1.0]))
+    assert np.array_equal(
+        reflectance([1.0, ConstantIndex(1.4), 1.0], [200.0], wl, [1.0]),
+        reflectance([1.0, 1.4, 1.0], [200.0], wl, [1.0]),
+    )
     with pytest.raises(ValueError, match="wavelengths_nm outside"):
         tab.index([700.0])
     with pytest.raises(ValueError, match="equally many"):
@@ -205,8 +210,12 @@ def test_dispersion_models():
     ],
 )
 def test_bad_input_raises_value_error_naming_the_parameter(kwargs, match):
-    args = {"indices": [1.0, 1.33, 1.0], "thicknesses_nm": [300.0], "wavelengths_nm": [400.0, 500.0],
-            "cos_theta": [1.0, 0.5]}
+    args = {
+        "indices": [1.0, 1.33, 1.0],
+        "thicknesses_nm": [300.0],
+        "wavelengths_nm": [400.0, 500.0],
+        "cos_theta": [1.0, 0.5],
+    }
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         reflectance(**args)
@@ -215,7 +224,11 @@ def test_bad_input_raises_value_error_naming_the_parameter(kwargs, match):
 def test_extreme_inputs_stay_finite():
     wl = np.linspace(360, 830, 40)
     cos = np.array([0.0, 1e-9, 1e-4, 0.5, 1.0])
-    for indices, d in [([1.0, 1.33, 1.0], [1e6]), ([1.0, 2.5 + 3.0j, 1.5], [1e5]),
-                       ([1.7, 1.0, 1.0, 1.7], [5e4, 1e4]), ([1.0, 0.2 + 3.5j], [])]:
+    for indices, d in [
+        ([1.0, 1.33, 1.0], [1e6]),
+        ([1.0, 2.5 + 3.0j, 1.5], [1e5]),
+        ([1.7, 1.0, 1.0, 1.7], [5e4, 1e4]),
+        ([1.0, 0.2 + 3.5j], []),
+    ]:
         r = reflectance(indices, d, wl, cos)
         assert np.all(np.isfinite(r)) and np.all(r >= 0) and np.all(r <= 1 + 1e-12)

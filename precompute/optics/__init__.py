@@ -70,12 +70,16 @@ def prepare(indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization="un
             f"cos_theta must be ≥ 0 (light arrives from the ambient side), got {cos[cos < 0][0]!r}"
         )
     if isinstance(indices, (str, bytes)) or not hasattr(indices, "__len__"):
-        raise ValueError(f"indices must be a sequence of media [ambient, layers…, substrate], got {indices!r}")
+        raise ValueError(
+            f"indices must be a sequence of media [ambient, layers…, substrate], got {indices!r}"
+        )
     if len(indices) < 2:
         raise ValueError(f"indices needs at least an ambient and a substrate, got {len(indices)} media")
     media = [resolve_index(f"indices[{i}]", value, wl) for i, value in enumerate(indices)]
     if np.any(media[0].imag != 0):
-        raise ValueError("indices[0] (the ambient) must be non-absorbing (k = 0) for an incidence angle to exist")
+        raise ValueError(
+            "indices[0] (the ambient) must be non-absorbing (k = 0) for an incidence angle to exist"
+        )
     d = np.atleast_1d(np.asarray(thicknesses_nm if thicknesses_nm is not None else [], dtype=float))
     if d.ndim != 1 or d.shape[0] != len(media) - 2:
         raise ValueError(
@@ -100,7 +104,9 @@ def _dispatch(media, thicknesses, wl, cos, polarization, method):
     return stack_reflectance(media, thicknesses, wl, cos, polarization)
 
 
-def reflectance(indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization="unpolarized", method="exact"):
+def reflectance(
+    indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization="unpolarized", method="exact"
+):
     """Specular reflectance of a film stack, shape (len(cos_theta), len(wavelengths_nm)).
 
     Parameters
@@ -134,8 +140,9 @@ def reflectance(indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization
     return _dispatch(media, list(d), wl, cos, polarization, method)
 
 
-def reflectance_sweep(indices, thickness_sets_nm, wavelengths_nm, cos_theta, polarization="unpolarized",
-                      method="exact"):
+def reflectance_sweep(
+    indices, thickness_sets_nm, wavelengths_nm, cos_theta, polarization="unpolarized", method="exact"
+):
     """Reflectance for a batch of thickness sets, shape (T, len(cos_theta), len(wavelengths_nm)).
 
     ``thickness_sets_nm`` has shape (T, L): row t gives every layer's thickness for entry t
@@ -150,5 +157,7 @@ def reflectance_sweep(indices, thickness_sets_nm, wavelengths_nm, cos_theta, pol
     media, _, wl, cos = prepare(indices, sets[0], wavelengths_nm, cos_theta, polarization, method)
     thicknesses = [sets[:, j, None, None] for j in range(sets.shape[1])]
     if not thicknesses:
-        return np.broadcast_to(stack_reflectance(media, [], wl, cos, polarization), (sets.shape[0], cos.size, wl.size))
+        return np.broadcast_to(
+            stack_reflectance(media, [], wl, cos, polarization), (sets.shape[0], cos.size, wl.size)
+        )
     return _dispatch(media, thicknesses, wl, cos, polarization, method)

@@ -44,14 +44,22 @@ def bin_edges_from_centres(wavelengths_nm: np.ndarray) -> np.ndarray:
 
 def subsample_count(media, thicknesses_nm, edges_nm) -> int:
     """Sub-samples per bin so that no sub-bin spans more than MAX_PHASE_STEP of phase."""
-    path = sum(float(np.max(np.abs(m))) * float(d) for m, d in zip(media[1:-1], thicknesses_nm))
+    path = sum(float(np.max(np.abs(m))) * float(d) for m, d in zip(media[1:-1], thicknesses_nm, strict=False))
     dsigma = np.max(np.abs(1.0 / edges_nm[:-1] - 1.0 / edges_nm[1:]))
     span = 4.0 * math.pi * path * dsigma
     return int(min(MAX_SUBSAMPLES, max(1, math.ceil(span / constants.MAX_PHASE_STEP))))
 
 
-def band_averaged_reflectance(indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization="unpolarized",
-                              method="exact", bin_edges_nm=None, subsamples=None):
+def band_averaged_reflectance(
+    indices,
+    thicknesses_nm,
+    wavelengths_nm,
+    cos_theta,
+    polarization="unpolarized",
+    method="exact",
+    bin_edges_nm=None,
+    subsamples=None,
+):
     """Mean reflectance over each wavelength bin, shape (len(cos_theta), len(wavelengths_nm)).
 
     Arguments as :func:`precompute.optics.reflectance`. Indices given as arrays over
@@ -60,12 +68,22 @@ def band_averaged_reflectance(indices, thicknesses_nm, wavelengths_nm, cos_theta
     midpoints between samples; ``subsamples`` overrides the automatic count.
     """
     media, d, wl, cos = prepare(indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization, method)
-    edges = bin_edges_from_centres(wl) if bin_edges_nm is None else _checks.finite_array("bin_edges_nm", bin_edges_nm)
+    edges = (
+        bin_edges_from_centres(wl)
+        if bin_edges_nm is None
+        else _checks.finite_array("bin_edges_nm", bin_edges_nm)
+    )
     if edges.shape != (wl.size + 1,) or np.any(np.diff(edges) <= 0):
-        raise ValueError(f"bin_edges_nm must be {wl.size + 1} strictly increasing edges, got shape {edges.shape}")
+        raise ValueError(
+            f"bin_edges_nm must be {wl.size + 1} strictly increasing edges, got shape {edges.shape}"
+        )
     if np.any(edges <= 0):
         raise ValueError("bin_edges_nm must be > 0")
-    m = subsample_count(media, d, edges) if subsamples is None else _checks.positive_int("subsamples", subsamples)
+    m = (
+        subsample_count(media, d, edges)
+        if subsamples is None
+        else _checks.positive_int("subsamples", subsamples)
+    )
     frac = (np.arange(m) + 0.5) / m
     sub = (edges[:-1, None] + (edges[1:] - edges[:-1])[:, None] * frac[None, :]).reshape(-1)
 
@@ -76,6 +94,6 @@ def band_averaged_reflectance(indices, thicknesses_nm, wavelengths_nm, cos_theta
             return np.full(sub.shape, resolved[0])
         return np.interp(sub, wl, resolved.real) + 1j * np.interp(sub, wl, resolved.imag)
 
-    sub_media = [at_subsamples(i, v, r) for i, (v, r) in enumerate(zip(indices, media))]
+    sub_media = [at_subsamples(i, v, r) for i, (v, r) in enumerate(zip(indices, media, strict=False))]
     r = _dispatch(sub_media, list(d), sub, cos, polarization, method)
     return r.reshape(cos.size, wl.size, m).mean(axis=-1)

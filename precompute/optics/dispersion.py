@@ -67,7 +67,7 @@ class SellmeierIndex:
 
     def index(self, wavelengths_nm) -> np.ndarray:
         lam2 = (np.asarray(wavelengths_nm, dtype=float) * 1e-3) ** 2
-        n2 = 1.0 + sum(b * lam2 / (lam2 - c) for b, c in zip(self.B, self.C))
+        n2 = 1.0 + sum(b * lam2 / (lam2 - c) for b, c in zip(self.B, self.C, strict=False))
         if np.any(n2 <= 0):
             raise ValueError("SellmeierIndex gives n² ≤ 0 at some wavelength: a resonance lies in range")
         return np.sqrt(n2).astype(complex)
@@ -106,7 +106,9 @@ class TabulatedIndex:
 
 
 #: Fused silica, Malitson (1965), valid 0.21–3.71 µm.
-FUSED_SILICA = SellmeierIndex(B=(0.6961663, 0.4079426, 0.8974794), C=(0.0684043**2, 0.1162414**2, 9.896161**2))
+FUSED_SILICA = SellmeierIndex(
+    B=(0.6961663, 0.4079426, 0.8974794), C=(0.0684043**2, 0.1162414**2, 9.896161**2)
+)
 
 
 def is_model(value) -> bool:
@@ -132,7 +134,9 @@ def resolve_index(name: str, value, wavelengths_nm: np.ndarray) -> np.ndarray:
     else:
         arr = _checks.finite_array(name, value, allow_complex=True)
         if arr.ndim > 1:
-            raise ValueError(f"{name} must be a scalar or a 1-D array over wavelengths_nm, got shape {arr.shape}")
+            raise ValueError(
+                f"{name} must be a scalar or a 1-D array over wavelengths_nm, got shape {arr.shape}"
+            )
         if arr.ndim == 1 and arr.shape[0] != wavelengths_nm.shape[0]:
             raise ValueError(
                 f"{name} has {arr.shape[0]} values but wavelengths_nm has {wavelengths_nm.shape[0]}"

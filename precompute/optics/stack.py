@@ -70,4 +70,6 @@ def stack_reflectance(media, thicknesses, wavelengths_nm, cos_theta, polarizatio
         rs = stack_amplitude(media, thicknesses, wavelengths_nm, cos_theta, "s")
         rp = stack_amplitude(media, thicknesses, wavelengths_nm, cos_theta, "p")
         return np.clip(0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2), 0.0, 1.0)
-    return np.clip(np.abs(stack_amplitude(media, thicknesses, wavelengths_nm, cos_theta, polarization)) ** 2, 0.0, 1.0)
+    return np.clip(
+        np.abs(stack_amplitude(media, thicknesses, wavelengths_nm, cos_theta, polarization)) ** 2, 0.0, 1.0
+    )

@@ -1,0 +1,304 @@
+"""Command line: ``python -m precompute bake|render|presets|plan``.
+
+Run ``python -m precompute --help`` (or ``<command> --help``) for an artist-readable guide.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+from . import bake, hdri, render, table_io
+from .material import AUTO, PRESETS, Layer, Material, Quality, preset
+
+EPILOG = """examples:
+  python -m precompute presets
+  python -m precompute bake --preset soap_film --out soap.exr
+  python -m precompute bake --film-index 1.45 --thickness 350 --substrate gold --roughness 0.2 --out gold.exr
+  python -m precompute bake --preset oil_on_water --thickness-range 100 900 --sh-order 6 --half --out oil.exr
+  python -m precompute render --preset anodised_titanium --hdri studio --out titanium.png
+"""
+
+
+class Progress:
+    """A one-line progress bar on stderr (silent when stderr is not a terminal and quiet is set)."""
+
+    def __init__(self, label: str, enabled: bool = True):
+        self.label, self.enabled, self.start = label, enabled, time.perf_counter()
+
+    def __call__(self, fraction: float, text: str = "") -> None:
+        if not self.enabled:
+            return
+        width = 28
+        filled = int(round(width * min(max(fraction, 0.0), 1.0)))
+        bar = "█" * filled + "·" * (width - filled)
+        elapsed = time.perf_counter() - self.start
+        end = "\n" if fraction >= 1.0 else ""
+        sys.stderr.write(f"\r{self.label} [{bar}] {fraction * 100:5.1f}% {elapsed:6.1f}s {text:<28}{end}")
+        sys.stderr.flush()
+
+
+def _index_arg(text: str):
+    """'1.45' → 1.45; '2.4+0.3j' or '2.4,0.3' → [2.4, 0.3]; 'gold' → {'metal': 'gold'}."""
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    if "," in text:
+        n, k = (float(v) for v in text.split(","))
+        return [n, k]
+    try:
+        c = complex(text.replace("i", "j"))
+        return [c.real, c.imag]
+    except ValueError:
+        return {"metal": text}
+
+
+def _quality_value(text: str):
+    return text if text == AUTO else int(text)
+
+
+def add_material_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("material (start from --preset, then override)")
+    g.add_argument("--preset", choices=sorted(PRESETS), help="start from a named material")
+    g.add_argument("--film-index", type=_index_arg, help="film index: 1.33, 2.4,0.3 (n,k) or a metal name")
+    g.add_argument("--thickness", type=float, help="film thickness in nm (top layer)")
+    g.add_argument(
+        "--thickness-range",
+        type=float,
+        nargs=2,
+        metavar=("MIN", "MAX"),
+        help="thickness varies over the surface between MIN and MAX nm (adds a table axis)",
+    )
+    g.add_argument("--constant-thickness", action="store_true", help="drop a preset's thickness variation")
+    g.add_argument("--layers", help="full stack as JSON: [[index, thickness_nm], ...] from the top")
+    g.add_argument(
+        "--substrate",
+        type=_index_arg,
+        help="substrate index or metal (gold, silver, copper, aluminium, titanium, iron)",
+    )
+    g.add_argument("--ambient", type=float, help="index of the medium the surface sits in (air 1.0)")
+    g.add_argument("--roughness", type=float, help="Blender roughness 0–1 (GGX α = roughness²)")
+    g.add_argument(
+        "--base-color", type=float, nargs=3, metavar=("R", "G", "B"), help="diffuse base under the film"
+    )
+    g.add_argument(
+        "--model", choices=["exact", "glassner2000"], help="optics: exact (default) or the paper's eq. 4"
+    )
+    g.add_argument(
+        "--colour-mode",
+        choices=["spectral", "per_channel"],
+        help="spectral 3×3 (default) or Cycles-matching per channel",
+    )
+    g.add_argument("--colour-space", choices=["Linear Rec.709", "Linear Rec.2020", "ACEScg"])
+    g.add_argument("--illuminant", help="light spectrum shape: E (default), D65, A, FL1–FL12")
+    q = p.add_argument_group("quality (each 'auto' unless given)")
+    q.add_argument("--sh-order", type=_quality_value, help="highest SH band 0–8")
+    q.add_argument("--view-samples", type=_quality_value, help="θo samples")
+    q.add_argument("--thickness-samples", type=_quality_value, help="samples along the thickness axis")
+    q.add_argument("--wavelengths", type=_quality_value, help="wavelength samples")
+
+
+def material_from_args(args) -> Material:
+    base = preset(args.preset) if args.preset else Material()
+    changes = {}
+    layers = list(base.layers)
+    if args.layers:
+        layers = [Layer(*row) for row in json.loads(args.layers)]
+    if args.film_index is not None or args.thickness is not None:
+        top = layers[0] if layers else Layer(1.33, 400.0)
+        layers[0:1] = [
+            Layer(
+                args.film_index if args.film_index is not None else top.index,
+                args.thickness if args.thickness is not None else top.thickness_nm,
+            )
+        ]
+    changes["layers"] = tuple(layers)
+    if args.thickness_range:
+        changes["thickness_range_nm"] = tuple(args.thickness_range)
+    elif args.constant_thickness or (args.thickness is not None and not args.preset):
+        changes["thickness_range_nm"] = None
+    for name in ("substrate", "ambient", "roughness", "model", "colour_mode", "colour_space", "illuminant"):
+        value = getattr(args, name)
+        if value is not None:
+            changes[name] = value
+    if args.base_color:
+        changes["base_color"] = tuple(args.base_color)
+    q = base.quality
+    changes["quality"] = Quality(
+        sh_order=args.sh_order if args.sh_order is not None else q.sh_order,
+        view_samples=args.view_samples if args.view_samples is not None else q.view_samples,
+        thickness_samples=args.thickness_samples
+        if args.thickness_samples is not None
+        else q.thickness_samples,
+        wavelength_count=args.wavelengths if args.wavelengths is not None else q.wavelength_count,
+    )
+    return base.with_(**changes)
+
+
+def cmd_presets(args) -> int:
+    for name, m in PRESETS.items():
+        stack = " | ".join(f"{layer.index} {layer.thickness_nm:g} nm" for layer in m.layers[:3])
+        more = f" … ({len(m.layers)} layers)" if len(m.layers) > 3 else ""
+        vary = f", thickness {m.thickness_range_nm[0]:g}–{m.thickness_range_nm[1]:g} nm" if m.varies else ""
+        print(f"{name:20s} {stack}{more} on {m.substrate}, roughness {m.roughness}{vary}")
+    return 0
+
+
+def cmd_plan(args) -> int:
+    m = material_from_args(args)
+    p = bake.plan(m)
+    print(
+        json.dumps(
+            {
+                "sh_order": p.sh_order,
+                "view_samples": p.view_samples,
+                "thickness_samples": p.thickness_samples,
+                "wavelength_count": p.wavelength_count,
+                "reasons": p.reasons,
+            },
+            indent=2,
+        )
+    )
+    return 0
+
+
+def cmd_bake(args) -> int:
+    m = material_from_args(args)
+    progress = Progress("bake", not args.quiet)
+    t0 = time.perf_counter()
+    result = bake.bake(m, progress=progress)
+    out = pathlib.Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    precision = "half" if args.half else "float"
+    table_io.write_table(out, result.data, result.attributes(), precision=precision)
+    summary = dict(
+        result.summary(),
+        output=str(out),
+        precision=precision,
+        file_bytes=out.stat().st_size,
+        wall_s=time.perf_counter() - t0,
+    )
+    if args.half:
+        err = table_io.half_precision_error(result.data)
+        summary["half_error"] = {"max_abs": err.max_abs, "max_rel": err.max_rel}
+    json_path = pathlib.Path(args.json) if args.json else out.with_suffix(".json")
+    json_path.write_text(json.dumps(summary, indent=2))
+    if not args.quiet:
+        print(f"wrote {out} ({summary['file_bytes']} bytes, table {result.data.shape}) and {json_path}")
+    return 0
+
+
+def studiolight(name: str) -> pathlib.Path:
+    """Path of one of the HDRIs shipped inside the bpy package (found without importing bpy)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or not spec.submodule_search_locations:
+        raise FileNotFoundError(
+            f"HDRI {name!r}: not a file, and the bpy package (which ships studio lights) "
+            "is not installed; pass a path to an .exr"
+        )
+    base = pathlib.Path(list(spec.submodule_search_locations)[0])
+    hits = sorted(base.glob(f"*/datafiles/studiolights/world/{name}.exr"))
+    if not hits:
+        names = sorted(p.stem for p in base.glob("*/datafiles/studiolights/world/*.exr"))
+        raise FileNotFoundError(f"HDRI {name!r} not found; bpy ships: {', '.join(names)}")
+    return hits[0]
+
+
+def cmd_render(args) -> int:
+    m = material_from_args(args)
+    path = pathlib.Path(args.hdri)
+    if not path.exists():
+        path = studiolight(args.hdri)
+    progress = Progress("render", not args.quiet)
+    progress(0.02, "reading HDRI")
+    result = bake.bake(m, progress=lambda f, t: progress(0.05 + 0.4 * f, t))
+    image, coeffs = render.prepare_environment(
+        hdri.read_equirect(path), result.sh_order, roughness=m.roughness
+    )
+    progress(0.5, "shading")
+    view = render.sphere_view(args.size, args.size)
+    thickness = (
+        args.thickness
+        if args.thickness is not None
+        else (0.5 * sum(m.thickness_range_nm) if m.varies else None)
+    )
+    rgb = render.render_sphere(
+        result, image, coeffs, view, thickness, reference_material=m if args.reference else None
+    )
+    out = pathlib.Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    render.write_png(out, render.srgb_encode(rgb, args.exposure))
+    render.write_exr(out.with_suffix(".exr"), rgb)
+    progress(1.0, "done")
+    if not np.all(np.isfinite(rgb)):
+        print("warning: the render contains non-finite pixels", file=sys.stderr)
+        return 1
+    if not args.quiet:
+        print(f"wrote {out} and {out.with_suffix('.exr')} ({args.size}×{args.size}, HDRI {path.name})")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m precompute",
+        description="Thin Film SH: bake thin-film interference into SH tables, or preview a material on a sphere.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("presets", help="list the material presets").set_defaults(func=cmd_presets)
+    p = sub.add_parser("plan", help="show the automatic quality choices for a material and why")
+    add_material_arguments(p)
+    p.set_defaults(func=cmd_plan)
+    b = sub.add_parser(
+        "bake",
+        help="bake a material's SH table to an OpenEXR file (+ a JSON summary)",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_material_arguments(b)
+    b.add_argument("--out", required=True, help="output .exr path")
+    b.add_argument("--json", help="summary path (default: beside --out, .json)")
+    b.add_argument("--half", action="store_true", help="store half floats (half the size; error reported)")
+    b.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    b.set_defaults(func=cmd_bake)
+    r = sub.add_parser(
+        "render",
+        help="render a sphere with the material under an HDRI to PNG + EXR",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_material_arguments(r)
+    r.add_argument(
+        "--hdri",
+        default="studio",
+        help="an .exr path, or a studio light shipped with bpy "
+        "(city, courtyard, forest, interior, night, studio, sunrise, sunset)",
+    )
+    r.add_argument(
+        "--out", required=True, help="output .png (an .exr with scene-linear values is written beside)"
+    )
+    r.add_argument("--size", type=int, default=256, help="image size in pixels (square)")
+    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for the PNG")
+    r.add_argument("--reference", action="store_true", help="brute-force spectral ground truth (slow)")
+    r.add_argument("--quiet", action="store_true")
+    r.set_defaults(func=cmd_render)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
