@@ -253,7 +253,7 @@ def auto_wavelength_count(material: Material) -> tuple[int, str]:
 
 
 def auto_thickness_samples(material: Material) -> tuple[int, str]:
-    """Eight samples per fringe at 360 nm across the thickness range (linear interpolation ≤ 8 % of a fringe)."""
+    """Eight samples per fringe at 360 nm across the thickness range (lerp error ≤ 8 % of a fringe)."""
     if not material.varies:
         return 1, "constant thickness: no thickness axis"
     lo, hi = material.thickness_range_nm
@@ -351,7 +351,7 @@ class BakeResult:
             "kind": FORMAT_KIND,
             "material": self.material.to_dict(),
             "sh_order": self.sh_order,
-            "sh_convention": "real orthonormal, index l(l+1)+m, no Condon-Shortley phase, m>=0 kept (l then m)",
+            "sh_convention": "real orthonormal, index l(l+1)+m, no Condon-Shortley phase, m>=0 kept",
             "frame": "view-aligned: z = normal, x = normalise(v - n(n.v))",
             "folded": "nothing: out = sum_i M_i @ L_i with orthonormal radiance coefficients L_i",
             "colour_mode": self.material.colour_mode,
@@ -433,7 +433,7 @@ def _method(material: Material) -> str:
 
 
 def base_spectrum(material: Material, wavelengths_nm: np.ndarray) -> np.ndarray:
-    """Spectral albedo of the diffuse base: its RGB through the linear basis (reflectance, ≤ 1 for RGB ≤ 1)."""
+    """Spectral albedo of the diffuse base: its RGB through the linear basis (≤ 1 for RGB ≤ 1)."""
     grid = spectra.wavelength_grid(256)
     spd = np.asarray(material.base_color) @ spectra.rgb_basis(grid, material.colour_space)
     return np.interp(wavelengths_nm, grid, spd)

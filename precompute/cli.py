@@ -249,7 +249,7 @@ def cmd_render(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m precompute",
-        description="Thin Film SH: bake thin-film interference into SH tables, or preview a material on a sphere.",
+        description="Thin Film SH: bake thin-film interference into SH tables, or preview a material.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

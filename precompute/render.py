@@ -75,7 +75,10 @@ def zyz_from_frame(frame) -> tuple[np.ndarray, ...]:
 
 
 def rotate_z_batch(coeffs, cos_t, sin_t, l_max: int) -> np.ndarray:
-    """Turn per-pixel SH coefficients (…, K, C) by Rz(θ): pairs (c_m, s_m) → (c cos mθ − s sin mθ, c sin mθ + s cos mθ)."""
+    """Turn per-pixel SH coefficients (…, K, C) by Rz(θ).
+
+    Each pair (c_m, s_m) → (c cos mθ − s sin mθ, c sin mθ + s cos mθ), as ``sh.rotation_z``.
+    """
     out = np.array(coeffs, copy=True)
     cm, sm = np.ones_like(cos_t), np.zeros_like(cos_t)
     for m in range(1, l_max + 1):

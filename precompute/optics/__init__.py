@@ -83,7 +83,8 @@ def prepare(indices, thicknesses_nm, wavelengths_nm, cos_theta, polarization="un
     d = np.atleast_1d(np.asarray(thicknesses_nm if thicknesses_nm is not None else [], dtype=float))
     if d.ndim != 1 or d.shape[0] != len(media) - 2:
         raise ValueError(
-            f"thicknesses_nm needs one value per layer: {len(media) - 2} for {len(media)} media, got shape {d.shape}"
+            f"thicknesses_nm needs one value per layer: {len(media) - 2} for {len(media)} media, "
+            f"got shape {d.shape}"
         )
     if d.size:
         _checks.finite_array("thicknesses_nm", d)

@@ -147,6 +147,7 @@ def resolve_index(name: str, value, wavelengths_nm: np.ndarray) -> np.ndarray:
         raise ValueError(f"{name} must have a real part n > 0, got {arr.real.min()!r}")
     if np.any(arr.imag < 0):
         raise ValueError(
-            f"{name} has a negative extinction coefficient k = {arr.imag.min()!r} (absorbing media need k ≥ 0)"
+            f"{name} has a negative extinction coefficient k = {arr.imag.min()!r} "
+            "(absorbing media need k ≥ 0)"
         )
     return np.array(arr)
