@@ -17,6 +17,8 @@ References
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from . import _checks, constants
@@ -170,3 +172,54 @@ def directional_albedo(
         r = film_reflectance(np.clip(u, 0.0, 1.0))
         out.append(scalar @ r)
     return np.array(out)
+
+
+# ----------------------------------------------------------------------------------------------
+# Multiple scattering: energy compensation (Kulla & Conty 2017, as Cycles applies it)
+# ----------------------------------------------------------------------------------------------
+def _ones(cos):
+    return np.ones((np.size(cos), 1))
+
+
+@functools.lru_cache(maxsize=64)
+def ggx_E(roughness: float, cos_key: tuple) -> np.ndarray:
+    """Single-scattering GGX albedo E(μo) with F ≡ 1 at the given view cosines (cached)."""
+    return directional_albedo(np.array(cos_key), roughness, _ones, 128, 64)[:, 0]
+
+
+@functools.lru_cache(maxsize=64)
+def ggx_E_avg(roughness: float) -> float:
+    """Hemispherical average E_avg = 2 ∫₀¹ E(μ) μ dμ (Kulla & Conty 2017, eq. 4)."""
+    mu, w = np.polynomial.legendre.leggauss(32)
+    mu, w = 0.5 * (mu + 1.0), 0.5 * w
+    return float(2.0 * np.sum(ggx_E(roughness, tuple(mu)) * mu * w))
+
+
+def fresnel_average_dielectric(eta: float) -> float:
+    """Hemispherical average of the unpolarised dielectric Fresnel, F_avg = 2 ∫₀¹ F(μ) μ dμ."""
+    from .optics.fresnel import fresnel_dielectric
+
+    mu, w = np.polynomial.legendre.leggauss(64)
+    mu, w = 0.5 * (mu + 1.0), 0.5 * w
+    return float(2.0 * np.sum(fresnel_dielectric(mu, eta) * mu * w))
+
+
+def multiscatter_scale(cos_o, roughness: float, f_avg) -> np.ndarray:
+    """Factor 1 + F_ms (1 − E)/E on the single-scattering lobe, shape (len(cos_o), …f_avg).
+
+    F_ms = F_avg E_avg / (1 − F_avg (1 − E_avg)) is Kulla & Conty's (2017, appendix) multiple-
+    bounce Fresnel with one F_avg cancelled, because the single-scattering lobe already carries
+    one Fresnel bounce — the form Cycles' ``microfacet_ggx_preserve_energy`` uses.
+
+    References
+    ----------
+    Kulla, C. & Conty, A. (2017). Revisiting Physically Based Shading at Imageworks. SIGGRAPH
+    course "Physically Based Shading in Theory and Practice".
+    """
+    cos_o = np.clip(np.atleast_1d(np.asarray(cos_o, dtype=float)), constants.MIN_COS, 1.0)
+    e = ggx_E(float(roughness), tuple(cos_o.tolist()))
+    e_avg = ggx_E_avg(float(roughness))
+    f = np.asarray(f_avg, dtype=float)
+    f_ms = f * e_avg / (1.0 - f * (1.0 - e_avg))
+    missing = (1.0 - e) / np.maximum(e, 1e-6)
+    return 1.0 + np.multiply.outer(missing, f_ms)

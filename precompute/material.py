@@ -23,6 +23,11 @@ from .optics.dispersion import CauchyIndex, ConstantIndex, SellmeierIndex, Tabul
 AUTO = "auto"
 MODELS = ("exact", "glassner2000")
 COLOUR_MODES = ("spectral", "per_channel")
+#: Energy lost to single scattering in rough microfacets: "none"; "film" — Kulla & Conty with the
+#: film's own lobe-average reflectance per channel (physical, the default for our materials);
+#: "cycles" — the film-free dielectric F_avg, as Cycles' Multiscatter GGX does for a Principled
+#: thin film (for interop parity).
+MULTISCATTER = ("none", "film", "cycles")
 MAX_SH_ORDER = 8
 
 
@@ -109,6 +114,7 @@ class Material:
     colour_mode: str = "spectral"
     colour_space: str = "Linear Rec.709"
     illuminant: str = "E"
+    multiscatter: str = "film"
     quality: Quality = field(default_factory=Quality)
 
     def __post_init__(self):
@@ -165,6 +171,7 @@ class Material:
                 raise ValueError(f"base_color must be three values in [0, 1], got {self.base_color!r}")
         _checks.choice("model", self.model, MODELS)
         _checks.choice("colour_mode", self.colour_mode, COLOUR_MODES)
+        _checks.choice("multiscatter", self.multiscatter, MULTISCATTER)
         if self.model == "glassner2000" and len(self.layers) != 1:
             raise ValueError(
                 "model 'glassner2000' is the paper's single-film approximation: use exactly one layer"

@@ -97,3 +97,18 @@ def test_bad_roughness_raises():
     for bad in (-0.1, 1.5, float("nan")):
         with pytest.raises(ValueError, match="roughness"):
             brdf.alpha_from_roughness(bad)
+
+
+def test_ggx_albedo_closed_form_at_alpha_one():
+    # α = 1: D = 1/π, and the normal-view single-scattering albedo is exactly 1 − ln 2.
+    assert brdf.ggx_E(1.0, (1.0,))[0] == pytest.approx(1.0 - np.log(2.0), abs=1e-5)
+
+
+def test_multiscatter_scale_restores_the_white_furnace():
+    # With F ≡ 1 the compensated albedo E·(1 + (1 − E)/E) is exactly 1 (Kulla & Conty 2017).
+    cos = np.array([1.0, 0.5, 0.1])
+    for r in (0.3, 0.7, 1.0):
+        e = brdf.ggx_E(r, tuple(cos))
+        assert np.allclose(e * brdf.multiscatter_scale(cos, r, 1.0), 1.0, atol=1e-12)
+    assert brdf.fresnel_average_dielectric(1.0) == pytest.approx(0.0, abs=1e-15)
+    assert 0.09 < brdf.fresnel_average_dielectric(1.5) < 0.095  # 0.0918 (Kulla & Conty fit: 0.092)

@@ -81,7 +81,7 @@ def test_constant_environment_gives_the_directional_albedo_everywhere():
 def test_sh_render_converges_to_ground_truth_for_a_rough_film():
     # Rough lobe + smooth environment: SH at l = 8 should approach the brute-force render.
     material = Material(
-        layers=(Layer(1.33, 380.0),), roughness=0.8, quality=Quality(sh_order=8, view_samples=32)
+        layers=(Layer(1.33, 380.0),), roughness=0.8, multiscatter="none", quality=Quality(sh_order=8, view_samples=32)
     )
     result = bake.bake(material)
     h, w = 64, 128

@@ -1,0 +1,166 @@
+"""Our renders against Cycles' Principled thin film, on a sphere under bpy's studio HDRIs.
+
+Builds the same scene twice — a Cycles render of a Principled BSDF with Thin Film Thickness /
+IOR (Base Color black, so only the film's specular layer shows), and our renderer with the
+same parameters in the Cycles-matching per-channel colour mode — and reports ΔE2000 over the
+sphere. The camera matches ``precompute.render.sphere_view`` exactly (pinhole on −y looking at
++y, 32° field of view, sphere of radius 1 at the origin).
+
+Run: ``.venv/bin/python -m benchmarks.cycles_compare [--quick]`` → ``docs/cycles-comparison.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pathlib
+import tempfile
+import time
+
+import numpy as np
+
+from precompute import bake, hdri, render, spectra
+from precompute.cli import studiolight
+from precompute.material import Layer, Material
+
+SIZE = 64
+FOV_DEG = 32.0
+DISTANCE = 4.0
+
+
+def delta_e_2000(rgb_a: np.ndarray, rgb_b: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """ΔE2000 per pixel between scene-linear Rec.709 images, at a common exposure.
+
+    HDR values make Lab meaningless unless both images are scaled alike: we scale so that the
+    reference's 95th-percentile luminance over the compared pixels is 0.8 (a well-exposed
+    object), then convert through XYZ (D65 white) to CIELAB.
+    """
+    import colour
+
+    m = spectra.rgb_to_xyz_matrix("Linear Rec.709")
+    y_ref = (reference @ m.T)[..., 1]
+    scale = 0.8 / max(float(np.percentile(y_ref, 95)), 1e-6)
+    white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    lab_a = colour.XYZ_to_Lab(np.maximum(rgb_a, 0) * scale @ m.T, white)
+    lab_b = colour.XYZ_to_Lab(np.maximum(rgb_b, 0) * scale @ m.T, white)
+    return colour.delta_E(lab_a, lab_b, method="CIE 2000")
+
+
+def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, samples=256, size=SIZE):
+    """Render the sphere with Cycles (CPU) and return the scene-linear RGB image (top row first)."""
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.seed = 1
+    scene.cycles.max_bounces = 1  # a single sphere: one bounce sees everything but self-reflection
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = False
+    scene.render.filter_size = 0.5
+    world = bpy.data.worlds.new("env")
+    world.use_nodes = True
+    nt = world.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(hdri_path))
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    scene.world = world
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    mat = bpy.data.materials.new("film")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = base_ior
+    bsdf.inputs["Thin Film Thickness"].default_value = thickness_nm
+    bsdf.inputs["Thin Film IOR"].default_value = film_ior
+    sphere.data.materials.append(mat)
+    cam_data = bpy.data.cameras.new("cam")
+    cam_data.angle = math.radians(FOV_DEG)
+    cam = bpy.data.objects.new("cam", cam_data)
+    cam.location = (0.0, -DISTANCE, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "cycles.exr"
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        scene.render.image_settings.color_depth = "32"
+        scene.render.filepath = str(out)
+        bpy.ops.render.render(write_still=True)
+        return hdri.read_equirect(out)
+
+
+def our_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, size=SIZE, colour_mode="per_channel"):
+    material = Material(layers=(Layer(film_ior, thickness_nm),), substrate=base_ior, roughness=roughness,
+                        colour_mode=colour_mode)
+    result = bake.bake(material)
+    image, coeffs = render.prepare_environment(hdri.read_equirect(hdri_path), result.sh_order, roughness=roughness)
+    view = render.sphere_view(size, size, DISTANCE, FOV_DEG)
+    return render.render_sphere(result, image, coeffs, view), view
+
+
+def object_mask(view, erode: int = 1) -> np.ndarray:
+    """Sphere pixels minus a border of ``erode`` pixels (edge pixels mix sphere and background)."""
+    m = view.mask.copy()
+    for _ in range(erode):
+        m[1:-1, 1:-1] &= m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
+        m[0, :] = m[-1, :] = m[:, 0] = m[:, -1] = False
+    return m
+
+
+def compare_case(hdri_name, thickness_nm, film_ior, base_ior, roughness, samples=256):
+    path = studiolight(hdri_name)
+    t0 = time.perf_counter()
+    ref = cycles_render(path, thickness_nm, film_ior, base_ior, roughness, samples)
+    t_cycles = time.perf_counter() - t0
+    ours, view = our_render(path, thickness_nm, film_ior, base_ior, roughness)
+    mask = object_mask(view)
+    de = delta_e_2000(ours[mask], ref[mask], ref[mask])
+    return {"hdri": hdri_name, "thickness_nm": thickness_nm, "film_ior": film_ior, "base_ior": base_ior,
+            "roughness": roughness, "mean_de": float(np.mean(de)), "p95_de": float(np.percentile(de, 95)),
+            "cycles_s": t_cycles, "ours": ours, "cycles": ref}
+
+
+CASES = [
+    # (hdri, thickness, film ior, base ior, roughness)
+    ("studio", 500.0, 1.33, 1.0, 0.05),
+    ("studio", 500.0, 1.33, 1.0, 0.15),
+    ("courtyard", 300.0, 1.5, 1.5, 0.3),
+    ("courtyard", 800.0, 1.33, 1.5, 0.5),
+    ("studio", 400.0, 2.0, 1.5, 0.6),
+    ("sunset", 2500.0, 1.33, 1.0, 0.6),
+    ("forest", 0.0, 1.33, 1.5, 0.5),
+]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="two cases, 64 samples")
+    parser.add_argument("--out", default="docs/cycles-comparison.md")
+    args = parser.parse_args(argv)
+    cases = CASES[2:4] if args.quick else CASES
+    rows = [compare_case(*c, samples=64 if args.quick else 256) for c in cases]
+    lines = ["# Our SH render vs Cycles (Principled thin film)", "",
+             "Generated by `.venv/bin/python -m benchmarks.cycles_compare`. Sphere 64×64, Cycles CPU 256 spp,",
+             "Base Color black (film specular only), per-channel (Cycles-matching) colour mode, default quality.",
+             "ΔE2000 over the sphere (1-pixel border excluded) at a common exposure (reference p95 luminance 0.8).",
+             "", "| HDRI | thickness nm | film IOR | base IOR | roughness | mean ΔE | p95 ΔE |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['hdri']} | {r['thickness_nm']:g} | {r['film_ior']:g} | {r['base_ior']:g} | "
+                     f"{r['roughness']:g} | {r['mean_de']:.2f} | {r['p95_de']:.2f} |")
+    pathlib.Path(args.out).write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
