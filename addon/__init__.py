@@ -1,4 +1,4 @@
-"""The thin bpy layer of the extension: preferences for now (panels and operators come later).
+"""The thin bpy layer of the extension: preferences, material settings, operators and panels.
 
 Everything here is Blender glue. The physics lives in ``precompute/`` (which never imports
 ``bpy``) and the shaders in ``glsl/``.
@@ -8,7 +8,7 @@ import os
 import tempfile
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import PointerProperty, StringProperty
 from bpy.types import AddonPreferences
 
 # This module is ``<extension package>.addon``; Blender keys add-on preferences by the extension
@@ -66,18 +66,44 @@ class ThinFilmSHPreferences(AddonPreferences):
         row.label(text=f"In use: {cache_dir(context)}", icon="FILE_FOLDER")
 
 
-classes = (ThinFilmSHPreferences,)
+# Imported after the helpers above: materials.table_cache() calls cache_dir() from here.
+from . import ops, props, ui  # noqa: E402
+
+classes = (ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
+
+# ----------------------------------------------------------------------------------------------
+# HOOKS for other parts of the add-on (viewport draw handler, command line, ...).
+#
+# Each entry is a module (or any object) with register() and unregister(). They run AFTER the
+# classes above are registered and the Material property exists, and are unregistered in
+# reverse order BEFORE them. Both calls must be harmless when repeated (register() is called
+# twice by the tests). To add one: import it here and append it to the tuple, e.g.
+#     from . import draw, cli
+#     modules = (draw, cli)
+# ----------------------------------------------------------------------------------------------
+modules: tuple = ()
+
+#: Name of the per-material settings: ``material.thinfilm_sh``.
+MATERIAL_PROPERTY = "thinfilm_sh"
 
 
 def register():
-    """Register every class; classes already registered are left as they are."""
+    """Register every class, the Material property, then the hook modules; repeat calls are harmless."""
     for cls in classes:
         if not cls.is_registered:
             bpy.utils.register_class(cls)
+    if not hasattr(bpy.types.Material, MATERIAL_PROPERTY):
+        setattr(bpy.types.Material, MATERIAL_PROPERTY, PointerProperty(type=props.ThinFilmMaterialSettings))
+    for module in modules:
+        module.register()
 
 
 def unregister():
-    """Unregister in reverse order; classes not registered are skipped."""
+    """Undo :func:`register` in reverse order; anything not registered is skipped."""
+    for module in reversed(modules):
+        module.unregister()
+    if hasattr(bpy.types.Material, MATERIAL_PROPERTY):
+        delattr(bpy.types.Material, MATERIAL_PROPERTY)
     for cls in reversed(classes):
         if cls.is_registered:
             bpy.utils.unregister_class(cls)

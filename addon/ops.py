@@ -1,0 +1,384 @@
+"""Operators: bake (modal, in a background thread), presets, film layers, write-back, cache.
+
+Every operator turns a ValueError (bad settings, a missing attribute, ...) into
+``self.report({'ERROR'}, message)`` and returns CANCELLED: the user sees the message, never a
+traceback.
+"""
+
+import threading
+import time
+
+import bpy
+from bpy.props import EnumProperty, StringProperty
+from bpy.types import Operator
+
+from . import materials
+from .props import PRESET_ITEMS
+
+
+def _material(op, context):
+    """The operator's ``material`` by name, else the context's material, else the active object's."""
+    name = getattr(op, "material", "")
+    if name:
+        return bpy.data.materials.get(name)
+    mat = getattr(context, "material", None)
+    if mat is None:
+        obj = getattr(context, "object", None)
+        mat = obj.active_material if obj is not None else None
+    return mat
+
+
+def _tag_redraw(context) -> None:
+    screen = getattr(context, "screen", None)
+    if screen is None:
+        return
+    for area in screen.areas:
+        if area.type in {"PROPERTIES", "VIEW_3D"}:
+            area.tag_redraw()
+
+
+class BakeCancelled(Exception):
+    """Raised from the progress callback when the user pressed Esc."""
+
+
+class BakeJob:
+    """A table lookup/bake in a background thread (numpy releases the GIL while it works).
+
+    ``fraction``/``text`` follow the bake's progress; ``cancel()`` makes the next progress
+    report raise :class:`BakeCancelled`, so the bake stops there and nothing is cached.
+    After ``done`` is set: ``result``/``source`` on success, else ``error`` (or ``cancelled``).
+    """
+
+    def __init__(self, desc, cache):
+        self.desc = desc
+        self.cache = cache
+        self.fraction = 0.0
+        self.text = "starting"
+        self.result = None
+        self.source = ""
+        self.error = None
+        self.elapsed_s = 0.0
+        self.done = threading.Event()
+        self._cancel = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="thinfilm_sh bake", daemon=True)
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    def start(self) -> "BakeJob":
+        self._thread.start()
+        return self
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def join(self, timeout=None) -> None:
+        self._thread.join(timeout)
+
+    def _progress(self, fraction, text):
+        if self._cancel.is_set():
+            raise BakeCancelled
+        self.fraction, self.text = float(fraction), str(text)
+
+    def _run(self):
+        start = time.perf_counter()
+        try:
+            self.result, self.source = materials.get_table_with_source(self.desc, self.cache, self._progress)
+        except BakeCancelled:
+            pass
+        except Exception as exc:  # reported in the main thread
+            self.error = exc
+        finally:
+            self.elapsed_s = time.perf_counter() - start
+            self.done.set()
+
+
+def _store_result(settings, result, source: str, elapsed_s: float) -> None:
+    settings.last_bake_ms = 1000.0 * elapsed_s
+    settings.last_plan = materials.format_plan(result, source)
+    settings.last_error = ""
+
+
+class THINFILM_OT_bake(Operator):
+    """Bake (or load from the cache) the spherical-harmonic table of this material's thin film"""
+
+    bl_idname = "thinfilm.bake"
+    bl_label = "Bake Thin Film"
+    bl_options = {"REGISTER"}
+
+    material: StringProperty(
+        name="Material",
+        description="Material to bake (empty: the context's material)",
+        default="",
+        options={"SKIP_SAVE"},
+    )
+
+    _job = None
+    _timer = None
+    _material_name = ""
+
+    def _description(self, context):
+        mat = _material(self, context)
+        if mat is None:
+            self.report({"ERROR"}, "No material to bake")
+            return None, None
+        try:
+            desc = materials.description(mat)
+        except ValueError as exc:
+            if hasattr(mat, "thinfilm_sh"):
+                mat.thinfilm_sh.last_error = str(exc)
+            self.report({"ERROR"}, str(exc))
+            return mat, None
+        if desc is None:
+            self.report(
+                {"ERROR"},
+                f"Material {mat.name!r} has no thin film: enable Thin Film SH or set the Principled "
+                "BSDF's Thin Film Thickness",
+            )
+        return mat, desc
+
+    def _fail(self, mat, message: str):
+        mat.thinfilm_sh.last_error = message
+        self.report({"ERROR"}, message)
+        return {"CANCELLED"}
+
+    def execute(self, context):
+        mat, desc = self._description(context)
+        if desc is None:
+            return {"CANCELLED"}
+        start = time.perf_counter()
+        try:
+            result, source = materials.get_table_with_source(desc)
+        except ValueError as exc:
+            return self._fail(mat, str(exc))
+        except OSError as exc:
+            return self._fail(mat, f"table cache: {exc}")
+        _store_result(mat.thinfilm_sh, result, source, time.perf_counter() - start)
+        self.report(
+            {"INFO"}, f"Thin film table ready ({source}, {1000 * (time.perf_counter() - start):.0f} ms)"
+        )
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background:
+            return self.execute(context)
+        mat, desc = self._description(context)
+        if desc is None:
+            return {"CANCELLED"}
+        hit = materials.peek_table(desc)
+        if hit is not None:
+            _store_result(mat.thinfilm_sh, hit, "memory", 0.0)
+            return {"FINISHED"}
+        self._material_name = mat.name
+        self._job = BakeJob(desc, materials.table_cache()).start()
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        wm.progress_begin(0, 100)
+        self._status(context, "starting")
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, text):
+        workspace = getattr(context, "workspace", None)
+        if workspace is not None:
+            workspace.status_text_set(
+                None
+                if text is None
+                else f"Thin Film SH: {text} ({100 * self._job.fraction:.0f} %) — Esc to cancel"
+            )
+
+    def _finish(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        self._status(context, None)
+        _tag_redraw(context)
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC" and event.value == "PRESS":
+            job.cancel()  # the thread stops at its next progress report; nothing is cached
+            self._finish(context)
+            self.report({"WARNING"}, "Thin film bake cancelled")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        if not job.done.is_set():
+            context.window_manager.progress_update(int(100 * job.fraction))
+            self._status(context, job.text)
+            return {"PASS_THROUGH"}
+        self._finish(context)
+        mat = bpy.data.materials.get(self._material_name)
+        if job.error is not None:
+            message = str(job.error) if isinstance(job.error, (ValueError, OSError)) else repr(job.error)
+            if mat is not None:
+                mat.thinfilm_sh.last_error = message
+            self.report({"ERROR"}, message)
+            return {"CANCELLED"}
+        if mat is not None and job.result is not None:
+            _store_result(mat.thinfilm_sh, job.result, job.source, job.elapsed_s)
+        self.report({"INFO"}, f"Thin film table ready ({job.source}, {1000 * job.elapsed_s:.0f} ms)")
+        return {"FINISHED"}
+
+    def cancel(self, context):
+        if self._job is not None:
+            self._job.cancel()
+        self._finish(context)
+
+
+class _MaterialOperator:
+    material: StringProperty(
+        name="Material",
+        description="Material (empty: the context's material)",
+        default="",
+        options={"SKIP_SAVE"},
+    )
+
+    def settings(self, context):
+        mat = _material(self, context)
+        if mat is None:
+            self.report({"ERROR"}, "No material")
+            return None
+        return mat.thinfilm_sh
+
+
+class THINFILM_OT_apply_preset(_MaterialOperator, Operator):
+    """Fill the film, substrate and surface settings from a preset"""
+
+    bl_idname = "thinfilm.apply_preset"
+    bl_label = "Apply Preset"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: EnumProperty(name="Preset", items=PRESET_ITEMS[:-1])
+
+    def execute(self, context):
+        settings = self.settings(context)
+        if settings is None:
+            return {"CANCELLED"}
+        try:
+            materials.apply_preset(settings, self.preset)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+class THINFILM_OT_layer_add(_MaterialOperator, Operator):
+    """Add a film layer below the active one"""
+
+    bl_idname = "thinfilm.layer_add"
+    bl_label = "Add Film Layer"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        settings = self.settings(context)
+        if settings is None:
+            return {"CANCELLED"}
+        layers = settings.layers
+        index = min(settings.active_layer_index + 1, len(layers)) if len(layers) else 0
+        layers.add()
+        layers.move(len(layers) - 1, index)
+        settings.active_layer_index = index
+        materials.mark_custom(settings)
+        return {"FINISHED"}
+
+
+class THINFILM_OT_layer_remove(_MaterialOperator, Operator):
+    """Remove the active film layer"""
+
+    bl_idname = "thinfilm.layer_remove"
+    bl_label = "Remove Film Layer"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        settings = self.settings(context)
+        if settings is None:
+            return {"CANCELLED"}
+        layers = settings.layers
+        if not len(layers):
+            self.report({"ERROR"}, "There is no film layer to remove")
+            return {"CANCELLED"}
+        index = min(settings.active_layer_index, len(layers) - 1)
+        layers.remove(index)
+        settings.active_layer_index = max(0, min(index, len(layers) - 1))
+        materials.mark_custom(settings)
+        return {"FINISHED"}
+
+
+class THINFILM_OT_layer_move(_MaterialOperator, Operator):
+    """Move the active film layer up (toward the ambient) or down (toward the substrate)"""
+
+    bl_idname = "thinfilm.layer_move"
+    bl_label = "Move Film Layer"
+    bl_options = {"REGISTER", "UNDO"}
+
+    direction: EnumProperty(name="Direction", items=[("UP", "Up", ""), ("DOWN", "Down", "")])
+
+    def execute(self, context):
+        settings = self.settings(context)
+        if settings is None:
+            return {"CANCELLED"}
+        layers = settings.layers
+        index = settings.active_layer_index
+        target = index - 1 if self.direction == "UP" else index + 1
+        if not (0 <= index < len(layers) and 0 <= target < len(layers)):
+            return {"CANCELLED"}
+        layers.move(index, target)
+        settings.active_layer_index = target
+        materials.mark_custom(settings)
+        return {"FINISHED"}
+
+
+class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
+    """Write these settings into the material's Principled BSDF so Cycles renders the same film"""
+
+    bl_idname = "thinfilm.write_to_principled"
+    bl_label = "Write to Principled BSDF"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        mat = _material(self, context)
+        if mat is None:
+            self.report({"ERROR"}, "No material")
+            return {"CANCELLED"}
+        try:
+            notes = materials.write_back_to_principled(mat)
+        except ValueError as exc:
+            self.report({"ERROR"}, f"material {mat.name!r}: {exc}")
+            return {"CANCELLED"}
+        for note in notes:
+            self.report({"WARNING"}, note)
+        self.report({"INFO"}, f"Wrote the thin film of {mat.name!r} to its Principled BSDF")
+        return {"FINISHED"}
+
+
+class THINFILM_OT_clear_cache(Operator):
+    """Delete the baked tables from memory and from the cache directory"""
+
+    bl_idname = "thinfilm.clear_cache"
+    bl_label = "Clear Thin Film Cache"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        cache = materials.table_cache()
+        try:
+            removed = materials.clear_caches(cache)
+        except OSError as exc:
+            self.report({"ERROR"}, f"could not clear {cache.directory}: {exc}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Removed {removed} cached table file(s) from {cache.directory}")
+        return {"FINISHED"}
+
+
+classes = (
+    THINFILM_OT_bake,
+    THINFILM_OT_apply_preset,
+    THINFILM_OT_layer_add,
+    THINFILM_OT_layer_remove,
+    THINFILM_OT_layer_move,
+    THINFILM_OT_write_to_principled,
+    THINFILM_OT_clear_cache,
+)

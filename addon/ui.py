@@ -1,0 +1,241 @@
+"""The Thin Film SH panel in the Properties editor's Material tab, with its sub-panels."""
+
+from bpy.types import Panel, UIList
+
+from . import materials
+
+
+def _settings(context):
+    mat = getattr(context, "material", None)
+    return mat, (getattr(mat, "thinfilm_sh", None) if mat is not None else None)
+
+
+class THINFILM_UL_layers(UIList):
+    """Film layers from the ambient side (top) to the substrate (bottom)."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        row = layout.row(align=True)
+        if item.index_mode == "CONSTANT":
+            text = f"n {item.n:.3f}" + (f" + {item.k:.3f}i" if item.k else "")
+        elif item.index_mode == "CAUCHY":
+            text = f"Cauchy A {item.cauchy_a:.3f}"
+        else:
+            text = item.metal.title()
+        row.label(text=f"{index + 1}. {text}", icon="MOD_THICKNESS" if index == 0 else "BLANK1")
+        row.prop(item, "thickness_nm", text="nm", emboss=False)
+
+
+class _MaterialPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        return _settings(context)[1] is not None
+
+
+class THINFILM_PT_material(_MaterialPanel, Panel):
+    bl_label = "Thin Film SH"
+
+    def draw_header(self, context):
+        self.layout.prop(_settings(context)[1], "enabled", text="")
+
+    def draw(self, context):
+        mat, settings = _settings(context)
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.active = settings.enabled
+        row = layout.row(align=True)
+        row.prop(settings, "preset")
+        if settings.last_error:
+            box = layout.box()
+            box.alert = True
+            box.label(text=settings.last_error, icon="ERROR")
+        for note in _safe_warnings(mat):
+            layout.label(text=note, icon="INFO")
+
+
+def _safe_warnings(mat) -> list[str]:
+    try:
+        return materials.warnings(mat)
+    except ValueError as exc:
+        return [str(exc)]
+
+
+class _SubPanel(_MaterialPanel):
+    bl_parent_id = "THINFILM_PT_material"
+
+    def draw(self, context):
+        mat, settings = _settings(context)
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.active = settings.enabled
+        self.draw_settings(context, layout, mat, settings)
+
+
+class THINFILM_PT_film(_SubPanel, Panel):
+    bl_label = "Film"
+
+    def draw_settings(self, context, layout, mat, settings):
+        row = layout.row()
+        row.template_list(
+            "THINFILM_UL_layers", "", settings, "layers", settings, "active_layer_index", rows=3
+        )
+        col = row.column(align=True)
+        col.operator("thinfilm.layer_add", icon="ADD", text="")
+        col.operator("thinfilm.layer_remove", icon="REMOVE", text="")
+        col.separator()
+        col.operator("thinfilm.layer_move", icon="TRIA_UP", text="").direction = "UP"
+        col.operator("thinfilm.layer_move", icon="TRIA_DOWN", text="").direction = "DOWN"
+        if 0 <= settings.active_layer_index < len(settings.layers):
+            layer = settings.layers[settings.active_layer_index]
+            col = layout.column()
+            col.prop(layer, "index_mode")
+            if layer.index_mode == "CONSTANT":
+                col.prop(layer, "n")
+                col.prop(layer, "k")
+            elif layer.index_mode == "CAUCHY":
+                col.prop(layer, "cauchy_a")
+                col.prop(layer, "cauchy_b", text="B (µm²)")
+                col.prop(layer, "cauchy_c", text="C (µm⁴)")
+            else:
+                col.prop(layer, "metal")
+            col.prop(layer, "thickness_nm", text="Thickness (nm)")
+        layout.prop(settings, "model")
+
+
+class THINFILM_PT_thickness(_SubPanel, Panel):
+    bl_label = "Thickness Variation"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.prop(_settings(context)[1], "vary_thickness", text="")
+
+    def draw_settings(self, context, layout, mat, settings):
+        layout.active = settings.enabled and settings.vary_thickness
+        col = layout.column(align=True)
+        col.prop(settings, "thickness_min_nm", text="Top Layer Min (nm)")
+        col.prop(settings, "thickness_max_nm", text="Max (nm)")
+        layout.prop(settings, "thickness_source")
+        if settings.thickness_source == "ATTRIBUTE":
+            obj = context.object
+            mesh = obj.data if obj is not None and obj.type == "MESH" else None
+            if mesh is not None:
+                layout.prop_search(settings, "thickness_attribute", mesh, "attributes", text="Attribute 0–1")
+            else:
+                layout.prop(settings, "thickness_attribute", text="Attribute 0–1")
+        elif settings.thickness_source == "NOISE":
+            layout.prop(settings, "noise_scale")
+            layout.prop(settings, "noise_seed")
+        else:
+            layout.template_ID(settings, "thickness_image", open="image.open")
+            obj = context.object
+            if obj is not None and obj.type == "MESH":
+                layout.prop_search(settings, "thickness_uv_map", obj.data, "uv_layers", text="UV Map")
+            else:
+                layout.prop(settings, "thickness_uv_map")
+
+
+class THINFILM_PT_substrate(_SubPanel, Panel):
+    bl_label = "Substrate"
+
+    def draw_settings(self, context, layout, mat, settings):
+        layout.prop(settings, "substrate_mode")
+        if settings.substrate_mode == "DIELECTRIC":
+            layout.prop(settings, "substrate_ior")
+        elif settings.substrate_mode == "METAL":
+            layout.prop(settings, "substrate_metal")
+        else:
+            col = layout.column(align=True)
+            col.prop(settings, "substrate_n")
+            col.prop(settings, "substrate_k")
+        layout.prop(settings, "ambient_ior")
+
+
+class THINFILM_PT_surface(_SubPanel, Panel):
+    bl_label = "Surface"
+
+    def draw_settings(self, context, layout, mat, settings):
+        layout.prop(settings, "roughness")
+        row = layout.row(heading="Diffuse Base")
+        row.prop(settings, "diffuse_base", text="")
+        sub = row.row()
+        sub.active = settings.diffuse_base
+        sub.prop(settings, "diffuse_color", text="")
+        layout.prop(settings, "colour_mode")
+        layout.prop(settings, "illuminant")
+
+
+class THINFILM_PT_quality(_SubPanel, Panel):
+    bl_label = "Quality"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_settings(self, context, layout, mat, settings):
+        chosen = materials.parse_plan(settings.last_plan)
+
+        def auto_prop(name, text):
+            row = layout.row()
+            row.prop(settings, name, text=text)
+            value = getattr(settings, name)
+            if value in (0, "AUTO") and name in chosen:
+                row.label(text=f"→ {chosen[name]}")
+
+        auto_prop("sh_order", "SH Order")
+        auto_prop("view_samples", "View Angles (0 auto)")
+        auto_prop("thickness_samples", "Thicknesses (0 auto)")
+        auto_prop("wavelength_count", "Wavelengths (0 auto)")
+        if settings.last_plan:
+            box = layout.box()
+            col = box.column(align=True)
+            col.scale_y = 0.8
+            for line in settings.last_plan.splitlines():
+                col.label(text=line)
+            col.label(text=f"Last bake: {settings.last_bake_ms:.0f} ms")
+        row = layout.row(align=True)
+        row.operator("thinfilm.bake", icon="RENDER_STILL")
+        row.operator("thinfilm.clear_cache", icon="TRASH", text="")
+
+
+class THINFILM_PT_principled(_MaterialPanel, Panel):
+    bl_label = "Principled Interop"
+    bl_parent_id = "THINFILM_PT_material"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        mat, settings = _settings(context)
+        layout = self.layout
+        node = materials.principled_node(mat)
+        if not settings.enabled:
+            try:
+                desc = materials.description(mat)
+            except ValueError as exc:
+                layout.label(text=str(exc), icon="ERROR")
+                desc = None
+            if desc is not None:
+                layer = desc.layers[0]
+                layout.label(text="Previewed from Principled BSDF", icon="NODE_MATERIAL")
+                layout.label(text=f"Film n {layer.index:g}, {layer.thickness_nm:g} nm")
+            elif node is None:
+                layout.label(text="No Principled BSDF")
+            else:
+                layout.label(text="Principled Thin Film Thickness is 0: not previewed")
+        else:
+            layout.label(text="Cycles renders the Principled BSDF's single film")
+        row = layout.row()
+        row.enabled = settings.enabled
+        row.operator("thinfilm.write_to_principled", icon="EXPORT")
+
+
+classes = (
+    THINFILM_UL_layers,
+    THINFILM_PT_material,
+    THINFILM_PT_film,
+    THINFILM_PT_thickness,
+    THINFILM_PT_substrate,
+    THINFILM_PT_surface,
+    THINFILM_PT_quality,
+    THINFILM_PT_principled,
+)
