@@ -62,7 +62,7 @@ def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, sample
     scene.render.resolution_x = scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.render.film_transparent = False
-    scene.render.filter_size = 0.5
+    scene.render.filter_size = 1.0  # ≈ a 1-pixel box, matched by our 4×4 supersampling
     world = bpy.data.worlds.new("env")
     world.use_nodes = True
     nt = world.node_tree

@@ -283,10 +283,13 @@ class SphereView:
 
 
 def sphere_view(
-    width: int = 96, height: int = 96, distance: float = 4.0, fov_deg: float = 32.0
+    width: int = 96, height: int = 96, distance: float = 4.0, fov_deg: float = 32.0, supersample: int = 1
 ) -> SphereView:
+    """G-buffer of the sphere; with ``supersample`` s the buffers hold s×s samples per pixel
+    (shape (H·s, W·s)), to be averaged back with :func:`box_downsample`."""
     cam = np.array([0.0, -distance, 0.0])
     half = math.tan(math.radians(fov_deg) / 2)
+    width, height = width * supersample, height * supersample
     xs = ((np.arange(width) + 0.5) / width * 2 - 1) * half * width / max(width, height)
     zs = (1 - (np.arange(height) + 0.5) / height * 2) * half * height / max(width, height)
     x, z = np.meshgrid(xs, zs)
@@ -301,6 +304,14 @@ def sphere_view(
     normals = p / np.maximum(np.linalg.norm(p, axis=-1, keepdims=True), 1e-12)
     views = -rays
     return SphereView(mask, normals, views, rays)
+
+
+def box_downsample(image: np.ndarray, factor: int) -> np.ndarray:
+    """Average factor × factor blocks (pixel-area integration of a supersampled render)."""
+    if factor == 1:
+        return image
+    h, w = image.shape[0] // factor, image.shape[1] // factor
+    return image.reshape(h, factor, w, factor, -1).mean(axis=(1, 3)).reshape((h, w) + image.shape[2:])
 
 
 def render_sphere(result, image, world_coeffs, view: SphereView, thickness_nm=None, reference_material=None):
