@@ -81,7 +81,9 @@ classes = (ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
 #     from . import draw, cli
 #     modules = (draw, cli)
 # ----------------------------------------------------------------------------------------------
-modules: tuple = ()
+from . import headless, viewport  # noqa: E402
+
+modules: tuple = (viewport, headless)
 
 #: Name of the per-material settings: ``material.thinfilm_sh``.
 MATERIAL_PROPERTY = "thinfilm_sh"

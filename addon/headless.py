@@ -1,0 +1,217 @@
+"""Headless bake and render: the same collection and draw code as the viewport, off-screen.
+
+``render_scene`` draws the scene camera's view into a float off-screen buffer: the rest of the
+scene first (Blender's own Solid drawing, for depth and for the objects we don't shade), then
+the World as background, then every thin-film object, depth-tested. Writes a scene-linear EXR
+and a PNG (sRGB "Standard" view with the scene's exposure).
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+
+import bpy
+import numpy as np
+
+from ..precompute import render as np_render
+from . import gpu_draw, materials, scene_draw, world
+
+
+def scene_materials(scene):
+    """{material name: description} for materials used by visible mesh objects (enabled or Principled film)."""
+    found = {}
+    errors = {}
+    for obj in scene.objects:
+        if obj.type != "MESH" or not obj.visible_get():
+            continue
+        for slot in obj.material_slots:
+            mat = slot.material
+            if mat is None or mat.name in found or mat.name in errors:
+                continue
+            try:
+                desc = materials.description(mat)
+            except ValueError as exc:
+                errors[mat.name] = str(exc)
+                continue
+            if desc is not None:
+                found[mat.name] = desc
+    return found, errors
+
+
+def bake_scene(scene, out_dir=None, progress=print) -> dict:
+    """Bake (or load from cache) every material the scene shows; optional EXR copies in ``out_dir``."""
+    from ..precompute import table_io
+
+    found, errors = scene_materials(scene)
+    summary = {"materials": {}, "errors": errors}
+    shared: dict[str, str] = {}
+    for i, (name, desc) in enumerate(sorted(found.items())):
+        key = materials.description_key(desc)
+        t0 = time.perf_counter()
+        result, source = materials.get_table_with_source(desc)
+        entry = {"key": key, "source": source, "seconds": time.perf_counter() - t0, "shape": list(result.data.shape),
+                 "sh_order": result.sh_order, "shared_with": shared.get(key)}
+        shared.setdefault(key, name)
+        if out_dir:
+            path = pathlib.Path(out_dir) / f"{bpy.path.clean_name(name)}.exr"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            table_io.write_table(path, result.data, result.attributes())
+            entry["file"] = str(path)
+        summary["materials"][name] = entry
+        progress(f"[{i + 1}/{len(found)}] {name}: {source} ({entry['seconds'] * 1000:.0f} ms)")
+    return summary
+
+
+def _view3d_for_depth():
+    """A VIEW_3D space and WINDOW region from any screen (available in background mode)."""
+    for screen in bpy.data.screens:
+        for area in screen.areas:
+            if area.type == "VIEW_3D":
+                region = next((r for r in area.regions if r.type == "WINDOW"), None)
+                if region is not None:
+                    return area.spaces.active, region
+    return None, None
+
+
+def camera_matrices(scene, depsgraph, width: int, height: int):
+    cam = scene.camera
+    if cam is None:
+        raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
+    view = np.array(cam.matrix_world.inverted(), dtype=np.float64)
+    proj = np.array(cam.calc_matrix_camera(depsgraph, x=width, y=height), dtype=np.float64)
+    return view, proj
+
+
+def render_scene(scene, out_path, width: int | None = None, height: int | None = None,
+                 background: bool = True) -> dict:
+    """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it."""
+    gpu_draw.ensure_gpu_context()
+    scale = scene.render.resolution_percentage / 100.0
+    width = int(width or round(scene.render.resolution_x * scale))
+    height = int(height or round(scene.render.resolution_y * scale))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    view, proj = camera_matrices(scene, depsgraph, width, height)
+    t0 = time.perf_counter()
+    items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True)
+    env = None
+    if background:
+        env = world.render_world_panorama(scene.world, width=512) if scene.world is not None else None
+    space, region = _view3d_for_depth()
+
+    film_objects = {item.name.split("/")[0] for item in items}
+
+    def depth_from(offscreen):
+        """Blender's Solid drawing of everything else, for depth and for the other objects.
+
+        Thin-film objects are hidden during it: drawn twice, Blender's and our vertex transforms
+        round differently and the depth test would let the grey Solid surface speckle through.
+        """
+        if space is None:
+            return
+        shading = space.shading
+        saved = (shading.type, shading.light, shading.color_type)
+        hidden = [o for o in scene.objects if o.name in film_objects and not o.hide_get()]
+        try:
+            for o in hidden:
+                o.hide_set(True)
+            bpy.context.view_layer.update()  # draw_view3d reads the evaluated depsgraph
+            shading.type, shading.light, shading.color_type = "SOLID", "STUDIO", "MATERIAL"
+            offscreen.draw_view3d(scene, bpy.context.view_layer, space, region,
+                                  _mathutils_matrix(view), _mathutils_matrix(proj), do_color_management=False)
+        finally:
+            shading.type, shading.light, shading.color_type = saved
+            for o in hidden:
+                o.hide_set(False)
+            if hidden:
+                bpy.context.view_layer.update()
+
+    rgba = gpu_draw.render_offscreen(items, view, proj, width, height, background=env, depth_from=depth_from)
+    rgb = rgba[..., :3].astype(np.float64)
+    bad = ~np.isfinite(rgb)
+    if bad.any():
+        messages.append(f"{int(bad.any(axis=-1).sum())} non-finite pixels set to 0")
+        rgb = np.where(bad, 0.0, rgb)
+    out = pathlib.Path(out_path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np_render.write_exr(out.with_suffix(".exr"), rgb)
+    np_render.write_png(out.with_suffix(".png"), np_render.srgb_encode(rgb, float(scene.view_settings.exposure)))
+    return {"png": str(out.with_suffix(".png")), "exr": str(out.with_suffix(".exr")), "size": [width, height],
+            "objects": [item.name for item in items], "messages": messages,
+            "seconds": time.perf_counter() - t0}
+
+
+def _mathutils_matrix(m):
+    from mathutils import Matrix
+
+    return Matrix(np.asarray(m).tolist())
+
+
+def main(argv) -> int:
+    """The CLI behind ``blender -b file.blend -c thinfilm_sh …`` and scripts/thinfilm_headless.py."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="thinfilm_sh", description="Thin Film SH: headless bake and render "
+                                     "of the open .blend file.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("bake", help="bake every thin-film material the scene shows (uses the cache)")
+    b.add_argument("--out-dir", help="also write each table as an EXR here")
+    b.add_argument("--json", help="write a JSON summary here")
+    r = sub.add_parser("render", help="render the scene camera's view with the thin-film shader to PNG + EXR")
+    r.add_argument("--out", required=True, help="output .png (an .exr is written beside it)")
+    r.add_argument("--width", type=int)
+    r.add_argument("--height", type=int)
+    r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
+    sub.add_parser("plan", help="print each material's description and automatic choices")
+    args = parser.parse_args(argv)
+    scene = bpy.context.scene
+    try:
+        if args.command == "bake":
+            summary = bake_scene(scene, args.out_dir)
+            if args.json:
+                pathlib.Path(args.json).write_text(json.dumps(summary, indent=2))
+            for name, err in summary["errors"].items():
+                print(f"error: material '{name}': {err}")
+            return 1 if summary["errors"] else 0
+        if args.command == "render":
+            result = render_scene(scene, args.out, args.width, args.height, background=not args.no_background)
+            for msg in result["messages"]:
+                print(f"note: {msg}")
+            print(f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
+                  f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)")
+            return 0
+        from ..precompute import bake
+
+        found, errors = scene_materials(scene)
+        for name, desc in sorted(found.items()):
+            p = bake.plan(desc)
+            print(json.dumps({"material": name, "sh_order": p.sh_order, "view_samples": p.view_samples,
+                              "thickness_samples": p.thickness_samples, "wavelengths": p.wavelength_count,
+                              "reasons": p.reasons}, indent=2))
+        for name, err in errors.items():
+            print(f"error: material '{name}': {err}")
+        return 1 if errors else 0
+    except ValueError as exc:
+        print(f"error: {exc}")
+        return 2
+
+
+def _cli(argv) -> int:
+    return main(list(argv))
+
+
+_cli_handle = None
+
+
+def register() -> None:
+    global _cli_handle
+    if _cli_handle is None and hasattr(bpy.utils, "register_cli_command"):
+        _cli_handle = bpy.utils.register_cli_command("thinfilm_sh", _cli)
+
+
+def unregister() -> None:
+    global _cli_handle
+    if _cli_handle is not None:
+        bpy.utils.unregister_cli_command(_cli_handle)
+        _cli_handle = None

@@ -1,0 +1,185 @@
+"""What to draw: visible objects with a thin-film material → GPU draw items, with caches.
+
+Shared by the viewport draw handler and the headless render, so both draw the same thing.
+
+Caches (module level, cleared on file load):
+- batches per (object, material slot), rebuilt only when the object's geometry changed
+  (a depsgraph handler marks it) — moving an object only changes the matrix passed at draw time;
+- GPU table textures per material description key (equal materials share one);
+- lighting UBOs per (World key, SH order, roughness);
+- the World's SH per World key.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from . import gpu_draw, materials, world
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class DrawItem:
+    """One (object, material slot) to draw: what :func:`gpu_draw.draw_items` needs."""
+
+    batch: gpu_draw.MeshBatch
+    model_matrix: np.ndarray
+    table: gpu_draw.TableTexture
+    lighting: gpu_draw.Lighting
+    name: str
+
+
+@dataclass
+class Caches:
+    batches: dict = field(default_factory=dict)  # (object name, slot) → (signature, MeshBatch | None)
+    tables: dict = field(default_factory=dict)  # description key → TableTexture
+    lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness) → Lighting
+    world: tuple | None = None  # (world key, WorldSH)
+    dirty: set = field(default_factory=set)  # object names whose geometry changed
+    stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
+
+    def clear(self):
+        self.batches.clear()
+        self.tables.clear()
+        self.lightings.clear()
+        self.world = None
+        self.dirty.clear()
+
+
+CACHES = Caches()
+
+
+def on_depsgraph_update(scene, depsgraph) -> None:
+    """Mark objects whose geometry changed (transform-only updates keep their batch)."""
+    for update in depsgraph.updates:
+        data = update.id
+        if isinstance(data, bpy.types.Object) and update.is_updated_geometry:
+            CACHES.dirty.add(data.original.name if hasattr(data, "original") else data.name)
+        elif isinstance(data, bpy.types.Mesh):
+            for obj in scene.objects:
+                if obj.data is not None and obj.data.name == data.name:
+                    CACHES.dirty.add(obj.name)
+        elif isinstance(data, bpy.types.Material):
+            # Thickness sources (noise scale, image) live on the material: rebuild its users' batches.
+            for obj in scene.objects:
+                if any(slot.material is not None and slot.material.name == data.name for slot in obj.material_slots):
+                    CACHES.dirty.add(obj.name)
+
+
+# ----------------------------------------------------------------------------------------------
+def world_lighting(scene, *, allow_compute: bool = True):
+    """(key, WorldSH) for the scene's World; recomputed only when its content key changes."""
+    key = world.world_key(scene)
+    if CACHES.world is not None and CACHES.world[0] == key:
+        return CACHES.world
+    if not allow_compute:
+        return None
+    result = world.world_sh(scene, l_max=8)
+    CACHES.world = (key, result)
+    CACHES.lightings = {k: v for k, v in CACHES.lightings.items() if k[0] == key}
+    return CACHES.world
+
+
+def lighting_for(world_entry, l_max: int, roughness: float) -> gpu_draw.Lighting:
+    key = (world_entry[0], int(l_max), round(float(roughness), 6))
+    if key not in CACHES.lightings:
+        CACHES.lightings[key] = gpu_draw.Lighting.from_sh(world_entry[1].coeffs, l_max, roughness)
+    return CACHES.lightings[key]
+
+
+def table_texture(desc_key: str, result) -> gpu_draw.TableTexture:
+    if desc_key not in CACHES.tables:
+        CACHES.tables[desc_key] = gpu_draw.TableTexture.from_result(result)
+        CACHES.stats["table_uploads"] += 1
+    return CACHES.tables[desc_key]
+
+
+def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
+    """MeshBatch of the triangles of material slot ``slot`` (None if it has none)."""
+    arrays = gpu_draw.mesh_arrays(mesh)
+    if arrays is None:
+        return None
+    positions, normals, triangles, _ = arrays
+    if len(obj_eval.material_slots) > 1:
+        tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+        mesh.loop_triangles.foreach_get("polygon_index", tri_poly)
+        poly_mat = np.empty(len(mesh.polygons), dtype=np.int32)
+        mesh.polygons.foreach_get("material_index", poly_mat)
+        triangles = triangles[poly_mat[tri_poly] == slot]
+    if triangles.shape[0] == 0:
+        return None
+    thickness = None
+    if desc.varies and getattr(bpy_material, "thinfilm_sh", None) is not None and bpy_material.thinfilm_sh.enabled:
+        try:
+            thickness = materials.thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
+        except ValueError as exc:
+            messages.append(f"{obj_eval.name}: {exc}; using the middle of the thickness range")
+    if desc.varies and thickness is None:
+        thickness = np.full(positions.shape[0], 0.5, dtype=np.float32)
+    if thickness is not None:
+        thickness = np.nan_to_num(np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=0.5)
+    CACHES.stats["batch_builds"] += 1
+    return gpu_draw.MeshBatch.from_arrays(positions, normals, triangles, thickness)
+
+
+def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None):
+    """Draw items for every visible mesh object with a thin-film material, and messages.
+
+    With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
+    skipped and passed to ``want_bake(desc)`` so the caller can bake them outside drawing.
+    """
+    messages: list[str] = []
+    items: list[DrawItem] = []
+    scene = depsgraph.scene
+    world_entry = world_lighting(scene, allow_compute=allow_world)
+    if world_entry is None:
+        return items, ["World lighting is being updated"]
+    messages.extend(world_entry[1].warnings)
+    seen = set()
+    for inst in depsgraph.object_instances:
+        obj_eval = inst.object
+        if obj_eval.type != "MESH":  # the depsgraph lists only what is visible in this view layer
+            continue
+        original = obj_eval.original
+        for slot_index, slot in enumerate(obj_eval.material_slots):
+            bpy_material = slot.material
+            if bpy_material is None:
+                continue
+            try:
+                desc = materials.description(bpy_material.original if hasattr(bpy_material, "original")
+                                             else bpy_material)
+            except ValueError as exc:
+                messages.append(f"material '{bpy_material.name}': {exc}")
+                continue
+            if desc is None:
+                continue
+            result = materials.peek_table(desc)
+            if result is None:
+                if not allow_bake:
+                    if want_bake is not None:
+                        want_bake(desc)
+                    continue
+                result = materials.get_table(desc)
+            key = (original.name, slot_index, inst.is_instance and inst.persistent_id[0])
+            mesh = obj_eval.data
+            signature = (mesh.name, len(mesh.vertices), len(mesh.loops), materials.description_key(desc))
+            cached = CACHES.batches.get(key)
+            if cached is None or cached[0] != signature or original.name in CACHES.dirty:
+                batch = _slot_batch(obj_eval, mesh, slot_index, bpy_material, desc, messages)
+                CACHES.batches[key] = (signature, batch)
+                seen.add(original.name)
+            batch = CACHES.batches[key][1]
+            if batch is None:
+                messages.append(f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw")
+                continue
+            table = table_texture(materials.description_key(desc), result)
+            lighting = lighting_for(world_entry, result.sh_order, desc.roughness)
+            items.append(DrawItem(batch, np.array(inst.matrix_world, dtype=np.float64), table, lighting,
+                                  f"{original.name}/{bpy_material.name}"))
+    CACHES.dirty -= seen
+    return items, messages
