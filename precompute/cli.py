@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from . import bake, hdri, render, table_io
+from . import bake, hdri, prefilter, render, table_io
 from .material import AUTO, PRESETS, Layer, Material, Quality, preset
 
 EPILOG = """examples:
@@ -230,8 +230,17 @@ def cmd_render(args) -> int:
         if args.thickness is not None
         else (0.5 * sum(m.thickness_range_nm) if m.varies else None)
     )
+    progress(0.55, "prefiltering the HDRI")
+    pre = None if args.reference or args.sh_only else prefilter.prefilter(image)
+    progress(0.7, "shading")
     rgb = render.render_sphere(
-        result, image, coeffs, view, thickness, reference_material=m if args.reference else None
+        result,
+        image,
+        coeffs,
+        view,
+        thickness,
+        reference_material=m if args.reference else None,
+        prefiltered=pre,
     )
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -289,6 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--size", type=int, default=256, help="image size in pixels (square)")
     r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for the PNG")
     r.add_argument("--reference", action="store_true", help="brute-force spectral ground truth (slow)")
+    r.add_argument(
+        "--sh-only", action="store_true", help="the paper's SH path alone (no split sum for gloss)"
+    )
     r.add_argument("--quiet", action="store_true")
     r.set_defaults(func=cmd_render)
     return parser

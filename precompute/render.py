@@ -314,12 +314,31 @@ def box_downsample(image: np.ndarray, factor: int) -> np.ndarray:
     return image.reshape(h, factor, w, factor, -1).mean(axis=(1, 3)).reshape((h, w) + image.shape[2:])
 
 
-def render_sphere(result, image, world_coeffs, view: SphereView, thickness_nm=None, reference_material=None):
-    """Sphere over the environment background: SH path, or the ground truth when ``reference_material``."""
+def render_sphere(
+    result,
+    image,
+    world_coeffs,
+    view: SphereView,
+    thickness_nm=None,
+    reference_material=None,
+    prefiltered=None,
+):
+    """Sphere over the environment background.
+
+    The SH path alone; the combined split-sum + SH path when ``prefiltered`` (a
+    :class:`prefilter.Prefiltered`) is given; or the brute-force ground truth when
+    ``reference_material`` is given.
+    """
+    from . import prefilter
+
     out = equirect_lookup(image, view.rays)
     m = view.mask
     if reference_material is not None:
         out[m] = shade_reference(reference_material, image, view.normals[m], view.views[m], thickness_nm)
+    elif prefiltered is not None:
+        out[m] = prefilter.shade_combined(
+            result, world_coeffs, prefiltered, view.normals[m], view.views[m], thickness_nm
+        )
     else:
         out[m] = shade_sh(result, world_coeffs, view.normals[m], view.views[m], thickness_nm)
     return out
