@@ -1,0 +1,754 @@
+"""GPU drawing of thin-film SH materials: shaders, textures, uniform buffers, batches, read-back.
+
+Only ``bpy``/``gpu`` glue lives here and no scene logic: callers hand in arrays, matrices and baked
+tables. The per-pixel maths is in ``glsl/`` (joined here) and mirrors
+:func:`precompute.render.shade_sh` exactly; ``tests/test_gpu_draw.py`` checks one against the
+other.
+
+GPU resources
+-------------
+``tf_table`` (sampler slot 0, ``FLOAT_2D_ARRAY``, RGBA32F)
+    width A = view angles θo (uniform 0…90° inclusive), height T = thickness rows, one layer per
+    table row: spectral tables have 3 layers per kept coefficient i (layer 3i+k = row k of the
+    3×3 matrix, .rgb = lighting RGB), per-channel tables 1 (layer i = the RGB factors).
+    Interpolation in θo and thickness is done in the shader with ``texelFetch`` in full float32
+    (hardware LINEAR filtering quantises the weights to 8 bits on common GPUs), so the texture's
+    own filter mode is irrelevant.
+``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 9072 bytes:
+    ``vec4 sh[81]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
+    ``vec4 rx[486]``: the band blocks of the SH rotation for Rx(+90°), l = 0…8, each row-major,
+    band l at scalar offset l(2l−1)(2l+1)/3 (969 scalars, padded to 972), then those of Rx(−90°).
+``tf_view`` (UBO slot 1): view-projection and its inverse (columns), camera position (w = 1 for
+    orthographic), the direction towards the viewer, and ``params.x`` = 2^exposure.
+``tf_object`` (UBO slot 2): model matrix and normal matrix (inverse transpose), as columns.
+``tf_environment`` (background shader, sampler slot 0, FLOAT_2D): the World's equirect image, top
+    row first, hardware LINEAR filtering, REPEAT in u, EXTEND in v.
+
+No push constants are used (Vulkan keeps only 128 bytes of them).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import bpy
+import gpu
+import numpy as np
+
+from ..precompute import render
+
+GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
+
+#: Highest SH order the shaders support (the UBO always has room for it).
+MAX_L = 8
+#: World SH coefficients in the lighting UBO: (MAX_L + 1)².
+SH_SLOTS = (MAX_L + 1) ** 2
+#: Scalars of one set of x-rotation band blocks for l = 0…MAX_L, and with padding to a vec4.
+RX_SCALARS = sum((2 * l + 1) ** 2 for l in range(MAX_L + 1))
+RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
+LIGHTING_VEC4 = SH_SLOTS + 2 * RX_PADDED // 4
+#: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
+UBO_LIMIT_BYTES = 16384
+
+#: Chunks of the shading library, in dependency order (counterparts in precompute.render).
+LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl")
+
+TYPEDEFS = f"""
+struct TFLighting {{
+  vec4 sh[{SH_SLOTS}];
+  vec4 rx[{2 * RX_PADDED // 4}];
+}};
+struct TFView {{
+  vec4 view_proj[4];
+  vec4 inv_view_proj[4];
+  vec4 camera;
+  vec4 view_dir;
+  vec4 params;
+}};
+struct TFObject {{
+  vec4 model[4];
+  vec4 normal[4];
+}};
+"""
+
+# Binding slots.
+UBO_LIGHTING, UBO_VIEW, UBO_OBJECT = 0, 1, 2
+SAMPLER_TABLE = 0
+SAMPLER_ENVIRONMENT = 0
+
+
+# ----------------------------------------------------------------------------------------------
+# GPU context
+# ----------------------------------------------------------------------------------------------
+def drawing_available() -> bool:
+    """Whether gpu drawing works now (it does not in background mode before a context exists).
+
+    Probes with a call that creates nothing: making a throw-away off-screen buffer here would
+    unbind the caller's framebuffer.
+    """
+    try:
+        gpu.platform.backend_type_get()
+    except SystemError:
+        return False
+    return True
+
+
+_context_ready = False
+
+
+def _context_from_workbench_render() -> None:
+    """Create Blender's GPU context by rendering 8×8 pixels of an empty scene with Workbench.
+
+    Everything created for it (scene, camera object and data) is removed again.
+    """
+    scene = bpy.data.scenes.new("tf_gpu_context")
+    cam_data = bpy.data.cameras.new("tf_gpu_context")
+    cam = bpy.data.objects.new("tf_gpu_context", cam_data)
+    try:
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+        scene.render.engine = "BLENDER_WORKBENCH"
+        scene.render.resolution_x = scene.render.resolution_y = 8
+        scene.render.resolution_percentage = 100
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.render.render(write_still=False, scene=scene.name)
+    finally:
+        bpy.data.objects.remove(cam)
+        bpy.data.cameras.remove(cam_data)
+        bpy.data.scenes.remove(scene)
+
+
+def ensure_gpu_context() -> None:
+    """Make gpu drawing available in background mode; a no-op when it already is.
+
+    Blender 5.2 has ``gpu.init()``; without it (or if it fails) a tiny Workbench render creates
+    the context. The context then survives ``read_homefile`` / ``read_factory_settings``.
+    """
+    global _context_ready
+    if _context_ready or not bpy.app.background:
+        return
+    if drawing_available():
+        _context_ready = True
+        return
+    init = getattr(gpu, "init", None)
+    if init is not None:
+        try:
+            init()
+        except SystemError:
+            pass
+    if not drawing_available():
+        _context_from_workbench_render()
+    if not drawing_available():
+        raise RuntimeError("could not create a GPU context for drawing")
+    _context_ready = True
+
+
+# ----------------------------------------------------------------------------------------------
+# Shaders
+# ----------------------------------------------------------------------------------------------
+@functools.cache
+def glsl_chunk(name: str) -> str:
+    """One file of ``glsl/``."""
+    return (GLSL_DIR / name).read_text(encoding="utf-8")
+
+
+def join_chunks(*names: str) -> str:
+    return "\n".join(f"/* ---- {n} ---- */\n{glsl_chunk(n)}" for n in names)
+
+
+#: Entries of the X(±90°) band blocks below this are structural zeros (rounding noise ≤ 3e-16
+#: from the recurrence; the smallest true entry is 2⁻⁷): the generated code skips them.
+X90_ZERO = 1e-9
+
+
+@functools.cache
+def x90_source(l_max: int) -> str:
+    """``tf_apply_x90_pos`` / ``_neg`` as straight-line GLSL for bands 1…l_max.
+
+    Only the structurally non-zero entries (247 of 969 for l ≤ 8) are multiplied; their values
+    are read from the lighting UBO at constant offsets, so the maths is the dense band product
+    of ``render.apply_bands`` minus exact zeros. Constant indices let the compiler keep the
+    coefficients in registers: 3–5× faster than the loops of tf_sh_rotate.glsl on llvmpipe.
+    """
+    lines = ["/* ---- generated: addon/gpu_draw.py x90_source ---- */"]
+    for sign, name, base in ((+1, "tf_apply_x90_pos", 0), (-1, "tf_apply_x90_neg", RX_PADDED)):
+        lines += [f"void {name}()", "{"]
+        bands = render.x_rotation_bands(MAX_L, sign)
+        for l in range(1, int(l_max) + 1):
+            block = np.asarray(bands[l])
+            first, size, off = l * l, 2 * l + 1, base + rx_offset(l)
+            lines.append(f"  {{ /* band {l} */")
+            for i in range(size):
+                terms = [
+                    f"tf_rx({off + i * size + j}) * tf_c[{first + j}]"
+                    for j in range(size)
+                    if abs(block[i, j]) > X90_ZERO
+                ]
+                lines.append(f"    vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
+            lines += [f"    tf_c[{first + i}] = r{i};" for i in range(size)]
+            lines.append("  }")
+        lines.append("}")
+    return "\n".join(lines)
+
+
+def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
+    """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
+
+    ``generated_x90``: the X(±90°) products as generated straight-line code (default) or the
+    generic loops of tf_sh_rotate.glsl.
+    """
+    head = f"#define TF_RX_NEG {RX_PADDED}\n"
+    if not generated_x90:
+        return head + join_chunks(*LIBRARY_CHUNKS)
+    split = LIBRARY_CHUNKS.index("tf_sh_rotate.glsl") + 1
+    return "\n".join(
+        [
+            head + "#define TF_X90_GENERATED 1",
+            join_chunks(*LIBRARY_CHUNKS[:split]),
+            x90_source(l_max),
+            join_chunks(*LIBRARY_CHUNKS[split:]),
+        ]
+    )
+
+
+class Variant(NamedTuple):
+    """A compiled shader variant."""
+
+    l_max: int
+    spectral: bool
+    vary_thickness: bool
+    display: bool
+
+
+def declare_shading_resources(info, variant: Variant) -> None:
+    """Defines, types, the lighting UBO and the table sampler that :func:`shading_library` uses."""
+    if not 0 <= variant.l_max <= MAX_L:
+        raise ValueError(f"l_max must lie in 0…{MAX_L}, got {variant.l_max}")
+    info.define("TF_L_MAX", str(int(variant.l_max)))
+    if variant.spectral:
+        info.define("TF_SPECTRAL", "1")
+    if variant.vary_thickness:
+        info.define("TF_VARY_THICKNESS", "1")
+    if variant.display:
+        info.define("TF_DISPLAY_SRGB", "1")
+    info.typedef_source(TYPEDEFS)
+    info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
+    info.sampler(SAMPLER_TABLE, "FLOAT_2D_ARRAY", "tf_table")
+
+
+def _mesh_shader_info(variant: Variant, generated_x90: bool = True):
+    info = gpu.types.GPUShaderCreateInfo()
+    declare_shading_resources(info, variant)
+    info.uniform_buf(UBO_VIEW, "TFView", "tf_view")
+    info.uniform_buf(UBO_OBJECT, "TFObject", "tf_object")
+    info.vertex_in(0, "VEC3", "pos")
+    info.vertex_in(1, "VEC3", "nor")
+    iface = gpu.types.GPUStageInterfaceInfo("tf_mesh_iface")
+    iface.smooth("VEC3", "tf_world_pos")
+    iface.smooth("VEC3", "tf_world_nor")
+    if variant.vary_thickness:
+        info.vertex_in(2, "FLOAT", "thickness")
+        iface.smooth("FLOAT", "tf_thickness")
+    info.vertex_out(iface)
+    info.fragment_out(0, "VEC4", "tf_frag_color")
+    info.vertex_source(glsl_chunk("tf_main_vert.glsl"))
+    info.fragment_source(
+        shading_library(variant.l_max, generated_x90=generated_x90) + "\n" + glsl_chunk("tf_main_frag.glsl")
+    )
+    return info, iface
+
+
+def _background_shader_info(display: bool):
+    info = gpu.types.GPUShaderCreateInfo()
+    if display:
+        info.define("TF_DISPLAY_SRGB", "1")
+    info.typedef_source(TYPEDEFS)
+    info.uniform_buf(UBO_VIEW, "TFView", "tf_view")
+    info.sampler(SAMPLER_ENVIRONMENT, "FLOAT_2D", "tf_environment")
+    info.vertex_in(0, "VEC2", "pos")
+    iface = gpu.types.GPUStageInterfaceInfo("tf_background_iface")
+    iface.smooth("VEC2", "tf_ndc")
+    info.vertex_out(iface)
+    info.fragment_out(0, "VEC4", "tf_frag_color")
+    info.vertex_source(glsl_chunk("tf_background_vert.glsl"))
+    info.fragment_source(join_chunks("tf_common.glsl", "tf_background_frag.glsl"))
+    return info, iface
+
+
+class ShaderCache:
+    """Compiled shaders keyed by variant: each is compiled once and reused.
+
+    ``compile_count`` counts compilations (for tests and diagnostics). ``generated_x90=False``
+    uses the generic rotation loops instead of the generated code (same results, slower).
+    """
+
+    def __init__(self, *, generated_x90: bool = True):
+        self._shaders: dict = {}
+        self.compile_count = 0
+        self.generated_x90 = bool(generated_x90)
+
+    def _compile(self, key, make_info):
+        shader = self._shaders.get(key)
+        if shader is None:
+            ensure_gpu_context()
+            info, _iface = make_info()  # the interface must outlive the create-info until compiled
+            shader = gpu.shader.create_from_info(info)
+            self.compile_count += 1
+            self._shaders[key] = shader
+        return shader
+
+    def get(self, l_max: int, spectral: bool, vary_thickness: bool, display: bool):
+        """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, …)."""
+        variant = Variant(int(l_max), bool(spectral), bool(vary_thickness), bool(display))
+        return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
+
+    def background(self, display: bool):
+        """The environment background shader."""
+        return self._compile(("background", bool(display)), lambda: _background_shader_info(bool(display)))
+
+    def __len__(self):
+        return len(self._shaders)
+
+    def clear(self) -> None:
+        self._shaders.clear()
+
+
+#: The shared cache used when none is passed.
+SHADERS = ShaderCache()
+
+
+# ----------------------------------------------------------------------------------------------
+# Data on the GPU
+# ----------------------------------------------------------------------------------------------
+def float_buffer(array) -> gpu.types.Buffer:
+    """A flat FLOAT Buffer from any array (converted to contiguous float32 first)."""
+    data = np.ascontiguousarray(np.asarray(array, dtype=np.float32).ravel())
+    return gpu.types.Buffer("FLOAT", data.size, data)
+
+
+@dataclass
+class TableTexture:
+    """A baked table on the GPU (see the module docstring for the layout) and its metadata."""
+
+    texture: gpu.types.GPUTexture
+    l_max: int
+    view_samples: int
+    thickness_count: int
+    spectral: bool
+    layers: int
+
+    @staticmethod
+    def layer_array(data) -> np.ndarray:
+        """(layers, T, A, 4) float32 texture content from a table (T, A, K, 3[, 3])."""
+        data = np.asarray(data, dtype=np.float32)
+        t, a, k = data.shape[:3]
+        if data.ndim == 5:  # (T, A, K, 3 out, 3 light) → layer 3i + out
+            rows = data.transpose(2, 3, 0, 1, 4).reshape(3 * k, t, a, 3)
+        elif data.ndim == 4:
+            rows = data.transpose(2, 0, 1, 3)
+        else:
+            raise ValueError(f"table data must be (T, A, K, 3) or (T, A, K, 3, 3), got {data.shape}")
+        out = np.zeros(rows.shape[:3] + (4,), dtype=np.float32)
+        out[..., :3] = rows
+        return out
+
+    @classmethod
+    def from_result(cls, result) -> TableTexture:
+        """Upload a :class:`precompute.bake.BakeResult` (or anything with ``data``, ``sh_order``)."""
+        data = np.asarray(result.data)
+        l_max = int(result.sh_order)
+        if not 0 <= l_max <= MAX_L:
+            raise ValueError(f"sh_order must lie in 0…{MAX_L}, got {l_max}")
+        kept = (l_max + 1) * (l_max + 2) // 2
+        if data.ndim not in (4, 5) or data.shape[2] != kept or data.shape[3] != 3:
+            raise ValueError(
+                f"table of shape {data.shape} does not match sh_order {l_max} ({kept} coefficients)"
+            )
+        if data.shape[1] < 2:
+            raise ValueError("the table needs at least 2 view angles")
+        if not np.all(np.isfinite(data)):
+            raise ValueError("the table holds non-finite values")
+        layers = cls.layer_array(data)
+        ensure_gpu_context()
+        n_layers, t, a = layers.shape[:3]
+        limit = gpu.capabilities.max_texture_layers_get()
+        if n_layers > limit:
+            raise ValueError(f"{n_layers} table layers exceed this GPU's limit of {limit}")
+        texture = gpu.types.GPUTexture((a, t), layers=n_layers, format="RGBA32F", data=float_buffer(layers))
+        return cls(texture, l_max, a, t, data.ndim == 5, n_layers)
+
+
+@functools.cache
+def x_rotation_scalars() -> np.ndarray:
+    """The Rx(+90°) then Rx(−90°) band blocks, l = 0…MAX_L, row-major, each set padded to a vec4."""
+    out = np.zeros(2 * RX_PADDED, dtype=np.float64)
+    for s, sign in enumerate((+1, -1)):
+        flat = np.concatenate(
+            [np.asarray(b, dtype=np.float64).ravel() for b in render.x_rotation_bands(MAX_L, sign)]
+        )
+        assert flat.size == RX_SCALARS
+        out[s * RX_PADDED : s * RX_PADDED + RX_SCALARS] = flat
+    out.setflags(write=False)
+    return out
+
+
+def rx_offset(l: int) -> int:
+    """Scalar offset of band l within one set of x-rotation blocks: Σ_{j<l} (2j+1)²."""
+    return l * (2 * l - 1) * (2 * l + 1) // 3
+
+
+@dataclass
+class Lighting:
+    """The World's radiance SH, windowed for one material, in a UBO with the rotation constants."""
+
+    ubo: gpu.types.GPUUniformBuf
+    coefficients: np.ndarray  # ((l_max+1)², 3) float64, windowed: what the shader sees
+    l_max: int
+    roughness: float
+
+    @staticmethod
+    def pack(coefficients) -> np.ndarray:
+        """UBO content (LIGHTING_VEC4 × 4 float32) for windowed coefficients (≤ 81, 3)."""
+        c = np.asarray(coefficients, dtype=np.float64)
+        sh_part = np.zeros((SH_SLOTS, 4), dtype=np.float64)
+        sh_part[: c.shape[0], :3] = c[:, :3]
+        data = np.concatenate([sh_part.ravel(), x_rotation_scalars()]).astype(np.float32)
+        assert data.size == 4 * LIGHTING_VEC4 and data.nbytes <= UBO_LIMIT_BYTES
+        return data
+
+    @classmethod
+    def from_sh(cls, world_coeffs, l_max: int, roughness: float) -> Lighting:
+        """World SH (≥ 1, 3) → windowed by :func:`render.lighting_window` for ``l_max``/``roughness``.
+
+        Missing coefficients (fewer than (l_max+1)²) are zero; extra ones are dropped.
+        """
+        l_max = int(l_max)
+        if not 0 <= l_max <= MAX_L:
+            raise ValueError(f"l_max must lie in 0…{MAX_L}, got {l_max}")
+        c = np.asarray(world_coeffs, dtype=np.float64)
+        if c.ndim != 2 or c.shape[1] < 3 or not np.all(np.isfinite(c)):
+            raise ValueError(f"world_coeffs must be finite, shape (K, 3), got {c.shape}")
+        k = (l_max + 1) ** 2
+        full = np.zeros((k, 3))
+        n = min(k, c.shape[0])
+        full[:n] = c[:n, :3]
+        windowed = full * np.asarray(render.lighting_window(l_max, float(roughness)))[:k, None]
+        ensure_gpu_context()
+        ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed)))
+        return cls(ubo, windowed, l_max, float(roughness))
+
+
+@dataclass
+class MeshBatch:
+    """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1])."""
+
+    batch: gpu.types.GPUBatch
+    vertex_count: int
+    triangle_count: int
+    has_thickness: bool
+
+    @classmethod
+    def from_arrays(cls, positions, normals, indices, thickness=None) -> MeshBatch | None:
+        """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness.
+
+        Everything is converted to float32 / int32. Returns None for an empty mesh.
+        """
+        pos = np.ascontiguousarray(np.asarray(positions, dtype=np.float32).reshape(-1, 3))
+        nor = np.ascontiguousarray(np.asarray(normals, dtype=np.float32).reshape(-1, 3))
+        idx = np.ascontiguousarray(np.asarray(indices).reshape(-1, 3).astype(np.int32))
+        if pos.shape[0] == 0 or idx.shape[0] == 0:
+            return None
+        if nor.shape != pos.shape:
+            raise ValueError(f"normals {nor.shape} must match positions {pos.shape}")
+        if idx.min() < 0 or idx.max() >= pos.shape[0]:
+            raise ValueError("triangle indices out of range")
+        fmt = gpu.types.GPUVertFormat()
+        fmt.attr_add(id="pos", comp_type="F32", len=3, fetch_mode="FLOAT")
+        fmt.attr_add(id="nor", comp_type="F32", len=3, fetch_mode="FLOAT")
+        th = None
+        if thickness is not None:
+            th = np.ascontiguousarray(np.asarray(thickness, dtype=np.float32).reshape(-1))
+            if th.shape[0] != pos.shape[0]:
+                raise ValueError(f"thickness {th.shape} must have one value per vertex ({pos.shape[0]})")
+            fmt.attr_add(id="thickness", comp_type="F32", len=1, fetch_mode="FLOAT")
+        ensure_gpu_context()
+        vbo = gpu.types.GPUVertBuf(fmt, pos.shape[0])
+        vbo.attr_fill("pos", pos)
+        vbo.attr_fill("nor", nor)
+        if th is not None:
+            vbo.attr_fill("thickness", th)
+        ibo = gpu.types.GPUIndexBuf(type="TRIS", seq=idx)
+        batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
+        return cls(batch, pos.shape[0], idx.shape[0], th is not None)
+
+
+def mesh_arrays(mesh, thickness_attribute: str | None = None):
+    """(positions, normals, triangles, thickness | None) of a mesh, one vertex per face corner.
+
+    Positions and split/custom normals (``mesh.corner_normals``) per corner (loop), triangles
+    from the loop triangulation as corner indices, and the named FLOAT attribute (point, corner
+    or face domain) per corner, raw (the caller maps it to [0, 1]); None when it is missing or of
+    another type. Returns None for a mesh without triangles.
+    """
+    tris = mesh.loop_triangles
+    if len(tris) == 0:
+        mesh.calc_loop_triangles()
+        tris = mesh.loop_triangles
+    n_tri, n_loop = len(tris), len(mesh.loops)
+    if n_tri == 0 or n_loop == 0:
+        return None
+    loop_vert = np.empty(n_loop, dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", loop_vert)
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    positions = co.reshape(-1, 3)[loop_vert]
+    normals = np.empty(n_loop * 3, dtype=np.float32)
+    mesh.corner_normals.foreach_get("vector", normals)
+    triangles = np.empty(n_tri * 3, dtype=np.int32)
+    tris.foreach_get("loops", triangles)
+    thickness = None
+    if thickness_attribute:
+        attr = mesh.attributes.get(thickness_attribute)
+        if attr is not None and attr.data_type == "FLOAT":
+            values = np.empty(len(attr.data), dtype=np.float32)
+            attr.data.foreach_get("value", values)
+            if attr.domain == "POINT":
+                thickness = values[loop_vert]
+            elif attr.domain == "CORNER":
+                thickness = values
+            elif attr.domain == "FACE":
+                totals = np.empty(len(mesh.polygons), dtype=np.int32)
+                mesh.polygons.foreach_get("loop_total", totals)
+                thickness = np.repeat(values, totals)  # polygons own consecutive loop ranges
+    return positions, normals.reshape(-1, 3), triangles.reshape(-1, 3), thickness
+
+
+@dataclass
+class EnvironmentTexture:
+    """The World's equirect image (H, W, C ≥ 3, top row first) as a filtered RGBA32F texture."""
+
+    texture: gpu.types.GPUTexture
+    width: int
+    height: int
+
+    @classmethod
+    def from_image(cls, image) -> EnvironmentTexture:
+        img = np.asarray(image, dtype=np.float32)
+        if img.ndim != 3 or img.shape[2] < 3:
+            raise ValueError(f"environment image must be (H, W, 3|4), got {img.shape}")
+        h, w = img.shape[:2]
+        rgba = np.ones((h, w, 4), dtype=np.float32)
+        rgba[..., :3] = img[..., :3]
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((w, h), format="RGBA32F", data=float_buffer(rgba))
+        texture.filter_mode(True)
+        texture.extend_mode_x("REPEAT")
+        texture.extend_mode_y("EXTEND")
+        return cls(texture, w, h)
+
+
+# ----------------------------------------------------------------------------------------------
+# Drawing
+# ----------------------------------------------------------------------------------------------
+def _matrix(m) -> np.ndarray:
+    a = np.array(m, dtype=np.float64)  # mathutils.Matrix rows, numpy or nested lists
+    if a.shape != (4, 4):
+        raise ValueError(f"expected a 4×4 matrix, got shape {a.shape}")
+    return a
+
+
+def _columns(m: np.ndarray) -> np.ndarray:
+    """Columns of a 4×4 as four vec4s (what mat4(c0, c1, c2, c3) takes)."""
+    return np.ascontiguousarray(m.T).ravel()
+
+
+def is_orthographic(projection_matrix) -> bool:
+    p = _matrix(projection_matrix)
+    return bool(p[3, 3] == 1.0 and p[3, 2] == 0.0)
+
+
+def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.ndarray:
+    """TFView content (11 vec4, float32)."""
+    view, proj = _matrix(view_matrix), _matrix(projection_matrix)
+    vp = proj @ view
+    inv_view = np.linalg.inv(view)
+    ortho = is_orthographic(proj)
+    toward_viewer = inv_view[:3, 2] / max(np.linalg.norm(inv_view[:3, 2]), 1e-30)
+    return np.concatenate(
+        [
+            _columns(vp),
+            _columns(np.linalg.inv(vp)),
+            [*inv_view[:3, 3], 1.0 if ortho else 0.0],
+            [*toward_viewer, 0.0],
+            [2.0 ** float(exposure), 0.0, 0.0, 0.0],
+        ]
+    ).astype(np.float32)
+
+
+def object_uniforms(model_matrix) -> np.ndarray:
+    """TFObject content: model matrix and normal matrix (inverse transpose of its 3×3), columns."""
+    model = _matrix(model_matrix)
+    m3 = model[:3, :3]
+    try:
+        normal3 = np.linalg.inv(m3).T
+    except np.linalg.LinAlgError:
+        normal3 = np.linalg.pinv(m3).T
+    normal = np.eye(4)
+    normal[:3, :3] = normal3
+    return np.concatenate([_columns(model), _columns(normal)]).astype(np.float32)
+
+
+def _batch_of(item):
+    """(GPUBatch, has_thickness) of a draw item whose ``batch`` is a MeshBatch or a GPUBatch."""
+    batch = item.batch
+    if isinstance(batch, MeshBatch):
+        return batch.batch, batch.has_thickness
+    return batch, bool(getattr(item, "has_thickness", False))
+
+
+class _SavedState:
+    """The gpu.state values we change and can read back (face culling has no getter)."""
+
+    def __init__(self):
+        self.depth_test = gpu.state.depth_test_get()
+        self.depth_mask = gpu.state.depth_mask_get()
+        self.blend = gpu.state.blend_get()
+
+    def restore(self):
+        gpu.state.depth_test_set(self.depth_test)
+        gpu.state.depth_mask_set(self.depth_mask)
+        gpu.state.blend_set(self.blend)
+
+
+def draw_items(
+    items, view_matrix, projection_matrix, *, display_srgb: bool, exposure: float = 0.0, shaders=None
+):
+    """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
+
+    ``items``: objects with ``.batch`` (:class:`MeshBatch` or a GPUBatch), ``.model_matrix``
+    (4×4), ``.table`` (:class:`TableTexture`) and ``.lighting`` (:class:`Lighting`). Depth test
+    LESS_EQUAL with depth writes, no blending, no face culling. Face culling cannot be read back
+    from ``gpu.state`` and is left off (Blender's default); depth test, depth mask and blend are
+    restored.
+    """
+    items = list(items)
+    if not items:
+        return
+    ensure_gpu_context()
+    shaders = SHADERS if shaders is None else shaders
+    view_ubo = gpu.types.GPUUniformBuf(float_buffer(view_uniforms(view_matrix, projection_matrix, exposure)))
+    keep = [view_ubo]  # UBOs live until the end of the draw
+    saved = _SavedState()
+    try:
+        gpu.state.depth_test_set("LESS_EQUAL")
+        gpu.state.depth_mask_set(True)
+        gpu.state.face_culling_set("NONE")
+        gpu.state.blend_set("NONE")
+        for item in items:
+            batch, has_thickness = _batch_of(item)
+            if batch is None:
+                continue
+            table = item.table
+            vary = has_thickness and table.thickness_count > 1
+            shader = shaders.get(table.l_max, table.spectral, vary, display_srgb)
+            object_ubo = gpu.types.GPUUniformBuf(float_buffer(object_uniforms(item.model_matrix)))
+            keep.append(object_ubo)
+            shader.bind()
+            shader.uniform_block("tf_lighting", item.lighting.ubo)
+            shader.uniform_block("tf_view", view_ubo)
+            shader.uniform_block("tf_object", object_ubo)
+            shader.uniform_sampler("tf_table", table.texture)
+            batch.draw(shader)
+    finally:
+        saved.restore()
+
+
+@functools.cache
+def _fullscreen_triangle():
+    fmt = gpu.types.GPUVertFormat()
+    fmt.attr_add(id="pos", comp_type="F32", len=2, fetch_mode="FLOAT")
+    vbo = gpu.types.GPUVertBuf(fmt, 3)
+    vbo.attr_fill("pos", np.array([[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0]], dtype=np.float32))
+    return gpu.types.GPUBatch(type="TRIS", buf=vbo)
+
+
+def draw_background(
+    environment,
+    view_matrix,
+    projection_matrix,
+    *,
+    display_srgb: bool = False,
+    exposure: float = 0.0,
+    shaders=None,
+) -> None:
+    """Draw the equirect environment at the far plane where nothing has been drawn (depth = 1).
+
+    ``environment``: an :class:`EnvironmentTexture` or an image array (H, W, 3|4).
+    """
+    ensure_gpu_context()
+    if not isinstance(environment, EnvironmentTexture):
+        environment = EnvironmentTexture.from_image(environment)
+    shaders = SHADERS if shaders is None else shaders
+    shader = shaders.background(display_srgb)
+    view_ubo = gpu.types.GPUUniformBuf(float_buffer(view_uniforms(view_matrix, projection_matrix, exposure)))
+    saved = _SavedState()
+    try:
+        gpu.state.depth_test_set("LESS_EQUAL")
+        gpu.state.depth_mask_set(False)
+        gpu.state.face_culling_set("NONE")
+        gpu.state.blend_set("NONE")
+        shader.bind()
+        shader.uniform_block("tf_view", view_ubo)
+        shader.uniform_sampler("tf_environment", environment.texture)
+        _fullscreen_triangle().draw(shader)
+    finally:
+        saved.restore()
+
+
+def read_framebuffer(framebuffer, width: int, height: int) -> np.ndarray:
+    """RGBA float32 (H, W, 4), top row first, of a bound framebuffer."""
+    buf = framebuffer.read_color(0, 0, width, height, 4, 0, "FLOAT")
+    buf.dimensions = width * height * 4
+    return np.asarray(buf, dtype=np.float32).reshape(height, width, 4)[::-1].copy()
+
+
+def render_offscreen(
+    items,
+    view_matrix,
+    projection_matrix,
+    width: int,
+    height: int,
+    *,
+    background=None,
+    depth_from=None,
+    shaders=None,
+) -> np.ndarray:
+    """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first.
+
+    Order: clear (colour 0, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
+    scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
+    bound) → the ``background`` equirect image where depth is still 1 → the items, depth-tested.
+    Alpha is 1 where anything was drawn and 0 elsewhere (without a background).
+    """
+    ensure_gpu_context()
+    width, height = int(width), int(height)
+    if width < 1 or height < 1:
+        raise ValueError(f"size must be positive, got {width}×{height}")
+    offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                if depth_from is not None:
+                    depth_from(offscreen)
+                if background is not None:
+                    draw_background(background, view_matrix, projection_matrix, shaders=shaders)
+                draw_items(items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders)
+            return read_framebuffer(fb, width, height)
+    finally:
+        offscreen.free()

@@ -1,0 +1,52 @@
+/* tf_common.glsl: constants and safe helpers shared by every Thin Film SH shader.
+ *
+ * numpy counterpart: the np.clip / norm guards of precompute/render.py (GIMBAL_SIN, the
+ * tangent threshold of view_aligned_frame) and render.srgb_encode.
+ *
+ * Variant defines (set from Python through GPUShaderCreateInfo.define):
+ *   TF_L_MAX           SH order of the baked table, 0..8
+ *   TF_SPECTRAL        3x3 colour matrix per coefficient (else one RGB triple, per channel)
+ *   TF_VARY_THICKNESS  thickness from the per-vertex attribute `thickness` in [0, 1]
+ *   TF_DISPLAY_SRGB    output display-encoded (exposure, clamp, sRGB OETF), else scene-linear
+ * Set at the top of the joined library by gpu_draw.shading_library:
+ *   TF_RX_NEG          scalar offset of the X(-90) blocks in the lighting UBO
+ *   TF_X90_GENERATED   the X(+-90) products come as generated straight-line code
+ */
+
+#define TF_PI 3.14159265358979323846
+#define TF_HALF_PI 1.57079632679489661923
+/* render.GIMBAL_SIN: below this sin(beta) the z-y-z split is a single z-rotation. */
+#define TF_GIMBAL_SIN 1e-7
+/* Below this |v - n (n.v)| the view is taken as parallel to n (render.view_aligned_frame uses
+ * 1e-9 in float64; float32 rounding of two equal unit vectors leaves ~1e-7 of noise). */
+#define TF_TANGENT_EPS 1e-6
+/* Number of SH coefficients up to band TF_L_MAX: all of them, and those with m >= 0. */
+#define TF_K_FULL ((TF_L_MAX + 1) * (TF_L_MAX + 1))
+#define TF_K_KEPT ((TF_L_MAX + 1) * (TF_L_MAX + 2) / 2)
+#define TF_BAND_MAX (2 * TF_L_MAX + 1)
+
+float tf_clamp_cos(float c)
+{
+  return clamp(c, 0.0, 1.0);
+}
+
+/* normalize(v), or `fallback` when v is (nearly) zero: never NaN. */
+vec3 tf_safe_normalize(vec3 v, vec3 fallback)
+{
+  float len2 = dot(v, v);
+  return (len2 > 1e-30) ? v * inversesqrt(len2) : fallback;
+}
+
+vec2 tf_safe_normalize2(vec2 v, vec2 fallback)
+{
+  float len2 = dot(v, v);
+  return (len2 > 1e-30) ? v * inversesqrt(len2) : fallback;
+}
+
+/* sRGB OETF (IEC 61966-2-1) of a value already clamped to [0, 1]. */
+vec3 tf_srgb_oetf(vec3 x)
+{
+  vec3 lo = 12.92 * x;
+  vec3 hi = 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055;
+  return mix(hi, lo, vec3(lessThanEqual(x, vec3(0.0031308))));
+}

@@ -1,0 +1,28 @@
+/* tf_main_frag.glsl: shade a mesh fragment.
+ *
+ * numpy counterpart: render.shade_sh (via tf_shade) with render.srgb_encode for display.
+ * v = normalize(camera - position) in perspective, the constant direction towards the viewer
+ * in orthographic views (tf_view.camera.w = 1); the normal is flipped to face the viewer
+ * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF.
+ */
+
+void main()
+{
+  vec3 toward_viewer = tf_view.view_dir.xyz;
+  vec3 v = (tf_view.camera.w > 0.5) ? toward_viewer :
+                                      tf_safe_normalize(tf_view.camera.xyz - tf_world_pos, toward_viewer);
+  vec3 n = tf_safe_normalize(tf_world_nor, v);
+  if (dot(n, v) < 0.0) {
+    n = -n;
+  }
+#ifdef TF_VARY_THICKNESS
+  float thickness01 = tf_thickness;
+#else
+  float thickness01 = 0.0;
+#endif
+  vec3 rgb = tf_shade(n, v, thickness01);
+#ifdef TF_DISPLAY_SRGB
+  rgb = tf_srgb_oetf(clamp(rgb * tf_view.params.x, 0.0, 1.0));
+#endif
+  tf_frag_color = vec4(rgb, 1.0);
+}

@@ -1,0 +1,158 @@
+/* tf_sh_rotate.glsl: rotate the World's radiance SH into the view-aligned frame.
+ *
+ * numpy counterpart: render.rotate_z_batch, render.apply_bands, render.local_coefficients.
+ * rotation(Rz(a) Ry(b) Rz(c)) = Z(a) X(-90) Z(b) X(+90) Z(c), applied right to left
+ * (Kautz, Sloan & Snyder 2002, section 4), because Ry(b) = Rx(-90) Rz(b) Rx(+90).
+ *
+ * Z(angle) turns each (+m, -m) pair of band l by (cos m*angle, sin m*angle), obtained by the
+ * recurrence c_m = c_(m-1) * c_1 (complex product, same order of operations as numpy).
+ * It is written out band by band so that every array index is a constant: GPUs (and llvmpipe)
+ * keep tf_c in registers only when no index is computed at run time.
+ *
+ * X(+-90) are constant band blocks read from the lighting UBO (addon/gpu_draw.py Lighting):
+ *   tf_lighting.sh[81]  world radiance coefficient i = l(l+1)+m in .rgb (windowed)
+ *   tf_lighting.rx[486] the blocks of X(+90) for l = 0..8, row-major, band l at scalar offset
+ *                       l(2l-1)(2l+1)/3, then those of X(-90) from scalar TF_RX_NEG.
+ * tf_apply_x90_pos / _neg are normally generated in Python (TF_X90_GENERATED, gpu_draw.py
+ * x90_source): straight-line code over the 247 structurally non-zero entries of the 969 (the
+ * values still come from the UBO). The generic loops below are the readable equivalent, used
+ * when the generated code is switched off; the tests compare both with numpy.
+ * Needs: TF_L_MAX, TF_K_FULL, TF_BAND_MAX (tf_common.glsl), TF_RX_NEG (gpu_draw.py).
+ */
+
+/* Coefficients being rotated (file scope: arrays are not passed to functions). */
+vec3 tf_c[TF_K_FULL];
+
+float tf_rx(int k)
+{
+  return tf_lighting.rx[k >> 2][k & 3];
+}
+
+/* Complex product: (cos, sin) of the summed angles. */
+vec2 tf_cmul(vec2 a, vec2 b)
+{
+  return vec2(a.x * b.x - a.y * b.y, a.y * b.x + a.x * b.y);
+}
+
+/* Pair (c_m, s_m) -> (c cos - s sin, c sin + s cos) with cm = (cos m*angle, sin m*angle). */
+void tf_zpair(int pos, int neg, vec2 cm)
+{
+  vec3 c = tf_c[pos];
+  vec3 s = tf_c[neg];
+  tf_c[pos] = c * cm.x - s * cm.y;
+  tf_c[neg] = c * cm.y + s * cm.x;
+}
+
+/* Z(angle) with cs = (cos angle, sin angle): tf_zpair(l(l+1)+m, l(l+1)-m, c_m), m = 1..l. */
+void tf_rotate_z(vec2 cs)
+{
+#if TF_L_MAX >= 1
+  vec2 c1 = cs;
+  tf_zpair(3, 1, c1);
+#endif
+#if TF_L_MAX >= 2
+  vec2 c2 = tf_cmul(c1, cs);
+  tf_zpair(7, 5, c1);
+  tf_zpair(8, 4, c2);
+#endif
+#if TF_L_MAX >= 3
+  vec2 c3 = tf_cmul(c2, cs);
+  tf_zpair(13, 11, c1);
+  tf_zpair(14, 10, c2);
+  tf_zpair(15, 9, c3);
+#endif
+#if TF_L_MAX >= 4
+  vec2 c4 = tf_cmul(c3, cs);
+  tf_zpair(21, 19, c1);
+  tf_zpair(22, 18, c2);
+  tf_zpair(23, 17, c3);
+  tf_zpair(24, 16, c4);
+#endif
+#if TF_L_MAX >= 5
+  vec2 c5 = tf_cmul(c4, cs);
+  tf_zpair(31, 29, c1);
+  tf_zpair(32, 28, c2);
+  tf_zpair(33, 27, c3);
+  tf_zpair(34, 26, c4);
+  tf_zpair(35, 25, c5);
+#endif
+#if TF_L_MAX >= 6
+  vec2 c6 = tf_cmul(c5, cs);
+  tf_zpair(43, 41, c1);
+  tf_zpair(44, 40, c2);
+  tf_zpair(45, 39, c3);
+  tf_zpair(46, 38, c4);
+  tf_zpair(47, 37, c5);
+  tf_zpair(48, 36, c6);
+#endif
+#if TF_L_MAX >= 7
+  vec2 c7 = tf_cmul(c6, cs);
+  tf_zpair(57, 55, c1);
+  tf_zpair(58, 54, c2);
+  tf_zpair(59, 53, c3);
+  tf_zpair(60, 52, c4);
+  tf_zpair(61, 51, c5);
+  tf_zpair(62, 50, c6);
+  tf_zpair(63, 49, c7);
+#endif
+#if TF_L_MAX >= 8
+  vec2 c8 = tf_cmul(c7, cs);
+  tf_zpair(73, 71, c1);
+  tf_zpair(74, 70, c2);
+  tf_zpair(75, 69, c3);
+  tf_zpair(76, 68, c4);
+  tf_zpair(77, 67, c5);
+  tf_zpair(78, 66, c6);
+  tf_zpair(79, 65, c7);
+  tf_zpair(80, 64, c8);
+#endif
+}
+
+void tf_apply_x90_pos();
+void tf_apply_x90_neg();
+
+#ifndef TF_X90_GENERATED
+/* Dense band-by-band product with the X(+90) (base 0) or X(-90) (base TF_RX_NEG) blocks. */
+void tf_apply_x90(int base)
+{
+  vec3 tmp[TF_BAND_MAX];
+  for (int l = 1; l <= TF_L_MAX; l++) {
+    int size = 2 * l + 1;
+    int first = l * l;
+    int off = base + l * (2 * l - 1) * (2 * l + 1) / 3;
+    for (int i = 0; i < size; i++) {
+      vec3 acc = vec3(0.0);
+      for (int j = 0; j < size; j++) {
+        acc += tf_rx(off + i * size + j) * tf_c[first + j];
+      }
+      tmp[i] = acc;
+    }
+    for (int i = 0; i < size; i++) {
+      tf_c[first + i] = tmp[i];
+    }
+  }
+}
+
+void tf_apply_x90_pos()
+{
+  tf_apply_x90(0);
+}
+
+void tf_apply_x90_neg()
+{
+  tf_apply_x90(TF_RX_NEG);
+}
+#endif
+
+/* Fill tf_c with the radiance SH in the frame whose z-y-z angles are a, b, c. */
+void tf_local_coefficients(vec2 a, vec2 b, vec2 c)
+{
+  for (int i = 0; i < TF_K_FULL; i++) {
+    tf_c[i] = tf_lighting.sh[i].rgb;
+  }
+  tf_rotate_z(c);
+  tf_apply_x90_pos();
+  tf_rotate_z(b);
+  tf_apply_x90_neg();
+  tf_rotate_z(a);
+}

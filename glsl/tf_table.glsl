@@ -1,0 +1,70 @@
+/* tf_table.glsl: bilinear lookup of the baked table at (theta_o, thickness).
+ *
+ * numpy counterpart: render._lerp_index and render.lookup.
+ * Texture `tf_table` (sampler2DArray, RGBA32F): width A = view angles (theta_o uniform
+ * 0..90 deg inclusive), height T = thickness rows, one layer per table row:
+ *   TF_SPECTRAL: layer 3i+k = row k of the 3x3 matrix of kept coefficient i (.rgb = lighting RGB)
+ *   otherwise:   layer i = the RGB factors of kept coefficient i.
+ * Without TF_VARY_THICKNESS the first thickness row is used (render.lookup without thickness).
+ * Interpolation is done here with texelFetch (4 fetches, 2 for one thickness row), in full
+ * float32: hardware filtering quantises the weights (8 bits of sub-texel precision on common
+ * GPUs) and would not reproduce render.lookup to 1e-4.
+ */
+
+struct TFLerp {
+  ivec2 i0; /* (theta column, thickness row) */
+  ivec2 i1;
+  vec2 w;
+};
+
+/* render._lerp_index: position clamped to [0, count - 1], lower index <= count - 2. */
+void tf_lerp_index(float pos, int count, out int i0, out int i1, out float w)
+{
+  pos = clamp(pos, 0.0, float(count - 1));
+  i0 = min(int(floor(pos)), max(count - 2, 0));
+  i1 = min(i0 + 1, count - 1);
+  w = pos - float(i0);
+}
+
+/* theta_o from (cos, sin) and the thickness position in [0, 1] (0 = first row). */
+TFLerp tf_table_lerp(float cos_o, float sin_o, float thickness01)
+{
+  TFLerp r;
+  ivec3 size = textureSize(tf_table, 0);
+  /* theta = acos(clip(cos_o, 0, 1)) */
+  float theta = (cos_o > 0.0) ? atan(max(sin_o, 0.0), cos_o) : TF_HALF_PI;
+  float w;
+  int i0, i1;
+  tf_lerp_index(theta / TF_HALF_PI * float(size.x - 1), size.x, i0, i1, w);
+  r.i0.x = i0;
+  r.i1.x = i1;
+  r.w.x = w;
+#ifdef TF_VARY_THICKNESS
+  if (size.y > 1) {
+    tf_lerp_index(thickness01 * float(size.y - 1), size.y, i0, i1, w);
+    r.i0.y = i0;
+    r.i1.y = i1;
+    r.w.y = w;
+    return r;
+  }
+#endif
+  r.i0.y = 0;
+  r.i1.y = 0;
+  r.w.y = 0.0;
+  return r;
+}
+
+vec3 tf_table_fetch(TFLerp r, int layer)
+{
+  vec3 lo = mix(texelFetch(tf_table, ivec3(r.i0.x, r.i0.y, layer), 0).rgb,
+                texelFetch(tf_table, ivec3(r.i1.x, r.i0.y, layer), 0).rgb,
+                r.w.x);
+#ifdef TF_VARY_THICKNESS
+  vec3 hi = mix(texelFetch(tf_table, ivec3(r.i0.x, r.i1.y, layer), 0).rgb,
+                texelFetch(tf_table, ivec3(r.i1.x, r.i1.y, layer), 0).rgb,
+                r.w.x);
+  return mix(lo, hi, r.w.y);
+#else
+  return lo;
+#endif
+}
