@@ -184,7 +184,7 @@ def _ones(cos):
 @functools.lru_cache(maxsize=64)
 def ggx_E(roughness: float, cos_key: tuple) -> np.ndarray:
     """Single-scattering GGX albedo E(μo) with F ≡ 1 at the given view cosines (cached)."""
-    return directional_albedo(np.array(cos_key), roughness, _ones, 128, 64)[:, 0]
+    return directional_albedo(np.array(cos_key), roughness, _ones, 256, 128)[:, 0]
 
 
 @functools.lru_cache(maxsize=64)
