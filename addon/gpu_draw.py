@@ -72,6 +72,7 @@ struct TFView {{
 struct TFObject {{
   vec4 model[4];
   vec4 normal[4];
+  vec4 material; /* x: roughness, y: SH weight of the split-sum blend */
 }};
 """
 
@@ -79,6 +80,7 @@ struct TFObject {{
 UBO_LIGHTING, UBO_VIEW, UBO_OBJECT = 0, 1, 2
 SAMPLER_TABLE = 0
 SAMPLER_ENVIRONMENT = 0
+SAMPLER_PREFILTERED = 3
 
 
 # ----------------------------------------------------------------------------------------------
@@ -222,6 +224,7 @@ class Variant(NamedTuple):
     spectral: bool
     vary_thickness: bool
     display: bool
+    split_sum: bool = False
 
 
 def declare_shading_resources(info, variant: Variant) -> None:
@@ -235,6 +238,9 @@ def declare_shading_resources(info, variant: Variant) -> None:
         info.define("TF_VARY_THICKNESS", "1")
     if variant.display:
         info.define("TF_DISPLAY_SRGB", "1")
+    if variant.split_sum:
+        info.define("TF_SPLIT_SUM", "1")
+        info.sampler(SAMPLER_PREFILTERED, "FLOAT_2D_ARRAY", "tf_prefiltered")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
     info.sampler(SAMPLER_TABLE, "FLOAT_2D_ARRAY", "tf_table")
@@ -256,8 +262,12 @@ def _mesh_shader_info(variant: Variant, generated_x90: bool = True):
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(glsl_chunk("tf_main_vert.glsl"))
+    split = ("\n" + glsl_chunk("tf_split_sum.glsl")) if variant.split_sum else ""
     info.fragment_source(
-        shading_library(variant.l_max, generated_x90=generated_x90) + "\n" + glsl_chunk("tf_main_frag.glsl")
+        shading_library(variant.l_max, generated_x90=generated_x90)
+        + split
+        + "\n"
+        + glsl_chunk("tf_main_frag.glsl")
     )
     return info, iface
 
@@ -301,9 +311,9 @@ class ShaderCache:
             self._shaders[key] = shader
         return shader
 
-    def get(self, l_max: int, spectral: bool, vary_thickness: bool, display: bool):
-        """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, …)."""
-        variant = Variant(int(l_max), bool(spectral), bool(vary_thickness), bool(display))
+    def get(self, l_max: int, spectral: bool, vary_thickness: bool, display: bool, split_sum: bool = False):
+        """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
+        variant = Variant(int(l_max), bool(spectral), bool(vary_thickness), bool(display), bool(split_sum))
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
     def background(self, display: bool):
@@ -551,6 +561,34 @@ class EnvironmentTexture:
         return cls(texture, w, h)
 
 
+@dataclass
+class PrefilterTexture:
+    """The World prefiltered by GGX at J roughness levels, one layer each (see tf_split_sum.glsl)."""
+
+    texture: gpu.types.GPUTexture
+    levels: int
+    width: int
+    height: int
+
+    @classmethod
+    def from_levels(cls, levels) -> PrefilterTexture:
+        """From (J, H, W, 3) radiance, J ≥ 2 levels at uniform roughness 0 … 1, top row first."""
+        data = np.asarray(levels, dtype=np.float32)
+        if data.ndim != 4 or data.shape[0] < 2 or data.shape[3] < 3:
+            raise ValueError(f"prefiltered levels must be (J ≥ 2, H, W, 3), got {data.shape}")
+        if not np.all(np.isfinite(data)):
+            raise ValueError("prefiltered levels contain NaN or Inf")
+        j, h, w = data.shape[:3]
+        rgba = np.ones((j, h, w, 4), dtype=np.float32)
+        rgba[..., :3] = data[..., :3]
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((w, h), layers=j, format="RGBA32F", data=float_buffer(rgba))
+        texture.filter_mode(True)
+        texture.extend_mode_x("REPEAT")
+        texture.extend_mode_y("EXTEND")
+        return cls(texture, j, w, h)
+
+
 # ----------------------------------------------------------------------------------------------
 # Drawing
 # ----------------------------------------------------------------------------------------------
@@ -589,8 +627,8 @@ def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.n
     ).astype(np.float32)
 
 
-def object_uniforms(model_matrix) -> np.ndarray:
-    """TFObject content: model matrix and normal matrix (inverse transpose of its 3×3), columns."""
+def object_uniforms(model_matrix, roughness: float = 0.0, sh_weight: float = 1.0) -> np.ndarray:
+    """TFObject content: model matrix, normal matrix (inverse transpose of its 3×3), material params."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:
@@ -599,7 +637,8 @@ def object_uniforms(model_matrix) -> np.ndarray:
         normal3 = np.linalg.pinv(m3).T
     normal = np.eye(4)
     normal[:3, :3] = normal3
-    return np.concatenate([_columns(model), _columns(normal)]).astype(np.float32)
+    material = np.array([float(roughness), float(sh_weight), 0.0, 0.0])
+    return np.concatenate([_columns(model), _columns(normal), material]).astype(np.float32)
 
 
 def _batch_of(item):
@@ -654,14 +693,22 @@ def draw_items(
                 continue
             table = item.table
             vary = has_thickness and table.thickness_count > 1
-            shader = shaders.get(table.l_max, table.spectral, vary, display_srgb)
-            object_ubo = gpu.types.GPUUniformBuf(float_buffer(object_uniforms(item.model_matrix)))
+            prefiltered = getattr(item, "prefiltered", None)
+            sh_weight = float(getattr(item, "sh_weight", 1.0))
+            split = prefiltered is not None and sh_weight < 1.0
+            shader = shaders.get(table.l_max, table.spectral, vary, display_srgb, split)
+            uniforms = object_uniforms(
+                item.model_matrix, getattr(item, "roughness", 0.0), sh_weight if split else 1.0
+            )
+            object_ubo = gpu.types.GPUUniformBuf(float_buffer(uniforms))
             keep.append(object_ubo)
             shader.bind()
             shader.uniform_block("tf_lighting", item.lighting.ubo)
             shader.uniform_block("tf_view", view_ubo)
             shader.uniform_block("tf_object", object_ubo)
             shader.uniform_sampler("tf_table", table.texture)
+            if split:
+                shader.uniform_sampler("tf_prefiltered", prefiltered.texture)
             batch.draw(shader)
     finally:
         saved.restore()

@@ -16,11 +16,11 @@ import bpy
 import numpy as np
 
 from ..precompute import render as np_render
-from . import gpu_draw, materials, scene_draw, world
+from . import gpu_draw, materials, scene_draw
 
 
 def scene_materials(scene):
-    """{material name: description} for materials used by visible mesh objects (enabled or Principled film)."""
+    """{material name: description} of the visible meshes' film materials (enabled or Principled), errors."""
     found = {}
     errors = {}
     for obj in scene.objects:
@@ -51,8 +51,14 @@ def bake_scene(scene, out_dir=None, progress=print) -> dict:
         key = materials.description_key(desc)
         t0 = time.perf_counter()
         result, source = materials.get_table_with_source(desc)
-        entry = {"key": key, "source": source, "seconds": time.perf_counter() - t0, "shape": list(result.data.shape),
-                 "sh_order": result.sh_order, "shared_with": shared.get(key)}
+        entry = {
+            "key": key,
+            "source": source,
+            "seconds": time.perf_counter() - t0,
+            "shape": list(result.data.shape),
+            "sh_order": result.sh_order,
+            "shared_with": shared.get(key),
+        }
         shared.setdefault(key, name)
         if out_dir:
             path = pathlib.Path(out_dir) / f"{bpy.path.clean_name(name)}.exr"
@@ -84,8 +90,9 @@ def camera_matrices(scene, depsgraph, width: int, height: int):
     return view, proj
 
 
-def render_scene(scene, out_path, width: int | None = None, height: int | None = None,
-                 background: bool = True) -> dict:
+def render_scene(
+    scene, out_path, width: int | None = None, height: int | None = None, background: bool = True
+) -> dict:
     """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it."""
     gpu_draw.ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
@@ -96,8 +103,9 @@ def render_scene(scene, out_path, width: int | None = None, height: int | None =
     t0 = time.perf_counter()
     items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True)
     env = None
-    if background:
-        env = world.render_world_panorama(scene.world, width=512) if scene.world is not None else None
+    world_entry = scene_draw.CACHES.world
+    if background and world_entry is not None and world_entry[2] is not None:
+        env = world_entry[2].image  # the panorama the split sum was prefiltered from
     space, region = _view3d_for_depth()
 
     film_objects = {item.name.split("/")[0] for item in items}
@@ -118,8 +126,15 @@ def render_scene(scene, out_path, width: int | None = None, height: int | None =
                 o.hide_set(True)
             bpy.context.view_layer.update()  # draw_view3d reads the evaluated depsgraph
             shading.type, shading.light, shading.color_type = "SOLID", "STUDIO", "MATERIAL"
-            offscreen.draw_view3d(scene, bpy.context.view_layer, space, region,
-                                  _mathutils_matrix(view), _mathutils_matrix(proj), do_color_management=False)
+            offscreen.draw_view3d(
+                scene,
+                bpy.context.view_layer,
+                space,
+                region,
+                _mathutils_matrix(view),
+                _mathutils_matrix(proj),
+                do_color_management=False,
+            )
         finally:
             shading.type, shading.light, shading.color_type = saved
             for o in hidden:
@@ -136,10 +151,17 @@ def render_scene(scene, out_path, width: int | None = None, height: int | None =
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     np_render.write_exr(out.with_suffix(".exr"), rgb)
-    np_render.write_png(out.with_suffix(".png"), np_render.srgb_encode(rgb, float(scene.view_settings.exposure)))
-    return {"png": str(out.with_suffix(".png")), "exr": str(out.with_suffix(".exr")), "size": [width, height],
-            "objects": [item.name for item in items], "messages": messages,
-            "seconds": time.perf_counter() - t0}
+    np_render.write_png(
+        out.with_suffix(".png"), np_render.srgb_encode(rgb, float(scene.view_settings.exposure))
+    )
+    return {
+        "png": str(out.with_suffix(".png")),
+        "exr": str(out.with_suffix(".exr")),
+        "size": [width, height],
+        "objects": [item.name for item in items],
+        "messages": messages,
+        "seconds": time.perf_counter() - t0,
+    }
 
 
 def _mathutils_matrix(m):
@@ -152,8 +174,9 @@ def main(argv) -> int:
     """The CLI behind ``blender -b file.blend -c thinfilm_sh …`` and scripts/thinfilm_headless.py."""
     import argparse
 
-    parser = argparse.ArgumentParser(prog="thinfilm_sh", description="Thin Film SH: headless bake and render "
-                                     "of the open .blend file.")
+    parser = argparse.ArgumentParser(
+        prog="thinfilm_sh", description="Thin Film SH: headless bake and render of the open .blend file."
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     b = sub.add_parser("bake", help="bake every thin-film material the scene shows (uses the cache)")
     b.add_argument("--out-dir", help="also write each table as an EXR here")
@@ -178,17 +201,29 @@ def main(argv) -> int:
             result = render_scene(scene, args.out, args.width, args.height, background=not args.no_background)
             for msg in result["messages"]:
                 print(f"note: {msg}")
-            print(f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
-                  f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)")
+            print(
+                f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
+                f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
+            )
             return 0
         from ..precompute import bake
 
         found, errors = scene_materials(scene)
         for name, desc in sorted(found.items()):
             p = bake.plan(desc)
-            print(json.dumps({"material": name, "sh_order": p.sh_order, "view_samples": p.view_samples,
-                              "thickness_samples": p.thickness_samples, "wavelengths": p.wavelength_count,
-                              "reasons": p.reasons}, indent=2))
+            print(
+                json.dumps(
+                    {
+                        "material": name,
+                        "sh_order": p.sh_order,
+                        "view_samples": p.view_samples,
+                        "thickness_samples": p.thickness_samples,
+                        "wavelengths": p.wavelength_count,
+                        "reasons": p.reasons,
+                    },
+                    indent=2,
+                )
+            )
         for name, err in errors.items():
             print(f"error: material '{name}': {err}")
         return 1 if errors else 0

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ..precompute import prefilter
 from . import gpu_draw, materials, world
 
 log = logging.getLogger(__name__)
@@ -32,6 +33,9 @@ class DrawItem:
     table: gpu_draw.TableTexture
     lighting: gpu_draw.Lighting
     name: str
+    prefiltered: gpu_draw.PrefilterTexture | None = None
+    roughness: float = 0.0
+    sh_weight: float = 1.0
 
 
 @dataclass
@@ -39,7 +43,7 @@ class Caches:
     batches: dict = field(default_factory=dict)  # (object name, slot) → (signature, MeshBatch | None)
     tables: dict = field(default_factory=dict)  # description key → TableTexture
     lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness) → Lighting
-    world: tuple | None = None  # (world key, WorldSH)
+    world: tuple | None = None  # (world key, WorldSH, WorldImage | None)
     dirty: set = field(default_factory=set)  # object names whose geometry changed
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
 
@@ -67,20 +71,58 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         elif isinstance(data, bpy.types.Material):
             # Thickness sources (noise scale, image) live on the material: rebuild its users' batches.
             for obj in scene.objects:
-                if any(slot.material is not None and slot.material.name == data.name for slot in obj.material_slots):
+                if any(
+                    slot.material is not None and slot.material.name == data.name
+                    for slot in obj.material_slots
+                ):
                     CACHES.dirty.add(obj.name)
 
 
 # ----------------------------------------------------------------------------------------------
-def world_lighting(scene, *, allow_compute: bool = True):
-    """(key, WorldSH) for the scene's World; recomputed only when its content key changes."""
+@dataclass
+class WorldImage:
+    """The World as an equirect image (a small Cycles panorama) and its GGX prefilter on the GPU."""
+
+    image: np.ndarray
+    prefiltered: gpu_draw.PrefilterTexture
+
+
+#: Panorama size for the split sum's prefilter and the headless background.
+PANORAMA_WIDTH = 512
+PREFILTER_WIDTH = 256
+
+
+def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True):
+    """(key, WorldSH, WorldImage | None) for the scene's World, recomputed only when its key changes.
+
+    The image (and so the split sum for glossy films) needs a small Cycles panorama render of the
+    World; without a World, or if that render fails, glossy films fall back to the SH path.
+    """
     key = world.world_key(scene)
-    if CACHES.world is not None and CACHES.world[0] == key:
+    if (
+        CACHES.world is not None
+        and CACHES.world[0] == key
+        and (CACHES.world[2] is not None or not need_image)
+    ):
         return CACHES.world
     if not allow_compute:
         return None
-    result = world.world_sh(scene, l_max=8)
-    CACHES.world = (key, result)
+    result = (
+        CACHES.world[1]
+        if CACHES.world is not None and CACHES.world[0] == key
+        else world.world_sh(scene, l_max=8)
+    )
+    image = None
+    if need_image and scene.world is not None:
+        try:
+            panorama = world.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
+            pre = prefilter.prefilter(panorama, width=PREFILTER_WIDTH)
+            image = WorldImage(
+                panorama, gpu_draw.PrefilterTexture.from_levels(pre.resampled(PREFILTER_WIDTH))
+            )
+        except (RuntimeError, ValueError) as exc:
+            log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
+    CACHES.world = (key, result, image)
     CACHES.lightings = {k: v for k, v in CACHES.lightings.items() if k[0] == key}
     return CACHES.world
 
@@ -114,7 +156,11 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
     if triangles.shape[0] == 0:
         return None
     thickness = None
-    if desc.varies and getattr(bpy_material, "thinfilm_sh", None) is not None and bpy_material.thinfilm_sh.enabled:
+    if (
+        desc.varies
+        and getattr(bpy_material, "thinfilm_sh", None) is not None
+        and bpy_material.thinfilm_sh.enabled
+    ):
         try:
             thickness = materials.thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
         except ValueError as exc:
@@ -151,8 +197,9 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             if bpy_material is None:
                 continue
             try:
-                desc = materials.description(bpy_material.original if hasattr(bpy_material, "original")
-                                             else bpy_material)
+                desc = materials.description(
+                    bpy_material.original if hasattr(bpy_material, "original") else bpy_material
+                )
             except ValueError as exc:
                 messages.append(f"material '{bpy_material.name}': {exc}")
                 continue
@@ -175,11 +222,24 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                 seen.add(original.name)
             batch = CACHES.batches[key][1]
             if batch is None:
-                messages.append(f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw")
+                messages.append(
+                    f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw"
+                )
                 continue
             table = table_texture(materials.description_key(desc), result)
             lighting = lighting_for(world_entry, result.sh_order, desc.roughness)
-            items.append(DrawItem(batch, np.array(inst.matrix_world, dtype=np.float64), table, lighting,
-                                  f"{original.name}/{bpy_material.name}"))
+            image = world_entry[2]
+            items.append(
+                DrawItem(
+                    batch,
+                    np.array(inst.matrix_world, dtype=np.float64),
+                    table,
+                    lighting,
+                    f"{original.name}/{bpy_material.name}",
+                    prefiltered=image.prefiltered if image is not None else None,
+                    roughness=float(desc.roughness),
+                    sh_weight=prefilter.sh_weight(desc.roughness),
+                )
+            )
     CACHES.dirty -= seen
     return items, messages

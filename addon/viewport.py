@@ -110,8 +110,10 @@ def register() -> None:
     global _handle
     if _handle is None and not bpy.app.background:
         _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
-    for handlers, fn in ((bpy.app.handlers.load_post, _on_load),
-                         (bpy.app.handlers.depsgraph_update_post, _on_depsgraph)):
+    for handlers, fn in (
+        (bpy.app.handlers.load_post, _on_load),
+        (bpy.app.handlers.depsgraph_update_post, _on_depsgraph),
+    ):
         if fn not in handlers:
             handlers.append(fn)
 
@@ -121,8 +123,10 @@ def unregister() -> None:
     if _handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
         _handle = None
-    for handlers, fn in ((bpy.app.handlers.load_post, _on_load),
-                         (bpy.app.handlers.depsgraph_update_post, _on_depsgraph)):
+    for handlers, fn in (
+        (bpy.app.handlers.load_post, _on_load),
+        (bpy.app.handlers.depsgraph_update_post, _on_depsgraph),
+    ):
         while fn in handlers:
             handlers.remove(fn)
     if bpy.app.timers.is_registered(_service):

@@ -20,7 +20,11 @@ void main()
 #else
   float thickness01 = 0.0;
 #endif
+#ifdef TF_SPLIT_SUM
+  vec3 rgb = tf_shade_combined(n, v, thickness01, tf_object.material.x, tf_object.material.y);
+#else
   vec3 rgb = tf_shade(n, v, thickness01);
+#endif
 #ifdef TF_DISPLAY_SRGB
   rgb = tf_srgb_oetf(clamp(rgb * tf_view.params.x, 0.0, 1.0));
 #endif

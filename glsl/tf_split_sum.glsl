@@ -1,0 +1,52 @@
+/* tf_split_sum.glsl: glossy films by the split sum, blended with SH by roughness.
+ *
+ * numpy counterpart: prefilter.shade_split_sum and prefilter.shade_combined, with the
+ * prefiltered levels resampled to one size (prefilter.Prefiltered.resampled).
+ * Texture `tf_prefiltered` (sampler2DArray, RGBA32F, LINEAR, REPEAT in u): layer j = the World
+ * prefiltered by a GGX lobe of roughness j / (levels - 1), equirect (conventions.md mapping).
+ * Split sum (Karis 2013): film albedo (the l = 0 table entry x sqrt(4 pi), a 3x3 matrix or 3
+ * factors) times the prefiltered radiance in the reflection direction.
+ */
+
+const float TF_SQRT_4PI = 3.5449077018110318;
+
+vec3 tf_prefiltered_lookup(vec3 d, float roughness)
+{
+  int levels = textureSize(tf_prefiltered, 0).z;
+  float u = 0.5 - atan(d.y, d.x) / (2.0 * TF_PI);
+  float t = acos(clamp(d.z, -1.0, 1.0)) / TF_PI;
+  float pos = clamp(roughness, 0.0, 1.0) * float(levels - 1);
+  int lo = min(int(floor(pos)), levels - 2);
+  float w = pos - float(lo);
+  vec3 a = texture(tf_prefiltered, vec3(u, t, float(lo))).rgb;
+  vec3 b = texture(tf_prefiltered, vec3(u, t, float(lo + 1))).rgb;
+  return mix(a, b, w);
+}
+
+vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
+{
+  TFFrame f = tf_view_aligned_frame(n, v);
+  TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
+  vec3 refl = 2.0 * f.cos_o * n - v;
+  vec3 radiance = tf_prefiltered_lookup(refl, roughness);
+#ifdef TF_SPECTRAL
+  vec3 rgb = vec3(dot(tf_table_fetch(r, 0), radiance), dot(tf_table_fetch(r, 1), radiance),
+                  dot(tf_table_fetch(r, 2), radiance));
+#else
+  vec3 rgb = tf_table_fetch(r, 0) * radiance;
+#endif
+  return max(rgb * TF_SQRT_4PI, vec3(0.0));
+}
+
+/* sh_weight = prefilter.sh_weight(roughness): 0 → split sum only (the SH rotation is skipped). */
+vec3 tf_shade_combined(vec3 n, vec3 v, float thickness01, float roughness, float sh_weight)
+{
+  vec3 rgb = vec3(0.0);
+  if (sh_weight < 1.0) {
+    rgb += (1.0 - sh_weight) * tf_shade_split_sum(n, v, thickness01, roughness);
+  }
+  if (sh_weight > 0.0) {
+    rgb += sh_weight * tf_shade(n, v, thickness01);
+  }
+  return rgb;
+}
