@@ -186,7 +186,11 @@ def main(argv) -> int:
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
     r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
-    sub.add_parser("plan", help="print each material's description and automatic choices")
+    sub.add_parser(
+        "plan",
+        help="print what each visible material needs simulated (effects, table size, orders, estimated "
+        "bake time and shader cost) and why; bakes nothing",
+    )
     args = parser.parse_args(argv)
     scene = bpy.context.scene
     try:
@@ -206,24 +210,35 @@ def main(argv) -> int:
                 f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
             )
             return 0
-        from ..precompute import bake
+        from ..precompute import effects
+        from . import world
 
+        # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
+        # sets the World order; tables already in memory or in the disk cache cost no bake.
         found, errors = scene_materials(scene)
-        for name, desc in sorted(found.items()):
-            p = bake.plan(desc)
-            print(
-                json.dumps(
-                    {
-                        "material": name,
-                        "sh_order": p.sh_order,
-                        "view_samples": p.view_samples,
-                        "thickness_samples": p.thickness_samples,
-                        "wavelengths": p.wavelength_count,
-                        "reasons": p.reasons,
-                    },
-                    indent=2,
-                )
-            )
+        coeffs = world.world_sh(scene, l_max=8).coeffs if found else None
+        disk = materials.table_cache()
+        keys = {name: materials.description_key(desc) for name, desc in found.items()}
+        cached = {
+            keys[name]
+            for name, desc in found.items()
+            if materials.peek_table(desc) is not None or disk.path_for(keys[name]).is_file()
+        }
+        plan = effects.scene_plan(found, coeffs, cached=cached)
+        print(effects.format_plan(plan))
+        for name, mp in plan.materials.items():  # one JSON line per material, for scripts
+            first = plan.tables[mp.key][0]
+            summary = {
+                "material": name,
+                "sh_order": mp.plan.sh_order,
+                "view_samples": mp.plan.view_samples,
+                "thickness_samples": mp.plan.thickness_samples,
+                "wavelengths": mp.plan.wavelength_count,
+                "shared_with": first if first != name else None,
+                "world_order": plan.world_order,
+                **mp.to_dict(),
+            }
+            print("plan-json " + json.dumps(summary))
         for name, err in errors.items():
             print(f"error: material '{name}': {err}")
         return 1 if errors else 0

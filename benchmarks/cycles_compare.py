@@ -199,7 +199,7 @@ def main(argv=None) -> int:
         f"Sphere {SIZE}×{SIZE}, ours supersampled {SUPERSAMPLE}×{SUPERSAMPLE}; Cycles CPU, denoising off,",
         "filter 1 px; Principled BSDF with Base Color black (the film's specular layer alone), default",
         "Multiscatter GGX. Ours: per-channel (Cycles-matching) colour mode, Cycles' multiple-scattering",
-        "model, default (auto) quality. ΔE2000 over the sphere (1-pixel border excluded) at a common exposure",
+        "model, default (auto) quality. ΔE2000 over the sphere (1-px border excluded) at a common exposure",
         "(reference p95 luminance 0.8). Cycles' own noise at 256 spp is ≈ 0.65 mean ΔE (256 vs 1024 spp).",
         "Columns: the split sum alone, the paper's SH path alone (auto order, windowed below roughness",
         "0.5), and the combined path the product draws (smoothstep SH weight over roughness 0.25–0.5).",

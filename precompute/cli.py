@@ -151,20 +151,9 @@ def cmd_presets(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    m = material_from_args(args)
-    p = bake.plan(m)
-    print(
-        json.dumps(
-            {
-                "sh_order": p.sh_order,
-                "view_samples": p.view_samples,
-                "thickness_samples": p.thickness_samples,
-                "wavelength_count": p.wavelength_count,
-                "reasons": p.reasons,
-            },
-            indent=2,
-        )
-    )
+    from . import effects
+
+    print(effects.format_plan(effects.material_plan(material_from_args(args))))
     return 0
 
 
