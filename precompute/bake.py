@@ -303,35 +303,32 @@ def auto_sh_order(material: Material, target: float = 0.10) -> tuple[int, str]:
     return 8, f"roughness {material.roughness:g}: lobe needs more than band 8 (error {err:.3f} at 8)"
 
 
-#: Last accepted degree per optical-path octave: a slider drag re-bakes with nearly the same
-#: film, so the search starts where it ended last time (and still verifies the tolerance).
-_DEGREE_HINT: dict[int, int] = {}
+def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
+    """Smallest nodes-per-interval whose interpolation of R(u) meets ``U_TOLERANCE``.
 
-
-def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str, opd_nm: float = 0.0):
-    """Smallest nodes-per-interval (from a hint) whose interpolation of R(u) meets ``U_TOLERANCE``.
-
-    Test points: midway between the nodes (those of the doubled degree), for u ≥ ``U_TEST_MIN``.
+    Checked on four thickness rows including the thickest (R oscillates fastest in u there) at
+    test points interleaved with the nodes (the Chebyshev points of one degree more), for
+    u ≥ ``U_TEST_MIN``; then R is evaluated at the chosen nodes for every row, once.
+    The search always starts at the bottom of the ladder (a probe step costs 4 rows only), so a
+    material's table never depends on what was baked before it.
     Returns (degree, measured relative error, R at the nodes (T, U, W)).
     """
-    key = int(math.log2(max(opd_nm, 1.0)))
-    start = U_DEGREE_LADDER.index(_DEGREE_HINT.get(key, U_DEGREE_LADDER[0]))
+    rows = np.unique(np.linspace(0, thickness_sets.shape[0] - 1, 4).round().astype(int))
+    probe = thickness_sets[rows]
     err = math.inf
-    at_nodes = None
-    for degree in U_DEGREE_LADDER[start:]:
-        nodes = u_nodes(degree)
-        fine = u_nodes(2 * degree + 1)
-        test = fine[fine >= U_TEST_MIN]
-        both = reflectance_sweep(
-            indices, thickness_sets, wavelengths_nm, np.concatenate([nodes, test]), method=method
-        )
+    degree = U_DEGREE_LADDER[-1]
+    for candidate in U_DEGREE_LADDER:
+        nodes = u_nodes(candidate)
+        test = u_nodes(candidate + 1)
+        test = test[test >= U_TEST_MIN]
+        both = reflectance_sweep(indices, probe, wavelengths_nm, np.concatenate([nodes, test]), method=method)
         at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
-        interp = np.matmul(u_interpolation_matrix(degree, test), at_nodes)
+        interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
         err = float(np.max(np.abs(interp - exact))) / max(float(exact.max()), 1e-6)
         if err <= U_TOLERANCE:
-            _DEGREE_HINT[key] = degree
-            return degree, err, at_nodes
-    return U_DEGREE_LADDER[-1], err, at_nodes
+            degree = candidate
+            break
+    return degree, err, reflectance_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method=method)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -509,7 +506,7 @@ def bake(material: Material, progress=None) -> BakeResult:
         u_count, u_err = U_DEGREE_LADDER[0], 0.0
         r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
     else:
-        u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method, optical_path_nm(material))
+        u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
     t2 = time.perf_counter()
     report(0.3, "microfacet kernel")
     kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
