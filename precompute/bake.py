@@ -328,7 +328,11 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
         if err <= U_TOLERANCE:
             degree = candidate
             break
-    return degree, err, reflectance_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method=method)
+    return (
+        degree,
+        err,
+        reflectance_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method=method),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
