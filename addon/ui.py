@@ -1,7 +1,13 @@
 """The Thin Film SH panel in the Properties editor's Material tab, with its sub-panels."""
 
+import collections
+import time
+
+import bpy
 from bpy.types import Panel, UIList
 
+from ..precompute import effects
+from ..precompute.material import AUTO
 from . import materials
 
 
@@ -229,6 +235,134 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
         row.operator("thinfilm.write_to_principled", icon="EXPORT")
 
 
+# ----------------------------------------------------------------------------------------------
+# Plan: what the active material needs simulated (precompute.effects), never a bake
+# ----------------------------------------------------------------------------------------------
+#: MaterialPlans by description key (the most recent _PLAN_MEMO_SIZE).
+_PLANS: collections.OrderedDict = collections.OrderedDict()
+_PLAN_MEMO_SIZE = 64
+#: Roughness values whose automatic SH order has been resolved: planning them again is cheap.
+_ORDERS_SEEN: set = set()
+#: (key, description, time) of the plan the panel waits for; computed by a timer once the
+#: settings stop changing (dragging the roughness slider asks for a new one at every step).
+_pending = None
+_PLAN_DELAY_S = 0.3
+
+
+def _remember_plan(key, mp):
+    _PLANS[key] = mp
+    _PLANS.move_to_end(key)
+    while len(_PLANS) > _PLAN_MEMO_SIZE:
+        _PLANS.popitem(last=False)
+    _ORDERS_SEEN.add(float(mp.material.roughness))
+
+
+def _plan_timer():
+    global _pending
+    if _pending is None:
+        return None
+    key, desc, asked = _pending
+    if time.monotonic() - asked < _PLAN_DELAY_S:
+        return _PLAN_DELAY_S  # still changing: wait for the settings to settle
+    _pending = None
+    if key not in _PLANS:
+        try:
+            _remember_plan(key, effects.material_plan(desc))
+        except ValueError:
+            return None
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == "PROPERTIES":
+                area.tag_redraw()
+    return None
+
+
+def plan_for(desc, wait: bool = False):
+    """The :class:`precompute.effects.MaterialPlan` of ``desc``, memoised by description key.
+
+    Planning bakes nothing, but an automatic SH order for a roughness not seen yet computes a
+    small kernel (≈ 0.5 s): unless ``wait`` is set, that case returns None and a timer plans it
+    once the settings have stopped changing, then redraws the Properties editor.
+    """
+    global _pending
+    key = materials.description_key(desc)
+    mp = _PLANS.get(key)
+    if mp is not None:
+        _PLANS.move_to_end(key)
+        return mp
+    if wait or desc.quality.sh_order != AUTO or float(desc.roughness) in _ORDERS_SEEN:
+        mp = effects.material_plan(desc)
+        _remember_plan(key, mp)
+        return mp
+    _pending = (key, desc, time.monotonic())
+    if not bpy.app.timers.is_registered(_plan_timer):
+        bpy.app.timers.register(_plan_timer, first_interval=_PLAN_DELAY_S)
+    return None
+
+
+def plan_lines(mp) -> list[str]:
+    """The panel's summary of a plan: effects, table, orders, costs (one label each)."""
+    p = mp.plan
+    warm = effects.bake_time_breakdown(
+        mp.material,
+        p,
+        mp.u_degree,
+        mp.u_tried,
+        mp.wavelength_nodes,
+        kernel_cold=False,
+        order_kernel_cold=False,
+    )["total"]
+    shape = "×".join(str(n) for n in mp.table_shape)
+    defines = " ".join(name if value == "1" else f"{name}={value}" for name, value in mp.shader.defines)
+    return [
+        f"Effects: {effects.effect_summary(mp)}",
+        f"Table {shape} float32, {effects.fmt_bytes(mp.table_bytes)}"
+        f" (GPU {effects.fmt_bytes(mp.texture_bytes)})",
+        f"SH order {p.sh_order} · {p.view_samples} view angles · {p.thickness_samples} thickness rows · "
+        f"{mp.wavelength_nodes} wavelengths",
+        f"Bake ≈ {mp.bake_seconds:.2g} s (first in a session), ≈ {warm:.2g} s with a warm kernel",
+        f"Shader {defines}: {mp.shader.floats_fetched} floats, {mp.shader.multiply_adds} multiply-adds/pixel",
+    ]
+
+
+class THINFILM_PT_plan(_SubPanel, Panel):
+    bl_label = "Plan"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_settings(self, context, layout, mat, settings):
+        layout.use_property_split = False
+        layout.active = True  # the plan also describes a material previewed from its Principled BSDF
+        try:
+            desc = materials.description(mat)
+        except ValueError as exc:
+            layout.label(text=str(exc), icon="ERROR")
+            return
+        if desc is None:
+            layout.label(text="No thin film is previewed: nothing is baked or drawn", icon="INFO")
+            return
+        mp = plan_for(desc)
+        if mp is None:
+            layout.label(text="Planning…", icon="TIME")
+            return
+        col = layout.column(align=True)
+        flow = col.grid_flow(columns=2, even_columns=True, align=True)
+        for name in effects.EFFECTS:
+            icon = "CHECKBOX_HLT" if mp.effects[name] else "CHECKBOX_DEHLT"
+            flow.label(text=name.replace("_", " ").capitalize(), icon=icon)
+        box = layout.box()
+        lines = box.column(align=True)
+        lines.scale_y = 0.8
+        for line in plan_lines(mp)[1:]:
+            lines.label(text=line)
+        if materials.peek_table(desc) is not None:
+            lines.label(text="Its table is in memory: no bake needed", icon="CHECKMARK")
+        why = layout.box().column(align=True)
+        why.scale_y = 0.8
+        why.label(text="Why", icon="QUESTION")
+        for name, reason in mp.reasons.items():
+            why.label(text=f"{name.replace('_', ' ')}: {reason}")
+
+
 classes = (
     THINFILM_UL_layers,
     THINFILM_PT_material,
@@ -237,5 +371,6 @@ classes = (
     THINFILM_PT_substrate,
     THINFILM_PT_surface,
     THINFILM_PT_quality,
+    THINFILM_PT_plan,
     THINFILM_PT_principled,
 )
