@@ -441,6 +441,21 @@ def thickness_sets(material: Material, count: int) -> tuple[np.ndarray, np.ndarr
     return sets, axis
 
 
+def active_stack(material: Material, count: int):
+    """(indices, thickness sets (T, L'), thickness axis) with constant 0 nm layers removed.
+
+    A layer of thickness exactly 0 that does not vary is optically absent, so it costs nothing:
+    a film whose every layer is 0 nm takes the bare-interface path.
+    """
+    indices = material.indices()
+    sets, axis = thickness_sets(material, count)
+    keep = [j for j in range(sets.shape[1]) if np.any(sets[:, j] != 0.0)]
+    if len(keep) < sets.shape[1]:
+        indices = [indices[0]] + [indices[j + 1] for j in keep] + [indices[-1]]
+        sets = sets[:, keep]
+    return indices, sets, axis
+
+
 def _method(material: Material) -> str:
     return "glassner2000" if material.model == "glassner2000" else "exact"
 
@@ -501,8 +516,7 @@ def bake(material: Material, progress=None) -> BakeResult:
     wl, g = spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
-    indices = material.indices()
-    sets, axis = thickness_sets(material, p.thickness_samples)
+    indices, sets, axis = active_stack(material, p.thickness_samples)
     method = _method(material)
     report(0.05, "choosing reflectance nodes")
     t1 = time.perf_counter()
@@ -558,8 +572,7 @@ def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PH
     wl, g = spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
-    indices = material.indices()
-    sets, axis = thickness_sets(material, p.thickness_samples)
+    indices, sets, axis = active_stack(material, p.thickness_samples)
     method = _method(material)
     alpha = float(brdf.alpha_from_roughness(material.roughness))
     cos_os = view_cosines(p.view_samples)

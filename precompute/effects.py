@@ -329,9 +329,8 @@ def _film_effects(material: Material, reasons: dict) -> tuple[bool, bool]:
         return False, False
     if not thick:
         reasons["interference"] = (
-            f"every layer is 0 nm thick: optically the bare substrate. Note: bake.bake still "
-            f"evaluates the {len(layers)}-layer film at d = 0 and searches the u-node ladder "
-            "(only a material without layers takes the bare-interface path)"
+            f"every layer is 0 nm thick: optically the bare substrate, so the bake drops the "
+            f"{len(layers)} layer(s) and takes the bare-interface path"
         )
         reasons["stack"] = "no layer thicker than 0 nm"
         return False, False

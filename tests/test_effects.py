@@ -162,17 +162,12 @@ def test_zero_thickness_film_is_planned_as_no_interference_and_bakes_the_bare_ta
     zero = fast(layers=(Layer(1.33, 0.0),), substrate=1.5)
     mp = effects.material_plan(zero)
     assert not mp.effects["interference"] and not mp.effects["stack"]
-    assert "0 nm" in mp.reasons["interference"] and "bake.bake still" in mp.reasons["interference"]
+    assert "0 nm" in mp.reasons["interference"] and "bare-interface path" in mp.reasons["interference"]
     a = bake.bake(zero).data
     b = bake.bake(fast(layers=(), substrate=1.5)).data
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-6 * np.abs(b).max())
 
 
-@pytest.mark.xfail(
-    reason="bake.bake sends a 0 nm film through reflectance_sweep (Airy at d = 0 and the u-node "
-    "ladder) instead of the bare-interface path; reported, bake.py not changed here",
-    strict=False,
-)
 def test_zero_thickness_film_takes_the_bare_interface_path(monkeypatch):
     def boom(*args, **kwargs):
         raise AssertionError("film code ran for a 0 nm film")
