@@ -199,7 +199,7 @@ def main(argv) -> int:
             if args.json:
                 pathlib.Path(args.json).write_text(json.dumps(summary, indent=2))
             for name, err in summary["errors"].items():
-                print(f"error: material '{name}': {err}")
+                print(f"error: {err}")
             return 1 if summary["errors"] else 0
         if args.command == "render":
             result = render_scene(scene, args.out, args.width, args.height, background=not args.no_background)
@@ -240,7 +240,7 @@ def main(argv) -> int:
             }
             print("plan-json " + json.dumps(summary))
         for name, err in errors.items():
-            print(f"error: material '{name}': {err}")
+            print(f"error: {err}")
         return 1 if errors else 0
     except ValueError as exc:
         print(f"error: {exc}")

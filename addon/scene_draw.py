@@ -201,7 +201,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     bpy_material.original if hasattr(bpy_material, "original") else bpy_material
                 )
             except ValueError as exc:
-                messages.append(f"material '{bpy_material.name}': {exc}")
+                messages.append(str(exc))  # description() names the material
                 continue
             if desc is None:
                 continue

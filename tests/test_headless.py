@@ -1,0 +1,681 @@
+"""Headless bake / render / plan in a real bpy session: the CLI, physics, failure modes, lifecycle.
+
+The repository is imported as the extension package ``thinfilm_sh`` (a symlink, as in
+test_extension.py) and registered once for the module, with its table cache in a private folder
+(the add-on preferences' Cache Directory). Each test starts from an empty factory file
+(``read_homefile``, which keeps the preferences) and builds the little scene it needs; renders
+are small (64×48 or so) and mostly leave the World background out (the World still lights the
+films), so the module stays well under three minutes on llvmpipe.
+
+Run the figures out loud with ``-s``: the hue table of the interference test is printed.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import importlib
+import importlib.util
+import json
+import math
+import os
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+REPO = Path(__file__).resolve().parent.parent
+EXTENSION_ID = "thinfilm_sh"
+SCRIPT = REPO / "scripts" / "thinfilm_headless.py"
+SIZE = (64, 48)
+
+
+# ----------------------------------------------------------------------------------------------
+# Fixtures and helpers
+# ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def bpy():
+    import bpy as bpy_module  # Blender as a Python module: never mocked
+
+    return bpy_module
+
+
+def _set_cache_preference(bpy, addon, cache_dir) -> None:
+    addons = bpy.context.preferences.addons
+    if addons.get(EXTENSION_ID) is None:
+        addons.new().module = EXTENSION_ID
+    addon.preferences().cache_dir = str(cache_dir)
+
+
+@pytest.fixture(scope="module")
+def tf(bpy, tmp_path_factory):
+    """The extension, registered once for the module; its modules as attributes."""
+    root = tmp_path_factory.mktemp("extension")
+    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
+    sys.path.insert(0, str(root))
+    package = None
+    try:
+        package = importlib.import_module(EXTENSION_ID)
+        assert Path(package.__file__).resolve() == REPO / "__init__.py"
+        package.register()
+        ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
+        ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+        for name in ("headless", "materials", "scene_draw", "gpu_draw"):
+            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+        _set_cache_preference(bpy, ns.addon, ns.cache_dir)
+        ns.gpu_draw.ensure_gpu_context()
+        yield ns
+    finally:
+        entry = bpy.context.preferences.addons.get(EXTENSION_ID)
+        if entry is not None:
+            bpy.context.preferences.addons.remove(entry)
+        if package is not None:
+            package.unregister()
+        sys.path.remove(str(root))
+        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
+            del sys.modules[name]
+
+
+@pytest.fixture
+def fresh(bpy, tf):
+    """An empty factory file with the extension registered and its private cache chosen."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    tf.package.register()  # harmless when already registered
+    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = SIZE
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    return scene
+
+
+def studiolight(name: str) -> Path:
+    from precompute.cli import studiolight as find
+
+    return find(name)
+
+
+def sphere(bpy, scene, name="Sphere", location=(0.0, 0.0, 0.0), radius=1.0, material=None):
+    import bmesh
+
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=64, v_segments=32, radius=radius)
+    mesh = bpy.data.meshes.new(name)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.shade_smooth()
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    scene.collection.objects.link(obj)
+    if material is not None:
+        mesh.materials.append(material)
+    return obj
+
+
+def cube(bpy, scene, name="Cube", location=(0.0, 0.0, 0.0), size=1.0):
+    import bmesh
+
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=size)
+    mesh = bpy.data.meshes.new(name)
+    bm.to_mesh(mesh)
+    bm.free()
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def camera(bpy, scene, distance=5.0, lens=50.0):
+    """A camera on −y looking at the origin along +y."""
+    data = bpy.data.cameras.new("Camera")
+    data.lens = lens
+    obj = bpy.data.objects.new("Camera", data)
+    obj.location = (0.0, -distance, 0.0)
+    obj.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    scene.collection.objects.link(obj)
+    scene.camera = obj
+    return obj
+
+
+def white_world(bpy, scene, value=1.0):
+    world = bpy.data.worlds.new("White")
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (value, value, value, 1.0)
+    background.inputs["Strength"].default_value = 1.0
+    scene.world = world
+    return world
+
+
+def hdri_world(bpy, scene, path, name="HDRI"):
+    world = bpy.data.worlds.new(name)
+    tree = world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    if Path(path).is_file():
+        env.image = bpy.data.images.load(str(path), check_existing=True)
+    else:  # how a file whose HDRI was moved away looks: an image datablock pointing nowhere
+        image = bpy.data.images.new(Path(path).name, 4, 4, float_buffer=True)
+        image.source = "FILE"
+        image.filepath = str(path)
+        env.image = image
+    tree.links.new(env.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+    return world
+
+
+def film(bpy, name, thickness_nm=None, roughness=None, preset="SOAP_FILM", vary=False, substrate=None):
+    """A material previewed by the extension (``preset`` first, then the overrides)."""
+    mat = bpy.data.materials.new(name)
+    s = mat.thinfilm_sh
+    s.preset = preset
+    s.enabled = True
+    s.vary_thickness = vary
+    if thickness_nm is not None:
+        s.layers[0].thickness_nm = thickness_nm
+    if roughness is not None:
+        s.roughness = roughness
+    if substrate is not None:
+        s.substrate_mode = "DIELECTRIC"
+        s.substrate_ior = substrate
+    return mat
+
+
+def read_exr(path) -> np.ndarray:
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        channels = f.channels()
+        if "RGB" in channels:
+            return np.array(channels["RGB"].pixels, dtype=np.float64)
+        return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
+
+
+def render(tf, scene, path, size=SIZE, background=False):
+    result = tf.headless.render_scene(scene, str(path), size[0], size[1], background=background)
+    assert Path(result["png"]).is_file() and Path(result["exr"]).is_file()
+    image = read_exr(result["exr"])
+    assert image.shape == (size[1], size[0], 3)
+    assert np.isfinite(image).all(), "non-finite values in the EXR"
+    return image, result
+
+
+def saturation(rgb) -> np.ndarray:
+    rgb = np.asarray(rgb, dtype=np.float64)
+    hi, lo = rgb.max(axis=-1), rgb.min(axis=-1)
+    return np.where(hi > 1e-6, (hi - lo) / np.maximum(hi, 1e-12), 0.0)
+
+
+def hue_deg(rgb) -> float:
+    rgb = np.maximum(np.asarray(rgb, dtype=np.float64), 0.0)
+    return colorsys.rgb_to_hsv(*(rgb / max(rgb.max(), 1e-12)))[0] * 360.0
+
+
+def hue_distance(a: float, b: float) -> float:
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def project(tf, scene, points, size):
+    """Pixel coordinates (x right, y down; pixel centres at +0.5) of world points in the camera."""
+    import bpy
+
+    view, proj = tf.headless.camera_matrices(scene, bpy.context.evaluated_depsgraph_get(), *size)
+    p = np.c_[np.asarray(points, dtype=np.float64), np.ones(len(points))] @ (proj @ view).T
+    ndc = p[:, :3] / p[:, 3:4]
+    return np.c_[(ndc[:, 0] + 1.0) * 0.5 * size[0], (1.0 - (ndc[:, 1] + 1.0) * 0.5) * size[1]]
+
+
+# ----------------------------------------------------------------------------------------------
+# The command line
+# ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def cli_blend(bpy, tf, tmp_path_factory):
+    """A saved file: two spheres whose materials have equal settings, an HDRI World, a camera."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = SIZE
+    scene.render.resolution_percentage = 100
+    a = film(bpy, "Film A", thickness_nm=420.0, roughness=0.3)
+    b = film(bpy, "Film B", thickness_nm=420.0, roughness=0.3)
+    sphere(bpy, scene, "Left", (-1.1, 0.0, 0.0), material=a)
+    sphere(bpy, scene, "Right", (1.1, 0.0, 0.0), material=b)
+    camera(bpy, scene, distance=7.0)
+    hdri_world(bpy, scene, studiolight("courtyard"))
+    path = tmp_path_factory.mktemp("cli") / "two_films.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
+    return path
+
+
+def _open(bpy, tf, path):
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    return bpy.context.scene
+
+
+def test_cli_command_is_registered_with_blender(bpy, tf, capfd):
+    assert tf.headless._cli_handle is not None
+    capfd.readouterr()
+    # A second command with our id makes Blender warn about a duplicate: ours is registered.
+    probe = bpy.utils.register_cli_command(EXTENSION_ID, lambda argv: 0)
+    try:
+        out = capfd.readouterr()
+    finally:
+        bpy.utils.unregister_cli_command(probe)
+    assert f'duplicate command "{EXTENSION_ID}"' in out.out + out.err
+
+
+def test_cli_render_writes_png_and_exr(bpy, tf, cli_blend, tmp_path, capsys):
+    _open(bpy, tf, cli_blend)
+    out = tmp_path / "render.png"
+    code = tf.headless._cli(["render", "--out", str(out), "--width", "64", "--height", "48"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    assert out.is_file() and out.with_suffix(".exr").is_file()
+    assert "wrote" in printed and "2 thin-film objects" in printed
+    from PIL import Image
+
+    with Image.open(out) as png:
+        assert png.size == (64, 48) and png.mode == "RGB"
+    image = read_exr(out.with_suffix(".exr"))
+    assert image.shape == (48, 64, 3)
+    assert np.isfinite(image).all()
+    assert image.max() > 0.05  # the courtyard background and the films are there
+
+
+def _json_objects(text: str) -> list:
+    decoder, objects, i = json.JSONDecoder(), [], 0
+    while True:
+        start = text.find("{", i)
+        if start < 0:
+            return objects
+        obj, i = decoder.raw_decode(text, start)
+        objects.append(obj)
+
+
+def test_cli_bake_shares_one_table_between_equal_materials(bpy, tf, cli_blend, tmp_path, capsys):
+    _open(bpy, tf, cli_blend)
+    summary_path = tmp_path / "bake.json"
+    code = tf.headless.main(["bake", "--json", str(summary_path), "--out-dir", str(tmp_path / "tables")])
+    assert code == 0, capsys.readouterr().out
+    summary = json.loads(summary_path.read_text())
+    entries = summary["materials"]
+    assert set(entries) == {"Film A", "Film B"} and summary["errors"] == {}
+    assert entries["Film A"]["key"] == entries["Film B"]["key"]
+    assert entries["Film A"]["shared_with"] is None
+    assert entries["Film B"]["shared_with"] == "Film A"
+    assert entries["Film B"]["source"] == "memory"  # the same table, not a second bake
+    for entry in entries.values():
+        assert Path(entry["file"]).is_file()
+
+
+def test_cli_plan_prints_a_plan(bpy, tf, cli_blend, capsys):
+    _open(bpy, tf, cli_blend)
+    assert tf.headless.main(["plan"]) == 0
+    plans = _json_objects(capsys.readouterr().out)
+    assert {p["material"] for p in plans} == {"Film A", "Film B"}
+    for p in plans:
+        assert 0 <= p["sh_order"] <= 8 and p["view_samples"] >= 2 and p["wavelengths"] >= 3
+        assert p["reasons"], "the plan gives its reasons"
+
+
+def test_cli_bad_arguments_exit_nonzero(tf, capsys):
+    with pytest.raises(SystemExit) as info:
+        tf.headless.main(["render"])  # --out is required
+    assert info.value.code != 0
+    assert "--out" in capsys.readouterr().err
+
+
+def test_script_renders_a_file_in_a_subprocess(cli_blend, tmp_path):
+    out = tmp_path / "script.png"
+    cmd = [
+        sys.executable,
+        str(SCRIPT),
+        str(cli_blend),
+        "render",
+        "--out",
+        str(out),
+        "--width",
+        "48",
+        "--height",
+        "36",
+        "--no-background",
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert out.is_file() and out.with_suffix(".exr").is_file()
+    image = read_exr(out.with_suffix(".exr"))
+    assert image.shape == (36, 48, 3) and np.isfinite(image).all() and image.max() > 0.0
+
+    missing = subprocess.run(
+        [sys.executable, str(SCRIPT), str(tmp_path / "nope.blend"), "plan"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert missing.returncode == 2 and "nope.blend" in missing.stderr
+
+
+def _script_module():
+    spec = importlib.util.spec_from_file_location("thinfilm_headless_script", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_script_batch_renders_every_file_in_a_folder(bpy, tf, cli_blend, tmp_path, capsys):
+    """``--all-scenes DIR --out-dir OUT``, in this process (the subprocess path is tested above)."""
+    script = _script_module()
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "a.blend").write_bytes(cli_blend.read_bytes())
+    (folder / "broken.blend").write_bytes(b"not a blend file")
+    code = script.main(
+        [
+            "--all-scenes",
+            str(folder),
+            "--out-dir",
+            str(tmp_path / "out"),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--no-background",
+        ]
+    )
+    printed = capsys.readouterr()
+    assert code == 1, "a broken file fails the batch"
+    assert "rendered 1/2 files" in printed.out and "broken.blend" in printed.out
+    image = read_exr(tmp_path / "out" / "a.exr")
+    assert image.shape == (24, 32, 3) and np.isfinite(image).all()
+    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+
+
+# ----------------------------------------------------------------------------------------------
+# Physics
+# ----------------------------------------------------------------------------------------------
+#: Film index and thicknesses of the interference test (soap film: water in air on both sides).
+SOAP_N = 1.33
+HUE_THICKNESSES_NM = (130.0, 160.0, 200.0, 250.0)
+#: The rendered hue must be the normal-incidence hue of a film between (1 − 3 %)·d and
+#: (1 + 0.5 %)·d. Why: at roughness 0.35 (α = 0.1225) the GGX lobe around the normal mixes
+#: in microfacets tilted by ~5–20°, whose light crosses the film at cos θt = √(1 − sin²θ/n²)
+#: ≈ 0.99–0.98: the optical path is 1–2 % shorter, so the colour is that of a slightly thinner
+#: film (measured: 1.2–1.4 % at all four thicknesses; at roughness 0.05 it is < 0.3 %). The
+#: +0.5 % side allows for the table's thickness and angle interpolation only. In hue degrees
+#: that is 3–20° depending on the thickness (the magenta of 200 nm is the "sensitive tint",
+#: 5°/nm), which is why the tolerance is stated in thickness.
+THICKNESS_TOLERANCE = (-0.03, 0.005)
+
+
+def _normal_incidence_rgb(thickness_nm, n_film=SOAP_N, substrate=1.0):
+    from precompute import spectra
+    from precompute.optics import reflectance
+
+    wl = spectra.wavelength_grid(471)  # 1 nm bins over 360–830 nm
+    r = reflectance([1.0, n_film, substrate], [thickness_nm], wl, [1.0])[0]
+    return spectra.xyz_to_rgb_matrix("Linear Rec.709") @ spectra.spectrum_to_xyz(r, wl), r, wl
+
+
+def test_reference_spectrum_peaks_at_the_first_order_condition():
+    """The exact optics behind the expected hues: a free film reflects most at 2nd = (m + ½)λ."""
+    for d in (100.0, 130.0):
+        _, r, wl = _normal_incidence_rgb(d)
+        expected = 4.0 * SOAP_N * d  # m = 0
+        assert abs(wl[np.argmax(r)] - expected) <= 1.0, (d, wl[np.argmax(r)], expected)
+
+
+def test_soap_film_hue_follows_thin_film_interference(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    white_world(bpy, scene)
+    mat = film(bpy, "Soap", thickness_nm=HUE_THICKNESSES_NM[0], roughness=0.35)
+    sphere(bpy, scene, material=mat)
+    camera(bpy, scene, distance=5.0)
+    grid = np.arange(0.8, 1.2, 0.0005)
+    rows, failures = [], []
+    for d in HUE_THICKNESSES_NM:
+        mat.thinfilm_sh.layers[0].thickness_nm = d
+        image, result = render(tf, scene, tmp_path / f"hue_{d:g}.png")
+        assert result["objects"] == ["Sphere/Soap"], result["messages"]
+        h, w = image.shape[:2]
+        centre = image[h // 2 - 2 : h // 2 + 2, w // 2 - 2 : w // 2 + 2].reshape(-1, 3).mean(axis=0)
+        expected_hue = hue_deg(_normal_incidence_rgb(d)[0])
+        got = hue_deg(centre)
+        # The thickness whose normal-incidence colour has the rendered hue (hue is monotonic in
+        # d over ±20 % around each of these thicknesses).
+        hues = np.array([hue_deg(_normal_incidence_rgb(f * d)[0]) for f in grid])
+        f_eff = grid[np.argmin([hue_distance(got, x) for x in hues])]
+        rows.append(
+            f"{d:5.0f} nm  expected hue {expected_hue:6.1f}°  rendered {got:6.1f}°  "
+            f"Δ {hue_distance(got, expected_hue):5.1f}°  equivalent thickness {f_eff * d:6.1f} nm "
+            f"({(f_eff - 1) * 100:+.2f} %)  saturation {saturation(centre):.2f}"
+        )
+        if not THICKNESS_TOLERANCE[0] <= f_eff - 1.0 <= THICKNESS_TOLERANCE[1]:
+            failures.append(rows[-1])
+        assert saturation(centre) > 0.3, rows[-1]
+    print("\nsoap film (n 1.33 in air), roughness 0.35, white World, sphere centre:\n  " + "\n  ".join(rows))
+    assert not failures, "\n".join(failures)
+
+
+def test_zero_thickness_film_is_the_bare_substrate(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    hdri_world(bpy, scene, studiolight("courtyard"))
+    zero = film(bpy, "Zero Film", thickness_nm=0.0, roughness=0.35, substrate=1.5)
+    bare = bpy.data.materials.new("Bare")
+    s = bare.thinfilm_sh
+    s.preset = "CUSTOM"  # enabling must not fill in a preset's film
+    s.enabled = True
+    s.vary_thickness = False
+    s.roughness = 0.35
+    s.substrate_mode, s.substrate_ior = "DIELECTRIC", 1.5
+    assert len(s.layers) == 0
+    assert tf.materials.description(bare).layers == ()
+    obj = sphere(bpy, scene, material=zero)
+    camera(bpy, scene)
+    a, ra = render(tf, scene, tmp_path / "zero.png")
+    obj.data.materials[0] = bare
+    b, rb = render(tf, scene, tmp_path / "bare.png")
+    assert ra["objects"] == ["Sphere/Zero Film"] and rb["objects"] == ["Sphere/Bare"]
+    mask = b.max(axis=-1) > 0
+    assert mask.sum() > 0.3 * mask.size / 2
+    diff = np.abs(a - b)[mask]
+    assert diff.max() <= 1e-3 * np.abs(b[mask]).max(), f"max |Δ| {diff.max():.3g}"
+    assert np.all(diff <= 1e-3 * np.abs(b[mask]) + 1e-6), (
+        f"largest relative Δ {np.max(diff / (b[mask] + 1e-9)):.3g}"
+    )
+
+
+def test_depth_masking_by_an_opaque_cube(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    white_world(bpy, scene)
+    sphere(bpy, scene, material=film(bpy, "Green Film", thickness_nm=300.0, roughness=0.2))
+    camera(bpy, scene, distance=6.0)
+    size = (96, 72)
+    without, _ = render(tf, scene, tmp_path / "no_cube.png", size)
+    block = cube(bpy, scene, location=(-0.5, -2.0, 0.0), size=0.8)
+    with_cube, result = render(tf, scene, tmp_path / "cube.png", size)
+    assert result["objects"] == ["Sphere/Green Film"]
+
+    # The cube's front face (y = −2.4) in pixels; the whole cube's outline.
+    front = project(tf, scene, [(-0.9, -2.4, -0.4), (-0.1, -2.4, 0.4)], size)
+    corners = np.array([(x, y, z) for x in (-0.9, -0.1) for y in (-2.4, -1.6) for z in (-0.4, 0.4)])
+    outline = project(tf, scene, corners, size)
+    ys, xs = np.mgrid[0 : size[1], 0 : size[0]] + 0.5
+    inside = (
+        (xs > front[:, 0].min() + 1)
+        & (xs < front[:, 0].max() - 1)
+        & (ys > front[:, 1].min() + 1)
+        & (ys < front[:, 1].max() - 1)
+    )
+    near = (
+        (xs > outline[:, 0].min() - 1.5)
+        & (xs < outline[:, 0].max() + 1.5)
+        & (ys > outline[:, 1].min() - 1.5)
+        & (ys < outline[:, 1].max() + 1.5)
+    )
+    sphere_pixels = saturation(without) > 0.3
+    covered = inside & sphere_pixels
+    assert covered.sum() >= 100, "the cube should hide a good part of the sphere"
+    # Behind the cube: no film colour, the grey of Blender's Solid drawing.
+    assert saturation(with_cube[covered]).max() < 0.05
+    assert np.abs(with_cube[covered] - without[covered]).max() > 0.01
+    # Away from the cube nothing changed.
+    np.testing.assert_array_equal(with_cube[~near], without[~near])
+    del block
+
+
+# ----------------------------------------------------------------------------------------------
+# Clear messages and a sane picture for broken input
+# ----------------------------------------------------------------------------------------------
+def test_missing_hdri_file(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    missing = tmp_path / "gone" / "missing_sky.exr"
+    hdri_world(bpy, scene, missing)
+    sphere(bpy, scene, material=film(bpy, "Film", thickness_nm=350.0, roughness=0.3))
+    camera(bpy, scene)
+    image, result = render(tf, scene, tmp_path / "missing.png", background=True)
+    text = "\n".join(result["messages"])
+    assert "missing_sky.exr" in text, result["messages"]
+    assert result["objects"] == ["Sphere/Film"]
+    assert np.isfinite(image).all()
+
+
+def test_corrupt_cache_file_is_rebaked(bpy, tf, fresh, tmp_path, caplog):
+    scene = fresh
+    white_world(bpy, scene)
+    mat = film(bpy, "Cached", thickness_nm=365.0, roughness=0.3)
+    sphere(bpy, scene, material=mat)
+    camera(bpy, scene)
+    first, _ = render(tf, scene, tmp_path / "first.png")
+    desc = tf.materials.description(mat)
+    path = tf.materials.table_cache().path_for(tf.materials.description_key(desc))
+    assert path.is_file() and str(path).startswith(str(tf.cache_dir))
+    path.write_bytes(b"this is not an OpenEXR file" * 100)
+    tf.materials.clear_memory_cache()
+    tf.scene_draw.CACHES.clear()
+    bakes = tf.materials.bake_count
+    with caplog.at_level("WARNING"):
+        again, result = render(tf, scene, tmp_path / "again.png")
+    assert tf.materials.bake_count == bakes + 1
+    assert result["objects"] == ["Sphere/Cached"]
+    assert any(path.name in rec.getMessage() for rec in caplog.records), [
+        r.getMessage() for r in caplog.records
+    ]
+    assert path.with_name(path.name + ".corrupt").is_file()
+    tf.table_io.read_table(path)  # the re-baked entry is valid again
+    np.testing.assert_allclose(again, first, rtol=0, atol=1e-6)
+
+
+def test_object_without_faces(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    white_world(bpy, scene)
+    mat = film(bpy, "Film", thickness_nm=350.0, roughness=0.3)
+    mesh = bpy.data.meshes.new("Points")
+    mesh.from_pydata([(0.0, 0.0, 0.0), (0.5, 0.0, 0.0), (0.0, 0.0, 0.5)], [], [])
+    mesh.materials.append(mat)
+    points = bpy.data.objects.new("Points", mesh)
+    scene.collection.objects.link(points)
+    sphere(bpy, scene, "Ball", (1.2, 0.0, 0.0), radius=0.5, material=mat)
+    camera(bpy, scene)
+    image, result = render(tf, scene, tmp_path / "points.png")
+    assert any("Points" in m and "no faces" in m for m in result["messages"]), result["messages"]
+    assert result["objects"] == ["Ball/Film"]
+    assert image.max() > 0.0
+
+
+def test_nan_thickness_from_python(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    white_world(bpy, scene)
+    bad = film(bpy, "Bad Film", thickness_nm=350.0, roughness=0.3)
+    good = film(bpy, "Good Film", thickness_nm=350.0, roughness=0.3)
+    bad.thinfilm_sh.layers[0].thickness_nm = float("nan")
+    assert math.isnan(bad.thinfilm_sh.layers[0].thickness_nm), "RNA kept the NaN (what a script can do)"
+    sphere(bpy, scene, "Broken", (-1.1, 0.0, 0.0), radius=0.8, material=bad)
+    sphere(bpy, scene, "Fine", (1.1, 0.0, 0.0), radius=0.8, material=good)
+    camera(bpy, scene, distance=7.0)
+    image, result = render(tf, scene, tmp_path / "nan.png")
+    assert result["objects"] == ["Fine/Good Film"], "the broken object is skipped, the other drawn"
+    named = [m for m in result["messages"] if "Bad Film" in m]
+    assert named and "thickness" in named[0], result["messages"]
+    assert np.isfinite(image).all() and image.max() > 0.0
+
+
+@pytest.mark.parametrize("case", ["no world", "world without nodes"])
+def test_world_without_nodes(bpy, tf, fresh, tmp_path, case):
+    scene = fresh
+    if case == "no world":
+        scene.world = None
+    else:
+        world = bpy.data.worlds.new("Empty")
+        world.node_tree.nodes.clear()
+        scene.world = world
+    sphere(bpy, scene, material=film(bpy, "Film", thickness_nm=350.0, roughness=0.3))
+    camera(bpy, scene)
+    image, result = render(tf, scene, tmp_path / "noworld.png", background=True)
+    assert any("World" in m for m in result["messages"]), result["messages"]
+    assert result["objects"] == ["Sphere/Film"]
+    assert np.isfinite(image).all()
+
+
+# ----------------------------------------------------------------------------------------------
+# Files and lifecycle
+# ----------------------------------------------------------------------------------------------
+def test_saved_and_reopened_file_renders_identically(bpy, tf, fresh, tmp_path):
+    scene = fresh
+    hdri_world(bpy, scene, studiolight("forest"))
+    mat = film(bpy, "Bubble", roughness=0.2, vary=True)  # soap_film: 0–1000 nm from noise
+    mat.thinfilm_sh.thickness_source = "NOISE"
+    mat.thinfilm_sh.noise_scale = 1.5
+    sphere(bpy, scene, material=mat)
+    cube(bpy, scene, "Box", (1.3, 1.0, -0.8), size=0.8)  # a Solid-drawn object too
+    camera(bpy, scene)
+    before, _ = render(tf, scene, tmp_path / "before.png", background=True)
+    path = tmp_path / "saved.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    after, result = render(tf, bpy.context.scene, tmp_path / "after.png", background=True)
+    assert result["objects"] == ["Sphere/Bubble"]
+    np.testing.assert_allclose(after, before, rtol=0, atol=1e-6)
+
+
+def _ours(handlers) -> list:
+    return [h for h in handlers if getattr(h, "__module__", "").startswith(EXTENSION_ID)]
+
+
+def test_register_unregister_cycles_leave_nothing_behind(bpy, tf, capfd):
+    package, addon, headless = tf.package, tf.addon, tf.headless
+    handler_lists = {
+        name: getattr(bpy.app.handlers, name)
+        for name in dir(bpy.app.handlers)
+        if isinstance(getattr(bpy.app.handlers, name), list)
+    }
+    capfd.readouterr()
+    try:
+        for cycle in range(10):
+            package.unregister()
+            assert headless._cli_handle is None, f"cycle {cycle}: CLI command still registered"
+            leftovers = {name: _ours(h) for name, h in handler_lists.items() if _ours(h)}
+            assert not leftovers, f"cycle {cycle}: handlers left: {leftovers}"
+            assert [c.__name__ for c in addon.classes if c.is_registered] == [], f"cycle {cycle}"
+            assert not hasattr(bpy.types.Material, "thinfilm_sh")
+            package.unregister()  # twice is harmless
+
+            package.register()
+            handle = headless._cli_handle
+            package.register()  # twice must not register anything twice
+            assert headless._cli_handle is handle is not None
+            assert len(_ours(bpy.app.handlers.load_post)) == 1, f"cycle {cycle}"
+            assert len(_ours(bpy.app.handlers.depsgraph_update_post)) == 1, f"cycle {cycle}"
+            assert all(c.is_registered for c in addon.classes)
+            assert hasattr(bpy.types.Material, "thinfilm_sh")
+    finally:
+        package.register()
+        _set_cache_preference(bpy, addon, tf.cache_dir)
+    out = capfd.readouterr()
+    assert "duplicate command" not in out.out + out.err
