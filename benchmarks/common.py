@@ -1,0 +1,265 @@
+"""Helpers shared by the benchmarks: machine description, median timing, ΔE2000, doc output.
+
+Nothing here is timed itself; the benchmarks import it so that every report states the
+machine in the same words and computes colour errors the same way.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+#: Rec.709 / sRGB relative luminance weights (Blender's default scene-linear space).
+LUMINANCE_REC709 = np.array([0.2126, 0.7152, 0.0722])
+
+#: Exposure normalisation for ΔE of HDR renders: both images are scaled by the one factor that
+#: puts the *reference's* 95th-percentile luminance (over the compared pixels) at this value.
+EXPOSURE_P95_TARGET = 0.8
+
+
+# ----------------------------------------------------------------------------------------------
+# Machine
+# ----------------------------------------------------------------------------------------------
+def cpu_model() -> str:
+    """CPU model name from /proc/cpuinfo (Linux), else ``platform.processor()``."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as handle:
+            for line in handle:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def cpu_details() -> str:
+    """Family/model numbers and the widest SIMD the kernel reports (from /proc/cpuinfo)."""
+    fields, flags = {}, set()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as handle:
+            for line in handle:
+                key, _, value = line.partition(":")
+                key = key.strip()
+                if key in ("cpu family", "model", "stepping", "cache size") and key not in fields:
+                    fields[key] = value.strip()
+                elif key == "flags" and not flags:
+                    flags = set(value.split())
+    except OSError:
+        return "n/a"
+    simd = [f for f in ("avx2", "fma", "avx512f", "avx512_bf16", "amx_tile") if f in flags]
+    parts = [f"family {fields.get('cpu family', '?')} model {fields.get('model', '?')}"]
+    if "cache size" in fields:
+        parts.append(f"cache {fields['cache size']}")
+    parts.append("SIMD " + ("/".join(simd) if simd else "none above SSE"))
+    return ", ".join(parts)
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (affinity), falling back to ``os.cpu_count()``."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def blas_info() -> str:
+    """numpy's BLAS as numpy reports it (name, version, OpenBLAS build configuration)."""
+    try:
+        config = np.show_config(mode="dicts")
+        blas = config["Build Dependencies"]["blas"]
+        text = f"{blas.get('name', '?')} {blas.get('version', '')}".strip()
+        if blas.get("openblas configuration"):
+            text += f" ({blas['openblas configuration']})"
+        return text
+    except Exception as exc:  # noqa: BLE001 — informational only
+        return f"unknown ({exc})"
+
+
+def thread_env() -> str:
+    """Thread-count environment variables that affect BLAS (unset ones are omitted)."""
+    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    found = [f"{n}={os.environ[n]}" for n in names if n in os.environ]
+    return ", ".join(found) if found else "none set (BLAS uses all usable cores)"
+
+
+def machine_lines() -> list[str]:
+    """Markdown bullet lines describing the machine and the numerical stack."""
+    return [
+        f"- CPU: {cpu_model()} ({cpu_details()})",
+        f"- Cores: {usable_cores()} usable ({os.cpu_count()} logical reported by the OS); "
+        f"{platform.system()} {platform.release()} {platform.machine()}",
+        f"- Python {platform.python_version()}, numpy {np.__version__}",
+        f"- BLAS: {blas_info()}",
+        f"- Code: {code_version()}",
+        f"- Thread variables: {thread_env()}",
+        f"- Load average (1, 5, 15 min) at the start of the run: {START_LOAD}; at the end: {load_average()}.",
+        "  The machine is shared, so absolute times are noisy: compare rows of one run, not runs.",
+    ]
+
+
+def code_version() -> str:
+    """Git commit of the repository and whether ``precompute/`` differs from it (at import time)."""
+    return CODE_VERSION
+
+
+def _git_describe() -> str:
+    import subprocess
+
+    try:
+        head = subprocess.run(
+            ["git", "log", "-1", "--format=%h %cI"], cwd=ROOT, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--", "precompute"], cwd=ROOT, capture_output=True, text=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "not a git checkout"
+    state = " (precompute/ has uncommitted changes or new files)" if dirty else ", precompute/ clean"
+    return f"git {head}{state}"
+
+
+#: Recorded when the benchmark starts, so the report names the code that was measured.
+CODE_VERSION = _git_describe()
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages, formatted."""
+    try:
+        return ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+#: Load average when the benchmark process imported this module.
+START_LOAD = load_average()
+
+
+# ----------------------------------------------------------------------------------------------
+# Timing
+# ----------------------------------------------------------------------------------------------
+def time_once(func: Callable[[], object]) -> tuple[float, object]:
+    """(seconds, result) of one call, ``time.perf_counter``."""
+    start = time.perf_counter()
+    out = func()
+    return time.perf_counter() - start, out
+
+
+def time_once_cpu(func: Callable[[], object]) -> tuple[float, float, object]:
+    """(wall seconds, process CPU seconds over all threads, result) of one call.
+
+    CPU time is much less sensitive than wall time to other processes on a shared machine
+    (it still includes any busy-waiting of BLAS threads).
+    """
+    wall, cpu = time.perf_counter(), time.process_time()
+    out = func()
+    return time.perf_counter() - wall, time.process_time() - cpu, out
+
+
+def time_runs(func: Callable[[], object], runs: int = 7, warmup: int = 1) -> list[float]:
+    """Wall times of ``runs`` calls after ``warmup`` untimed calls."""
+    for _ in range(warmup):
+        func()
+    times = []
+    for _ in range(runs):
+        start = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def median_time(func: Callable[[], object], runs: int = 7, warmup: int = 1) -> float:
+    """Median wall time of ``runs`` calls after ``warmup`` untimed calls."""
+    return statistics.median(time_runs(func, runs, warmup))
+
+
+def fmt_seconds(seconds: float) -> str:
+    """Human-scaled time: µs, ms or s with 3 significant figures."""
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.3g} µs"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.3g} ms"
+    return f"{seconds:.3g} s"
+
+
+def fmt_rate(per_second: float) -> str:
+    """Evaluations per second as M/s or k/s."""
+    if per_second >= 1e6:
+        return f"{per_second / 1e6:.2f} M/s"
+    return f"{per_second / 1e3:.1f} k/s"
+
+
+def fmt_bytes(count: int) -> str:
+    if count >= 1 << 20:
+        return f"{count / (1 << 20):.2f} MiB"
+    if count >= 1 << 10:
+        return f"{count / (1 << 10):.1f} KiB"
+    return f"{count} B"
+
+
+# ----------------------------------------------------------------------------------------------
+# Colour difference
+# ----------------------------------------------------------------------------------------------
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    """Rec.709 relative luminance Y of scene-linear RGB (…, 3)."""
+    return np.asarray(rgb, dtype=float) @ LUMINANCE_REC709
+
+
+def exposure_scale(reference_rgb: np.ndarray, target: float = EXPOSURE_P95_TARGET) -> float:
+    """Factor that maps the reference's 95th-percentile luminance to ``target``."""
+    p95 = float(np.percentile(luminance(reference_rgb), 95))
+    return target / p95 if p95 > 0 else 1.0
+
+
+def rec709_to_lab(rgb: np.ndarray) -> np.ndarray:
+    """Scene-linear Rec.709 (D65) → CIE XYZ → CIELAB (D65 white), with colour-science."""
+    import colour
+
+    space = colour.RGB_COLOURSPACES["ITU-R BT.709"]
+    xyz = colour.RGB_to_XYZ(np.asarray(rgb, dtype=float), space, apply_cctf_decoding=False)
+    white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    return colour.XYZ_to_Lab(xyz, white)
+
+
+def delta_e_2000(test_rgb: np.ndarray, reference_rgb: np.ndarray, scale: float | None = None) -> np.ndarray:
+    """Per-pixel CIEDE2000 between two scene-linear Rec.709 images (…, 3).
+
+    Both are multiplied by ``scale`` (default :func:`exposure_scale` of the reference, i.e. the
+    reference's 95th-percentile luminance becomes 0.8) before XYZ → Lab, so ΔE is computed on
+    display-like magnitudes; a flat (E) spectrum is RGB (1, 1, 1), the D65 white of Lab.
+    """
+    import colour
+
+    s = exposure_scale(reference_rgb) if scale is None else scale
+    lab_t = rec709_to_lab(np.maximum(test_rgb, 0.0) * s)
+    lab_r = rec709_to_lab(np.maximum(reference_rgb, 0.0) * s)
+    return np.asarray(colour.delta_E(lab_t, lab_r, method="CIE 2000"))
+
+
+# ----------------------------------------------------------------------------------------------
+# Bake caches (benchmarks clear them to time cold bakes; nothing in precompute/ is modified)
+# ----------------------------------------------------------------------------------------------
+def clear_bake_caches() -> None:
+    """Forget the microfacet/diffuse kernels (and the u-degree hint, in bakers that keep one)."""
+    from precompute import bake
+
+    bake.microfacet_kernel.cache_clear()
+    bake.diffuse_kernel.cache_clear()
+    getattr(bake, "_DEGREE_HINT", {}).clear()
+
+
+# ----------------------------------------------------------------------------------------------
+# Output
+# ----------------------------------------------------------------------------------------------
+def write_doc(name: str, text: str) -> str:
+    """Write ``docs/<name>`` and return its path."""
+    path = os.path.join(ROOT, "docs", name)
+    with open(path, "w", encoding="utf-8") as handle:
+        handle.write(text if text.endswith("\n") else text + "\n")
+    return path

@@ -1,0 +1,205 @@
+"""Thin-film optics benchmark: ``reflectance_sweep`` and ``reflectance`` throughput.
+
+Usage (from the repository root)::
+
+    .venv/bin/python -m benchmarks.optics          # → docs/benchmark-optics.md
+
+Sweeps: 256 incidence cosines × 128 wavelengths × 64 thickness sets (2 097 152 unpolarised
+reflectances per call) through :func:`precompute.optics.reflectance_sweep` for
+
+- a single film, ``method="exact"`` → the closed-form Airy path (a dielectric soap film, and a
+  dispersive TiO₂ film on tabulated titanium, i.e. complex indices);
+- the same soap film through ``method="stack"`` (Rouard's recursion with one layer) and
+  ``method="glassner2000"`` (the paper's eq. 4);
+- a 10-layer dielectric stack (MgF₂/TiO₂ pairs on glass) → Rouard's recursion.
+
+Plus :func:`precompute.optics.reflectance` single calls: one value (validation overhead),
+one angle × 128 wavelengths, and 256 × 128. Median of ≥ 5 runs (`time.perf_counter`) after one
+warm-up call; throughput = reflectance values (angle × wavelength × thickness set) per second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from precompute.optics import reflectance, reflectance_sweep
+
+from . import common
+
+ANGLES, WAVELENGTHS, THICKNESSES = 256, 128, 64
+RUNS_SWEEP = 7
+RUNS_SINGLE = 21
+
+COS = np.linspace(1e-3, 1.0, ANGLES)
+WL = np.linspace(360.0, 830.0, WAVELENGTHS)
+
+TIO2 = {"cauchy": [2.30, 0.045, 0.0]}
+
+
+def _stack_media(count: int = 10):
+    from precompute.material import Material
+
+    layers = tuple((1.38 if i % 2 == 0 else TIO2, 110.0 if i % 2 == 0 else 60.0) for i in range(count))
+    m = Material(layers=layers, substrate=1.52)
+    return m.indices(), np.array(m.thicknesses())
+
+
+def cases():
+    """(label, path, indices, thickness sets (T, L), method, layers)."""
+    from precompute.material import Material
+
+    soap = [1.0, 1.33, 1.0]
+    ti = Material(layers=((TIO2, 75.0),), substrate={"metal": "titanium"}).indices()
+    stack, base = _stack_media()
+    stack5, base5 = _stack_media(5)
+    d1 = np.linspace(0.0, 1000.0, THICKNESSES)[:, None]
+    d_ti = np.linspace(20.0, 150.0, THICKNESSES)[:, None]
+    scale = np.linspace(0.5, 1.5, THICKNESSES)[:, None]
+    return [
+        ("soap film (1.33 in air)", "Airy", soap, d1, "exact", 1),
+        ("TiO₂ (Cauchy) on Ti (tabulated metal)", "Airy", ti, d_ti, "exact", 1),
+        ('soap film, `method="stack"`', "Rouard, 1 layer", soap, d1, "stack", 1),
+        ('soap film, `method="glassner2000"`', "Glassner eq. 4", soap, d1, "glassner2000", 1),
+        ("5-layer MgF₂/TiO₂ on glass", "Rouard, 5 layers", stack5, scale * base5[None, :], "exact", 5),
+        ("10-layer MgF₂/TiO₂ on glass", "Rouard, 10 layers", stack, scale * base[None, :], "exact", 10),
+    ]
+
+
+def run_benchmark() -> str:
+    start = time.perf_counter()
+    evaluations = ANGLES * WAVELENGTHS * THICKNESSES
+    sweep_rows = []
+    for label, path, indices, sets, method, layers in cases():
+        times = common.time_runs(
+            lambda indices=indices, sets=sets, method=method: reflectance_sweep(
+                indices, sets, WL, COS, method=method
+            ),
+            runs=RUNS_SWEEP,
+        )
+        med = float(np.median(times))
+        sweep_rows.append((label, path, layers, med, min(times), max(times)))
+        print(f"sweep {label}: median {common.fmt_seconds(med)}")
+    airy_median = sweep_rows[0][3]
+
+    single_rows = []
+    stack, base = _stack_media()
+    singles = [
+        ("1 angle × 1 wavelength, soap film", [1.0, 1.33, 1.0], [400.0], [550.0], [0.8], "exact"),
+        ("1 angle × 128 wavelengths, soap film", [1.0, 1.33, 1.0], [400.0], WL, [0.8], "exact"),
+        ("256 angles × 128 wavelengths, soap film", [1.0, 1.33, 1.0], [400.0], WL, COS, "exact"),
+        (
+            "256 angles × 128 wavelengths, soap film, glassner2000",
+            [1.0, 1.33, 1.0],
+            [400.0],
+            WL,
+            COS,
+            "glassner2000",
+        ),
+        ("256 angles × 128 wavelengths, 10-layer stack", stack, base, WL, COS, "exact"),
+    ]
+    for label, indices, d, wl, cos, method in singles:
+        runs = RUNS_SINGLE if np.size(cos) * np.size(wl) < 1000 else RUNS_SWEEP
+        times = common.time_runs(
+            lambda indices=indices, d=d, wl=wl, cos=cos, method=method: reflectance(
+                indices, d, wl, cos, method=method
+            ),
+            runs=runs,
+        )
+        med = float(np.median(times))
+        single_rows.append((label, np.size(cos) * np.size(wl), runs, med))
+        print(f"single {label}: median {common.fmt_seconds(med)}")
+    phase = np.exp(1j * np.linspace(0, 40, evaluations)).reshape(THICKNESSES, ANGLES, WAVELENGTHS)
+    exp_time = common.median_time(lambda: np.exp(2j * phase), runs=RUNS_SWEEP)
+    total = time.perf_counter() - start
+
+    lines = [
+        "# Thin-film optics benchmark",
+        "",
+        "Generated by `.venv/bin/python -m benchmarks.optics` (from the repository root).",
+        f"Median of {RUNS_SWEEP} runs for sweeps ({RUNS_SINGLE} for sub-millisecond single calls) after one",
+        "warm-up call, `time.perf_counter`; all rows measured in the same process, one after another.",
+        f"This run took {total:.0f} s.",
+        "",
+        "## Machine",
+        "",
+        *common.machine_lines(),
+        "",
+        "## `reflectance_sweep`: 256 angles × 128 wavelengths × 64 thicknesses",
+        "",
+        f"{ANGLES} incidence cosines (10⁻³ … 1) × {WAVELENGTHS} wavelengths (360–830 nm) × {THICKNESSES}"
+        " thickness",
+        f"sets = {evaluations:,} unpolarised reflectances per call (s and p both computed). A",
+        "*value* is one R(θ, λ, thicknesses); for the stacks each value folds 5 or 10 layers.",
+        "",
+        "| case | path | median | min … max | values/s | vs Airy soap |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
+    for label, path, _layers, med, lo, hi in sweep_rows:
+        lines.append(
+            f"| {label} | {path} | {common.fmt_seconds(med)} | {common.fmt_seconds(lo)} …"
+            f" {common.fmt_seconds(hi)}"
+            f" | {common.fmt_rate(evaluations / med)} | {med / airy_median:.2f}× |"
+        )
+    stack_row = sweep_rows[-1]
+    stack5_row = sweep_rows[-2]
+    rouard1 = sweep_rows[2]
+    lines += [
+        "",
+        f"Per layer, the Rouard recursion runs at {common.fmt_rate(evaluations / rouard1[3])} layer-values/s"
+        f" with 1 layer, {common.fmt_rate(evaluations * 5 / stack5_row[3])} with 5 and"
+        f" {common.fmt_rate(evaluations * 10 / stack_row[3])} with 10.",
+        "",
+        "## `reflectance`: single calls",
+        "",
+        "| call | values | runs | median | values/s |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for label, count, runs, med in single_rows:
+        lines.append(
+            f"| {label} | {count:,} | {runs} | {common.fmt_seconds(med)} | {common.fmt_rate(count / med)} |"
+        )
+    tiny = single_rows[0][3]
+    lines += [
+        "",
+        "## What this shows",
+        "",
+        f"- The Airy closed form evaluates {common.fmt_rate(evaluations / airy_median)} unpolarised"
+        " reflectances"
+        f" of a dielectric film; a complex dispersive film on a tabulated metal runs at"
+        f" {common.fmt_rate(evaluations / sweep_rows[1][3])}. Routing the same single film through the"
+        f" Rouard recursion costs {rouard1[3] / airy_median:.2f}× the Airy time, and Glassner's eq. 4"
+        f" {sweep_rows[3][3] / airy_median:.2f}×.",
+        f"- The 10-layer stack costs {stack_row[3] / airy_median:.1f}× the single Airy film per value;"
+        f" relative to the one-layer recursion, 5 layers cost {stack5_row[3] / rouard1[3]:.1f}× and 10"
+        f" layers {stack_row[3] / rouard1[3]:.1f}×, i.e."
+        f" {(stack_row[3] - stack5_row[3]) / 5 / rouard1[3]:.2f}×"
+        " the one-layer time per extra layer: each layer adds one complex exponential and one complex"
+        " division on the full (T, A, W) grid (32 MiB complex arrays, far beyond cache).",
+        f"- Where the time goes (Airy): `np.exp` of the complex phase on the (64, 256, 128) grid alone costs"
+        f" {common.fmt_seconds(exp_time)} here, and the s and p polarisations each compute it"
+        " (`airy._airy_intensity` is called once per polarisation, as is `stack.stack_amplitude`),"
+        f" so the two evaluations are about {2 * exp_time / airy_median:.0%} of the Airy sweep; sharing one"
+        f" between s and p would save about {exp_time / airy_median:.0%}.",
+        f"- A single-value `reflectance` call takes {common.fmt_seconds(tiny)}: argument validation and"
+        " index resolution dominate, so per-pixel scalar calls are ~"
+        f"{tiny * evaluations / airy_median:.0f}× slower than one batched sweep; batch everything.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.parse_args(argv)
+    start = time.perf_counter()
+    text = run_benchmark()
+    path = common.write_doc("benchmark-optics.md", text)
+    print(text)
+    print(f"wrote {path} in {time.perf_counter() - start:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
