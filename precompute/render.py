@@ -217,7 +217,9 @@ def film_rgb_matrices(material, thickness_nm=None, samples: int = 4097):
 def shade_reference(material, image, normals, views, thickness_nm=None, n_theta: int = 128, n_phi: int = 128):
     """Brute-force spectral render (…, 3): per pixel ∫ L(ωi) f(ωi, ωo, λ) cosθi dωi, no SH.
 
-    Half-vector quadrature of the exact microfacet BRDF (same measure as the bake), the film's
+    Single scattering only (``material.multiscatter`` is not applied: this is the truth the
+    table's single-scattering lobe is checked against). Half-vector quadrature of the exact
+    microfacet BRDF (same measure as the bake), the film's
     3×3 colour matrices tabulated finely in u (4097 samples, linear), radiance looked up
     bilinearly in the equirect image. The diffuse base, if any, by cosine-weighted quadrature.
     """
