@@ -64,7 +64,6 @@ def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, sample
     scene.render.film_transparent = False
     scene.render.filter_size = 1.0  # ≈ a 1-pixel box, matched by our 4×4 supersampling
     world = bpy.data.worlds.new("env")
-    world.use_nodes = True
     nt = world.node_tree
     env = nt.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(str(hdri_path))
@@ -74,7 +73,6 @@ def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, sample
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
     mat = bpy.data.materials.new("film")
-    mat.use_nodes = True
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness
