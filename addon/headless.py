@@ -198,7 +198,7 @@ def main(argv) -> int:
             summary = bake_scene(scene, args.out_dir)
             if args.json:
                 pathlib.Path(args.json).write_text(json.dumps(summary, indent=2))
-            for name, err in summary["errors"].items():
+            for err in summary["errors"].values():
                 print(f"error: {err}")
             return 1 if summary["errors"] else 0
         if args.command == "render":
@@ -239,7 +239,7 @@ def main(argv) -> int:
                 **mp.to_dict(),
             }
             print("plan-json " + json.dumps(summary))
-        for name, err in errors.items():
+        for err in errors.values():
             print(f"error: {err}")
         return 1 if errors else 0
     except ValueError as exc:

@@ -40,8 +40,20 @@ def pinned_requirements() -> list[str]:
 def download(platform: str, dest: pathlib.Path) -> list[pathlib.Path]:
     dest.mkdir(parents=True, exist_ok=True)
     before = set(dest.glob("*.whl"))
-    cmd = [sys.executable, "-m", "pip", "download", "--only-binary=:all:", "--no-deps", "--python-version", "3.13",
-           "--implementation", "cp", "-d", str(dest)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "pip",
+        "download",
+        "--only-binary=:all:",
+        "--no-deps",
+        "--python-version",
+        "3.13",
+        "--implementation",
+        "cp",
+        "-d",
+        str(dest),
+    ]
     for tag in PLATFORMS[platform]:
         cmd += ["--platform", tag]
     subprocess.run(cmd + pinned_requirements(), check=True)
@@ -54,8 +66,14 @@ def download(platform: str, dest: pathlib.Path) -> list[pathlib.Path]:
 def blender_ext_tool() -> pathlib.Path:
     spec = importlib.util.find_spec("bpy")
     if spec is None or not spec.submodule_search_locations:
-        raise SystemExit("the bpy package is needed for Blender's extension build tool (scripts/setup.sh installs it)")
-    hits = sorted(pathlib.Path(list(spec.submodule_search_locations)[0]).glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+        raise SystemExit(
+            "the bpy package is needed for Blender's extension build tool (scripts/setup.sh installs it)"
+        )
+    hits = sorted(
+        pathlib.Path(list(spec.submodule_search_locations)[0]).glob(
+            "*/scripts/addons_core/bl_pkg/cli/blender_ext.py"
+        )
+    )
     if not hits:
         raise SystemExit("blender_ext.py not found inside the bpy package")
     return hits[0]
@@ -65,8 +83,21 @@ def build(platform: str, out: pathlib.Path) -> pathlib.Path:
     work = ROOT / "build" / platform
     if work.exists():
         shutil.rmtree(work)
-    ignore = shutil.ignore_patterns(".git", ".venv", "build", "dist", "out", "__pycache__", ".pytest_cache",
-                                    ".hypothesis", ".ruff_cache", "tests", "benchmarks", "docs", ".ci")
+    ignore = shutil.ignore_patterns(
+        ".git",
+        ".venv",
+        "build",
+        "dist",
+        "out",
+        "__pycache__",
+        ".pytest_cache",
+        ".hypothesis",
+        ".ruff_cache",
+        "tests",
+        "benchmarks",
+        "docs",
+        ".ci",
+    )
     shutil.copytree(ROOT, work, ignore=ignore)
     wheels = download(platform, ROOT / "build" / "wheels" / platform)
     (work / "wheels").mkdir()
@@ -74,11 +105,23 @@ def build(platform: str, out: pathlib.Path) -> pathlib.Path:
         shutil.copy2(wheel, work / "wheels" / wheel.name)
     manifest = (work / "blender_manifest.toml").read_text()
     listed = ", ".join(f'"./wheels/{w.name}"' for w in wheels)
-    manifest = re.sub(r"(?m)^(type = .*)$", rf'\1\nplatforms = ["{platform}"]\nwheels = [{listed}]', manifest, count=1)
+    manifest = re.sub(
+        r"(?m)^(type = .*)$", rf'\1\nplatforms = ["{platform}"]\nwheels = [{listed}]', manifest, count=1
+    )
     (work / "blender_manifest.toml").write_text(manifest)
     out.mkdir(parents=True, exist_ok=True)
-    subprocess.run([sys.executable, str(blender_ext_tool()), "build", "--source-dir", str(work),
-                    "--output-dir", str(out)], check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            str(blender_ext_tool()),
+            "build",
+            "--source-dir",
+            str(work),
+            "--output-dir",
+            str(out),
+        ],
+        check=True,
+    )
     built = sorted(out.glob("*.zip"), key=lambda p: p.stat().st_mtime)[-1]
     final = out / f"thinfilm_sh-{platform}.zip"
     built.replace(final)

@@ -81,7 +81,10 @@ def test_constant_environment_gives_the_directional_albedo_everywhere():
 def test_sh_render_converges_to_ground_truth_for_a_rough_film():
     # Rough lobe + smooth environment: SH at l = 8 should approach the brute-force render.
     material = Material(
-        layers=(Layer(1.33, 380.0),), roughness=0.8, multiscatter="none", quality=Quality(sh_order=8, view_samples=32)
+        layers=(Layer(1.33, 380.0),),
+        roughness=0.8,
+        multiscatter="none",
+        quality=Quality(sh_order=8, view_samples=32),
     )
     result = bake.bake(material)
     h, w = 64, 128
@@ -126,7 +129,9 @@ def test_hdr_sun_of_1e5_stays_finite_and_firefly_free():
     h, w = 64, 128
     image = np.full((h, w, 3), 0.2)
     image[10, 40] = 1e5  # a one-pixel sun, 5·10⁵ × the sky
-    material = Material(layers=(Layer(1.33, 450.0),), roughness=0.3, quality=Quality(sh_order=8, view_samples=16))
+    material = Material(
+        layers=(Layer(1.33, 450.0),), roughness=0.3, quality=Quality(sh_order=8, view_samples=16)
+    )
     result = bake.bake(material)
     coeffs = sh.project_equirect(image, 8) * render.lighting_window(8, 0.3)[:, None]
     rng = np.random.default_rng(11)
@@ -134,8 +139,11 @@ def test_hdr_sun_of_1e5_stays_finite_and_firefly_free():
     v = render.view_aligned_frame(n, random_unit(rng, 400))[:, 0] * 0.5 + n
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
     pre = prefilter.prefilter(image)
-    outputs = {"sh": render.shade_sh(result, coeffs, n, v), "split": prefilter.shade_split_sum(result, pre, n, v),
-               "reference": render.shade_reference(material, image, n[:40], v[:40], n_theta=32, n_phi=32)}
+    outputs = {
+        "sh": render.shade_sh(result, coeffs, n, v),
+        "split": prefilter.shade_split_sum(result, pre, n, v),
+        "reference": render.shade_reference(material, image, n[:40], v[:40], n_theta=32, n_phi=32),
+    }
     for name, out in outputs.items():
         assert np.all(np.isfinite(out)) and np.all(out >= 0), name
     # No fireflies from the prefilter: a sun spread by a roughness-0.3 lobe cannot exceed its energy
