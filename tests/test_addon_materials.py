@@ -8,17 +8,14 @@ explicit quality so that a bake takes a fraction of a second.
 
 import importlib
 import math
-import os
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parent.parent
-EXTENSION_ID = "thinfilm_sh"
+from _extension import EXTENSION_ID, linked_extension
+
 REGISTER_CYCLES = 10
 
 
@@ -35,20 +32,8 @@ def bpy():
 @pytest.fixture(scope="module")
 def package(bpy, tmp_path_factory):
     """The repository imported as ``thinfilm_sh`` (once for this module)."""
-    root = tmp_path_factory.mktemp("extension")
-    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
-    sys.path.insert(0, str(root))
-    module = None
-    try:
-        module = importlib.import_module(EXTENSION_ID)
-        assert Path(module.__file__).resolve() == REPO / "__init__.py"
+    with linked_extension(tmp_path_factory.mktemp("extension")) as module:
         yield module
-    finally:
-        if module is not None:
-            module.unregister()
-        sys.path.remove(str(root))
-        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
-            del sys.modules[name]
 
 
 @pytest.fixture

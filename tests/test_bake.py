@@ -53,7 +53,7 @@ def test_l0_entry_is_the_directional_albedo_of_an_independent_quadrature():
     )
     result = bake.bake(material)
     wl, g = bake.spectral_quadrature(64, material.colour_space, "E", "spectral")
-    film = lambda c: reflectance(material.indices(), material.thicknesses(), wl, c)  # noqa: E731
+    film = lambda c: reflectance(material.indices(), material.thicknesses(), wl, c)
     albedo = brdf.directional_albedo(np.cos(result.view_angles_rad), 0.4, film, 256, 128)  # full-φ grid
     expected = np.einsum("aw,wkc->ak", albedo, g)
     # Two different quadratures of the same integral (half-range φ with 96×48 vs full φ with

@@ -17,21 +17,16 @@ from __future__ import annotations
 import importlib
 import json
 import math
-import os
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from _extension import EXTENSION_ID, linked_extension
 
 import precompute.optics as optics
 from precompute import bake, brdf, cli, effects
 from precompute.material import Layer, Material, Quality
 from precompute.optics import dispersion, metals, stack
-
-REPO = Path(__file__).resolve().parent.parent
-EXTENSION_ID = "thinfilm_sh"
 
 #: Small explicit quality: a bake takes a fraction of a second.
 FAST = Quality(sh_order=2, view_samples=6, thickness_samples=6, wavelength_count=32)
@@ -469,24 +464,13 @@ def tf(bpy, tmp_path_factory):
     import types
 
     root = tmp_path_factory.mktemp("extension")
-    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
-    sys.path.insert(0, str(root))
-    package = None
-    try:
-        package = importlib.import_module(EXTENSION_ID)
-        assert Path(package.__file__).resolve() == REPO / "__init__.py"
+    with linked_extension(root) as package:
         ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         for name in ("headless", "materials", "scene_draw", "gpu_draw", "ui"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.effects = importlib.import_module(f"{EXTENSION_ID}.precompute.effects")
         yield ns
-    finally:
-        if package is not None:
-            package.unregister()
-        sys.path.remove(str(root))
-        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
-            del sys.modules[name]
 
 
 @pytest.fixture

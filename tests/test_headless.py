@@ -17,7 +17,6 @@ import importlib
 import importlib.util
 import json
 import math
-import os
 import subprocess
 import sys
 import types
@@ -28,8 +27,8 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parent.parent
-EXTENSION_ID = "thinfilm_sh"
+from _extension import EXTENSION_ID, REPO, linked_extension
+
 SCRIPT = REPO / "scripts" / "thinfilm_headless.py"
 SIZE = (64, 48)
 
@@ -55,30 +54,21 @@ def _set_cache_preference(bpy, addon, cache_dir) -> None:
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module; its modules as attributes."""
     root = tmp_path_factory.mktemp("extension")
-    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
-    sys.path.insert(0, str(root))
-    package = None
-    try:
-        package = importlib.import_module(EXTENSION_ID)
-        assert Path(package.__file__).resolve() == REPO / "__init__.py"
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-        ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("headless", "materials", "scene_draw", "gpu_draw"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-        _set_cache_preference(bpy, ns.addon, ns.cache_dir)
-        ns.gpu_draw.ensure_gpu_context()
-        yield ns
-    finally:
-        entry = bpy.context.preferences.addons.get(EXTENSION_ID)
-        if entry is not None:
-            bpy.context.preferences.addons.remove(entry)
-        if package is not None:
-            package.unregister()
-        sys.path.remove(str(root))
-        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
-            del sys.modules[name]
+    with linked_extension(root) as package:
+        try:
+            package.register()
+            ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
+            ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+            for name in ("headless", "materials", "scene_draw", "gpu_draw"):
+                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+            _set_cache_preference(bpy, ns.addon, ns.cache_dir)
+            ns.gpu_draw.ensure_gpu_context()
+            yield ns
+        finally:
+            entry = bpy.context.preferences.addons.get(EXTENSION_ID)
+            if entry is not None:
+                bpy.context.preferences.addons.remove(entry)
 
 
 @pytest.fixture

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import os
 import sys
 import types
 from pathlib import Path
@@ -33,8 +32,8 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parent.parent
-EXTENSION_ID = "thinfilm_sh"
+from _extension import EXTENSION_ID, REPO, linked_extension
+
 REFERENCE_DIR = REPO / "tests" / "data" / "reference"
 SIZE = (96, 72)
 MEAN_TOLERANCE = 2.0 / 255.0
@@ -82,35 +81,29 @@ def bpy():
 def tf(bpy, tmp_path_factory):
     """The extension registered once, its table cache private to this module."""
     root = tmp_path_factory.mktemp("extension")
-    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
-    sys.path.insert(0, str(root))
-    package = None
     entry = None
-    try:
-        package = importlib.import_module(EXTENSION_ID)
-        package.register()
-        addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        addons = bpy.context.preferences.addons
-        entry = addons.get(EXTENSION_ID) or addons.new()
-        entry.module = EXTENSION_ID
-        addon.preferences().cache_dir = str(root / "cache")
-        yield types.SimpleNamespace(
-            package=package,
-            addon=addon,
-            headless=importlib.import_module(f"{EXTENSION_ID}.addon.headless"),
-            make_scenes=_load("thinfilm_sh_make_scenes", REPO / "sample_scenes" / "make_scenes.py"),
-            refs=_load("thinfilm_sh_make_reference_images", REPO / "scripts" / "make_reference_images.py"),
-        )
-    finally:
-        if entry is not None and bpy.context.preferences.addons.get(EXTENSION_ID) is not None:
-            bpy.context.preferences.addons.remove(bpy.context.preferences.addons[EXTENSION_ID])
-        if package is not None:
-            package.unregister()
-        sys.path.remove(str(root))
-        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
-            del sys.modules[name]
-        for name in ("thinfilm_sh_make_scenes", "thinfilm_sh_make_reference_images"):
-            sys.modules.pop(name, None)
+    with linked_extension(root) as package:
+        try:
+            package.register()
+            addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+            addons = bpy.context.preferences.addons
+            entry = addons.get(EXTENSION_ID) or addons.new()
+            entry.module = EXTENSION_ID
+            addon.preferences().cache_dir = str(root / "cache")
+            yield types.SimpleNamespace(
+                package=package,
+                addon=addon,
+                headless=importlib.import_module(f"{EXTENSION_ID}.addon.headless"),
+                make_scenes=_load("thinfilm_sh_make_scenes", REPO / "sample_scenes" / "make_scenes.py"),
+                refs=_load(
+                    "thinfilm_sh_make_reference_images", REPO / "scripts" / "make_reference_images.py"
+                ),
+            )
+        finally:
+            if entry is not None and bpy.context.preferences.addons.get(EXTENSION_ID) is not None:
+                bpy.context.preferences.addons.remove(bpy.context.preferences.addons[EXTENSION_ID])
+            for name in ("thinfilm_sh_make_scenes", "thinfilm_sh_make_reference_images"):
+                sys.modules.pop(name, None)
 
 
 @pytest.fixture(scope="module")

@@ -16,9 +16,7 @@ from __future__ import annotations
 import importlib
 import math
 import os
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,8 +25,8 @@ from precompute import hdri, sh
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parent.parent
-EXTENSION_ID = "thinfilm_sh"
+from _extension import EXTENSION_ID, linked_extension
+
 L_MAX = 8
 
 
@@ -42,15 +40,8 @@ def bpy():
 @pytest.fixture(scope="module")
 def world_mod(bpy, tmp_path_factory):
     """``thinfilm_sh.addon.world``, imported from a symlink named like the extension."""
-    root = tmp_path_factory.mktemp("ext")
-    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
-    sys.path.insert(0, str(root))
-    try:
+    with linked_extension(tmp_path_factory.mktemp("ext"), unregister=False):
         yield importlib.import_module(f"{EXTENSION_ID}.addon.world")
-    finally:
-        sys.path.remove(str(root))
-        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
-            del sys.modules[name]
 
 
 @pytest.fixture

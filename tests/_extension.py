@@ -1,0 +1,33 @@
+"""Importing the repository as the extension package, for the tests that run real Blender.
+
+Blender imports an extension by its id; the tests do the same through a symlink named
+``thinfilm_sh`` in a temporary folder, so the add-on's relative imports resolve as installed.
+"""
+
+import contextlib
+import importlib
+import os
+import sys
+from pathlib import Path
+
+EXTENSION_ID = "thinfilm_sh"
+REPO = Path(__file__).resolve().parent.parent
+
+
+@contextlib.contextmanager
+def linked_extension(root: Path, *, unregister: bool = True):
+    """Yield the package imported from ``root/thinfilm_sh`` → the repository; on exit unregister it
+    (``register``/``unregister`` are safe to repeat) and forget every module of it."""
+    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
+    sys.path.insert(0, str(root))
+    package = None
+    try:
+        package = importlib.import_module(EXTENSION_ID)
+        assert Path(package.__file__).resolve() == REPO / "__init__.py"
+        yield package
+    finally:
+        if unregister and package is not None:
+            package.unregister()
+        sys.path.remove(str(root))
+        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
+            del sys.modules[name]
