@@ -14,7 +14,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension
+from _extension import EXTENSION_ID, linked_extension  # noqa: E402
 
 REGISTER_CYCLES = 10
 

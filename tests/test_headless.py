@@ -27,7 +27,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, REPO, linked_extension
+from _extension import EXTENSION_ID, REPO, linked_extension  # noqa: E402
 
 SCRIPT = REPO / "scripts" / "thinfilm_headless.py"
 SIZE = (64, 48)

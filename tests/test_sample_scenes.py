@@ -32,7 +32,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, REPO, linked_extension
+from _extension import EXTENSION_ID, REPO, linked_extension  # noqa: E402
 
 REFERENCE_DIR = REPO / "tests" / "data" / "reference"
 SIZE = (96, 72)

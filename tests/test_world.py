@@ -25,7 +25,7 @@ from precompute import hdri, sh
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension
+from _extension import EXTENSION_ID, linked_extension  # noqa: E402
 
 L_MAX = 8
 
