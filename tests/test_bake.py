@@ -53,7 +53,10 @@ def test_l0_entry_is_the_directional_albedo_of_an_independent_quadrature():
     )
     result = bake.bake(material)
     wl, g = bake.spectral_quadrature(64, material.colour_space, "E", "spectral")
-    film = lambda c: reflectance(material.indices(), material.thicknesses(), wl, c)
+
+    def film(c):
+        return reflectance(material.indices(), material.thicknesses(), wl, c)
+
     albedo = brdf.directional_albedo(np.cos(result.view_angles_rad), 0.4, film, 256, 128)  # full-φ grid
     expected = np.einsum("aw,wkc->ak", albedo, g)
     # Two different quadratures of the same integral (half-range φ with 96×48 vs full φ with
@@ -195,8 +198,11 @@ def test_multiscatter_modes_add_energy_only_where_single_scattering_loses_it(mod
     xyz = comp @ spectra.rgb_to_xyz_matrix("Linear Rec.709").T
     assert np.all(xyz <= 1.0 + 2e-3)  # never above white
     smooth = preset("coated_car_window").with_(roughness=0.05, quality=SMALL)
-    assert np.allclose(albedo_rgb(bake.bake(smooth.with_(multiscatter=mode))),
-                       albedo_rgb(bake.bake(smooth.with_(multiscatter="none"))), rtol=2e-3)  # E ≈ 1
+    assert np.allclose(
+        albedo_rgb(bake.bake(smooth.with_(multiscatter=mode))),
+        albedo_rgb(bake.bake(smooth.with_(multiscatter="none"))),
+        rtol=2e-3,
+    )  # E ≈ 1
 
 
 def test_roughness_is_squared_like_cycles():
