@@ -663,55 +663,229 @@ class _SavedState:
         gpu.state.blend_set(self.blend)
 
 
-def draw_items(
-    items, view_matrix, projection_matrix, *, display_srgb: bool, exposure: float = 0.0, shaders=None
-):
-    """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
+class UniformCache:
+    """Uniform buffers keyed by what they are made from, kept across frames.
 
-    ``items``: objects with ``.batch`` (:class:`MeshBatch` or a GPUBatch), ``.model_matrix``
-    (4×4), ``.table`` (:class:`TableTexture`) and ``.lighting`` (:class:`Lighting`). Depth test
-    LESS_EQUAL with depth writes, no blending, no face culling. Face culling cannot be read back
-    from ``gpu.state`` and is left off (Blender's default); depth test, depth mask and blend are
-    restored.
+    :meth:`get` returns the buffer made for an equal key before (no upload, no allocation), else
+    fills one from ``make()`` (a float32 array): a buffer that no frame has used for
+    ``keep_frames`` frames is updated in place, and only when there is none is a new one
+    allocated. :meth:`next_frame` (called by :func:`prepare_draw`) ages the entries. So a frame
+    in which nothing moved allocates and uploads nothing, and a moving view or object recycles
+    old buffers instead of allocating one per frame. A buffer is updated only ``keep_frames``
+    frames after its last use, when those draws have long been submitted.
+
+    ``stats``: ``allocations`` (new GPUUniformBuf), ``uploads`` (updates of a recycled one),
+    ``hits`` (reused unchanged).
     """
-    items = list(items)
-    if not items:
-        return
+
+    def __init__(self, keep_frames: int = 4, max_spare: int = 256):
+        self.keep_frames = int(keep_frames)
+        self.max_spare = int(max_spare)
+        self.frame = 0
+        self._entries: dict = {}  # key → [ubo, nbytes, last frame used]
+        self._spare: dict[int, list] = {}  # nbytes → buffers free for reuse
+        self.stats = {"allocations": 0, "uploads": 0, "hits": 0}
+
+    def next_frame(self) -> None:
+        self.frame += 1
+        oldest = self.frame - self.keep_frames
+        stale = [key for key, entry in self._entries.items() if entry[2] < oldest]
+        for key in stale:
+            ubo, nbytes, _last = self._entries.pop(key)
+            spare = self._spare.setdefault(nbytes, [])
+            if len(spare) < self.max_spare:
+                spare.append(ubo)
+
+    def get(self, key, make) -> gpu.types.GPUUniformBuf:
+        entry = self._entries.get(key)
+        if entry is not None:
+            entry[2] = self.frame
+            self.stats["hits"] += 1
+            return entry[0]
+        data = float_buffer(make())
+        nbytes = 4 * len(data)
+        spare = self._spare.get(nbytes)
+        if spare:
+            ubo = spare.pop()
+            ubo.update(data)
+            self.stats["uploads"] += 1
+        else:
+            ubo = gpu.types.GPUUniformBuf(data)
+            self.stats["allocations"] += 1
+        self._entries[key] = [ubo, nbytes, self.frame]
+        return ubo
+
+    def __len__(self):
+        return len(self._entries)
+
+    def clear(self) -> None:
+        self._entries.clear()
+        self._spare.clear()
+
+
+#: The shared uniform-buffer cache used when none is passed.
+UNIFORMS = UniformCache()
+
+
+def view_ubo(view_matrix, projection_matrix, exposure: float = 0.0, uniforms=None):
+    """The TFView uniform buffer of a view (from :class:`UniformCache`: reused while unchanged)."""
+    uniforms = UNIFORMS if uniforms is None else uniforms
+    view, proj = _matrix(view_matrix), _matrix(projection_matrix)
+    key = ("view", view.tobytes(), proj.tobytes(), float(exposure))
+    return uniforms.get(key, lambda: view_uniforms(view, proj, exposure))
+
+
+@dataclass
+class DrawGroup:
+    """Consecutive draws that share a shader variant, lighting, table and prefiltered World."""
+
+    variant: tuple
+    shader: gpu.types.GPUShader
+    lighting: gpu.types.GPUUniformBuf
+    table: gpu.types.GPUTexture
+    prefiltered: gpu.types.GPUTexture | None
+    draws: list  # (GPUBatch, object GPUUniformBuf)
+
+
+@dataclass
+class PreparedDraw:
+    """What :func:`submit` draws: the view's uniform buffer and the draws grouped by state."""
+
+    view: gpu.types.GPUUniformBuf | None
+    groups: list
+
+    @property
+    def draw_count(self) -> int:
+        return sum(len(g.draws) for g in self.groups)
+
+    @property
+    def shader_binds(self) -> int:
+        """Shader binds :func:`submit` makes: one per change of variant between groups."""
+        return sum(
+            1 for i, g in enumerate(self.groups) if i == 0 or g.shader is not self.groups[i - 1].shader
+        )
+
+
+def prepare_draw(
+    items,
+    view_matrix,
+    projection_matrix,
+    *,
+    display_srgb: bool,
+    exposure: float = 0.0,
+    shaders=None,
+    uniforms=None,
+) -> PreparedDraw:
+    """The CPU half of :func:`draw_items`: variants, uniform buffers and the order of the draws.
+
+    Items are grouped by (variant, lighting, table, prefiltered World) so that :func:`submit`
+    binds each shader and resource once per group; the order within a group is kept. Uniform
+    buffers come from ``uniforms`` (:class:`UniformCache`), keyed by the matrices and material
+    parameters they hold: an unchanged view or object reuses its buffer. Nothing is drawn.
+    """
     ensure_gpu_context()
     shaders = SHADERS if shaders is None else shaders
-    view_ubo = gpu.types.GPUUniformBuf(float_buffer(view_uniforms(view_matrix, projection_matrix, exposure)))
-    keep = [view_ubo]  # UBOs live until the end of the draw
+    uniforms = UNIFORMS if uniforms is None else uniforms
+    uniforms.next_frame()
+    groups: dict = {}
+    for item in items:
+        batch, has_thickness = _batch_of(item)
+        if batch is None:
+            continue
+        table = item.table
+        vary = has_thickness and table.thickness_count > 1
+        prefiltered = getattr(item, "prefiltered", None)
+        sh_weight = float(getattr(item, "sh_weight", 1.0))
+        split = prefiltered is not None and sh_weight < 1.0
+        roughness = float(getattr(item, "roughness", 0.0))
+        weight = sh_weight if split else 1.0
+        model = _matrix(item.model_matrix)
+        object_ubo = uniforms.get(
+            ("object", model.tobytes(), roughness, weight),
+            lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
+        )
+        variant = (table.l_max, table.spectral, vary, display_srgb, split)
+        key = (variant, id(item.lighting.ubo), id(table.texture), id(prefiltered.texture) if split else None)
+        group = groups.get(key)
+        if group is None:
+            group = groups[key] = DrawGroup(
+                variant,
+                shaders.get(*variant),
+                item.lighting.ubo,
+                table.texture,
+                prefiltered.texture if split else None,
+                [],
+            )
+        group.draws.append((batch, object_ubo))
+    if not groups:
+        return PreparedDraw(None, [])
+    first = {}  # variant → rank of its first item: equal variants next to each other, else item order
+    for group in groups.values():
+        first.setdefault(group.variant, len(first))
+    ordered = sorted(groups.values(), key=lambda g: first[g.variant])
+    return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered)
+
+
+def submit(prepared: PreparedDraw) -> None:
+    """The GPU half of :func:`draw_items`: state, binds and draw calls; the GPU state is restored.
+
+    Depth test LESS_EQUAL with depth writes, no blending, no face culling. Face culling cannot be
+    read back from ``gpu.state`` and is left off (Blender's default); depth test, depth mask and
+    blend are restored.
+    """
+    if not prepared.groups:
+        return
     saved = _SavedState()
     try:
         gpu.state.depth_test_set("LESS_EQUAL")
         gpu.state.depth_mask_set(True)
         gpu.state.face_culling_set("NONE")
         gpu.state.blend_set("NONE")
-        for item in items:
-            batch, has_thickness = _batch_of(item)
-            if batch is None:
-                continue
-            table = item.table
-            vary = has_thickness and table.thickness_count > 1
-            prefiltered = getattr(item, "prefiltered", None)
-            sh_weight = float(getattr(item, "sh_weight", 1.0))
-            split = prefiltered is not None and sh_weight < 1.0
-            shader = shaders.get(table.l_max, table.spectral, vary, display_srgb, split)
-            uniforms = object_uniforms(
-                item.model_matrix, getattr(item, "roughness", 0.0), sh_weight if split else 1.0
-            )
-            object_ubo = gpu.types.GPUUniformBuf(float_buffer(uniforms))
-            keep.append(object_ubo)
-            shader.bind()
-            shader.uniform_block("tf_lighting", item.lighting.ubo)
-            shader.uniform_block("tf_view", view_ubo)
-            shader.uniform_block("tf_object", object_ubo)
-            shader.uniform_sampler("tf_table", table.texture)
-            if split:
-                shader.uniform_sampler("tf_prefiltered", prefiltered.texture)
-            batch.draw(shader)
+        shader = None
+        for group in prepared.groups:
+            if group.shader is not shader:
+                shader = group.shader
+                shader.bind()
+                shader.uniform_block("tf_view", prepared.view)
+            shader.uniform_block("tf_lighting", group.lighting)
+            shader.uniform_sampler("tf_table", group.table)
+            if group.prefiltered is not None:
+                shader.uniform_sampler("tf_prefiltered", group.prefiltered)
+            for batch, object_ubo in group.draws:
+                shader.uniform_block("tf_object", object_ubo)
+                batch.draw(shader)
     finally:
         saved.restore()
+
+
+def draw_items(
+    items,
+    view_matrix,
+    projection_matrix,
+    *,
+    display_srgb: bool,
+    exposure: float = 0.0,
+    shaders=None,
+    uniforms=None,
+):
+    """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
+
+    ``items``: objects with ``.batch`` (:class:`MeshBatch` or a GPUBatch), ``.model_matrix``
+    (4×4), ``.table`` (:class:`TableTexture`) and ``.lighting`` (:class:`Lighting`); optionally
+    ``.prefiltered`` (:class:`PrefilterTexture`), ``.roughness`` and ``.sh_weight`` (the split
+    sum). :func:`prepare_draw` then :func:`submit`; see there.
+    """
+    submit(
+        prepare_draw(
+            items,
+            view_matrix,
+            projection_matrix,
+            display_srgb=display_srgb,
+            exposure=exposure,
+            shaders=shaders,
+            uniforms=uniforms,
+        )
+    )
 
 
 @functools.cache
@@ -741,7 +915,7 @@ def draw_background(
         environment = EnvironmentTexture.from_image(environment)
     shaders = SHADERS if shaders is None else shaders
     shader = shaders.background(display_srgb)
-    view_ubo = gpu.types.GPUUniformBuf(float_buffer(view_uniforms(view_matrix, projection_matrix, exposure)))
+    view = view_ubo(view_matrix, projection_matrix, exposure)
     saved = _SavedState()
     try:
         gpu.state.depth_test_set("LESS_EQUAL")
@@ -749,7 +923,7 @@ def draw_background(
         gpu.state.face_culling_set("NONE")
         gpu.state.blend_set("NONE")
         shader.bind()
-        shader.uniform_block("tf_view", view_ubo)
+        shader.uniform_block("tf_view", view)
         shader.uniform_sampler("tf_environment", environment.texture)
         _fullscreen_triangle().draw(shader)
     finally:

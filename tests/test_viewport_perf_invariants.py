@@ -1,0 +1,297 @@
+"""Properties that keep the viewport's per-frame work small (never timings: those are in
+benchmarks/viewport.py and docs/performance.md).
+
+- Repeated frames with nothing changed allocate and upload no uniform buffer, compile no shader
+  variant and rebuild no batch; an edit rebuilds exactly the edited object's batch.
+- A moving view recycles uniform buffers instead of allocating one per frame.
+- Draws are grouped by shader variant: one bind per variant, whatever the item order.
+"""
+
+from __future__ import annotations
+
+import importlib
+import types
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+
+from precompute import bake, sh  # noqa: E402
+from precompute.material import Layer, Material, Quality  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def bpy():
+    import bpy as bpy_module  # Blender as a Python module: never mocked
+
+    return bpy_module
+
+
+@pytest.fixture(scope="module")
+def tf(bpy, tmp_path_factory):
+    """The extension, registered once for the module, with a private table cache."""
+    root = tmp_path_factory.mktemp("extension")
+    with linked_extension(root) as package:
+        package.register()
+        ns = types.SimpleNamespace(package=package)
+        ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+        for name in ("gpu_draw", "scene_draw", "materials"):
+            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        addons = bpy.context.preferences.addons
+        if addons.get(EXTENSION_ID) is None:
+            addons.new().module = EXTENSION_ID
+        ns.cache_dir = str(root / "cache")
+        ns.addon.preferences().cache_dir = ns.cache_dir
+        ns.gpu_draw.ensure_gpu_context()
+        try:
+            yield ns
+        finally:
+            entry = addons.get(EXTENSION_ID)
+            if entry is not None:
+                addons.remove(entry)
+
+
+FILM = Material(
+    layers=(Layer(1.33, 400.0),),
+    substrate=1.5,
+    roughness=0.6,
+    quality=Quality(sh_order=2, view_samples=8, wavelength_count=32),
+)
+
+
+def world_coefficients(l_max: int = 8) -> np.ndarray:
+    """A smooth, mostly positive environment (sky gradient plus a soft sun), projected."""
+    h, w = 32, 64
+    el = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
+    phi = 2 * np.pi * (0.5 - (np.arange(w) + 0.5) / w)
+    phi, el = np.meshgrid(phi, el)
+    d = np.stack([np.cos(el) * np.cos(phi), np.cos(el) * np.sin(phi), np.sin(el)], -1)
+    sun = np.exp(6.0 * (d @ np.array([0.48, -0.6, 0.64]) - 1.0))
+    img = (
+        0.3 + 0.2 * d[..., 2:3] * np.array([0.6, 0.8, 1.0]) + 3.0 * sun[..., None] * np.array([1.0, 0.9, 0.7])
+    )
+    return sh.project_equirect(img, l_max)
+
+
+def look_at(eye, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    eye, target, up = (np.asarray(x, dtype=float) for x in (eye, target, up))
+    back = eye - target
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    right /= np.linalg.norm(right)
+    world = np.eye(4)
+    world[:3, 0], world[:3, 1], world[:3, 2], world[:3, 3] = right, np.cross(back, right), back, eye
+    return np.linalg.inv(world)
+
+
+def perspective(fov_deg=40.0, near=0.1, far=100.0) -> np.ndarray:
+    f = 1.0 / np.tan(np.radians(fov_deg) / 2)
+    return np.array(
+        [
+            [f, 0, 0, 0],
+            [0, f, 0, 0],
+            [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
+            [0, 0, -1, 0],
+        ]
+    )
+
+
+VIEW = look_at((0.0, -5.0, 1.0))
+PROJ = perspective()
+
+
+class Item:
+    def __init__(self, batch, table, lighting, offset=0.0):
+        self.batch, self.table, self.lighting = batch, table, lighting
+        self.model_matrix = np.eye(4)
+        self.model_matrix[0, 3] = offset
+
+
+def quad_batch(gd):
+    pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
+    nor = np.tile([0.0, -1.0, 0.0], (4, 1))
+    return gd.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]])
+
+
+@pytest.fixture(scope="module")
+def drawn(tf):
+    """Items of two shader variants (spectral l ≤ 2 and per-channel l ≤ 1) for the draw tests."""
+    gd = tf.gpu_draw
+    world = world_coefficients()
+    spectral = bake.bake(FILM)
+    per_channel = bake.bake(
+        FILM.with_(
+            colour_mode="per_channel", quality=Quality(sh_order=1, view_samples=8, wavelength_count=32)
+        )
+    )
+    tables = [gd.TableTexture.from_result(r) for r in (spectral, per_channel)]
+    lightings = [
+        gd.Lighting.from_sh(world, r.sh_order, r.material.roughness) for r in (spectral, per_channel)
+    ]
+    batch = quad_batch(gd)
+    items = [Item(batch, tables[k % 2], lightings[k % 2], offset=0.5 * k) for k in range(6)]
+    return types.SimpleNamespace(items=items, tables=tables, lightings=lightings)
+
+
+def frame(gd, items, view=VIEW, **kwargs):
+    import gpu
+
+    offscreen = gpu.types.GPUOffScreen(32, 32)
+    try:
+        with offscreen.bind():
+            gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            prepared = gd.prepare_draw(items, view, PROJ, display_srgb=True, **kwargs)
+            gd.submit(prepared)
+    finally:
+        offscreen.free()
+    return prepared
+
+
+# ----------------------------------------------------------------------------------------------
+# Uniform buffers, shader variants, grouping
+# ----------------------------------------------------------------------------------------------
+def test_unchanged_frames_allocate_and_upload_no_uniform_buffer(tf, drawn):
+    gd = tf.gpu_draw
+    uniforms = gd.UniformCache()
+    shaders = gd.ShaderCache()
+    frame(gd, drawn.items, uniforms=uniforms, shaders=shaders)
+    after_first = dict(uniforms.stats)
+    # One view buffer and one per distinct object matrix (the six items all differ).
+    assert after_first["allocations"] == 1 + len(drawn.items) and after_first["uploads"] == 0
+    compiled = shaders.compile_count
+    assert compiled == 2  # the two variants, each compiled once
+    for _ in range(5):
+        frame(gd, drawn.items, uniforms=uniforms, shaders=shaders)
+    assert uniforms.stats["allocations"] == after_first["allocations"]
+    assert uniforms.stats["uploads"] == 0
+    assert uniforms.stats["hits"] == after_first["hits"] + 5 * (1 + len(drawn.items))
+    assert shaders.compile_count == compiled
+    assert len(uniforms) == 1 + len(drawn.items)
+
+
+def test_a_moving_view_recycles_uniform_buffers(tf, drawn):
+    gd = tf.gpu_draw
+    uniforms = gd.UniformCache(keep_frames=3)
+    frames = 20
+    for k in range(frames):
+        frame(gd, drawn.items[:1], view=look_at((0.1 * k, -5.0, 1.0)), uniforms=uniforms)
+    # The object buffer is made once; view buffers are allocated only until the first ones
+    # have aged out (keep_frames), then recycled by updating them.
+    allocations = uniforms.stats["allocations"]
+    assert allocations <= 1 + uniforms.keep_frames + 1
+    assert allocations + uniforms.stats["uploads"] == 1 + frames
+    assert len(uniforms) <= 1 + uniforms.keep_frames + 1  # only recent entries are kept
+
+
+def test_an_unused_entry_is_dropped_and_its_buffer_reused(tf):
+    gd = tf.gpu_draw
+    uniforms = gd.UniformCache(keep_frames=1)
+    data = np.arange(8, dtype=np.float32)
+    first = uniforms.get("a", lambda: data)
+    uniforms.next_frame()
+    assert uniforms.get("a", lambda: data + 1) is first  # still cached: made once
+    uniforms.next_frame()
+    uniforms.next_frame()
+    assert len(uniforms) == 0
+    assert uniforms.get("b", lambda: data + 2) is first  # recycled, updated in place
+    assert uniforms.stats == {"allocations": 1, "uploads": 1, "hits": 1}
+
+
+def test_draws_are_grouped_by_variant_in_item_order(tf, drawn):
+    gd = tf.gpu_draw
+    items = drawn.items  # variants alternate A, B, A, B, A, B
+    prepared = frame(gd, items, uniforms=gd.UniformCache())
+    assert prepared.draw_count == len(items)
+    assert len(prepared.groups) == 2 and prepared.shader_binds == 2
+    first, second = prepared.groups
+    assert first.table is drawn.tables[0].texture and second.table is drawn.tables[1].texture
+    assert [b for b, _ in first.draws] == [items[k].batch.batch for k in (0, 2, 4)]
+    # An empty list prepares nothing and submits nothing.
+    assert gd.prepare_draw([], VIEW, PROJ, display_srgb=True).groups == []
+
+
+def test_grouping_does_not_change_the_image(tf, drawn):
+    """Items drawn in groups give the image of drawing them one call each (apart from the order
+    of coplanar overlaps, which grouping may change: these quads do not overlap)."""
+    import gpu
+
+    gd = tf.gpu_draw
+    items = [Item(it.batch, it.table, it.lighting, offset=2.2 * k - 5.5) for k, it in enumerate(drawn.items)]
+    view = look_at((0.0, -20.0, 2.0))
+    images = []
+    for batches in ([items], [[it] for it in items]):
+        offscreen = gpu.types.GPUOffScreen(48, 48, format="RGBA32F")
+        try:
+            with offscreen.bind():
+                fb = gpu.state.active_framebuffer_get()
+                fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+                for group in batches:
+                    gd.draw_items(group, view, PROJ, display_srgb=False)
+                images.append(gd.read_framebuffer(fb, 48, 48))
+        finally:
+            offscreen.free()
+    assert np.mean(images[0][..., 3] > 0.5) > 0.05  # all six quads are in view
+    assert np.array_equal(images[0], images[1])
+
+
+# ----------------------------------------------------------------------------------------------
+# Batches through scene_draw.collect
+# ----------------------------------------------------------------------------------------------
+def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    tf.package.register()
+    tf.addon.preferences().cache_dir = tf.cache_dir
+    scene = bpy.context.scene  # no World: lit by nothing, no panorama to render
+    meshes = []
+    for k in range(3):
+        mesh = bpy.data.meshes.new(f"film{k}")
+        mesh.from_pydata([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], [], [(0, 1, 2, 3)])
+        mat = bpy.data.materials.new(f"film{k}")
+        tf.materials.fill_from_material(mat.thinfilm_sh, FILM)
+        mat.thinfilm_sh.sh_order = "2"
+        mat.thinfilm_sh.view_samples = 8
+        mat.thinfilm_sh.wavelength_count = 32
+        mat.thinfilm_sh.enabled = True
+        mesh.materials.append(mat)
+        obj = bpy.data.objects.new(f"film{k}", mesh)
+        obj.location.x = 2.5 * k
+        scene.collection.objects.link(obj)
+        meshes.append(mesh)
+    bpy.context.view_layer.update()
+    sd = tf.scene_draw
+    stats = sd.CACHES.stats
+
+    def collect():
+        items = sd.collect(bpy.context.evaluated_depsgraph_get())[0]
+        return {item.name.split("/")[0]: item for item in items}
+
+    builds = stats["batch_builds"]
+    items = collect()
+    assert sorted(items) == ["film0", "film1", "film2"] and stats["batch_builds"] == builds + 3
+    builds = stats["batch_builds"]
+    for _ in range(5):
+        again = collect()
+    assert stats["batch_builds"] == builds
+    assert all(again[name].batch is items[name].batch for name in items)  # the same MeshBatch objects
+
+    # Moving an object changes only its matrix: no rebuild.
+    scene.objects["film1"].location.z = 0.3
+    bpy.context.view_layer.update()
+    moved = collect()
+    assert stats["batch_builds"] == builds
+    assert moved["film1"].model_matrix[2, 3] == pytest.approx(0.3)
+    assert moved["film1"].batch is items["film1"].batch
+
+    # Editing a mesh rebuilds that object's batch, once.
+    meshes[2].vertices[0].co.y = 0.2
+    meshes[2].update()
+    bpy.context.view_layer.update()
+    edited = collect()
+    assert stats["batch_builds"] == builds + 1
+    assert edited["film2"].batch is not items["film2"].batch
+    assert edited["film0"].batch is items["film0"].batch
+    collect()
+    assert stats["batch_builds"] == builds + 1
