@@ -89,7 +89,7 @@ class WorldImage:
 
 #: Panorama size for the split sum's prefilter and the headless background.
 PANORAMA_WIDTH = 512
-PREFILTER_WIDTH = 256
+PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
 
 
 def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True):

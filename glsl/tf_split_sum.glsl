@@ -3,7 +3,7 @@
  * numpy counterpart: prefilter.shade_split_sum and prefilter.shade_combined, with the
  * prefiltered levels resampled to one size (prefilter.Prefiltered.resampled).
  * Texture `tf_prefiltered` (sampler2DArray, RGBA32F, LINEAR, REPEAT in u): layer j = the World
- * prefiltered by a GGX lobe of roughness j / (levels - 1), equirect (conventions.md mapping).
+ * prefiltered by a GGX lobe of roughness (j / (levels - 1))^2, equirect (conventions.md mapping).
  * Split sum (Karis 2013): film albedo (the l = 0 table entry x sqrt(4 pi), a 3x3 matrix or 3
  * factors) times the prefiltered radiance in the reflection direction.
  */
@@ -15,9 +15,18 @@ vec3 tf_prefiltered_lookup(vec3 d, float roughness)
   int levels = textureSize(tf_prefiltered, 0).z;
   float u = 0.5 - atan(d.y, d.x) / (2.0 * TF_PI);
   float t = acos(clamp(d.z, -1.0, 1.0)) / TF_PI;
-  float pos = clamp(roughness, 0.0, 1.0) * float(levels - 1);
-  int lo = min(int(floor(pos)), levels - 2);
-  float w = pos - float(lo);
+  /* prefilter.level_blend: level k holds roughness (k / (J - 1))^2; the two levels around r are
+   * weighted so that the blend's alpha^2 = r^4 is the material's (GGX tails scale as alpha^2). */
+  float r = clamp(roughness, 0.0, 1.0);
+  float steps = float(levels - 1);
+  int lo = min(int(floor(sqrt(r) * steps)), levels - 2);
+  float r0 = float(lo) / steps;
+  float r1 = float(lo + 1) / steps;
+  r0 *= r0;
+  r1 *= r1;
+  float a4 = r0 * r0 * r0 * r0;
+  float b4 = r1 * r1 * r1 * r1;
+  float w = clamp((r * r * r * r - a4) / max(b4 - a4, 1e-30), 0.0, 1.0);
   vec3 a = texture(tf_prefiltered, vec3(u, t, float(lo))).rgb;
   vec3 b = texture(tf_prefiltered, vec3(u, t, float(lo + 1))).rgb;
   return mix(a, b, w);

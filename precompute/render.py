@@ -211,7 +211,8 @@ def film_rgb_matrices(material, thickness_nm=None, samples: int = 4097):
     method = "glassner2000" if material.model == "glassner2000" else "exact"
     u = np.linspace(0.0, 1.0, samples)
     r = reflectance(material.indices(), d, wl, u, method=method)
-    return u, np.einsum("uw,wkc->ukc", r, g), r, wl, g
+    rg = bake.clamp_film_rgb(np.einsum("uw,wkc->ukc", r, g), material.colour_mode)
+    return u, rg, r, wl, g
 
 
 def shade_reference(material, image, normals, views, thickness_nm=None, n_theta: int = 128, n_phi: int = 128):
