@@ -200,8 +200,10 @@ def x90_source(l_max: int) -> str:
 def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
     """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
 
-    ``generated_x90``: the X(±90°) products as generated straight-line code (default) or the
-    generic loops of tf_sh_rotate.glsl.
+    ``generated_x90`` (default): the fast library (``TF_X90_GENERATED``): the X(±90°) products as
+    generated straight-line code, and for l_max ≤ 2 the rotation straight from the frame rows
+    (``tf_local_coefficients_direct``). False: the generic z-y-z loops of tf_sh_rotate.glsl at
+    every order, the readable reference (same results, slower).
     """
     head = f"#define TF_RX_NEG {RX_PADDED}\n"
     if not generated_x90:
@@ -293,7 +295,8 @@ class ShaderCache:
     """Compiled shaders keyed by variant: each is compiled once and reused.
 
     ``compile_count`` counts compilations (for tests and diagnostics). ``generated_x90=False``
-    uses the generic rotation loops instead of the generated code (same results, slower).
+    uses the generic rotation loops instead of the fast library (same results, slower; see
+    :func:`shading_library`).
     """
 
     def __init__(self, *, generated_x90: bool = True):

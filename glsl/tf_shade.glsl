@@ -1,6 +1,7 @@
 /* tf_shade.glsl: one pixel of thin-film SH shading.
  *
- * numpy counterpart: render.shade_sh. Frame, rotation of the World's SH into it, table
+ * numpy counterpart: render.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
+ * fast library, TF_X90_GENERATED, straight from the frame for l <= 2: tf_sh_rotate.glsl), table
  * lookup at theta_o (and thickness), out = max(sum_i M_i L_i, 0) over the kept (m >= 0)
  * coefficients i = l(l+1)+m, ordered by l then m (bake.coefficient_indices).
  *
@@ -28,9 +29,13 @@ void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
 vec3 tf_shade(vec3 n, vec3 v, float thickness01)
 {
   TFFrame f = tf_view_aligned_frame(n, v);
+#if TF_L_MAX <= 2 && defined(TF_X90_GENERATED)
+  tf_local_coefficients_direct(f);
+#else
   vec2 a, b, c;
   tf_zyz_from_frame(f, a, b, c);
   tf_local_coefficients(a, b, c);
+#endif
   TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
 
   /* Written out band by band, (k, i) constant: a loop that computes the index into tf_c makes

@@ -5,6 +5,8 @@ benchmarks/viewport.py and docs/performance.md).
   variant and rebuild no batch; an edit rebuilds exactly the edited object's batch.
 - A moving view recycles uniform buffers instead of allocating one per frame.
 - Draws are grouped by shader variant: one bind per variant, whatever the item order.
+- The cheaper rotation paths of the fast shading library (l ≤ 2 straight from the frame) give
+  the z-y-z result (orders not covered by tests/test_gpu_draw.py).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, linked_extension  # noqa: E402
 
-from precompute import bake, sh  # noqa: E402
+from precompute import bake, render, sh  # noqa: E402
 from precompute.material import Layer, Material, Quality  # noqa: E402
 
 
@@ -295,3 +297,89 @@ def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
     assert edited["film0"].batch is items["film0"].batch
     collect()
     assert stats["batch_builds"] == builds + 1
+
+
+# ----------------------------------------------------------------------------------------------
+# The cheaper rotation of the fast library against numpy (l = 1, 2)
+# ----------------------------------------------------------------------------------------------
+LOCAL_FRAGMENT = """
+void main()
+{
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  int i = p.x / 4; /* kept coefficient */
+  int px = p.x % 4 + 4 * p.y;
+  vec3 n = normalize(texelFetch(tf_test_normal, ivec2(px, 0), 0).xyz);
+  vec3 v = normalize(texelFetch(tf_test_view, ivec2(px, 0), 0).xyz);
+  TFFrame f = tf_view_aligned_frame(n, v);
+  tf_local_coefficients_direct(f);
+  vec3 c = tf_c[0];
+  if (i == 1) { c = tf_c[2]; }
+  if (i == 2) { c = tf_c[3]; }
+#if TF_L_MAX >= 2
+  if (i == 3) { c = tf_c[6]; }
+  if (i == 4) { c = tf_c[7]; }
+  if (i == 5) { c = tf_c[8]; }
+#endif
+  tf_frag_color = vec4(c, 1.0);
+}
+"""
+
+
+@pytest.mark.parametrize("l_max", [1, 2])
+def test_direct_low_band_rotation_matches_numpy(tf, l_max):
+    """tf_local_coefficients_direct gives render.local_coefficients' kept coefficients (float32)."""
+    import gpu
+
+    gd = tf.gpu_draw
+    rng = np.random.default_rng(7 + l_max)
+    count = 64  # 4 × 16 pixels per coefficient column block
+    n = rng.normal(size=(count, 3))
+    v = rng.normal(size=(count, 3))
+    # Poles (and next to one: the z-y-z angles' gimbal case), and v = n exactly (both take the
+    # fallback tangent; for v nearly ∥ n float32 and float64 may pick different, equally valid
+    # tangents, which changes the m > 0 coefficients but not the shading).
+    n[:5] = [[0, 0, 1], [0, 0, -1], [1e-8, 0, 1], [0.6, 0.0, 0.8], [0, 0, -1]]
+    v[:5] = [[0.3, 0.4, 0.9], [0.2, -0.1, -0.9], [0.3, 0.2, 0.9], [0.6, 0.0, 0.8], [0, 0, -1]]
+    n = (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
+    v = (v / np.linalg.norm(v, axis=-1, keepdims=True)).astype(np.float32)
+    v = np.where(np.sum(n * v, -1, keepdims=True) < 0, -v, v)
+    world = world_coefficients(l_max)
+    lighting = gd.Lighting.from_sh(world, l_max, 0.6)
+
+    info = gpu.types.GPUShaderCreateInfo()
+    gd.declare_shading_resources(info, gd.Variant(l_max, True, False, False))
+    info.sampler(1, "FLOAT_2D", "tf_test_normal")
+    info.sampler(2, "FLOAT_2D", "tf_test_view")
+    info.vertex_in(0, "VEC2", "pos")
+    info.fragment_out(0, "VEC4", "tf_frag_color")
+    info.vertex_source("void main() { gl_Position = vec4(pos, 0.0, 1.0); }")
+    info.fragment_source(gd.shading_library(l_max) + LOCAL_FRAGMENT)
+    shader = gpu.shader.create_from_info(info)
+
+    def texture(vectors):
+        data = np.zeros((1, count, 4), dtype=np.float32)
+        data[0, :, :3] = vectors
+        return gpu.types.GPUTexture((count, 1), format="RGBA32F", data=gd.float_buffer(data))
+
+    kept = [0, 2, 3, 6, 7, 8][: (l_max + 1) * (l_max + 2) // 2]
+    width, height = 4 * len(kept), count // 4
+    tex_n, tex_v = texture(n), texture(v)
+    offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            shader.bind()
+            shader.uniform_block("tf_lighting", lighting.ubo)
+            shader.uniform_sampler("tf_test_normal", tex_n)
+            shader.uniform_sampler("tf_test_view", tex_v)
+            gd._fullscreen_triangle().draw(shader)
+            out = gd.read_framebuffer(fb, width, height)[::-1]  # row 0 = gl_FragCoord.y 0
+    finally:
+        offscreen.free()
+    got = out[..., :3].reshape(height, len(kept), 4, 3).transpose(0, 2, 1, 3).reshape(count, len(kept), 3)
+    frames = render.view_aligned_frame(n.astype(float), v.astype(float))
+    expected = render.local_coefficients(lighting.coefficients, frames, l_max)[:, kept]
+    scale = np.max(np.abs(expected))
+    # float32 maths of the same rotation: a few ulps of the largest coefficient.
+    assert np.max(np.abs(got - expected)) / scale < 2e-6
