@@ -451,11 +451,11 @@ def grid(scene: Scene, quick: bool, baseline=None, log=print) -> list[dict]:
     return rows
 
 
-def order_sweep(scene: Scene, quick: bool, baseline=None, log=print) -> list[dict]:
+def order_sweep(scene: Scene, quick: bool, baseline=None, orders=None, log=print) -> list[dict]:
     objects, triangles = (1, 10_000) if quick else SWEEP_SCENE
     res = "720p" if quick else "1080p"
     rows = []
-    for l_max in (1, 2) if quick else SWEEP_L:
+    for l_max in orders or ((1, 2) if quick else SWEEP_L):
         prepare_scene(scene, objects, triangles, l_max)
         w, h = RESOLUTIONS[res]
         cell = frame_cell(scene, res, repeats_for(w, h, triangles, quick), baseline=baseline)
@@ -517,20 +517,20 @@ def _swapped(frame: Frame, items: list):
     return lambda: frame.ours(items_hook=lambda _collected: items)
 
 
-def python_time(scene: Scene, quick: bool, log=print) -> list[dict]:
+def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dict]:
     """Per-frame CPU work in this (Python) thread with nothing changed, by triangle count.
 
     ``collect``: ``scene_draw.collect`` as the draw callback calls it. ``prepare``:
     ``gpu_draw.prepare_draw`` (matrices → uniform buffers, variants, grouping). ``submit``:
     ``gpu_draw.submit`` (state, binds, draw calls); on llvmpipe this includes the driver's vertex
     processing, which runs in the calling thread, so it is listed but is not Python work.
-    Thread CPU time (``time.thread_time``), median of ``runs`` calls after warm-up.
+    Thread CPU time (``time.thread_time``), median of ``runs`` frames after 3 warm-up frames.
+    With a ``baseline`` module its ``draw_items`` is timed in the same frames (after ours).
     """
     import bpy
     import gpu
 
     gd, sd = scene.ext.gpu_draw, scene.ext.scene_draw
-    split = hasattr(gd, "prepare_draw")
     runs = 5 if quick else 40
     rows = []
     w, h = 320, 180  # small: the fragment work does not matter here
@@ -539,41 +539,55 @@ def python_time(scene: Scene, quick: bool, log=print) -> list[dict]:
             prepare_scene(scene, objects, triangles, HEADLINE_L)
             frame = Frame(scene, w, h)
             depsgraph = bpy.context.evaluated_depsgraph_get()
-            builds = sd.CACHES.stats["batch_builds"]
-            compiles = gd.SHADERS.compile_count
-            samples = {"collect": [], "prepare": [], "submit": [], "draw_items": []}
+            samples = {"collect": [], "prepare": [], "submit": [], "baseline": []}
+            counters = {}
             try:
                 with frame.offscreen.bind():
+                    fb = gpu.state.active_framebuffer_get()
                     for k in range(runs + 3):
-                        gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+                        if k == 3:  # warm: count from here
+                            counters = {
+                                "rebuilt": sd.CACHES.stats["batch_builds"],
+                                "compiled": gd.SHADERS.compile_count,
+                                "ubo_allocations": gd.UNIFORMS.stats["allocations"],
+                                "ubo_uploads": gd.UNIFORMS.stats["uploads"],
+                            }
+                        fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
                         t0 = time.thread_time()
                         items, _ = sd.collect(depsgraph, allow_bake=False, allow_world=False)
                         t1 = time.thread_time()
-                        if split:
-                            plan = gd.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
-                            t2 = time.thread_time()
-                            gd.submit(plan)
-                            t3 = time.thread_time()
-                        else:
-                            gd.draw_items(items, frame.view, frame.proj, display_srgb=True)
-                            t2 = t3 = time.thread_time()
+                        prepared = gd.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
+                        t2 = time.thread_time()
+                        gd.submit(prepared)
+                        t3 = time.thread_time()
                         frame._finish()
+                        if baseline is not None:
+                            plain = _as_plain_items(items)
+                            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+                            t4 = time.thread_time()
+                            baseline.draw_items(plain, frame.view, frame.proj, display_srgb=True)
+                            t5 = time.thread_time()
+                            frame._finish()
+                            samples["baseline"].append(t5 - t4)
                         if k >= 3:
                             samples["collect"].append(t1 - t0)
                             samples["prepare"].append(t2 - t1)
                             samples["submit"].append(t3 - t2)
-                            samples["draw_items"].append(t3 - t1)
             finally:
                 frame.free()
-            row = {"objects": objects, "triangles": scene.triangles, "split": split}
-            row.update({k: median_ms(v) for k, v in samples.items()})
-            row["rebuilt"] = sd.CACHES.stats["batch_builds"] - builds
-            row["compiled"] = gd.SHADERS.compile_count - compiles
+            row = {"objects": objects, "triangles": scene.triangles}
+            row.update({k: median_ms(v) for k, v in samples.items() if v})
+            row["rebuilt"] = sd.CACHES.stats["batch_builds"] - counters["rebuilt"]
+            row["compiled"] = gd.SHADERS.compile_count - counters["compiled"]
+            row["ubo_allocations"] = gd.UNIFORMS.stats["allocations"] - counters["ubo_allocations"]
+            row["ubo_uploads"] = gd.UNIFORMS.stats["uploads"] - counters["ubo_uploads"]
             rows.append(row)
             log(
                 f"  {objects:3d} objects {scene.triangles:>9,} tris: collect {row['collect']:.3f} ms,"
                 f" prepare {row['prepare']:.3f} ms, submit {row['submit']:.3f} ms"
-                f" (batches rebuilt {row['rebuilt']}, shaders compiled {row['compiled']})"
+                + (f", baseline draw_items {row['baseline']:.3f} ms" if "baseline" in row else "")
+                + f" (batches rebuilt {row['rebuilt']}, shaders compiled {row['compiled']},"
+                f" uniform buffers allocated {row['ubo_allocations']} / updated {row['ubo_uploads']})"
             )
     return rows
 
@@ -967,7 +981,7 @@ def _optimisation_section() -> list[str]:
 PARTS = ("grid", "sweep", "split_sum", "python", "rebuild")
 
 
-def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, log=print) -> dict:
+def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, log=print) -> dict:
     started = time.perf_counter()
     ext = Extension()  # imports bpy first: gpu and mathutils come with it
     import gpu
@@ -987,13 +1001,13 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, log=print) ->
             res["grid"] = grid(scene, quick, baseline, log)
         if "sweep" in parts:
             log("SH order sweep …")
-            res["sweep"] = order_sweep(scene, quick, baseline, log)
+            res["sweep"] = order_sweep(scene, quick, baseline, orders, log)
         if "split_sum" in parts:
             log("split sum vs SH …")
             res["split_sum"] = split_sum(scene, quick, log)
         if "python" in parts:
             log("Python time per frame …")
-            res["python"] = python_time(scene, quick, log)
+            res["python"] = python_time(scene, quick, baseline, log)
         if "rebuild" in parts:
             log("batch rebuild after an edit …")
             res["rebuild"] = rebuild_time(scene, quick, log)
@@ -1012,9 +1026,12 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--only", nargs="+", choices=PARTS, help="measure only these parts (prints, writes nothing)"
     )
+    parser.add_argument(
+        "--orders", nargs="+", type=int, metavar="L", help="l_max of the order sweep (prints, writes nothing)"
+    )
     args = parser.parse_args(argv)
-    res = run(args.quick, args.baseline, parts=args.only or PARTS)
-    if args.quick or args.only:
+    res = run(args.quick, args.baseline, parts=args.only or PARTS, orders=args.orders)
+    if args.quick or args.only or args.orders:
         print(f"run done in {res['minutes']:.1f} min; nothing written")
         return 0
     print(common.write_doc("performance.md", report(res)))
