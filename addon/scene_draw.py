@@ -173,11 +173,56 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
     return gpu_draw.MeshBatch.from_arrays(positions, normals, triangles, thickness)
 
 
+@dataclass
+class _MaterialEntry:
+    """What one material contributes to a frame, worked out once per frame however many use it."""
+
+    desc: object  # precompute Material
+    key: str  # materials.description_key(desc)
+    table: gpu_draw.TableTexture
+    lighting: gpu_draw.Lighting
+    roughness: float
+    sh_weight: float
+
+
+def _material_entry(bpy_material, world_entry, allow_bake: bool, want_bake, messages):
+    """The material's description, table texture and lighting, or None (no film / not baked yet)."""
+    try:
+        desc = materials.description(bpy_material)
+    except ValueError as exc:
+        messages.append(str(exc))  # description() names the material
+        return None
+    if desc is None:
+        return None
+    result = materials.peek_table(desc)
+    if result is None:
+        if not allow_bake:
+            if want_bake is not None:
+                want_bake(desc)
+            return None
+        result = materials.get_table(desc)
+    key = materials.description_key(desc)
+    roughness = float(desc.roughness)
+    return _MaterialEntry(
+        desc,
+        key,
+        table_texture(key, result),
+        lighting_for(world_entry, result.sh_order, roughness),
+        roughness,
+        prefilter.sh_weight(roughness),
+    )
+
+
 def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None):
     """Draw items for every visible mesh object with a thin-film material, and messages.
 
     With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
     skipped and passed to ``want_bake(desc)`` so the caller can bake them outside drawing.
+
+    Per frame, each material's description, table and lighting are worked out once
+    (:func:`_material_entry`), not once per object using it; per object only the batch cache
+    is checked (a few lengths, no mesh data read) and the matrix copied, so the work does not
+    depend on the triangle count.
     """
     messages: list[str] = []
     items: list[DrawItem] = []
@@ -186,6 +231,9 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     if world_entry is None:
         return items, ["World lighting is being updated"]
     messages.extend(world_entry[1].warnings)
+    image = world_entry[2]
+    prefiltered = image.prefiltered if image is not None else None
+    entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
     for inst in depsgraph.object_instances:
         obj_eval = inst.object
@@ -196,28 +244,19 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             bpy_material = slot.material
             if bpy_material is None:
                 continue
-            try:
-                desc = materials.description(
-                    bpy_material.original if hasattr(bpy_material, "original") else bpy_material
-                )
-            except ValueError as exc:
-                messages.append(str(exc))  # description() names the material
+            source = bpy_material.original if hasattr(bpy_material, "original") else bpy_material
+            pointer = source.as_pointer()
+            if pointer not in entries:
+                entries[pointer] = _material_entry(source, world_entry, allow_bake, want_bake, messages)
+            entry = entries[pointer]
+            if entry is None:
                 continue
-            if desc is None:
-                continue
-            result = materials.peek_table(desc)
-            if result is None:
-                if not allow_bake:
-                    if want_bake is not None:
-                        want_bake(desc)
-                    continue
-                result = materials.get_table(desc)
             key = (original.name, slot_index, inst.is_instance and inst.persistent_id[0])
             mesh = obj_eval.data
-            signature = (mesh.name, len(mesh.vertices), len(mesh.loops), materials.description_key(desc))
+            signature = (mesh.name, len(mesh.vertices), len(mesh.loops), entry.key)
             cached = CACHES.batches.get(key)
             if cached is None or cached[0] != signature or original.name in CACHES.dirty:
-                batch = _slot_batch(obj_eval, mesh, slot_index, bpy_material, desc, messages)
+                batch = _slot_batch(obj_eval, mesh, slot_index, bpy_material, entry.desc, messages)
                 CACHES.batches[key] = (signature, batch)
                 seen.add(original.name)
             batch = CACHES.batches[key][1]
@@ -226,19 +265,16 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw"
                 )
                 continue
-            table = table_texture(materials.description_key(desc), result)
-            lighting = lighting_for(world_entry, result.sh_order, desc.roughness)
-            image = world_entry[2]
             items.append(
                 DrawItem(
                     batch,
                     np.array(inst.matrix_world, dtype=np.float64),
-                    table,
-                    lighting,
+                    entry.table,
+                    entry.lighting,
                     f"{original.name}/{bpy_material.name}",
-                    prefiltered=image.prefiltered if image is not None else None,
-                    roughness=float(desc.roughness),
-                    sh_weight=prefilter.sh_weight(desc.roughness),
+                    prefiltered=prefiltered,
+                    roughness=entry.roughness,
+                    sh_weight=entry.sh_weight,
                 )
             )
     CACHES.dirty -= seen
