@@ -37,7 +37,9 @@ vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
   TFFrame f = tf_view_aligned_frame(n, v);
   TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
   vec3 refl = 2.0 * f.cos_o * n - v;
-  vec3 radiance = tf_prefiltered_lookup(refl, roughness);
+  /* prefilter.effective_roughness: r * cos(theta_o)^0.5 (GRAZING_EXPONENT) */
+  float r_eff = clamp(roughness, 0.0, 1.0) * sqrt(clamp(f.cos_o, 1e-4, 1.0)); /* constants.MIN_COS */
+  vec3 radiance = tf_prefiltered_lookup(refl, r_eff);
 #ifdef TF_SPECTRAL
   vec3 rgb = vec3(dot(tf_table_fetch(r, 0), radiance), dot(tf_table_fetch(r, 1), radiance),
                   dot(tf_table_fetch(r, 2), radiance));

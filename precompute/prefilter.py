@@ -43,10 +43,14 @@ SAMPLES = (12, 6)
 #: hides undersampling); measured against Cycles at roughness 0.05 it blurred small HDR lamps
 #: (mean ΔE2000 2.39 with 1, 1.73 with 0), so samples read the level whose texel matches.
 LOD_BIAS = 0.0
-#: Effective roughness grows toward grazing views: r_eff = r / cos(θo)^GRAZING_EXPONENT,
-#: because the reflected lobe is stretched along the view plane there. Measured against Cycles
-#: (benchmarks/cycles_compare.py): exponent 0 beat 0.25 and 0.5 at roughness 0.05–0.3.
-GRAZING_EXPONENT = 0.0
+#: The prefiltered lobe narrows toward grazing views: r_eff = r · cos(θo)^GRAZING_EXPONENT.
+#: The n = v = r lobe of the prefilter is wider than what the masked, horizon-clipped lobe
+#: gathers at grazing angles. Measured against Cycles (mean ΔE2000, benchmarks/cycles_compare.py
+#: cases, 64 px sphere), exponents 0 / 0.25 / 0.5 / 1: courtyard r 0.3: 5.06 / 4.23 / 4.11 / 5.15;
+#: forest r 0.3: 2.36 / 2.44 / 2.89 / 3.97; courtyard r 0.15: 1.04 / 0.64 / 0.72 / 1.25; studio
+#: soap r 0.15: 9.95 / 8.17 / 7.07 / 6.77; studio soap r 0.05: 1.69 / 1.43 / 1.36 / 1.35.
+#: Widening instead (r / cos^0.5) made every case worse (courtyard r 0.3: 8.85).
+GRAZING_EXPONENT = 0.5
 
 
 @dataclass(frozen=True)
@@ -182,9 +186,9 @@ def prefilter(
 
 
 def effective_roughness(roughness: float, cos_o) -> np.ndarray:
-    """r_eff = r / cos(θo)^GRAZING_EXPONENT, clamped to [r, 1]."""
+    """r_eff = r · cos(θo)^GRAZING_EXPONENT (cos θo clamped to [MIN_COS, 1])."""
     c = np.clip(np.asarray(cos_o, dtype=float), constants.MIN_COS, 1.0)
-    return np.clip(roughness / c**GRAZING_EXPONENT, roughness, 1.0)
+    return np.clip(roughness, 0.0, 1.0) * c**GRAZING_EXPONENT
 
 
 def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
@@ -218,10 +222,14 @@ def lookup(pre: Prefiltered, directions: np.ndarray, roughness) -> np.ndarray:
 
 
 #: Roughness range over which shading hands over from the split sum to SH (smoothstep).
-#: Measured against Cycles (mean ΔE2000, 64 px sphere, per-channel mode, 4×4 supersampled):
-#: r 0.05 split 8.4 / SH 38; r 0.15 split 2.0 / SH 10.7; r 0.3 split 6.6 / SH 7.8 / 50:50 6.4;
-#: r 0.5 split 10.3 / SH 3.8; r 0.6 split 13.1 / SH 4.2.
-SH_BLEND = (0.25, 0.5)
+#: Measured against Cycles (mean ΔE2000, 64 px sphere, per-channel mode, 4×4 supersampled;
+#: benchmarks/cycles_compare.py cases), SH weight 0 / 0.1 / 0.2 / 0.5 / 0.8 / 0.9 / 1:
+#: r 0.3 courtyard 4.11 / 3.85 / 3.86 / 4.83 / 6.59 / 7.24 / 7.91, forest 2.89 / 2.46 / 2.29 /
+#: 2.96 / 4.52 / 5.10 / 5.69; r 0.5 courtyard 7.48 / 6.66 / 5.91 / 4.27 / 3.54 / 3.54 / 3.74,
+#: forest 4.09 / 3.68 / 3.33 / 2.53 / 2.17 / 2.20 / 2.35; r 0.6 studio 12.6 / 11.1 / 9.7 / 6.4 /
+#: 4.2 / 4.0 / 4.3. Below 0.2 the split sum alone is best (SH: 10–37 at r ≤ 0.15).
+#: Smoothstep over 0.2–0.6 gives 0.16 at r 0.3 and 0.84 at r 0.5.
+SH_BLEND = (0.2, 0.6)
 
 
 def sh_weight(roughness: float) -> float:
