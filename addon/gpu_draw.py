@@ -14,6 +14,12 @@ GPU resources
     Interpolation in θo and thickness is done in the shader with ``texelFetch`` in full float32
     (hardware LINEAR filtering quantises the weights to 8 bits on common GPUs), so the texture's
     own filter mode is irrelevant.
+``tf_table_data`` (UBO slot 3, ``TFTable``, instead of ``tf_table`` when the table fits, see
+    :data:`TABLE_UBO_TEXELS`; variant define ``TF_TABLE_UBO``): ``vec4 size`` = (A, T, layers),
+    then ``vec4 texel[1023]``, texel (row t, column a, layer j) at (t·A + a)·layers + j, .rgb as
+    in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
+    the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
+    ``texelFetch``.
 ``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 9072 bytes:
     ``vec4 sh[81]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
     ``vec4 rx[486]``: the band blocks of the SH rotation for Rx(+90°), l = 0…8, each row-major,
@@ -53,6 +59,8 @@ RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
 LIGHTING_VEC4 = SH_SLOTS + 2 * RX_PADDED // 4
 #: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
 UBO_LIMIT_BYTES = 16384
+#: Table texels (layers × T × A) that fit the table UBO next to its size header.
+TABLE_UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
 
 #: Chunks of the shading library, in dependency order (counterparts in precompute.render).
 LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl")
@@ -74,10 +82,14 @@ struct TFObject {{
   vec4 normal[4];
   vec4 material; /* x: roughness, y: SH weight of the split-sum blend */
 }};
+struct TFTable {{
+  vec4 size; /* view angles A, thickness rows T, layers */
+  vec4 texel[{TABLE_UBO_TEXELS}];
+}};
 """
 
 # Binding slots.
-UBO_LIGHTING, UBO_VIEW, UBO_OBJECT = 0, 1, 2
+UBO_LIGHTING, UBO_VIEW, UBO_OBJECT, UBO_TABLE = 0, 1, 2, 3
 SAMPLER_TABLE = 0
 SAMPLER_ENVIRONMENT = 0
 SAMPLER_PREFILTERED = 3
@@ -227,10 +239,12 @@ class Variant(NamedTuple):
     vary_thickness: bool
     display: bool
     split_sum: bool = False
+    table_ubo: bool = False
 
 
 def declare_shading_resources(info, variant: Variant) -> None:
-    """Defines, types, the lighting UBO and the table sampler that :func:`shading_library` uses."""
+    """Defines, types, the lighting UBO and the table (sampler, or UBO with ``table_ubo``) that
+    :func:`shading_library` uses."""
     if not 0 <= variant.l_max <= MAX_L:
         raise ValueError(f"l_max must lie in 0…{MAX_L}, got {variant.l_max}")
     info.define("TF_L_MAX", str(int(variant.l_max)))
@@ -245,7 +259,11 @@ def declare_shading_resources(info, variant: Variant) -> None:
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_2D_ARRAY", "tf_prefiltered")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
-    info.sampler(SAMPLER_TABLE, "FLOAT_2D_ARRAY", "tf_table")
+    if variant.table_ubo:
+        info.define("TF_TABLE_UBO", "1")
+        info.uniform_buf(UBO_TABLE, "TFTable", "tf_table_data")
+    else:
+        info.sampler(SAMPLER_TABLE, "FLOAT_2D_ARRAY", "tf_table")
 
 
 def _mesh_shader_info(variant: Variant, generated_x90: bool = True):
@@ -314,9 +332,19 @@ class ShaderCache:
             self._shaders[key] = shader
         return shader
 
-    def get(self, l_max: int, spectral: bool, vary_thickness: bool, display: bool, split_sum: bool = False):
+    def get(
+        self,
+        l_max: int,
+        spectral: bool,
+        vary_thickness: bool,
+        display: bool,
+        split_sum: bool = False,
+        table_ubo: bool = False,
+    ):
         """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
-        variant = Variant(int(l_max), bool(spectral), bool(vary_thickness), bool(display), bool(split_sum))
+        variant = Variant(
+            int(l_max), bool(spectral), bool(vary_thickness), bool(display), bool(split_sum), bool(table_ubo)
+        )
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
     def background(self, display: bool):
@@ -353,6 +381,20 @@ class TableTexture:
     thickness_count: int
     spectral: bool
     layers: int
+    #: The same table as a ``TFTable`` uniform buffer when it fits (:meth:`uniform_array`).
+    ubo: gpu.types.GPUUniformBuf | None = None
+
+    @staticmethod
+    def uniform_array(layers: np.ndarray) -> np.ndarray | None:
+        """``TFTable`` content (1024 × 4 float32) from :meth:`layer_array`'s output, or None when
+        layers × T × A exceeds :data:`TABLE_UBO_TEXELS`."""
+        n_layers, t, a = layers.shape[:3]
+        if n_layers * t * a > TABLE_UBO_TEXELS:
+            return None
+        out = np.zeros((TABLE_UBO_TEXELS + 1, 4), dtype=np.float32)
+        out[0, :3] = (a, t, n_layers)
+        out[1 : 1 + n_layers * t * a] = layers.transpose(1, 2, 0, 3).reshape(-1, 4)  # (t, a, layer)
+        return out
 
     @staticmethod
     def layer_array(data) -> np.ndarray:
@@ -370,8 +412,11 @@ class TableTexture:
         return out
 
     @classmethod
-    def from_result(cls, result) -> TableTexture:
-        """Upload a :class:`precompute.bake.BakeResult` (or anything with ``data``, ``sh_order``)."""
+    def from_result(cls, result, *, uniform: bool = True) -> TableTexture:
+        """Upload a :class:`precompute.bake.BakeResult` (or anything with ``data``, ``sh_order``).
+
+        ``uniform``: also make the uniform-buffer copy when the table fits (drawn from there).
+        """
         data = np.asarray(result.data)
         l_max = int(result.sh_order)
         if not 0 <= l_max <= MAX_L:
@@ -392,7 +437,9 @@ class TableTexture:
         if n_layers > limit:
             raise ValueError(f"{n_layers} table layers exceed this GPU's limit of {limit}")
         texture = gpu.types.GPUTexture((a, t), layers=n_layers, format="RGBA32F", data=float_buffer(layers))
-        return cls(texture, l_max, a, t, data.ndim == 5, n_layers)
+        packed = cls.uniform_array(layers) if uniform else None
+        ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
+        return cls(texture, l_max, a, t, data.ndim == 5, n_layers, ubo)
 
 
 @functools.cache
@@ -745,7 +792,7 @@ class DrawGroup:
     variant: tuple
     shader: gpu.types.GPUShader
     lighting: gpu.types.GPUUniformBuf
-    table: gpu.types.GPUTexture
+    table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
     prefiltered: gpu.types.GPUTexture | None
     draws: list  # (GPUBatch, object GPUUniformBuf)
 
@@ -807,15 +854,17 @@ def prepare_draw(
             ("object", model.tobytes(), roughness, weight),
             lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
         )
-        variant = (table.l_max, table.spectral, vary, display_srgb, split)
-        key = (variant, id(item.lighting.ubo), id(table.texture), id(prefiltered.texture) if split else None)
+        table_ubo = getattr(table, "ubo", None)
+        table_data = table.texture if table_ubo is None else table_ubo
+        variant = (table.l_max, table.spectral, vary, display_srgb, split, table_ubo is not None)
+        key = (variant, id(item.lighting.ubo), id(table_data), id(prefiltered.texture) if split else None)
         group = groups.get(key)
         if group is None:
             group = groups[key] = DrawGroup(
                 variant,
                 shaders.get(*variant),
                 item.lighting.ubo,
-                table.texture,
+                table_data,
                 prefiltered.texture if split else None,
                 [],
             )
@@ -851,7 +900,10 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.bind()
                 shader.uniform_block("tf_view", prepared.view)
             shader.uniform_block("tf_lighting", group.lighting)
-            shader.uniform_sampler("tf_table", group.table)
+            if group.variant[5]:
+                shader.uniform_block("tf_table_data", group.table)
+            else:
+                shader.uniform_sampler("tf_table", group.table)
             if group.prefiltered is not None:
                 shader.uniform_sampler("tf_prefiltered", group.prefiltered)
             for batch, object_ubo in group.draws:

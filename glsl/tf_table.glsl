@@ -6,10 +6,38 @@
  *   TF_SPECTRAL: layer 3i+k = row k of the 3x3 matrix of kept coefficient i (.rgb = lighting RGB)
  *   otherwise:   layer i = the RGB factors of kept coefficient i.
  * Without TF_VARY_THICKNESS the first thickness row is used (render.lookup without thickness).
+ * With TF_TABLE_UBO the same texels come from the uniform buffer tf_table_data instead (small
+ * tables; cheaper loads on llvmpipe).
  * Interpolation is done here with texelFetch (4 fetches, 2 for one thickness row), in full
  * float32: hardware filtering quantises the weights (8 bits of sub-texel precision on common
  * GPUs) and would not reproduce render.lookup to 1e-4.
  */
+
+/* The table's size (A, T, layers) and one texel's .rgb, from the texture or, with TF_TABLE_UBO,
+ * from the uniform buffer tf_table_data (gpu_draw.TableTexture.ubo: the same values, texel
+ * (row, column, layer) at (row * A + column) * layers + layer). */
+#ifdef TF_TABLE_UBO
+ivec3 tf_table_size()
+{
+  return ivec3(tf_table_data.size.xyz);
+}
+
+vec3 tf_table_texel(int column, int row, int layer)
+{
+  ivec3 size = tf_table_size();
+  return tf_table_data.texel[(row * size.x + column) * size.z + layer].rgb;
+}
+#else
+ivec3 tf_table_size()
+{
+  return textureSize(tf_table, 0);
+}
+
+vec3 tf_table_texel(int column, int row, int layer)
+{
+  return texelFetch(tf_table, ivec3(column, row, layer), 0).rgb;
+}
+#endif
 
 struct TFLerp {
   ivec2 i0; /* (theta column, thickness row) */
@@ -30,7 +58,7 @@ void tf_lerp_index(float pos, int count, out int i0, out int i1, out float w)
 TFLerp tf_table_lerp(float cos_o, float sin_o, float thickness01)
 {
   TFLerp r;
-  ivec3 size = textureSize(tf_table, 0);
+  ivec3 size = tf_table_size();
   /* theta = acos(clip(cos_o, 0, 1)) */
   float theta = (cos_o > 0.0) ? atan(max(sin_o, 0.0), cos_o) : TF_HALF_PI;
   float w;
@@ -56,13 +84,9 @@ TFLerp tf_table_lerp(float cos_o, float sin_o, float thickness01)
 
 vec3 tf_table_fetch(TFLerp r, int layer)
 {
-  vec3 lo = mix(texelFetch(tf_table, ivec3(r.i0.x, r.i0.y, layer), 0).rgb,
-                texelFetch(tf_table, ivec3(r.i1.x, r.i0.y, layer), 0).rgb,
-                r.w.x);
+  vec3 lo = mix(tf_table_texel(r.i0.x, r.i0.y, layer), tf_table_texel(r.i1.x, r.i0.y, layer), r.w.x);
 #ifdef TF_VARY_THICKNESS
-  vec3 hi = mix(texelFetch(tf_table, ivec3(r.i0.x, r.i1.y, layer), 0).rgb,
-                texelFetch(tf_table, ivec3(r.i1.x, r.i1.y, layer), 0).rgb,
-                r.w.x);
+  vec3 hi = mix(tf_table_texel(r.i0.x, r.i1.y, layer), tf_table_texel(r.i1.x, r.i1.y, layer), r.w.x);
   return mix(lo, hi, r.w.y);
 #else
   return lo;

@@ -5,6 +5,7 @@ benchmarks/viewport.py and docs/performance.md).
   variant and rebuild no batch; an edit rebuilds exactly the edited object's batch.
 - A moving view recycles uniform buffers instead of allocating one per frame.
 - Draws are grouped by shader variant: one bind per variant, whatever the item order.
+- Small tables drawn from a uniform buffer (TF_TABLE_UBO) shade like the texture and numpy.
 - The cheaper rotation paths of the fast shading library (l ≤ 2 straight from the frame) give
   the z-y-z result (orders not covered by tests/test_gpu_draw.py).
 """
@@ -209,7 +210,7 @@ def test_draws_are_grouped_by_variant_in_item_order(tf, drawn):
     assert prepared.draw_count == len(items)
     assert len(prepared.groups) == 2 and prepared.shader_binds == 2
     first, second = prepared.groups
-    assert first.table is drawn.tables[0].texture and second.table is drawn.tables[1].texture
+    assert first.table is drawn.tables[0].ubo and second.table is drawn.tables[1].ubo  # small: UBO tables
     assert [b for b, _ in first.draws] == [items[k].batch.batch for k in (0, 2, 4)]
     # An empty list prepares nothing and submits nothing.
     assert gd.prepare_draw([], VIEW, PROJ, display_srgb=True).groups == []
@@ -383,3 +384,109 @@ def test_direct_low_band_rotation_matches_numpy(tf, l_max):
     scale = np.max(np.abs(expected))
     # float32 maths of the same rotation: a few ulps of the largest coefficient.
     assert np.max(np.abs(got - expected)) / scale < 2e-6
+
+
+# ----------------------------------------------------------------------------------------------
+# The table as a uniform buffer (TF_TABLE_UBO) against numpy and against the texture
+# ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def gpu_helpers(tf):
+    """tests/test_gpu_draw.py's bakes, World and shading inputs (no tests are imported)."""
+    import test_gpu_draw
+
+    return test_gpu_draw
+
+
+def test_uniform_table_layout_and_size_limit(tf, gpu_helpers):
+    gd = tf.gpu_draw
+    result = gpu_helpers.baked(2, "per_channel", True)  # 8 rows × 16 views × 6 layers: fits
+    layers = gd.TableTexture.layer_array(result.data)
+    packed = gd.TableTexture.uniform_array(layers)
+    n_layers, t, a = layers.shape[:3]
+    assert packed.shape == (1024, 4) and packed.nbytes == gd.UBO_LIMIT_BYTES
+    assert tuple(packed[0, :3]) == (a, t, n_layers)
+    row, column, layer = 5, 7, 4
+    assert np.array_equal(packed[1 + (row * a + column) * n_layers + layer], layers[layer, row, column])
+    assert np.all(packed[1 + n_layers * t * a :] == 0)
+    table = gd.TableTexture.from_result(result)
+    assert table.ubo is not None
+    assert gd.TableTexture.from_result(result, uniform=False).ubo is None
+    big = gpu_helpers.baked(8, "spectral", False)  # 135 layers × 16 views > 1023 texels
+    assert gd.TableTexture.uniform_array(gd.TableTexture.layer_array(big.data)) is None
+    assert gd.TableTexture.from_result(big).ubo is None
+
+
+@pytest.mark.parametrize(
+    "l_max, colour_mode, thickness",
+    [(2, "spectral", "constant"), (2, "per_channel", "varying"), (5, "spectral", "constant")],
+)
+def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode, thickness):
+    """tf_shade with TF_TABLE_UBO against render.shade_sh, as tests/test_gpu_draw.py does for the
+    texture (same bounds: float32 maths of the same interpolation)."""
+    import gpu
+
+    gd, h = tf.gpu_draw, gpu_helpers
+    vary = thickness == "varying"
+    result = h.baked(l_max, colour_mode, vary)
+    table = gd.TableTexture.from_result(result)
+    assert table.ubo is not None
+    world, _img = h.world_sh()
+    lighting = gd.Lighting.from_sh(world, l_max, result.material.roughness)
+    width, height = 32, 16
+    n, v, t01 = h.shading_inputs(width * height, seed=l_max)
+
+    info = gpu.types.GPUShaderCreateInfo()
+    gd.declare_shading_resources(info, gd.Variant(l_max, table.spectral, vary, False, table_ubo=True))
+    info.sampler(1, "FLOAT_2D", "tf_test_normal")
+    info.sampler(2, "FLOAT_2D", "tf_test_view")
+    info.vertex_in(0, "VEC2", "pos")
+    info.fragment_out(0, "VEC4", "tf_frag_color")
+    info.vertex_source(h.TEST_VERTEX)
+    info.fragment_source(gd.shading_library(l_max) + h.TEST_FRAGMENT)
+    shader = gpu.shader.create_from_info(info)
+
+    def texture(rgb, w):
+        data = np.zeros((height, width, 4), dtype=np.float32)
+        data[..., :3] = rgb.reshape(height, width, 3)
+        data[..., 3] = w.reshape(height, width)
+        return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gd.float_buffer(data))
+
+    tex_n, tex_v = texture(n, t01), texture(v, np.zeros(width * height))
+    offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            shader.bind()
+            shader.uniform_block("tf_lighting", lighting.ubo)
+            shader.uniform_block("tf_table_data", table.ubo)
+            shader.uniform_sampler("tf_test_normal", tex_n)
+            shader.uniform_sampler("tf_test_view", tex_v)
+            gd._fullscreen_triangle().draw(shader)
+            got = gd.read_framebuffer(fb, width, height)[::-1].reshape(-1, 4)[:, :3]
+    finally:
+        offscreen.free()
+    lo, hi = h.THICKNESS_RANGE
+    expected = render.shade_sh(result, lighting.coefficients, n, v, lo + t01 * (hi - lo) if vary else None)
+    per_pixel = np.max(np.abs(got - expected), axis=-1) / np.max(np.abs(expected))
+    assert per_pixel.max() <= 1e-4 and np.median(per_pixel) <= 2e-6, (per_pixel.max(), np.median(per_pixel))
+
+
+def test_uniform_table_draws_the_image_of_the_texture(tf, gpu_helpers):
+    """draw_items with the table in a uniform buffer and in the texture: the same pixels."""
+    gd, h = tf.gpu_draw, gpu_helpers
+    result = h.baked(5, "spectral", False)
+    world, _img = h.world_sh()
+    lighting = gd.Lighting.from_sh(world, 5, result.material.roughness)
+    mesh_batch = quad_batch(gd)
+    images = []
+    for uniform in (True, False):
+        table = gd.TableTexture.from_result(result, uniform=uniform)
+        assert (table.ubo is not None) == uniform
+        item = Item(mesh_batch, table, lighting)
+        item.model_matrix = np.array(
+            [[1.0, 0.0, 0.0, 0.0], [0.0, 0.6, -0.8, 0.0], [0.0, 0.8, 0.6, 0.0], [0.0, 0.0, 0.0, 1.0]]
+        )
+        images.append(gd.render_offscreen([item], VIEW, PROJ, 48, 48))
+    assert np.mean(images[0][..., 3] > 0.5) > 0.1
+    assert np.array_equal(images[0], images[1])
