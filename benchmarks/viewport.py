@@ -240,16 +240,22 @@ class Scene:
         self.camera.rotation_euler = (math.radians(85.0), 0.0, 0.0)
         bpy.context.view_layer.update()
 
-    def assign(self, l_max: int, case: str = "sh") -> None:
-        """Give every torus the film material of ``l_max`` / ``case``."""
+    def assign(self, l_max: int, case: str = "sh", distinct: bool = False) -> None:
+        """Give every torus the film material of ``l_max`` / ``case``; ``distinct``: each torus its
+        own copy of it (equal settings, so one table, but one description per material and frame)."""
         import bpy
 
         mat = self.material(l_max, case)
-        for obj in self.objects:
+        for k, obj in enumerate(self.objects):
+            own = mat
+            if distinct and k > 0:
+                name = f"{mat.name} copy {k}"
+                own = bpy.data.materials.get(name) or mat.copy()
+                own.name = name
             if len(obj.data.materials) == 0:
-                obj.data.materials.append(mat)
-            elif obj.data.materials[0] != mat:
-                obj.data.materials[0] = mat
+                obj.data.materials.append(own)
+            elif obj.data.materials[0] != own:
+                obj.data.materials[0] = own
         bpy.context.view_layer.update()
 
     @property
@@ -416,11 +422,13 @@ def _as_plain_items(items):
     ]
 
 
-def prepare_scene(scene: Scene, objects: int, triangles: int, l_max: int, case: str = "sh") -> None:
+def prepare_scene(
+    scene: Scene, objects: int, triangles: int, l_max: int, case: str = "sh", distinct: bool = False
+) -> None:
     import bpy
 
     scene.set_objects(objects, triangles)
-    scene.assign(l_max, case)
+    scene.assign(l_max, case, distinct)
     sd = scene.ext.scene_draw
     depsgraph = bpy.context.evaluated_depsgraph_get()
     items, messages = sd.collect(depsgraph)  # bakes (or loads) the table, renders the World once
@@ -439,7 +447,8 @@ def grid(scene: Scene, quick: bool, baseline=None, log=print) -> list[dict]:
             prepare_scene(scene, objects, triangles, HEADLINE_L)
             for res in resolutions:
                 w, h = RESOLUTIONS[res]
-                cell = frame_cell(scene, res, repeats_for(w, h, triangles, quick), baseline=baseline)
+                base = baseline if res == "1080p" or quick else None  # before/after at 1080p only
+                cell = frame_cell(scene, res, repeats_for(w, h, triangles, quick), baseline=base)
                 row = {"objects": objects, "triangles": scene.triangles, "res": res, **cell}
                 rows.append(row)
                 log(
@@ -534,61 +543,66 @@ def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dic
     runs = 5 if quick else 40
     rows = []
     w, h = 320, 180  # small: the fragment work does not matter here
-    for objects in (1, 100) if quick else OBJECT_COUNTS:
-        for triangles in (10_000, 100_000) if quick else TRIANGLES:
-            prepare_scene(scene, objects, triangles, HEADLINE_L)
-            frame = Frame(scene, w, h)
-            depsgraph = bpy.context.evaluated_depsgraph_get()
-            samples = {"collect": [], "prepare": [], "submit": [], "baseline": []}
-            counters = {}
-            try:
-                with frame.offscreen.bind():
-                    fb = gpu.state.active_framebuffer_get()
-                    for k in range(runs + 3):
-                        if k == 3:  # warm: count from here
-                            counters = {
-                                "rebuilt": sd.CACHES.stats["batch_builds"],
-                                "compiled": gd.SHADERS.compile_count,
-                                "ubo_allocations": gd.UNIFORMS.stats["allocations"],
-                                "ubo_uploads": gd.UNIFORMS.stats["uploads"],
-                            }
+    counts, tris = ((1, 100), (10_000, 100_000)) if quick else (OBJECT_COUNTS, TRIANGLES)
+    cases = [(n, t, False) for n in counts for t in tris]
+    cases.append((100, 10_000, True))  # 100 objects, each its own material
+    for objects, triangles, distinct in cases:
+        prepare_scene(scene, objects, triangles, HEADLINE_L, distinct=distinct)
+        frame = Frame(scene, w, h)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        samples = {"collect": [], "prepare": [], "submit": [], "baseline": []}
+        counters = {}
+        try:
+            with frame.offscreen.bind():
+                fb = gpu.state.active_framebuffer_get()
+                for k in range(runs + 3):
+                    if k == 3:  # warm: count from here
+                        counters = {
+                            "rebuilt": sd.CACHES.stats["batch_builds"],
+                            "compiled": gd.SHADERS.compile_count,
+                            "ubo_allocations": gd.UNIFORMS.stats["allocations"],
+                            "ubo_uploads": gd.UNIFORMS.stats["uploads"],
+                        }
+                    fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+                    t0 = time.thread_time()
+                    items, _ = sd.collect(depsgraph, allow_bake=False, allow_world=False)
+                    t1 = time.thread_time()
+                    prepared = gd.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
+                    t2 = time.thread_time()
+                    gd.submit(prepared)
+                    t3 = time.thread_time()
+                    frame._finish()
+                    if baseline is not None:
+                        plain = _as_plain_items(items)
                         fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-                        t0 = time.thread_time()
-                        items, _ = sd.collect(depsgraph, allow_bake=False, allow_world=False)
-                        t1 = time.thread_time()
-                        prepared = gd.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
-                        t2 = time.thread_time()
-                        gd.submit(prepared)
-                        t3 = time.thread_time()
+                        t4 = time.thread_time()
+                        baseline.draw_items(plain, frame.view, frame.proj, display_srgb=True)
+                        t5 = time.thread_time()
                         frame._finish()
-                        if baseline is not None:
-                            plain = _as_plain_items(items)
-                            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-                            t4 = time.thread_time()
-                            baseline.draw_items(plain, frame.view, frame.proj, display_srgb=True)
-                            t5 = time.thread_time()
-                            frame._finish()
-                            samples["baseline"].append(t5 - t4)
-                        if k >= 3:
-                            samples["collect"].append(t1 - t0)
-                            samples["prepare"].append(t2 - t1)
-                            samples["submit"].append(t3 - t2)
-            finally:
-                frame.free()
-            row = {"objects": objects, "triangles": scene.triangles}
-            row.update({k: median_ms(v) for k, v in samples.items() if v})
-            row["rebuilt"] = sd.CACHES.stats["batch_builds"] - counters["rebuilt"]
-            row["compiled"] = gd.SHADERS.compile_count - counters["compiled"]
-            row["ubo_allocations"] = gd.UNIFORMS.stats["allocations"] - counters["ubo_allocations"]
-            row["ubo_uploads"] = gd.UNIFORMS.stats["uploads"] - counters["ubo_uploads"]
-            rows.append(row)
-            log(
-                f"  {objects:3d} objects {scene.triangles:>9,} tris: collect {row['collect']:.3f} ms,"
-                f" prepare {row['prepare']:.3f} ms, submit {row['submit']:.3f} ms"
-                + (f", baseline draw_items {row['baseline']:.3f} ms" if "baseline" in row else "")
-                + f" (batches rebuilt {row['rebuilt']}, shaders compiled {row['compiled']},"
-                f" uniform buffers allocated {row['ubo_allocations']} / updated {row['ubo_uploads']})"
-            )
+                        samples["baseline"].append(t5 - t4)
+                    if k >= 3:
+                        samples["collect"].append(t1 - t0)
+                        samples["prepare"].append(t2 - t1)
+                        samples["submit"].append(t3 - t2)
+        finally:
+            frame.free()
+        row = {"objects": objects, "triangles": scene.triangles, "materials": objects if distinct else 1}
+        row.update({k: median_ms(v) for k, v in samples.items() if v})
+        row["rebuilt"] = sd.CACHES.stats["batch_builds"] - counters["rebuilt"]
+        row["compiled"] = gd.SHADERS.compile_count - counters["compiled"]
+        row["ubo_allocations"] = gd.UNIFORMS.stats["allocations"] - counters["ubo_allocations"]
+        row["ubo_uploads"] = gd.UNIFORMS.stats["uploads"] - counters["ubo_uploads"]
+        rows.append(row)
+        if distinct:
+            scene.assign(HEADLINE_L)  # back to the one shared material
+        log(
+            f"  {objects:3d} objects ({row['materials']} mat) {scene.triangles:>9,} tris:"
+            f" collect {row['collect']:.3f} ms,"
+            f" prepare {row['prepare']:.3f} ms, submit {row['submit']:.3f} ms"
+            + (f", baseline draw_items {row['baseline']:.3f} ms" if "baseline" in row else "")
+            + f" (batches rebuilt {row['rebuilt']}, shaders compiled {row['compiled']},"
+            f" uniform buffers allocated {row['ubo_allocations']} / updated {row['ubo_uploads']})"
+        )
     return rows
 
 
@@ -718,7 +732,7 @@ def report(res: dict) -> str:
             f" (≤ {RATIO_LIMIT:g}×): {verdict}.",
         ]
     if res.get("python"):
-        py = res["python"]
+        py = [r for r in res["python"] if r["materials"] == 1]
         by_objects = {}
         for r in py:
             by_objects.setdefault(r["objects"], []).append(r["collect"] + r["prepare"])
@@ -901,43 +915,75 @@ def _split_sum_section(res: dict) -> list[str]:
 
 
 def _python_section(res: dict) -> list[str]:
-    rows = res.get("python")
+    rows = [r for r in res.get("python", []) if r["materials"] == 1]
     if not rows:
         return []
     counts = sorted({r["objects"] for r in rows})
     out = [
         "## Python time per frame, nothing changed",
         "",
-        "CPU time of the drawing thread (`time.thread_time`), median of 40 frames at l ≤ 2:"
-        " `collect` = `scene_draw.collect` (depsgraph → draw items; caches warm), `prepare` ="
+        "CPU time of the drawing thread (`time.thread_time`), median of 40 frames at l ≤ 2, one shared"
+        " material: `collect` = `scene_draw.collect` (depsgraph → draw items; caches warm), `prepare` ="
         " `gpu_draw.prepare_draw` (uniform buffers, variants, grouping), `submit` = `gpu_draw.submit`"
         " (state, binds, draw calls). On llvmpipe `submit` also contains the driver's vertex shading and"
         " binning, which run in the calling thread, so it grows with the triangles; on a GPU that work"
-        " is the GPU's. The Python work is `collect` + `prepare`.",
+        " is the GPU's. The Python work is `collect` + `prepare`; it depends on the number of objects"
+        " (and materials), not on their triangles.",
         "",
-        "| triangles | " + " | ".join(f"{n} obj: collect | prepare | submit" for n in counts) + " |",
+        "| triangles | " + " | ".join(f"{n} obj: collect ms | prepare ms | submit ms" for n in counts) + " |",
         "|---|" + "---|---|---|" * len(counts),
     ]
-    for tris in sorted({r["triangles"] // 10_000 for r in rows}):
+    for tris in sorted({round(r["triangles"], -4) for r in rows}):
         cells, label = [], None
         for n in counts:
-            c = next((r for r in rows if r["objects"] == n and r["triangles"] // 10_000 == tris), None)
+            c = next((r for r in rows if r["objects"] == n and round(r["triangles"], -4) == tris), None)
             if c is None:
                 cells += ["—"] * 3
                 continue
             label = label or _tri(c["triangles"])
             cells += [f"{c['collect']:.2f}", f"{c['prepare']:.2f}", f"{c['submit']:.2f}"]
         out.append(f"| {label} | " + " | ".join(cells) + " |")
-    rebuilt = sum(r["rebuilt"] for r in rows)
-    compiled = sum(r["compiled"] for r in rows)
+    distinct = [r for r in res.get("python", []) if r["materials"] > 1]
+    all_rows = res["python"]
+    out += [""]
+    for r in distinct:
+        shared = next(
+            (x for x in rows if x["objects"] == r["objects"] and round(x["triangles"], -4) == 10_000), None
+        )
+        out.append(
+            f"With {r['objects']} objects each carrying its own material (equal settings, so one table):"
+            f" collect {r['collect']:.2f} ms, prepare {r['prepare']:.2f} ms"
+            + (
+                f" (one shared material: {shared['collect']:.2f} ms, {shared['prepare']:.2f} ms)"
+                if shared
+                else ""
+            )
+            + ": each material's description is read from its settings once per frame."
+        )
     out += [
         "",
-        f"Over all these frames: {rebuilt} batches rebuilt and {compiled} shader variants compiled"
-        " (`scene_draw.CACHES.stats`, `gpu_draw.SHADERS.compile_count`; both are 0 by design and"
-        " tested in tests/test_viewport_perf_invariants.py).",
-        "",
+        f"Over all these frames (after 3 warm-up frames each): {sum(r['rebuilt'] for r in all_rows)} batches"
+        f" rebuilt, {sum(r['compiled'] for r in all_rows)} shader variants compiled,"
+        f" {sum(r['ubo_allocations'] for r in all_rows)} uniform buffers allocated and"
+        f" {sum(r['ubo_uploads'] for r in all_rows)} updated (`scene_draw.CACHES.stats`,"
+        " `gpu_draw.SHADERS.compile_count`, `gpu_draw.UNIFORMS.stats`);"
+        " tests/test_viewport_perf_invariants.py checks each of these properties.",
     ]
-    return out
+    if any("baseline" in r for r in all_rows):
+        out += [
+            "",
+            f"Baseline revision ({res.get('baseline')}): its `draw_items` (CPU time, same frames) against"
+            " ours (`prepare` + `submit`):",
+            "",
+            "| objects | materials | triangles | baseline draw_items ms | ours prepare + submit ms |",
+            "|---|---|---|---|---|",
+        ]
+        for r in all_rows:
+            out.append(
+                f"| {r['objects']} | {r['materials']} | {_tri(r['triangles'])} | {r['baseline']:.2f} |"
+                f" {r['prepare'] + r['submit']:.2f} |"
+            )
+    return out + [""]
 
 
 def _rebuild_section(res: dict) -> list[str]:
