@@ -149,9 +149,11 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
     positions, normals, triangles, _ = arrays
     if len(obj_eval.material_slots) > 1:
         tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
-        mesh.loop_triangles.foreach_get("polygon_index", tri_poly)
-        poly_mat = np.empty(len(mesh.polygons), dtype=np.int32)
-        mesh.polygons.foreach_get("material_index", poly_mat)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)  # an array copy, not per item
+        poly_mat = np.zeros(len(mesh.polygons), dtype=np.int32)
+        attr = mesh.attributes.get("material_index")  # absent: every face uses slot 0
+        if attr is not None and attr.domain == "FACE" and attr.data_type == "INT":
+            attr.data.foreach_get("value", poly_mat)
         triangles = triangles[poly_mat[tri_poly] == slot]
     if triangles.shape[0] == 0:
         return None

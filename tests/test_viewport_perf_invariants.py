@@ -300,6 +300,34 @@ def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
     assert stats["batch_builds"] == builds + 1
 
 
+def test_collect_splits_a_mesh_by_material_slot(tf, bpy):
+    """Two film materials on one mesh: one batch each, with that slot's faces only (the faces'
+    material indices and the triangles' faces are read as arrays, not item by item)."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    tf.package.register()
+    tf.addon.preferences().cache_dir = tf.cache_dir
+    scene = bpy.context.scene
+    mesh = bpy.data.meshes.new("two slots")
+    verts = [(x, 0.0, z) for z in (0.0, 1.0) for x in (0.0, 1.0, 2.0, 3.0)]
+    mesh.from_pydata(verts, [], [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6)])  # three quads
+    for k in range(2):
+        mat = bpy.data.materials.new(f"slot{k}")
+        tf.materials.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
+        mat.thinfilm_sh.sh_order = "2"
+        mat.thinfilm_sh.view_samples = 8
+        mat.thinfilm_sh.wavelength_count = 32
+        mat.thinfilm_sh.enabled = True
+        mesh.materials.append(mat)
+    mesh.polygons[1].material_index = 1
+    scene.collection.objects.link(bpy.data.objects.new("two slots", mesh))
+    bpy.context.view_layer.update()
+    items = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
+    by_slot = {item.name.split("/")[1]: item for item in items}
+    assert sorted(by_slot) == ["slot0", "slot1"]
+    assert by_slot["slot0"].batch.triangle_count == 4 and by_slot["slot1"].batch.triangle_count == 2
+    assert by_slot["slot0"].roughness != by_slot["slot1"].roughness
+
+
 # ----------------------------------------------------------------------------------------------
 # The cheaper rotation of the fast library against numpy (l = 1, 2)
 # ----------------------------------------------------------------------------------------------
