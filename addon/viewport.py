@@ -132,3 +132,4 @@ def unregister() -> None:
     if bpy.app.timers.is_registered(_service):
         bpy.app.timers.unregister(_service)
     scene_draw.CACHES.clear()
+    gpu_draw.UNIFORMS.clear()  # the uniform buffers kept across frames
