@@ -26,9 +26,10 @@ void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
 #endif
 }
 
-vec3 tf_shade(vec3 n, vec3 v, float thickness01)
+/* The SH sum for a frame and table position already computed (shared with the split sum in
+ * tf_shade_combined, so the combined path does not build them twice). */
+vec3 tf_shade_at(TFFrame f, TFLerp r)
 {
-  TFFrame f = tf_view_aligned_frame(n, v);
 #if TF_L_MAX <= 2 && defined(TF_X90_GENERATED)
   tf_local_coefficients_direct(f);
 #else
@@ -36,7 +37,6 @@ vec3 tf_shade(vec3 n, vec3 v, float thickness01)
   tf_zyz_from_frame(f, a, b, c);
   tf_local_coefficients(a, b, c);
 #endif
-  TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
 
   /* Written out band by band, (k, i) constant: a loop that computes the index into tf_c makes
    * the compiler move tf_c out of registers (measured on llvmpipe: 1.6x the frame at l <= 2,
@@ -104,4 +104,10 @@ vec3 tf_shade(vec3 n, vec3 v, float thickness01)
   tf_accumulate(sum, r, 44, 80);
 #endif
   return max(sum, vec3(0.0));
+}
+
+vec3 tf_shade(vec3 n, vec3 v, float thickness01)
+{
+  TFFrame f = tf_view_aligned_frame(n, v);
+  return tf_shade_at(f, tf_table_lerp(f.cos_o, f.sin_o, thickness01));
 }

@@ -32,10 +32,8 @@ vec3 tf_prefiltered_lookup(vec3 d, float roughness)
   return mix(a, b, w);
 }
 
-vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
+vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
 {
-  TFFrame f = tf_view_aligned_frame(n, v);
-  TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
   vec3 refl = 2.0 * f.cos_o * n - v;
   /* prefilter.effective_roughness: r * cos(theta_o)^0.5 (GRAZING_EXPONENT) */
   float r_eff = clamp(roughness, 0.0, 1.0) * sqrt(clamp(f.cos_o, 1e-4, 1.0)); /* constants.MIN_COS */
@@ -49,15 +47,24 @@ vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
   return max(rgb * TF_SQRT_4PI, vec3(0.0));
 }
 
-/* sh_weight = prefilter.sh_weight(roughness): 0 → split sum only (the SH rotation is skipped). */
+vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
+{
+  TFFrame f = tf_view_aligned_frame(n, v);
+  return tf_shade_split_sum_at(f, tf_table_lerp(f.cos_o, f.sin_o, thickness01), n, v, roughness);
+}
+
+/* sh_weight = prefilter.sh_weight(roughness): 0 → split sum only (the SH rotation is skipped).
+ * The frame and the table position are computed once for both halves. */
 vec3 tf_shade_combined(vec3 n, vec3 v, float thickness01, float roughness, float sh_weight)
 {
+  TFFrame f = tf_view_aligned_frame(n, v);
+  TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
   vec3 rgb = vec3(0.0);
   if (sh_weight < 1.0) {
-    rgb += (1.0 - sh_weight) * tf_shade_split_sum(n, v, thickness01, roughness);
+    rgb += (1.0 - sh_weight) * tf_shade_split_sum_at(f, r, n, v, roughness);
   }
   if (sh_weight > 0.0) {
-    rgb += sh_weight * tf_shade(n, v, thickness01);
+    rgb += sh_weight * tf_shade_at(f, r);
   }
   return rgb;
 }
