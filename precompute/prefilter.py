@@ -88,20 +88,6 @@ def _bilinear(image: np.ndarray, directions: np.ndarray) -> np.ndarray:
     return equirect_lookup(image, directions)
 
 
-def sample_lod(chain, directions: np.ndarray, lod: np.ndarray) -> np.ndarray:
-    """Radiance at fractional mip level ``lod`` (trilinear: bilinear in two adjacent levels)."""
-    lod = np.clip(lod, 0.0, len(chain) - 1.0)
-    lo = np.floor(lod).astype(int)
-    frac = (lod - lo)[..., None]
-    out = np.zeros(directions.shape[:-1] + (3,))
-    for level in np.unique(lo):
-        sel = lo == level
-        a = _bilinear(chain[level], directions[sel])
-        b = _bilinear(chain[min(level + 1, len(chain) - 1)], directions[sel])
-        out[sel] = (1 - frac[sel]) * a + frac[sel] * b
-    return out
-
-
 def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_batch: int = 8) -> np.ndarray:
     """One prefiltered level (w_out/2, w_out, 3) by filtered importance sampling.
 

@@ -1,7 +1,8 @@
-"""Shared pytest configuration: hypothesis profiles sized for 2-core CI machines."""
+"""Shared pytest configuration: hypothesis profiles sized for 2-core CI machines, the bpy fixture."""
 
 import os
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile(
@@ -9,3 +10,11 @@ settings.register_profile(
 )
 settings.register_profile("dev", max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("ci" if os.environ.get("CI") else os.environ.get("HYPOTHESIS_PROFILE", "dev"))
+
+
+@pytest.fixture(scope="session")
+def bpy():
+    """Blender as a Python module (the real one, never mocked), shared by the Blender tests."""
+    import bpy as bpy_module
+
+    return bpy_module

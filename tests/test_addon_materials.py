@@ -23,13 +23,6 @@ REGISTER_CYCLES = 10
 # Fixtures
 # ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
-@pytest.fixture(scope="module")
 def package(bpy, tmp_path_factory):
     """The repository imported as ``thinfilm_sh`` (once for this module)."""
     with linked_extension(tmp_path_factory.mktemp("extension")) as module:

@@ -16,8 +16,9 @@ from precompute.material import Layer, Material
 pytestmark = pytest.mark.blender
 
 
-@pytest.mark.parametrize(("thickness", "film_ior", "base_ior", "roughness"), [(800.0, 1.33, 1.5, 0.3),
-                                                                            (350.0, 1.8, 1.5, 0.5)])
+@pytest.mark.parametrize(
+    ("thickness", "film_ior", "base_ior", "roughness"), [(800.0, 1.33, 1.5, 0.3), (350.0, 1.8, 1.5, 0.5)]
+)
 def test_brute_force_render_matches_cycles_principled_thin_film(thickness, film_ior, base_ior, roughness):
     size, spp = 40, 128
     path = cc.studiolight("courtyard")
@@ -26,12 +27,18 @@ def test_brute_force_render_matches_cycles_principled_thin_film(thickness, film_
     while image.shape[1] > 512:
         image = hdri.downsample(image, 2)
     # Single scattering on our side, as Cycles' base IOR 1.5 compensation adds < 1 % here.
-    material = Material(layers=(Layer(film_ior, thickness),), substrate=base_ior, roughness=roughness,
-                        colour_mode="per_channel", multiscatter="none")
+    material = Material(
+        layers=(Layer(film_ior, thickness),),
+        substrate=base_ior,
+        roughness=roughness,
+        colour_mode="per_channel",
+        multiscatter="none",
+    )
     view = render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG, supersample=2)
     ours = render.equirect_lookup(image, view.rays)
-    ours[view.mask] = render.shade_reference(material, image, view.normals[view.mask], view.views[view.mask],
-                                             n_theta=48, n_phi=48)
+    ours[view.mask] = render.shade_reference(
+        material, image, view.normals[view.mask], view.views[view.mask], n_theta=48, n_phi=48
+    )
     ours = render.box_downsample(ours, 2)
     mask = cc.object_mask(render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG))
     de = cc.delta_e_2000(ours[mask], ref[mask], ref[mask])

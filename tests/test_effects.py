@@ -452,13 +452,6 @@ def test_precompute_cli_plan_prints_the_material_plan(capsys):
 # Blender
 # ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
-@pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The repository imported as ``thinfilm_sh``; its modules as attributes."""
     import types

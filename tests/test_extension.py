@@ -103,13 +103,6 @@ def test_root_init_only_forwards_to_addon():
 # --- in a real Blender session ----------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
 @pytest.fixture
 def extension(bpy, tmp_path):
     """The repository imported as the package ``thinfilm_sh`` (as Blender would name it)."""

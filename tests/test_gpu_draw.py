@@ -30,13 +30,6 @@ THICKNESS_RANGE = (200.0, 800.0)
 # Fixtures and helpers
 # ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
-@pytest.fixture(scope="module")
 def gd(bpy, tmp_path_factory):
     """``addon.gpu_draw`` imported inside the package ``thinfilm_sh`` (relative imports work)."""
     root = tmp_path_factory.mktemp("ext")

@@ -36,13 +36,6 @@ SIZE = (64, 48)
 # ----------------------------------------------------------------------------------------------
 # Fixtures and helpers
 # ----------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
 def _set_cache_preference(bpy, addon, cache_dir) -> None:
     addons = bpy.context.preferences.addons
     if addons.get(EXTENSION_ID) is None:

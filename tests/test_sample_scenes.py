@@ -71,13 +71,6 @@ def _load(name, path):
 
 
 @pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
-@pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension registered once, its table cache private to this module."""
     root = tmp_path_factory.mktemp("extension")

@@ -27,13 +27,6 @@ from precompute.material import Layer, Material, Quality  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
-@pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     root = tmp_path_factory.mktemp("extension")

@@ -31,13 +31,6 @@ L_MAX = 8
 
 
 @pytest.fixture(scope="module")
-def bpy():
-    import bpy as bpy_module  # Blender as a Python module: never mocked
-
-    return bpy_module
-
-
-@pytest.fixture(scope="module")
 def world_mod(bpy, tmp_path_factory):
     """``thinfilm_sh.addon.world``, imported from a symlink named like the extension."""
     with linked_extension(tmp_path_factory.mktemp("ext"), unregister=False):
