@@ -118,7 +118,10 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
             panorama = world.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
             pre = prefilter.prefilter(panorama, width=PREFILTER_WIDTH)
             image = WorldImage(
-                panorama, gpu_draw.PrefilterTexture.from_levels(pre.resampled(PREFILTER_WIDTH))
+                panorama,
+                gpu_draw.PrefilterTexture.from_levels(
+                    pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
+                ),
             )
         except (RuntimeError, ValueError) as exc:
             log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)

@@ -2,17 +2,21 @@
  *
  * numpy counterpart: prefilter.shade_split_sum and prefilter.shade_combined, with the
  * prefiltered levels resampled to one size (prefilter.Prefiltered.resampled).
- * Texture `tf_prefiltered` (sampler2DArray, RGBA32F, LINEAR, REPEAT in u): layer j = the World
- * prefiltered by a GGX lobe of roughness (j / (levels - 1))^2, equirect (conventions.md mapping).
+ * Texture `tf_prefiltered` (sampler3D, RGBA32F, LINEAR, REPEAT in u, EXTEND in v and z), depth
+ * 2 J: slice j < J = the World prefiltered by a GGX lobe of roughness (j / (J - 1))^2, equirect
+ * (conventions.md mapping); slice J + j = the same prefilter of luminance x direction
+ * (Prefiltered.moments). The blend of two levels is the linear filter in z: one fetch each.
  * Split sum (Karis 2013): film albedo (the l = 0 table entry x sqrt(4 pi), a 3x3 matrix or 3
- * factors) times the prefiltered radiance in the reflection direction.
+ * factors) times the prefiltered radiance in the reflection direction; the albedo is read at
+ * the half-vector angle of the lobe's light-weighted mean direction (prefilter.dominant_cosine).
  */
 
 const float TF_SQRT_4PI = 3.5449077018110318;
 
-vec3 tf_prefiltered_lookup(vec3 d, float roughness)
+vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment)
 {
-  int levels = textureSize(tf_prefiltered, 0).z;
+  int depth = textureSize(tf_prefiltered, 0).z;
+  int levels = depth / 2;
   float u = 0.5 - atan(d.y, d.x) / (2.0 * TF_PI);
   float t = acos(clamp(d.z, -1.0, 1.0)) / TF_PI;
   /* prefilter.level_blend: level k holds roughness (k / (J - 1))^2; the two levels around r are
@@ -27,9 +31,10 @@ vec3 tf_prefiltered_lookup(vec3 d, float roughness)
   float a4 = r0 * r0 * r0 * r0;
   float b4 = r1 * r1 * r1 * r1;
   float w = clamp((r * r * r * r - a4) / max(b4 - a4, 1e-30), 0.0, 1.0);
-  vec3 a = texture(tf_prefiltered, vec3(u, t, float(lo))).rgb;
-  vec3 b = texture(tf_prefiltered, vec3(u, t, float(lo + 1))).rgb;
-  return mix(a, b, w);
+  /* slice centres at (k + 0.5) / depth: z between slices lo and lo + 1 with weight w */
+  float z = (float(lo) + w + 0.5) / float(depth);
+  moment = texture(tf_prefiltered, vec3(u, t, z + 0.5)).rgb; /* + J slices */
+  return texture(tf_prefiltered, vec3(u, t, z)).rgb;
 }
 
 vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
@@ -37,7 +42,16 @@ vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
   vec3 refl = 2.0 * f.cos_o * n - v;
   /* prefilter.effective_roughness: r * cos(theta_o)^0.5 (GRAZING_EXPONENT) */
   float r_eff = clamp(roughness, 0.0, 1.0) * sqrt(clamp(f.cos_o, 1e-4, 1.0)); /* constants.MIN_COS */
-  vec3 radiance = tf_prefiltered_lookup(refl, r_eff);
+  vec3 moment;
+  vec3 radiance = tf_prefiltered_lookup(refl, r_eff, moment);
+  /* prefilter.dominant_cosine: cos theta' = sqrt((1 + v.c) / 2), c = the moment's direction;
+   * a vanishing moment (black World in the lobe) keeps the view angle. (acos(v.c) / 2 is the
+   * same angle, but llvmpipe's acos is off by 1.6e-4 of the peak in the per-pixel test.) */
+  float m2 = dot(moment, moment);
+  if (m2 > 1e-30) {
+    float c2 = clamp(0.5 * (1.0 + dot(v, moment) * inversesqrt(m2)), 0.0, 1.0);
+    r = tf_table_at_theta(r, atan(sqrt(1.0 - c2), sqrt(c2)));
+  }
 #ifdef TF_SPECTRAL
   vec3 rgb = vec3(dot(tf_table_fetch(r, 0), radiance), dot(tf_table_fetch(r, 1), radiance),
                   dot(tf_table_fetch(r, 2), radiance));

@@ -54,19 +54,31 @@ void tf_lerp_index(float pos, int count, out int i0, out int i1, out float w)
   w = pos - float(i0);
 }
 
-/* theta_o from (cos, sin) and the thickness position in [0, 1] (0 = first row). */
-TFLerp tf_table_lerp(float cos_o, float sin_o, float thickness01)
+/* The table position of r at another view angle theta in [0, pi/2]; the thickness part is kept. */
+TFLerp tf_table_at_theta(TFLerp r, float theta)
 {
-  TFLerp r;
   ivec3 size = tf_table_size();
-  /* theta = acos(clip(cos_o, 0, 1)) */
-  float theta = (cos_o > 0.0) ? atan(max(sin_o, 0.0), cos_o) : TF_HALF_PI;
   float w;
   int i0, i1;
   tf_lerp_index(theta / TF_HALF_PI * float(size.x - 1), size.x, i0, i1, w);
   r.i0.x = i0;
   r.i1.x = i1;
   r.w.x = w;
+  return r;
+}
+
+/* theta_o from (cos, sin) and the thickness position in [0, 1] (0 = first row). */
+TFLerp tf_table_lerp(float cos_o, float sin_o, float thickness01)
+{
+  TFLerp r;
+  r.i0 = ivec2(0);
+  r.i1 = ivec2(0);
+  r.w = vec2(0.0);
+  /* theta = acos(clip(cos_o, 0, 1)) */
+  r = tf_table_at_theta(r, (cos_o > 0.0) ? atan(max(sin_o, 0.0), cos_o) : TF_HALF_PI);
+  ivec3 size = tf_table_size();
+  float w;
+  int i0, i1;
 #ifdef TF_VARY_THICKNESS
   if (size.y > 1) {
     tf_lerp_index(thickness01 * float(size.y - 1), size.y, i0, i1, w);

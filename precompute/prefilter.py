@@ -5,6 +5,12 @@ assumption); at shading time it is looked up in the reflection direction and mul
 film's directional albedo as a 3×3 matrix — the l = 0 table entry × √(4π), the response to
 uniform white light — so no new table is needed.
 
+The film's colour is the albedo at the angle of the light that the lobe actually gathers: a
+second prefilter of luminance × direction gives the light-weighted mean direction c inside the
+lobe, and the albedo is looked up at cos θ' = √((1 + v·c)/2), the half-vector angle of that
+light (:func:`dominant_cosine`). Where a glossy lobe is lit only by its tails catching a lamp
+20–40° away, the colour is that of the lamp's half-vector angle, not of the view angle.
+
 Prefiltering uses filtered importance sampling (Křivánek & Colbert 2008): each GGX sample reads
 a mip level whose texel solid angle matches the sample's, so an HDR sun of 10⁵ spreads
 smoothly instead of producing fireflies; non-finite pixels are zeroed and counted first.
@@ -51,20 +57,36 @@ LOD_BIAS = 0.0
 #: soap r 0.15: 9.95 / 8.17 / 7.07 / 6.77; studio soap r 0.05: 1.69 / 1.43 / 1.36 / 1.35.
 #: Widening instead (r / cos^0.5) made every case worse (courtyard r 0.3: 8.85).
 GRAZING_EXPONENT = 0.5
+#: Rec.709 luminance weights (Blender's scene-linear RGB): the weight of each direction in the
+#: light-weighted mean direction of :func:`dominant_cosine`.
+LUMINANCE = (0.2126, 0.7152, 0.0722)
 
 
 @dataclass(frozen=True)
 class Prefiltered:
-    """Prefiltered radiance: one (H_j, W_j, 3) image per ``roughness`` level; rejected pixel count."""
+    """Prefiltered radiance: one (H_j, W_j, 3) image per ``roughness`` level; rejected pixel count.
+
+    ``moments``: per level, the same GGX prefilter of luminance × direction, ∫ Y(l) D l dl
+    (H_j, W_j, 3), whose direction is the light-weighted mean direction inside the lobe; None
+    when not computed (then :func:`dominant_cosine` falls back to the view angle).
+    """
 
     levels: tuple
     roughness: np.ndarray
     rejected_pixels: int
+    moments: tuple | None = None
 
     def resampled(self, width: int) -> np.ndarray:
         """All levels bilinearly resampled to (J, width/2, width, 3) — e.g. for one GPU array texture."""
         dirs = hdri.equirect_directions(width // 2, width)
         return np.stack([_bilinear(level, dirs) for level in self.levels])
+
+    def resampled_moments(self, width: int) -> np.ndarray | None:
+        """The direction moments resampled like :meth:`resampled`, or None."""
+        if self.moments is None:
+            return None
+        dirs = hdri.equirect_directions(width // 2, width)
+        return np.stack([_bilinear(level, dirs) for level in self.moments])
 
 
 def level_width(roughness: float, max_width: int = LEVEL_WIDTH) -> int:
@@ -120,7 +142,7 @@ def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_b
     u = 0.5 - np.arctan2(lw[..., 1], lw[..., 0]) / (2.0 * np.pi)
     v = np.arccos(np.clip(lw[..., 2], -1.0, 1.0)) / np.pi
     shift = np.arange(w_out) / w_out
-    out = np.zeros((h_out, w_out, 3))
+    out = np.zeros((h_out, w_out, chain[0].shape[-1]))
     for m, mip in enumerate(chain):
         # trilinear: a sample with lod in [m, m + 1) reads level m with 1 − frac, m + 1 with frac
         cm = np.where(lo == m, weight * (1.0 - frac), 0.0) + np.where(lo == m - 1, weight * frac, 0.0)
@@ -151,15 +173,21 @@ def prefilter(
     samples=SAMPLES,
     lod_bias: float = LOD_BIAS,
 ) -> Prefiltered:
-    """GGX-prefiltered radiance for each roughness level (n = v = r assumption of the split sum)."""
-    img = np.asarray(image, dtype=np.float64)
+    """GGX-prefiltered radiance for each roughness level (n = v = r assumption of the split sum).
+
+    Each level also carries the prefiltered luminance × direction (``Prefiltered.moments``):
+    both are filtered together as one 6-channel image, so the two share every sample.
+    """
+    img = np.asarray(image, dtype=np.float64)[..., :3]
     bad = ~np.isfinite(img).all(axis=-1)
     rejected = int(bad.sum())
     if rejected:
         img = np.where(bad[..., None], 0.0, img)
     while img.shape[1] > width and img.shape[1] % 2 == 0:
         img = hdri.downsample(img, 2)
-    chain = mip_chain(img)
+    luminance = np.maximum(img @ np.asarray(LUMINANCE), 0.0)
+    directions = hdri.equirect_directions(*img.shape[:2])
+    chain = mip_chain(np.concatenate([img, luminance[..., None] * directions], axis=-1))
     w0 = chain[0].shape[1]
     out = []
     for r in levels:
@@ -168,7 +196,12 @@ def prefilter(
             continue
         alpha = max(float(r) ** 2, constants.MIN_ALPHA)
         out.append(_level(chain, alpha, min(level_width(r, width), w0), samples, lod_bias))
-    return Prefiltered(tuple(out), np.asarray(levels, dtype=float), rejected)
+    return Prefiltered(
+        tuple(level[..., :3] for level in out),
+        np.asarray(levels, dtype=float),
+        rejected,
+        tuple(level[..., 3:] for level in out),
+    )
 
 
 def effective_roughness(roughness: float, cos_o) -> np.ndarray:
@@ -193,18 +226,46 @@ def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
     return lo, np.clip((r**4 - a4) / np.maximum(b4 - a4, 1e-30), 0.0, 1.0)
 
 
-def lookup(pre: Prefiltered, directions: np.ndarray, roughness) -> np.ndarray:
-    """Prefiltered radiance in ``directions`` at per-pixel ``roughness`` (α²-matched level blend)."""
+def lookup(pre: Prefiltered, directions: np.ndarray, roughness, moments: bool = False) -> np.ndarray:
+    """Prefiltered radiance in ``directions`` at per-pixel ``roughness`` (α²-matched level blend).
+
+    ``moments=True`` reads the luminance × direction moments instead (same blend).
+    """
+    levels = pre.moments if moments else pre.levels
     r = np.broadcast_to(np.asarray(roughness, dtype=float), directions.shape[:-1])
     lo, frac = level_blend(r, pre.roughness)
     frac = frac[..., None]
     out = np.zeros(directions.shape[:-1] + (3,))
     for level in np.unique(lo):
         sel = lo == level
-        a = _bilinear(pre.levels[level], directions[sel])
-        b = _bilinear(pre.levels[level + 1], directions[sel])
+        a = _bilinear(levels[level], directions[sel])
+        b = _bilinear(levels[level + 1], directions[sel])
         out[sel] = (1 - frac[sel]) * a + frac[sel] * b
     return out
+
+
+def dominant_cosine(pre: Prefiltered, reflections, roughness, views, cos_o) -> np.ndarray:
+    """cos θ' = √((1 + v·c)/2): the half-vector cosine of the lobe's light-weighted mean direction c.
+
+    c is the direction of the prefiltered luminance × direction moment at the lookup's level
+    and direction. v·l is linear in l, so v·c is the light-weighted mean of v·l up to c's
+    normalisation; l = reflect(v, h) gives v·h = √((1 + v·l)/2). Uniform light gives c = r
+    and cos θ' = cos θo. Where the moment vanishes (black World in the lobe, or no moments)
+    the view angle is kept. Measured against Cycles (benchmarks/cycles_compare.py, mean
+    ΔE2000, split sum alone): studio soap r 0.15: 7.07 → 5.14; courtyard r 0.3: 4.11 → 3.27;
+    forest r 0.3: 2.89 → 2.67; studio soap r 0.05: 1.36 → 1.29; others unchanged (±0.01). An
+    exact per-pixel lobe with the same single colour reaches 3.81 on the studio case, with the
+    film's colour per light direction 1.51: one colour per pixel is this method's floor.
+    """
+    cos_o = np.asarray(cos_o, dtype=float)
+    if pre.moments is None:
+        return cos_o
+    m = lookup(pre, reflections, roughness, moments=True)
+    norm2 = np.sum(m * m, axis=-1)
+    ok = norm2 > 1e-30  # as tf_split_sum.glsl (float32)
+    c = m / np.sqrt(np.where(ok, norm2, 1.0))[..., None]
+    cos_p = np.sqrt(np.clip(0.5 * (1.0 + np.sum(np.asarray(views, dtype=float) * c, axis=-1)), 0.0, 1.0))
+    return np.where(ok, cos_p, cos_o)
 
 
 #: Roughness range over which shading hands over from the split sum to SH (smoothstep).
@@ -233,15 +294,20 @@ def _thickness_position(result, thickness_nm):
 
 
 def shade_split_sum(result, pre: Prefiltered, normals, views, thickness_nm=None) -> np.ndarray:
-    """Film albedo (3×3, from the l = 0 entry) × prefiltered radiance in the reflection direction."""
+    """Film albedo (3×3, from the l = 0 entry) × prefiltered radiance in the reflection direction.
+
+    The albedo is read at the half-vector angle of the lobe's light (:func:`dominant_cosine`).
+    """
     from .render import lookup as table_lookup
 
     n = np.asarray(normals, dtype=float)
     v = np.asarray(views, dtype=float)
     cos_o = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
     refl = 2.0 * cos_o[..., None] * n - v
-    radiance = lookup(pre, refl, effective_roughness(result.material.roughness, cos_o))
-    m = table_lookup(result.data, cos_o, _thickness_position(result, thickness_nm))
+    r_eff = effective_roughness(result.material.roughness, cos_o)
+    radiance = lookup(pre, refl, r_eff)
+    cos_p = dominant_cosine(pre, refl, r_eff, v, cos_o)
+    m = table_lookup(result.data, cos_p, _thickness_position(result, thickness_nm))
     m0 = np.take(m, 0, axis=-3 if result.data.ndim == 5 else -2)  # coefficient l = 0: (…, 3, 3) or (…, 3)
     albedo = m0 * math.sqrt(4.0 * math.pi)
     if albedo.ndim == radiance.ndim + 1:

@@ -681,17 +681,30 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
     assert "CONTEXT_OK" in proc.stdout, proc.stdout + proc.stderr
 
 
-@pytest.mark.parametrize("colour_mode", ["spectral", "per_channel"])
-def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode):
-    """tf_split_sum.glsl against prefilter.shade_combined on a flat quad, split/SH 50:50."""
+@pytest.mark.parametrize(
+    "colour_mode, with_moments", [("spectral", True), ("per_channel", True), ("per_channel", False)]
+)
+def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments):
+    """tf_split_sum.glsl against prefilter.shade_combined on a flat quad, split/SH 50:50.
+
+    With the direction moments the albedo is read at the lobe light's half-vector angle
+    (prefilter.dominant_cosine); without them (zeros on the GPU, None in numpy) at the view angle.
+    """
     from precompute import prefilter
 
     result = baked(5, colour_mode, False)
     table = gd.TableTexture.from_result(result)
     world, img = world_sh()
     lighting = gd.Lighting.from_sh(world, 5, result.material.roughness)
-    levels = prefilter.prefilter(img, width=64).resampled(64)
-    pre = prefilter.Prefiltered(tuple(levels), np.asarray(prefilter.ROUGHNESS_LEVELS), 0)
+    full = prefilter.prefilter(img, width=64)
+    levels = full.resampled(64)
+    moments = full.resampled_moments(64) if with_moments else None
+    pre = prefilter.Prefiltered(
+        tuple(levels),
+        np.asarray(prefilter.ROUGHNESS_LEVELS),
+        0,
+        tuple(moments) if with_moments else None,
+    )
     item = Item(
         gd.MeshBatch.from_arrays(
             np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
@@ -702,7 +715,7 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode):
         lighting,
         rotation(0, 35.0) @ rotation(2, 25.0),
     )
-    item.prefiltered = gd.PrefilterTexture.from_levels(levels)
+    item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments)
     item.roughness, item.sh_weight = result.material.roughness, 0.5
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
