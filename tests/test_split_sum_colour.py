@@ -37,7 +37,9 @@ def views_around(direction, angles_deg, rng, min_cos=0.3):
     for ang in angles_deg:
         for phi in np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False):
             a2 = axis * math.cos(phi) + np.cross(direction, axis) * math.sin(phi)
-            refl = direction * math.cos(math.radians(ang)) + np.cross(a2, direction) * math.sin(math.radians(ang))
+            refl = direction * math.cos(math.radians(ang)) + np.cross(a2, direction) * math.sin(
+                math.radians(ang)
+            )
             for _ in range(3):
                 v = unit(rng.normal(size=3))
                 n = unit(v + refl)
@@ -104,7 +106,9 @@ def test_tail_lit_soap_film_takes_the_lamps_colour_not_the_view_angles():
     s = unit(np.array([0.3, -0.5, 0.6]))
     image = lamp_world(s, 3.0, 200.0)
     pre = prefilter.prefilter(image, width=256)
-    material = Material(layers=(Layer(1.33, 500.0),), substrate=1.0, roughness=0.15, colour_mode="per_channel")
+    material = Material(
+        layers=(Layer(1.33, 500.0),), substrate=1.0, roughness=0.15, colour_mode="per_channel"
+    )
     result = bake.bake(material)
     n, v = views_around(s, np.linspace(12.0, 30.0, 7), np.random.default_rng(5))
     ref = render.shade_reference(material, image, n, v, n_theta=96, n_phi=96)
