@@ -274,7 +274,8 @@ def main(argv=None) -> int:
         "",
         "Columns: *brute force*: our physics with no real-time approximation (exact film per direction,",
         "single scattering, 48×48 GGX grid, 2×2 per pixel; noisy at roughness ≥ 0.5 under small lamps);",
-        "*split sum*: prefiltered World × the film's albedo; *SH*: the paper's path alone (auto order,",
+        "*split sum*: prefiltered World × the film's albedo at the half-vector angle of the lobe's"
+        " light-weighted mean direction; *SH*: the paper's path alone (auto order,",
         "Lanczos window widening with roughness); *combined*: what the product draws, SH weight",
         f"smoothstep over roughness {lo:g}–{hi:g}. Limit: issue 7's acceptance (≤ 2 at roughness ≤ 0.15",
         "and ≥ 0.5, ≤ 3.5 at 0.3).",
