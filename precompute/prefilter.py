@@ -226,22 +226,35 @@ def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
     return lo, np.clip((r**4 - a4) / np.maximum(b4 - a4, 1e-30), 0.0, 1.0)
 
 
+def _blend(pre: Prefiltered, directions: np.ndarray, roughness, stacks) -> list[np.ndarray]:
+    """Each of ``stacks`` (per-level images) at ``directions``, α²-matched level blend shared."""
+    r = np.broadcast_to(np.asarray(roughness, dtype=float), directions.shape[:-1])
+    lo, frac = level_blend(r, pre.roughness)
+    frac = frac[..., None]
+    outs = [np.zeros(directions.shape[:-1] + (3,)) for _ in stacks]
+    for level in np.unique(lo):
+        sel = lo == level
+        for out, levels in zip(outs, stacks, strict=True):
+            a = _bilinear(levels[level], directions[sel])
+            b = _bilinear(levels[level + 1], directions[sel])
+            out[sel] = (1 - frac[sel]) * a + frac[sel] * b
+    return outs
+
+
 def lookup(pre: Prefiltered, directions: np.ndarray, roughness, moments: bool = False) -> np.ndarray:
     """Prefiltered radiance in ``directions`` at per-pixel ``roughness`` (α²-matched level blend).
 
     ``moments=True`` reads the luminance × direction moments instead (same blend).
     """
-    levels = pre.moments if moments else pre.levels
-    r = np.broadcast_to(np.asarray(roughness, dtype=float), directions.shape[:-1])
-    lo, frac = level_blend(r, pre.roughness)
-    frac = frac[..., None]
-    out = np.zeros(directions.shape[:-1] + (3,))
-    for level in np.unique(lo):
-        sel = lo == level
-        a = _bilinear(levels[level], directions[sel])
-        b = _bilinear(levels[level + 1], directions[sel])
-        out[sel] = (1 - frac[sel]) * a + frac[sel] * b
-    return out
+    return _blend(pre, directions, roughness, [pre.moments if moments else pre.levels])[0]
+
+
+def _cosine_from_moment(moment, views, cos_o) -> np.ndarray:
+    norm2 = np.sum(moment * moment, axis=-1)
+    ok = norm2 > 1e-30  # as tf_split_sum.glsl (float32)
+    c = moment / np.sqrt(np.where(ok, norm2, 1.0))[..., None]
+    cos_p = np.sqrt(np.clip(0.5 * (1.0 + np.sum(np.asarray(views, dtype=float) * c, axis=-1)), 0.0, 1.0))
+    return np.where(ok, cos_p, cos_o)
 
 
 def dominant_cosine(pre: Prefiltered, reflections, roughness, views, cos_o) -> np.ndarray:
@@ -260,12 +273,7 @@ def dominant_cosine(pre: Prefiltered, reflections, roughness, views, cos_o) -> n
     cos_o = np.asarray(cos_o, dtype=float)
     if pre.moments is None:
         return cos_o
-    m = lookup(pre, reflections, roughness, moments=True)
-    norm2 = np.sum(m * m, axis=-1)
-    ok = norm2 > 1e-30  # as tf_split_sum.glsl (float32)
-    c = m / np.sqrt(np.where(ok, norm2, 1.0))[..., None]
-    cos_p = np.sqrt(np.clip(0.5 * (1.0 + np.sum(np.asarray(views, dtype=float) * c, axis=-1)), 0.0, 1.0))
-    return np.where(ok, cos_p, cos_o)
+    return _cosine_from_moment(lookup(pre, reflections, roughness, moments=True), views, cos_o)
 
 
 #: Roughness range over which shading hands over from the split sum to SH (smoothstep).
@@ -305,8 +313,11 @@ def shade_split_sum(result, pre: Prefiltered, normals, views, thickness_nm=None)
     cos_o = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
     refl = 2.0 * cos_o[..., None] * n - v
     r_eff = effective_roughness(result.material.roughness, cos_o)
-    radiance = lookup(pre, refl, r_eff)
-    cos_p = dominant_cosine(pre, refl, r_eff, v, cos_o)
+    if pre.moments is None:
+        radiance, cos_p = lookup(pre, refl, r_eff), cos_o
+    else:  # dominant_cosine, sharing the level blend with the radiance
+        radiance, moment = _blend(pre, refl, r_eff, [pre.levels, pre.moments])
+        cos_p = _cosine_from_moment(moment, v, cos_o)
     m = table_lookup(result.data, cos_p, _thickness_position(result, thickness_nm))
     m0 = np.take(m, 0, axis=-3 if result.data.ndim == 5 else -2)  # coefficient l = 0: (…, 3, 3) or (…, 3)
     albedo = m0 * math.sqrt(4.0 * math.pi)
