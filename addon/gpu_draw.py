@@ -240,6 +240,8 @@ class Variant(NamedTuple):
     display: bool
     split_sum: bool = False
     table_ubo: bool = False
+    #: Split sum alone (``sh_weight`` = 0, glossy films): the SH half is compiled out.
+    split_only: bool = False
 
 
 def declare_shading_resources(info, variant: Variant) -> None:
@@ -257,6 +259,8 @@ def declare_shading_resources(info, variant: Variant) -> None:
     if variant.split_sum:
         info.define("TF_SPLIT_SUM", "1")
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_3D", "tf_prefiltered")
+        if variant.split_only:
+            info.define("TF_SPLIT_ONLY", "1")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
     if variant.table_ubo:
@@ -340,10 +344,17 @@ class ShaderCache:
         display: bool,
         split_sum: bool = False,
         table_ubo: bool = False,
+        split_only: bool = False,
     ):
         """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
         variant = Variant(
-            int(l_max), bool(spectral), bool(vary_thickness), bool(display), bool(split_sum), bool(table_ubo)
+            int(l_max),
+            bool(spectral),
+            bool(vary_thickness),
+            bool(display),
+            bool(split_sum),
+            bool(table_ubo),
+            bool(split_sum and split_only),
         )
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
@@ -890,7 +901,10 @@ def prepare_draw(
         )
         table_ubo = getattr(table, "ubo", None)
         table_data = table.texture if table_ubo is None else table_ubo
-        variant = (table.l_max, table.spectral, vary, display_srgb, split, table_ubo is not None)
+        # sh_weight 0 (glossy films): a variant without the SH half. A run-time branch on the
+        # weight did not save it on llvmpipe (split only cost as much as split + SH).
+        split_only = split and sh_weight <= 0.0
+        variant = (table.l_max, table.spectral, vary, display_srgb, split, table_ubo is not None, split_only)
         key = (variant, id(item.lighting.ubo), id(table_data), id(prefiltered.texture) if split else None)
         group = groups.get(key)
         if group is None:

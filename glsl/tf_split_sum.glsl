@@ -67,7 +67,8 @@ vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
   return tf_shade_split_sum_at(f, tf_table_lerp(f.cos_o, f.sin_o, thickness01), n, v, roughness);
 }
 
-/* sh_weight = prefilter.sh_weight(roughness): 0 → split sum only (the SH rotation is skipped).
+/* sh_weight = prefilter.sh_weight(roughness): 0 → split sum only; the TF_SPLIT_ONLY variant
+ * (gpu_draw.prepare_draw picks it for sh_weight 0) compiles the SH half out.
  * The frame and the table position are computed once for both halves. */
 vec3 tf_shade_combined(vec3 n, vec3 v, float thickness01, float roughness, float sh_weight)
 {
@@ -77,8 +78,10 @@ vec3 tf_shade_combined(vec3 n, vec3 v, float thickness01, float roughness, float
   if (sh_weight < 1.0) {
     rgb += (1.0 - sh_weight) * tf_shade_split_sum_at(f, r, n, v, roughness);
   }
+#ifndef TF_SPLIT_ONLY
   if (sh_weight > 0.0) {
     rgb += sh_weight * tf_shade_at(f, r);
   }
+#endif
   return rgb;
 }

@@ -682,13 +682,16 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "colour_mode, with_moments", [("spectral", True), ("per_channel", True), ("per_channel", False)]
+    "colour_mode, with_moments, weight",
+    [("spectral", True, 0.5), ("per_channel", True, 0.5), ("per_channel", False, 0.5), ("spectral", True, 0.0)],
 )
-def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments):
+def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments, weight):
     """tf_split_sum.glsl against prefilter.shade_combined on a flat quad, split/SH 50:50.
 
     With the direction moments the albedo is read at the lobe light's half-vector angle
     (prefilter.dominant_cosine); without them (zeros on the GPU, None in numpy) at the view angle.
+    SH weight 0 draws the split-only variant (TF_SPLIT_ONLY: no SH half), which must give the
+    split sum alone.
     """
     from precompute import prefilter
 
@@ -716,7 +719,9 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
         rotation(0, 35.0) @ rotation(2, 25.0),
     )
     item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments)
-    item.roughness, item.sh_weight = result.material.roughness, 0.5
+    item.roughness, item.sh_weight = result.material.roughness, weight
+    (group,) = gd.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    assert group.variant[4] and group.variant[6] == (weight == 0.0), group.variant
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
@@ -730,7 +735,7 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     views = unit(cam - hit[inside])
     n = np.broadcast_to(normal, views.shape)
     n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
-    expected = 0.5 * prefilter.shade_split_sum(result, pre, n, views) + 0.5 * render.shade_sh(
+    expected = (1.0 - weight) * prefilter.shade_split_sum(result, pre, n, views) + weight * render.shade_sh(
         result, lighting.coefficients, n, views
     )
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
