@@ -683,7 +683,12 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
 
 @pytest.mark.parametrize(
     "colour_mode, with_moments, weight",
-    [("spectral", True, 0.5), ("per_channel", True, 0.5), ("per_channel", False, 0.5), ("spectral", True, 0.0)],
+    [
+        ("spectral", True, 0.5),
+        ("per_channel", True, 0.5),
+        ("per_channel", False, 0.5),
+        ("spectral", True, 0.0),
+    ],
 )
 def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments, weight):
     """tf_split_sum.glsl against prefilter.shade_combined on a flat quad, split/SH 50:50.
