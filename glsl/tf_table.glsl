@@ -76,11 +76,11 @@ TFLerp tf_table_lerp(float cos_o, float sin_o, float thickness01)
   r.w = vec2(0.0);
   /* theta = acos(clip(cos_o, 0, 1)) */
   r = tf_table_at_theta(r, (cos_o > 0.0) ? atan(max(sin_o, 0.0), cos_o) : TF_HALF_PI);
-  ivec3 size = tf_table_size();
-  float w;
-  int i0, i1;
 #ifdef TF_VARY_THICKNESS
+  ivec3 size = tf_table_size();
   if (size.y > 1) {
+    float w;
+    int i0, i1;
     tf_lerp_index(thickness01 * float(size.y - 1), size.y, i0, i1, w);
     r.i0.y = i0;
     r.i1.y = i1;

@@ -11,18 +11,16 @@ import os
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
+from _extension import EXTENSION_ID, REPO, linked_extension
 
 from precompute import bake, render, sh
 from precompute.material import Layer, Material, Quality
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parent.parent
-EXTENSION_ID = "thinfilm_sh"
 THICKNESS_RANGE = (200.0, 800.0)
 
 
@@ -32,17 +30,10 @@ THICKNESS_RANGE = (200.0, 800.0)
 @pytest.fixture(scope="module")
 def gd(bpy, tmp_path_factory):
     """``addon.gpu_draw`` imported inside the package ``thinfilm_sh`` (relative imports work)."""
-    root = tmp_path_factory.mktemp("ext")
-    os.symlink(REPO, root / EXTENSION_ID, target_is_directory=True)
-    sys.path.insert(0, str(root))
-    try:
+    with linked_extension(tmp_path_factory.mktemp("ext"), unregister=False):
         module = importlib.import_module(f"{EXTENSION_ID}.addon.gpu_draw")
         module.ensure_gpu_context()
         yield module
-    finally:
-        sys.path.remove(str(root))
-        for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
-            del sys.modules[name]
 
 
 _BAKES = {}
