@@ -166,6 +166,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
 
     def draw_settings(self, context, layout, mat, settings):
         layout.prop(settings, "roughness")
+        layout.label(text=materials.shading_path(settings.roughness), icon="INFO")
         row = layout.row(heading="Diffuse Base")
         row.prop(settings, "diffuse_base", text="")
         sub = row.row()
