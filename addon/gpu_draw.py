@@ -20,10 +20,12 @@ GPU resources
     in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
     the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
     ``texelFetch``.
-``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 9072 bytes:
-    ``vec4 sh[81]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
-    ``vec4 rx[486]``: the band blocks of the SH rotation for Rx(+90°), l = 0…8, each row-major,
-    band l at scalar offset l(2l−1)(2l+1)/3 (969 scalars, padded to 972), then those of Rx(−90°).
+``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14416 bytes:
+    ``vec4 sh[169]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
+    ``vec4 rx[732]``: the band blocks of the SH rotation for Rx(+90°), l = 0…12, each row-major,
+    band l at scalar offset l(2l−1)(2l+1)/3 (2925 scalars, padded to 2928). Rx(−90°) is their
+    transpose (a rotation's inverse), read with the indices swapped: one set fits l ≤ 12 in the
+    16 KiB every backend guarantees (both sets needed 26 KiB).
 ``tf_view`` (UBO slot 1): view-projection and its inverse (columns), camera position (w = 1 for
     orthographic), the direction towards the viewer, and ``params.x`` = 2^exposure.
 ``tf_object`` (UBO slot 2): model matrix and normal matrix (inverse transpose), as columns.
@@ -50,13 +52,13 @@ from ..precompute import render
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 
 #: Highest SH order the shaders support (the UBO always has room for it).
-MAX_L = 8
+MAX_L = 12
 #: World SH coefficients in the lighting UBO: (MAX_L + 1)².
 SH_SLOTS = (MAX_L + 1) ** 2
 #: Scalars of one set of x-rotation band blocks for l = 0…MAX_L, and with padding to a vec4.
 RX_SCALARS = sum((2 * l + 1) ** 2 for l in range(MAX_L + 1))
 RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
-LIGHTING_VEC4 = SH_SLOTS + 2 * RX_PADDED // 4
+LIGHTING_VEC4 = SH_SLOTS + RX_PADDED // 4
 #: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
 UBO_LIMIT_BYTES = 16384
 #: Table texels (layers × T × A) that fit the table UBO next to its size header.
@@ -68,7 +70,7 @@ LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_ta
 TYPEDEFS = f"""
 struct TFLighting {{
   vec4 sh[{SH_SLOTS}];
-  vec4 rx[{2 * RX_PADDED // 4}];
+  vec4 rx[{RX_PADDED // 4}];
 }};
 struct TFView {{
   vec4 view_proj[4];
@@ -187,18 +189,19 @@ def x90_source(l_max: int) -> str:
     are read from the lighting UBO at constant offsets, so the maths is the dense band product
     of ``render.apply_bands`` minus exact zeros. Constant indices let the compiler keep the
     coefficients in registers: 3–5× faster than the loops of tf_sh_rotate.glsl on llvmpipe.
+    X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at j·size + i).
     """
     lines = ["/* ---- generated: addon/gpu_draw.py x90_source ---- */"]
-    for sign, name, base in ((+1, "tf_apply_x90_pos", 0), (-1, "tf_apply_x90_neg", RX_PADDED)):
+    for sign, name in ((+1, "tf_apply_x90_pos"), (-1, "tf_apply_x90_neg")):
         lines += [f"void {name}()", "{"]
         bands = render.x_rotation_bands(MAX_L, sign)
         for l in range(1, int(l_max) + 1):
             block = np.asarray(bands[l])
-            first, size, off = l * l, 2 * l + 1, base + rx_offset(l)
+            first, size, off = l * l, 2 * l + 1, rx_offset(l)
             lines.append(f"  {{ /* band {l} */")
             for i in range(size):
                 terms = [
-                    f"tf_rx({off + i * size + j}) * tf_c[{first + j}]"
+                    f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * tf_c[{first + j}]"
                     for j in range(size)
                     if abs(block[i, j]) > X90_ZERO
                 ]
@@ -217,13 +220,12 @@ def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
     (``tf_local_coefficients_direct``). False: the generic z-y-z loops of tf_sh_rotate.glsl at
     every order, the readable reference (same results, slower).
     """
-    head = f"#define TF_RX_NEG {RX_PADDED}\n"
     if not generated_x90:
-        return head + join_chunks(*LIBRARY_CHUNKS)
+        return join_chunks(*LIBRARY_CHUNKS)
     split = LIBRARY_CHUNKS.index("tf_sh_rotate.glsl") + 1
     return "\n".join(
         [
-            head + "#define TF_X90_GENERATED 1",
+            "#define TF_X90_GENERATED 1",
             join_chunks(*LIBRARY_CHUNKS[:split]),
             x90_source(l_max),
             join_chunks(*LIBRARY_CHUNKS[split:]),
@@ -455,14 +457,13 @@ class TableTexture:
 
 @functools.cache
 def x_rotation_scalars() -> np.ndarray:
-    """The Rx(+90°) then Rx(−90°) band blocks, l = 0…MAX_L, row-major, each set padded to a vec4."""
-    out = np.zeros(2 * RX_PADDED, dtype=np.float64)
-    for s, sign in enumerate((+1, -1)):
-        flat = np.concatenate(
-            [np.asarray(b, dtype=np.float64).ravel() for b in render.x_rotation_bands(MAX_L, sign)]
-        )
-        assert flat.size == RX_SCALARS
-        out[s * RX_PADDED : s * RX_PADDED + RX_SCALARS] = flat
+    """The Rx(+90°) band blocks, l = 0…MAX_L, row-major, padded to a vec4 (Rx(−90°) = transpose)."""
+    out = np.zeros(RX_PADDED, dtype=np.float64)
+    flat = np.concatenate(
+        [np.asarray(b, dtype=np.float64).ravel() for b in render.x_rotation_bands(MAX_L, +1)]
+    )
+    assert flat.size == RX_SCALARS
+    out[:RX_SCALARS] = flat
     out.setflags(write=False)
     return out
 
@@ -483,7 +484,7 @@ class Lighting:
 
     @staticmethod
     def pack(coefficients) -> np.ndarray:
-        """UBO content (LIGHTING_VEC4 × 4 float32) for windowed coefficients (≤ 81, 3)."""
+        """UBO content (LIGHTING_VEC4 × 4 float32) for windowed coefficients (≤ SH_SLOTS, 3)."""
         c = np.asarray(coefficients, dtype=np.float64)
         sh_part = np.zeros((SH_SLOTS, 4), dtype=np.float64)
         sh_part[: c.shape[0], :3] = c[:, :3]

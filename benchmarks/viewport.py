@@ -65,10 +65,10 @@ TRIANGLES = (10_000, 100_000, 1_000_000, 2_000_000)
 CELLS_4K = ((10, 10_000), (10, 2_000_000))
 #: SH order n means bands l ≤ n − 1; the headline is order 3.
 HEADLINE_L = 2
-SWEEP_L = tuple(range(1, 9))
+SWEEP_L = (*range(1, 9), 10, 12)
 #: The scene of the order sweep and of the split-sum comparison: (objects, triangles).
 SWEEP_SCENE = (10, 100_000)
-SPLIT_SUM_L = (2, 5, 8)
+SPLIT_SUM_L = (2, 5, 8, 12)
 #: Frames of the Python-time part (per scene, after 3 warm-up frames).
 PYTHON_FRAMES = 25
 #: Acceptance: ours ≤ 2× Workbench at order 3, 1080p.

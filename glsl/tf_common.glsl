@@ -4,12 +4,11 @@
  * tangent threshold of view_aligned_frame) and render.srgb_encode.
  *
  * Variant defines (set from Python through GPUShaderCreateInfo.define):
- *   TF_L_MAX           SH order of the baked table, 0..8
+ *   TF_L_MAX           SH order of the baked table, 0..12
  *   TF_SPECTRAL        3x3 colour matrix per coefficient (else one RGB triple, per channel)
  *   TF_VARY_THICKNESS  thickness from the per-vertex attribute `thickness` in [0, 1]
  *   TF_DISPLAY_SRGB    output display-encoded (exposure, clamp, sRGB OETF), else scene-linear
  * Set at the top of the joined library by gpu_draw.shading_library:
- *   TF_RX_NEG          scalar offset of the X(-90) blocks in the lighting UBO
  *   TF_X90_GENERATED   the X(+-90) products come as generated straight-line code
  */
 

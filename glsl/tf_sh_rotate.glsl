@@ -10,16 +10,16 @@
  * keep tf_c in registers only when no index is computed at run time.
  *
  * X(+-90) are constant band blocks read from the lighting UBO (addon/gpu_draw.py Lighting):
- *   tf_lighting.sh[81]  world radiance coefficient i = l(l+1)+m in .rgb (windowed)
- *   tf_lighting.rx[486] the blocks of X(+90) for l = 0..8, row-major, band l at scalar offset
- *                       l(2l-1)(2l+1)/3, then those of X(-90) from scalar TF_RX_NEG.
+ *   tf_lighting.sh[169] world radiance coefficient i = l(l+1)+m in .rgb (windowed)
+ *   tf_lighting.rx[732] the blocks of X(+90) for l = 0..12, row-major, band l at scalar offset
+ *                       l(2l-1)(2l+1)/3; X(-90) is their transpose (indices swapped).
  * tf_apply_x90_pos / _neg are normally generated in Python (TF_X90_GENERATED, gpu_draw.py
- * x90_source): straight-line code over the 247 structurally non-zero entries of the 969 (the
+ * x90_source): straight-line code over the structurally non-zero entries (247 of 969 for l <= 8; the
  * values still come from the UBO). The generic loops below are the readable equivalent, used
  * when the generated code is switched off; the tests compare both with numpy.
  * For TF_L_MAX <= 2 the fast library (TF_X90_GENERATED) uses tf_local_coefficients_direct (end
  * of this file) instead: the same rotation from the frame rows, without angles.
- * Needs: TF_L_MAX, TF_K_FULL, TF_BAND_MAX (tf_common.glsl), TF_RX_NEG (gpu_draw.py).
+ * Needs: TF_L_MAX, TF_K_FULL, TF_BAND_MAX (tf_common.glsl).
  */
 
 /* Coefficients being rotated (file scope: arrays are not passed to functions). */
@@ -108,24 +108,78 @@ void tf_rotate_z(vec2 cs)
   tf_zpair(79, 65, c7);
   tf_zpair(80, 64, c8);
 #endif
+#if TF_L_MAX >= 9
+  vec2 c9 = tf_cmul(c8, cs);
+  tf_zpair(91, 89, c1);
+  tf_zpair(92, 88, c2);
+  tf_zpair(93, 87, c3);
+  tf_zpair(94, 86, c4);
+  tf_zpair(95, 85, c5);
+  tf_zpair(96, 84, c6);
+  tf_zpair(97, 83, c7);
+  tf_zpair(98, 82, c8);
+  tf_zpair(99, 81, c9);
+#endif
+#if TF_L_MAX >= 10
+  vec2 c10 = tf_cmul(c9, cs);
+  tf_zpair(111, 109, c1);
+  tf_zpair(112, 108, c2);
+  tf_zpair(113, 107, c3);
+  tf_zpair(114, 106, c4);
+  tf_zpair(115, 105, c5);
+  tf_zpair(116, 104, c6);
+  tf_zpair(117, 103, c7);
+  tf_zpair(118, 102, c8);
+  tf_zpair(119, 101, c9);
+  tf_zpair(120, 100, c10);
+#endif
+#if TF_L_MAX >= 11
+  vec2 c11 = tf_cmul(c10, cs);
+  tf_zpair(133, 131, c1);
+  tf_zpair(134, 130, c2);
+  tf_zpair(135, 129, c3);
+  tf_zpair(136, 128, c4);
+  tf_zpair(137, 127, c5);
+  tf_zpair(138, 126, c6);
+  tf_zpair(139, 125, c7);
+  tf_zpair(140, 124, c8);
+  tf_zpair(141, 123, c9);
+  tf_zpair(142, 122, c10);
+  tf_zpair(143, 121, c11);
+#endif
+#if TF_L_MAX >= 12
+  vec2 c12 = tf_cmul(c11, cs);
+  tf_zpair(157, 155, c1);
+  tf_zpair(158, 154, c2);
+  tf_zpair(159, 153, c3);
+  tf_zpair(160, 152, c4);
+  tf_zpair(161, 151, c5);
+  tf_zpair(162, 150, c6);
+  tf_zpair(163, 149, c7);
+  tf_zpair(164, 148, c8);
+  tf_zpair(165, 147, c9);
+  tf_zpair(166, 146, c10);
+  tf_zpair(167, 145, c11);
+  tf_zpair(168, 144, c12);
+#endif
 }
 
 void tf_apply_x90_pos();
 void tf_apply_x90_neg();
 
 #ifndef TF_X90_GENERATED
-/* Dense band-by-band product with the X(+90) (base 0) or X(-90) (base TF_RX_NEG) blocks. */
-void tf_apply_x90(int base)
+/* Dense band-by-band product with the X(+90) blocks, or (transpose) with X(-90) = X(+90)^T. */
+void tf_apply_x90(bool transpose)
 {
   vec3 tmp[TF_BAND_MAX];
   for (int l = 1; l <= TF_L_MAX; l++) {
     int size = 2 * l + 1;
     int first = l * l;
-    int off = base + l * (2 * l - 1) * (2 * l + 1) / 3;
+    int off = l * (2 * l - 1) * (2 * l + 1) / 3;
     for (int i = 0; i < size; i++) {
       vec3 acc = vec3(0.0);
       for (int j = 0; j < size; j++) {
-        acc += tf_rx(off + i * size + j) * tf_c[first + j];
+        acc += tf_rx(off + (transpose ? j * size + i : i * size + j)) * tf_c[first + j];
       }
       tmp[i] = acc;
     }
@@ -137,12 +191,12 @@ void tf_apply_x90(int base)
 
 void tf_apply_x90_pos()
 {
-  tf_apply_x90(0);
+  tf_apply_x90(false);
 }
 
 void tf_apply_x90_neg()
 {
-  tf_apply_x90(TF_RX_NEG);
+  tf_apply_x90(true);
 }
 #endif
 
@@ -186,6 +240,28 @@ void tf_load_world()
   tf_load(64); tf_load(65); tf_load(66); tf_load(67); tf_load(68); tf_load(69); tf_load(70);
   tf_load(71); tf_load(72); tf_load(73); tf_load(74); tf_load(75); tf_load(76); tf_load(77);
   tf_load(78); tf_load(79); tf_load(80);
+#endif
+#if TF_L_MAX >= 9
+  tf_load(81); tf_load(82); tf_load(83); tf_load(84); tf_load(85); tf_load(86); tf_load(87);
+  tf_load(88); tf_load(89); tf_load(90); tf_load(91); tf_load(92); tf_load(93); tf_load(94);
+  tf_load(95); tf_load(96); tf_load(97); tf_load(98); tf_load(99);
+#endif
+#if TF_L_MAX >= 10
+  tf_load(100); tf_load(101); tf_load(102); tf_load(103); tf_load(104); tf_load(105); tf_load(106);
+  tf_load(107); tf_load(108); tf_load(109); tf_load(110); tf_load(111); tf_load(112); tf_load(113);
+  tf_load(114); tf_load(115); tf_load(116); tf_load(117); tf_load(118); tf_load(119); tf_load(120);
+#endif
+#if TF_L_MAX >= 11
+  tf_load(121); tf_load(122); tf_load(123); tf_load(124); tf_load(125); tf_load(126); tf_load(127);
+  tf_load(128); tf_load(129); tf_load(130); tf_load(131); tf_load(132); tf_load(133); tf_load(134);
+  tf_load(135); tf_load(136); tf_load(137); tf_load(138); tf_load(139); tf_load(140); tf_load(141);
+  tf_load(142); tf_load(143);
+#endif
+#if TF_L_MAX >= 12
+  tf_load(144); tf_load(145); tf_load(146); tf_load(147); tf_load(148); tf_load(149); tf_load(150);
+  tf_load(151); tf_load(152); tf_load(153); tf_load(154); tf_load(155); tf_load(156); tf_load(157);
+  tf_load(158); tf_load(159); tf_load(160); tf_load(161); tf_load(162); tf_load(163); tf_load(164);
+  tf_load(165); tf_load(166); tf_load(167); tf_load(168);
 #endif
 }
 

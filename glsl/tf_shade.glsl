@@ -103,6 +103,60 @@ vec3 tf_shade_at(TFFrame f, TFLerp r)
   tf_accumulate(sum, r, 43, 79);
   tf_accumulate(sum, r, 44, 80);
 #endif
+#if TF_L_MAX >= 9
+  tf_accumulate(sum, r, 45, 90);
+  tf_accumulate(sum, r, 46, 91);
+  tf_accumulate(sum, r, 47, 92);
+  tf_accumulate(sum, r, 48, 93);
+  tf_accumulate(sum, r, 49, 94);
+  tf_accumulate(sum, r, 50, 95);
+  tf_accumulate(sum, r, 51, 96);
+  tf_accumulate(sum, r, 52, 97);
+  tf_accumulate(sum, r, 53, 98);
+  tf_accumulate(sum, r, 54, 99);
+#endif
+#if TF_L_MAX >= 10
+  tf_accumulate(sum, r, 55, 110);
+  tf_accumulate(sum, r, 56, 111);
+  tf_accumulate(sum, r, 57, 112);
+  tf_accumulate(sum, r, 58, 113);
+  tf_accumulate(sum, r, 59, 114);
+  tf_accumulate(sum, r, 60, 115);
+  tf_accumulate(sum, r, 61, 116);
+  tf_accumulate(sum, r, 62, 117);
+  tf_accumulate(sum, r, 63, 118);
+  tf_accumulate(sum, r, 64, 119);
+  tf_accumulate(sum, r, 65, 120);
+#endif
+#if TF_L_MAX >= 11
+  tf_accumulate(sum, r, 66, 132);
+  tf_accumulate(sum, r, 67, 133);
+  tf_accumulate(sum, r, 68, 134);
+  tf_accumulate(sum, r, 69, 135);
+  tf_accumulate(sum, r, 70, 136);
+  tf_accumulate(sum, r, 71, 137);
+  tf_accumulate(sum, r, 72, 138);
+  tf_accumulate(sum, r, 73, 139);
+  tf_accumulate(sum, r, 74, 140);
+  tf_accumulate(sum, r, 75, 141);
+  tf_accumulate(sum, r, 76, 142);
+  tf_accumulate(sum, r, 77, 143);
+#endif
+#if TF_L_MAX >= 12
+  tf_accumulate(sum, r, 78, 156);
+  tf_accumulate(sum, r, 79, 157);
+  tf_accumulate(sum, r, 80, 158);
+  tf_accumulate(sum, r, 81, 159);
+  tf_accumulate(sum, r, 82, 160);
+  tf_accumulate(sum, r, 83, 161);
+  tf_accumulate(sum, r, 84, 162);
+  tf_accumulate(sum, r, 85, 163);
+  tf_accumulate(sum, r, 86, 164);
+  tf_accumulate(sum, r, 87, 165);
+  tf_accumulate(sum, r, 88, 166);
+  tf_accumulate(sum, r, 89, 167);
+  tf_accumulate(sum, r, 90, 168);
+#endif
   return max(sum, vec3(0.0));
 }
 

@@ -62,7 +62,7 @@ EFFECTS = (
 )
 
 #: Highest SH order a table or the World can have (the shaders' MAX_L).
-MAX_ORDER = 8
+MAX_ORDER = 12
 #: The World's SH order is the smallest l whose band-energy tail Σ_{l' > l} |c_l'|² is below
 #: this fraction of the total energy (see :func:`world_content_order`).
 WORLD_TAIL = 0.01
@@ -529,9 +529,9 @@ def world_tails(coeffs) -> np.ndarray:
 
 
 def world_content_order(coeffs, tail: float = WORLD_TAIL) -> tuple[int, float]:
-    """(L, tail fraction above L): the smallest L ≤ 8 with Σ_{l > L} E_l < ``tail`` · Σ_l E_l.
+    """(L, tail fraction above L): the smallest L ≤ MAX_ORDER with Σ_{l > L} E_l < ``tail`` · Σ_l E_l.
 
-    E_l are the World's unwindowed band energies (all coefficients given, usually up to l = 8);
+    E_l are the World's unwindowed band energies (all coefficients given, usually up to MAX_ORDER);
     energy above the highest given band is unknown and not counted, so a World that still has
     ≥ ``tail`` of its energy in its top band gets that band. A black World needs L = 0.
     """

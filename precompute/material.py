@@ -28,7 +28,7 @@ COLOUR_MODES = ("spectral", "per_channel")
 #: "cycles" — the film-free dielectric F_avg, as Cycles' Multiscatter GGX does for a Principled
 #: thin film (for interop parity).
 MULTISCATTER = ("none", "film", "cycles")
-MAX_SH_ORDER = 8
+MAX_SH_ORDER = 12
 
 
 def _index_model(name: str, spec):

@@ -219,7 +219,7 @@ def test_sh_order_follows_roughness_and_sets_the_variant():
     rough = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.9)
     smooth = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)
     mr, ms = effects.material_plan(rough), effects.material_plan(smooth)
-    assert mr.plan.sh_order < ms.plan.sh_order == 8
+    assert mr.plan.sh_order < ms.plan.sh_order == effects.MAX_ORDER
     assert "roughness 0.9" in mr.reasons["sh_order"]
     assert dict(mr.shader.defines)["TF_L_MAX"] == str(mr.plan.sh_order)
     assert mr.shader.multiply_adds < ms.shader.multiply_adds
@@ -275,7 +275,7 @@ def test_every_choice_has_a_reason_and_the_text_shows_them():
         "thickness_axis on",
         "stack off",
         "float32",
-        "SH order 8",
+        f"SH order {effects.MAX_ORDER}",
         "bake ≈",
         "multiply-adds",
         "why:",
@@ -330,8 +330,8 @@ def test_world_order_follows_its_content_but_never_drops_below_the_materials():
     assert (sp.world_content_order, sp.world_order) == (1, 2)  # the material needs 2
     sp = effects.scene_plan({"low": low}, world_coeffs=detailed_world)
     assert sp.world_order == 8 and "World SH order 8" in sp.reasons["world"]
-    high = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)
-    assert effects.scene_plan({"high": high}, world_coeffs=smooth_world).world_order == 8
+    high = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)  # needs the cap
+    assert effects.scene_plan({"high": high}, world_coeffs=smooth_world).world_order == effects.MAX_ORDER
 
 
 # ----------------------------------------------------------------------------------------------

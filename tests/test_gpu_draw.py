@@ -45,7 +45,7 @@ def baked(l_max: int, colour_mode: str, varies: bool) -> bake.BakeResult:
         material = Material(
             layers=(Layer(1.33, 380.0),),
             substrate=1.5,
-            roughness={2: 0.55, 5: 0.3, 8: 0.15}[l_max],
+            roughness={2: 0.55, 5: 0.3, 8: 0.15, 12: 0.5}[l_max],
             thickness_range_nm=THICKNESS_RANGE if varies else None,
             colour_mode=colour_mode,
             quality=Quality(
@@ -59,7 +59,7 @@ def baked(l_max: int, colour_mode: str, varies: bool) -> bake.BakeResult:
     return _BAKES[key]
 
 
-def world_sh(l_max: int = 8, seed: int = 3) -> np.ndarray:
+def world_sh(l_max: int = 12, seed: int = 3) -> np.ndarray:
     """A bright, mostly positive environment: a sky-like gradient plus a soft sun, projected."""
     h, w = 32, 64
     el = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
@@ -195,7 +195,7 @@ AGREEMENT = {}
 # ----------------------------------------------------------------------------------------------
 # GLSL chunks against numpy
 # ----------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("l_max", [2, 5, 8])
+@pytest.mark.parametrize("l_max", [2, 5, 8, 12])
 @pytest.mark.parametrize("colour_mode", ["spectral", "per_channel"])
 @pytest.mark.parametrize("thickness", ["constant", "varying", "varying_table_first_row"])
 def test_glsl_shading_matches_numpy_shade_sh(gd, l_max, colour_mode, thickness):
@@ -204,7 +204,12 @@ def test_glsl_shading_matches_numpy_shade_sh(gd, l_max, colour_mode, thickness):
 
 @pytest.mark.parametrize(
     "l_max, colour_mode, thickness",
-    [(2, "per_channel", "constant"), (5, "spectral", "varying"), (8, "spectral", "constant")],
+    [
+        (2, "per_channel", "constant"),
+        (5, "spectral", "varying"),
+        (8, "spectral", "constant"),
+        (12, "per_channel", "constant"),
+    ],
 )
 def test_glsl_loop_rotation_matches_numpy_shade_sh(gd, l_max, colour_mode, thickness):
     """The generic X(±90°) loops of tf_sh_rotate.glsl (the generated code switched off)."""
@@ -265,12 +270,14 @@ def test_table_layers_and_lighting_layout(gd):
     assert np.allclose(lighting.coefficients, world[:36] * window[:, None])
     packed = gd.Lighting.pack(lighting.coefficients).reshape(-1, 4)
     assert packed.nbytes == gd.LIGHTING_VEC4 * 16 <= gd.UBO_LIMIT_BYTES
-    assert np.allclose(packed[:36, :3], lighting.coefficients) and np.all(packed[36:81] == 0)
-    rx = packed[81:].ravel()
-    for sign, base in ((+1, 0), (-1, gd.RX_PADDED)):
-        for l, block in enumerate(render.x_rotation_bands(8, sign)):
-            off = base + gd.rx_offset(l)
-            assert np.allclose(rx[off : off + block.size].reshape(block.shape), block, atol=1e-7)
+    slots = gd.SH_SLOTS
+    assert np.allclose(packed[:36, :3], lighting.coefficients) and np.all(packed[36:slots] == 0)
+    rx = packed[slots:].ravel()
+    # One set: X(+90°) row-major; X(−90°) is read as its transpose.
+    for sign in (+1, -1):
+        for l, block in enumerate(render.x_rotation_bands(gd.MAX_L, sign)):
+            stored = rx[gd.rx_offset(l) : gd.rx_offset(l) + block.size].reshape(block.shape)
+            assert np.allclose(stored if sign > 0 else stored.T, block, atol=1e-7)
     # The generated X(±90°) code multiplies exactly the structurally non-zero entries.
     nonzero = sum(
         int(np.sum(np.abs(b) > gd.X90_ZERO)) for s in (1, -1) for b in render.x_rotation_bands(8, s)[1:]
@@ -580,7 +587,7 @@ def test_shader_cache_compiles_each_variant_once(gd):
     cache.background(False)
     assert cache.compile_count == 6 == len(cache)
     with pytest.raises(ValueError):
-        cache.get(9, True, False, False)
+        cache.get(gd.MAX_L + 1, True, False, False)
 
 
 # ----------------------------------------------------------------------------------------------
