@@ -19,7 +19,7 @@ from bpy.props import (
 )
 from bpy.types import PropertyGroup
 
-from ..precompute.material import PRESETS
+from ..precompute.material import MAX_SH_ORDER, PRESETS
 from ..precompute.optics.metals import available_metals
 from . import materials
 
@@ -71,7 +71,7 @@ ILLUMINANT_ITEMS = [
 ] + [(f"FL{i}", f"FL{i}", f"CIE fluorescent lamp FL{i} (line spectrum)") for i in range(1, 13)]
 
 SH_ORDER_ITEMS = [("AUTO", "Auto", "Smallest band that holds the specular lobe")] + [
-    (str(l), str(l), f"Spherical harmonics up to band {l}") for l in range(9)
+    (str(l), str(l), f"Spherical harmonics up to band {l}") for l in range(MAX_SH_ORDER + 1)
 ]
 
 

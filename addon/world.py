@@ -50,7 +50,7 @@ import bpy
 import numpy as np
 from mathutils import Euler
 
-from ..precompute import hdri, sh, table_io
+from ..precompute import effects, hdri, sh, table_io
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
@@ -71,7 +71,7 @@ __all__ = [
 KEY_VERSION = 1
 
 #: Images wider than this are downsampled (solid-angle-correct, :func:`hdri.downsample`) before
-#: projection. 1024 px across 2π resolves bands far beyond the l ≤ 8 the preview uses.
+#: projection. 1024 px across 2π resolves bands far beyond the l ≤ 12 the preview uses.
 MAX_PROJECTION_WIDTH = 1024
 
 #: Panorama fallback: resolution (width; height = width/2) and Cycles samples per pixel.
@@ -805,7 +805,7 @@ def _compute(scene, l_max: int, space: str):
         return _panorama(world, l_max, str(why))
 
 
-def world_sh(scene, l_max: int = 8, *, cache=None) -> WorldSH:
+def world_sh(scene, l_max: int = effects.MAX_ORDER, *, cache=None) -> WorldSH:
     """Spherical-harmonic radiance of ``scene``'s World, in world space and scene linear.
 
     Parameters

@@ -278,13 +278,15 @@ def dominant_cosine(pre: Prefiltered, reflections, roughness, views, cos_o) -> n
 
 #: Roughness range over which shading hands over from the split sum to SH (smoothstep).
 #: Measured against Cycles (mean ΔE2000, 64 px sphere, per-channel mode, 4×4 supersampled;
-#: benchmarks/cycles_compare.py cases), SH weight 0 / 0.1 / 0.2 / 0.5 / 0.8 / 0.9 / 1:
-#: r 0.3 courtyard 4.11 / 3.85 / 3.86 / 4.83 / 6.59 / 7.24 / 7.91, forest 2.89 / 2.46 / 2.29 /
-#: 2.96 / 4.52 / 5.10 / 5.69; r 0.5 courtyard 7.48 / 6.66 / 5.91 / 4.27 / 3.54 / 3.54 / 3.74,
-#: forest 4.09 / 3.68 / 3.33 / 2.53 / 2.17 / 2.20 / 2.35; r 0.6 studio 12.6 / 11.1 / 9.7 / 6.4 /
-#: 4.2 / 4.0 / 4.3. Below 0.2 the split sum alone is best (SH: 10–37 at r ≤ 0.15).
-#: Smoothstep over 0.2–0.6 gives 0.16 at r 0.3 and 0.84 at r 0.5.
-SH_BLEND = (0.2, 0.6)
+#: benchmarks/cycles_compare.py cases) with the automatic SH order (12 below roughness 0.7),
+#: SH weight 0 / 0.1 / 0.2 / 0.35 / 0.5 / 0.8 / 0.9 / 1: r 0.3 courtyard 3.27 / 2.96 / 2.74 /
+#: 2.61 / 2.71 / 3.43 / 3.78 / 4.15, forest 2.67 / 2.34 / 2.09 / 1.89 / 1.89 / 2.49 / 2.81 /
+#: 3.17; r 0.5 courtyard 6.69 / 5.97 / 5.28 / 4.30 / 3.39 / 1.87 / 1.57 / 1.49, forest 4.56 /
+#: 4.02 / 3.50 / 2.77 / 2.09 / 0.99 / 0.81 / 0.87; r 0.6 studio 13.4 / 11.8 / 10.3 / 8.3 /
+#: 6.5 / 3.2 / 2.5 / 2.5. Below 0.2 the split sum alone is best (SH: 3–35 at r ≤ 0.15).
+#: Smoothstep over 0.2–0.45 gives 0.35 at r 0.3 and 1 from 0.45 (with SH at l = 8 the
+#: hand-over was 0.2–0.6: 0.16 at r 0.3, 0.84 at r 0.5).
+SH_BLEND = (0.2, 0.45)
 
 
 def sh_weight(roughness: float) -> float:

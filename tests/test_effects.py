@@ -611,3 +611,31 @@ def test_plan_panel_is_registered_and_shows_the_active_materials_plan(bpy, tf, s
     text = "\n".join(lines)
     assert "Table 4×4×6×3×3" in text and "Bake ≈" in text and "multiply-adds" in text
     assert tf.materials.bake_count == start
+
+
+@pytest_blender
+def test_the_world_sh_reaches_every_band_of_a_high_order_table(bpy, tf, scene):
+    """A film at the highest SH order gets the World's bands up to that order, not a truncation
+    (the World was once projected to l = 8 only, so bands 9–12 of a table met zero light)."""
+    import os
+
+    path = os.path.join(bpy.utils.system_resource("DATAFILES"), "studiolights", "world", "courtyard.exr")
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(path)
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    top = tf.gpu_draw.MAX_L
+    assert top == tf.effects.MAX_ORDER == 12
+    film = _film(bpy, "Rough", "SOAP_FILM")
+    film.thinfilm_sh.sh_order = str(top)
+    film.thinfilm_sh.roughness = 0.7  # SH only: no split sum
+    _object(bpy, scene, "Rough", film)
+    items, messages = _collect(bpy, tf)
+    assert len(items) == 1, messages
+    (item,) = items
+    assert item.table.l_max == top and item.lighting.l_max == top
+    c = np.asarray(item.lighting.coefficients)
+    assert c.shape == ((top + 1) ** 2, 3)
+    high = np.abs(c[81:]).max()  # bands 9–12, windowed
+    assert high > 1e-3 * np.abs(c[0]).max(), high
