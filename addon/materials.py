@@ -494,8 +494,8 @@ def warnings(bpy_material) -> list[str]:
 # Tables: memory LRU → disk cache → bake
 # ----------------------------------------------------------------------------------------------
 def description_key(desc: Material) -> str:
-    """Cache key of a description: :func:`precompute.table_io.content_key` of ``desc.to_dict()``."""
-    return table_io.content_key(desc.to_dict())
+    """Cache key of a description: :func:`precompute.bake.table_key` (parameters + planner version)."""
+    return bake.table_key(desc)
 
 
 def table_cache() -> table_io.TableCache:

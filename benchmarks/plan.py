@@ -114,7 +114,7 @@ def bake_all(materials: dict[str, Material], share: bool) -> dict:
     wall = cpu = 0.0
     for name in sorted(materials):
         m = materials[name]
-        key = effects.table_io.content_key(m.to_dict())
+        key = effects.bake.table_key(m)
         if share and key in done:
             results[name] = done[key]
             seconds[name] = 0.0

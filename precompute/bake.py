@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import brdf, composite, constants, sh, spectra
+from . import brdf, composite, constants, sh, spectra, table_io
 from .material import AUTO, MAX_SH_ORDER, Material
 from .optics import reflectance, reflectance_sweep
 
@@ -533,6 +533,18 @@ def clamp_film_rgb(rgb, colour_mode: str):
     if colour_mode != "per_channel":
         return rgb
     return np.clip(rgb, 0.0, 1.0)
+
+
+#: Version of the automatic choices and the bake's maths, part of every table's cache key
+#: (:func:`table_key`). Bump it when a material's table would come out different: cached tables
+#: of the old version are then not reused (they would be stale, not corrupt, so the checks on
+#: load cannot see it). 2: SH order up to 12 (was 8).
+PLANNER_VERSION = 2
+
+
+def table_key(material: Material) -> str:
+    """Cache key of a material's table: its parameters and :data:`PLANNER_VERSION`."""
+    return table_io.content_key({"material": material.to_dict(), "planner": PLANNER_VERSION})
 
 
 def bake(material: Material, progress=None) -> BakeResult:

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bake, table_io
+from . import bake
 from .material import AUTO, Material
 from .optics.dispersion import is_dispersive
 
@@ -251,7 +251,7 @@ class MaterialPlan:
     """What one material needs: effects, resolved quality, table, costs and the reasons."""
 
     material: Material
-    key: str  # table_io.content_key(material.to_dict()): equal keys share one table
+    key: str  # bake.table_key(material): equal keys share one table
     effects: dict  # name → bool, the names of EFFECTS in order
     plan: bake.Plan
     wavelength_nodes: int  # grid + emission lines
@@ -488,7 +488,7 @@ def material_plan(
     )
     return MaterialPlan(
         material=material,
-        key=table_io.content_key(material.to_dict()),
+        key=bake.table_key(material),
         effects=effects,
         plan=p,
         wavelength_nodes=w_nodes,

@@ -330,6 +330,26 @@ def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, M, tmp_path):
     assert table_io.read_table(path).content_hash  # the fresh table replaced it
 
 
+def test_a_table_cached_by_an_older_planner_is_not_reused(bpy, M, tmp_path, monkeypatch):
+    """After an upgrade that changes automatic choices (e.g. the SH order cap 8 → 12), a cached
+    table is stale, not corrupt: the key carries bake.PLANNER_VERSION, so it is baked again."""
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
+    cache = table_io.TableCache(tmp_path)
+    desc = M.description(_enabled(bpy))
+    start = M.bake_count
+    monkeypatch.setattr(bake, "PLANNER_VERSION", bake.PLANNER_VERSION - 1)
+    old_key = M.description_key(desc)
+    M.get_table(desc, cache)
+    assert cache.path_for(old_key).is_file() and M.bake_count == start + 1
+    monkeypatch.undo()
+    M.clear_memory_cache()
+    new_key = M.description_key(desc)
+    assert new_key != old_key
+    _table, source = M.get_table_with_source(desc, cache)
+    assert source == "bake" and M.bake_count == start + 2 and cache.path_for(new_key).is_file()
+
+
 def test_nan_thickness_is_a_clear_error_not_a_traceback(bpy, M):
     mat = _enabled(bpy)
     mat.thinfilm_sh.layers[0].thickness_nm = math.nan
