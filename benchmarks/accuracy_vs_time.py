@@ -5,7 +5,7 @@ Usage (from the repository root)::
     .venv/bin/python -m benchmarks.accuracy_vs_time           # → docs/accuracy-vs-time.{md,png}
     .venv/bin/python -m benchmarks.accuracy_vs_time --quick   # smoke run (< 1 min), prints only
 
-Every configuration changes ONE knob of the default (auto) plan: SH order 1–8, wavelength
+Every configuration changes ONE knob of the default (auto) plan: SH order 1–12, wavelength
 count, view-angle (θo) samples, thickness samples (2-D tables), the half-vector quadrature of
 the kernel, storage precision (float32 vs half), and the colour mode (3×3 spectral — the
 default —, Cycles' per-channel film, and a three-wavelength "RGB film" as real-time engines do).
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from precompute import bake, cli, hdri, render, table_io
+from precompute import bake, cli, effects, hdri, render, table_io
 from precompute.material import AUTO, Layer, Material, Quality
 
 from . import common
@@ -114,7 +114,7 @@ class Config:
 
 def all_configs() -> list[Config]:
     c = [Config("default (auto plan)", "default")]
-    c += [Config(f"SH order {l}", "SH order", sh_order=l) for l in range(1, 9)]
+    c += [Config(f"SH order {l}", "SH order", sh_order=l) for l in (*range(1, 9), 10, 12)]
     c += [Config(f"{w} wavelengths", "wavelengths", wavelengths=w) for w in (6, 12, 24, 96)]
     c += [Config(f"{a} view angles", "θo samples", views=a) for a in (4, 8, 16, 32, 64)]
     c += [Config("2-D, auto thickness rows", "thickness rows", thickness_samples=AUTO)]
@@ -475,7 +475,8 @@ def report(res: dict, command: str) -> str:
         "  16 above, 48 wavelengths, 96×48 half-vector nodes, float32,",
         "  3×3 spectral, a 1-D table because the scene's thickness is constant). Every other row",
         "  changes one knob with the rest of that plan pinned:",
-        "  - *SH order* 1–8; *wavelengths*: the spectral quadrature's node count; *view angles*: θo rows.",
+        "  - *SH order* 1–8, 10 and 12; *wavelengths*: the spectral quadrature's node count;",
+        "    *view angles*: θo rows.",
         f"  - *2-D, N thickness rows*: the table spans {THICKNESS_RANGE[0]:g}–{THICKNESS_RANGE[1]:g} nm"
         " (chosen so",
         "    150/400/900 nm fall between rows for every N) and is interpolated at the scene's",
@@ -597,32 +598,33 @@ def what_this_shows(res: dict) -> list[str]:
         + " The error is dominated by the SH truncation of the glossy lobe and of the lighting:"
         " every other knob at its default is far below it."
     )
-    if "SH order 8" in by and max(base["orders"]) == 8 and min(base["orders"]) < 8:
-        l8 = by["SH order 8"]
+    top = max(effects.MAX_ORDER, 8)
+    if f"SH order {top}" in by and max(base["orders"]) == top and min(base["orders"]) < top:
+        l8 = by[f"SH order {top}"]
         diff = [x for x in roughs if abs(l8["by_roughness"][x] - base["by_roughness"][x]) > 0.05]
         if diff:
             out.append(
-                "- The auto SH order (lobe-truncation target 10 %) picks fewer than 8 bands for the"
-                " roughest lobes; forcing 8 there changes mean ΔE "
+                f"- The auto SH order (lobe-truncation target 10 %) picks fewer than {top} bands for the"
+                f" roughest lobes; forcing {top} there changes mean ΔE "
                 + ", ".join(
                     f"at r = {x:g} from {base['by_roughness'][x]:.2f} to {l8['by_roughness'][x]:.2f}"
                     for x in diff
                 )
                 + f" (all scenes: {base['mean']:.2f} → {l8['mean']:.2f})."
             )
-    sh_rows = [by[f"SH order {l}"] for l in range(1, 9) if f"SH order {l}" in by]
+    sh_rows = [by[f"SH order {l}"] for l in (*range(1, 9), 10, 12) if f"SH order {l}" in by]
     if sh_rows:
         out.append(
             "- SH order (mean ΔE, MADs/pixel): "
             + ", ".join(f"L={r['cfg'].sh_order}: {r['mean']:.2f} ({r['mads']:.0f})" for r in sh_rows)
             + "."
         )
-        if all(f"SH order {l}" in by for l in (2, 4, 8)):
+        if all(f"SH order {l}" in by for l in (2, 4, 8, 12)):
             out[-1] += (
-                " Per roughness at L = 2 / 4 / 8: "
+                " Per roughness at L = 2 / 4 / 8 / 12: "
                 + "; ".join(
                     f"r={x:g}: "
-                    + " / ".join(f"{by[f'SH order {l}']['by_roughness'][x]:.2f}" for l in (2, 4, 8))
+                    + " / ".join(f"{by[f'SH order {l}']['by_roughness'][x]:.2f}" for l in (2, 4, 8, 12))
                     for x in roughs
                 )
                 + "."

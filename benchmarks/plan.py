@@ -12,11 +12,11 @@ per-channel (Principled-like) film. Two runs of the same materials:
 - *planned*: what :func:`precompute.effects.scene_plan` asks for — each unique table baked
   once at its automatic quality (equal materials share one), drawn with the variant its table
   needs (l_max from the table, the thickness attribute only on varying films);
-- *all on*: every material forced to SH order 8, a 64-row thickness axis (its own range, or
+- *all on*: every material forced to the highest SH order (12), a 64-row thickness axis (its own range, or
   0.5–1.5× its thickness for constant films), 256 wavelengths, 64 view angles, the film as a
   two-layer stack (an extra layer of the substrate's own index under the film: optically
   identical, but it runs the transfer recursion), no sharing (12 bakes, 12 textures), every
-  object drawn with l_max 8 and the thickness attribute.
+  object drawn with the highest l_max and the thickness attribute.
 
 Bakes start from cleared kernel caches in both runs (a new session); within a run the
 microfacet-kernel cache works as usual. Frames: the 12 objects as spheres, off-screen at
@@ -47,7 +47,7 @@ from . import common
 EXTENSION_ID = "thinfilm_sh"
 WIDTH, HEIGHT = 960, 540
 FRAMES = 7
-ALL_ON = {"sh_order": 8, "thickness_samples": 64, "wavelength_count": 256, "view_samples": 64}
+ALL_ON = {"sh_order": effects.MAX_ORDER, "thickness_samples": 64, "wavelength_count": 256, "view_samples": 64}
 
 
 def _clear_all_caches() -> None:
@@ -535,11 +535,12 @@ def report(res: dict) -> str:
         *common.machine_lines(),
         f"- Renderer: {res['renderer']}, {WIDTH}×{HEIGHT} off-screen, RGBA32F",
         "",
-        "*All on*: every material forced to SH order 8, a 64-row thickness axis (its range, or 0.5–1.5× its"
-        " thickness), 256 wavelengths, 64 view angles, the film as a two-layer stack (an extra 50 nm layer"
-        " of the substrate's own index under it — optically identical, but the transfer recursion runs), no"
-        " sharing; drawn with l_max 8 and the thickness attribute everywhere. Both runs bake from cleared"
-        " kernel caches (a new session); within a run the kernel cache works as usual. Frames: median of"
+        f"*All on*: every material forced to SH order {effects.MAX_ORDER}, a 64-row thickness axis"
+        " (its range, or 0.5–1.5× its thickness), 256 wavelengths, 64 view angles, the film as a"
+        " two-layer stack (an extra 50 nm layer of the substrate's own index under it — optically"
+        f" identical, but the transfer recursion runs), no sharing; drawn with l_max {effects.MAX_ORDER}"
+        " and the thickness attribute everywhere. Both runs bake from cleared kernel caches (a new"
+        " session); within a run the kernel cache works as usual. Frames: median of"
         f" {FRAMES} after a warm-up frame that compiles the variants, the two scenes drawn alternately;"
         " allocation and read-back included (an empty frame is listed for reference).",
         "",
@@ -605,10 +606,11 @@ def report(res: dict) -> str:
         " exact.",
         "- A measured bake near 0 s: its kernel (roughness, view count, u nodes) was already computed for"
         " an earlier material; the estimate sees such sharing only when it predicts the same u degree.",
-        "- Frame: the automatic SH order is 8 for every roughness below 0.8 (`auto_sh_order`'s 10 % lobe"
-        " truncation target), so most planned variants already run at l_max 8; the per-pixel saving comes"
-        " from the 1-D tables (2 taps instead of 4), the rough per-channel film (l_max < 8, 3 floats per"
-        " coefficient) and smaller textures. The SH rotation (≈ 7200 multiply-adds at l_max 8) is"
+        f"- Frame: the automatic SH order is {effects.MAX_ORDER} for every roughness below 0.7"
+        " (`auto_sh_order`'s 10 % lobe truncation target), so most planned variants already run at the"
+        " top order; the per-pixel saving comes from the 1-D tables (2 taps instead of 4), rough"
+        " per-channel films (lower orders, 3 floats per coefficient) and smaller textures. The SH"
+        " rotation is common to both, which bounds the frame ratio.",
         " common to both, which bounds the frame ratio.",
         "",
         "## Acceptance tests",
