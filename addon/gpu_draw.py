@@ -48,11 +48,12 @@ import gpu
 import numpy as np
 
 from ..precompute import render
+from ..precompute.material import MAX_SH_ORDER
 
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 
-#: Highest SH order the shaders support (the UBO always has room for it).
-MAX_L = 12
+#: Highest SH order the shaders support (the UBO always has room for it): material.MAX_SH_ORDER.
+MAX_L = MAX_SH_ORDER
 #: World SH coefficients in the lighting UBO: (MAX_L + 1)².
 SH_SLOTS = (MAX_L + 1) ** 2
 #: Scalars of one set of x-rotation band blocks for l = 0…MAX_L, and with padding to a vec4.

@@ -216,7 +216,7 @@ def main(argv) -> int:
         # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
         # sets the World order; tables already in memory or in the disk cache cost no bake.
         found, errors = scene_materials(scene)
-        coeffs = world.world_sh(scene, l_max=effects.MAX_ORDER).coeffs if found else None
+        coeffs = world.world_sh(scene).coeffs if found else None
         disk = materials.table_cache()
         keys = {name: materials.description_key(desc) for name, desc in found.items()}
         cached = {

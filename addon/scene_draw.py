@@ -110,7 +110,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     result = (
         CACHES.world[1]
         if CACHES.world is not None and CACHES.world[0] == key
-        else world.world_sh(scene, l_max=gpu_draw.MAX_L)  # every band a table may use
+        else world.world_sh(scene)  # every band a table may use (MAX_SH_ORDER)
     )
     image = None
     if need_image and scene.world is not None:

@@ -50,7 +50,8 @@ import bpy
 import numpy as np
 from mathutils import Euler
 
-from ..precompute import effects, hdri, sh, table_io
+from ..precompute import hdri, sh, table_io
+from ..precompute.material import MAX_SH_ORDER
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
@@ -805,7 +806,7 @@ def _compute(scene, l_max: int, space: str):
         return _panorama(world, l_max, str(why))
 
 
-def world_sh(scene, l_max: int = effects.MAX_ORDER, *, cache=None) -> WorldSH:
+def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     """Spherical-harmonic radiance of ``scene``'s World, in world space and scene linear.
 
     Parameters

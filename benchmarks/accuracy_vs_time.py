@@ -598,7 +598,7 @@ def what_this_shows(res: dict) -> list[str]:
         + " The error is dominated by the SH truncation of the glossy lobe and of the lighting:"
         " every other knob at its default is far below it."
     )
-    top = max(effects.MAX_ORDER, 8)
+    top = effects.MAX_ORDER
     if f"SH order {top}" in by and max(base["orders"]) == top and min(base["orders"]) < top:
         l8 = by[f"SH order {top}"]
         diff = [x for x in roughs if abs(l8["by_roughness"][x] - base["by_roughness"][x]) > 0.05]

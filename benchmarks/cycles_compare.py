@@ -146,13 +146,14 @@ def object_mask(view, erode: int = 1) -> np.ndarray:
 BRUTE_SUPERSAMPLE = 2
 
 
-def brute_force_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, size=SIZE):
+def brute_force_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, size=SIZE, max_width=None):
     """Our physics without any of the real-time approximations: ``render.shade_reference``.
 
     Exact film reflectance per direction in the single-scattering GGX BRDF, integrated against
     the full-resolution HDRI with a 48 × 48 GGX-importance grid per sample (2×2 per pixel): the
     floor the product's paths can reach. Single scattering, so it reads dark at roughness ≥ 0.5,
-    and the fixed grid aliases small HDR lamps at large roughness.
+    and the fixed grid aliases small HDR lamps at large roughness. ``max_width``: first halve the
+    HDRI (solid-angle exact) until it is at most this wide (faster; tests).
     """
     material = Material(
         layers=(Layer(film_ior, thickness_nm),),
@@ -162,6 +163,8 @@ def brute_force_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, s
         multiscatter="none",
     )
     full = hdri.read_equirect(hdri_path)
+    while max_width is not None and full.shape[1] > max_width:
+        full = hdri.downsample(full, 2)
     view = render.sphere_view(size, size, DISTANCE, FOV_DEG, supersample=BRUTE_SUPERSAMPLE)
     out = render.equirect_lookup(full, view.rays)
     m = view.mask

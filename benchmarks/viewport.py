@@ -1151,6 +1151,22 @@ def _split_sum_section(res: dict) -> list[str]:
     return out + [""]
 
 
+def _object_table(rows: list[dict], counts, keys) -> list[str]:
+    """Table rows, one per triangle count: ``keys`` (ms) for each object count, "—" where missing."""
+    out = []
+    for tris in sorted({round(r["triangles"], -4) for r in rows}):
+        cells, label = [], None
+        for n in counts:
+            c = next((r for r in rows if r["objects"] == n and round(r["triangles"], -4) == tris), None)
+            if c is None or any(k not in c for k in keys):
+                cells += ["—"] * len(keys)
+                continue
+            label = label or _tri(c["triangles"])
+            cells += [f"{c[k]:.2f}" for k in keys]
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    return out
+
+
 def _python_section(res: dict) -> list[str]:
     rows = [r for r in res.get("python", []) if r["materials"] == 1]
     if not rows:
@@ -1171,16 +1187,7 @@ def _python_section(res: dict) -> list[str]:
         "| triangles | " + " | ".join(f"{n} obj: collect ms | prepare ms | submit ms" for n in counts) + " |",
         "|---|" + "---|---|---|" * len(counts),
     ]
-    for tris in sorted({round(r["triangles"], -4) for r in rows}):
-        cells, label = [], None
-        for n in counts:
-            c = next((r for r in rows if r["objects"] == n and round(r["triangles"], -4) == tris), None)
-            if c is None:
-                cells += ["—"] * 3
-                continue
-            label = label or _tri(c["triangles"])
-            cells += [f"{c['collect']:.2f}", f"{c['prepare']:.2f}", f"{c['submit']:.2f}"]
-        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    out += _object_table(rows, counts, ("collect", "prepare", "submit"))
     out += [
         "",
         "The step from 10 k to 100 k triangles in `collect` is not work done per triangle: the same calls"
@@ -1192,16 +1199,7 @@ def _python_section(res: dict) -> list[str]:
         "| triangles | " + " | ".join(f"{n} obj: collect ms | prepare ms" for n in counts) + " |",
         "|---|" + "---|---|" * len(counts),
     ]
-    for tris in sorted({round(r["triangles"], -4) for r in rows}):
-        cells, label = [], None
-        for n in counts:
-            c = next((r for r in rows if r["objects"] == n and round(r["triangles"], -4) == tris), None)
-            if c is None or "collect_alone" not in c:
-                cells += ["—"] * 2
-                continue
-            label = label or _tri(c["triangles"])
-            cells += [f"{c['collect_alone']:.2f}", f"{c['prepare_alone']:.2f}"]
-        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    out += _object_table(rows, counts, ("collect_alone", "prepare_alone"))
     distinct = [r for r in res.get("python", []) if r["materials"] > 1]
     all_rows = res["python"]
     out += [""]

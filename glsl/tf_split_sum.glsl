@@ -61,12 +61,6 @@ vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
   return max(rgb * TF_SQRT_4PI, vec3(0.0));
 }
 
-vec3 tf_shade_split_sum(vec3 n, vec3 v, float thickness01, float roughness)
-{
-  TFFrame f = tf_view_aligned_frame(n, v);
-  return tf_shade_split_sum_at(f, tf_table_lerp(f.cos_o, f.sin_o, thickness01), n, v, roughness);
-}
-
 /* sh_weight = prefilter.sh_weight(roughness): 0 → split sum only; the TF_SPLIT_ONLY variant
  * (gpu_draw.prepare_draw picks it for sh_weight 0) compiles the SH half out.
  * The frame and the table position are computed once for both halves. */

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import bake
-from .material import AUTO, Material
+from .material import AUTO, MAX_SH_ORDER, Material
 from .optics.dispersion import is_dispersive
 
 EFFECTS = (
@@ -61,8 +61,8 @@ EFFECTS = (
     "multiscatter",
 )
 
-#: Highest SH order a table or the World can have (the shaders' MAX_L).
-MAX_ORDER = 12
+#: Highest SH order a table or the World can have (material.MAX_SH_ORDER, the shaders' MAX_L).
+MAX_ORDER = MAX_SH_ORDER
 #: The World's SH order is the smallest l whose band-energy tail Σ_{l' > l} |c_l'|² is below
 #: this fraction of the total energy (see :func:`world_content_order`).
 WORLD_TAIL = 0.01

@@ -28,6 +28,8 @@ COLOUR_MODES = ("spectral", "per_channel")
 #: "cycles" — the film-free dielectric F_avg, as Cycles' Multiscatter GGX does for a Principled
 #: thin film (for interop parity).
 MULTISCATTER = ("none", "film", "cycles")
+#: Highest SH order of a table or the World: the one constant behind effects.MAX_ORDER and the
+#: shaders' gpu_draw.MAX_L (the lighting UBO has room for exactly this many bands).
 MAX_SH_ORDER = 12
 
 

@@ -77,16 +77,17 @@ class Prefiltered:
     moments: tuple | None = None
 
     def resampled(self, width: int) -> np.ndarray:
-        """All levels bilinearly resampled to (J, width/2, width, 3) — e.g. for one GPU array texture."""
-        dirs = hdri.equirect_directions(width // 2, width)
-        return np.stack([_bilinear(level, dirs) for level in self.levels])
+        """All levels bilinearly resampled to (J, width/2, width, 3) — e.g. for one GPU texture."""
+        return _resample(self.levels, width)
 
     def resampled_moments(self, width: int) -> np.ndarray | None:
         """The direction moments resampled like :meth:`resampled`, or None."""
-        if self.moments is None:
-            return None
-        dirs = hdri.equirect_directions(width // 2, width)
-        return np.stack([_bilinear(level, dirs) for level in self.moments])
+        return None if self.moments is None else _resample(self.moments, width)
+
+
+def _resample(stack, width: int) -> np.ndarray:
+    dirs = hdri.equirect_directions(width // 2, width)
+    return np.stack([_bilinear(level, dirs) for level in stack])
 
 
 def level_width(roughness: float, max_width: int = LEVEL_WIDTH) -> int:
