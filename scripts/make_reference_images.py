@@ -303,8 +303,8 @@ The `principled_film` file rendered both ways at {cmp_w}×{cmp_h} (Cycles {cmp_s
 {delta_e}
 
 `tests/test_sample_scenes.py` asserts a mean ≤ 3 at the file's roughness 0.5; 0.15 is reported
-only. Most of the error is in the outer ring of the sphere (grazing views); the interior agrees
-to about ΔE 1.2–1.5.
+only. With SH order ≤ 8 most of the error was in the outer ring of the sphere (grazing views)
+and the interior agreed to about ΔE 1.2–1.5.
 
 ## Commands
 
