@@ -47,6 +47,7 @@ import bpy
 import gpu
 import numpy as np
 
+from ..precompute import lamps as np_lamps
 from ..precompute import render
 from ..precompute.material import MAX_SH_ORDER
 
@@ -59,7 +60,10 @@ SH_SLOTS = (MAX_L + 1) ** 2
 #: Scalars of one set of x-rotation band blocks for l = 0…MAX_L, and with padding to a vec4.
 RX_SCALARS = sum((2 * l + 1) ** 2 for l in range(MAX_L + 1))
 RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
-LIGHTING_VEC4 = SH_SLOTS + RX_PADDED // 4
+#: The World's lamps (precompute/lamps.py): a count, then direction and power per lamp.
+MAX_LAMPS = np_lamps.MAX_LAMPS
+LAMP_VEC4 = 1 + 2 * MAX_LAMPS
+LIGHTING_VEC4 = SH_SLOTS + LAMP_VEC4 + RX_PADDED // 4
 #: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
 UBO_LIMIT_BYTES = 16384
 #: Table texels (layers × T × A) that fit the table UBO next to its size header.
@@ -71,6 +75,7 @@ LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_ta
 TYPEDEFS = f"""
 struct TFLighting {{
   vec4 sh[{SH_SLOTS}];
+  vec4 lamps[{LAMP_VEC4}];
   vec4 rx[{RX_PADDED // 4}];
 }};
 struct TFView {{
@@ -96,6 +101,7 @@ UBO_LIGHTING, UBO_VIEW, UBO_OBJECT, UBO_TABLE = 0, 1, 2, 3
 SAMPLER_TABLE = 0
 SAMPLER_ENVIRONMENT = 0
 SAMPLER_PREFILTERED = 3
+SAMPLER_FILM = 4
 
 
 # ----------------------------------------------------------------------------------------------
@@ -245,6 +251,8 @@ class Variant(NamedTuple):
     table_ubo: bool = False
     #: Split sum alone (``sh_weight`` = 0, glossy films): the SH half is compiled out.
     split_only: bool = False
+    #: The World's lamps shaded per light direction (tf_lamps.glsl, the film texture).
+    lamps: bool = False
 
 
 def declare_shading_resources(info, variant: Variant) -> None:
@@ -264,6 +272,10 @@ def declare_shading_resources(info, variant: Variant) -> None:
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_3D", "tf_prefiltered")
         if variant.split_only:
             info.define("TF_SPLIT_ONLY", "1")
+    if variant.lamps:
+        info.define("TF_LAMPS", "1")
+        info.define("TF_LAMP_LEVEL", str(int(np_lamps.LAMP_LEVEL)))
+        info.sampler(SAMPLER_FILM, "FLOAT_2D_ARRAY", "tf_film")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
     if variant.table_ubo:
@@ -290,8 +302,10 @@ def _mesh_shader_info(variant: Variant, generated_x90: bool = True):
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(glsl_chunk("tf_main_vert.glsl"))
     split = ("\n" + glsl_chunk("tf_split_sum.glsl")) if variant.split_sum else ""
+    lamps = ("\n" + glsl_chunk("tf_lamps.glsl")) if variant.lamps else ""
     info.fragment_source(
         shading_library(variant.l_max, generated_x90=generated_x90)
+        + lamps
         + split
         + "\n"
         + glsl_chunk("tf_main_frag.glsl")
@@ -348,6 +362,7 @@ class ShaderCache:
         split_sum: bool = False,
         table_ubo: bool = False,
         split_only: bool = False,
+        lamps: bool = False,
     ):
         """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
         variant = Variant(
@@ -358,6 +373,7 @@ class ShaderCache:
             bool(split_sum),
             bool(table_ubo),
             bool(split_sum and split_only),
+            bool(lamps),
         )
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
@@ -482,22 +498,39 @@ class Lighting:
     coefficients: np.ndarray  # ((l_max+1)², 3) float64, windowed: what the shader sees
     l_max: int
     roughness: float
+    #: The World's lamps (precompute.lamps.Lamps) the coefficients were taken without, or None.
+    lamps: object = None
+
+    @property
+    def lamp_count(self) -> int:
+        return 0 if self.lamps is None else int(self.lamps.count)
 
     @staticmethod
-    def pack(coefficients) -> np.ndarray:
-        """UBO content (LIGHTING_VEC4 × 4 float32) for windowed coefficients (≤ SH_SLOTS, 3)."""
+    def pack(coefficients, lamps=None) -> np.ndarray:
+        """UBO content (LIGHTING_VEC4 × 4 float32) for windowed coefficients (≤ SH_SLOTS, 3)
+        and up to MAX_LAMPS lamps (tf_lamps.glsl's layout)."""
         c = np.asarray(coefficients, dtype=np.float64)
         sh_part = np.zeros((SH_SLOTS, 4), dtype=np.float64)
         sh_part[: c.shape[0], :3] = c[:, :3]
-        data = np.concatenate([sh_part.ravel(), x_rotation_scalars()]).astype(np.float32)
+        lamp_part = np.zeros((LAMP_VEC4, 4), dtype=np.float64)
+        if lamps is not None and lamps.count:
+            if lamps.count > MAX_LAMPS:
+                raise ValueError(f"{lamps.count} lamps exceed the shader's {MAX_LAMPS}")
+            if not (np.all(np.isfinite(lamps.directions)) and np.all(np.isfinite(lamps.power))):
+                raise ValueError("lamp directions and power must be finite")
+            lamp_part[0, 0] = lamps.count
+            lamp_part[1 : 1 + 2 * lamps.count : 2, :3] = lamps.directions
+            lamp_part[2 : 2 + 2 * lamps.count : 2, :3] = lamps.power
+        data = np.concatenate([sh_part.ravel(), lamp_part.ravel(), x_rotation_scalars()]).astype(np.float32)
         assert data.size == 4 * LIGHTING_VEC4 and data.nbytes <= UBO_LIMIT_BYTES
         return data
 
     @classmethod
-    def from_sh(cls, world_coeffs, l_max: int, roughness: float) -> Lighting:
+    def from_sh(cls, world_coeffs, l_max: int, roughness: float, lamps=None) -> Lighting:
         """World SH (≥ 1, 3) → windowed by :func:`render.lighting_window` for ``l_max``/``roughness``.
 
         Missing coefficients (fewer than (l_max+1)²) are zero; extra ones are dropped.
+        ``lamps``: the World's lamps, when ``world_coeffs`` are those of the World without them.
         """
         l_max = int(l_max)
         if not 0 <= l_max <= MAX_L:
@@ -511,8 +544,10 @@ class Lighting:
         full[:n] = c[:n, :3]
         windowed = full * np.asarray(render.lighting_window(l_max, float(roughness)))[:k, None]
         ensure_gpu_context()
-        ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed)))
-        return cls(ubo, windowed, l_max, float(roughness))
+        ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps)))
+        return cls(
+            ubo, windowed, l_max, float(roughness), lamps if lamps is not None and lamps.count else None
+        )
 
 
 @dataclass
@@ -686,6 +721,40 @@ class PrefilterTexture:
         return cls(texture, j, w, h)
 
 
+@dataclass
+class FilmTexture:
+    """A film's reflectance against u = cos θ and its multiple-scattering factor, for the lamps
+    (precompute.lamps.FilmTable; layout in tf_lamps.glsl)."""
+
+    texture: gpu.types.GPUTexture
+    samples: int
+    thickness_count: int
+    spectral: bool
+
+    @staticmethod
+    def layer_array(film) -> np.ndarray:
+        """(layers, T, U, 4) float32: the reflectance rows, then the multiple-scattering factor."""
+        r = np.asarray(film.reflectance, dtype=np.float32)
+        rows = [r[:, :, k, :] for k in range(3)] if r.ndim == 4 else [r]
+        rows.append(np.asarray(film.multiscatter, dtype=np.float32))
+        out = np.zeros((len(rows),) + r.shape[:2] + (4,), dtype=np.float32)
+        for i, row in enumerate(rows):
+            out[i, ..., :3] = row
+        return out
+
+    @classmethod
+    def from_film(cls, film) -> FilmTexture:
+        layers = cls.layer_array(film)
+        if not np.all(np.isfinite(layers)):
+            raise ValueError("the film table holds non-finite values")
+        n_layers, t, u = layers.shape[:3]
+        if u < 2:
+            raise ValueError("the film table needs at least 2 samples in u")
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((u, t), layers=n_layers, format="RGBA32F", data=float_buffer(layers))
+        return cls(texture, u, t, film.reflectance.ndim == 4)
+
+
 # ----------------------------------------------------------------------------------------------
 # Drawing
 # ----------------------------------------------------------------------------------------------
@@ -842,6 +911,7 @@ class DrawGroup:
     table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
     prefiltered: gpu.types.GPUTexture | None
     draws: list  # (GPUBatch, object GPUUniformBuf)
+    film: gpu.types.GPUTexture | None = None
 
 
 @dataclass
@@ -906,8 +976,25 @@ def prepare_draw(
         # sh_weight 0 (glossy films): a variant without the SH half. A run-time branch on the
         # weight did not save it on llvmpipe (split only cost as much as split + SH).
         split_only = split and sh_weight <= 0.0
-        variant = (table.l_max, table.spectral, vary, display_srgb, split, table_ubo is not None, split_only)
-        key = (variant, id(item.lighting.ubo), id(table_data), id(prefiltered.texture) if split else None)
+        film = getattr(item, "film", None)
+        lamps = film is not None and getattr(item.lighting, "lamp_count", 0) > 0
+        variant = (
+            table.l_max,
+            table.spectral,
+            vary,
+            display_srgb,
+            split,
+            table_ubo is not None,
+            split_only,
+            lamps,
+        )
+        key = (
+            variant,
+            id(item.lighting.ubo),
+            id(table_data),
+            id(prefiltered.texture) if split else None,
+            id(film.texture) if lamps else None,
+        )
         group = groups.get(key)
         if group is None:
             group = groups[key] = DrawGroup(
@@ -917,6 +1004,7 @@ def prepare_draw(
                 table_data,
                 prefiltered.texture if split else None,
                 [],
+                film.texture if lamps else None,
             )
         group.draws.append((batch, object_ubo))
     if not groups:
@@ -956,6 +1044,8 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.uniform_sampler("tf_table", group.table)
             if group.prefiltered is not None:
                 shader.uniform_sampler("tf_prefiltered", group.prefiltered)
+            if group.film is not None:
+                shader.uniform_sampler("tf_film", group.film)
             for batch, object_ubo in group.draws:
                 shader.uniform_block("tf_object", object_ubo)
                 batch.draw(shader)

@@ -307,6 +307,15 @@ class ThinFilmMaterialSettings(PropertyGroup):
     model: EnumProperty(name="Model", items=MODEL_ITEMS, default="EXACT", update=_settings_changed)
 
     # Viewing.
+    world_lamps: BoolProperty(
+        name="World Lamps",
+        description=(
+            "Shade the World's small, very bright lamps (HDRI lamps, suns) per light direction, "
+            "with the film's colour at each lamp's angle, instead of through the prefiltered "
+            "World and SH. Off: cheaper, but glossy films under lamp-lit HDRIs lose colour"
+        ),
+        default=True,
+    )
     colour_mode: EnumProperty(name="Colour", items=COLOUR_MODE_ITEMS, default="SPECTRAL")
     illuminant: EnumProperty(
         name="Illuminant",

@@ -6,8 +6,9 @@ Caches (module level, cleared on file load):
 - batches per (object, material slot), rebuilt only when the object's geometry changed
   (a depsgraph handler marks it) — moving an object only changes the matrix passed at draw time;
 - GPU table textures per material description key (equal materials share one);
-- lighting UBOs per (World key, SH order, roughness);
-- the World's SH per World key.
+- lighting UBOs per (World key, SH order, roughness, lamps or not);
+- film textures (the lamps' reflectance table) per material description key;
+- the World's SH, panorama, lamps and prefilter per World key.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..precompute import prefilter
+from ..precompute import lamps as np_lamps
+from ..precompute import prefilter, sh
 from . import gpu_draw, materials, world
 
 log = logging.getLogger(__name__)
@@ -36,12 +38,14 @@ class DrawItem:
     prefiltered: gpu_draw.PrefilterTexture | None = None
     roughness: float = 0.0
     sh_weight: float = 1.0
+    film: gpu_draw.FilmTexture | None = None
 
 
 @dataclass
 class Caches:
     batches: dict = field(default_factory=dict)  # (object name, slot) → (signature, MeshBatch | None)
     tables: dict = field(default_factory=dict)  # description key → TableTexture
+    films: dict = field(default_factory=dict)  # description key → FilmTexture (lamps)
     lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness) → Lighting
     world: tuple | None = None  # (world key, WorldSH, WorldImage | None)
     dirty: set = field(default_factory=set)  # object names whose geometry changed
@@ -50,6 +54,7 @@ class Caches:
     def clear(self):
         self.batches.clear()
         self.tables.clear()
+        self.films.clear()
         self.lightings.clear()
         self.world = None
         self.dirty.clear()
@@ -81,10 +86,34 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 # ----------------------------------------------------------------------------------------------
 @dataclass
 class WorldImage:
-    """The World as an equirect image (a small Cycles panorama) and its GGX prefilter on the GPU."""
+    """The World as an equirect image (a small Cycles panorama) and its GGX prefilter on the GPU.
+
+    ``lamps``: its bright lamps (precompute.lamps.extract), shaded per light direction; then
+    ``prefiltered`` holds the World without them from lamps.LAMP_LEVEL on, and ``lamp_sh`` is
+    their SH, which the lighting of lamp-shaded materials leaves out. Materials the lamps do
+    not apply to (a diffuse base under the film, "World Lamps" off) use
+    :meth:`prefiltered_whole`.
+    """
 
     image: np.ndarray
     prefiltered: gpu_draw.PrefilterTexture
+    lamps: object = None
+    lamp_sh: np.ndarray | None = None
+    _whole: gpu_draw.PrefilterTexture | None = None
+
+    def prefiltered_whole(self) -> gpu_draw.PrefilterTexture:
+        """The prefilter with the lamps in every level (computed on first use)."""
+        if self.lamps is None:
+            return self.prefiltered
+        if self._whole is None:
+            self._whole = _prefilter_texture(prefilter.prefilter(self.image, width=PREFILTER_WIDTH))
+        return self._whole
+
+
+def _prefilter_texture(pre) -> gpu_draw.PrefilterTexture:
+    return gpu_draw.PrefilterTexture.from_levels(
+        pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
+    )
 
 
 #: Panorama size for the split sum's prefilter and the headless background.
@@ -116,13 +145,15 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     if need_image and scene.world is not None:
         try:
             panorama = world.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
-            pre = prefilter.prefilter(panorama, width=PREFILTER_WIDTH)
-            image = WorldImage(
-                panorama,
-                gpu_draw.PrefilterTexture.from_levels(
-                    pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
-                ),
-            )
+            lamps, mask = np_lamps.extract(panorama)
+            if lamps.count:
+                pre = prefilter.prefilter(panorama, width=PREFILTER_WIDTH, lamp_mask=mask)
+                lamp_sh = sh.project_equirect(np.where(mask[..., None], panorama, 0.0), gpu_draw.MAX_L)
+                image = WorldImage(panorama, _prefilter_texture(pre), lamps, lamp_sh)
+            else:
+                image = WorldImage(
+                    panorama, _prefilter_texture(prefilter.prefilter(panorama, width=PREFILTER_WIDTH))
+                )
         except (RuntimeError, ValueError) as exc:
             log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
     CACHES.world = (key, result, image)
@@ -130,11 +161,50 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     return CACHES.world
 
 
-def lighting_for(world_entry, l_max: int, roughness: float) -> gpu_draw.Lighting:
-    key = (world_entry[0], int(l_max), round(float(roughness), 6))
+def lighting_for(world_entry, l_max: int, roughness: float, lamps: bool = False) -> gpu_draw.Lighting:
+    """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
+    the lamps themselves."""
+    image = world_entry[2]
+    lamps = bool(lamps and image is not None and image.lamps is not None)
+    key = (world_entry[0], int(l_max), round(float(roughness), 6), lamps)
     if key not in CACHES.lightings:
-        CACHES.lightings[key] = gpu_draw.Lighting.from_sh(world_entry[1].coeffs, l_max, roughness)
+        coeffs = np.asarray(world_entry[1].coeffs, dtype=np.float64)
+        if lamps:
+            n = min(coeffs.shape[0], image.lamp_sh.shape[0])
+            coeffs = coeffs.copy()
+            coeffs[:n] -= image.lamp_sh[:n]
+        CACHES.lightings[key] = gpu_draw.Lighting.from_sh(
+            coeffs, l_max, roughness, image.lamps if lamps else None
+        )
     return CACHES.lightings[key]
+
+
+def film_texture(desc_key: str, result) -> gpu_draw.FilmTexture:
+    if desc_key not in CACHES.films:
+        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(np_lamps.film_table(result))
+    return CACHES.films[desc_key]
+
+
+def uses_lamps(bpy_material, desc) -> bool:
+    """Whether the World's lamps are shaded per light direction for this material: its
+    "World Lamps" setting (on by default, also for Principled previews), and not under a
+    diffuse base, whose lamp light the analytic specular lobe does not carry (it keeps the
+    whole World in its SH and prefilter)."""
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    return bool(getattr(props, "world_lamps", True)) and getattr(desc, "base_color", None) is None
+
+
+def lamps_summary(enabled: bool) -> str:
+    """One line for the Surface panel: what the current World's lamps are and how they are shaded."""
+    entry = CACHES.world
+    image = entry[2] if entry is not None else None
+    if image is None:
+        return "World lamps: World not analysed yet"
+    if image.lamps is None:
+        return "World lamps: none (no small, very bright sources)"
+    lamps = image.lamps
+    how = "shaded per lamp" if enabled else "off: through SH and prefilter"
+    return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
 def table_texture(desc_key: str, result) -> gpu_draw.TableTexture:
@@ -188,6 +258,7 @@ class _MaterialEntry:
     lighting: gpu_draw.Lighting
     roughness: float
     sh_weight: float
+    film: gpu_draw.FilmTexture | None = None
 
 
 def _material_entry(bpy_material, world_entry, allow_bake: bool, want_bake, messages):
@@ -208,14 +279,22 @@ def _material_entry(bpy_material, world_entry, allow_bake: bool, want_bake, mess
         result = materials.get_table(desc)
     key = materials.description_key(desc)
     roughness = float(desc.roughness)
+    lamps = uses_lamps(bpy_material, desc) and world_entry[2] is not None and world_entry[2].lamps is not None
     return _MaterialEntry(
         desc,
         key,
         table_texture(key, result),
-        lighting_for(world_entry, result.sh_order, roughness),
+        lighting_for(world_entry, result.sh_order, roughness, lamps),
         roughness,
         prefilter.sh_weight(roughness),
+        film_texture(key, result) if lamps else None,
     )
+
+
+def _prefiltered_for(image, entry):
+    if image is None:
+        return None
+    return image.prefiltered if entry.film is not None or image.lamps is None else image.prefiltered_whole()
 
 
 def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None):
@@ -237,7 +316,6 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
         return items, ["World lighting is being updated"]
     messages.extend(world_entry[1].warnings)
     image = world_entry[2]
-    prefiltered = image.prefiltered if image is not None else None
     entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
     for inst in depsgraph.object_instances:
@@ -277,9 +355,10 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     entry.table,
                     entry.lighting,
                     f"{original.name}/{bpy_material.name}",
-                    prefiltered=prefiltered,
+                    prefiltered=_prefiltered_for(image, entry),
                     roughness=entry.roughness,
                     sh_weight=entry.sh_weight,
+                    film=entry.film,
                 )
             )
     CACHES.dirty -= seen

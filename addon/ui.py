@@ -8,7 +8,7 @@ from bpy.types import Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
-from . import materials
+from . import materials, scene_draw
 
 
 def _settings(context):
@@ -172,6 +172,10 @@ class THINFILM_PT_surface(_SubPanel, Panel):
         sub = row.row()
         sub.active = settings.diffuse_base
         sub.prop(settings, "diffuse_color", text="")
+        row = layout.row()
+        row.active = not settings.diffuse_base
+        row.prop(settings, "world_lamps")
+        layout.label(text=scene_draw.lamps_summary(settings.world_lamps and not settings.diffuse_base))
         layout.prop(settings, "colour_mode")
         layout.prop(settings, "illuminant")
 

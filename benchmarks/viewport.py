@@ -527,16 +527,21 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
         frame = None
         try:
             stored = {}
-            for case in ("combined", "split", "sh"):
-                prepare_scene(scene, objects, triangles, l_max, case)
-                if frame is None:
-                    frame = Frame(scene, w, h)
-                stored[case] = frame.items()
+            for lamps in (False, True):  # the product's default (lamps on) is collected last
+                for case in ("combined", "split", "sh"):
+                    scene.material(l_max, case).thinfilm_sh.world_lamps = lamps
+                    prepare_scene(scene, objects, triangles, l_max, case)
+                    if frame is None:
+                        frame = Frame(scene, w, h)
+                    stored[case if lamps else case + "_nolamps"] = frame.items()
             draws = {
                 "workbench": frame.workbench,
                 "sh": frame.ours,
                 "combined": _swapped(frame, stored["combined"]),
                 "split": _swapped(frame, stored["split"]),
+                "sh_nolamps": _swapped(frame, stored["sh_nolamps"]),
+                "combined_nolamps": _swapped(frame, stored["combined_nolamps"]),
+                "split_nolamps": _swapped(frame, stored["split_nolamps"]),
             }
             times = interleaved(draws, repeats_for(w, h, triangles, quick) + (0 if quick else 2))
         finally:
@@ -546,11 +551,16 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
         cell.update(l_max=l_max, res=res, triangles=scene.triangles, objects=objects)
         cell["weights"] = {c: float(stored[c][0].sh_weight) for c in rough}
         cell["split_used"] = {c: stored[c][0].prefiltered is not None for c in rough}
+        cell["lamps"] = {c: stored[c][0].lighting.lamp_count for c in rough}
+        cell["lamps_off"] = {c: stored[c + "_nolamps"][0].lighting.lamp_count for c in rough}
         rows.append(cell)
         log(
             f"  l={l_max}: SH only {cell['sh']:.1f} ms, combined {cell['combined']:.1f} ms"
             f" ({cell['combined'] / cell['sh']:.2f}×), split only {cell['split']:.1f} ms"
-            f" ({cell['split'] / cell['sh']:.2f}×)"
+            f" ({cell['split'] / cell['sh']:.2f}×); World lamps off: SH only {cell['sh_nolamps']:.1f} ms,"
+            f" combined {cell['combined_nolamps']:.1f} ms"
+            f" ({cell['combined_nolamps'] / cell['sh_nolamps']:.2f}×),"
+            f" split only {cell['split_nolamps']:.1f} ms ({cell['split_nolamps'] / cell['sh_nolamps']:.2f}×)"
         )
     return rows
 
@@ -938,10 +948,20 @@ def report(res: dict) -> str:
         )
     if res.get("split_sum"):
         lines.append(
-            "- Split sum + SH (combined) against SH only at 1080p: "
+            "- Split sum + SH (combined) against SH only at 1080p, as drawn (World lamps shaded per"
+            " light direction in both): "
             + ", ".join(f"l = {r['l_max']}: {r['combined'] / r['sh']:.2f}×" for r in res["split_sum"])
             + "."
         )
+        if all("sh_nolamps" in r for r in res["split_sum"]):
+            lines.append(
+                '- The same with the films\' "World Lamps" off (no lamp loop in either): '
+                + ", ".join(
+                    f"l = {r['l_max']}: {r['combined_nolamps'] / r['sh_nolamps']:.2f}×"
+                    for r in res["split_sum"]
+                )
+                + "."
+            )
     lines += [
         f"- GPU: {gpu_statement(res)}",
         "",
@@ -1123,15 +1143,29 @@ def _split_sum_section(res: dict) -> list[str]:
         " variant runs both the prefiltered lookup and the SH sum) and split sum only (roughness"
         f" {rough['split']:g}, `sh_weight` {w['split']:.2f}: the `TF_SPLIT_ONLY` variant, no SH half)."
         " The prefiltered World is a 3-D texture, radiance and direction-moment levels"
-        " (`gpu_draw.PrefilterTexture`). Median frame, ms.",
+        " (`gpu_draw.PrefilterTexture`). Each film is drawn twice: as the product draws it, with the"
+        f" World's lamps shaded per light direction ({r0.get('lamps', {}).get('sh', 0)} lamps in this"
+        " World: every variant adds the lamp loop, `glsl/tf_lamps.glsl`), and with the material's"
+        ' "World Lamps" off (no lamp loop; the SH and prefilter then hold the whole World).'
+        " Median frame, ms, all in the same interleaved rounds.",
         "",
-        "| l | Workbench | SH only | combined | combined ÷ SH only | split only | split only ÷ SH only |",
-        "|---|---|---|---|---|---|---|",
+        "| l | Workbench | SH only | combined | combined ÷ SH only | split only | split only ÷ SH only"
+        " | lamps off: SH only | combined | combined ÷ SH only | split only | split only ÷ SH only |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
+        off = ""
+        if "sh_nolamps" in r:
+            off = (
+                f" {r['sh_nolamps']:.0f} | {r['combined_nolamps']:.0f} |"
+                f" **{r['combined_nolamps'] / r['sh_nolamps']:.2f}×** | {r['split_nolamps']:.0f} |"
+                f" {r['split_nolamps'] / r['sh_nolamps']:.2f}× |"
+            )
+        else:
+            off = " — | — | — | — | — |"
         out.append(
             f"| {r['l_max']} | {r['workbench']:.0f} | {r['sh']:.0f} | {r['combined']:.0f} |"
-            f" **{r['combined'] / r['sh']:.2f}×** | {r['split']:.0f} | {r['split'] / r['sh']:.2f}× |"
+            f" **{r['combined'] / r['sh']:.2f}×** | {r['split']:.0f} | {r['split'] / r['sh']:.2f}× |" + off
         )
     same = [abs(r["split"] / r["combined"] - 1.0) < 0.05 for r in rows]
     if all(same):

@@ -23,7 +23,12 @@ void main()
 #ifdef TF_SPLIT_SUM
   vec3 rgb = tf_shade_combined(n, v, thickness01, tf_object.material.x, tf_object.material.y);
 #else
-  vec3 rgb = tf_shade(n, v, thickness01);
+  TFFrame f = tf_view_aligned_frame(n, v);
+  TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
+  vec3 rgb = tf_shade_at(f, r);
+#ifdef TF_LAMPS
+  rgb += tf_shade_lamps(f, r, n, v, tf_object.material.x); /* lamps.shade */
+#endif
 #endif
 #ifdef TF_DISPLAY_SRGB
   rgb = tf_srgb_oetf(clamp(rgb * tf_view.params.x, 0.0, 1.0));

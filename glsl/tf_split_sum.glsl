@@ -13,7 +13,7 @@
 
 const float TF_SQRT_4PI = 3.5449077018110318;
 
-vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment)
+vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment, out float lamp_weight)
 {
   int depth = textureSize(tf_prefiltered, 0).z;
   int levels = depth / 2;
@@ -33,17 +33,24 @@ vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment)
   float w = clamp((r * r * r * r - a4) / max(b4 - a4, 1e-30), 0.0, 1.0);
   /* slice centres at (k + 0.5) / depth: z between slices lo and lo + 1 with weight w */
   float z = (float(lo) + w + 0.5) / float(depth);
+  /* lamps.lamp_weight: levels from TF_LAMP_LEVEL on hold the World without its lamps, which
+   * tf_shade_lamps adds with this weight (0 where the texture keeps them) */
+#ifdef TF_LAMPS
+  lamp_weight = (1.0 - w) * float(lo >= TF_LAMP_LEVEL) + w * float(lo + 1 >= TF_LAMP_LEVEL);
+#else
+  lamp_weight = 0.0;
+#endif
   moment = texture(tf_prefiltered, vec3(u, t, z + 0.5)).rgb; /* + J slices */
   return texture(tf_prefiltered, vec3(u, t, z)).rgb;
 }
 
-vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
+vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness, out float lamp_weight)
 {
   vec3 refl = 2.0 * f.cos_o * n - v;
   /* prefilter.effective_roughness: r * cos(theta_o)^0.5 (GRAZING_EXPONENT) */
   float r_eff = clamp(roughness, 0.0, 1.0) * sqrt(clamp(f.cos_o, 1e-4, 1.0)); /* constants.MIN_COS */
   vec3 moment;
-  vec3 radiance = tf_prefiltered_lookup(refl, r_eff, moment);
+  vec3 radiance = tf_prefiltered_lookup(refl, r_eff, moment, lamp_weight);
   /* prefilter.dominant_cosine: cos theta' = sqrt((1 + v.c) / 2), c = the moment's direction;
    * a vanishing moment (black World in the lobe) keeps the view angle. (acos(v.c) / 2 is the
    * same angle, but llvmpipe's acos is off by 1.6e-4 of the peak in the per-pixel test.) */
@@ -69,13 +76,19 @@ vec3 tf_shade_combined(vec3 n, vec3 v, float thickness01, float roughness, float
   TFFrame f = tf_view_aligned_frame(n, v);
   TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
   vec3 rgb = vec3(0.0);
+  float lamp_weight = 0.0;
   if (sh_weight < 1.0) {
-    rgb += (1.0 - sh_weight) * tf_shade_split_sum_at(f, r, n, v, roughness);
+    rgb += (1.0 - sh_weight) * tf_shade_split_sum_at(f, r, n, v, roughness, lamp_weight);
   }
 #ifndef TF_SPLIT_ONLY
   if (sh_weight > 0.0) {
     rgb += sh_weight * tf_shade_at(f, r);
   }
+#endif
+#ifdef TF_LAMPS
+  /* prefilter.shade_combined: the SH half sees the World without its lamps; the split sum
+   * keeps them in its sharpest levels */
+  rgb += (sh_weight + (1.0 - sh_weight) * lamp_weight) * tf_shade_lamps(f, r, n, v, roughness);
 #endif
   return rgb;
 }

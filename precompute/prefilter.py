@@ -75,6 +75,10 @@ class Prefiltered:
     roughness: np.ndarray
     rejected_pixels: int
     moments: tuple | None = None
+    #: Per level, the share of the lifted-out lamps (lamps.py) that the level does *not* hold:
+    #: level j = rest + (1 − w_j) × lamps, and the analytic lamps are added with the same level
+    #: blend of these weights (:func:`lamp_weight_at`). None: no lamps were lifted out.
+    lamp_weights: np.ndarray | None = None
 
     def resampled(self, width: int) -> np.ndarray:
         """All levels bilinearly resampled to (J, width/2, width, 3) — e.g. for one GPU texture."""
@@ -173,22 +177,41 @@ def prefilter(
     width: int = LEVEL_WIDTH,
     samples=SAMPLES,
     lod_bias: float = LOD_BIAS,
+    lamp_mask: np.ndarray | None = None,
 ) -> Prefiltered:
     """GGX-prefiltered radiance for each roughness level (n = v = r assumption of the split sum).
 
     Each level also carries the prefiltered luminance × direction (``Prefiltered.moments``):
     both are filtered together as one 6-channel image, so the two share every sample.
+
+    ``lamp_mask`` (H, W) bool, the pixels :func:`lamps.extract` lifted out: the rest and the
+    lamps are filtered side by side and level j holds rest + (1 − w_j) lamps, with w_j =
+    :func:`lamps.level_lamp_weights` (``Prefiltered.lamp_weights``).
     """
+    from . import lamps as lamps_mod
+
     img = np.asarray(image, dtype=np.float64)[..., :3]
     bad = ~np.isfinite(img).all(axis=-1)
     rejected = int(bad.sum())
     if rejected:
         img = np.where(bad[..., None], 0.0, img)
+    parts = 1
+    if lamp_mask is not None:
+        mask = np.asarray(lamp_mask, dtype=bool)
+        if mask.shape != img.shape[:2]:
+            raise ValueError(f"lamp_mask must have shape {img.shape[:2]}, got {mask.shape}")
+        lamp_img = np.where(mask[..., None], img, 0.0)
+        img = np.concatenate([img - lamp_img, lamp_img], axis=-1)
+        parts = 2
     while img.shape[1] > width and img.shape[1] % 2 == 0:
         img = hdri.downsample(img, 2)
-    luminance = np.maximum(img @ np.asarray(LUMINANCE), 0.0)
     directions = hdri.equirect_directions(*img.shape[:2])
-    chain = mip_chain(np.concatenate([img, luminance[..., None] * directions], axis=-1))
+    channels = []
+    for p in range(parts):
+        rgb = img[..., 3 * p : 3 * p + 3]
+        luminance = np.maximum(rgb @ np.asarray(LUMINANCE), 0.0)
+        channels += [rgb, luminance[..., None] * directions]
+    chain = mip_chain(np.concatenate(channels, axis=-1))
     w0 = chain[0].shape[1]
     out = []
     for r in levels:
@@ -197,11 +220,16 @@ def prefilter(
             continue
         alpha = max(float(r) ** 2, constants.MIN_ALPHA)
         out.append(_level(chain, alpha, min(level_width(r, width), w0), samples, lod_bias))
+    weights = None
+    if parts == 2:
+        weights = lamps_mod.level_lamp_weights(len(out))
+        out = [level[..., :6] + (1.0 - wj) * level[..., 6:] for level, wj in zip(out, weights, strict=True)]
     return Prefiltered(
         tuple(level[..., :3] for level in out),
         np.asarray(levels, dtype=float),
         rejected,
-        tuple(level[..., 3:] for level in out),
+        tuple(level[..., 3:6] for level in out),
+        weights,
     )
 
 
@@ -240,6 +268,17 @@ def _blend(pre: Prefiltered, directions: np.ndarray, roughness, stacks) -> list[
             b = _bilinear(levels[level + 1], directions[sel])
             out[sel] = (1 - frac[sel]) * a + frac[sel] * b
     return outs
+
+
+def lamp_weight_at(pre: Prefiltered, roughness) -> np.ndarray:
+    """The analytic lamps' weight at the level blend of (effective) ``roughness``; 0 without lamps."""
+    from . import lamps as lamps_mod
+
+    r = np.asarray(roughness, dtype=float)
+    if pre.lamp_weights is None:
+        return np.zeros(r.shape)
+    lo, frac = level_blend(r, pre.roughness)
+    return lamps_mod.lamp_weight(lo, frac, len(pre.levels))
 
 
 def lookup(pre: Prefiltered, directions: np.ndarray, roughness, moments: bool = False) -> np.ndarray:
@@ -329,8 +368,17 @@ def shade_split_sum(result, pre: Prefiltered, normals, views, thickness_nm=None)
     return np.maximum(albedo * radiance, 0.0)
 
 
-def shade_combined(result, world_coeffs, pre: Prefiltered, normals, views, thickness_nm=None) -> np.ndarray:
-    """The product's shading: split sum for glossy films, SH for rough ones, blended by roughness."""
+def shade_combined(
+    result, world_coeffs, pre: Prefiltered, normals, views, thickness_nm=None, lamps=None, film=None
+) -> np.ndarray:
+    """The product's shading: split sum for glossy films, SH for rough ones, blended by roughness.
+
+    With ``lamps`` (:class:`lamps.Lamps`) and ``film`` (:func:`lamps.film_table`) the World's
+    lamps are added, shaded per light direction (:func:`lamps.shade`); ``world_coeffs`` and
+    ``pre`` from ``prefilter(…, lamp_mask=…)``. The SH half sees the World without its lamps
+    (weight 1); the split-sum half keeps them in its sharpest levels (:func:`lamp_weight_at`).
+    """
+    from . import lamps as lamps_mod
     from .render import shade_sh
 
     w = sh_weight(result.material.roughness)
@@ -339,4 +387,16 @@ def shade_combined(result, world_coeffs, pre: Prefiltered, normals, views, thick
         out = (1.0 - w) * shade_split_sum(result, pre, normals, views, thickness_nm)
     if w > 0.0:
         out = out + w * shade_sh(result, world_coeffs, normals, views, thickness_nm)
+    if lamps is not None and lamps.count:
+        if film is None:
+            raise ValueError("lamps need the film table (lamps.film_table)")
+        n = np.asarray(normals, dtype=float)
+        v = np.asarray(views, dtype=float)
+        cos_o = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
+        weight = w + (1.0 - w) * lamp_weight_at(pre, effective_roughness(result.material.roughness, cos_o))
+        position = _thickness_position(result, thickness_nm)
+        if position is not None:
+            position = position / (result.thicknesses_nm.size - 1)
+        lit = lamps_mod.shade(film, lamps, result.material.roughness, n, v, position)
+        out = out + weight[..., None] * lit.reshape(n.shape)
     return out

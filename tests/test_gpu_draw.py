@@ -272,7 +272,8 @@ def test_table_layers_and_lighting_layout(gd):
     assert packed.nbytes == gd.LIGHTING_VEC4 * 16 <= gd.UBO_LIMIT_BYTES
     slots = gd.SH_SLOTS
     assert np.allclose(packed[:36, :3], lighting.coefficients) and np.all(packed[36:slots] == 0)
-    rx = packed[slots:].ravel()
+    assert np.all(packed[slots : slots + gd.LAMP_VEC4] == 0)  # no lamps: count 0
+    rx = packed[slots + gd.LAMP_VEC4 :].ravel()
     # One set: X(+90°) row-major; X(−90°) is read as its transpose.
     for sign in (+1, -1):
         for l, block in enumerate(render.x_rotation_bands(gd.MAX_L, sign)):
@@ -744,4 +745,82 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
     # float32 shading plus hardware bilinear filtering of the prefiltered levels (llvmpipe's is
     # exact to 6e-8 in weights): 1e-4 of the peak, as for the SH path.
+    assert inside.sum() > 300 and err < 1e-4, err
+
+
+@pytest.mark.parametrize(
+    "colour_mode, weight, split",
+    [
+        ("spectral", 0.5, True),
+        ("per_channel", 0.0, True),
+        ("spectral", 1.0, False),
+        ("per_channel", 1.0, False),
+    ],
+)
+def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split):
+    """tf_lamps.glsl against lamps.shade with the weights of prefilter.shade_combined.
+
+    The World gets two small suns (so precompute.lamps.extract finds lamps); the SH and the
+    prefiltered levels are those of the World without them, the lamps are shaded per light
+    direction with the film texture. Split: the lamps' weight follows the level blend
+    (prefilter.lamp_weight_at); SH alone (no prefiltered World): weight 1.
+    """
+    from precompute import lamps, prefilter, sh
+
+    result = baked(5, colour_mode, False)
+    table = gd.TableTexture.from_result(result)
+    _world, img = world_sh()
+    img = img.copy()
+    img[6, 40] = (4e4, 3.8e4, 3e4)
+    img[20, 10] = (1.5e4, 2e4, 2.6e4)
+    found, mask = lamps.extract(img)
+    assert found.count == 2
+    rest_coeffs = sh.project_equirect(lamps.remove(img, mask), 12)
+    lighting = gd.Lighting.from_sh(rest_coeffs, 5, result.material.roughness, found)
+    film = lamps.film_table(result)
+    full = prefilter.prefilter(img, width=64, lamp_mask=mask)
+    levels, moments = full.resampled(64), full.resampled_moments(64)
+    pre = prefilter.Prefiltered(
+        tuple(levels), np.asarray(prefilter.ROUGHNESS_LEVELS), 0, tuple(moments), full.lamp_weights
+    )
+    item = Item(
+        gd.MeshBatch.from_arrays(
+            np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
+            np.tile([0.0, -1.0, 0.0], (4, 1)),
+            [[0, 1, 2], [0, 2, 3]],
+        ),
+        table,
+        lighting,
+        rotation(0, 35.0) @ rotation(2, 25.0),
+    )
+    item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments) if split else None
+    item.roughness, item.sh_weight = result.material.roughness, weight
+    item.film = gd.FilmTexture.from_film(film)
+    (group,) = gd.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    assert group.variant[7] and group.variant[4] == split, group.variant
+    image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+
+    rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
+    cam = np.array([0.0, -DISTANCE, 0.0])
+    model = item.model_matrix
+    normal = unit(np.linalg.inv(model[:3, :3]).T @ np.array([0.0, -1.0, 0.0]))
+    t = ((model[:3, 3] - cam) @ normal) / (rays @ normal)
+    hit = cam + t[..., None] * rays
+    local = (hit - model[:3, 3]) @ np.linalg.inv(model[:3, :3]).T
+    inside = (np.abs(local[..., 0]) < 0.97) & (np.abs(local[..., 2]) < 0.97) & (t > 0)
+    views = unit(cam - hit[inside])
+    n = np.broadcast_to(normal, views.shape)
+    n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
+    lit = lamps.shade(film, found, result.material.roughness, n, views)
+    expected = render.shade_sh(result, lighting.coefficients, n, views)
+    if split:
+        cos_o = np.clip(np.sum(n * views, -1), 0.0, 1.0)
+        lamp_w = prefilter.lamp_weight_at(
+            pre, prefilter.effective_roughness(result.material.roughness, cos_o)
+        )
+        expected = (1.0 - weight) * prefilter.shade_split_sum(result, pre, n, views) + weight * expected
+        lit = (weight + (1.0 - weight) * lamp_w)[:, None] * lit
+    assert np.max(lit) > 0.05 * np.max(expected)  # the lamps show
+    expected = expected + lit
+    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
     assert inside.sum() > 300 and err < 1e-4, err

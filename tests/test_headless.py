@@ -664,3 +664,42 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, tf, capfd):
         _set_cache_preference(bpy, addon, tf.cache_dir)
     out = capfd.readouterr()
     assert "duplicate command" not in out.out + out.err
+
+
+def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh, tmp_path):
+    """bpy's studio HDRI: its lamps are lifted out (lamp loop + film texture on the draw item),
+    and the picture keeps its light: with "World Lamps" off (the whole World through SH and the
+    prefilter) the mean brightness of a rough film stays within 10 %, since both carry the same
+    power. A diffuse base keeps the whole World (no lamp loop)."""
+    scene = fresh
+    hdri_world(bpy, scene, studiolight("studio"))
+    mat = film(bpy, "Glossy", thickness_nm=500.0, roughness=0.6)
+    sphere(bpy, scene, material=mat)
+    camera(bpy, scene, distance=5.0)
+
+    def items():
+        return tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
+
+    (item,) = items()
+    image_entry = tf.scene_draw.CACHES.world[2]
+    assert image_entry is not None and image_entry.lamps is not None
+    assert 1 <= image_entry.lamps.count <= tf.gpu_draw.MAX_LAMPS and image_entry.lamps.share > 0.5
+    assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
+    # The lighting of a lamp-shaded film is the World's SH minus the lamps' SH.
+    whole = tf.scene_draw.CACHES.world[1].coeffs
+    assert item.lighting.coefficients[0, 1] < 0.5 * whole[0, 1]
+    on, _ = render(tf, scene, tmp_path / "lamps_on.png")
+
+    mat.thinfilm_sh.world_lamps = False
+    (item_off,) = items()
+    assert item_off.film is None and item_off.lighting.lamp_count == 0
+    assert item_off.prefiltered is image_entry.prefiltered_whole()
+    off, _ = render(tf, scene, tmp_path / "lamps_off.png")
+    sphere_px = on.sum(axis=-1) > 0
+    ratio = off[sphere_px].mean() / on[sphere_px].mean()
+    assert 0.9 < ratio < 1.1, ratio
+
+    mat.thinfilm_sh.world_lamps = True
+    mat.thinfilm_sh.diffuse_base = True
+    (item_diffuse,) = items()
+    assert item_diffuse.film is None and item_diffuse.lighting.lamp_count == 0

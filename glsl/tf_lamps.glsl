@@ -1,0 +1,79 @@
+/* tf_lamps.glsl: the World's lamps, shaded per light direction.
+ *
+ * numpy counterpart: lamps.shade (and the weights of prefilter.shade_combined).
+ * Lamps: tf_lighting.lamps[0].x = count K <= TF_MAX_LAMPS; lamps[1 + 2k].xyz = direction
+ * (unit, towards the lamp), lamps[2 + 2k].rgb = power (sum of L d omega).
+ * Texture `tf_film` (sampler2DArray, RGBA32F): width U = u = cos theta uniform 0..1 inclusive,
+ * height T = the table's thickness rows; TF_SPECTRAL: layers 0..2 = rows of the film's 3x3
+ * reflectance, layer 3 = the multiple-scattering factor at view cosine u; otherwise layer 0 =
+ * the RGB reflectance, layer 1 = the factor. Interpolated in full float32 like tf_table.
+ * Each lamp: D G2 F(v.h) / (4 cos theta_o) x power (Walter et al. 2007; height-correlated
+ * Smith G2, Heitz 2014), as brdf.D_ggx and brdf.G2_smith_height_correlated.
+ */
+
+#define TF_MAX_LAMPS 8
+#define TF_MIN_COS 1e-4
+#define TF_MIN_ALPHA 1e-4
+
+vec3 tf_film_at(float u, TFLerp r, int layer)
+{
+  int count = textureSize(tf_film, 0).x;
+  int i0, i1;
+  float w;
+  tf_lerp_index(u * float(count - 1), count, i0, i1, w);
+  vec3 lo = mix(texelFetch(tf_film, ivec3(i0, r.i0.y, layer), 0).rgb,
+                texelFetch(tf_film, ivec3(i1, r.i0.y, layer), 0).rgb, w);
+#ifdef TF_VARY_THICKNESS
+  vec3 hi = mix(texelFetch(tf_film, ivec3(i0, r.i1.y, layer), 0).rgb,
+                texelFetch(tf_film, ivec3(i1, r.i1.y, layer), 0).rgb, w);
+  return mix(lo, hi, r.w.y);
+#else
+  return lo;
+#endif
+}
+
+/* Smith Lambda for GGX with alpha^2 = a2 (brdf.lambda_ggx). */
+float tf_lambda_ggx(float c, float a2)
+{
+  c = clamp(c, TF_MIN_COS, 1.0);
+  return 0.5 * (sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)) - 1.0);
+}
+
+vec3 tf_shade_lamps(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
+{
+  int count = int(tf_lighting.lamps[0].x);
+  float rr = clamp(roughness, 0.0, 1.0);
+  float alpha = max(rr * rr, TF_MIN_ALPHA);
+  float a2 = alpha * alpha;
+  float cos_o = clamp(f.cos_o, TF_MIN_COS, 1.0);
+  float lambda_o = tf_lambda_ggx(cos_o, a2);
+  vec3 sum = vec3(0.0);
+  for (int k = 0; k < TF_MAX_LAMPS; k++) {
+    if (k >= count) {
+      break;
+    }
+    vec3 l = tf_lighting.lamps[1 + 2 * k].xyz;
+    float cos_i = dot(n, l);
+    if (cos_i <= 0.0) {
+      continue;
+    }
+    vec3 p = tf_lighting.lamps[2 + 2 * k].rgb;
+    vec3 h = tf_safe_normalize(v + l, n);
+    float nh = clamp(dot(n, h), 0.0, 1.0);
+    float t = nh * nh * (a2 - 1.0) + 1.0;
+    float d = (nh > 0.0) ? a2 / (TF_PI * t * t) : 0.0;
+    float weight = d / ((1.0 + tf_lambda_ggx(cos_i, a2) + lambda_o) * 4.0 * cos_o);
+    float u = clamp(dot(v, h), 0.0, 1.0);
+#ifdef TF_SPECTRAL
+    vec3 rgb = vec3(dot(tf_film_at(u, r, 0), p), dot(tf_film_at(u, r, 1), p), dot(tf_film_at(u, r, 2), p));
+#else
+    vec3 rgb = tf_film_at(u, r, 0) * p;
+#endif
+    sum += weight * rgb;
+  }
+#ifdef TF_SPECTRAL
+  return sum * tf_film_at(cos_o, r, 3);
+#else
+  return sum * tf_film_at(cos_o, r, 1);
+#endif
+}
