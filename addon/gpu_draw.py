@@ -94,10 +94,14 @@ struct TFTable {{
   vec4 size; /* view angles A, thickness rows T, layers */
   vec4 texel[{TABLE_UBO_TEXELS}];
 }};
+struct TFFilm {{
+  vec4 size; /* u samples U, thickness rows T, layers */
+  vec4 texel[{TABLE_UBO_TEXELS}];
+}};
 """
 
 # Binding slots.
-UBO_LIGHTING, UBO_VIEW, UBO_OBJECT, UBO_TABLE = 0, 1, 2, 3
+UBO_LIGHTING, UBO_VIEW, UBO_OBJECT, UBO_TABLE, UBO_FILM = 0, 1, 2, 3, 4
 SAMPLER_TABLE = 0
 SAMPLER_ENVIRONMENT = 0
 SAMPLER_PREFILTERED = 3
@@ -253,6 +257,8 @@ class Variant(NamedTuple):
     split_only: bool = False
     #: The World's lamps shaded per light direction (tf_lamps.glsl, the film texture).
     lamps: bool = False
+    #: The lamps' film table read from the ``TFFilm`` uniform buffer (small tables).
+    film_ubo: bool = False
 
 
 def declare_shading_resources(info, variant: Variant) -> None:
@@ -275,7 +281,11 @@ def declare_shading_resources(info, variant: Variant) -> None:
     if variant.lamps:
         info.define("TF_LAMPS", "1")
         info.define("TF_LAMP_LEVEL", str(int(np_lamps.LAMP_LEVEL)))
-        info.sampler(SAMPLER_FILM, "FLOAT_2D_ARRAY", "tf_film")
+        if variant.film_ubo:
+            info.define("TF_FILM_UBO", "1")
+            info.uniform_buf(UBO_FILM, "TFFilm", "tf_film_data")
+        else:
+            info.sampler(SAMPLER_FILM, "FLOAT_2D_ARRAY", "tf_film")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
     if variant.table_ubo:
@@ -363,6 +373,7 @@ class ShaderCache:
         table_ubo: bool = False,
         split_only: bool = False,
         lamps: bool = False,
+        film_ubo: bool = False,
     ):
         """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
         variant = Variant(
@@ -374,6 +385,7 @@ class ShaderCache:
             bool(table_ubo),
             bool(split_sum and split_only),
             bool(lamps),
+            bool(lamps and film_ubo),
         )
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
@@ -730,6 +742,9 @@ class FilmTexture:
     samples: int
     thickness_count: int
     spectral: bool
+    #: The same texels as a ``TFFilm`` uniform buffer when they fit (drawn from there: on
+    #: llvmpipe a uniform-buffer load is cheaper than a texelFetch, as for the table).
+    ubo: gpu.types.GPUUniformBuf | None = None
 
     @staticmethod
     def layer_array(film) -> np.ndarray:
@@ -752,7 +767,9 @@ class FilmTexture:
             raise ValueError("the film table needs at least 2 samples in u")
         ensure_gpu_context()
         texture = gpu.types.GPUTexture((u, t), layers=n_layers, format="RGBA32F", data=float_buffer(layers))
-        return cls(texture, u, t, film.reflectance.ndim == 4)
+        packed = TableTexture.uniform_array(layers)  # same layout: (row * U + column) * layers + layer
+        ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
+        return cls(texture, u, t, film.reflectance.ndim == 4, ubo)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -911,7 +928,7 @@ class DrawGroup:
     table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
     prefiltered: gpu.types.GPUTexture | None
     draws: list  # (GPUBatch, object GPUUniformBuf)
-    film: gpu.types.GPUTexture | None = None
+    film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
 
 
 @dataclass
@@ -978,6 +995,8 @@ def prepare_draw(
         split_only = split and sh_weight <= 0.0
         film = getattr(item, "film", None)
         lamps = film is not None and getattr(item.lighting, "lamp_count", 0) > 0
+        film_ubo = lamps and film.ubo is not None
+        film_data = (film.ubo if film_ubo else film.texture) if lamps else None
         variant = (
             table.l_max,
             table.spectral,
@@ -987,13 +1006,14 @@ def prepare_draw(
             table_ubo is not None,
             split_only,
             lamps,
+            film_ubo,
         )
         key = (
             variant,
             id(item.lighting.ubo),
             id(table_data),
             id(prefiltered.texture) if split else None,
-            id(film.texture) if lamps else None,
+            id(film_data) if lamps else None,
         )
         group = groups.get(key)
         if group is None:
@@ -1004,7 +1024,7 @@ def prepare_draw(
                 table_data,
                 prefiltered.texture if split else None,
                 [],
-                film.texture if lamps else None,
+                film_data,
             )
         group.draws.append((batch, object_ubo))
     if not groups:
@@ -1045,7 +1065,10 @@ def submit(prepared: PreparedDraw) -> None:
             if group.prefiltered is not None:
                 shader.uniform_sampler("tf_prefiltered", group.prefiltered)
             if group.film is not None:
-                shader.uniform_sampler("tf_film", group.film)
+                if group.variant[8]:
+                    shader.uniform_block("tf_film_data", group.film)
+                else:
+                    shader.uniform_sampler("tf_film", group.film)
             for batch, object_ubo in group.draws:
                 shader.uniform_block("tf_object", object_ubo)
                 batch.draw(shader)

@@ -300,9 +300,9 @@ def main(argv=None) -> int:
         f"pixels brighter than {lamps.THRESHOLD:g}× the mean luminance become at most {lamps.MAX_LAMPS}",
         "directional lights, each shaded with the exact microfacet BRDF and the film's colour at its",
         "own half-vector; the SH and the prefilter see the World without them (the prefilter keeps",
-        "them at its mirror level). Lamps per HDRI: "
+        "them in its two sharpest levels, roughness < 0.0625). Lamps per HDRI: "
         + ", ".join(
-            f"{name} {count} ({100 * share:.0f} % of the light)"
+            f"{name} {count} ({100 * share:.1f} % of the light)"
             for name, (count, share) in sorted(LAMPS_SEEN.items())
         )
         + ".",

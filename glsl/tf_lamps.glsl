@@ -7,6 +7,8 @@
  * height T = the table's thickness rows; TF_SPECTRAL: layers 0..2 = rows of the film's 3x3
  * reflectance, layer 3 = the multiple-scattering factor at view cosine u; otherwise layer 0 =
  * the RGB reflectance, layer 1 = the factor. Interpolated in full float32 like tf_table.
+ * With TF_FILM_UBO the same texels come from the uniform buffer tf_film_data (texel (row,
+ * column, layer) at (row * U + column) * layers + layer), as TF_TABLE_UBO for the table.
  * Each lamp: D G2 F(v.h) / (4 cos theta_o) x power (Walter et al. 2007; height-correlated
  * Smith G2, Heitz 2014), as brdf.D_ggx and brdf.G2_smith_height_correlated.
  */
@@ -15,17 +17,38 @@
 #define TF_MIN_COS 1e-4
 #define TF_MIN_ALPHA 1e-4
 
+#ifdef TF_FILM_UBO
+int tf_film_count()
+{
+  return int(tf_film_data.size.x);
+}
+
+vec3 tf_film_texel(int column, int row, int layer)
+{
+  ivec3 size = ivec3(tf_film_data.size.xyz);
+  return tf_film_data.texel[(row * size.x + column) * size.z + layer].rgb;
+}
+#else
+int tf_film_count()
+{
+  return textureSize(tf_film, 0).x;
+}
+
+vec3 tf_film_texel(int column, int row, int layer)
+{
+  return texelFetch(tf_film, ivec3(column, row, layer), 0).rgb;
+}
+#endif
+
 vec3 tf_film_at(float u, TFLerp r, int layer)
 {
-  int count = textureSize(tf_film, 0).x;
+  int count = tf_film_count();
   int i0, i1;
   float w;
   tf_lerp_index(u * float(count - 1), count, i0, i1, w);
-  vec3 lo = mix(texelFetch(tf_film, ivec3(i0, r.i0.y, layer), 0).rgb,
-                texelFetch(tf_film, ivec3(i1, r.i0.y, layer), 0).rgb, w);
+  vec3 lo = mix(tf_film_texel(i0, r.i0.y, layer), tf_film_texel(i1, r.i0.y, layer), w);
 #ifdef TF_VARY_THICKNESS
-  vec3 hi = mix(texelFetch(tf_film, ivec3(i0, r.i1.y, layer), 0).rgb,
-                texelFetch(tf_film, ivec3(i1, r.i1.y, layer), 0).rgb, w);
+  vec3 hi = mix(tf_film_texel(i0, r.i1.y, layer), tf_film_texel(i1, r.i1.y, layer), w);
   return mix(lo, hi, r.w.y);
 #else
   return lo;

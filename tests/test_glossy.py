@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from benchmarks import cycles_compare as cc
-from precompute import bake, hdri, optics, prefilter, render, spectra
+from precompute import bake, hdri, lamps, optics, prefilter, render, spectra
 from precompute.material import Layer, Material, Quality
 
 SKY = 0.25
@@ -91,7 +91,8 @@ HARD_FILMS = {
 
 @pytest.mark.parametrize("name", list(HARD_FILMS))
 @pytest.mark.parametrize("sun_side", ["front", "grazing back light"])
-def test_combined_path_under_a_1e5_sun_is_finite_non_negative_and_firefly_free(name, sun_side):
+@pytest.mark.parametrize("with_lamps", [False, True], ids=["sun in the World", "sun as a lamp"])
+def test_combined_path_under_a_1e5_sun_is_finite_non_negative_and_firefly_free(name, sun_side, with_lamps):
     thickness, roughness = HARD_FILMS[name]
     h, w = 128, 256
     d = hdri.equirect_directions(h, w)
@@ -111,12 +112,22 @@ def test_combined_path_under_a_1e5_sun_is_finite_non_negative_and_firefly_free(n
         quality=Quality(sh_order=8),
     )
     result = bake.bake(material)
-    coeffs = render.prepare_environment(image, 8, roughness=roughness)[1]
-    pre = prefilter.prefilter(image)
+    found, film = None, None
+    if with_lamps:  # as the add-on: the sun lifted out (precompute/lamps.py), shaded per direction
+        found, mask = lamps.extract(image)
+        assert found.count >= 1 and found.share > 0.9
+        film = lamps.film_table(result)
+        coeffs = render.prepare_environment(lamps.remove(image, mask), 8, roughness=roughness)[1]
+        pre = prefilter.prefilter(image, lamp_mask=mask)
+    else:
+        coeffs = render.prepare_environment(image, 8, roughness=roughness)[1]
+        pre = prefilter.prefilter(image)
     view = render.sphere_view(48, 48, cc.DISTANCE, cc.FOV_DEG)
     m = view.mask
     out = np.zeros(view.mask.shape + (3,))
-    out[m] = prefilter.shade_combined(result, coeffs, pre, view.normals[m], view.views[m])
+    out[m] = prefilter.shade_combined(
+        result, coeffs, pre, view.normals[m], view.views[m], lamps=found, film=film
+    )
     assert np.isfinite(out).all() and (out >= 0).all()
     # Nothing brighter than a perfect mirror of the sun (albedo ≤ 1), and no firefly: away from
     # the highlight (its 7×7 window, and for back light the 3-pixel silhouette band where the

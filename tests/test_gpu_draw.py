@@ -6,6 +6,7 @@ and views read from textures, one per pixel, and compares them with
 masking through the ``depth_from`` hook, the restored GPU state, the shader cache, mesh arrays.
 """
 
+import dataclasses
 import importlib
 import os
 import subprocess
@@ -749,21 +750,22 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
 
 
 @pytest.mark.parametrize(
-    "colour_mode, weight, split",
+    "colour_mode, weight, split, film_ubo",
     [
-        ("spectral", 0.5, True),
-        ("per_channel", 0.0, True),
-        ("spectral", 1.0, False),
-        ("per_channel", 1.0, False),
+        ("spectral", 0.5, True, True),
+        ("spectral", 0.5, True, False),
+        ("per_channel", 0.0, True, True),
+        ("spectral", 1.0, False, True),
+        ("per_channel", 1.0, False, False),
     ],
 )
-def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split):
+def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, film_ubo):
     """tf_lamps.glsl against lamps.shade with the weights of prefilter.shade_combined.
 
     The World gets two small suns (so precompute.lamps.extract finds lamps); the SH and the
     prefiltered levels are those of the World without them, the lamps are shaded per light
-    direction with the film texture. Split: the lamps' weight follows the level blend
-    (prefilter.lamp_weight_at); SH alone (no prefiltered World): weight 1.
+    direction with the film table (uniform buffer, or the texture). Split: the lamps' weight
+    follows the level blend (prefilter.lamp_weight_at); SH alone (no prefiltered World): weight 1.
     """
     from precompute import lamps, prefilter, sh
 
@@ -796,8 +798,10 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split):
     item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments) if split else None
     item.roughness, item.sh_weight = result.material.roughness, weight
     item.film = gd.FilmTexture.from_film(film)
+    if not film_ubo:  # the texture path (tables too large for the uniform buffer)
+        item.film = dataclasses.replace(item.film, ubo=None)
     (group,) = gd.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
-    assert group.variant[7] and group.variant[4] == split, group.variant
+    assert group.variant[7] and group.variant[4] == split and group.variant[8] == film_ubo, group.variant
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
