@@ -1026,7 +1026,10 @@ def _method_lines() -> list[str]:
         " facing the camera; all with one film material: 400 nm of n = 1.33 on glass, constant thickness,"
         f" spectral colour, roughness {rough['sh']:g} (drawn by SH alone: `sh_weight` = 1), SH order"
         " forced through the material's Quality; the World is Blender's"
-        f" `{HDRI}` studio-light HDRI. Coverage = share of the frame's pixels the films cover.",
+        f" `{HDRI}` studio-light HDRI, whose small bright lamps the films shade per light direction"
+        ' (the material\'s "World Lamps", on by default: a loop over 8 lamps in every variant, about'
+        " 2× the SH-only frame at l = 2 on llvmpipe and +5–15 % from l = 8; see the split-sum table)."
+        " Coverage = share of the frame's pixels the films cover.",
         "- Timing noise: the machine is shared with other CPU-heavy work, and llvmpipe uses every core,"
         " so both draws slow down together; compare ratios within a run.",
         "",

@@ -827,4 +827,5 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     assert np.max(lit) > 0.05 * np.max(expected)  # the lamps show
     expected = expected + lit
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    print(f"lamps variant {colour_mode} weight {weight} split {split} ubo {film_ubo}: {err:.1e} of the peak")
     assert inside.sum() > 300 and err < 1e-4, err
