@@ -46,7 +46,7 @@ class Caches:
     batches: dict = field(default_factory=dict)  # (object name, slot) → (signature, MeshBatch | None)
     tables: dict = field(default_factory=dict)  # description key → TableTexture
     films: dict = field(default_factory=dict)  # description key → FilmTexture (lamps)
-    lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness) → Lighting
+    lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness, lamps) → Lighting
     world: tuple | None = None  # (world key, WorldSH, WorldImage | None)
     dirty: set = field(default_factory=set)  # object names whose geometry changed
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})

@@ -685,6 +685,9 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     assert image_entry is not None and image_entry.lamps is not None
     assert 1 <= image_entry.lamps.count <= tf.gpu_draw.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
+    summary = tf.scene_draw.lamps_summary(True)  # the Surface panel's line
+    assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary
+    assert "off" in tf.scene_draw.lamps_summary(False)
     # The lighting of a lamp-shaded film is the World's SH minus the lamps' SH.
     whole = tf.scene_draw.CACHES.world[1].coeffs
     assert item.lighting.coefficients[0, 1] < 0.5 * whole[0, 1]
