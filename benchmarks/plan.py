@@ -479,6 +479,11 @@ def report(res: dict) -> str:
         "| diffuse_base | a base colour under the film | the diffuse kernel and film transmission on the"
         " m = 0 coefficients (no extra table size) |",
         "| multiscatter | roughness > 0 and multiscatter ≠ none | Kulla–Conty energy compensation |",
+        "| world lamps (per World, at draw time) | the World has pixels brighter than 32× its mean luminance"
+        ' (`lamps.extract`), the material\'s "World Lamps" is on and it has no diffuse base | up to 8'
+        " directional lights in the lighting uniform buffer, a film table per material (`lamps.film_table`),"
+        " `TF_LAMPS` (the lamp loop, `glsl/tf_lamps.glsl`); SH and prefilter without the lamps; off: none of"
+        " it (no table, no loop) |",
         "",
         "The plan also carries the resolved `bake.Plan` — SH order from roughness (`auto_sh_order`), view"
         " angles, thickness rows, wavelengths — the table shape and bytes (float32, and the RGBA32F texture),"
