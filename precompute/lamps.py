@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import brdf, constants, hdri
+from .prefilter import LUMINANCE
+from .render import _lerp_index
 
 #: At most this many lamps (the shader's loop bound; 8 × 2 vec4 in the lighting uniform buffer).
 #: Studio soap r 0.15 against Cycles (threshold 32): 8 / 16 clusters 1.53 / 1.29, every lamp
@@ -44,8 +46,6 @@ MAX_LAMPS = 8
 #: 1.55 / 1.60 / 1.71. At 32 only small, very bright sources qualify (studio: 969 of 512 k
 #: pixels, 87 % of the power; courtyard: the sun's 8 pixels).
 THRESHOLD = 32.0
-#: Rec.709 luminance (Blender's scene-linear RGB), as prefilter.LUMINANCE.
-LUMINANCE = (0.2126, 0.7152, 0.0722)
 #: Samples of the film table in u = cos θ (uniform 0…1 inclusive).
 FILM_SAMPLES = 128
 #: Spherical k-means iterations (Lloyd); it stops earlier once the centres stop moving.
@@ -74,27 +74,27 @@ class Lamps:
         return Lamps(np.zeros((0, 3)), np.zeros((0, 3)), 0, 0.0)
 
 
-def pixel_solid_angles(height: int, width: int) -> np.ndarray:
-    """(H, W) exact solid angle of each equirect pixel, (2π/W)(cos θ_top − cos θ_bottom)."""
-    edges = np.cos(np.arange(height + 1) * np.pi / height)
-    rows = (edges[:-1] - edges[1:]) * (2.0 * np.pi / width)
-    return np.repeat(rows[:, None], width, axis=1)
+def _luminance(img: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(finite mask, luminance with non-finite pixels 0, ∫ max(Y, 0) dω) of an (H, W, 3) image."""
+    ok = np.isfinite(img).all(axis=-1)
+    y = np.where(ok[..., None], img, 0.0) @ np.asarray(LUMINANCE)
+    power = float(np.sum(np.maximum(y, 0.0) * hdri.equirect_solid_angles(*img.shape[:2])))
+    return ok, y, power
 
 
-def lamp_mask(image: np.ndarray, threshold: float = THRESHOLD) -> np.ndarray:
-    """(H, W) bool: finite pixels brighter than ``threshold`` × the mean luminance."""
+def _checked(image, threshold) -> np.ndarray:
     img = np.asarray(image, dtype=np.float64)[..., :3]
     if img.ndim != 3 or img.shape[0] < 1 or img.shape[1] < 1:
         raise ValueError(f"image must have shape (H, W, 3), got {img.shape}")
     if not threshold > 0 or not np.isfinite(threshold):
         raise ValueError(f"threshold must be a positive number, got {threshold!r}")
-    ok = np.isfinite(img).all(axis=-1)
-    y = np.where(ok, np.where(ok[..., None], img, 0.0) @ np.asarray(LUMINANCE), 0.0)
-    domega = pixel_solid_angles(*img.shape[:2])
-    mean = float(np.sum(np.maximum(y, 0.0) * domega) / (4.0 * np.pi))
-    if not mean > 0.0:
-        return np.zeros(img.shape[:2], dtype=bool)
-    return ok & (y > threshold * mean)
+    return img
+
+
+def lamp_mask(image: np.ndarray, threshold: float = THRESHOLD) -> np.ndarray:
+    """(H, W) bool: finite pixels brighter than ``threshold`` × the mean luminance."""
+    ok, y, power = _luminance(_checked(image, threshold))
+    return ok & (y > threshold * power / (4.0 * np.pi)) if power > 0.0 else np.zeros_like(ok)
 
 
 def _kmeans(directions: np.ndarray, weights: np.ndarray, k: int) -> np.ndarray:
@@ -131,16 +131,15 @@ def extract(
     """
     if int(max_lamps) < 0:
         raise ValueError(f"max_lamps must be ≥ 0, got {max_lamps!r}")
-    img = np.asarray(image, dtype=np.float64)[..., :3]
-    mask = lamp_mask(img, threshold)
+    img = _checked(image, threshold)
+    ok, y_all, total = _luminance(img)
+    mask = ok & (y_all > threshold * total / (4.0 * np.pi)) if total > 0.0 else np.zeros_like(ok)
     if max_lamps == 0 or not mask.any():
         return Lamps.none(), np.zeros(img.shape[:2], dtype=bool)
-    domega = pixel_solid_angles(*img.shape[:2])
     dirs = hdri.equirect_directions(*img.shape[:2])[mask]
     radiance = img[mask]
-    w = domega[mask]
-    y = radiance @ np.asarray(LUMINANCE)
-    weights = y * w
+    w = hdri.equirect_solid_angles(*img.shape[:2])[mask]
+    weights = y_all[mask] * w
     k = min(int(max_lamps), int(mask.sum()))
     labels = _kmeans(dirs, weights, k)
     directions, power = [], []
@@ -152,9 +151,6 @@ def extract(
             continue
         directions.append(d / norm)
         power.append(np.sum(radiance[sel] * w[sel, None], axis=0))
-    ok_all = np.isfinite(img).all(axis=-1)
-    y_all = np.where(ok_all, np.where(ok_all[..., None], img, 0.0) @ np.asarray(LUMINANCE), 0.0)
-    total = float(np.sum(np.maximum(y_all, 0.0) * domega))
     lamps = Lamps(
         np.asarray(directions, dtype=np.float64).reshape(-1, 3),
         np.asarray(power, dtype=np.float64).reshape(-1, 3),
@@ -267,9 +263,9 @@ def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
 
 
 def _lerp(count: int, pos):
-    pos = np.clip(pos, 0.0, count - 1)
-    i0 = np.minimum(np.floor(pos).astype(int), max(count - 2, 0))
-    return i0, np.minimum(i0 + 1, count - 1), pos - i0
+    """(lower, upper, weight) for a position in [0, count − 1] (render._lerp_index)."""
+    i0, w = _lerp_index(pos, count)
+    return i0, np.minimum(i0 + 1, count - 1), w
 
 
 def shade(

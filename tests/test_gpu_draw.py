@@ -681,6 +681,36 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
     assert "CONTEXT_OK" in proc.stdout, proc.stdout + proc.stderr
 
 
+def tilted_quad_item(gd, table, lighting):
+    """A 2×2 quad facing −y, tilted 35° about x and 25° about z: many view angles in one frame."""
+    return Item(
+        gd.MeshBatch.from_arrays(
+            np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
+            np.tile([0.0, -1.0, 0.0], (4, 1)),
+            [[0, 1, 2], [0, 2, 3]],
+        ),
+        table,
+        lighting,
+        rotation(0, 35.0) @ rotation(2, 25.0),
+    )
+
+
+def quad_pixels(model):
+    """(inside mask, normals, views) of the pixels that see :func:`tilted_quad_item`'s quad
+    (3 % from its edges), the normal flipped towards the viewer as the shader does."""
+    rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
+    cam = np.array([0.0, -DISTANCE, 0.0])
+    normal = unit(np.linalg.inv(model[:3, :3]).T @ np.array([0.0, -1.0, 0.0]))
+    t = ((model[:3, 3] - cam) @ normal) / (rays @ normal)
+    hit = cam + t[..., None] * rays
+    local = (hit - model[:3, 3]) @ np.linalg.inv(model[:3, :3]).T
+    inside = (np.abs(local[..., 0]) < 0.97) & (np.abs(local[..., 2]) < 0.97) & (t > 0)
+    views = unit(cam - hit[inside])
+    n = np.broadcast_to(normal, views.shape)
+    n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
+    return inside, n, views
+
+
 @pytest.mark.parametrize(
     "colour_mode, with_moments, weight",
     [
@@ -713,33 +743,14 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
         0,
         tuple(moments) if with_moments else None,
     )
-    item = Item(
-        gd.MeshBatch.from_arrays(
-            np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
-            np.tile([0.0, -1.0, 0.0], (4, 1)),
-            [[0, 1, 2], [0, 2, 3]],
-        ),
-        table,
-        lighting,
-        rotation(0, 35.0) @ rotation(2, 25.0),
-    )
+    item = tilted_quad_item(gd, table, lighting)
     item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments)
     item.roughness, item.sh_weight = result.material.roughness, weight
     (group,) = gd.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
     assert group.variant[4] and group.variant[6] == (weight == 0.0), group.variant
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
-    rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
-    cam = np.array([0.0, -DISTANCE, 0.0])
-    model = item.model_matrix
-    normal = unit(np.linalg.inv(model[:3, :3]).T @ np.array([0.0, -1.0, 0.0]))
-    t = ((model[:3, 3] - cam) @ normal) / (rays @ normal)
-    hit = cam + t[..., None] * rays
-    local = (hit - model[:3, 3]) @ np.linalg.inv(model[:3, :3]).T
-    inside = (np.abs(local[..., 0]) < 0.97) & (np.abs(local[..., 2]) < 0.97) & (t > 0)
-    views = unit(cam - hit[inside])
-    n = np.broadcast_to(normal, views.shape)
-    n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
+    inside, n, views = quad_pixels(item.model_matrix)
     expected = (1.0 - weight) * prefilter.shade_split_sum(result, pre, n, views) + weight * render.shade_sh(
         result, lighting.coefficients, n, views
     )
@@ -785,16 +796,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     pre = prefilter.Prefiltered(
         tuple(levels), np.asarray(prefilter.ROUGHNESS_LEVELS), 0, tuple(moments), full.lamp_weights
     )
-    item = Item(
-        gd.MeshBatch.from_arrays(
-            np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
-            np.tile([0.0, -1.0, 0.0], (4, 1)),
-            [[0, 1, 2], [0, 2, 3]],
-        ),
-        table,
-        lighting,
-        rotation(0, 35.0) @ rotation(2, 25.0),
-    )
+    item = tilted_quad_item(gd, table, lighting)
     item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments) if split else None
     item.roughness, item.sh_weight = result.material.roughness, weight
     item.film = gd.FilmTexture.from_film(film)
@@ -804,17 +806,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     assert group.variant[7] and group.variant[4] == split and group.variant[8] == film_ubo, group.variant
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
-    rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
-    cam = np.array([0.0, -DISTANCE, 0.0])
-    model = item.model_matrix
-    normal = unit(np.linalg.inv(model[:3, :3]).T @ np.array([0.0, -1.0, 0.0]))
-    t = ((model[:3, 3] - cam) @ normal) / (rays @ normal)
-    hit = cam + t[..., None] * rays
-    local = (hit - model[:3, 3]) @ np.linalg.inv(model[:3, :3]).T
-    inside = (np.abs(local[..., 0]) < 0.97) & (np.abs(local[..., 2]) < 0.97) & (t > 0)
-    views = unit(cam - hit[inside])
-    n = np.broadcast_to(normal, views.shape)
-    n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
+    inside, n, views = quad_pixels(item.model_matrix)
     lit = lamps.shade(film, found, result.material.roughness, n, views)
     expected = render.shade_sh(result, lighting.coefficients, n, views)
     if split:

@@ -30,11 +30,11 @@ def with_suns(img, spots):
 
 
 def power(img):
-    return np.einsum("hwc,hw->c", img, lamps.pixel_solid_angles(*img.shape[:2]))
+    return np.einsum("hwc,hw->c", img, hdri.equirect_solid_angles(*img.shape[:2]))
 
 
 def test_solid_angles_sum_to_the_sphere():
-    assert np.isclose(lamps.pixel_solid_angles(H, W).sum(), 4 * np.pi, rtol=1e-12)
+    assert np.isclose(hdri.equirect_solid_angles(H, W).sum(), 4 * np.pi, rtol=1e-12)
 
 
 def test_no_lamps_in_a_smooth_sky_a_black_world_or_with_max_lamps_zero():
@@ -59,14 +59,14 @@ def test_extraction_keeps_every_watt_and_finds_each_sun():
     # rest + lamps = the World, channel by channel (float64 sums)
     assert np.allclose(power(rest) + found.power.sum(axis=0), power(img), rtol=1e-12)
     dirs = hdri.equirect_directions(H, W)
-    omega = lamps.pixel_solid_angles(H, W)
+    omega = hdri.equirect_solid_angles(H, W)
     first = int(np.argmax(found.power[:, 1]))
     assert np.allclose(found.directions[first], dirs[10, 20], atol=1e-12)
     assert np.allclose(found.power[first], np.array(spots[0][1]) * omega[10, 20], rtol=1e-12)
     second = 1 - first
     mean_dir = dirs[40, 90] * omega[40, 90] + dirs[41, 90] * omega[41, 90]
     assert np.allclose(found.directions[second], mean_dir / np.linalg.norm(mean_dir), atol=1e-12)
-    y = np.asarray(lamps.LUMINANCE)
+    y = np.asarray(prefilter.LUMINANCE)
     assert np.isclose(found.share, found.power.sum(axis=0) @ y / (power(img) @ y), rtol=1e-12)
 
 
