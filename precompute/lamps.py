@@ -245,10 +245,8 @@ def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
 
     if material.multiscatter == "none" or material.roughness <= 0.0:
         return np.ones((u.size, 3))
-    if material.multiscatter == "cycles":
-        return np.ones((u.size, 3)) * bake.apply_multiscatter(np.ones((1, u.size, 1, 3, 3)), material, u)[
-            0, :, 0, :, :1
-        ].reshape(u.size, 3)
+    if material.multiscatter == "cycles":  # the bake's own factor, per output row of a unit table
+        return bake.apply_multiscatter(np.ones((1, u.size, 1, 3, 1)), material, u)[0, :, 0, :, 0]
     white = rg.sum(axis=-1)  # (U, 3): the film's reflectance of white light per output channel
     mu, wmu = np.polynomial.legendre.leggauss(32)
     mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu

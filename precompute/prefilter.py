@@ -184,9 +184,10 @@ def prefilter(
     Each level also carries the prefiltered luminance × direction (``Prefiltered.moments``):
     both are filtered together as one 6-channel image, so the two share every sample.
 
-    ``lamp_mask`` (H, W) bool, the pixels :func:`lamps.extract` lifted out: the rest and the
-    lamps are filtered side by side and level j holds rest + (1 − w_j) lamps, with w_j =
-    :func:`lamps.level_lamp_weights` (``Prefiltered.lamp_weights``).
+    ``lamp_mask`` (H, W) bool, the pixels :func:`lamps.extract` lifted out: level j holds
+    rest + (1 − w_j) lamps, with w_j = :func:`lamps.level_lamp_weights` (0 or 1,
+    ``Prefiltered.lamp_weights``): the whole World below lamps.LAMP_LEVEL, the World without its
+    lamps from there on.
     """
     from . import lamps as lamps_mod
 
@@ -195,40 +196,43 @@ def prefilter(
     rejected = int(bad.sum())
     if rejected:
         img = np.where(bad[..., None], 0.0, img)
-    parts = 1
+    lamp_img = None
     if lamp_mask is not None:
         mask = np.asarray(lamp_mask, dtype=bool)
         if mask.shape != img.shape[:2]:
             raise ValueError(f"lamp_mask must have shape {img.shape[:2]}, got {mask.shape}")
         lamp_img = np.where(mask[..., None], img, 0.0)
-        img = np.concatenate([img - lamp_img, lamp_img], axis=-1)
-        parts = 2
+        img = np.concatenate([img, lamp_img], axis=-1)  # downsampled together, split below
     while img.shape[1] > width and img.shape[1] % 2 == 0:
         img = hdri.downsample(img, 2)
     directions = hdri.equirect_directions(*img.shape[:2])
-    channels = []
-    for p in range(parts):
-        rgb = img[..., 3 * p : 3 * p + 3]
+
+    def chain_of(rgb):
         luminance = np.maximum(rgb @ np.asarray(LUMINANCE), 0.0)
-        channels += [rgb, luminance[..., None] * directions]
-    chain = mip_chain(np.concatenate(channels, axis=-1))
-    w0 = chain[0].shape[1]
+        return mip_chain(np.concatenate([rgb, luminance[..., None] * directions], axis=-1))
+
+    # Each level filters one image: the whole World, or (from lamps.LAMP_LEVEL on, weight 1)
+    # the World without its lamps: no level needs both.
+    weights = None if lamp_img is None else lamps_mod.level_lamp_weights(len(levels))
+    chains = {0.0: chain_of(img[..., :3])}
+    if weights is not None:
+        if not np.all((weights == 0.0) | (weights == 1.0)):
+            raise ValueError("level lamp weights must be 0 or 1")
+        if np.any(weights == 1.0):
+            chains[1.0] = chain_of(img[..., :3] - img[..., 3:6])
     out = []
-    for r in levels:
+    for j, r in enumerate(levels):
+        chain = chains[0.0 if weights is None else float(weights[j])]
         if r <= 0.0:
             out.append(chain[0])
             continue
         alpha = max(float(r) ** 2, constants.MIN_ALPHA)
-        out.append(_level(chain, alpha, min(level_width(r, width), w0), samples, lod_bias))
-    weights = None
-    if parts == 2:
-        weights = lamps_mod.level_lamp_weights(len(out))
-        out = [level[..., :6] + (1.0 - wj) * level[..., 6:] for level, wj in zip(out, weights, strict=True)]
+        out.append(_level(chain, alpha, min(level_width(r, width), chain[0].shape[1]), samples, lod_bias))
     return Prefiltered(
         tuple(level[..., :3] for level in out),
         np.asarray(levels, dtype=float),
         rejected,
-        tuple(level[..., 3:6] for level in out),
+        tuple(level[..., 3:] for level in out),
         weights,
     )
 
