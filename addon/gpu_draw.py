@@ -20,12 +20,17 @@ GPU resources
     in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
     the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
     ``texelFetch``.
-``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14416 bytes:
+``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14688 bytes:
     ``vec4 sh[169]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
+    ``vec4 lamps[17]``: the World's lamps (x of the first = count K ≤ 8, then direction and power
+    of each; glsl/tf_lamps.glsl), all zero when the material does not shade lamps;
     ``vec4 rx[732]``: the band blocks of the SH rotation for Rx(+90°), l = 0…12, each row-major,
     band l at scalar offset l(2l−1)(2l+1)/3 (2925 scalars, padded to 2928). Rx(−90°) is their
     transpose (a rotation's inverse), read with the indices swapped: one set fits l ≤ 12 in the
     16 KiB every backend guarantees (both sets needed 26 KiB).
+``tf_film`` (sampler slot 4, ``FLOAT_2D_ARRAY``) or ``tf_film_data`` (UBO slot 4, ``TFFilm``, same
+    layout as ``TFTable``, when it fits; ``TF_FILM_UBO``): the lamps' film table,
+    :class:`FilmTexture` (variants with ``TF_LAMPS`` only).
 ``tf_view`` (UBO slot 1): view-projection and its inverse (columns), camera position (w = 1 for
     orthographic), the direction towards the viewer, and ``params.x`` = 2^exposure.
 ``tf_object`` (UBO slot 2): model matrix and normal matrix (inverse transpose), as columns.
