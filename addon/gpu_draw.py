@@ -53,7 +53,7 @@ import gpu
 import numpy as np
 
 from ..precompute import lamps as np_lamps
-from ..precompute import render
+from ..precompute import prefilter, render
 from ..precompute.material import MAX_SH_ORDER
 
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
@@ -283,6 +283,8 @@ def declare_shading_resources(info, variant: Variant) -> None:
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_3D", "tf_prefiltered")
         if variant.split_only:
             info.define("TF_SPLIT_ONLY", "1")
+        if prefilter.uses_moment(variant.l_max, variant.split_only):
+            info.define("TF_MOMENT", "1")
     if variant.lamps:
         info.define("TF_LAMPS", "1")
         info.define("TF_LAMP_LEVEL", str(int(np_lamps.LAMP_LEVEL)))

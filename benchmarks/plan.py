@@ -484,6 +484,13 @@ def report(res: dict) -> str:
         " directional lights in the lighting uniform buffer, a film table per material (`lamps.film_table`),"
         " `TF_LAMPS` (the lamp loop, `glsl/tf_lamps.glsl`); SH and prefilter without the lamps; off: none of"
         " it (no table, no loop) |",
+        "| dominant direction (split sum, at draw time) | a split-only film (roughness < 0.2), or a film"
+        " drawn by both halves at SH order ≥ 6 (`prefilter.uses_moment`; the automatic order of such films"
+        " is 12) |"
+        " `TF_MOMENT`: a second fetch of the prefiltered World (its luminance × direction moment) and the"
+        " film's albedo read at the half-vector angle of the lobe's light; off: the albedo at the view angle"
+        " (forced orders ≤ 5, where the fetch cost 0.10–0.35× of the SH frame on llvmpipe for 0.36 ΔE against"
+        " SH errors of 5–9) |",
         "",
         "The plan also carries the resolved `bake.Plan` — SH order from roughness (`auto_sh_order`), view"
         " angles, thickness rows, wavelengths — the table shape and bytes (float32, and the RGBA32F texture),"

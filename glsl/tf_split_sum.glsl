@@ -7,8 +7,10 @@
  * (conventions.md mapping); slice J + j = the same prefilter of luminance x direction
  * (Prefiltered.moments). The blend of two levels is the linear filter in z: one fetch each.
  * Split sum (Karis 2013): film albedo (the l = 0 table entry x sqrt(4 pi), a 3x3 matrix or 3
- * factors) times the prefiltered radiance in the reflection direction; the albedo is read at
- * the half-vector angle of the lobe's light-weighted mean direction (prefilter.dominant_cosine).
+ * factors) times the prefiltered radiance in the reflection direction; with TF_MOMENT the albedo
+ * is read at the half-vector angle of the lobe's light-weighted mean direction
+ * (prefilter.dominant_cosine), without it at the view angle (prefilter.uses_moment: split-only
+ * films and SH orders >= prefilter.MOMENT_MIN_L; the moment is a second fetch).
  */
 
 const float TF_SQRT_4PI = 3.5449077018110318;
@@ -40,7 +42,11 @@ vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment, out float l
 #else
   lamp_weight = 0.0;
 #endif
+#ifdef TF_MOMENT
   moment = texture(tf_prefiltered, vec3(u, t, z + 0.5)).rgb; /* + J slices */
+#else
+  moment = vec3(0.0); /* not read: prefilter.uses_moment */
+#endif
   return texture(tf_prefiltered, vec3(u, t, z)).rgb;
 }
 
@@ -54,11 +60,13 @@ vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness,
   /* prefilter.dominant_cosine: cos theta' = sqrt((1 + v.c) / 2), c = the moment's direction;
    * a vanishing moment (black World in the lobe) keeps the view angle. (acos(v.c) / 2 is the
    * same angle, but llvmpipe's acos is off by 1.6e-4 of the peak in the per-pixel test.) */
+#ifdef TF_MOMENT
   float m2 = dot(moment, moment);
   if (m2 > 1e-30) {
     float c2 = clamp(0.5 * (1.0 + dot(v, moment) * inversesqrt(m2)), 0.0, 1.0);
     r = tf_table_at_theta(r, atan(sqrt(1.0 - c2), sqrt(c2)));
   }
+#endif
 #ifdef TF_SPECTRAL
   vec3 rgb = vec3(dot(tf_table_fetch(r, 0), radiance), dot(tf_table_fetch(r, 1), radiance),
                   dot(tf_table_fetch(r, 2), radiance));

@@ -25,7 +25,7 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -320,6 +320,26 @@ def dominant_cosine(pre: Prefiltered, reflections, roughness, views, cos_o) -> n
     return _cosine_from_moment(lookup(pre, reflections, roughness, moments=True), views, cos_o)
 
 
+#: Lowest SH order at which a film drawn by both halves (0 < SH weight < 1) reads its albedo at
+#: the dominant-direction angle (:func:`dominant_cosine`); below it, at the view angle. The
+#: moment is a second texture fetch: on llvmpipe (benchmarks/viewport.py, 1080p, the combined
+#: film) it cost 0.35× of the SH-only frame at l = 2 and 0.10× at l = 5 (combined ÷ SH only
+#: 1.53 → 1.18 and 1.34 → 1.24 without it), a few % from l = 8. Its gain does not depend on the
+#: order (benchmarks/cycles_compare.py cases, mean ΔE2000 with → without): courtyard r 0.3 at
+#: l = 2 / 5 / 8 / 12: 8.99 → 9.35, 5.12 → 5.48, 3.39 → 3.82, 2.61 → 3.07; forest r 0.3: 3.93
+#: → 4.01, 2.32 → 2.39, 1.79 → 1.87, 1.60 → 1.68. So it is kept where the SH half is dear and
+#: accurate (the automatic order of these films is 12) and dropped at forced orders ≤ 5, whose
+#: SH error is ten times its gain. Split-only films (SH weight 0) always use it: they have no SH
+#: sum to compare with, and it is their largest correction (studio r 0.15: 1.67 → 1.38).
+MOMENT_MIN_L = 6
+
+
+def uses_moment(sh_order: int, split_only: bool) -> bool:
+    """Whether the split sum reads the albedo at the dominant-direction angle (see
+    :data:`MOMENT_MIN_L`): always for split-only films, from SH order 6 for combined ones."""
+    return bool(split_only) or int(sh_order) >= MOMENT_MIN_L
+
+
 #: Roughness range over which shading hands over from the split sum to SH (smoothstep).
 #: Measured against Cycles (mean ΔE2000, 64 px sphere, per-channel mode, 4×4 supersampled;
 #: benchmarks/cycles_compare.py cases) with the automatic SH order (12 below roughness 0.7),
@@ -381,6 +401,8 @@ def shade_combined(
     lamps are added, shaded per light direction (:func:`lamps.shade`); ``world_coeffs`` and
     ``pre`` from ``prefilter(…, lamp_mask=…)``. The SH half sees the World without its lamps
     (weight 1); the split-sum half keeps them in its sharpest levels (:func:`lamp_weight_at`).
+    The split sum reads the albedo at the dominant-direction angle where :func:`uses_moment`
+    says so, else at the view angle.
     """
     from . import lamps as lamps_mod
     from .render import shade_sh
@@ -388,6 +410,8 @@ def shade_combined(
     w = sh_weight(result.material.roughness)
     out = 0.0
     if w < 1.0:
+        if pre.moments is not None and not uses_moment(result.sh_order, w <= 0.0):
+            pre = replace(pre, moments=None)  # the albedo at the view angle (MOMENT_MIN_L)
         out = (1.0 - w) * shade_split_sum(result, pre, normals, views, thickness_nm)
     if w > 0.0:
         out = out + w * shade_sh(result, world_coeffs, normals, views, thickness_nm)

@@ -46,7 +46,7 @@ def baked(l_max: int, colour_mode: str, varies: bool) -> bake.BakeResult:
         material = Material(
             layers=(Layer(1.33, 380.0),),
             substrate=1.5,
-            roughness={2: 0.55, 5: 0.3, 8: 0.15, 12: 0.5}[l_max],
+            roughness={2: 0.55, 5: 0.3, 6: 0.3, 8: 0.15, 12: 0.5}[l_max],
             thickness_range_nm=THICKNESS_RANGE if varies else None,
             colour_mode=colour_mode,
             quality=Quality(
@@ -712,28 +712,30 @@ def quad_pixels(model):
 
 
 @pytest.mark.parametrize(
-    "colour_mode, with_moments, weight",
+    "colour_mode, with_moments, weight, l_max",
     [
-        ("spectral", True, 0.5),
-        ("per_channel", True, 0.5),
-        ("per_channel", False, 0.5),
-        ("spectral", True, 0.0),
+        ("spectral", True, 0.5, 6),
+        ("per_channel", True, 0.5, 6),
+        ("per_channel", False, 0.5, 6),
+        ("spectral", True, 0.5, 5),
+        ("spectral", True, 0.0, 5),
     ],
 )
-def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments, weight):
+def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments, weight, l_max):
     """tf_split_sum.glsl against prefilter.shade_combined on a flat quad, split/SH 50:50.
 
     With the direction moments the albedo is read at the lobe light's half-vector angle
     (prefilter.dominant_cosine); without them (zeros on the GPU, None in numpy) at the view angle.
-    SH weight 0 draws the split-only variant (TF_SPLIT_ONLY: no SH half), which must give the
-    split sum alone.
+    Below prefilter.MOMENT_MIN_L a film drawn by both halves does not read them (TF_MOMENT is
+    not defined: prefilter.uses_moment), split-only films always do. SH weight 0 draws the
+    split-only variant (TF_SPLIT_ONLY: no SH half), which must give the split sum alone.
     """
     from precompute import prefilter
 
-    result = baked(5, colour_mode, False)
+    result = baked(l_max, colour_mode, False)
     table = gd.TableTexture.from_result(result)
     world, img = world_sh()
-    lighting = gd.Lighting.from_sh(world, 5, result.material.roughness)
+    lighting = gd.Lighting.from_sh(world, l_max, result.material.roughness)
     full = prefilter.prefilter(img, width=64)
     levels = full.resampled(64)
     moments = full.resampled_moments(64) if with_moments else None
@@ -751,13 +753,19 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     inside, n, views = quad_pixels(item.model_matrix)
-    expected = (1.0 - weight) * prefilter.shade_split_sum(result, pre, n, views) + weight * render.shade_sh(
-        result, lighting.coefficients, n, views
-    )
+    reads_moment = prefilter.uses_moment(l_max, weight == 0.0)
+    assert reads_moment == (weight == 0.0 or l_max >= prefilter.MOMENT_MIN_L)
+    used = pre if reads_moment else dataclasses.replace(pre, moments=None)
+    sh_half = render.shade_sh(result, lighting.coefficients, n, views)
+    expected = (1.0 - weight) * prefilter.shade_split_sum(result, used, n, views) + weight * sh_half
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
     # float32 shading plus hardware bilinear filtering of the prefiltered levels (llvmpipe's is
     # exact to 6e-8 in weights): 1e-4 of the peak, as for the SH path.
     assert inside.sum() > 300 and err < 1e-4, err
+    if with_moments:  # the other choice of albedo angle is told apart at this tolerance
+        other = pre if not reads_moment else dataclasses.replace(pre, moments=None)
+        wrong = (1.0 - weight) * prefilter.shade_split_sum(result, other, n, views) + weight * sh_half
+        assert np.max(np.abs(wrong - expected)) / np.max(expected) > 1e-3
 
 
 @pytest.mark.parametrize(
@@ -814,6 +822,8 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
         lamp_w = prefilter.lamp_weight_at(
             pre, prefilter.effective_roughness(result.material.roughness, cos_o)
         )
+        if not prefilter.uses_moment(5, weight == 0.0):  # l = 5 below MOMENT_MIN_L
+            pre = dataclasses.replace(pre, moments=None)
         expected = (1.0 - weight) * prefilter.shade_split_sum(result, pre, n, views) + weight * expected
         lit = (weight + (1.0 - weight) * lamp_w)[:, None] * lit
     assert np.max(lit) > 0.05 * np.max(expected)  # the lamps show

@@ -138,3 +138,35 @@ def test_moments_are_the_prefilter_of_luminance_times_direction():
     for level, moment in zip(pre.levels[1:], pre.moments[1:], strict=True):
         lum = level @ np.asarray(prefilter.LUMINANCE)
         assert np.all(np.linalg.norm(moment, axis=-1) <= lum * (1 + 1e-9) + 1e-12)
+
+
+@pytest.mark.parametrize("sh_order, roughness", [(5, 0.3), (6, 0.3), (5, 0.1)])
+def test_combined_path_reads_the_moment_where_uses_moment_says(sh_order, roughness):
+    # prefilter.MOMENT_MIN_L: a film drawn by both halves (0 < SH weight < 1, roughness 0.3) reads
+    # its albedo at the dominant-direction angle from SH order 6, at the view angle below; a
+    # split-only film (roughness 0.1, weight 0) always at the dominant angle. shade_combined is
+    # the sum of its halves with exactly that split sum.
+    s = unit(np.array([0.3, -0.5, 0.6]))
+    image = lamp_world(s, 3.0, 200.0) + 0.05
+    pre = prefilter.prefilter(image, width=128)
+    material = Material(
+        layers=(Layer(1.33, 500.0),),
+        substrate=1.0,
+        roughness=roughness,
+        colour_mode="per_channel",
+        quality={"sh_order": sh_order, "view_samples": 16, "wavelength_count": 48},
+    )
+    result = bake.bake(material)
+    coeffs = render.prepare_environment(image, sh_order, roughness=roughness)[1]
+    n, v = views_around(s, np.linspace(12.0, 30.0, 4), np.random.default_rng(3))
+    w = prefilter.sh_weight(roughness)
+    reads = prefilter.uses_moment(sh_order, w <= 0.0)
+    assert reads == (w <= 0.0 or sh_order >= 6)
+    sh_half = render.shade_sh(result, coeffs, n, v) if w > 0.0 else 0.0
+    split = {
+        m: prefilter.shade_split_sum(result, pre if m else dataclasses.replace(pre, moments=None), n, v)
+        for m in (True, False)
+    }
+    got = prefilter.shade_combined(result, coeffs, pre, n, v)
+    assert np.allclose(got, (1.0 - w) * split[reads] + w * sh_half, rtol=1e-12, atol=1e-15)
+    assert not np.allclose(got, (1.0 - w) * split[not reads] + w * sh_half, rtol=1e-3, atol=0.0)
