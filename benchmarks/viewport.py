@@ -45,7 +45,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -534,9 +534,17 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
                     if frame is None:
                         frame = Frame(scene, w, h)
                     stored[case if lamps else case + "_nolamps"] = frame.items()
+            # The combined film drawn by SH alone (its own table and lighting, no prefiltered
+            # World: the SH variant): the split sum's own cost, with the film's table the same.
+            stored["sh_same"] = [replace(it, prefiltered=None, sh_weight=1.0) for it in stored["combined"]]
+            stored["sh_same_nolamps"] = [
+                replace(it, prefiltered=None, sh_weight=1.0) for it in stored["combined_nolamps"]
+            ]
             draws = {
                 "workbench": frame.workbench,
                 "sh": frame.ours,
+                "sh_same": _swapped(frame, stored["sh_same"]),
+                "sh_same_nolamps": _swapped(frame, stored["sh_same_nolamps"]),
                 "combined": _swapped(frame, stored["combined"]),
                 "split": _swapped(frame, stored["split"]),
                 "sh_nolamps": _swapped(frame, stored["sh_nolamps"]),
@@ -550,6 +558,8 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
         cell = {name: median_ms(t) for name, t in times.items()}
         cell.update(l_max=l_max, res=res, triangles=scene.triangles, objects=objects)
         cell["weights"] = {c: float(stored[c][0].sh_weight) for c in rough}
+        cell["table_ubo"] = {c: stored[c][0].table.ubo is not None for c in rough}
+        cell["view_samples"] = {c: int(stored[c][0].table.view_samples) for c in rough}
         cell["split_used"] = {c: stored[c][0].prefiltered is not None for c in rough}
         cell["lamps"] = {c: stored[c][0].lighting.lamp_count for c in rough}
         cell["lamps_off"] = {c: stored[c + "_nolamps"][0].lighting.lamp_count for c in rough}
@@ -561,6 +571,11 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
             f" combined {cell['combined_nolamps']:.1f} ms"
             f" ({cell['combined_nolamps'] / cell['sh_nolamps']:.2f}×),"
             f" split only {cell['split_nolamps']:.1f} ms ({cell['split_nolamps'] / cell['sh_nolamps']:.2f}×)"
+        )
+        log(
+            f"  l={l_max}, the combined film by SH alone: {cell['sh_same']:.1f} ms, combined ÷ that"
+            f" {cell['combined'] / cell['sh_same']:.2f}×; World lamps off: {cell['sh_same_nolamps']:.1f} ms,"
+            f" {cell['combined_nolamps'] / cell['sh_same_nolamps']:.2f}×"
         )
     return rows
 
@@ -962,6 +977,17 @@ def report(res: dict) -> str:
                 )
                 + "."
             )
+        if all("sh_same" in r for r in res["split_sum"]):
+            lines.append(
+                "- The combined film against itself drawn by SH alone (same table and lighting: the"
+                " split sum's own cost): "
+                + ", ".join(
+                    f"l = {r['l_max']}: {r['combined'] / r['sh_same']:.2f}×"
+                    f" (lamps off {r['combined_nolamps'] / r['sh_same_nolamps']:.2f}×)"
+                    for r in res["split_sum"]
+                )
+                + "."
+            )
     lines += [
         f"- GPU: {gpu_statement(res)}",
         "",
@@ -1170,6 +1196,30 @@ def _split_sum_section(res: dict) -> list[str]:
             f"| {r['l_max']} | {r['workbench']:.0f} | {r['sh']:.0f} | {r['combined']:.0f} |"
             f" **{r['combined'] / r['sh']:.2f}×** | {r['split']:.0f} | {r['split'] / r['sh']:.2f}× |" + off
         )
+    if all("sh_same" in r for r in rows):
+        vs = r0.get("view_samples", {})
+        out += [
+            "",
+            "The SH-only film above is another material (rougher, so its bake has"
+            f" {vs.get('sh', '?')} view angles against the combined film's {vs.get('combined', '?')}),"
+            " and its table can sit in the uniform buffer where the combined film's does not"
+            " (`TF_TABLE_UBO`, 16 KiB: spectral tables of l ≤ 5 at 16 angles, l ≤ 3 at 32). The"
+            " split sum's own cost is the combined film drawn both ways, same table, same lighting:"
+            " by SH alone (its draw items with no prefiltered World, so the SH variant) and as the"
+            " product draws it.",
+            "",
+            "| l | table in UBO (SH only / combined film) | combined film by SH alone | combined |"
+            " combined ÷ SH alone | lamps off: by SH alone | combined | combined ÷ SH alone |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for r in rows:
+            u = r.get("table_ubo", {})
+            flags = f"{'yes' if u.get('sh') else 'no'} / {'yes' if u.get('combined') else 'no'}" if u else "—"
+            out.append(
+                f"| {r['l_max']} | {flags} | {r['sh_same']:.0f} | {r['combined']:.0f} |"
+                f" **{r['combined'] / r['sh_same']:.2f}×** | {r['sh_same_nolamps']:.0f} |"
+                f" {r['combined_nolamps']:.0f} | **{r['combined_nolamps'] / r['sh_same_nolamps']:.2f}×** |"
+            )
     same = [abs(r["split"] / r["combined"] - 1.0) < 0.05 for r in rows]
     if all(same):
         out += [
