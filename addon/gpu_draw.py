@@ -19,7 +19,8 @@ GPU resources
     then ``vec4 texel[1023]``, texel (row t, column a, layer j) at (t·A + a)·layers + j, .rgb as
     in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
     the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
-    ``texelFetch``.
+    ``texelFetch``, on an NVIDIA GPU far more, so only software rasterisers use it
+    (:data:`TABLE_UBO_DEVICES`).
 ``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14688 bytes:
     ``vec4 sh[169]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
     ``vec4 lamps[17]``: the World's lamps (x of the first = count K ≤ 8, then direction and power
@@ -420,6 +421,29 @@ def float_buffer(array) -> gpu.types.Buffer:
     return gpu.types.Buffer("FLOAT", data.size, data)
 
 
+#: Devices (``gpu.platform.device_type_get()``) that draw the film's table from the uniform
+#: buffer when it fits (``TF_TABLE_UBO``). Its index depends on the pixel (the view angle), so
+#: the threads of one warp read different addresses. On llvmpipe that load is cheaper than a
+#: ``texelFetch`` (docs/performance.md: 0.81–0.97× the frame); on an NVIDIA H100 it is far dearer
+#: (docs/gpu-frame.md, same film and variant, uniform buffer vs texture: SH only l = 2 4.01 vs
+#: 2.12 ms, l = 5 27.6 vs 6.6 ms, combined l = 2 12.3 vs 3.0 ms). Other GPUs are not measured and
+#: get the texture, the usual layout for a per-pixel lookup. (The lamps' small film table stays
+#: in its uniform buffer everywhere: it measured faster than its texture on both.)
+TABLE_UBO_DEVICES = ("SOFTWARE",)
+
+
+def uses_table_ubo(device_type: str) -> bool:
+    """Whether a device of this ``gpu.platform.device_type_get()`` type draws tables from the
+    uniform buffer (:data:`TABLE_UBO_DEVICES`)."""
+    return str(device_type).upper() in TABLE_UBO_DEVICES
+
+
+def table_ubo_preferred() -> bool:
+    """:func:`uses_table_ubo` for the GPU Blender draws with."""
+    ensure_gpu_context()
+    return uses_table_ubo(gpu.platform.device_type_get())
+
+
 @dataclass
 class TableTexture:
     """A baked table on the GPU (see the module docstring for the layout) and its metadata."""
@@ -461,11 +485,14 @@ class TableTexture:
         return out
 
     @classmethod
-    def from_result(cls, result, *, uniform: bool = True) -> TableTexture:
+    def from_result(cls, result, *, uniform: bool | None = None) -> TableTexture:
         """Upload a :class:`precompute.bake.BakeResult` (or anything with ``data``, ``sh_order``).
 
-        ``uniform``: also make the uniform-buffer copy when the table fits (drawn from there).
+        ``uniform``: also make the uniform-buffer copy when the table fits (drawn from there);
+        None (default): where this device draws faster from it (:func:`table_ubo_preferred`).
         """
+        if uniform is None:
+            uniform = table_ubo_preferred()
         data = np.asarray(result.data)
         l_max = int(result.sh_order)
         if not 0 <= l_max <= MAX_L:

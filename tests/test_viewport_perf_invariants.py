@@ -429,12 +429,28 @@ def test_uniform_table_layout_and_size_limit(tf, gpu_helpers):
     row, column, layer = 5, 7, 4
     assert np.array_equal(packed[1 + (row * a + column) * n_layers + layer], layers[layer, row, column])
     assert np.all(packed[1 + n_layers * t * a :] == 0)
-    table = gd.TableTexture.from_result(result)
+    table = gd.TableTexture.from_result(result, uniform=True)
     assert table.ubo is not None
     assert gd.TableTexture.from_result(result, uniform=False).ubo is None
     big = gpu_helpers.baked(8, "spectral", False)  # 135 layers × 16 views > 1023 texels
     assert gd.TableTexture.uniform_array(gd.TableTexture.layer_array(big.data)) is None
     assert gd.TableTexture.from_result(big).ubo is None
+
+
+def test_table_uniform_buffer_only_on_software_rasterisers(tf, gpu_helpers):
+    # gpu_draw.TABLE_UBO_DEVICES: the per-pixel-indexed uniform buffer was measured faster than
+    # the texture on llvmpipe and 2-4x slower on an NVIDIA H100 (docs/gpu-frame.md); GPUs not
+    # measured get the texture. The default of from_result follows the device Blender draws with.
+    import gpu
+
+    gd = tf.gpu_draw
+    assert gd.uses_table_ubo("SOFTWARE") and gd.uses_table_ubo("software")
+    for device in ("NVIDIA", "AMD", "INTEL", "APPLE", "UNKNOWN"):
+        assert not gd.uses_table_ubo(device)
+    device = gpu.platform.device_type_get()
+    assert gd.table_ubo_preferred() == gd.uses_table_ubo(device)
+    result = gpu_helpers.baked(2, "per_channel", True)  # fits the uniform buffer
+    assert (gd.TableTexture.from_result(result).ubo is not None) == gd.uses_table_ubo(device)
 
 
 @pytest.mark.parametrize(
