@@ -198,6 +198,27 @@ def join_chunks(*names: str) -> str:
 X90_ZERO = 1e-9
 
 
+def _x90_band_lines(l: int, sign: int, indent: str, local: bool = False) -> list[str]:
+    """One band of the X(±90°) product as straight-line GLSL (see :func:`x90_source`): on
+    ``tf_c``, or with ``local`` on the band's own variables ``q0 … q2l``."""
+    block = np.asarray(render.x_rotation_bands(MAX_L, sign)[l])
+    first, size, off = l * l, 2 * l + 1, rx_offset(l)
+
+    def coeff(j: int) -> str:
+        return f"q{j}" if local else f"tf_c[{first + j}]"
+
+    lines = []
+    for i in range(size):
+        terms = [
+            f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * {coeff(j)}"
+            for j in range(size)
+            if abs(block[i, j]) > X90_ZERO
+        ]
+        lines.append(f"{indent}vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
+    lines += [f"{indent}{coeff(i)} = r{i};" for i in range(size)]
+    return lines
+
+
 @functools.cache
 def x90_source(l_max: int) -> str:
     """``tf_apply_x90_pos`` / ``_neg`` as straight-line GLSL for bands 1…l_max.
@@ -211,21 +232,54 @@ def x90_source(l_max: int) -> str:
     lines = ["/* ---- generated: addon/gpu_draw.py x90_source ---- */"]
     for sign, name in ((+1, "tf_apply_x90_pos"), (-1, "tf_apply_x90_neg")):
         lines += [f"void {name}()", "{"]
-        bands = render.x_rotation_bands(MAX_L, sign)
         for l in range(1, int(l_max) + 1):
-            block = np.asarray(bands[l])
-            first, size, off = l * l, 2 * l + 1, rx_offset(l)
             lines.append(f"  {{ /* band {l} */")
-            for i in range(size):
-                terms = [
-                    f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * tf_c[{first + j}]"
-                    for j in range(size)
-                    if abs(block[i, j]) > X90_ZERO
-                ]
-                lines.append(f"    vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
-            lines += [f"    tf_c[{first + i}] = r{i};" for i in range(size)]
+            lines += _x90_band_lines(l, sign, "    ")
             lines.append("  }")
         lines.append("}")
+    return "\n".join(lines)
+
+
+@functools.cache
+def banded_source(l_max: int) -> str:
+    """``tf_banded_sum``: the z-y-z rotation and the SH sum of tf_shade, one band at a time.
+
+    Rotations never mix bands, so each band is loaded into its own variables, turned (Z(c),
+    X(+90°), Z(b), X(−90°), Z(a): the operations of ``tf_local_coefficients`` in the same order)
+    and summed against the table before the next is touched: at most one band (25 vec3 at
+    l = 12) and the angle powers are live at a time, instead of the (l + 1)² coefficients of
+    ``tf_c``. Used by the fast library from l = 3 on (below, ``tf_local_coefficients_direct``).
+    """
+    lines = [
+        "/* ---- generated: addon/gpu_draw.py banded_source ---- */",
+        "vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c)",
+        "{",
+        "  vec3 sum = vec3(0.0);",
+        "  tf_accumulate_value(sum, r, 0, tf_lighting.sh[0].rgb);",
+    ]
+    for l in range(1, int(l_max) + 1):
+        first = l * l
+        for name, angle in (("pc", "c"), ("pb", "b"), ("pa", "a")):  # c_m = c_(m-1) c_1 (tf_rotate_z)
+            power = angle if l == 1 else f"tf_cmul({name}{l - 1}, {angle})"
+            lines.append(f"  vec2 {name}{l} = {power};")
+        lines.append(f"  {{ /* band {l} */")
+        lines += [f"    vec3 q{j} = tf_lighting.sh[{first + j}].rgb;" for j in range(2 * l + 1)]
+        for stage in ("pc", +1, "pb", -1, "pa"):
+            if isinstance(stage, str):  # tf_zpair on (+m, -m) = local (l + m, l - m)
+                for m in range(1, l + 1):
+                    p, n, cm = f"q{l + m}", f"q{l - m}", f"{stage}{m}"
+                    lines.append(
+                        f"    {{ vec3 zc = {p}; vec3 zs = {n}; {p} = zc * {cm}.x - zs * {cm}.y;"
+                        f" {n} = zc * {cm}.y + zs * {cm}.x; }}"
+                    )
+            else:
+                lines.append("    {")
+                lines += _x90_band_lines(l, stage, "      ", local=True)
+                lines.append("    }")
+        kept = l * (l + 1) // 2
+        lines += [f"    tf_accumulate_value(sum, r, {kept + m}, q{l + m});" for m in range(l + 1)]
+        lines.append("  }")
+    lines += ["  return sum;", "}"]
     return "\n".join(lines)
 
 
@@ -246,6 +300,7 @@ def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
             join_chunks(*LIBRARY_CHUNKS[:split]),
             x90_source(l_max),
             join_chunks(*LIBRARY_CHUNKS[split:]),
+            banded_source(l_max) if l_max > 2 else "",
         ]
     )
 

@@ -1,7 +1,8 @@
 /* tf_shade.glsl: one pixel of thin-film SH shading.
  *
  * numpy counterpart: render.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
- * fast library, TF_X90_GENERATED, straight from the frame for l <= 2: tf_sh_rotate.glsl), table
+ * fast library, TF_X90_GENERATED, straight from the frame for l <= 2: tf_sh_rotate.glsl, and from
+ * l = 3 on rotated and summed band by band, gpu_draw.banded_source), table
  * lookup at theta_o (and thickness), out = max(sum_i M_i L_i, 0) over the kept (m >= 0)
  * coefficients i = l(l+1)+m, ordered by l then m (bake.coefficient_indices).
  *
@@ -12,11 +13,10 @@
  * position on the table's thickness axis in [0, 1] (ignored without TF_VARY_THICKNESS).
  */
 
-/* sum += M_k L_i for kept coefficient k (table layers 3k..3k+2, or layer k) and local radiance
- * coefficient i = l(l+1)+m. */
-void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
+/* sum += M_k L for kept coefficient k (table layers 3k..3k+2, or layer k) and the local
+ * radiance coefficient L. */
+void tf_accumulate_value(inout vec3 sum, TFLerp r, int k, vec3 radiance)
 {
-  vec3 radiance = tf_c[i];
 #ifdef TF_SPECTRAL
   sum.r += dot(tf_table_fetch(r, 3 * k + 0), radiance);
   sum.g += dot(tf_table_fetch(r, 3 * k + 1), radiance);
@@ -26,10 +26,27 @@ void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
 #endif
 }
 
+/* sum += M_k L_i with L_i = tf_c[i], i = l(l+1)+m. */
+void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
+{
+  tf_accumulate_value(sum, r, k, tf_c[i]);
+}
+
+#if TF_L_MAX > 2 && defined(TF_X90_GENERATED)
+/* Rotation and sum band by band in local variables, generated after this file
+ * (gpu_draw.banded_source): only one band's coefficients are live at a time. */
+vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c);
+#endif
+
 /* The SH sum for a frame and table position already computed (shared with the split sum in
  * tf_shade_combined, so the combined path does not build them twice). */
 vec3 tf_shade_at(TFFrame f, TFLerp r)
 {
+#if TF_L_MAX > 2 && defined(TF_X90_GENERATED)
+  vec2 a, b, c;
+  tf_zyz_from_frame(f, a, b, c);
+  return max(tf_banded_sum(r, a, b, c), vec3(0.0));
+#else
 #if TF_L_MAX <= 2 && defined(TF_X90_GENERATED)
   tf_local_coefficients_direct(f);
 #else
@@ -158,6 +175,7 @@ vec3 tf_shade_at(TFFrame f, TFLerp r)
   tf_accumulate(sum, r, 90, 168);
 #endif
   return max(sum, vec3(0.0));
+#endif
 }
 
 vec3 tf_shade(vec3 n, vec3 v, float thickness01)
