@@ -1643,6 +1643,13 @@ def _sweep_tables(res: dict) -> list[str]:
             )
     for l_max in skipped:
         out.append(f"| {l_max} | — | not measured at this size (see *Further runs*) | | | | |")
+    merged = sorted({c["l_max"] for c in sweep if c.get("merged_from")})
+    if merged:
+        out += [
+            "",
+            f"l = {', '.join(str(m) for m in merged)}: from a separate run of the same data on the same"
+            " machine (*Further runs*; fewer rounds).",
+        ]
     out += [
         "",
         "### As llvmpipe draws it, and the table's two layouts",
@@ -1825,68 +1832,75 @@ def _driver_comparison(res: dict, vs: dict) -> list[str]:
 
 
 def _extra_section(res: dict) -> list[str]:
-    """Cases of further ``measure`` runs merged in by ``report --extra`` (other sizes or cases)."""
+    """Cases of further ``measure`` runs merged in by ``report --extra`` (other sizes or cases,
+    possibly data prepared from other code: the *code* column)."""
     extra = res.get("extra")
     if not extra:
         return []
+    main_code = res["prepared"]["code"]
     out = [
         "## Further runs",
         "",
-        "Separate `measure` runs on the same machine, merged into the JSON by `report --extra` (same"
-        " prepared data; l = 12 at 480×270, where a 1080p frame takes seconds on this GPU). *loops*: the"
-        " same variant with the generic rotation loops of glsl/tf_sh_rotate.glsl"
-        " (`ShaderCache(generated_x90=False)`) instead of the generated X(±90°) code.",
+        "Separate `measure` runs on this kind of machine, merged into the JSON by `report --extra`: l = 12"
+        " (whose frames took seconds before the band-by-band sum) and the rotation's two forms. *loops*:"
+        " the same variant with the generic rotation loops of glsl/tf_sh_rotate.glsl"
+        " (`ShaderCache(generated_x90=False)`) instead of the generated code. *code*: the revision the"
+        " run's data and shaders were prepared from (\"this report's\" = the tables above).",
         "",
-        "| run | case | variant | size | rounds | GPU ms | compile + link s |",
+        "| run | code | case | size | rounds | GPU ms | compile + link s |",
         "|---|---|---|---|---|---|---|",
     ]
     for k, run in enumerate(extra, 1):
         size = "×".join(str(x) for x in run["size"])
+        code = run.get("prepared", {}).get("code", "?")
+        code = "this report's" if code == main_code else code.split(" 20")[0]
+        rounds = run.get("rounds_done", run.get("rounds"))
+        if isinstance(rounds, dict):
+            rounds = ", ".join(str(v) for v in rounds.values())
         for cid, c in run["cases"].items():
             if "l_max" not in c:
                 continue
-            comp = run.get("compile", {}).get(c.get("variant", ""), {})
+            comp = (run.get("compile") or {}).get(c.get("variant", ""), {})
             secs = comp.get("seconds") if isinstance(comp, dict) else None
-            rounds = run.get("rounds_done", run.get("rounds"))
-            if isinstance(rounds, dict):
-                rounds = ", ".join(str(v) for v in rounds.values())
-            out.append(
-                f"| {k} | {cid} | {c.get('variant', '')} | {size} | {rounds} | {_f(_ms(c))} |"
-                f" {_f(secs, '{:.1f}')} |"
-            )
-    out += [""] + _extra_findings(extra)
+            out.append(f"| {k} | {code} | {cid} | {size} | {rounds} | {_f(_ms(c))} | {_f(secs, '{:.1f}')} |")
+    out += [""] + _extra_findings(extra, main_code)
     return out + [""]
 
 
-def _extra_findings(extra: list[dict]) -> list[str]:
-    """Per-pixel cost of the measured orders and loops ÷ generated, from the further runs."""
-    per_px: dict[tuple, float] = {}
+def _extra_findings(extra: list[dict], main_code: str) -> list[str]:
+    """l = 12 before and after, l = 12 against l = 8 and loops ÷ generated, each at one frame size."""
+    ms: dict[tuple, float] = {}  # (current code?, size, l, case) → GPU ms (first run that has it)
     for run in extra:
-        pixels = run["size"][0] * run["size"][1]
+        current = run.get("prepared", {}).get("code") == main_code
+        size = "×".join(str(x) for x in run["size"])
         for c in run["cases"].values():
             if "l_max" in c and _ms(c) is not None and c["lamps"] and c["case"] in ("sh", "sh-loops"):
-                per_px[(c["l_max"], c["case"])] = _ms(c) / pixels
+                ms.setdefault((current, size, c["l_max"], c["case"]), _ms(c))
     lines = []
-    if (8, "sh") in per_px and (12, "sh") in per_px:
-        lines.append(
-            f"- Per pixel of the frame, SH only with lamps at l = 12 costs"
-            f" {per_px[(12, 'sh')] / per_px[(8, 'sh')]:.0f}× l = 8 (generated code; same scene and"
-            " coverage; the SH sum has 91 against 45 coefficients). On llvmpipe the same step is 2.3×"
-            " (docs/performance.md)."
-        )
-    for l_max in (8, 12):
-        if (l_max, "sh") in per_px and (l_max, "sh-loops") in per_px:
+    for size in sorted({k[1] for k in ms}):
+        old, new = ms.get((False, size, 12, "sh")), ms.get((True, size, 12, "sh"))
+        if old and new:
             lines.append(
-                f"- l = {l_max}: the loops cost {per_px[(l_max, 'sh-loops')] / per_px[(l_max, 'sh')]:.2f}×"
-                " the generated code."
+                f"- SH only with lamps at l = 12, {size}: {old:.0f} → {new:.1f} ms ({old / new:.0f}× faster)"
+                " with the band-by-band sum (`gpu_draw.banded_source`: each band rotated and summed in its"
+                " own variables, one band live at a time) instead of every band rotated in the (l + 1)²"
+                " array `tf_c` before the sum (507 floats at l = 12, against at most 255 registers per"
+                " thread)."
             )
-    if lines:
-        lines.append(
-            "- Not explained yet (no profiler run): a likely cause is the SH coefficient array, which the"
-            " rotation keeps whole in each thread (`tf_c`: (l + 1)² vec3, 243 floats at l = 8, 507 at"
-            " l = 12, against at most 255 registers per thread), so that from some order on it lives in"
-            " local memory. Rotating and summing one band at a time would keep at most 25 vec3 live."
-        )
+        for current, label in ((True, "now"), (False, "before")):
+            l8, l12 = ms.get((current, size, 8, "sh")), ms.get((current, size, 12, "sh"))
+            if l8 and l12:
+                lines.append(
+                    f"- {size} ({label}): l = 12 costs {l12 / l8:.1f}× l = 8 (91 against 45 coefficients;"
+                    " on llvmpipe the step is about 2.3×, docs/performance.md)."
+                )
+            for l_max in (8, 12):
+                gen, loops = ms.get((current, size, l_max, "sh")), ms.get((current, size, l_max, "sh-loops"))
+                if gen and loops:
+                    lines.append(
+                        f"- {size} ({label}), l = {l_max}: the loops cost {loops / gen:.2f}× the generated"
+                        " code."
+                    )
     return lines
 
 
@@ -1999,9 +2013,20 @@ def main(argv=None) -> int:
         res = json.loads(Path(args.result).read_text(encoding="utf-8"))
         if args.extra:
             res["extra"] = [
-                {k: run.get(k) for k in ("command", "size", "rounds", "rounds_done", "cases", "compile")}
+                {
+                    k: run.get(k)
+                    for k in ("command", "size", "rounds", "rounds_done", "cases", "compile", "prepared")
+                }
                 for run in (json.loads(Path(e).read_text(encoding="utf-8")) for e in args.extra)
             ]
+            for run in res["extra"]:  # same data, same frame size: the main tables take its cases
+                if (
+                    run.get("prepared", {}).get("code") == res["prepared"]["code"]
+                    and run["size"] == res["size"]
+                ):
+                    for cid, case in run["cases"].items():
+                        if cid not in res["cases"]:
+                            res["cases"][cid] = dict(case, merged_from=run.get("command"))
             merged = ROOT / "docs" / "gpu-frame.json"
             merged.write_text(json.dumps(res, indent=1), encoding="utf-8")
             args.result = str(merged)
