@@ -198,46 +198,26 @@ def join_chunks(*names: str) -> str:
 X90_ZERO = 1e-9
 
 
-def _x90_band_lines(l: int, sign: int, indent: str, local: bool = False) -> list[str]:
-    """One band of the X(±90°) product as straight-line GLSL (see :func:`x90_source`): on
-    ``tf_c``, or with ``local`` on the band's own variables ``q0 … q2l``."""
+def _x90_band_lines(l: int, sign: int, indent: str) -> list[str]:
+    """Band l of the X(±90°) product as straight-line GLSL on the band's variables ``q0 … q2l``.
+
+    Only the structurally non-zero entries (247 of 969 for l ≤ 8) are multiplied; their values
+    are read from the lighting UBO at constant offsets, so the maths is the dense band product
+    of ``render.apply_bands`` minus exact zeros: 3–5× faster than the loops of tf_sh_rotate.glsl
+    on llvmpipe. X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at j·size + i).
+    """
     block = np.asarray(render.x_rotation_bands(MAX_L, sign)[l])
-    first, size, off = l * l, 2 * l + 1, rx_offset(l)
-
-    def coeff(j: int) -> str:
-        return f"q{j}" if local else f"tf_c[{first + j}]"
-
+    size, off = 2 * l + 1, rx_offset(l)
     lines = []
     for i in range(size):
         terms = [
-            f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * {coeff(j)}"
+            f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * q{j}"
             for j in range(size)
             if abs(block[i, j]) > X90_ZERO
         ]
         lines.append(f"{indent}vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
-    lines += [f"{indent}{coeff(i)} = r{i};" for i in range(size)]
+    lines += [f"{indent}q{i} = r{i};" for i in range(size)]
     return lines
-
-
-@functools.cache
-def x90_source(l_max: int) -> str:
-    """``tf_apply_x90_pos`` / ``_neg`` as straight-line GLSL for bands 1…l_max.
-
-    Only the structurally non-zero entries (247 of 969 for l ≤ 8) are multiplied; their values
-    are read from the lighting UBO at constant offsets, so the maths is the dense band product
-    of ``render.apply_bands`` minus exact zeros. Constant indices let the compiler keep the
-    coefficients in registers: 3–5× faster than the loops of tf_sh_rotate.glsl on llvmpipe.
-    X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at j·size + i).
-    """
-    lines = ["/* ---- generated: addon/gpu_draw.py x90_source ---- */"]
-    for sign, name in ((+1, "tf_apply_x90_pos"), (-1, "tf_apply_x90_neg")):
-        lines += [f"void {name}()", "{"]
-        for l in range(1, int(l_max) + 1):
-            lines.append(f"  {{ /* band {l} */")
-            lines += _x90_band_lines(l, sign, "    ")
-            lines.append("  }")
-        lines.append("}")
-    return "\n".join(lines)
 
 
 @functools.cache
@@ -274,7 +254,7 @@ def banded_source(l_max: int) -> str:
                     )
             else:
                 lines.append("    {")
-                lines += _x90_band_lines(l, stage, "      ", local=True)
+                lines += _x90_band_lines(l, stage, "      ")
                 lines.append("    }")
         kept = l * (l + 1) // 2
         lines += [f"    tf_accumulate_value(sum, r, {kept + m}, q{l + m});" for m in range(l + 1)]
@@ -286,20 +266,17 @@ def banded_source(l_max: int) -> str:
 def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
     """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
 
-    ``generated_x90`` (default): the fast library (``TF_X90_GENERATED``): the X(±90°) products as
-    generated straight-line code, and for l_max ≤ 2 the rotation straight from the frame rows
-    (``tf_local_coefficients_direct``). False: the generic z-y-z loops of tf_sh_rotate.glsl at
-    every order, the readable reference (same results, slower).
+    ``generated_x90`` (default): the fast library (``TF_X90_GENERATED``): for l_max ≤ 2 the
+    rotation straight from the frame rows (``tf_local_coefficients_direct``), above it the rotation
+    and sum generated band by band (:func:`banded_source`). False: the generic z-y-z loops of
+    tf_sh_rotate.glsl at every order, the readable reference (same results, slower).
     """
     if not generated_x90:
         return join_chunks(*LIBRARY_CHUNKS)
-    split = LIBRARY_CHUNKS.index("tf_sh_rotate.glsl") + 1
     return "\n".join(
         [
             "#define TF_X90_GENERATED 1",
-            join_chunks(*LIBRARY_CHUNKS[:split]),
-            x90_source(l_max),
-            join_chunks(*LIBRARY_CHUNKS[split:]),
+            join_chunks(*LIBRARY_CHUNKS),
             banded_source(l_max) if l_max > 2 else "",
         ]
     )

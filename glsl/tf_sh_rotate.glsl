@@ -13,12 +13,12 @@
  *   tf_lighting.sh[169] world radiance coefficient i = l(l+1)+m in .rgb (windowed)
  *   tf_lighting.rx[732] the blocks of X(+90) for l = 0..12, row-major, band l at scalar offset
  *                       l(2l-1)(2l+1)/3; X(-90) is their transpose (indices swapped).
- * tf_apply_x90_pos / _neg are normally generated in Python (TF_X90_GENERATED, gpu_draw.py
- * x90_source): straight-line code over the structurally non-zero entries (247 of 969 for l <= 8; the
- * values still come from the UBO). The generic loops below are the readable equivalent, used
- * when the generated code is switched off; the tests compare both with numpy.
- * For TF_L_MAX <= 2 the fast library (TF_X90_GENERATED) uses tf_local_coefficients_direct (end
- * of this file) instead: the same rotation from the frame rows, without angles.
+ * The z-y-z path below (tf_local_coefficients: loops for X(+-90)) is the readable reference,
+ * used when the generated code is switched off. The fast library (TF_X90_GENERATED) compiles it
+ * out: for TF_L_MAX <= 2 it uses tf_local_coefficients_direct (end of this file), the same
+ * rotation from the frame rows; above, gpu_draw.banded_source generates the same operations as
+ * straight-line code over the structurally non-zero X(+-90) entries, one band at a time, summed
+ * as it goes (tf_banded_sum). The tests compare both with numpy.
  * Needs: TF_L_MAX, TF_K_FULL, TF_BAND_MAX (tf_common.glsl).
  */
 
@@ -36,6 +36,7 @@ vec2 tf_cmul(vec2 a, vec2 b)
   return vec2(a.x * b.x - a.y * b.y, a.y * b.x + a.x * b.y);
 }
 
+#ifndef TF_X90_GENERATED /* the reference z-y-z path (tf_local_coefficients) */
 /* Pair (c_m, s_m) -> (c cos - s sin, c sin + s cos) with cm = (cos m*angle, sin m*angle). */
 void tf_zpair(int pos, int neg, vec2 cm)
 {
@@ -164,10 +165,6 @@ void tf_rotate_z(vec2 cs)
 #endif
 }
 
-void tf_apply_x90_pos();
-void tf_apply_x90_neg();
-
-#ifndef TF_X90_GENERATED
 /* Dense band-by-band product with the X(+90) blocks, or (transpose) with X(-90) = X(+90)^T. */
 void tf_apply_x90(bool transpose)
 {
@@ -198,7 +195,6 @@ void tf_apply_x90_neg()
 {
   tf_apply_x90(true);
 }
-#endif
 
 void tf_load(int i)
 {
@@ -275,6 +271,7 @@ void tf_local_coefficients(vec2 a, vec2 b, vec2 c)
   tf_apply_x90_neg();
   tf_rotate_z(a);
 }
+#endif /* !TF_X90_GENERATED */
 
 /* Bands 0..2 straight from the frame rows, for TF_L_MAX <= 2 (with TF_X90_GENERATED): the radiance of band 1 is linear
  * and that of band 2 quadratic in the direction, so turning them into the frame needs a few dot

@@ -280,11 +280,12 @@ def test_table_layers_and_lighting_layout(gd):
         for l, block in enumerate(render.x_rotation_bands(gd.MAX_L, sign)):
             stored = rx[gd.rx_offset(l) : gd.rx_offset(l) + block.size].reshape(block.shape)
             assert np.allclose(stored if sign > 0 else stored.T, block, atol=1e-7)
-    # The generated X(±90°) code multiplies exactly the structurally non-zero entries.
+    # The generated X(±90°) code (band by band, gpu_draw.banded_source) multiplies exactly the
+    # structurally non-zero entries.
     nonzero = sum(
         int(np.sum(np.abs(b) > gd.X90_ZERO)) for s in (1, -1) for b in render.x_rotation_bands(8, s)[1:]
     )
-    assert gd.x90_source(8).count("tf_rx(") == nonzero == 2 * 246
+    assert gd.banded_source(8).count("tf_rx(") == nonzero == 2 * 246
 
 
 # ----------------------------------------------------------------------------------------------
