@@ -109,7 +109,8 @@ def code_version() -> str:
     return CODE_VERSION
 
 
-def _git_describe() -> str:
+def git_describe(paths=("precompute",)) -> str:
+    """``git <commit> <date>`` and whether ``paths`` (folders of the repository) differ from it."""
     import subprocess
 
     try:
@@ -117,16 +118,18 @@ def _git_describe() -> str:
             ["git", "log", "-1", "--format=%h %cI"], cwd=ROOT, capture_output=True, text=True, check=True
         ).stdout.strip()
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--", "precompute"], cwd=ROOT, capture_output=True, text=True
+            ["git", "status", "--porcelain", "--", *paths], cwd=ROOT, capture_output=True, text=True
         ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "not a git checkout"
-    state = " (precompute/ has uncommitted changes or new files)" if dirty else ", precompute/ clean"
-    return f"git {head}{state}"
+    names = " ".join(f"{p}/" for p in paths)
+    if dirty:
+        return f"git {head} ({names} {'has' if len(paths) == 1 else 'have'} uncommitted changes or new files)"
+    return f"git {head}, {names} clean"
 
 
 #: Recorded when the benchmark starts, so the report names the code that was measured.
-CODE_VERSION = _git_describe()
+CODE_VERSION = git_describe()
 
 
 def load_average() -> str:

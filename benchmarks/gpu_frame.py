@@ -651,6 +651,22 @@ def _check_constants(vp) -> None:
         raise RuntimeError(f"viewport.SPLIT_SUM_L is {vp.SPLIT_SUM_L}, this harness has {SCENES['sweep']}")
 
 
+def _gl_library(names, **restypes):
+    """The first of the OpenGL libraries ``names`` that loads and has the entry points of
+    ``restypes`` (name → ctypes return type, which is set), or None."""
+    import ctypes
+
+    for name in names:
+        try:
+            lib = ctypes.CDLL(name)
+            for fn, restype in restypes.items():
+                getattr(lib, fn).restype = restype
+            return lib
+        except (OSError, AttributeError):
+            continue
+    return None
+
+
 class _GLSources:
     """The GLSL that Blender compiled, read back from the driver (OpenGL backend only): the
     shader objects that appear while ``fn`` runs, by stage."""
@@ -662,15 +678,7 @@ class _GLSources:
         import ctypes
 
         self.ctypes = ctypes
-        self.gl = None
-        for name in ("libOpenGL.so.0", "libGL.so.1"):
-            try:
-                lib = ctypes.CDLL(name)
-                lib.glIsShader.restype = ctypes.c_ubyte
-                self.gl = lib
-                break
-            except (OSError, AttributeError):
-                continue
+        self.gl = _gl_library(("libOpenGL.so.0", "libGL.so.1"), glIsShader=ctypes.c_ubyte)
 
     def _shaders(self, limit: int = 200_000) -> set[int]:
         found, misses, i = set(), 0, 1
@@ -789,6 +797,14 @@ def prepare(outdir, log=print) -> dict:
     return manifest
 
 
+def _code_state() -> str:
+    """The revision ``prepare`` records from (``common.git_describe``; imported here, since
+    ``measure`` runs where only numpy and moderngl are)."""
+    from . import common
+
+    return common.git_describe(("addon", "glsl", "precompute"))
+
+
 def source_digest() -> str:
     """sha256 over the extension's drawing code (addon/*.py, glsl/*.glsl, precompute/*.py): ``check``
     compares it with the one ``prepare`` recorded."""
@@ -797,23 +813,6 @@ def source_digest() -> str:
         for path in sorted(ROOT.glob(pattern)):
             h.update(path.relative_to(ROOT).as_posix().encode() + b"\0" + path.read_bytes())
     return h.hexdigest()
-
-
-def _code_state() -> str:
-    try:
-        head = subprocess.run(
-            ["git", "log", "-1", "--format=%h %cI"], cwd=ROOT, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--", "addon", "glsl", "precompute"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "not a git checkout"
-    return f"git {head}" + (", addon/ glsl/ precompute/ with uncommitted changes" if dirty else ", clean")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -892,16 +891,9 @@ class _InfoLog:
         import ctypes
 
         self.c = ctypes
-        self.gl = None
-        for name in ("libGL.so.1", "libOpenGL.so.0"):
-            try:
-                lib = ctypes.CDLL(name)
-                lib.glCreateShader.restype = ctypes.c_uint
-                lib.glCreateProgram.restype = ctypes.c_uint
-                self.gl = lib
-                break
-            except (OSError, AttributeError):
-                continue
+        self.gl = _gl_library(
+            ("libGL.so.1", "libOpenGL.so.0"), glCreateShader=ctypes.c_uint, glCreateProgram=ctypes.c_uint
+        )
 
     def _log(self, get_iv, get_log, obj) -> str:
         c = self.c
