@@ -1018,7 +1018,7 @@ def gpu_statement(res: dict) -> str:
             f"every figure here is Mesa's software rasteriser ({renderer}) on the CPUs above: bpy"
             " cannot run on the GPU machine lent to some tasks. Our draw alone (the same shaders and"
             " data, recorded from the extension) was timed on an NVIDIA H100 by"
-            " `benchmarks/gpu_frame.py`: [gpu-frame.md](gpu-frame.md), including the 1 M-triangle"
+            " `benchmarks/gpu_frame/`: [gpu-frame.md](gpu-frame.md), including the 1 M-triangle"
             " figure (1080p, SH order 5: 70 fps there, not the 240 asked for, on a GPU whose graphics"
             " hardware is a small part of the chip)."
         )
