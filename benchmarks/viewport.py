@@ -735,133 +735,6 @@ def rebuild_time(scene: Scene, quick: bool, log=print) -> list[dict]:
 # ----------------------------------------------------------------------------------------------
 # The report
 # ----------------------------------------------------------------------------------------------
-#: What was optimised, each measured before/after in one run with ``--baseline`` (the revision
-#: before the change, interleaved with the change). These figures come from those A/B runs (same
-#: machine, load 2-4), not from the run that writes the rest of the report.
-OPTIMISATIONS: list[tuple[str, str, list[str]]] = [
-    (
-        "Constant indices into the coefficient array (commit 2a0a0ef)",
-        "`tf_shade`'s sum over the kept coefficients and the load of the World's coefficients were"
-        " loops whose index into `tf_c` is computed at run time; the compiler then keeps `tf_c` in"
-        " memory instead of registers. Both are now written out band by band (`tf_accumulate(sum, r,"
-        " k, i)`, `tf_load(i)` under `#if TF_L_MAX >= l`), like the existing `tf_rotate_z`. The"
-        " results are bit-identical. Measured with `--baseline fa2b264 --only sweep` (10 objects, 1 M"
-        " triangles, 1080p, median frame, ms):",
-        [
-            "| l ≤ | 1 | 2 | 3 | 4 | 5 | 6 | 7 | 8 |",
-            "|---|---|---|---|---|---|---|---|---|",
-            "| before | 461 | 1162 | 1755 | 2399 | 3486 | 4825 | 3153 | 9216 |",
-            "| after | 502 | 782 | 1182 | 1713 | 2437 | 3302 | 2243 | 6895 |",
-            "| after ÷ before | 1.09 | 0.67 | 0.67 | 0.71 | 0.70 | 0.68 | 0.71 | 0.75 |",
-            "",
-            "(No gain at l ≤ 1: 1.09× is within this run's noise; the load average moved between 2 and 4"
-            " during it, which also makes the row uneven.)",
-        ],
-    ),
-    (
-        "Bands 1–2 straight from the frame for l ≤ 2 (commit 13bf5f5)",
-        "For SH order ≤ 3 the rotation no longer goes through the z-y-z angles and five band"
-        " rotations: band 1 of the radiance is linear in the direction (a' = F a) and band 2 a"
-        " quadratic form (Q' = F Q Fᵀ), so the kept m ≥ 0 coefficients in the frame are a few dot"
-        " products of the frame rows (`tf_local_coefficients_direct`, derivation in"
-        " glsl/tf_sh_rotate.glsl). Orders ≥ 4 keep the z-y-z path with the generated X(±90°) code: for"
-        " them bands 1–2 are a small share of the rotation. Measured with `--baseline e982a8b --only"
-        " sweep --orders 1 2 3` (same scene):",
-        [
-            "| l ≤ | 1 | 2 | 3 (unchanged code: noise) |",
-            "|---|---|---|---|",
-            "| before | 499 | 772 | 1168 |",
-            "| after | 475 | 711 | 1147 |",
-            "| after ÷ before | 0.95 | 0.92 | 0.98 |",
-        ],
-    ),
-    (
-        "Small tables in a uniform buffer (commit baf5a74)",
-        "A table whose layers × thickness rows × view angles fit 16 KiB (the minimum uniform-buffer"
-        " size every backend guarantees) is also uploaded as a uniform buffer, laid out so that one"
-        " pixel's texels are neighbours, and drawn from there (`TF_TABLE_UBO` variant): on llvmpipe a"
-        " uniform-buffer load is cheaper than a `texelFetch` from the 2-D array texture. Same values, same"
-        " float32 interpolation (the images are bit-identical). The benchmark's film (16 view angles,"
-        " constant thickness) fits up to l ≤ 5 (spectral; 63 layers × 16). Measured with `--baseline"
-        " 4ce344c --only sweep`:",
-        [
-            "| l ≤ | 1 | 2 | 3 | 4 | 5 | 6 | 7 | 8 |",
-            "|---|---|---|---|---|---|---|---|---|",
-            "| before | 452 | 695 | 1159 | 1655 | 2439 | 1670 | 2255 | 2817 |",
-            "| after | 406 | 571 | 937 | 1600 | 2306 | 1687 | 2295 | 2866 |",
-            "| after ÷ before | 0.90 | 0.82 | 0.81 | 0.97 | 0.95 | 1.01 | 1.02 | 1.02 |",
-            "",
-            "(l ≥ 6 does not fit and still uses the texture: the control.) A 2-D texture in the same"
-            " layout instead of the 2-D array measured 0.96× in a side run (uniform buffer 0.85× in that"
-            " run) and was not kept. Not measured on a GPU.",
-        ],
-    ),
-    (
-        "No per-frame uniform-buffer allocation; one bind per variant (commit e982a8b)",
-        "`draw_items` allocated a new uniform buffer for the view and for every object each frame,"
-        " computing each object's normal matrix again. It is now `prepare_draw` + `submit`:"
-        " `UniformCache` keys buffers by the matrices and material parameters they hold, so an"
-        " unchanged view or object reuses its buffer with no upload, and a buffer unused for 4 frames is"
-        " recycled (updated in place) instead of allocating another; draws are grouped by (variant,"
-        " lighting, table, prefiltered World), so each shader is bound once per frame. Measured with"
-        " `--baseline fa2b264 --only python` (thread CPU time, 320×180, so `submit` is mostly"
-        " llvmpipe's vertex work):",
-        [
-            "| objects | triangles | before: draw_items ms | after: prepare + submit ms | uniform buffers"
-            " allocated per frame, before → after |",
-            "|---|---|---|---|---|",
-            "| 1 | 10 k | 1.38 | 0.05 + 1.06 | 2 → 0 |",
-            "| 10 | 10 k | 1.51 | 0.07 + 1.07 | 11 → 0 |",
-            "| 100 | 10 k | 3.60 | 0.32 + 1.71 | 101 → 0 |",
-            "| 100 | 1 M | 85.5 | 0.30 + 78.4 | 101 → 0 |",
-        ],
-    ),
-    (
-        "Each material once per frame in `collect` (commit 4ce344c)",
-        "`scene_draw.collect` built every object's material description from its settings and hashed"
-        " it three times (`description_key`) per object and frame. It now works out each material's"
-        " description, table, lighting and split-sum weight once per frame (`_material_entry`), so"
-        " objects sharing a material cost a dictionary lookup. Thread CPU time per frame, 100 objects"
-        " of one material: 19–20 ms → 2.2–2.5 ms (`--only python` before and after, any triangle"
-        " count). With 100 distinct materials it stays about 0.16 ms per material (table in the Python"
-        " time section).",
-        [],
-    ),
-    (
-        "Batch rebuild: mesh arrays read in one block (commit ff3fff0)",
-        "`mesh_arrays` read the corner vertices and positions with `foreach_get` on `mesh.loops` and"
-        " `mesh.vertices`, which goes through RNA item by item; the same values come from the mesh"
-        " attributes `.corner_vert` and `position` as one array copy (the old calls stay as the"
-        " fallback). The loop triangles' corners have no such array in the Python API and are still"
-        " read item by item (about 87 ms per million triangles). Material slots use"
-        " `loop_triangle_polygons` and the `material_index` attribute. Rebuild after an edit, one"
-        " object (this benchmark's `rebuild` part at 0ff9483, before):",
-        [
-            "| triangles | 10 k | 100 k | 1 M | 2 M |",
-            "|---|---|---|---|---|",
-            "| before, ms | 4.4 | 30.0 | 302.5 | 608.5 |",
-            "| after | see *Batch rebuild after an edit* above | | | |",
-        ],
-    ),
-    (
-        "Looked at and not done",
-        "- **Half-float tables**: rounding the baked tables of tests/test_gpu_draw.py to float16 moves"
-        " `render.shade_sh` by up to 1.0–1.6e-4 of the peak (median 4e-6–1.9e-5), beyond the shader"
-        " tests' bounds (1e-4 max, 2e-6 median); std140 uniform buffers have no half type either.\n"
-        "- **Hardware-filtered table lookups** (one `texture()` instead of two `texelFetch`): GPUs"
-        " quantise the filter weights to 8 bits, which the float32 tests exclude by design.\n"
-        "- **Depth pre-pass**: the benchmark's tori are closed, so each covered pixel receives 2.0"
-        " fragments (counted with additive blending), and without depth in the buffer some hidden ones"
-        " are shaded. In the viewport Workbench has already written the depth of the same objects, so"
-        " those fragments fail the depth test early; a pre-pass would add a second vertex pass (about"
-        " 85 ms per million triangles on llvmpipe, in the calling thread) for nothing there.\n"
-        "- **Variants** are compiled once (`ShaderCache`, keyed by l, colour mode, thickness, display,"
-        " split sum, table in a uniform buffer); repeated frames compile nothing (tested).",
-        [],
-    ),
-]
-
-
 def _code_state() -> str:
     try:
         dirty = subprocess.run(
@@ -1362,12 +1235,15 @@ def _rebuild_section(res: dict) -> list[str]:
 
 
 def _optimisation_section() -> list[str]:
-    if not OPTIMISATIONS:
-        return []
-    out = ["## What was optimised (before → after)", ""]
-    for title, what, figures in OPTIMISATIONS:
-        out += [f"### {title}", "", what, "", *figures, ""]
-    return out
+    """A link to the optimisations' before/after figures: docs/performance-history.md (each from its
+    own ``--baseline`` run, not from this one)."""
+    return [
+        "## What was optimised (before → after)",
+        "",
+        "Each optimisation of the draw with its before/after figures, measured in its own run with"
+        " `--baseline`: [performance-history.md](performance-history.md).",
+        "",
+    ]
 
 
 # ----------------------------------------------------------------------------------------------
