@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from precompute import bake, cli, effects, hdri, render, table_io
+from precompute.colour_difference import delta_e_2000
 from precompute.material import AUTO, Layer, Material, Quality
 
 from . import common
@@ -308,7 +309,7 @@ def run(scenes: list[Scene], configs: list[Config], sphere: int = SPHERE) -> dic
                 )
             )
             shade_times.append(ts)
-            de = common.delta_e_2000(img, references[s.key])
+            de = delta_e_2000(img, references[s.key])
             de_all.append(de)
             per_scene.append(
                 {

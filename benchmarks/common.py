@@ -1,7 +1,7 @@
-"""Helpers shared by the benchmarks: machine description, median timing, ΔE2000, doc output.
+"""Helpers shared by the benchmarks: machine description, median timing, doc output.
 
 Nothing here is timed itself; the benchmarks import it so that every report states the
-machine in the same words and computes colour errors the same way.
+machine in the same words. Colour errors come from ``precompute.colour_difference``.
 """
 
 from __future__ import annotations
@@ -15,13 +15,6 @@ from collections.abc import Callable
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-#: Rec.709 / sRGB relative luminance weights (Blender's default scene-linear space).
-LUMINANCE_REC709 = np.array([0.2126, 0.7152, 0.0722])
-
-#: Exposure normalisation for ΔE of HDR renders: both images are scaled by the one factor that
-#: puts the *reference's* 95th-percentile luminance (over the compared pixels) at this value.
-EXPOSURE_P95_TARGET = 0.8
 
 
 # ----------------------------------------------------------------------------------------------
@@ -204,45 +197,6 @@ def fmt_bytes(count: int) -> str:
     if count >= 1 << 10:
         return f"{count / (1 << 10):.1f} KiB"
     return f"{count} B"
-
-
-# ----------------------------------------------------------------------------------------------
-# Colour difference
-# ----------------------------------------------------------------------------------------------
-def luminance(rgb: np.ndarray) -> np.ndarray:
-    """Rec.709 relative luminance Y of scene-linear RGB (…, 3)."""
-    return np.asarray(rgb, dtype=float) @ LUMINANCE_REC709
-
-
-def exposure_scale(reference_rgb: np.ndarray, target: float = EXPOSURE_P95_TARGET) -> float:
-    """Factor that maps the reference's 95th-percentile luminance to ``target``."""
-    p95 = float(np.percentile(luminance(reference_rgb), 95))
-    return target / p95 if p95 > 0 else 1.0
-
-
-def rec709_to_lab(rgb: np.ndarray) -> np.ndarray:
-    """Scene-linear Rec.709 (D65) → CIE XYZ → CIELAB (D65 white), with colour-science."""
-    import colour
-
-    space = colour.RGB_COLOURSPACES["ITU-R BT.709"]
-    xyz = colour.RGB_to_XYZ(np.asarray(rgb, dtype=float), space, apply_cctf_decoding=False)
-    white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
-    return colour.XYZ_to_Lab(xyz, white)
-
-
-def delta_e_2000(test_rgb: np.ndarray, reference_rgb: np.ndarray, scale: float | None = None) -> np.ndarray:
-    """Per-pixel CIEDE2000 between two scene-linear Rec.709 images (…, 3).
-
-    Both are multiplied by ``scale`` (default :func:`exposure_scale` of the reference, i.e. the
-    reference's 95th-percentile luminance becomes 0.8) before XYZ → Lab, so ΔE is computed on
-    display-like magnitudes; a flat (E) spectrum is RGB (1, 1, 1), the D65 white of Lab.
-    """
-    import colour
-
-    s = exposure_scale(reference_rgb) if scale is None else scale
-    lab_t = rec709_to_lab(np.maximum(test_rgb, 0.0) * s)
-    lab_r = rec709_to_lab(np.maximum(reference_rgb, 0.0) * s)
-    return np.asarray(colour.delta_E(lab_t, lab_r, method="CIE 2000"))
 
 
 # ----------------------------------------------------------------------------------------------

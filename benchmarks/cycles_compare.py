@@ -3,8 +3,9 @@
 Builds the same scene twice — a Cycles render of a Principled BSDF with Thin Film Thickness /
 IOR (Base Color black, so only the film's specular layer shows), and our renderer with the
 same parameters in the Cycles-matching per-channel colour mode — and reports ΔE2000 over the
-sphere. The camera matches ``precompute.render.sphere_view`` exactly (pinhole on −y looking at
-+y, 32° field of view, sphere of radius 1 at the origin).
+sphere (``precompute.colour_difference.delta_e_2000`` on its ``"E"`` route). The camera
+matches ``precompute.render.sphere_view`` exactly (pinhole on −y looking at +y, 32° field of
+view, sphere of radius 1 at the origin).
 
 Run: ``.venv/bin/python -m benchmarks.cycles_compare [--quick]`` → ``docs/cycles-comparison.md``.
 """
@@ -19,31 +20,14 @@ import time
 
 import numpy as np
 
-from precompute import bake, hdri, lamps, prefilter, render, spectra
+from precompute import bake, hdri, lamps, prefilter, render
 from precompute.cli import studiolight
+from precompute.colour_difference import delta_e_2000, exposure_scale
 from precompute.material import Layer, Material
 
 SIZE = 64
 FOV_DEG = 32.0
 DISTANCE = 4.0
-
-
-def delta_e_2000(rgb_a: np.ndarray, rgb_b: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """ΔE2000 per pixel between scene-linear Rec.709 images, at a common exposure.
-
-    HDR values make Lab meaningless unless both images are scaled alike: we scale so that the
-    reference's 95th-percentile luminance over the compared pixels is 0.8 (a well-exposed
-    object), then convert through XYZ (D65 white) to CIELAB.
-    """
-    import colour
-
-    m = spectra.rgb_to_xyz_matrix("Linear Rec.709")
-    y_ref = (reference @ m.T)[..., 1]
-    scale = 0.8 / max(float(np.percentile(y_ref, 95)), 1e-6)
-    white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
-    lab_a = colour.XYZ_to_Lab(np.maximum(rgb_a, 0) * scale @ m.T, white)
-    lab_b = colour.XYZ_to_Lab(np.maximum(rgb_b, 0) * scale @ m.T, white)
-    return colour.delta_E(lab_a, lab_b, method="CIE 2000")
 
 
 def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, samples=256, size=SIZE):
@@ -210,7 +194,7 @@ def compare_case(hdri_name, thickness_nm, film_ior, base_ior, roughness, samples
     if brute:
         ours["brute_force"] = brute_force_render(path, thickness_nm, film_ior, base_ior, roughness)
     for name, img in ours.items():
-        de = delta_e_2000(img[mask], ref[mask], ref[mask])
+        de = delta_e_2000(img[mask], ref[mask], xyz="E")
         row[name] = (float(np.mean(de)), float(np.percentile(de, 95)))
         row["img_" + name] = img
     return row
@@ -246,14 +230,13 @@ def git_commit() -> str:
 
 def write_picture(rows, path) -> None:
     """One row per case: Cycles | ours (combined) | ΔE2000 map, at the comparison's exposure."""
-    m = spectra.rgb_to_xyz_matrix("Linear Rec.709")
     strips = []
     for r in rows:
         ref, ours = r["cycles"], r["img_combined"]
         mask = object_mask(render.sphere_view(SIZE, SIZE, DISTANCE, FOV_DEG))
-        scale = 0.8 / max(float(np.percentile((ref[mask] @ m.T)[..., 1], 95)), 1e-6)
+        scale = exposure_scale(ref[mask], xyz="E")
         de = np.zeros(mask.shape)
-        de[mask] = delta_e_2000(ours[mask], ref[mask], ref[mask])
+        de[mask] = delta_e_2000(ours[mask], ref[mask], scale=scale, xyz="E")
         grey = np.repeat(np.clip(de / 20.0, 0.0, 1.0)[..., None], 3, axis=-1)
         strips.append(
             np.concatenate([render.srgb_encode(ref * scale), render.srgb_encode(ours * scale), grey], axis=1)

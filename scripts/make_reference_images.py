@@ -194,7 +194,7 @@ def delta_e_vs_cycles(workdir, size=COMPARE_SIZE, samples=COMPARE_SAMPLES, label
     Over the pixels Cycles shows fully covered by objects (alpha of a transparent-film render),
     one pixel of silhouette eroded; both at a common exposure (reference p95 luminance 0.8).
     """
-    from benchmarks.cycles_compare import delta_e_2000
+    from precompute.colour_difference import delta_e_2000
 
     workdir = pathlib.Path(workdir)
     ours, _ = headless_render(workdir / f"ours{label}.png", size, background=False)
@@ -202,7 +202,7 @@ def delta_e_vs_cycles(workdir, size=COMPARE_SIZE, samples=COMPARE_SAMPLES, label
     mask = object_mask(cycles[..., 3], erode=1)
     if not mask.any():
         raise ValueError("no object pixels to compare")
-    de = delta_e_2000(ours[mask], cycles[mask][:, :3], cycles[mask][:, :3])
+    de = delta_e_2000(ours[mask], cycles[mask][:, :3], xyz="E")
     return float(np.mean(de)), float(np.percentile(de, 95))
 
 
@@ -296,7 +296,7 @@ compiling shaders; the 320×240 picture that follows reuses them.
 
 The `principled_film` file rendered both ways at {cmp_w}×{cmp_h} (Cycles {cmp_spp} samples), mean
 (95th percentile) ΔE2000 over the sphere, one pixel of silhouette left out, at a common exposure
-(`benchmarks.cycles_compare.delta_e_2000`):
+(`precompute.colour_difference.delta_e_2000`):
 
 | Roughness | mean ΔE2000 | p95 |
 |---|---|---|
@@ -439,5 +439,5 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(REPO))  # precompute and benchmarks as top-level packages
+    sys.path.insert(0, str(REPO))  # precompute as a top-level package
     sys.exit(main())
