@@ -6,11 +6,12 @@ Thin Film Thickness / IOR, IOR and Roughness set to the same values. This pins t
 every parameter: thickness in nm, film IOR, base IOR, α = roughness², film on the microfacets.
 """
 
+import _cycles_scenes as cc
 import numpy as np
 import pytest
 
-from benchmarks import cycles_compare as cc
 from precompute import render
+from precompute.cli import studiolight
 from precompute.colour_difference import delta_e_2000
 
 pytestmark = pytest.mark.blender
@@ -21,7 +22,7 @@ pytestmark = pytest.mark.blender
 )
 def test_brute_force_render_matches_cycles_principled_thin_film(thickness, film_ior, base_ior, roughness):
     size, spp = 40, 128
-    path = cc.studiolight("courtyard")
+    path = studiolight("courtyard")
     ref = cc.cycles_render(path, thickness, film_ior, base_ior, roughness, samples=spp, size=size)
     # Single scattering on our side, as Cycles' base IOR 1.5 compensation adds < 1 % here.
     ours = cc.brute_force_render(path, thickness, film_ior, base_ior, roughness, size=size, max_width=512)

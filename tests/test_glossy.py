@@ -8,10 +8,10 @@ free of fireflies.
 
 import math
 
+import _cycles_scenes as cc
 import numpy as np
 import pytest
 
-from benchmarks import cycles_compare as cc
 from precompute import bake, hdri, lamps, optics, prefilter, render, spectra
 from precompute.material import Layer, Material, Quality
 

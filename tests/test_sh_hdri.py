@@ -18,8 +18,7 @@ import os
 
 import numpy as np
 import pytest
-
-from benchmarks.sh_projection import (
+from _sh_irradiance import (
     DOWNSAMPLE_FACTOR,
     N_NORMALS,
     format_irradiance_table,
@@ -27,6 +26,7 @@ from benchmarks.sh_projection import (
     studiolight_irradiance_table,
     studiolight_paths,
 )
+
 from precompute import hdri, sh
 
 #: Gate on the per-channel mean error at l_max = 8. A single point light has a 2.4 % mean
