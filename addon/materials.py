@@ -30,6 +30,7 @@ import numpy as np
 from ..precompute import bake, prefilter, spectra, table_io
 from ..precompute.material import AUTO, PRESETS, Layer, Material, Quality
 from ..precompute.optics import metals, reflectance
+from .prefs import cache_dir
 
 __all__ = [
     "LRU_SIZE",
@@ -500,8 +501,6 @@ def description_key(desc: Material) -> str:
 
 def table_cache() -> table_io.TableCache:
     """The on-disk cache in the directory chosen in the add-on preferences (or the default)."""
-    from . import cache_dir  # late: this package's __init__ imports this module
-
     return table_io.TableCache(cache_dir())
 
 

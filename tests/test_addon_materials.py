@@ -34,12 +34,12 @@ def ext(bpy, package, tmp_path):
     """A fresh empty file, the extension registered and its preferences' cache in tmp_path."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
-    addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
     materials = importlib.import_module(f"{EXTENSION_ID}.addon.materials")
     materials.clear_memory_cache()
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
-    addon.preferences().cache_dir = str(tmp_path / "cache")
+    prefs.preferences().cache_dir = str(tmp_path / "cache")
     try:
         yield package
     finally:

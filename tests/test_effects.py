@@ -460,7 +460,7 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("headless", "materials", "scene_draw", "gpu_draw", "ui"):
+        for name in ("headless", "materials", "prefs", "scene_draw", "gpu_draw", "ui"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.effects = importlib.import_module(f"{EXTENSION_ID}.precompute.effects")
         yield ns
@@ -473,7 +473,7 @@ def scene(bpy, tf):
     tf.package.register()
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
-    tf.addon.preferences().cache_dir = str(tf.cache_dir)
+    tf.prefs.preferences().cache_dir = str(tf.cache_dir)
     tf.materials.clear_memory_cache()
     tf.scene_draw.CACHES.clear()
     tf.gpu_draw.ensure_gpu_context()

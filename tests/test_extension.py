@@ -149,24 +149,24 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, extension):
 
 
 def test_preferences_hold_the_cache_directory(bpy, extension, tmp_path):
-    addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+    prefs_mod = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
     extension.register()
     addons = bpy.context.preferences.addons
     assert addons.get(EXTENSION_ID) is None
-    assert addon.preferences() is None
-    assert addon.cache_dir() == addon.default_cache_dir() != ""
+    assert prefs_mod.preferences() is None
+    assert prefs_mod.cache_dir() == prefs_mod.default_cache_dir() != ""
 
     # Enable it the way Blender's preferences do: an add-on entry keyed by the package name.
     entry = addons.new()
     try:
         entry.module = EXTENSION_ID
-        prefs = addon.preferences()
+        prefs = prefs_mod.preferences()
         assert prefs is not None and isinstance(prefs, bpy.types.AddonPreferences)
         prop = prefs.bl_rna.properties["cache_dir"]
         assert (prop.subtype, prop.default) == ("DIR_PATH", "")
-        assert prefs.cache_dir == "" and addon.cache_dir() == addon.default_cache_dir()
+        assert prefs.cache_dir == "" and prefs_mod.cache_dir() == prefs_mod.default_cache_dir()
         prefs.cache_dir = str(tmp_path)
-        assert addon.cache_dir() == str(tmp_path)
+        assert prefs_mod.cache_dir() == str(tmp_path)
     finally:
         addons.remove(entry)
         extension.unregister()

@@ -38,11 +38,11 @@ SIZE = (64, 48)
 # ----------------------------------------------------------------------------------------------
 # Fixtures and helpers
 # ----------------------------------------------------------------------------------------------
-def _set_cache_preference(bpy, addon, cache_dir) -> None:
+def _set_cache_preference(bpy, prefs, cache_dir) -> None:
     addons = bpy.context.preferences.addons
     if addons.get(EXTENSION_ID) is None:
         addons.new().module = EXTENSION_ID
-    addon.preferences().cache_dir = str(cache_dir)
+    prefs.preferences().cache_dir = str(cache_dir)
 
 
 @pytest.fixture(scope="module")
@@ -54,10 +54,10 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "materials", "scene_draw", "gpu_draw"):
+            for name in ("headless", "materials", "prefs", "scene_draw", "gpu_draw"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-            _set_cache_preference(bpy, ns.addon, ns.cache_dir)
+            _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
             ns.gpu_draw.ensure_gpu_context()
             yield ns
         finally:
@@ -71,7 +71,7 @@ def fresh(bpy, tf):
     """An empty factory file with the extension registered and its private cache chosen."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     tf.package.register()  # harmless when already registered
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -221,7 +221,7 @@ def project(tf, scene, points, size):
 def cli_blend(bpy, tf, tmp_path_factory):
     """A saved file: two spheres whose materials have equal settings, an HDRI World, a camera."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -238,7 +238,7 @@ def cli_blend(bpy, tf, tmp_path_factory):
 
 def _open(bpy, tf, path):
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     return bpy.context.scene
 
 
@@ -378,7 +378,7 @@ def test_script_batch_renders_every_file_in_a_folder(bpy, tf, cli_blend, tmp_pat
     assert "rendered 1/2 files" in printed.out and "broken.blend" in printed.out
     image = read_exr(tmp_path / "out" / "a.exr")
     assert image.shape == (24, 32, 3) and np.isfinite(image).all()
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -623,7 +623,7 @@ def test_saved_and_reopened_file_renders_identically(bpy, tf, fresh, tmp_path):
     path = tmp_path / "saved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     after, result = render(tf, bpy.context.scene, tmp_path / "after.png", background=True)
     assert result["objects"] == ["Sphere/Bubble"]
     np.testing.assert_allclose(after, before, rtol=0, atol=1e-6)
@@ -661,7 +661,7 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, tf, capfd):
             assert hasattr(bpy.types.Material, "thinfilm_sh")
     finally:
         package.register()
-        _set_cache_preference(bpy, addon, tf.cache_dir)
+        _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     out = capfd.readouterr()
     assert "duplicate command" not in out.out + out.err
 
