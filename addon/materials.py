@@ -28,15 +28,16 @@ import threading
 import numpy as np
 
 from ..precompute import bake, prefilter, spectra, table_io
+from ..precompute.conductors import conductor_from_rgb, metal_rgb, real_index
 from ..precompute.material import AUTO, PRESETS, Layer, Material, Quality
-from ..precompute.optics import metals, reflectance
+from ..precompute.noise import value_noise
+from ..precompute.optics import metals
 from .prefs import cache_dir
 
 __all__ = [
     "LRU_SIZE",
     "apply_preset",
     "applying",
-    "conductor_from_rgb",
     "parse_plan",
     "bake_count",
     "clear_caches",
@@ -49,14 +50,11 @@ __all__ = [
     "format_plan",
     "get_table",
     "get_table_with_source",
-    "gulbrandsen_nk",
     "mark_custom",
-    "metal_rgb",
     "peek_table",
     "principled_node",
     "table_cache",
     "thickness_per_vertex",
-    "value_noise",
     "warnings",
     "working_space",
     "write_back_to_principled",
@@ -73,14 +71,6 @@ SOCKET_METALLIC = "Metallic"
 SOCKET_BASE_COLOR = "Base Color"
 SOCKET_SPECULAR_TINT = "Specular Tint"
 SOCKET_TRANSMISSION = "Transmission Weight"
-
-#: Wavelengths (nm) standing for the R, G and B channels when an RGB conductor fit becomes a
-#: spectral table (roughly the dominant wavelengths of the Rec.709 primaries).
-RGB_WAVELENGTHS_NM = (465.0, 550.0, 610.0)
-#: Where a film's dispersive index is read for Principled's single "Thin Film IOR".
-REFERENCE_WAVELENGTH_NM = 550.0
-#: cos θ of the F82 edge-tint angle (θ ≈ 81.8°, cos θ = 1/7) of Blender's metallic Fresnel.
-F82_COS = 1.0 / 7.0
 
 #: Extra Material fields for a Principled preview: Cycles' film-free multiscatter compensation,
 #: where precompute offers that choice.
@@ -155,103 +145,6 @@ def principled_node(bpy_material):
         if node.bl_idname == "ShaderNodeBsdfPrincipled":
             return node
     return None
-
-
-# ----------------------------------------------------------------------------------------------
-# Conductors from RGB: Gulbrandsen (2014), and its inverse through precompute
-# ----------------------------------------------------------------------------------------------
-def gulbrandsen_nk(reflectivity, edge_tint) -> tuple[np.ndarray, np.ndarray]:
-    """Complex index (n, k) from normal-incidence reflectivity r and edge tint g, per channel.
-
-    O. Gulbrandsen (2014), "Artist Friendly Metallic Fresnel", Journal of Computer Graphics
-    Techniques 3(4), 64–72: with n_min = (1 − r)/(1 + r) and n_max = (1 + √r)/(1 − √r),
-
-        n = g·n_min + (1 − g)·n_max,   k = √[(r(n + 1)² − (n − 1)²) / (1 − r)],
-
-    which reproduces F(0°) = ((n − 1)² + k²)/((n + 1)² + k²) = r exactly for any g in [0, 1].
-    r is clamped to [0, 0.99] (the formula diverges at 1) and g to [0, 1].
-    """
-    r = np.clip(np.asarray(reflectivity, dtype=float), 0.0, 0.99)
-    g = np.clip(np.asarray(edge_tint, dtype=float), 0.0, 1.0)
-    root = np.sqrt(r)
-    n_min = (1.0 - r) / (1.0 + r)
-    n_max = (1.0 + root) / (1.0 - root)
-    n = g * n_min + (1.0 - g) * n_max
-    k = np.sqrt(np.maximum(0.0, (r * (n + 1.0) ** 2 - (n - 1.0) ** 2) / (1.0 - r)))
-    return n, k
-
-
-def _conductor_fresnel(n, k, cos_i):
-    """Unpolarised Fresnel reflectance from air into N = n + ik (broadcasting)."""
-    eta = np.asarray(n, dtype=complex) + 1j * np.asarray(k, dtype=float)
-    cos_i = np.asarray(cos_i, dtype=float)
-    eta2 = eta * eta
-    q = np.sqrt(eta2 - (1.0 - cos_i * cos_i))
-    rs = (cos_i - q) / (cos_i + q)
-    rp = (eta2 * cos_i - q) / (eta2 * cos_i + q)
-    return 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
-
-
-def _schlick(f0, cos_i):
-    return f0 + (1.0 - f0) * (1.0 - cos_i) ** 5
-
-
-def conductor_from_rgb(base_color, specular_tint=(1.0, 1.0, 1.0)) -> dict:
-    """A tabulated-index spec approximating Principled's metal for ``base_color`` (per channel).
-
-    Blender's metallic Fresnel is the F82-tint model: F0 = Base Color, and the reflectance at
-    cos θ = 1/7 is Specular Tint × Schlick(F0, 1/7). Gulbrandsen's formula fixes F0; the edge
-    tint g of each channel is chosen (grid search on [0, 1]) so that the conductor's Fresnel at
-    cos θ = 1/7 is as close as it gets to that F82 value. The three (n, k) pairs are placed at
-    :data:`RGB_WAVELENGTHS_NM` and held flat beyond them (360–830 nm).
-    """
-    r = np.clip(np.asarray(base_color, dtype=float)[:3], 0.0, 0.99)
-    tint = np.clip(np.asarray(specular_tint, dtype=float)[:3], 0.0, 1.0)
-    target = tint * _schlick(r, F82_COS)
-    grid = np.linspace(0.0, 1.0, 401)
-    n, k = gulbrandsen_nk(r[None, :], grid[:, None])  # (G, 3)
-    f82 = _conductor_fresnel(n, k, F82_COS)
-    best = np.argmin(np.abs(f82 - target[None, :]), axis=0)
-    n_rgb, k_rgb = n[best, [0, 1, 2]], k[best, [0, 1, 2]]
-    # Channels ordered R, G, B; the table runs from blue to red.
-    n_bgr = [round(float(v), 6) for v in n_rgb[::-1]]
-    k_bgr = [round(float(v), 6) for v in k_rgb[::-1]]
-    wl = [spectra.WAVELENGTH_MIN_NM, *RGB_WAVELENGTHS_NM, spectra.WAVELENGTH_MAX_NM]
-    return {
-        "table": {
-            "wavelengths_nm": [float(w) for w in wl],
-            "n": [n_bgr[0], *n_bgr, n_bgr[-1]],
-            "k": [k_bgr[0], *k_bgr, k_bgr[-1]],
-        }
-    }
-
-
-def _spectrum_rgb(spectrum, wavelengths_nm, colour_space: str) -> np.ndarray:
-    """A reflectance spectrum as working-space RGB (E white: a flat 1 gives (1, 1, 1))."""
-    xyz = spectra.spectrum_to_xyz(spectrum, wavelengths_nm)
-    return spectra.xyz_to_rgb_matrix(colour_space) @ xyz
-
-
-def metal_rgb(index_spec, colour_space: str | None = None) -> tuple[tuple, tuple]:
-    """(Base Color, Specular Tint) for Principled's metal model from a conductor's index.
-
-    Base Color is the normal-incidence reflectance R(0°, λ) integrated to RGB; Specular Tint
-    is R(cos θ = 1/7) in RGB divided by Schlick(F0, 1/7) (Blender's F82 tint), clamped to [0, 1].
-    """
-    space = colour_space or spectra.DEFAULT_SPACE
-    medium = Material(layers=(), substrate=index_spec).indices()[-1]
-    wl = spectra.wavelength_grid(95)
-    spectra_r = reflectance([1.0, medium], [], wl, [1.0, F82_COS])  # (2, W)
-    f0 = np.clip(_spectrum_rgb(spectra_r[0], wl, space), 0.0, 1.0)
-    f82 = np.clip(_spectrum_rgb(spectra_r[1], wl, space), 0.0, 1.0)
-    tint = np.clip(f82 / np.maximum(_schlick(f0, F82_COS), 1e-6), 0.0, 1.0)
-    return tuple(float(v) for v in f0), tuple(float(v) for v in tint)
-
-
-def _real_index(spec, wavelength_nm: float = REFERENCE_WAVELENGTH_NM) -> complex:
-    """N at one wavelength of any IndexSpec."""
-    medium = Material(layers=(), substrate=spec).indices()[-1]
-    return complex(np.asarray(medium.index(np.array([wavelength_nm])))[0])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -695,7 +588,7 @@ def write_back_to_principled(bpy_material) -> list[str]:
                 f"thickness varies {lo:g}–{hi:g} nm: wrote the middle, {thickness:g} nm "
                 "(drive Thin Film Thickness with a texture for the variation)"
             )
-        film = _real_index(top.index)
+        film = real_index(top.index)
         if film.imag != 0.0 or isinstance(top.index, dict):
             notes.append(f"the film index is written as n = {film.real:.4g} at 550 nm (no k, no dispersion)")
         _set_socket(node, SOCKET_THICKNESS, thickness, notes)
@@ -709,7 +602,7 @@ def write_back_to_principled(bpy_material) -> list[str]:
             )
     else:
         _set_socket(node, SOCKET_THICKNESS, 0.0, notes)
-    substrate = _real_index(desc.substrate)
+    substrate = real_index(desc.substrate)
     conductor = isinstance(desc.substrate, dict) or substrate.imag > 0.0
     if conductor:
         base, tint = metal_rgb(desc.substrate, desc.colour_space)
@@ -797,60 +690,6 @@ def _attribute_values(obj, mesh, name: str) -> np.ndarray:
     )
 
 
-def _hash01(ix, iy, iz, seed: int) -> np.ndarray:
-    """Integer lattice point → uniform value in [0, 1), deterministic on every platform.
-
-    Coordinates are mixed with large odd constants and finished with MurmurHash3's fmix32
-    (Appleby 2011), all in wrapping uint32 arithmetic.
-    """
-
-    def u32(a):
-        return (np.asarray(a, dtype=np.int64) & 0xFFFFFFFF).astype(np.uint32)
-
-    h = u32(ix) * np.uint32(0x8DA6B343)
-    h ^= u32(iy) * np.uint32(0xD8163841)
-    h ^= u32(iz) * np.uint32(0xCB1AB31F)
-    h ^= np.uint32((int(seed) * 0x9E3779B9) & 0xFFFFFFFF)
-    h ^= h >> np.uint32(16)
-    h *= np.uint32(0x85EBCA6B)
-    h ^= h >> np.uint32(13)
-    h *= np.uint32(0xC2B2AE35)
-    h ^= h >> np.uint32(16)
-    return h.astype(np.float64) / 4294967296.0
-
-
-def value_noise(points, scale: float = 1.0, seed: int = 0, octaves: int = 3) -> np.ndarray:
-    """Fractal 3-D value noise in [0, 1] at ``points`` (N, 3).
-
-    Each octave hashes the integer lattice around p·scale·2^o, blends the eight corner values
-    with the quintic fade 6t⁵ − 15t⁴ + 10t³ (Perlin 2002) and is weighted 2^−o; the sum is
-    divided by the total weight, so the result stays in [0, 1].
-    """
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3) * float(scale)
-    total = np.zeros(p.shape[0])
-    weight = 0.0
-    with np.errstate(over="ignore"):
-        for octave in range(octaves):
-            q = p * (2.0**octave) + 17.0 * octave
-            cell = np.floor(q)
-            f = q - cell
-            w = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
-            cell = cell.astype(np.int64)
-            value = np.zeros(p.shape[0])
-            for dx in (0, 1):
-                for dy in (0, 1):
-                    for dz in (0, 1):
-                        corner = _hash01(cell[:, 0] + dx, cell[:, 1] + dy, cell[:, 2] + dz, seed + octave)
-                        wx = w[:, 0] if dx else 1.0 - w[:, 0]
-                        wy = w[:, 1] if dy else 1.0 - w[:, 1]
-                        wz = w[:, 2] if dz else 1.0 - w[:, 2]
-                        value += wx * wy * wz * corner
-            amplitude = 0.5**octave
-            total += amplitude * value
-            weight += amplitude
-    return np.clip(total / weight, 0.0, 1.0)
-
-
 def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
     where = f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
     if image is None:
@@ -898,8 +737,8 @@ def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
 
     - ATTRIBUTE: the float attribute ``props.thickness_attribute`` on points, corners or faces
       (values clipped to [0, 1]); a missing attribute raises ValueError naming it.
-    - NOISE: :func:`value_noise` of the object-space vertex positions, ``noise_scale`` and
-      ``noise_seed``; deterministic.
+    - NOISE: :func:`precompute.noise.value_noise` of the object-space vertex positions,
+      ``noise_scale`` and ``noise_seed``; deterministic.
     - IMAGE: the first channel of ``props.thickness_image`` at the corners' UVs (UV map
       ``props.thickness_uv_map``, empty = the active render map), bilinear, repeating, raw pixel
       values (use Non-Color images).

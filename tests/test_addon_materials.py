@@ -55,6 +55,18 @@ def M(ext):
 
 
 @pytest.fixture
+def conductors_mod(ext):
+    """``thinfilm_sh.precompute.conductors`` as the extension imported it."""
+    return importlib.import_module(f"{EXTENSION_ID}.precompute.conductors")
+
+
+@pytest.fixture
+def noise_mod(ext):
+    """``thinfilm_sh.precompute.noise`` as the extension imported it."""
+    return importlib.import_module(f"{EXTENSION_ID}.precompute.noise")
+
+
+@pytest.fixture
 def pre(ext):
     """``thinfilm_sh.precompute`` as the extension imported it (its classes, not tests' copies)."""
     return importlib.import_module(f"{EXTENSION_ID}.precompute")
@@ -189,16 +201,16 @@ def test_shading_path_names_the_path_the_roughness_selects(M):
     assert f"SH {100 * w:.0f} %" in M.shading_path(0.3) and 0.0 < w < 0.5
 
 
-def test_gulbrandsen_fit_reproduces_normal_incidence_reflectivity(M):
+def test_gulbrandsen_fit_reproduces_normal_incidence_reflectivity(conductors_mod):
     r = np.linspace(0.0, 0.95, 20)[:, None]
     g = np.linspace(0.0, 1.0, 11)[None, :]
-    n, k = M.gulbrandsen_nk(r, g)
+    n, k = conductors_mod.gulbrandsen_nk(r, g)
     f0 = ((n - 1) ** 2 + k**2) / ((n + 1) ** 2 + k**2)
     np.testing.assert_allclose(f0, np.broadcast_to(r, f0.shape), atol=1e-12)
     assert np.all(k >= 0) and np.all(n > 0)
 
 
-def test_principled_metal_becomes_a_conductor_matching_base_color(bpy, M, pre):
+def test_principled_metal_becomes_a_conductor_matching_base_color(bpy, M, conductors_mod, pre):
     base = (0.9, 0.6, 0.3)
     mat, _ = _principled(bpy, **{"Thin Film Thickness": 200.0, "Metallic": 1.0, "Base Color": (*base, 1.0)})
     desc = M.description(mat)
@@ -206,11 +218,13 @@ def test_principled_metal_becomes_a_conductor_matching_base_color(bpy, M, pre):
     optics = importlib.import_module(f"{pre.__name__}.optics")
     substrate = desc.indices()[-1]
     # R, G, B sit at RGB_WAVELENGTHS_NM (blue, green, red).
-    f0 = optics.reflectance([1.0, substrate], [], list(M.RGB_WAVELENGTHS_NM), [1.0])[0]
+    f0 = optics.reflectance([1.0, substrate], [], list(conductors_mod.RGB_WAVELENGTHS_NM), [1.0])[0]
     np.testing.assert_allclose(f0[::-1], base, atol=1e-5)
     # Specular Tint white: the edge reflectance follows Schlick (Blender's F82 tint of 1) closely.
-    f82 = optics.reflectance([1.0, substrate], [], list(M.RGB_WAVELENGTHS_NM), [M.F82_COS])[0]
-    schlick = np.array(base) + (1 - np.array(base)) * (1 - M.F82_COS) ** 5
+    f82 = optics.reflectance(
+        [1.0, substrate], [], list(conductors_mod.RGB_WAVELENGTHS_NM), [conductors_mod.F82_COS]
+    )[0]
+    schlick = np.array(base) + (1 - np.array(base)) * (1 - conductors_mod.F82_COS) ** 5
     np.testing.assert_allclose(f82[::-1], schlick, atol=0.03)
 
 
@@ -250,7 +264,7 @@ def test_write_back_round_trips_through_the_principled_bsdf(bpy, M):
     assert back.layers[0].thickness_nm == pytest.approx(0.5 * (lo + hi))
 
 
-def test_write_back_of_a_metal_substrate_and_a_multilayer(bpy, M, pre):
+def test_write_back_of_a_metal_substrate_and_a_multilayer(bpy, M, conductors_mod, pre):
     mat = _enabled(bpy, preset="ANODISED_TITANIUM")
     settings = mat.thinfilm_sh
     settings.substrate_metal = "GOLD"
@@ -258,7 +272,7 @@ def test_write_back_of_a_metal_substrate_and_a_multilayer(bpy, M, pre):
     node = M.principled_node(mat)
     assert node.inputs["Metallic"].default_value == 1.0
     base = tuple(node.inputs["Base Color"].default_value)[:3]
-    expected, _ = M.metal_rgb({"metal": "gold"})
+    expected, _ = conductors_mod.metal_rgb({"metal": "gold"})
     assert base == pytest.approx(expected, abs=1e-6)
     assert base[0] > base[1] > base[2]  # gold is yellow
     # The film: Cauchy A + B/λ² at 550 nm.
@@ -267,7 +281,7 @@ def test_write_back_of_a_metal_substrate_and_a_multilayer(bpy, M, pre):
     settings.enabled = False
     back = M.description(mat)
     optics = importlib.import_module(f"{pre.__name__}.optics")
-    f0 = optics.reflectance([1.0, back.indices()[-1]], [], list(M.RGB_WAVELENGTHS_NM), [1.0])[0]
+    f0 = optics.reflectance([1.0, back.indices()[-1]], [], list(conductors_mod.RGB_WAVELENGTHS_NM), [1.0])[0]
     np.testing.assert_allclose(f0[::-1], np.minimum(base, 0.99), atol=1e-5)
 
     beetle = _enabled(bpy, "Beetle", preset="BEETLE_MULTILAYER")
@@ -451,7 +465,7 @@ def test_thickness_from_an_attribute_on_points_or_corners(bpy, M):
     assert M.thickness_per_vertex(obj, mesh, settings) is None
 
 
-def test_thickness_from_noise_is_deterministic_and_in_range(bpy, M):
+def test_thickness_from_noise_is_deterministic_and_in_range(bpy, M, noise_mod):
     mesh = bpy.data.meshes.new("Grid")
     grid = np.stack(np.meshgrid(np.linspace(-1, 1, 20), np.linspace(-1, 1, 20), [0.3]), -1).reshape(-1, 3)
     mesh.from_pydata(grid.tolist(), [], [(i, i + 1, i + 21, i + 20) for i in range(19)])
@@ -467,9 +481,9 @@ def test_thickness_from_noise_is_deterministic_and_in_range(bpy, M):
     assert not np.allclose(first, M.thickness_per_vertex(obj, mesh, settings))
 
     points = np.random.default_rng(0).uniform(-50, 50, (5000, 3))
-    noise = M.value_noise(points, 1.7, 3)
+    noise = noise_mod.value_noise(points, 1.7, 3)
     assert noise.min() >= 0 and noise.max() <= 1
-    step = M.value_noise(points + 1e-4, 1.7, 3) - noise
+    step = noise_mod.value_noise(points + 1e-4, 1.7, 3) - noise
     assert np.abs(step).max() < 1e-2  # continuous
 
 
