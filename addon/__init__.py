@@ -1,13 +1,13 @@
 """The thin bpy layer of the extension: registration of its classes, property and hooks.
 
 Everything here is Blender glue. The physics lives in ``precompute/`` (which never imports
-``bpy``) and the shaders in ``glsl/``.
+``bpy``) and the shaders in ``glsl/``. Where the add-on keeps state: :mod:`.caches`.
 """
 
 import bpy
 from bpy.props import PointerProperty
 
-from . import headless, ops, prefs, props, ui, viewport
+from . import caches, headless, ops, prefs, props, ui, viewport
 
 classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
 
@@ -37,7 +37,7 @@ def register():
 
 
 def unregister():
-    """Undo :func:`register` in reverse order; anything not registered is skipped."""
+    """Undo :func:`register` in reverse order, then empty every cache (:func:`caches.clear`)."""
     for module in reversed(modules):
         module.unregister()
     if hasattr(bpy.types.Material, MATERIAL_PROPERTY):
@@ -45,3 +45,4 @@ def unregister():
     for cls in reversed(classes):
         if cls.is_registered:
             bpy.utils.unregister_class(cls)
+    caches.clear()

@@ -6,8 +6,9 @@ returns plain Python / numpy values; the physics stays in ``precompute``.
 - :func:`description` — the :class:`~precompute.material.Material` a Blender material shows:
   from the extension's settings when they are enabled, else from a Principled BSDF with a thin
   film (Cycles interop), else None. :func:`warnings` lists what the preview cannot follow.
-- :func:`get_table` — the baked SH table of a description: an in-memory LRU, then the on-disk
-  :class:`~precompute.table_io.TableCache`, then a bake. Equal descriptions share one table.
+- :func:`get_table` — the baked SH table of a description: an in-memory LRU (:data:`MEMORY`),
+  then the on-disk :class:`~precompute.table_io.TableCache`, then a bake. Equal descriptions
+  share one table.
 - :func:`write_back_to_principled` — the extension's settings into the Principled BSDF, so
   Cycles' final render matches the preview as far as Cycles' single film allows.
 - :func:`thickness_per_vertex` / :func:`corner_order` — per-corner thickness parameter in [0, 1]
@@ -20,7 +21,6 @@ from the UI equals the preset or CLI material with the same values and shares it
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import logging
 import threading
@@ -32,10 +32,12 @@ from ..precompute.conductors import conductor_from_rgb, metal_rgb, real_index
 from ..precompute.material import AUTO, PRESETS, Layer, Material, Quality
 from ..precompute.noise import value_noise
 from ..precompute.optics import metals
+from . import caches
 from .prefs import cache_dir
 
 __all__ = [
     "LRU_SIZE",
+    "MEMORY",
     "apply_preset",
     "applying",
     "parse_plan",
@@ -78,12 +80,12 @@ _CYCLES_PARITY = {"multiscatter": "cycles"} if "multiscatter" in Material.__data
 
 #: Entries kept in the in-memory table cache.
 LRU_SIZE = 32
+#: Baked tables by description key (see :mod:`.caches`).
+MEMORY = caches.register("tables", caches.LRU(LRU_SIZE), scope=caches.SESSION)
 
 #: Number of real bakes (cache misses) since the module was loaded; the tests read it.
 bake_count = 0
-
-_lru: collections.OrderedDict = collections.OrderedDict()
-_lock = threading.RLock()
+_count_lock = threading.Lock()
 _applying = 0  # > 0 while fill_from_material writes properties (they must not mark CUSTOM)
 
 
@@ -397,22 +399,9 @@ def table_cache() -> table_io.TableCache:
     return table_io.TableCache(cache_dir())
 
 
-def _remember(key: str, result) -> None:
-    with _lock:
-        _lru[key] = result
-        _lru.move_to_end(key)
-        while len(_lru) > LRU_SIZE:
-            _lru.popitem(last=False)
-
-
 def peek_table(desc: Material):
     """The table of ``desc`` if it is in memory (never touches the disk, never bakes), else None."""
-    key = description_key(desc)
-    with _lock:
-        result = _lru.get(key)
-        if result is not None:
-            _lru.move_to_end(key)
-        return result
+    return MEMORY.get(description_key(desc))
 
 
 def _attributes(result) -> dict:
@@ -443,7 +432,7 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
     """Like :func:`get_table`, also saying where the table came from: memory, disk or bake."""
     global bake_count
     key = description_key(desc)
-    hit = peek_table(desc)
+    hit = MEMORY.get(key)
     if hit is not None:
         return hit, "memory"
     if cache is None:
@@ -460,16 +449,16 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
         except (KeyError, TypeError, ValueError) as exc:  # a valid EXR but not one of ours
             log.warning("thinfilm_sh: cached table %s unusable (%s); baking", table.path, exc)
         else:
-            _remember(key, result)
+            MEMORY[key] = result
             return result, "disk"
     result = bake.bake(desc, progress)
-    with _lock:
+    with _count_lock:
         bake_count += 1
     try:
         cache.store(key, result.data, _attributes(result), kind=bake.FORMAT_KIND)
     except (OSError, ValueError) as exc:
         log.warning("thinfilm_sh: could not store the table in %s: %s", cache.directory, exc)
-    _remember(key, result)
+    MEMORY[key] = result
     return result, "bake"
 
 
@@ -485,8 +474,8 @@ def get_table(desc: Material, cache=None, progress=None) -> bake.BakeResult:
 
 
 def clear_memory_cache() -> None:
-    with _lock:
-        _lru.clear()
+    """Empty the in-memory tables (:data:`MEMORY`)."""
+    MEMORY.clear()
 
 
 def clear_caches(cache=None) -> int:

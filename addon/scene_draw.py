@@ -2,13 +2,15 @@
 
 Shared by the viewport draw handler and the headless render, so both draw the same thing.
 
-Caches (module level, cleared on file load):
+:data:`CACHES` (registered in :mod:`.caches` as ``scene_draw``, emptied on file load) holds:
 - batches per (object, material slot), rebuilt only when the object's geometry changed
   (a depsgraph handler marks it) — moving an object only changes the matrix passed at draw time;
 - GPU table textures per material description key (equal materials share one);
 - lighting UBOs per (World key, SH order, roughness, lamps or not);
 - film textures (the lamps' reflectance table) per material description key;
 - the World's SH, panorama, lamps and prefilter per World key.
+
+gpu_draw's shader and uniform-buffer caches are registered in :mod:`.caches` here too.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import numpy as np
 
 from ..precompute import lamps as np_lamps
 from ..precompute import prefilter, sh
-from . import gpu_draw, materials, world
+from . import caches, gpu_draw, materials, world
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +62,9 @@ class Caches:
         self.dirty.clear()
 
 
-CACHES = Caches()
+CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
+caches.register("shaders", gpu_draw.SHADERS, scope=caches.SESSION)
+caches.register("uniforms", gpu_draw.UNIFORMS, scope=caches.SESSION)
 
 
 def on_depsgraph_update(scene, depsgraph) -> None:

@@ -1,6 +1,5 @@
 """The Thin Film SH panel in the Properties editor's Material tab, with its sub-panels."""
 
-import collections
 import time
 
 import bpy
@@ -8,7 +7,7 @@ from bpy.types import Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
-from . import materials, scene_draw
+from . import caches, materials, scene_draw
 
 
 def _settings(context):
@@ -243,11 +242,11 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
 # ----------------------------------------------------------------------------------------------
 # Plan: what the active material needs simulated (precompute.effects), never a bake
 # ----------------------------------------------------------------------------------------------
-#: MaterialPlans by description key (the most recent _PLAN_MEMO_SIZE).
-_PLANS: collections.OrderedDict = collections.OrderedDict()
 _PLAN_MEMO_SIZE = 64
+#: MaterialPlans by description key (the most recent _PLAN_MEMO_SIZE; see :mod:`.caches`).
+_PLANS = caches.register("plans", caches.LRU(_PLAN_MEMO_SIZE), scope=caches.SESSION)
 #: Roughness values whose automatic SH order has been resolved: planning them again is cheap.
-_ORDERS_SEEN: set = set()
+_ORDERS_SEEN: set = caches.register("plan_orders_seen", set(), scope=caches.SESSION)
 #: (key, description, time) of the plan the panel waits for; computed by a timer once the
 #: settings stop changing (dragging the roughness slider asks for a new one at every step).
 _pending = None
@@ -256,9 +255,6 @@ _PLAN_DELAY_S = 0.3
 
 def _remember_plan(key, mp):
     _PLANS[key] = mp
-    _PLANS.move_to_end(key)
-    while len(_PLANS) > _PLAN_MEMO_SIZE:
-        _PLANS.popitem(last=False)
     _ORDERS_SEEN.add(float(mp.material.roughness))
 
 
@@ -293,7 +289,6 @@ def plan_for(desc, wait: bool = False):
     key = materials.description_key(desc)
     mp = _PLANS.get(key)
     if mp is not None:
-        _PLANS.move_to_end(key)
         return mp
     if wait or desc.quality.sh_order != AUTO or float(desc.roughness) in _ORDERS_SEEN:
         mp = effects.material_plan(desc)

@@ -13,7 +13,7 @@ import threading
 
 import bpy
 
-from . import gpu_draw, materials, scene_draw
+from . import caches, gpu_draw, materials, scene_draw
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +98,7 @@ def draw_callback() -> None:
 
 @bpy.app.handlers.persistent
 def _on_load(*_args) -> None:
-    scene_draw.CACHES.clear()
+    caches.clear(file_load=True)
 
 
 @bpy.app.handlers.persistent
@@ -131,5 +131,3 @@ def unregister() -> None:
             handlers.remove(fn)
     if bpy.app.timers.is_registered(_service):
         bpy.app.timers.unregister(_service)
-    scene_draw.CACHES.clear()
-    gpu_draw.UNIFORMS.clear()  # the uniform buffers kept across frames

@@ -17,9 +17,9 @@ takes the cheapest exact route:
    equirectangular panorama of the World alone is rendered with Cycles on the CPU and
    projected. This is the ground truth the other routes are tested against.
 
-Results are cached by :func:`world_key`, a content hash of everything that affects them (the
-node tree with all settings and links, image files' path/size/mtime, l_max, the working space)
-computed without reading any pixels, so the draw code can poll it cheaply.
+Results are cached (:data:`SH_CACHE`) by :func:`world_key`, a content hash of everything that
+affects them (the node tree with all settings and links, image files' path/size/mtime, l_max,
+the working space) computed without reading any pixels, so the draw code can poll it cheaply.
 
 Mapping and rotation
 --------------------
@@ -40,7 +40,6 @@ Only this module talks to ``bpy``; the maths is in ``precompute``.
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import math
 import os
@@ -52,16 +51,15 @@ from mathutils import Euler
 
 from ..precompute import hdri, sh, table_io
 from ..precompute.material import MAX_SH_ORDER
+from . import caches
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
     "MAX_PROJECTION_WIDTH",
     "PANORAMA_SAMPLES",
     "PANORAMA_WIDTH",
-    "LRUCache",
+    "SH_CACHE",
     "WorldSH",
-    "clear_cache",
-    "default_cache",
     "render_world_panorama",
     "working_space",
     "world_key",
@@ -81,7 +79,7 @@ MAX_PROJECTION_WIDTH = 1024
 PANORAMA_WIDTH = 256
 PANORAMA_SAMPLES = 32
 
-#: Default size of the module-level LRU cache of results.
+#: Size of the LRU of results :func:`world_sh` keeps (:data:`SH_CACHE`).
 DEFAULT_CACHE_SIZE = 16
 
 #: Rotation of the panorama camera that makes its equirect match the Environment Texture's.
@@ -126,53 +124,8 @@ class WorldSH:
     working_space: str = _DEFAULT_WORKING_SPACE
 
 
-class LRUCache:
-    """A tiny least-recently-used mapping (``get``, ``[]=``, ``in``, ``len``, ``clear``)."""
-
-    def __init__(self, maxsize: int = DEFAULT_CACHE_SIZE):
-        if maxsize < 1:
-            raise ValueError(f"maxsize must be ≥ 1, got {maxsize}")
-        self.maxsize = int(maxsize)
-        self._data: collections.OrderedDict = collections.OrderedDict()
-
-    def get(self, key, default=None):
-        if key not in self._data:
-            return default
-        self._data.move_to_end(key)
-        return self._data[key]
-
-    def __getitem__(self, key):
-        value = self._data[key]
-        self._data.move_to_end(key)
-        return value
-
-    def __setitem__(self, key, value):
-        self._data[key] = value
-        self._data.move_to_end(key)
-        while len(self._data) > self.maxsize:
-            self._data.popitem(last=False)
-
-    def __contains__(self, key):
-        return key in self._data
-
-    def __len__(self):
-        return len(self._data)
-
-    def clear(self):
-        self._data.clear()
-
-
-_CACHE = LRUCache(DEFAULT_CACHE_SIZE)
-
-
-def default_cache() -> LRUCache:
-    """The module-level cache :func:`world_sh` uses when given none."""
-    return _CACHE
-
-
-def clear_cache() -> None:
-    """Empty the module-level cache."""
-    _CACHE.clear()
+#: World SH results by :func:`world_key` (see :mod:`.caches`).
+SH_CACHE = caches.register("world_sh", caches.LRU(DEFAULT_CACHE_SIZE), scope=caches.SESSION)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -815,9 +768,9 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     l_max : int
         Highest band (0 ≤ l_max ≤ :data:`precompute.sh.MAX_L_MAX`).
     cache : dict-like, optional
-        Anything with ``get`` and item assignment, keyed by :func:`world_key`; default a
-        module-level LRU of :data:`DEFAULT_CACHE_SIZE` entries. Cached results are returned as
-        they are (the same object; its array is read-only).
+        Anything with ``get`` and item assignment, keyed by :func:`world_key`; default
+        :data:`SH_CACHE`, an LRU of :data:`DEFAULT_CACHE_SIZE` entries. Cached results are
+        returned as they are (the same object; its array is read-only).
 
     Returns
     -------
@@ -831,7 +784,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     (use :func:`world_key` there to detect changes).
     """
     l_max = sh._check_l_max(l_max)
-    cache = _CACHE if cache is None else cache
+    cache = SH_CACHE if cache is None else cache
     key = world_key(scene, l_max)
     hit = cache.get(key)
     if hit is not None:

@@ -37,10 +37,16 @@ def world_mod(bpy, tmp_path_factory):
         yield importlib.import_module(f"{EXTENSION_ID}.addon.world")
 
 
+@pytest.fixture(scope="module")
+def caches_mod(world_mod):
+    """``thinfilm_sh.addon.caches``: the add-on's LRU type and cache registry."""
+    return importlib.import_module(f"{EXTENSION_ID}.addon.caches")
+
+
 @pytest.fixture
 def scene(bpy, world_mod):
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    world_mod.clear_cache()
+    world_mod.SH_CACHE.clear()
     return bpy.context.scene
 
 
@@ -526,13 +532,13 @@ def test_cache_returns_the_same_result_until_the_world_changes(bpy, world_mod, s
     np.testing.assert_allclose(fourth.coeffs, 2.0 * third.coeffs, rtol=1e-6)
 
 
-def test_default_cache_is_a_small_lru(bpy, world_mod, scene):
+def test_default_cache_is_a_small_lru(bpy, world_mod, caches_mod, scene):
     world = bpy.data.worlds.new("Plain")
     scene.world = world
     first = world_mod.world_sh(scene)
-    assert world_mod.world_sh(scene) is first and len(world_mod.default_cache()) == 1
+    assert world_mod.world_sh(scene) is first and len(world_mod.SH_CACHE) == 1
 
-    lru = world_mod.LRUCache(2)
+    lru = caches_mod.LRU(2)
     lru["a"], lru["b"] = 1, 2
     assert lru.get("a") == 1  # "a" is now the most recent
     lru["c"] = 3
