@@ -10,11 +10,11 @@ unregister. The bounded ones use :class:`LRU`, the add-on's one least-recently-u
 
 The caches (name in the registry — the object; keyed by; bound; filled by; scope):
 
-- ``tables`` — ``materials.MEMORY``: baked SH tables (``bake.BakeResult``) by
-  ``materials.description_key`` (the material's parameters + the bake planner's version);
-  LRU of ``materials.LRU_SIZE`` (32); filled by ``materials.get_table_with_source`` (disk cache
-  or a bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION,
-  also emptied by the Clear Cache operator (``materials.clear_caches``) with the disk cache.
+- ``tables`` — ``tables.MEMORY``: baked SH tables (``bake.BakeResult``) by
+  ``description.description_key`` (the material's parameters + the bake planner's version);
+  LRU of ``tables.LRU_SIZE`` (32); filled by ``tables.get_table_with_source`` (disk cache or a
+  bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION, also
+  emptied by the Clear Cache operator (``tables.clear_caches``) with the disk cache.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
   ``world.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.

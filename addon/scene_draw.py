@@ -23,7 +23,8 @@ import numpy as np
 
 from ..precompute import lamps as np_lamps
 from ..precompute import prefilter, sh
-from . import caches, gpu_draw, materials, world
+from . import caches, description, gpu_draw, tables, world
+from .thickness import thickness_per_vertex
 
 log = logging.getLogger(__name__)
 
@@ -241,7 +242,7 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
         and bpy_material.thinfilm_sh.enabled
     ):
         try:
-            thickness = materials.thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
+            thickness = thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
         except ValueError as exc:
             messages.append(f"{obj_eval.name}: {exc}; using the middle of the thickness range")
     if desc.varies and thickness is None:
@@ -257,7 +258,7 @@ class _MaterialEntry:
     """What one material contributes to a frame, worked out once per frame however many use it."""
 
     desc: object  # precompute Material
-    key: str  # materials.description_key(desc)
+    key: str  # description.description_key(desc)
     table: gpu_draw.TableTexture
     lighting: gpu_draw.Lighting
     roughness: float
@@ -268,20 +269,20 @@ class _MaterialEntry:
 def _material_entry(bpy_material, world_entry, allow_bake: bool, want_bake, messages):
     """The material's description, table texture and lighting, or None (no film / not baked yet)."""
     try:
-        desc = materials.description(bpy_material)
+        desc = description.description(bpy_material)
     except ValueError as exc:
         messages.append(str(exc))  # description() names the material
         return None
     if desc is None:
         return None
-    result = materials.peek_table(desc)
+    result = tables.peek_table(desc)
     if result is None:
         if not allow_bake:
             if want_bake is not None:
                 want_bake(desc)
             return None
-        result = materials.get_table(desc)
-    key = materials.description_key(desc)
+        result = tables.get_table(desc)
+    key = description.description_key(desc)
     roughness = float(desc.roughness)
     lamps = uses_lamps(bpy_material, desc) and world_entry[2] is not None and world_entry[2].lamps is not None
     return _MaterialEntry(

@@ -7,7 +7,9 @@ from bpy.types import Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
-from . import caches, materials, scene_draw
+from . import caches, scene_draw, tables
+from .description import description, description_key, warnings
+from .principled import principled_node
 
 
 def _settings(context):
@@ -64,7 +66,7 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
 
 def _safe_warnings(mat) -> list[str]:
     try:
-        return materials.warnings(mat)
+        return warnings(mat)
     except ValueError as exc:
         return [str(exc)]
 
@@ -165,7 +167,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
 
     def draw_settings(self, context, layout, mat, settings):
         layout.prop(settings, "roughness")
-        layout.label(text=materials.shading_path(settings.roughness), icon="INFO")
+        layout.label(text=tables.shading_path(settings.roughness), icon="INFO")
         row = layout.row(heading="Diffuse Base")
         row.prop(settings, "diffuse_base", text="")
         sub = row.row()
@@ -184,7 +186,7 @@ class THINFILM_PT_quality(_SubPanel, Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw_settings(self, context, layout, mat, settings):
-        chosen = materials.parse_plan(settings.last_plan)
+        chosen = tables.parse_plan(settings.last_plan)
 
         def auto_prop(name, text):
             row = layout.row()
@@ -217,10 +219,10 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
     def draw(self, context):
         mat, settings = _settings(context)
         layout = self.layout
-        node = materials.principled_node(mat)
+        node = principled_node(mat)
         if not settings.enabled:
             try:
-                desc = materials.description(mat)
+                desc = description(mat)
             except ValueError as exc:
                 layout.label(text=str(exc), icon="ERROR")
                 desc = None
@@ -286,7 +288,7 @@ def plan_for(desc, wait: bool = False):
     once the settings have stopped changing, then redraws the Properties editor.
     """
     global _pending
-    key = materials.description_key(desc)
+    key = description_key(desc)
     mp = _PLANS.get(key)
     if mp is not None:
         return mp
@@ -333,7 +335,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
         layout.use_property_split = False
         layout.active = True  # the plan also describes a material previewed from its Principled BSDF
         try:
-            desc = materials.description(mat)
+            desc = description(mat)
         except ValueError as exc:
             layout.label(text=str(exc), icon="ERROR")
             return
@@ -354,7 +356,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
         lines.scale_y = 0.8
         for line in plan_lines(mp)[1:]:
             lines.label(text=line)
-        if materials.peek_table(desc) is not None:
+        if tables.peek_table(desc) is not None:
             lines.label(text="Its table is in memory: no bake needed", icon="CHECKMARK")
         why = layout.box().column(align=True)
         why.scale_y = 0.8

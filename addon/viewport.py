@@ -13,7 +13,8 @@ import threading
 
 import bpy
 
-from . import caches, gpu_draw, materials, scene_draw
+from . import caches, gpu_draw, scene_draw, tables
+from .description import description_key
 
 log = logging.getLogger(__name__)
 
@@ -33,7 +34,7 @@ def _tag_redraw() -> None:
 
 
 def _want_bake(desc) -> None:
-    key = materials.description_key(desc)
+    key = description_key(desc)
     with _lock:
         if key not in _running:
             _pending[key] = desc
@@ -41,7 +42,7 @@ def _want_bake(desc) -> None:
 
 def _bake_worker(key: str, desc) -> None:
     try:
-        materials.get_table(desc)
+        tables.get_table(desc)
     except Exception as exc:  # reported, never raised into Blender's timer
         log.error("Thin Film SH: bake failed: %s", exc)
     finally:

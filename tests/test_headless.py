@@ -54,7 +54,7 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "materials", "prefs", "scene_draw", "gpu_draw"):
+            for name in ("headless", "description", "tables", "prefs", "scene_draw", "gpu_draw"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
             _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
@@ -459,7 +459,7 @@ def test_zero_thickness_film_is_the_bare_substrate(bpy, tf, fresh, tmp_path):
     s.roughness = 0.35
     s.substrate_mode, s.substrate_ior = "DIELECTRIC", 1.5
     assert len(s.layers) == 0
-    assert tf.materials.description(bare).layers == ()
+    assert tf.description.description(bare).layers == ()
     obj = sphere(bpy, scene, material=zero)
     camera(bpy, scene)
     a, ra = render(tf, scene, tmp_path / "zero.png")
@@ -537,16 +537,16 @@ def test_corrupt_cache_file_is_rebaked(bpy, tf, fresh, tmp_path, caplog):
     sphere(bpy, scene, material=mat)
     camera(bpy, scene)
     first, _ = render(tf, scene, tmp_path / "first.png")
-    desc = tf.materials.description(mat)
-    path = tf.materials.table_cache().path_for(tf.materials.description_key(desc))
+    desc = tf.description.description(mat)
+    path = tf.tables.table_cache().path_for(tf.description.description_key(desc))
     assert path.is_file() and str(path).startswith(str(tf.cache_dir))
     path.write_bytes(b"this is not an OpenEXR file" * 100)
-    tf.materials.clear_memory_cache()
+    tf.tables.clear_memory_cache()
     tf.scene_draw.CACHES.clear()
-    bakes = tf.materials.bake_count
+    bakes = tf.tables.bake_count
     with caplog.at_level("WARNING"):
         again, result = render(tf, scene, tmp_path / "again.png")
-    assert tf.materials.bake_count == bakes + 1
+    assert tf.tables.bake_count == bakes + 1
     assert result["objects"] == ["Sphere/Cached"]
     assert any(path.name in rec.getMessage() for rec in caplog.records), [
         r.getMessage() for r in caplog.records

@@ -34,7 +34,7 @@ def tf(bpy, tmp_path_factory):
         package.register()
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("gpu_draw", "scene_draw", "materials", "prefs"):
+        for name in ("gpu_draw", "scene_draw", "props", "prefs"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
@@ -246,7 +246,7 @@ def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
         mesh = bpy.data.meshes.new(f"film{k}")
         mesh.from_pydata([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], [], [(0, 1, 2, 3)])
         mat = bpy.data.materials.new(f"film{k}")
-        tf.materials.fill_from_material(mat.thinfilm_sh, FILM)
+        tf.props.fill_from_material(mat.thinfilm_sh, FILM)
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32
@@ -305,7 +305,7 @@ def test_collect_splits_a_mesh_by_material_slot(tf, bpy):
     mesh.from_pydata(verts, [], [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6)])  # three quads
     for k in range(2):
         mat = bpy.data.materials.new(f"slot{k}")
-        tf.materials.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
+        tf.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32
