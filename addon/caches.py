@@ -16,7 +16,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION, also
   emptied by the Clear Cache operator (``tables.clear_caches``) with the disk cache.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
-  ``world.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
+  ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
 - ``plans`` — ``ui._PLANS``: the Plan panel's ``effects.MaterialPlan`` by description key; LRU
   of ``ui._PLAN_MEMO_SIZE`` (64); filled by ``ui.plan_for`` and its timer; SESSION.

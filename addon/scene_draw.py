@@ -23,7 +23,8 @@ import numpy as np
 
 from ..precompute import lamps as np_lamps
 from ..precompute import prefilter, sh
-from . import caches, description, gpu_draw, tables, world
+from . import caches, description, gpu_draw, tables, world, world_key
+from .panorama import render_world_panorama
 from .thickness import thickness_per_vertex
 
 log = logging.getLogger(__name__)
@@ -132,7 +133,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     The image (and so the split sum for glossy films) needs a small Cycles panorama render of the
     World; without a World, or if that render fails, glossy films fall back to the SH path.
     """
-    key = world.world_key(scene)
+    key = world_key.world_key(scene)
     if (
         CACHES.world is not None
         and CACHES.world[0] == key
@@ -149,7 +150,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     image = None
     if need_image and scene.world is not None:
         try:
-            panorama = world.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
+            panorama = render_world_panorama(scene.world, width=PANORAMA_WIDTH)
             lamps, mask = np_lamps.extract(panorama)
             if lamps.count:
                 pre = prefilter.prefilter(panorama, width=PREFILTER_WIDTH, lamp_mask=mask)
