@@ -26,8 +26,8 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
 - ``scene_draw`` — ``scene_draw.CACHES``: what the draw collects per object and material:
   mesh batches by (object name, material slot, instance), rebuilt when the geometry changes;
   GPU table textures and film textures by description key; lighting uniform buffers by (World
-  key, l_max, roughness, lamps); the World's lighting (its SH, panorama, lamps and prefilters
-  on the GPU) for the current World key only; unbounded
+  key, l_max, roughness, lamps); the World's lighting (``scene_draw.WorldLighting``: its SH, the
+  analysed panorama, the prefilters on the GPU) for the current World key only; unbounded
   dicts sized by the file (objects × slots, distinct materials), lightings pruned to the
   current World on each World change; filled by ``scene_draw.collect`` and
   ``scene_draw.world_lighting``; FILE.

@@ -105,9 +105,9 @@ def render_scene(
     t0 = time.perf_counter()
     items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True)
     env = None
-    world_entry = scene_draw.CACHES.world
-    if background and world_entry is not None and world_entry[2] is not None:
-        env = world_entry[2].image  # the panorama the split sum was prefiltered from
+    lighting = scene_draw.CACHES.world
+    if background and lighting is not None and lighting.environment is not None:
+        env = lighting.environment.panorama  # the panorama the split sum was prefiltered from
     space, region = _view3d_for_depth()
 
     film_objects = {item.name.split("/")[0] for item in items}

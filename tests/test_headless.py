@@ -681,7 +681,7 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
         return tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
 
     (item,) = items()
-    image_entry = tf.scene_draw.CACHES.world[2]
+    image_entry = tf.scene_draw.CACHES.world.environment
     assert image_entry is not None and image_entry.lamps is not None
     assert 1 <= image_entry.lamps.count <= tf.gpu_draw.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
@@ -689,14 +689,14 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary
     assert "off" in tf.scene_draw.lamps_summary(False)
     # The lighting of a lamp-shaded film is the World's SH minus the lamps' SH.
-    whole = tf.scene_draw.CACHES.world[1].coeffs
+    whole = tf.scene_draw.CACHES.world.sh.coeffs
     assert item.lighting.coefficients[0, 1] < 0.5 * whole[0, 1]
     on, _ = render(tf, scene, tmp_path / "lamps_on.png")
 
     mat.thinfilm_sh.world_lamps = False
     (item_off,) = items()
     assert item_off.film is None and item_off.lighting.lamp_count == 0
-    assert item_off.prefiltered is image_entry.prefiltered_whole()
+    assert item_off.prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered_whole()
     off, _ = render(tf, scene, tmp_path / "lamps_off.png")
     sphere_px = on.sum(axis=-1) > 0
     ratio = off[sphere_px].mean() / on[sphere_px].mean()
