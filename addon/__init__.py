@@ -1,75 +1,15 @@
-"""The thin bpy layer of the extension: preferences, material settings, operators and panels.
+"""The thin bpy layer of the extension: registration of its classes, property and hooks.
 
 Everything here is Blender glue. The physics lives in ``precompute/`` (which never imports
-``bpy``) and the shaders in ``glsl/``.
+``bpy``) and the shaders in ``glsl/``. Where the add-on keeps state: :mod:`.caches`.
 """
 
-import os
-import tempfile
-
 import bpy
-from bpy.props import PointerProperty, StringProperty
-from bpy.types import AddonPreferences
+from bpy.props import PointerProperty
 
-# This module is ``<extension package>.addon``; Blender keys add-on preferences by the extension
-# package itself, e.g. ``bl_ext.user_default.thinfilm_sh``. Imported on its own (no parent
-# package) it falls back to the manifest id.
-EXTENSION_ID = "thinfilm_sh"
-PACKAGE = (__package__ or "").rpartition(".")[0] or EXTENSION_ID
+from . import caches, headless, ops, prefs, props, ui, viewport
 
-
-def default_cache_dir() -> str:
-    """Where baked tables go when the preference is empty.
-
-    Installed as an extension: the extension's user directory (kept across upgrades), ``cache``
-    inside it. Otherwise (imported by path, e.g. in tests) a folder in the system temp dir.
-    Nothing is created here.
-    """
-    try:
-        path = bpy.utils.extension_path_user(PACKAGE, path="cache", create=False)
-    except ValueError:  # the package is not under bl_ext: not installed as an extension
-        path = ""
-    return path or os.path.join(tempfile.gettempdir(), EXTENSION_ID, "cache")
-
-
-def preferences(context=None):
-    """This extension's preferences, or None while it isn't enabled in Blender's preferences."""
-    context = context or bpy.context
-    addon = context.preferences.addons.get(PACKAGE)
-    return addon.preferences if addon is not None else None
-
-
-def cache_dir(context=None) -> str:
-    """The cache directory in use: the user's choice if set, else :func:`default_cache_dir`."""
-    prefs = preferences(context)
-    chosen = prefs.cache_dir.strip() if prefs is not None else ""
-    return bpy.path.abspath(chosen) if chosen else default_cache_dir()
-
-
-class ThinFilmSHPreferences(AddonPreferences):
-    bl_idname = PACKAGE
-
-    cache_dir: StringProperty(
-        name="Cache Directory",
-        description="Where baked thin-film and spherical-harmonic tables are stored. "
-        "Leave empty for the extension's own user directory",
-        subtype="DIR_PATH",
-        default="",
-    )
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.prop(self, "cache_dir")
-        row = layout.row()
-        row.active = False
-        row.label(text=f"In use: {cache_dir(context)}", icon="FILE_FOLDER")
-
-
-# Imported after the helpers above: materials.table_cache() calls cache_dir() from here.
-from . import ops, props, ui  # noqa: E402
-
-classes = (ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
+classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
 
 # ----------------------------------------------------------------------------------------------
 # HOOKS for other parts of the add-on (viewport draw handler, command line, ...).
@@ -77,12 +17,8 @@ classes = (ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
 # Each entry is a module (or any object) with register() and unregister(). They run AFTER the
 # classes above are registered and the Material property exists, and are unregistered in
 # reverse order BEFORE them. Both calls must be harmless when repeated (register() is called
-# twice by the tests). To add one: import it here and append it to the tuple, e.g.
-#     from . import draw, cli
-#     modules = (draw, cli)
+# twice by the tests). To add one: import it above and append it to the tuple.
 # ----------------------------------------------------------------------------------------------
-from . import headless, viewport  # noqa: E402
-
 modules: tuple = (viewport, headless)
 
 #: Name of the per-material settings: ``material.thinfilm_sh``.
@@ -101,7 +37,7 @@ def register():
 
 
 def unregister():
-    """Undo :func:`register` in reverse order; anything not registered is skipped."""
+    """Undo :func:`register` in reverse order, then empty every cache (:func:`caches.clear`)."""
     for module in reversed(modules):
         module.unregister()
     if hasattr(bpy.types.Material, MATERIAL_PROPERTY):
@@ -109,3 +45,4 @@ def unregister():
     for cls in reversed(classes):
         if cls.is_registered:
             bpy.utils.unregister_class(cls)
+    caches.clear()

@@ -15,8 +15,10 @@ import time
 import bpy
 import numpy as np
 
+from ..precompute import effects
 from ..precompute import render as np_render
-from . import gpu_draw, materials, scene_draw
+from . import gpu_draw, scene_draw, tables, world
+from .description import description, description_key
 
 
 def scene_materials(scene):
@@ -31,7 +33,7 @@ def scene_materials(scene):
             if mat is None or mat.name in found or mat.name in errors:
                 continue
             try:
-                desc = materials.description(mat)
+                desc = description(mat)
             except ValueError as exc:
                 errors[mat.name] = str(exc)
                 continue
@@ -48,9 +50,9 @@ def bake_scene(scene, out_dir=None, progress=print) -> dict:
     summary = {"materials": {}, "errors": errors}
     shared: dict[str, str] = {}
     for i, (name, desc) in enumerate(sorted(found.items())):
-        key = materials.description_key(desc)
+        key = description_key(desc)
         t0 = time.perf_counter()
-        result, source = materials.get_table_with_source(desc)
+        result, source = tables.get_table_with_source(desc)
         entry = {
             "key": key,
             "source": source,
@@ -103,9 +105,9 @@ def render_scene(
     t0 = time.perf_counter()
     items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True)
     env = None
-    world_entry = scene_draw.CACHES.world
-    if background and world_entry is not None and world_entry[2] is not None:
-        env = world_entry[2].image  # the panorama the split sum was prefiltered from
+    lighting = scene_draw.CACHES.world
+    if background and lighting is not None and lighting.environment is not None:
+        env = lighting.environment.panorama  # the panorama the split sum was prefiltered from
     space, region = _view3d_for_depth()
 
     film_objects = {item.name.split("/")[0] for item in items}
@@ -210,19 +212,16 @@ def main(argv) -> int:
                 f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
             )
             return 0
-        from ..precompute import effects
-        from . import world
-
         # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
         # sets the World order; tables already in memory or in the disk cache cost no bake.
         found, errors = scene_materials(scene)
         coeffs = world.world_sh(scene).coeffs if found else None
-        disk = materials.table_cache()
-        keys = {name: materials.description_key(desc) for name, desc in found.items()}
+        disk = tables.table_cache()
+        keys = {name: description_key(desc) for name, desc in found.items()}
         cached = {
             keys[name]
             for name, desc in found.items()
-            if materials.peek_table(desc) is not None or disk.path_for(keys[name]).is_file()
+            if tables.peek_table(desc) is not None or disk.path_for(keys[name]).is_file()
         }
         plan = effects.scene_plan(found, coeffs, cached=cached)
         print(effects.format_plan(plan))

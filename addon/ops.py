@@ -12,8 +12,10 @@ import bpy
 from bpy.props import EnumProperty, StringProperty
 from bpy.types import Operator
 
-from . import materials
-from .props import PRESET_ITEMS
+from . import tables
+from .description import description
+from .principled import write_back_to_principled
+from .props import PRESET_ITEMS, apply_preset, mark_custom
 
 
 def _material(op, context):
@@ -84,7 +86,7 @@ class BakeJob:
     def _run(self):
         start = time.perf_counter()
         try:
-            self.result, self.source = materials.get_table_with_source(self.desc, self.cache, self._progress)
+            self.result, self.source = tables.get_table_with_source(self.desc, self.cache, self._progress)
         except BakeCancelled:
             pass
         except Exception as exc:  # reported in the main thread
@@ -96,7 +98,7 @@ class BakeJob:
 
 def _store_result(settings, result, source: str, elapsed_s: float) -> None:
     settings.last_bake_ms = 1000.0 * elapsed_s
-    settings.last_plan = materials.format_plan(result, source)
+    settings.last_plan = tables.format_plan(result, source)
     settings.last_error = ""
 
 
@@ -124,7 +126,7 @@ class THINFILM_OT_bake(Operator):
             self.report({"ERROR"}, "No material to bake")
             return None, None
         try:
-            desc = materials.description(mat)
+            desc = description(mat)
         except ValueError as exc:
             if hasattr(mat, "thinfilm_sh"):
                 mat.thinfilm_sh.last_error = str(exc)
@@ -149,7 +151,7 @@ class THINFILM_OT_bake(Operator):
             return {"CANCELLED"}
         start = time.perf_counter()
         try:
-            result, source = materials.get_table_with_source(desc)
+            result, source = tables.get_table_with_source(desc)
         except ValueError as exc:
             return self._fail(mat, str(exc))
         except OSError as exc:
@@ -166,12 +168,12 @@ class THINFILM_OT_bake(Operator):
         mat, desc = self._description(context)
         if desc is None:
             return {"CANCELLED"}
-        hit = materials.peek_table(desc)
+        hit = tables.peek_table(desc)
         if hit is not None:
             _store_result(mat.thinfilm_sh, hit, "memory", 0.0)
             return {"FINISHED"}
         self._material_name = mat.name
-        self._job = BakeJob(desc, materials.table_cache()).start()
+        self._job = BakeJob(desc, tables.table_cache()).start()
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.modal_handler_add(self)
@@ -259,7 +261,7 @@ class THINFILM_OT_apply_preset(_MaterialOperator, Operator):
         if settings is None:
             return {"CANCELLED"}
         try:
-            materials.apply_preset(settings, self.preset)
+            apply_preset(settings, self.preset)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -282,7 +284,7 @@ class THINFILM_OT_layer_add(_MaterialOperator, Operator):
         layers.add()
         layers.move(len(layers) - 1, index)
         settings.active_layer_index = index
-        materials.mark_custom(settings)
+        mark_custom(settings)
         return {"FINISHED"}
 
 
@@ -304,7 +306,7 @@ class THINFILM_OT_layer_remove(_MaterialOperator, Operator):
         index = min(settings.active_layer_index, len(layers) - 1)
         layers.remove(index)
         settings.active_layer_index = max(0, min(index, len(layers) - 1))
-        materials.mark_custom(settings)
+        mark_custom(settings)
         return {"FINISHED"}
 
 
@@ -328,7 +330,7 @@ class THINFILM_OT_layer_move(_MaterialOperator, Operator):
             return {"CANCELLED"}
         layers.move(index, target)
         settings.active_layer_index = target
-        materials.mark_custom(settings)
+        mark_custom(settings)
         return {"FINISHED"}
 
 
@@ -345,7 +347,7 @@ class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
             self.report({"ERROR"}, "No material")
             return {"CANCELLED"}
         try:
-            notes = materials.write_back_to_principled(mat)
+            notes = write_back_to_principled(mat)
         except ValueError as exc:
             self.report({"ERROR"}, f"material {mat.name!r}: {exc}")
             return {"CANCELLED"}
@@ -363,9 +365,9 @@ class THINFILM_OT_clear_cache(Operator):
     bl_options = {"REGISTER"}
 
     def execute(self, context):
-        cache = materials.table_cache()
+        cache = tables.table_cache()
         try:
-            removed = materials.clear_caches(cache)
+            removed = tables.clear_caches(cache)
         except OSError as exc:
             self.report({"ERROR"}, f"could not clear {cache.directory}: {exc}")
             return {"CANCELLED"}

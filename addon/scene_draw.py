@@ -2,13 +2,17 @@
 
 Shared by the viewport draw handler and the headless render, so both draw the same thing.
 
-Caches (module level, cleared on file load):
+:data:`CACHES` (registered in :mod:`.caches` as ``scene_draw``, emptied on file load) holds:
+
 - batches per (object, material slot), rebuilt only when the object's geometry changed
   (a depsgraph handler marks it) — moving an object only changes the matrix passed at draw time;
 - GPU table textures per material description key (equal materials share one);
 - lighting UBOs per (World key, SH order, roughness, lamps or not);
 - film textures (the lamps' reflectance table) per material description key;
-- the World's SH, panorama, lamps and prefilter per World key.
+- the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
+  the current World key.
+
+gpu_draw's shader and uniform-buffer caches are registered in :mod:`.caches` here too.
 """
 
 from __future__ import annotations
@@ -20,8 +24,10 @@ import bpy
 import numpy as np
 
 from ..precompute import lamps as np_lamps
-from ..precompute import prefilter, sh
-from . import gpu_draw, materials, world
+from ..precompute import prefilter
+from ..precompute.environment import Environment, analyse_world
+from . import caches, description, gpu_draw, panorama, tables, world, world_key
+from .thickness import thickness_per_vertex
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +53,7 @@ class Caches:
     tables: dict = field(default_factory=dict)  # description key → TableTexture
     films: dict = field(default_factory=dict)  # description key → FilmTexture (lamps)
     lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness, lamps) → Lighting
-    world: tuple | None = None  # (world key, WorldSH, WorldImage | None)
+    world: WorldLighting | None = None  # the current World's lighting
     dirty: set = field(default_factory=set)  # object names whose geometry changed
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
 
@@ -60,7 +66,9 @@ class Caches:
         self.dirty.clear()
 
 
-CACHES = Caches()
+CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
+caches.register("shaders", gpu_draw.SHADERS, scope=caches.SESSION)
+caches.register("uniforms", gpu_draw.UNIFORMS, scope=caches.SESSION)
 
 
 def on_depsgraph_update(scene, depsgraph) -> None:
@@ -84,30 +92,9 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 
 
 # ----------------------------------------------------------------------------------------------
-@dataclass
-class WorldImage:
-    """The World as an equirect image (a small Cycles panorama) and its GGX prefilter on the GPU.
-
-    ``lamps``: its bright lamps (precompute.lamps.extract), shaded per light direction; then
-    ``prefiltered`` holds the World without them from lamps.LAMP_LEVEL on, and ``lamp_sh`` is
-    their SH, which the lighting of lamp-shaded materials leaves out. Materials the lamps do
-    not apply to (a diffuse base under the film, "World Lamps" off) use
-    :meth:`prefiltered_whole`.
-    """
-
-    image: np.ndarray
-    prefiltered: gpu_draw.PrefilterTexture
-    lamps: object = None
-    lamp_sh: np.ndarray | None = None
-    _whole: gpu_draw.PrefilterTexture | None = None
-
-    def prefiltered_whole(self) -> gpu_draw.PrefilterTexture:
-        """The prefilter with the lamps in every level (computed on first use)."""
-        if self.lamps is None:
-            return self.prefiltered
-        if self._whole is None:
-            self._whole = _prefilter_texture(prefilter.prefilter(self.image, width=PREFILTER_WIDTH))
-        return self._whole
+#: Panorama size for the split sum's prefilter and the headless background.
+PANORAMA_WIDTH = 512
+PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
 
 
 def _prefilter_texture(pre) -> gpu_draw.PrefilterTexture:
@@ -116,65 +103,90 @@ def _prefilter_texture(pre) -> gpu_draw.PrefilterTexture:
     )
 
 
-#: Panorama size for the split sum's prefilter and the headless background.
-PANORAMA_WIDTH = 512
-PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
+class PrefilterTextures:
+    """An :class:`~precompute.environment.Environment`'s prefilters on the GPU.
 
-
-def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True):
-    """(key, WorldSH, WorldImage | None) for the scene's World, recomputed only when its key changes.
-
-    The image (and so the split sum for glossy films) needs a small Cycles panorama render of the
-    World; without a World, or if that render fails, glossy films fall back to the SH path.
+    ``prefiltered``: its split-sum levels (the World without its lamps from lamps.LAMP_LEVEL
+    on, when it has lamps); :meth:`prefiltered_whole`: the whole World in every level, for the
+    materials the lamps do not apply to (a diffuse base under the film, "World Lamps" off).
     """
-    key = world.world_key(scene)
-    if (
-        CACHES.world is not None
-        and CACHES.world[0] == key
-        and (CACHES.world[2] is not None or not need_image)
-    ):
-        return CACHES.world
+
+    def __init__(self, analysed: Environment):
+        self.environment = analysed
+        self.prefiltered = _prefilter_texture(analysed.prefiltered)
+        self._whole: gpu_draw.PrefilterTexture | None = None
+
+    def prefiltered_whole(self) -> gpu_draw.PrefilterTexture:
+        """The prefilter with the lamps in every level (uploaded on first use)."""
+        if self.environment.lamps is None:
+            return self.prefiltered
+        if self._whole is None:
+            self._whole = _prefilter_texture(self.environment.prefiltered_whole)
+        return self._whole
+
+
+@dataclass(frozen=True)
+class WorldLighting:
+    """The scene's World as the draw lights with it (:func:`world_lighting`).
+
+    ``key``: :func:`.world_key.world_key` of the World; ``sh``: its SH radiance
+    (:class:`.world.WorldSH`); ``environment``: its panorama analysed
+    (:func:`precompute.environment.analyse_world`: lamps, prefiltered levels, the lamps' SH),
+    or None when not asked for, without a World, or when the panorama render failed (glossy
+    films then fall back to the SH path); ``textures``: the environment's prefilters on the GPU
+    (None when ``environment`` is).
+    """
+
+    key: str
+    sh: world.WorldSH
+    environment: Environment | None = None
+    textures: PrefilterTextures | None = None
+
+
+def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True) -> WorldLighting | None:
+    """The :class:`WorldLighting` of the scene's World, recomputed only when its key changes.
+
+    The environment (and so the split sum for glossy films) needs a small Cycles panorama render
+    of the World; without a World, or if that render fails, glossy films fall back to the SH path.
+    With ``allow_compute`` False (the draw callback) a World whose lighting is not cached gives
+    None.
+    """
+    key = world_key.world_key(scene)
+    cached = CACHES.world
+    if cached is not None and cached.key == key and (cached.environment is not None or not need_image):
+        return cached
     if not allow_compute:
         return None
     result = (
-        CACHES.world[1]
-        if CACHES.world is not None and CACHES.world[0] == key
+        cached.sh
+        if cached is not None and cached.key == key
         else world.world_sh(scene)  # every band a table may use (MAX_SH_ORDER)
     )
-    image = None
+    analysed = textures = None
     if need_image and scene.world is not None:
         try:
-            panorama = world.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
-            lamps, mask = np_lamps.extract(panorama)
-            if lamps.count:
-                pre = prefilter.prefilter(panorama, width=PREFILTER_WIDTH, lamp_mask=mask)
-                lamp_sh = sh.project_equirect(np.where(mask[..., None], panorama, 0.0), gpu_draw.MAX_L)
-                image = WorldImage(panorama, _prefilter_texture(pre), lamps, lamp_sh)
-            else:
-                image = WorldImage(
-                    panorama, _prefilter_texture(prefilter.prefilter(panorama, width=PREFILTER_WIDTH))
-                )
+            image = panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
+            found = analyse_world(image, result.coeffs, l_max=gpu_draw.MAX_L, width=PREFILTER_WIDTH)
+            analysed, textures = found, PrefilterTextures(found)
         except (RuntimeError, ValueError) as exc:
             log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
-    CACHES.world = (key, result, image)
+    CACHES.world = WorldLighting(key, result, analysed, textures)
     CACHES.lightings = {k: v for k, v in CACHES.lightings.items() if k[0] == key}
     return CACHES.world
 
 
-def lighting_for(world_entry, l_max: int, roughness: float, lamps: bool = False) -> gpu_draw.Lighting:
+def lighting_for(
+    lighting: WorldLighting, l_max: int, roughness: float, lamps: bool = False
+) -> gpu_draw.Lighting:
     """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
     the lamps themselves."""
-    image = world_entry[2]
-    lamps = bool(lamps and image is not None and image.lamps is not None)
-    key = (world_entry[0], int(l_max), round(float(roughness), 6), lamps)
+    env = lighting.environment
+    lamps = bool(lamps and env is not None and env.lamps is not None)
+    key = (lighting.key, int(l_max), round(float(roughness), 6), lamps)
     if key not in CACHES.lightings:
-        coeffs = np.asarray(world_entry[1].coeffs, dtype=np.float64)
-        if lamps:
-            n = min(coeffs.shape[0], image.lamp_sh.shape[0])
-            coeffs = coeffs.copy()
-            coeffs[:n] -= image.lamp_sh[:n]
+        coeffs = env.sh_without_lamps if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
         CACHES.lightings[key] = gpu_draw.Lighting.from_sh(
-            coeffs, l_max, roughness, image.lamps if lamps else None
+            coeffs, l_max, roughness, env.lamps if lamps else None
         )
     return CACHES.lightings[key]
 
@@ -196,13 +208,13 @@ def uses_lamps(bpy_material, desc) -> bool:
 
 def lamps_summary(enabled: bool) -> str:
     """One line for the Surface panel: what the current World's lamps are and how they are shaded."""
-    entry = CACHES.world
-    image = entry[2] if entry is not None else None
-    if image is None:
+    lighting = CACHES.world
+    env = lighting.environment if lighting is not None else None
+    if env is None:
         return "World lamps: World not analysed yet"
-    if image.lamps is None:
+    if env.lamps is None:
         return "World lamps: none (no small, very bright sources)"
-    lamps = image.lamps
+    lamps = env.lamps
     how = "shaded per lamp" if enabled else "off: through SH and prefilter"
     return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
@@ -237,7 +249,7 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
         and bpy_material.thinfilm_sh.enabled
     ):
         try:
-            thickness = materials.thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
+            thickness = thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
         except ValueError as exc:
             messages.append(f"{obj_eval.name}: {exc}; using the middle of the thickness range")
     if desc.varies and thickness is None:
@@ -253,7 +265,7 @@ class _MaterialEntry:
     """What one material contributes to a frame, worked out once per frame however many use it."""
 
     desc: object  # precompute Material
-    key: str  # materials.description_key(desc)
+    key: str  # description.description_key(desc)
     table: gpu_draw.TableTexture
     lighting: gpu_draw.Lighting
     roughness: float
@@ -261,40 +273,44 @@ class _MaterialEntry:
     film: gpu_draw.FilmTexture | None = None
 
 
-def _material_entry(bpy_material, world_entry, allow_bake: bool, want_bake, messages):
+def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages):
     """The material's description, table texture and lighting, or None (no film / not baked yet)."""
     try:
-        desc = materials.description(bpy_material)
+        desc = description.description(bpy_material)
     except ValueError as exc:
         messages.append(str(exc))  # description() names the material
         return None
     if desc is None:
         return None
-    result = materials.peek_table(desc)
+    result = tables.peek_table(desc)
     if result is None:
         if not allow_bake:
             if want_bake is not None:
                 want_bake(desc)
             return None
-        result = materials.get_table(desc)
-    key = materials.description_key(desc)
+        result = tables.get_table(desc)
+    key = description.description_key(desc)
     roughness = float(desc.roughness)
-    lamps = uses_lamps(bpy_material, desc) and world_entry[2] is not None and world_entry[2].lamps is not None
+    env = lighting.environment
+    lamps = uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
     return _MaterialEntry(
         desc,
         key,
         table_texture(key, result),
-        lighting_for(world_entry, result.sh_order, roughness, lamps),
+        lighting_for(lighting, result.sh_order, roughness, lamps),
         roughness,
         prefilter.sh_weight(roughness),
         film_texture(key, result) if lamps else None,
     )
 
 
-def _prefiltered_for(image, entry):
-    if image is None:
+def _prefiltered_for(lighting: WorldLighting, entry):
+    textures = lighting.textures
+    if textures is None:
         return None
-    return image.prefiltered if entry.film is not None or image.lamps is None else image.prefiltered_whole()
+    if entry.film is not None or lighting.environment.lamps is None:
+        return textures.prefiltered
+    return textures.prefiltered_whole()
 
 
 def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None):
@@ -311,11 +327,10 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     messages: list[str] = []
     items: list[DrawItem] = []
     scene = depsgraph.scene
-    world_entry = world_lighting(scene, allow_compute=allow_world)
-    if world_entry is None:
+    lighting = world_lighting(scene, allow_compute=allow_world)
+    if lighting is None:
         return items, ["World lighting is being updated"]
-    messages.extend(world_entry[1].warnings)
-    image = world_entry[2]
+    messages.extend(lighting.sh.warnings)
     entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
     for inst in depsgraph.object_instances:
@@ -330,7 +345,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             source = bpy_material.original if hasattr(bpy_material, "original") else bpy_material
             pointer = source.as_pointer()
             if pointer not in entries:
-                entries[pointer] = _material_entry(source, world_entry, allow_bake, want_bake, messages)
+                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages)
             entry = entries[pointer]
             if entry is None:
                 continue
@@ -355,7 +370,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     entry.table,
                     entry.lighting,
                     f"{original.name}/{bpy_material.name}",
-                    prefiltered=_prefiltered_for(image, entry),
+                    prefiltered=_prefiltered_for(lighting, entry),
                     roughness=entry.roughness,
                     sh_weight=entry.sh_weight,
                     film=entry.film,

@@ -1,6 +1,5 @@
 """The Thin Film SH panel in the Properties editor's Material tab, with its sub-panels."""
 
-import collections
 import time
 
 import bpy
@@ -8,7 +7,9 @@ from bpy.types import Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
-from . import materials, scene_draw
+from . import caches, scene_draw, tables
+from .description import description, description_key, warnings
+from .principled import principled_node
 
 
 def _settings(context):
@@ -65,7 +66,7 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
 
 def _safe_warnings(mat) -> list[str]:
     try:
-        return materials.warnings(mat)
+        return warnings(mat)
     except ValueError as exc:
         return [str(exc)]
 
@@ -166,7 +167,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
 
     def draw_settings(self, context, layout, mat, settings):
         layout.prop(settings, "roughness")
-        layout.label(text=materials.shading_path(settings.roughness), icon="INFO")
+        layout.label(text=tables.shading_path(settings.roughness), icon="INFO")
         row = layout.row(heading="Diffuse Base")
         row.prop(settings, "diffuse_base", text="")
         sub = row.row()
@@ -185,7 +186,7 @@ class THINFILM_PT_quality(_SubPanel, Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw_settings(self, context, layout, mat, settings):
-        chosen = materials.parse_plan(settings.last_plan)
+        chosen = tables.parse_plan(settings.last_plan)
 
         def auto_prop(name, text):
             row = layout.row()
@@ -218,10 +219,10 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
     def draw(self, context):
         mat, settings = _settings(context)
         layout = self.layout
-        node = materials.principled_node(mat)
+        node = principled_node(mat)
         if not settings.enabled:
             try:
-                desc = materials.description(mat)
+                desc = description(mat)
             except ValueError as exc:
                 layout.label(text=str(exc), icon="ERROR")
                 desc = None
@@ -243,11 +244,11 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
 # ----------------------------------------------------------------------------------------------
 # Plan: what the active material needs simulated (precompute.effects), never a bake
 # ----------------------------------------------------------------------------------------------
-#: MaterialPlans by description key (the most recent _PLAN_MEMO_SIZE).
-_PLANS: collections.OrderedDict = collections.OrderedDict()
 _PLAN_MEMO_SIZE = 64
+#: MaterialPlans by description key (the most recent _PLAN_MEMO_SIZE; see :mod:`.caches`).
+_PLANS = caches.register("plans", caches.LRU(_PLAN_MEMO_SIZE), scope=caches.SESSION)
 #: Roughness values whose automatic SH order has been resolved: planning them again is cheap.
-_ORDERS_SEEN: set = set()
+_ORDERS_SEEN: set = caches.register("plan_orders_seen", set(), scope=caches.SESSION)
 #: (key, description, time) of the plan the panel waits for; computed by a timer once the
 #: settings stop changing (dragging the roughness slider asks for a new one at every step).
 _pending = None
@@ -256,9 +257,6 @@ _PLAN_DELAY_S = 0.3
 
 def _remember_plan(key, mp):
     _PLANS[key] = mp
-    _PLANS.move_to_end(key)
-    while len(_PLANS) > _PLAN_MEMO_SIZE:
-        _PLANS.popitem(last=False)
     _ORDERS_SEEN.add(float(mp.material.roughness))
 
 
@@ -290,10 +288,9 @@ def plan_for(desc, wait: bool = False):
     once the settings have stopped changing, then redraws the Properties editor.
     """
     global _pending
-    key = materials.description_key(desc)
+    key = description_key(desc)
     mp = _PLANS.get(key)
     if mp is not None:
-        _PLANS.move_to_end(key)
         return mp
     if wait or desc.quality.sh_order != AUTO or float(desc.roughness) in _ORDERS_SEEN:
         mp = effects.material_plan(desc)
@@ -338,7 +335,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
         layout.use_property_split = False
         layout.active = True  # the plan also describes a material previewed from its Principled BSDF
         try:
-            desc = materials.description(mat)
+            desc = description(mat)
         except ValueError as exc:
             layout.label(text=str(exc), icon="ERROR")
             return
@@ -359,7 +356,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
         lines.scale_y = 0.8
         for line in plan_lines(mp)[1:]:
             lines.label(text=line)
-        if materials.peek_table(desc) is not None:
+        if tables.peek_table(desc) is not None:
             lines.label(text="Its table is in memory: no bake needed", icon="CHECKMARK")
         why = layout.box().column(align=True)
         why.scale_y = 0.8

@@ -13,7 +13,8 @@ import threading
 
 import bpy
 
-from . import gpu_draw, materials, scene_draw
+from . import caches, gpu_draw, scene_draw, tables
+from .description import description_key
 
 log = logging.getLogger(__name__)
 
@@ -33,7 +34,7 @@ def _tag_redraw() -> None:
 
 
 def _want_bake(desc) -> None:
-    key = materials.description_key(desc)
+    key = description_key(desc)
     with _lock:
         if key not in _running:
             _pending[key] = desc
@@ -41,7 +42,7 @@ def _want_bake(desc) -> None:
 
 def _bake_worker(key: str, desc) -> None:
     try:
-        materials.get_table(desc)
+        tables.get_table(desc)
     except Exception as exc:  # reported, never raised into Blender's timer
         log.error("Thin Film SH: bake failed: %s", exc)
     finally:
@@ -98,7 +99,7 @@ def draw_callback() -> None:
 
 @bpy.app.handlers.persistent
 def _on_load(*_args) -> None:
-    scene_draw.CACHES.clear()
+    caches.clear(file_load=True)
 
 
 @bpy.app.handlers.persistent
@@ -131,5 +132,3 @@ def unregister() -> None:
             handlers.remove(fn)
     if bpy.app.timers.is_registered(_service):
         bpy.app.timers.unregister(_service)
-    scene_draw.CACHES.clear()
-    gpu_draw.UNIFORMS.clear()  # the uniform buffers kept across frames

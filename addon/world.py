@@ -17,9 +17,10 @@ takes the cheapest exact route:
    equirectangular panorama of the World alone is rendered with Cycles on the CPU and
    projected. This is the ground truth the other routes are tested against.
 
-Results are cached by :func:`world_key`, a content hash of everything that affects them (the
-node tree with all settings and links, image files' path/size/mtime, l_max, the working space)
-computed without reading any pixels, so the draw code can poll it cheaply.
+Results are cached (:data:`SH_CACHE`) by :func:`.world_key.world_key`, a content hash of
+everything that affects them (the node tree with all settings and links, image files'
+path/size/mtime, l_max, the working space) computed without reading any pixels, so the draw
+code can poll it cheaply.
 
 Mapping and rotation
 --------------------
@@ -30,66 +31,40 @@ location offset M is a rotation Q (up to a positive factor that the normalisatio
 L(d) = I(Q d) = I∘(Qᵀ)⁻¹, whose coefficients are ``sh.rotation(l_max, Qᵀ) @ c_I``. A uniform
 negative scale adds a point reflection, (−1)^l per band.
 
-The panorama camera sits at the origin with rotation Euler (90°, 0, −90°): Blender's panorama
-camera looks along its −Z axis with +Y up, so this turns its view to world +X with +Z up and
-the rendered equirect then follows the Environment Texture convention (image centre = +X,
-u = ¼ = +Y). ``tests/test_world.py`` proves it against direct projection.
-
-Only this module talks to ``bpy``; the maths is in ``precompute``.
+The panorama render is :mod:`.panorama`; the maths is in ``precompute``.
 """
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import math
 import os
-import tempfile
 
-import bpy
 import numpy as np
 from mathutils import Euler
 
-from ..precompute import hdri, sh, table_io
+from ..precompute import hdri, sh
 from ..precompute.material import MAX_SH_ORDER
+from . import caches
+from .panorama import render_world_panorama
+from .world_key import DEFAULT_WORKING_SPACE, image_path, working_space, world_key, world_uses_nodes
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
     "MAX_PROJECTION_WIDTH",
-    "PANORAMA_SAMPLES",
-    "PANORAMA_WIDTH",
-    "LRUCache",
+    "SH_CACHE",
     "WorldSH",
-    "clear_cache",
-    "default_cache",
-    "render_world_panorama",
-    "working_space",
-    "world_key",
     "world_sh",
 ]
-
-#: Version of the key description; bump when the computation changes so old entries miss.
-KEY_VERSION = 1
 
 #: Images wider than this are downsampled (solid-angle-correct, :func:`hdri.downsample`) before
 #: projection. 1024 px across 2π resolves bands far beyond the l ≤ 12 the preview uses.
 MAX_PROJECTION_WIDTH = 1024
 
-#: Panorama fallback: resolution (width; height = width/2) and Cycles samples per pixel.
-#: At 256×128 and 32 samples bands 0–2 of the studio HDRIs agree with direct projection to
-#: ~0.1–2 % of the l = 0 term (the error is the noise of tiny bright suns); a render takes 1–2 s.
-PANORAMA_WIDTH = 256
-PANORAMA_SAMPLES = 32
-
-#: Default size of the module-level LRU cache of results.
+#: Size of the LRU of results :func:`world_sh` keeps (:data:`SH_CACHE`).
 DEFAULT_CACHE_SIZE = 16
 
-#: Rotation of the panorama camera that makes its equirect match the Environment Texture's.
-PANORAMA_CAMERA_ROTATION = (math.pi / 2.0, 0.0, -math.pi / 2.0)
-
-_DEFAULT_WORKING_SPACE = "Linear Rec.709"
 _LINEAR_SPACES = ("Linear Rec.709", "Linear Rec.2020", "ACEScg")
-_MAX_DESCRIBE_DEPTH = 4
 #: Relative tolerance for "this Mapping is a rotation times a uniform scale".
 _SIMILARITY_TOL = 1e-6
 
@@ -107,7 +82,7 @@ class WorldSH:
         How they were obtained, e.g. "environment texture 'studio.exr'", "background colour",
         "panorama render (Sky Texture)", "viewport colour".
     key : str
-        :func:`world_key` of the inputs (16 hex digits).
+        :func:`.world_key.world_key` of the inputs (16 hex digits).
     rejected_pixels : int
         NaN/Inf pixels of the image or panorama that were left out (counted at full resolution).
     warnings : tuple of str
@@ -123,72 +98,16 @@ class WorldSH:
     rejected_pixels: int = 0
     warnings: tuple = ()
     l_max: int = 8
-    working_space: str = _DEFAULT_WORKING_SPACE
+    working_space: str = DEFAULT_WORKING_SPACE
 
 
-class LRUCache:
-    """A tiny least-recently-used mapping (``get``, ``[]=``, ``in``, ``len``, ``clear``)."""
-
-    def __init__(self, maxsize: int = DEFAULT_CACHE_SIZE):
-        if maxsize < 1:
-            raise ValueError(f"maxsize must be ≥ 1, got {maxsize}")
-        self.maxsize = int(maxsize)
-        self._data: collections.OrderedDict = collections.OrderedDict()
-
-    def get(self, key, default=None):
-        if key not in self._data:
-            return default
-        self._data.move_to_end(key)
-        return self._data[key]
-
-    def __getitem__(self, key):
-        value = self._data[key]
-        self._data.move_to_end(key)
-        return value
-
-    def __setitem__(self, key, value):
-        self._data[key] = value
-        self._data.move_to_end(key)
-        while len(self._data) > self.maxsize:
-            self._data.popitem(last=False)
-
-    def __contains__(self, key):
-        return key in self._data
-
-    def __len__(self):
-        return len(self._data)
-
-    def clear(self):
-        self._data.clear()
-
-
-_CACHE = LRUCache(DEFAULT_CACHE_SIZE)
-
-
-def default_cache() -> LRUCache:
-    """The module-level cache :func:`world_sh` uses when given none."""
-    return _CACHE
-
-
-def clear_cache() -> None:
-    """Empty the module-level cache."""
-    _CACHE.clear()
+#: World SH results by :func:`.world_key.world_key` (see :mod:`.caches`).
+SH_CACHE = caches.register("world_sh", caches.LRU(DEFAULT_CACHE_SIZE), scope=caches.SESSION)
 
 
 # ----------------------------------------------------------------------------------------------
 # Colour space
 # ----------------------------------------------------------------------------------------------
-
-
-def working_space() -> str:
-    """The blend file's working colour space (scene linear), e.g. "Linear Rec.709".
-
-    Blender 5.x stores it per file in ``bpy.data.colorspace.working_space`` ("Linear Rec.709",
-    "Linear Rec.2020" or "ACEScg"); older versions have none and use Linear Rec.709.
-    """
-    colorspace = getattr(bpy.data, "colorspace", None)
-    name = getattr(colorspace, "working_space", "") if colorspace is not None else ""
-    return name or _DEFAULT_WORKING_SPACE
 
 
 def _srgb_to_linear(values: np.ndarray) -> np.ndarray:
@@ -209,178 +128,6 @@ def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
         return spectra.rgb_to_rgb_matrix(source, target)
     except ValueError:
         return None
-
-
-# ----------------------------------------------------------------------------------------------
-# Keys: a cheap canonical description of everything that affects the result
-# ----------------------------------------------------------------------------------------------
-
-
-def _node_ui_properties() -> frozenset:
-    base = {p.identifier for p in bpy.types.Node.bl_rna.properties}
-    return frozenset(base - {"name", "mute"})
-
-
-_SKIP_NODE_PROPS = _node_ui_properties()
-_SKIP_STRUCT_PROPS = frozenset({"rna_type", "select", "select_left_handle", "select_right_handle"})
-
-
-def _plain(value):
-    """A bpy/mathutils value as JSON-friendly data (NaN/Inf become strings)."""
-    if isinstance(value, bool | int | str) or value is None:
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else repr(value)
-    if isinstance(value, set | frozenset):
-        return sorted(str(v) for v in value)
-    if isinstance(value, bpy.types.ID):
-        return {"id": type(value).__name__, "name": value.name_full}
-    try:
-        return [_plain(v) for v in value]
-    except TypeError:
-        return repr(value)
-
-
-def _file_stat(path: str):
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    return [st.st_size, st.st_mtime_ns]
-
-
-def _image_path(image) -> str:
-    return bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
-
-
-def _describe_image(image) -> dict:
-    """What identifies an image's pixels, without loading them."""
-    desc = {
-        "name": image.name_full,
-        "source": image.source,
-        "filepath": image.filepath,
-        "colorspace": image.colorspace_settings.name,
-        "alpha_mode": image.alpha_mode,
-        "is_dirty": bool(image.is_dirty),
-    }
-    if image.packed_file is not None:
-        desc["packed_size"] = image.packed_file.size
-    elif image.source in {"FILE", "SEQUENCE", "MOVIE", "TILED"}:
-        path = _image_path(image)
-        desc["abspath"] = path
-        desc["stat"] = _file_stat(path)
-    if image.source == "GENERATED":
-        desc["generated"] = [
-            image.generated_type,
-            image.generated_width,
-            image.generated_height,
-            _plain(image.generated_color),
-            bool(image.use_generated_float),
-        ]
-    return desc
-
-
-def _describe_struct(struct, depth: int, seen: set, skip=_SKIP_STRUCT_PROPS) -> dict:
-    """Every RNA property of ``struct`` (values, nested structs, collections, referenced IDs)."""
-    out = {}
-    for prop in struct.bl_rna.properties:
-        ident = prop.identifier
-        if ident in skip or ident.startswith("bl_"):
-            continue
-        try:
-            value = getattr(struct, ident)
-        except (AttributeError, RuntimeError, TypeError):
-            continue
-        if prop.type == "POINTER":
-            out[ident] = _describe_pointer(value, depth, seen)
-        elif prop.type == "COLLECTION":
-            if depth <= 0:
-                out[ident] = len(value)
-            else:
-                out[ident] = [_describe_pointer(item, depth, seen) for item in value]
-        else:
-            out[ident] = _plain(value)
-    return out
-
-
-def _describe_pointer(value, depth: int, seen: set):
-    if value is None:
-        return None
-    if isinstance(value, bpy.types.Image):
-        return _describe_image(value)
-    if isinstance(value, bpy.types.NodeTree):
-        return _describe_tree(value, seen)
-    if isinstance(value, bpy.types.Object):
-        return {"object": value.name_full, "matrix_world": _plain(value.matrix_world)}
-    if isinstance(value, bpy.types.ID):
-        return _plain(value)
-    if depth <= 0:
-        return type(value).__name__
-    return _describe_struct(value, depth - 1, seen)
-
-
-def _socket_value(socket):
-    return _plain(socket.default_value) if hasattr(socket, "default_value") else None
-
-
-def _describe_tree(tree, seen: set) -> dict | str:
-    """Nodes (type, settings, socket values) and links of a node tree, node groups included."""
-    if tree.name_full in seen:
-        return {"tree": tree.name_full}
-    seen = seen | {tree.name_full}
-    nodes = {}
-    for node in tree.nodes:
-        desc = _describe_struct(node, _MAX_DESCRIBE_DEPTH, seen, skip=_SKIP_NODE_PROPS | _SKIP_STRUCT_PROPS)
-        desc["bl_idname"] = node.bl_idname
-        desc["inputs"] = [[s.identifier, _socket_value(s)] for s in node.inputs]
-        desc["outputs"] = [[s.identifier, _socket_value(s)] for s in node.outputs]
-        nodes[node.name] = desc
-    links = sorted(
-        [
-            link.from_node.name,
-            link.from_socket.identifier,
-            link.to_node.name,
-            link.to_socket.identifier,
-            bool(link.is_muted),
-            bool(link.is_valid),
-        ]
-        for link in tree.links
-    )
-    return {"tree": tree.name_full, "nodes": nodes, "links": links}
-
-
-def _world_uses_nodes(world) -> bool:
-    if world.node_tree is None:
-        return False
-    if bpy.app.version >= (5, 0, 0):  # use_nodes is deprecated and always on since 5.0
-        return True
-    return bool(world.use_nodes)
-
-
-def _describe_world(world) -> dict | None:
-    if world is None:
-        return None
-    desc = {"color": _plain(world.color), "use_nodes": _world_uses_nodes(world)}
-    if desc["use_nodes"]:
-        desc["tree"] = _describe_tree(world.node_tree, set())
-    return desc
-
-
-def world_key(scene, l_max: int = 8) -> str:
-    """Content hash of everything :func:`world_sh` depends on; cheap (reads no pixels).
-
-    Covers the World's node tree (every node setting, socket value and link, node groups and
-    referenced objects), images (path, size and mtime of the file, or packed size; generated
-    settings), the World's viewport colour, ``l_max`` and the working space. Edits to an
-    image's pixels inside Blender are seen only through ``is_dirty`` (once).
-    """
-    description = {
-        "version": KEY_VERSION,
-        "l_max": int(l_max),
-        "working_space": working_space(),
-        "world": _describe_world(scene.world),
-    }
-    return table_io.content_key(description)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -586,93 +333,6 @@ def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarra
     return coeffs, rejected + int(info["rejected_pixels"])
 
 
-# ----------------------------------------------------------------------------------------------
-# Panorama render
-# ----------------------------------------------------------------------------------------------
-
-
-def render_world_panorama(world, width: int = PANORAMA_WIDTH, samples: int = PANORAMA_SAMPLES) -> np.ndarray:
-    """Render ``world`` alone as an equirect panorama with Cycles on the CPU.
-
-    A temporary scene sharing the World (no objects) with a panorama camera at the origin is
-    rendered to a 32-bit OpenEXR (scene linear) in a temporary folder and read back through
-    Blender; the scene, camera and image are removed again, nothing else is touched. Must not
-    be called from a draw callback (it runs the render operator).
-
-    Returns
-    -------
-    ndarray, shape (width/2, width, 3), float32
-        Scene-linear radiance, top row first, in the Environment Texture's equirect convention.
-    """
-    width = int(width)
-    height = max(1, width // 2)
-    had_render_result = "Render Result" in bpy.data.images
-    scene = bpy.data.scenes.new(".thinfilm_sh panorama")
-    cam_data = obj = image = None
-    try:
-        scene.world = world
-        scene.render.engine = "CYCLES"
-        if scene.render.engine != "CYCLES":
-            raise RuntimeError("Cycles is not available")
-        cycles = scene.cycles
-        cycles.device = "CPU"
-        cycles.samples = int(samples)
-        cycles.use_adaptive_sampling = False
-        cycles.use_denoising = False
-        cycles.seed = 0
-        scene.render.resolution_x = width
-        scene.render.resolution_y = height
-        scene.render.resolution_percentage = 100
-        scene.render.film_transparent = False
-        scene.render.use_compositing = False
-        scene.render.use_sequencer = False
-        scene.render.use_border = False
-        scene.view_settings.view_transform = "Standard"
-        scene.view_settings.look = "None"
-        scene.view_settings.exposure = 0.0
-        scene.view_settings.gamma = 1.0
-        settings = scene.render.image_settings
-        settings.file_format = "OPEN_EXR"
-        settings.color_depth = "32"
-        settings.color_mode = "RGB"
-        settings.color_management = "FOLLOW_SCENE"
-
-        cam_data = bpy.data.cameras.new(".thinfilm_sh panorama")
-        cam_data.type = "PANO"
-        cam_data.panorama_type = "EQUIRECTANGULAR"
-        cam_data.latitude_min, cam_data.latitude_max = -math.pi / 2.0, math.pi / 2.0
-        cam_data.longitude_min, cam_data.longitude_max = -math.pi, math.pi
-        obj = bpy.data.objects.new(".thinfilm_sh panorama", cam_data)
-        obj.location = (0.0, 0.0, 0.0)
-        obj.rotation_euler = PANORAMA_CAMERA_ROTATION
-        scene.collection.objects.link(obj)
-        scene.camera = obj
-
-        with tempfile.TemporaryDirectory(prefix="thinfilm_sh_") as folder:
-            path = os.path.join(folder, "world.exr")
-            scene.render.filepath = path
-            bpy.ops.render.render(write_still=True, scene=scene.name)
-            if not os.path.isfile(path):
-                raise RuntimeError("the panorama render wrote no image")
-            image = bpy.data.images.load(path, check_existing=False)
-            image.colorspace_settings.name = working_space()
-            w, h = image.size[:]
-            buf = np.empty(w * h * image.channels, dtype=np.float32)
-            image.pixels.foreach_get(buf)
-            rgb = np.ascontiguousarray(buf.reshape(h, w, image.channels)[::-1, :, :3])
-    finally:
-        if image is not None:
-            bpy.data.images.remove(image)
-        bpy.data.scenes.remove(scene)
-        if obj is not None:
-            bpy.data.objects.remove(obj)
-        if cam_data is not None:
-            bpy.data.cameras.remove(cam_data)
-        if not had_render_result and "Render Result" in bpy.data.images:
-            bpy.data.images.remove(bpy.data.images["Render Result"])
-    return rgb
-
-
 def _uses_light_path(tree, seen=None) -> bool:
     seen = seen or set()
     if tree.name_full in seen:
@@ -723,7 +383,7 @@ def _environment(world, bg, env, l_max: int, space: str):
         raise _Fallback(f"image source {image.source}")
     label = os.path.basename(image.filepath) if image.filepath else image.name
     if image.source == "FILE" and image.packed_file is None:
-        path = _image_path(image)
+        path = image_path(image)
         if not os.path.isfile(path):
             return _viewport_colour(
                 world,
@@ -769,7 +429,7 @@ def _compute(scene, l_max: int, space: str):
     world = scene.world
     if world is None:
         return _viewport_colour(None, l_max, "Scene has no World: black")
-    if not _world_uses_nodes(world):
+    if not world_uses_nodes(world):
         return _viewport_colour(world, l_max, "World has no nodes: using its viewport colour")
     tree = world.node_tree
     output = _active_world_output(tree)
@@ -815,9 +475,9 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     l_max : int
         Highest band (0 ≤ l_max ≤ :data:`precompute.sh.MAX_L_MAX`).
     cache : dict-like, optional
-        Anything with ``get`` and item assignment, keyed by :func:`world_key`; default a
-        module-level LRU of :data:`DEFAULT_CACHE_SIZE` entries. Cached results are returned as
-        they are (the same object; its array is read-only).
+        Anything with ``get`` and item assignment, keyed by :func:`.world_key.world_key`; default
+        :data:`SH_CACHE`, an LRU of :data:`DEFAULT_CACHE_SIZE` entries. Cached results are
+        returned as they are (the same object; its array is read-only).
 
     Returns
     -------
@@ -828,10 +488,10 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     Never raises for odd Worlds: missing World, nodes, images or failing renders fall back
     to the viewport colour (or black) with a warning. The panorama route runs the render
     operator, so call this from an operator, timer or handler, not from a draw callback
-    (use :func:`world_key` there to detect changes).
+    (use :func:`.world_key.world_key` there to detect changes).
     """
     l_max = sh._check_l_max(l_max)
-    cache = _CACHE if cache is None else cache
+    cache = SH_CACHE if cache is None else cache
     key = world_key(scene, l_max)
     hit = cache.get(key)
     if hit is not None:

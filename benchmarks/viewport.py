@@ -101,7 +101,7 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("gpu_draw", "scene_draw", "materials", "headless"):
+        for name in ("gpu_draw", "scene_draw", "props", "headless"):
             setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         self.gpu_draw.ensure_gpu_context()
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
@@ -214,7 +214,7 @@ class Scene:
         if key not in self.materials:
             mat = bpy.data.materials.new(f"Film l{l_max} {case}")
             tf = mat.thinfilm_sh
-            self.ext.materials.fill_from_material(tf, FILM.with_(roughness=roughness_cases()[case]))
+            self.ext.props.fill_from_material(tf, FILM.with_(roughness=roughness_cases()[case]))
             tf.sh_order = str(int(l_max))
             tf.enabled = True
             self.materials[key] = mat

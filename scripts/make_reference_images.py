@@ -11,7 +11,7 @@ Builds every scene of ``sample_scenes/make_scenes.py`` in a temporary folder, th
 - ``docs/images/<scene>.png``: the headless render at 320×240;
 - ``docs/images/<scene>_cycles.png``: Cycles (CPU, 128 samples, no denoising) of the same file at
   320×240: the Principled scene as it is, the extension's single-film materials after
-  ``addon.materials.write_back_to_principled`` (Cycles has one film of constant thickness: a
+  ``addon.principled.write_back_to_principled`` (Cycles has one film of constant thickness: a
   varying film is written at the middle of its range); a multilayer has no Cycles equivalent;
 - ``docs/sample-scenes.md``: the pictures side by side and the commands.
 
@@ -236,12 +236,12 @@ def cycles_equivalent() -> tuple[bool, list[str]]:
     """Prepare the open file for Cycles: (possible?, notes). Single films are written back."""
     import bpy
 
-    materials = addon_module("materials")
+    principled = addon_module("principled")
     notes = []
     for mat in film_materials(bpy):
         if len(mat.thinfilm_sh.layers) > 1:
             return False, [f"'{mat.name}' has {len(mat.thinfilm_sh.layers)} layers; Cycles has one film"]
-        notes += [f"{mat.name}: {n}" for n in materials.write_back_to_principled(mat)]
+        notes += [f"{mat.name}: {n}" for n in principled.write_back_to_principled(mat)]
     return True, notes
 
 
@@ -270,7 +270,7 @@ for Cycles interop), each with a camera, a World lit by one of Blender's studio-
 where it makes sense, a ground plane. Left: the extension's headless render (the viewport
 shader drawn off-screen over Blender's Solid drawing of the other objects, with the World as
 background); right: Cycles of the same file. The extension's materials are rendered by Cycles
-after *Write to Principled* (`addon.materials.write_back_to_principled`). Cycles has a single
+after *Write to Principled* (`addon.principled.write_back_to_principled`). Cycles has a single
 film of constant thickness, so a varying film shows its middle thickness there, and a 16-layer
 stack has no Cycles equivalent. The preview draws the film's reflection only: what lies behind
 a transparent film (the soap bubble, the water, the glass) is not drawn through it, and the

@@ -34,24 +34,58 @@ def ext(bpy, package, tmp_path):
     """A fresh empty file, the extension registered and its preferences' cache in tmp_path."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
-    addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-    materials = importlib.import_module(f"{EXTENSION_ID}.addon.materials")
-    materials.clear_memory_cache()
+    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+    tables = importlib.import_module(f"{EXTENSION_ID}.addon.tables")
+    tables.clear_memory_cache()
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
-    addon.preferences().cache_dir = str(tmp_path / "cache")
+    prefs.preferences().cache_dir = str(tmp_path / "cache")
     try:
         yield package
     finally:
         bpy.context.preferences.addons.remove(entry)
         package.unregister()
-        materials.clear_memory_cache()
+        tables.clear_memory_cache()
+
+
+def _module(name):
+    return importlib.import_module(f"{EXTENSION_ID}.{name}")
 
 
 @pytest.fixture
-def M(ext):
-    """The bridge module, ``thinfilm_sh.addon.materials``."""
-    return importlib.import_module(f"{EXTENSION_ID}.addon.materials")
+def description_mod(ext):
+    """``thinfilm_sh.addon.description``: what the preview shows for a Blender material."""
+    return _module("addon.description")
+
+
+@pytest.fixture
+def principled_mod(ext):
+    """``thinfilm_sh.addon.principled``: reading and writing the Principled BSDF."""
+    return _module("addon.principled")
+
+
+@pytest.fixture
+def tables_mod(ext):
+    """``thinfilm_sh.addon.tables``: memory, disk cache, bake."""
+    return _module("addon.tables")
+
+
+@pytest.fixture
+def thickness_mod(ext):
+    """``thinfilm_sh.addon.thickness``: the thickness over a mesh."""
+    return _module("addon.thickness")
+
+
+@pytest.fixture
+def conductors_mod(ext):
+    """``thinfilm_sh.precompute.conductors`` as the extension imported it."""
+    return _module("precompute.conductors")
+
+
+@pytest.fixture
+def noise_mod(ext):
+    """``thinfilm_sh.precompute.noise`` as the extension imported it."""
+    return _module("precompute.noise")
 
 
 @pytest.fixture
@@ -91,27 +125,27 @@ def _principled(bpy, name="Principled", **values):
 # ----------------------------------------------------------------------------------------------
 # Settings ↔ description
 # ----------------------------------------------------------------------------------------------
-def test_enabling_a_new_material_fills_the_soap_film_default(bpy, M, pre):
+def test_enabling_a_new_material_fills_the_soap_film_default(bpy, description_mod, pre):
     mat = bpy.data.materials.new("Bubble")
     settings = mat.thinfilm_sh
     assert not settings.enabled and len(settings.layers) == 0 and settings.preset == "SOAP_FILM"
-    assert M.description(mat) is None  # disabled, and the default Principled has no film
+    assert description_mod.description(mat) is None  # disabled, and the default Principled has no film
     settings.enabled = True
     assert len(settings.layers) == 1
-    assert M.description(mat) == _material(pre).PRESETS["soap_film"]
+    assert description_mod.description(mat) == _material(pre).PRESETS["soap_film"]
 
 
-def test_each_preset_describes_exactly_the_precompute_preset(bpy, M, pre):
+def test_each_preset_describes_exactly_the_precompute_preset(bpy, description_mod, pre):
     presets = _material(pre).PRESETS
     mat = bpy.data.materials.new("Preset")
     mat.thinfilm_sh.enabled = True
     for name, expected in presets.items():
         mat.thinfilm_sh.preset = name.upper()
-        desc = M.description(mat)
+        desc = description_mod.description(mat)
         # Float32 properties come back as the decimals typed in the preset, so the two are
         # equal and share one cache key with the CLI's bake of the same preset.
         assert desc == expected, name
-        assert M.description_key(desc) == M.description_key(expected), name
+        assert description_mod.description_key(desc) == description_mod.description_key(expected), name
         assert mat.thinfilm_sh.preset == name.upper()
     # Editing a physical setting by hand leaves the preset; viewing settings do not.
     mat.thinfilm_sh.colour_mode = "PER_CHANNEL"
@@ -120,10 +154,10 @@ def test_each_preset_describes_exactly_the_precompute_preset(bpy, M, pre):
     assert mat.thinfilm_sh.preset == "CUSTOM"
     bpy.ops.thinfilm.apply_preset(material=mat.name, preset="HEAT_TINTED_STEEL")
     assert mat.thinfilm_sh.preset == "HEAT_TINTED_STEEL"
-    assert M.description(mat).with_(colour_mode="spectral") == presets["heat_tinted_steel"]
+    assert description_mod.description(mat).with_(colour_mode="spectral") == presets["heat_tinted_steel"]
 
 
-def test_layer_operators_add_remove_and_move(bpy, M):
+def test_layer_operators_add_remove_and_move(bpy, description_mod):
     mat = _enabled(bpy, preset="OIL_ON_WATER")
     settings = mat.thinfilm_sh
     settings.layers[0].n = 1.5
@@ -133,7 +167,7 @@ def test_layer_operators_add_remove_and_move(bpy, M):
     assert bpy.ops.thinfilm.layer_move(material=mat.name, direction="UP") == {"FINISHED"}
     assert [layer.n for layer in settings.layers] == pytest.approx([2.0, 1.5])
     assert settings.active_layer_index == 0
-    desc = M.description(mat)
+    desc = description_mod.description(mat)
     assert [layer.index for layer in desc.layers] == [2.0, 1.5]
     assert bpy.ops.thinfilm.layer_remove(material=mat.name) == {"FINISHED"}
     assert [layer.n for layer in settings.layers] == pytest.approx([1.5])
@@ -143,81 +177,85 @@ def test_layer_operators_add_remove_and_move(bpy, M):
 # ----------------------------------------------------------------------------------------------
 # Principled BSDF interop
 # ----------------------------------------------------------------------------------------------
-def test_principled_thin_film_is_previewed_from_its_own_values(bpy, M):
+def test_principled_thin_film_is_previewed_from_its_own_values(bpy, description_mod):
     mat, _ = _principled(
         bpy,
         **{"Thin Film Thickness": 500.0, "IOR": 1.45, "Thin Film IOR": 1.33, "Roughness": 0.4},
     )
-    desc = M.description(mat)
+    desc = description_mod.description(mat)
     assert desc is not None
     assert [(layer.index, layer.thickness_nm) for layer in desc.layers] == [(1.33, 500.0)]
     assert (desc.substrate, desc.roughness, desc.ambient) == (1.45, 0.4, 1.0)
     assert desc.colour_mode == "per_channel" and desc.thickness_range_nm is None
     # An opaque dielectric shows its Base Color as the diffuse base (Principled default 0.8).
     assert desc.base_color == (0.8, 0.8, 0.8)
-    assert M.warnings(mat) == []
+    assert description_mod.warnings(mat) == []
 
 
-def test_principled_zero_thickness_or_no_principled_is_not_previewed(bpy, M):
+def test_principled_zero_thickness_or_no_principled_is_not_previewed(bpy, description_mod):
     # Thickness 0 is the bare Principled BSDF, which Blender's viewport already shows.
     mat, node = _principled(bpy, **{"Thin Film Thickness": 0.0})
-    assert M.description(mat) is None
+    assert description_mod.description(mat) is None
     mat.node_tree.nodes.remove(node)
-    assert M.description(mat) is None
+    assert description_mod.description(mat) is None
 
 
-def test_principled_linked_socket_uses_its_value_and_warns(bpy, M):
+def test_principled_linked_socket_uses_its_value_and_warns(bpy, description_mod):
     mat, node = _principled(bpy, **{"Thin Film Thickness": 320.0, "Transmission Weight": 1.0})
     value = mat.node_tree.nodes.new("ShaderNodeValue")
     mat.node_tree.links.new(value.outputs[0], node.inputs["Thin Film Thickness"])
-    desc = M.description(mat)
+    desc = description_mod.description(mat)
     assert desc.layers[0].thickness_nm == 320.0
     assert desc.base_color is None  # transmissive: the film alone
-    notes = M.warnings(mat)
+    notes = description_mod.warnings(mat)
     assert len(notes) == 1 and "Thin Film Thickness" in notes[0] and "320" in notes[0]
 
 
-def test_shading_path_names_the_path_the_roughness_selects(M):
+def test_shading_path_names_the_path_the_roughness_selects(tables_mod):
     from precompute import prefilter
 
     lo, hi = prefilter.SH_BLEND
-    assert M.shading_path(0.0) == M.shading_path(lo) == "Shading: split sum (glossy)"
-    assert M.shading_path(hi) == M.shading_path(1.0) == "Shading: spherical harmonics (rough)"
-    mid = M.shading_path(0.5 * (lo + hi))  # smoothstep midpoint: half and half
+    assert tables_mod.shading_path(0.0) == tables_mod.shading_path(lo) == "Shading: split sum (glossy)"
+    assert (
+        tables_mod.shading_path(hi) == tables_mod.shading_path(1.0) == "Shading: spherical harmonics (rough)"
+    )
+    mid = tables_mod.shading_path(0.5 * (lo + hi))  # smoothstep midpoint: half and half
     assert mid == "Shading: split sum 50 % + SH 50 %", mid
     w = prefilter.sh_weight(0.3)
-    assert f"SH {100 * w:.0f} %" in M.shading_path(0.3) and 0.0 < w < 0.5
+    assert f"SH {100 * w:.0f} %" in tables_mod.shading_path(0.3) and 0.0 < w < 0.5
 
 
-def test_gulbrandsen_fit_reproduces_normal_incidence_reflectivity(M):
+def test_gulbrandsen_fit_reproduces_normal_incidence_reflectivity(conductors_mod):
     r = np.linspace(0.0, 0.95, 20)[:, None]
     g = np.linspace(0.0, 1.0, 11)[None, :]
-    n, k = M.gulbrandsen_nk(r, g)
+    n, k = conductors_mod.gulbrandsen_nk(r, g)
     f0 = ((n - 1) ** 2 + k**2) / ((n + 1) ** 2 + k**2)
     np.testing.assert_allclose(f0, np.broadcast_to(r, f0.shape), atol=1e-12)
     assert np.all(k >= 0) and np.all(n > 0)
 
 
-def test_principled_metal_becomes_a_conductor_matching_base_color(bpy, M, pre):
+def test_principled_metal_becomes_a_conductor_matching_base_color(bpy, description_mod, conductors_mod, pre):
     base = (0.9, 0.6, 0.3)
     mat, _ = _principled(bpy, **{"Thin Film Thickness": 200.0, "Metallic": 1.0, "Base Color": (*base, 1.0)})
-    desc = M.description(mat)
+    desc = description_mod.description(mat)
     assert desc.base_color is None and "table" in desc.substrate
     optics = importlib.import_module(f"{pre.__name__}.optics")
     substrate = desc.indices()[-1]
     # R, G, B sit at RGB_WAVELENGTHS_NM (blue, green, red).
-    f0 = optics.reflectance([1.0, substrate], [], list(M.RGB_WAVELENGTHS_NM), [1.0])[0]
+    f0 = optics.reflectance([1.0, substrate], [], list(conductors_mod.RGB_WAVELENGTHS_NM), [1.0])[0]
     np.testing.assert_allclose(f0[::-1], base, atol=1e-5)
     # Specular Tint white: the edge reflectance follows Schlick (Blender's F82 tint of 1) closely.
-    f82 = optics.reflectance([1.0, substrate], [], list(M.RGB_WAVELENGTHS_NM), [M.F82_COS])[0]
-    schlick = np.array(base) + (1 - np.array(base)) * (1 - M.F82_COS) ** 5
+    f82 = optics.reflectance(
+        [1.0, substrate], [], list(conductors_mod.RGB_WAVELENGTHS_NM), [conductors_mod.F82_COS]
+    )[0]
+    schlick = np.array(base) + (1 - np.array(base)) * (1 - conductors_mod.F82_COS) ** 5
     np.testing.assert_allclose(f82[::-1], schlick, atol=0.03)
 
 
 # ----------------------------------------------------------------------------------------------
 # Write-back
 # ----------------------------------------------------------------------------------------------
-def test_write_back_round_trips_through_the_principled_bsdf(bpy, M):
+def test_write_back_round_trips_through_the_principled_bsdf(bpy, principled_mod, description_mod):
     mat = _enabled(bpy, preset="COATED_CAR_WINDOW")
     settings = mat.thinfilm_sh
     settings.vary_thickness = False
@@ -229,67 +267,75 @@ def test_write_back_round_trips_through_the_principled_bsdf(bpy, M):
         if node.bl_idname == "ShaderNodeBsdfPrincipled":
             mat.node_tree.nodes.remove(node)
     assert bpy.ops.thinfilm.write_to_principled(material=mat.name) == {"FINISHED"}
-    node = M.principled_node(mat)
+    node = principled_mod.principled_node(mat)
     assert node is not None and node.outputs["BSDF"].is_linked
-    props_desc = M.description(mat)
+    props_desc = description_mod.description(mat)
     settings.enabled = False
-    back = M.description(mat)
-    assert back == props_desc.with_(colour_mode="per_channel", quality=back.quality, **M._CYCLES_PARITY)
-    assert M.warnings(mat) == []
+    back = description_mod.description(mat)
+    assert back == props_desc.with_(
+        colour_mode="per_channel", quality=back.quality, **principled_mod._CYCLES_PARITY
+    )
+    assert description_mod.warnings(mat) == []
 
     # Without the diffuse base the substrate transmits (glass), and the preview shows the film alone.
     settings.enabled = True
     settings.diffuse_base = False
     settings.vary_thickness = True
-    notes = M.write_back_to_principled(mat)
+    notes = principled_mod.write_back_to_principled(mat)
     assert any("middle" in note for note in notes)
     settings.enabled = False
-    back = M.description(mat)
+    back = description_mod.description(mat)
     assert back.base_color is None and node.inputs["Transmission Weight"].default_value == 1.0
     lo, hi = props_desc.thickness_range_nm or (settings.thickness_min_nm, settings.thickness_max_nm)
     assert back.layers[0].thickness_nm == pytest.approx(0.5 * (lo + hi))
 
 
-def test_write_back_of_a_metal_substrate_and_a_multilayer(bpy, M, pre):
+def test_write_back_of_a_metal_substrate_and_a_multilayer(
+    bpy, principled_mod, conductors_mod, description_mod, pre
+):
     mat = _enabled(bpy, preset="ANODISED_TITANIUM")
     settings = mat.thinfilm_sh
     settings.substrate_metal = "GOLD"
-    M.write_back_to_principled(mat)
-    node = M.principled_node(mat)
+    principled_mod.write_back_to_principled(mat)
+    node = principled_mod.principled_node(mat)
     assert node.inputs["Metallic"].default_value == 1.0
     base = tuple(node.inputs["Base Color"].default_value)[:3]
-    expected, _ = M.metal_rgb({"metal": "gold"})
+    expected, _ = conductors_mod.metal_rgb({"metal": "gold"})
     assert base == pytest.approx(expected, abs=1e-6)
     assert base[0] > base[1] > base[2]  # gold is yellow
     # The film: Cauchy A + B/λ² at 550 nm.
     n550 = 2.30 + 0.045 / 0.55**2
     assert node.inputs["Thin Film IOR"].default_value == pytest.approx(n550, rel=1e-6)
     settings.enabled = False
-    back = M.description(mat)
+    back = description_mod.description(mat)
     optics = importlib.import_module(f"{pre.__name__}.optics")
-    f0 = optics.reflectance([1.0, back.indices()[-1]], [], list(M.RGB_WAVELENGTHS_NM), [1.0])[0]
+    f0 = optics.reflectance([1.0, back.indices()[-1]], [], list(conductors_mod.RGB_WAVELENGTHS_NM), [1.0])[0]
     np.testing.assert_allclose(f0[::-1], np.minimum(base, 0.99), atol=1e-5)
 
     beetle = _enabled(bpy, "Beetle", preset="BEETLE_MULTILAYER")
-    notes = M.write_back_to_principled(beetle)
+    notes = principled_mod.write_back_to_principled(beetle)
     assert any("single film" in note for note in notes)
 
 
 # ----------------------------------------------------------------------------------------------
 # Tables
 # ----------------------------------------------------------------------------------------------
-def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(bpy, M, tmp_path):
+def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(
+    bpy, tables_mod, description_mod, tmp_path
+):
     cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io").TableCache(tmp_path)
     a, b = _enabled(bpy, "A"), _enabled(bpy, "B")
-    start = M.bake_count
-    ta = M.get_table(M.description(a), cache)
-    tb = M.get_table(M.description(b), cache)
-    assert M.bake_count == start + 1 and tb is ta
-    assert M.description_key(M.description(a)) == M.description_key(M.description(b))
+    start = tables_mod.bake_count
+    ta = tables_mod.get_table(description_mod.description(a), cache)
+    tb = tables_mod.get_table(description_mod.description(b), cache)
+    assert tables_mod.bake_count == start + 1 and tb is ta
+    assert description_mod.description_key(description_mod.description(a)) == description_mod.description_key(
+        description_mod.description(b)
+    )
 
     b.thinfilm_sh.layers[0].thickness_nm = 420.0
-    M.get_table(M.description(b), cache)
-    assert M.bake_count == start + 2
+    tables_mod.get_table(description_mod.description(b), cache)
+    assert tables_mod.bake_count == start + 2
 
     # Settings the film does not depend on: no bake.
     a.diffuse_color = (0.1, 0.9, 0.1, 1.0)
@@ -297,64 +343,66 @@ def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(bpy, M, 
     obj = bpy.data.objects.new("o", mesh)
     obj.color = (1.0, 0.0, 0.0, 1.0)
     obj.active_material = a
-    assert M.get_table(M.description(a), cache) is ta
-    assert M.bake_count == start + 2
+    assert tables_mod.get_table(description_mod.description(a), cache) is ta
+    assert tables_mod.bake_count == start + 2
 
 
-def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, M, tmp_path):
+def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, description_mod, tables_mod, tmp_path):
     table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
     cache = table_io.TableCache(tmp_path)
-    desc = M.description(_enabled(bpy))
-    start = M.bake_count
-    baked = M.get_table(desc, cache)
-    path = cache.path_for(M.description_key(desc))
-    assert path.is_file() and M.bake_count == start + 1
+    desc = description_mod.description(_enabled(bpy))
+    start = tables_mod.bake_count
+    baked = tables_mod.get_table(desc, cache)
+    path = cache.path_for(description_mod.description_key(desc))
+    assert path.is_file() and tables_mod.bake_count == start + 1
 
-    M.clear_memory_cache()
-    loaded, source = M.get_table_with_source(desc, cache)
-    assert source == "disk" and M.bake_count == start + 1
+    tables_mod.clear_memory_cache()
+    loaded, source = tables_mod.get_table_with_source(desc, cache)
+    assert source == "disk" and tables_mod.bake_count == start + 1
     np.testing.assert_allclose(loaded.data, baked.data, rtol=1e-6, atol=1e-7)  # float32 on disk
     assert loaded.sh_order == baked.sh_order and loaded.material == desc
     np.testing.assert_array_equal(loaded.thicknesses_nm, baked.thicknesses_nm)
     np.testing.assert_allclose(loaded.view_angles_rad, baked.view_angles_rad)
-    assert M.format_plan(loaded) == M.format_plan(baked)
+    assert tables_mod.format_plan(loaded) == tables_mod.format_plan(baked)
 
-    M.clear_memory_cache()
+    tables_mod.clear_memory_cache()
     raw = bytearray(path.read_bytes())
     raw[len(raw) // 2] ^= 0xFF
     path.write_bytes(bytes(raw))
-    again, source = M.get_table_with_source(desc, cache)
-    assert source == "bake" and M.bake_count == start + 2
+    again, source = tables_mod.get_table_with_source(desc, cache)
+    assert source == "bake" and tables_mod.bake_count == start + 2
     np.testing.assert_allclose(again.data, baked.data)
     assert path.with_name(path.name + ".corrupt").is_file()
     assert table_io.read_table(path).content_hash  # the fresh table replaced it
 
 
-def test_a_table_cached_by_an_older_planner_is_not_reused(bpy, M, tmp_path, monkeypatch):
+def test_a_table_cached_by_an_older_planner_is_not_reused(
+    bpy, description_mod, tables_mod, tmp_path, monkeypatch
+):
     """After an upgrade that changes automatic choices (e.g. the SH order cap 8 → 12), a cached
     table is stale, not corrupt: the key carries bake.PLANNER_VERSION, so it is baked again."""
     table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
     bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
     cache = table_io.TableCache(tmp_path)
-    desc = M.description(_enabled(bpy))
-    start = M.bake_count
+    desc = description_mod.description(_enabled(bpy))
+    start = tables_mod.bake_count
     monkeypatch.setattr(bake, "PLANNER_VERSION", bake.PLANNER_VERSION - 1)
-    old_key = M.description_key(desc)
-    M.get_table(desc, cache)
-    assert cache.path_for(old_key).is_file() and M.bake_count == start + 1
+    old_key = description_mod.description_key(desc)
+    tables_mod.get_table(desc, cache)
+    assert cache.path_for(old_key).is_file() and tables_mod.bake_count == start + 1
     monkeypatch.undo()
-    M.clear_memory_cache()
-    new_key = M.description_key(desc)
+    tables_mod.clear_memory_cache()
+    new_key = description_mod.description_key(desc)
     assert new_key != old_key
-    _table, source = M.get_table_with_source(desc, cache)
-    assert source == "bake" and M.bake_count == start + 2 and cache.path_for(new_key).is_file()
+    _table, source = tables_mod.get_table_with_source(desc, cache)
+    assert source == "bake" and tables_mod.bake_count == start + 2 and cache.path_for(new_key).is_file()
 
 
-def test_nan_thickness_is_a_clear_error_not_a_traceback(bpy, M):
+def test_nan_thickness_is_a_clear_error_not_a_traceback(bpy, description_mod):
     mat = _enabled(bpy)
     mat.thinfilm_sh.layers[0].thickness_nm = math.nan
     with pytest.raises(ValueError, match="thickness"):
-        M.description(mat)
+        description_mod.description(mat)
     with pytest.raises(RuntimeError) as caught:  # bpy.ops turns an ERROR report into RuntimeError
         bpy.ops.thinfilm.bake(material=mat.name)
     message = str(caught.value)
@@ -365,47 +413,60 @@ def test_nan_thickness_is_a_clear_error_not_a_traceback(bpy, M):
     assert "Traceback" not in str(caught.value)
 
 
-def test_bake_operator_runs_synchronously_in_background_mode(bpy, M):
+def test_bake_operator_runs_synchronously_in_background_mode(bpy, tables_mod, description_mod):
     assert bpy.app.background
     mat = _enabled(bpy)
     settings = mat.thinfilm_sh
-    start = M.bake_count
+    start = tables_mod.bake_count
     assert bpy.ops.thinfilm.bake("INVOKE_DEFAULT", material=mat.name) == {"FINISHED"}
-    assert M.bake_count == start + 1
+    assert tables_mod.bake_count == start + 1
     assert settings.last_bake_ms > 0.0 and settings.last_error == ""
-    plan = M.parse_plan(settings.last_plan)
+    plan = tables_mod.parse_plan(settings.last_plan)
     assert plan["sh_order"] == "2" and plan["view_samples"] == "4" and plan["source"] == "bake"
     assert int(plan["wavelength_count"]) >= 32
     assert bpy.ops.thinfilm.bake(material=mat.name) == {"FINISHED"}
-    assert M.parse_plan(settings.last_plan)["source"] == "memory" and M.bake_count == start + 1
-    assert M.peek_table(M.description(mat)) is not None
+    assert (
+        tables_mod.parse_plan(settings.last_plan)["source"] == "memory" and tables_mod.bake_count == start + 1
+    )
+    assert tables_mod.peek_table(description_mod.description(mat)) is not None
 
 
-def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, M, tmp_path):
+def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, description_mod, tables_mod, tmp_path):
     ops = importlib.import_module(f"{EXTENSION_ID}.addon.ops")
     cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io").TableCache(tmp_path)
-    desc = M.description(_enabled(bpy))
-    start = M.bake_count
+    desc = description_mod.description(_enabled(bpy))
+    start = tables_mod.bake_count
 
     job = ops.BakeJob(desc, cache)
     job.cancel()
     job.start().join(60)
     assert job.done.is_set() and job.cancelled and job.result is None and job.error is None
-    assert M.bake_count == start and M.peek_table(desc) is None and not list(tmp_path.iterdir())
+    assert (
+        tables_mod.bake_count == start
+        and tables_mod.peek_table(desc) is None
+        and not list(tmp_path.iterdir())
+    )
 
     job = ops.BakeJob(desc, cache).start()
     job.join(60)
     assert job.done.is_set() and job.error is None and job.source == "bake"
-    assert job.fraction == 1.0 and M.peek_table(desc) is job.result and M.bake_count == start + 1
+    assert (
+        job.fraction == 1.0
+        and tables_mod.peek_table(desc) is job.result
+        and tables_mod.bake_count == start + 1
+    )
 
 
-def test_clear_cache_operator_empties_memory_and_disk(bpy, M):
+def test_clear_cache_operator_empties_memory_and_disk(bpy, tables_mod, description_mod):
     mat = _enabled(bpy)
     bpy.ops.thinfilm.bake(material=mat.name)
-    cache = M.table_cache()
+    cache = tables_mod.table_cache()
     assert list(cache.directory.glob("*.exr"))
     assert bpy.ops.thinfilm.clear_cache() == {"FINISHED"}
-    assert not list(cache.directory.glob("*.exr")) and M.peek_table(M.description(mat)) is None
+    assert (
+        not list(cache.directory.glob("*.exr"))
+        and tables_mod.peek_table(description_mod.description(mat)) is None
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -418,40 +479,42 @@ def _quad(bpy, name="Quad"):
     return obj, mesh
 
 
-def test_thickness_from_an_attribute_on_points_or_corners(bpy, M):
+def test_thickness_from_an_attribute_on_points_or_corners(bpy, thickness_mod):
     obj, mesh = _quad(bpy)
     settings = _enabled(bpy).thinfilm_sh
     settings.thickness_source = "ATTRIBUTE"
     settings.thickness_attribute = "film"
     with pytest.raises(ValueError, match="no attribute 'film'"):
-        M.thickness_per_vertex(obj, mesh, settings)
+        thickness_mod.thickness_per_vertex(obj, mesh, settings)
 
     attribute = mesh.attributes.new("film", "FLOAT", "POINT")
     attribute.data.foreach_set("value", [0.0, 0.25, 2.0, 0.75])
-    values = M.thickness_per_vertex(obj, mesh, settings)
+    values = thickness_mod.thickness_per_vertex(obj, mesh, settings)
     corner_vertices = [loop.vertex_index for loop in mesh.loops]
     np.testing.assert_allclose(values, np.array([0.0, 0.25, 1.0, 0.75])[corner_vertices])  # clipped
 
     mesh.attributes.remove(mesh.attributes["film"])
     attribute = mesh.attributes.new("film", "FLOAT", "CORNER")
     attribute.data.foreach_set("value", [0.1, 0.2, 0.3, 0.4])
-    np.testing.assert_allclose(M.thickness_per_vertex(obj, mesh, settings), [0.1, 0.2, 0.3, 0.4], rtol=1e-6)
+    np.testing.assert_allclose(
+        thickness_mod.thickness_per_vertex(obj, mesh, settings), [0.1, 0.2, 0.3, 0.4], rtol=1e-6
+    )
 
     mesh.attributes.remove(mesh.attributes["film"])
     mesh.attributes.new("film", "FLOAT", "FACE").data.foreach_set("value", [0.6])
-    np.testing.assert_allclose(M.thickness_per_vertex(obj, mesh, settings), [0.6] * 4, rtol=1e-6)
+    np.testing.assert_allclose(thickness_mod.thickness_per_vertex(obj, mesh, settings), [0.6] * 4, rtol=1e-6)
     mesh.attributes.remove(mesh.attributes["film"])
     mesh.attributes.new("film", "FLOAT_VECTOR", "POINT")
     with pytest.raises(ValueError, match="FLOAT attribute"):
-        M.thickness_per_vertex(obj, mesh, settings)
+        thickness_mod.thickness_per_vertex(obj, mesh, settings)
 
-    order = M.corner_order(mesh)
+    order = thickness_mod.corner_order(mesh)
     assert order.shape == (6,) and set(order.tolist()) == {0, 1, 2, 3}
     settings.vary_thickness = False
-    assert M.thickness_per_vertex(obj, mesh, settings) is None
+    assert thickness_mod.thickness_per_vertex(obj, mesh, settings) is None
 
 
-def test_thickness_from_noise_is_deterministic_and_in_range(bpy, M):
+def test_thickness_from_noise_is_deterministic_and_in_range(bpy, thickness_mod, noise_mod):
     mesh = bpy.data.meshes.new("Grid")
     grid = np.stack(np.meshgrid(np.linspace(-1, 1, 20), np.linspace(-1, 1, 20), [0.3]), -1).reshape(-1, 3)
     mesh.from_pydata(grid.tolist(), [], [(i, i + 1, i + 21, i + 20) for i in range(19)])
@@ -459,21 +522,21 @@ def test_thickness_from_noise_is_deterministic_and_in_range(bpy, M):
     settings = _enabled(bpy).thinfilm_sh
     settings.thickness_source = "NOISE"
     settings.noise_scale, settings.noise_seed = 3.0, 7
-    first = M.thickness_per_vertex(obj, mesh, settings)
+    first = thickness_mod.thickness_per_vertex(obj, mesh, settings)
     assert first.shape == (len(mesh.loops),)
     assert np.all((first >= 0) & (first <= 1)) and np.ptp(first) > 0.1
-    np.testing.assert_array_equal(first, M.thickness_per_vertex(obj, mesh, settings))
+    np.testing.assert_array_equal(first, thickness_mod.thickness_per_vertex(obj, mesh, settings))
     settings.noise_seed = 8
-    assert not np.allclose(first, M.thickness_per_vertex(obj, mesh, settings))
+    assert not np.allclose(first, thickness_mod.thickness_per_vertex(obj, mesh, settings))
 
     points = np.random.default_rng(0).uniform(-50, 50, (5000, 3))
-    noise = M.value_noise(points, 1.7, 3)
+    noise = noise_mod.value_noise(points, 1.7, 3)
     assert noise.min() >= 0 and noise.max() <= 1
-    step = M.value_noise(points + 1e-4, 1.7, 3) - noise
+    step = noise_mod.value_noise(points + 1e-4, 1.7, 3) - noise
     assert np.abs(step).max() < 1e-2  # continuous
 
 
-def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, M):
+def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, thickness_mod):
     obj, mesh = _quad(bpy)
     uv = mesh.uv_layers.new(name="UVMap")
     image = bpy.data.images.new("Thickness", 4, 2, float_buffer=True)
@@ -489,13 +552,13 @@ def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, M):
     settings = _enabled(bpy).thinfilm_sh
     settings.thickness_source = "IMAGE"
     with pytest.raises(ValueError, match="needs an image"):
-        M.thickness_per_vertex(obj, mesh, settings)
+        thickness_mod.thickness_per_vertex(obj, mesh, settings)
     settings.thickness_image = image
-    values = M.thickness_per_vertex(obj, mesh, settings)
+    values = thickness_mod.thickness_per_vertex(obj, mesh, settings)
     np.testing.assert_allclose(values, [0.0, 0.5, 0.3, 0.15], atol=1e-6)
     settings.thickness_uv_map = "Missing"
     with pytest.raises(ValueError, match="no UV map 'Missing'"):
-        M.thickness_per_vertex(obj, mesh, settings)
+        thickness_mod.thickness_per_vertex(obj, mesh, settings)
 
 
 # ----------------------------------------------------------------------------------------------

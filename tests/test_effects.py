@@ -460,7 +460,7 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("headless", "materials", "scene_draw", "gpu_draw", "ui"):
+        for name in ("headless", "description", "tables", "prefs", "scene_draw", "gpu_draw", "ui"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.effects = importlib.import_module(f"{EXTENSION_ID}.precompute.effects")
         yield ns
@@ -473,8 +473,8 @@ def scene(bpy, tf):
     tf.package.register()
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
-    tf.addon.preferences().cache_dir = str(tf.cache_dir)
-    tf.materials.clear_memory_cache()
+    tf.prefs.preferences().cache_dir = str(tf.cache_dir)
+    tf.tables.clear_memory_cache()
     tf.scene_draw.CACHES.clear()
     tf.gpu_draw.ensure_gpu_context()
     try:
@@ -482,7 +482,7 @@ def scene(bpy, tf):
     finally:
         bpy.context.preferences.addons.remove(entry)
         tf.package.unregister()
-        tf.materials.clear_memory_cache()
+        tf.tables.clear_memory_cache()
         tf.scene_draw.CACHES.clear()
 
 
@@ -528,14 +528,14 @@ def test_a_scene_without_an_enabled_film_bakes_and_draws_nothing(bpy, tf, scene,
     _object(bpy, scene, "Disabled", disabled, (3.0, 0.0, 0.0))
     hidden = _film(bpy, "Hidden", "OIL_ON_WATER")
     _object(bpy, scene, "Hidden", hidden, (-3.0, 0.0, 0.0)).hide_viewport = True
-    start = tf.materials.bake_count
+    start = tf.tables.bake_count
     items, messages = _collect(bpy, tf)
     assert items == [], messages
-    assert tf.materials.bake_count == start and tf.scene_draw.CACHES.stats["table_uploads"] == 0
+    assert tf.tables.bake_count == start and tf.scene_draw.CACHES.stats["table_uploads"] == 0
     assert tf.headless.scene_materials(scene) == ({}, {})
     assert tf.headless.main(["plan"]) == 0
     assert "nothing is baked or drawn" in capsys.readouterr().out
-    assert tf.materials.bake_count == start
+    assert tf.tables.bake_count == start
 
 
 @pytest_blender
@@ -544,26 +544,26 @@ def test_changing_one_films_thickness_rebakes_only_that_material(bpy, tf, scene)
     b = _film(bpy, "B", "OIL_ON_WATER")
     _object(bpy, scene, "A", a, (-1.5, 0.0, 0.0))
     _object(bpy, scene, "B", b, (1.5, 0.0, 0.0))
-    start = tf.materials.bake_count
+    start = tf.tables.bake_count
     items, _ = _collect(bpy, tf)
-    assert len(items) == 2 and tf.materials.bake_count == start + 2
-    key_a, key_b = (tf.materials.description_key(tf.materials.description(m)) for m in (a, b))
+    assert len(items) == 2 and tf.tables.bake_count == start + 2
+    key_a, key_b = (tf.description.description_key(tf.description.description(m)) for m in (a, b))
     table_b, result_b = (
         tf.scene_draw.CACHES.tables[key_b],
-        tf.materials.peek_table(tf.materials.description(b)),
+        tf.tables.peek_table(tf.description.description(b)),
     )
 
     a.thinfilm_sh.layers[0].thickness_nm = 610.0
     items, _ = _collect(bpy, tf)
-    assert len(items) == 2 and tf.materials.bake_count == start + 3  # exactly one bake: A's
-    new_a = tf.materials.description_key(tf.materials.description(a))
+    assert len(items) == 2 and tf.tables.bake_count == start + 3  # exactly one bake: A's
+    new_a = tf.description.description_key(tf.description.description(a))
     assert new_a != key_a and new_a in tf.scene_draw.CACHES.tables
     assert tf.scene_draw.CACHES.tables[key_b] is table_b  # B's texture untouched
-    assert tf.materials.peek_table(tf.materials.description(b)) is result_b
+    assert tf.tables.peek_table(tf.description.description(b)) is result_b
     assert all(item.table is table_b for item in items if item.name.startswith("B/"))
 
     _collect(bpy, tf)  # nothing changed: nothing baked or uploaded
-    assert tf.materials.bake_count == start + 3
+    assert tf.tables.bake_count == start + 3
 
 
 @pytest_blender
@@ -574,10 +574,10 @@ def test_thinfilm_sh_plan_prints_effects_and_reasons(bpy, tf, scene, capsys):
     c = _film(bpy, "Soap copy", "SOAP_FILM")
     for i, mat in enumerate((a, b, c)):
         _object(bpy, scene, mat.name, mat, (3.0 * i, 0.0, 0.0))
-    start = tf.materials.bake_count
+    start = tf.tables.bake_count
     assert tf.headless.main(["plan"]) == 0
     out = capsys.readouterr().out
-    assert tf.materials.bake_count == start  # planning bakes nothing
+    assert tf.tables.bake_count == start  # planning bakes nothing
     for needle in (
         "material 'Soap'",
         "material 'Steel'",
@@ -603,14 +603,14 @@ def test_thinfilm_sh_plan_prints_effects_and_reasons(bpy, tf, scene, capsys):
 def test_plan_panel_is_registered_and_shows_the_active_materials_plan(bpy, tf, scene):
     assert hasattr(bpy.types, "THINFILM_PT_plan")
     mat = _film(bpy, "Soap", "SOAP_FILM")
-    desc = tf.materials.description(mat)
-    start = tf.materials.bake_count
+    desc = tf.description.description(mat)
+    start = tf.tables.bake_count
     mp = tf.ui.plan_for(desc, wait=True)
-    assert mp.key == tf.materials.description_key(desc) and tf.ui.plan_for(desc) is mp  # memoised
+    assert mp.key == tf.description.description_key(desc) and tf.ui.plan_for(desc) is mp  # memoised
     lines = tf.ui.plan_lines(mp)
     text = "\n".join(lines)
     assert "Table 4×4×6×3×3" in text and "Bake ≈" in text and "multiply-adds" in text
-    assert tf.materials.bake_count == start
+    assert tf.tables.bake_count == start
 
 
 @pytest_blender

@@ -149,25 +149,61 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, extension):
 
 
 def test_preferences_hold_the_cache_directory(bpy, extension, tmp_path):
-    addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+    prefs_mod = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
     extension.register()
     addons = bpy.context.preferences.addons
     assert addons.get(EXTENSION_ID) is None
-    assert addon.preferences() is None
-    assert addon.cache_dir() == addon.default_cache_dir() != ""
+    assert prefs_mod.preferences() is None
+    assert prefs_mod.cache_dir() == prefs_mod.default_cache_dir() != ""
 
     # Enable it the way Blender's preferences do: an add-on entry keyed by the package name.
     entry = addons.new()
     try:
         entry.module = EXTENSION_ID
-        prefs = addon.preferences()
+        prefs = prefs_mod.preferences()
         assert prefs is not None and isinstance(prefs, bpy.types.AddonPreferences)
         prop = prefs.bl_rna.properties["cache_dir"]
         assert (prop.subtype, prop.default) == ("DIR_PATH", "")
-        assert prefs.cache_dir == "" and addon.cache_dir() == addon.default_cache_dir()
+        assert prefs.cache_dir == "" and prefs_mod.cache_dir() == prefs_mod.default_cache_dir()
         prefs.cache_dir = str(tmp_path)
-        assert addon.cache_dir() == str(tmp_path)
+        assert prefs_mod.cache_dir() == str(tmp_path)
     finally:
         addons.remove(entry)
         extension.unregister()
     assert addons.get(EXTENSION_ID) is None
+
+
+def test_every_cache_is_registered_documented_and_emptied(bpy, extension):
+    """addon.caches: every registered cache is described in its docstring; a file load empties
+    the per-file ones, unregister all of them."""
+    caches = importlib.import_module(f"{EXTENSION_ID}.addon.caches")
+    registered = caches.registered()
+    assert {"tables", "world_sh", "plans", "plan_orders_seen", "scene_draw", "shaders", "uniforms"} <= set(
+        registered
+    )
+    for name in registered:
+        assert f"``{name}``" in caches.__doc__, f"cache {name!r} is not documented in addon/caches.py"
+
+    extension.register()
+    tables, ui = registered["tables"].cache, registered["plan_orders_seen"].cache
+    tables["key"] = "table"
+    ui.add(0.5)
+    scene_draw = importlib.import_module(f"{EXTENSION_ID}.addon.scene_draw")
+    scene_draw.CACHES.tables["key"] = "texture"
+    bpy.ops.wm.read_factory_settings(use_empty=True)  # load_post: the per-file caches only
+    assert not scene_draw.CACHES.tables and tables.get("key") == "table" and 0.5 in ui
+    extension.unregister()
+    assert len(tables) == 0 and not ui
+
+
+def test_the_lru_drops_the_least_recently_used_entry(bpy, extension):
+    caches = importlib.import_module(f"{EXTENSION_ID}.addon.caches")
+    lru = caches.LRU(2)
+    lru["a"], lru["b"] = 1, 2
+    assert lru["a"] == 1  # "a" is now the most recent
+    lru["c"] = 3
+    assert "b" not in lru and lru.get("b", "gone") == "gone" and len(lru) == 2
+    lru.clear()
+    assert len(lru) == 0
+    with pytest.raises(ValueError):
+        caches.LRU(0)

@@ -38,11 +38,11 @@ SIZE = (64, 48)
 # ----------------------------------------------------------------------------------------------
 # Fixtures and helpers
 # ----------------------------------------------------------------------------------------------
-def _set_cache_preference(bpy, addon, cache_dir) -> None:
+def _set_cache_preference(bpy, prefs, cache_dir) -> None:
     addons = bpy.context.preferences.addons
     if addons.get(EXTENSION_ID) is None:
         addons.new().module = EXTENSION_ID
-    addon.preferences().cache_dir = str(cache_dir)
+    prefs.preferences().cache_dir = str(cache_dir)
 
 
 @pytest.fixture(scope="module")
@@ -54,10 +54,10 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "materials", "scene_draw", "gpu_draw"):
+            for name in ("headless", "description", "tables", "prefs", "scene_draw", "gpu_draw"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-            _set_cache_preference(bpy, ns.addon, ns.cache_dir)
+            _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
             ns.gpu_draw.ensure_gpu_context()
             yield ns
         finally:
@@ -71,7 +71,7 @@ def fresh(bpy, tf):
     """An empty factory file with the extension registered and its private cache chosen."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     tf.package.register()  # harmless when already registered
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -221,7 +221,7 @@ def project(tf, scene, points, size):
 def cli_blend(bpy, tf, tmp_path_factory):
     """A saved file: two spheres whose materials have equal settings, an HDRI World, a camera."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -238,7 +238,7 @@ def cli_blend(bpy, tf, tmp_path_factory):
 
 def _open(bpy, tf, path):
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     return bpy.context.scene
 
 
@@ -378,7 +378,7 @@ def test_script_batch_renders_every_file_in_a_folder(bpy, tf, cli_blend, tmp_pat
     assert "rendered 1/2 files" in printed.out and "broken.blend" in printed.out
     image = read_exr(tmp_path / "out" / "a.exr")
     assert image.shape == (24, 32, 3) and np.isfinite(image).all()
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -459,7 +459,7 @@ def test_zero_thickness_film_is_the_bare_substrate(bpy, tf, fresh, tmp_path):
     s.roughness = 0.35
     s.substrate_mode, s.substrate_ior = "DIELECTRIC", 1.5
     assert len(s.layers) == 0
-    assert tf.materials.description(bare).layers == ()
+    assert tf.description.description(bare).layers == ()
     obj = sphere(bpy, scene, material=zero)
     camera(bpy, scene)
     a, ra = render(tf, scene, tmp_path / "zero.png")
@@ -537,16 +537,16 @@ def test_corrupt_cache_file_is_rebaked(bpy, tf, fresh, tmp_path, caplog):
     sphere(bpy, scene, material=mat)
     camera(bpy, scene)
     first, _ = render(tf, scene, tmp_path / "first.png")
-    desc = tf.materials.description(mat)
-    path = tf.materials.table_cache().path_for(tf.materials.description_key(desc))
+    desc = tf.description.description(mat)
+    path = tf.tables.table_cache().path_for(tf.description.description_key(desc))
     assert path.is_file() and str(path).startswith(str(tf.cache_dir))
     path.write_bytes(b"this is not an OpenEXR file" * 100)
-    tf.materials.clear_memory_cache()
+    tf.tables.clear_memory_cache()
     tf.scene_draw.CACHES.clear()
-    bakes = tf.materials.bake_count
+    bakes = tf.tables.bake_count
     with caplog.at_level("WARNING"):
         again, result = render(tf, scene, tmp_path / "again.png")
-    assert tf.materials.bake_count == bakes + 1
+    assert tf.tables.bake_count == bakes + 1
     assert result["objects"] == ["Sphere/Cached"]
     assert any(path.name in rec.getMessage() for rec in caplog.records), [
         r.getMessage() for r in caplog.records
@@ -623,7 +623,7 @@ def test_saved_and_reopened_file_renders_identically(bpy, tf, fresh, tmp_path):
     path = tmp_path / "saved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    _set_cache_preference(bpy, tf.addon, tf.cache_dir)
+    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     after, result = render(tf, bpy.context.scene, tmp_path / "after.png", background=True)
     assert result["objects"] == ["Sphere/Bubble"]
     np.testing.assert_allclose(after, before, rtol=0, atol=1e-6)
@@ -661,7 +661,7 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, tf, capfd):
             assert hasattr(bpy.types.Material, "thinfilm_sh")
     finally:
         package.register()
-        _set_cache_preference(bpy, addon, tf.cache_dir)
+        _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     out = capfd.readouterr()
     assert "duplicate command" not in out.out + out.err
 
@@ -681,7 +681,7 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
         return tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
 
     (item,) = items()
-    image_entry = tf.scene_draw.CACHES.world[2]
+    image_entry = tf.scene_draw.CACHES.world.environment
     assert image_entry is not None and image_entry.lamps is not None
     assert 1 <= image_entry.lamps.count <= tf.gpu_draw.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
@@ -689,14 +689,14 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary
     assert "off" in tf.scene_draw.lamps_summary(False)
     # The lighting of a lamp-shaded film is the World's SH minus the lamps' SH.
-    whole = tf.scene_draw.CACHES.world[1].coeffs
+    whole = tf.scene_draw.CACHES.world.sh.coeffs
     assert item.lighting.coefficients[0, 1] < 0.5 * whole[0, 1]
     on, _ = render(tf, scene, tmp_path / "lamps_on.png")
 
     mat.thinfilm_sh.world_lamps = False
     (item_off,) = items()
     assert item_off.film is None and item_off.lighting.lamp_count == 0
-    assert item_off.prefiltered is image_entry.prefiltered_whole()
+    assert item_off.prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered_whole()
     off, _ = render(tf, scene, tmp_path / "lamps_off.png")
     sphere_px = on.sum(axis=-1) > 0
     ratio = off[sphere_px].mean() / on[sphere_px].mean()

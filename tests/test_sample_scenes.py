@@ -83,7 +83,8 @@ def tf(bpy, tmp_path_factory):
             addons = bpy.context.preferences.addons
             entry = addons.get(EXTENSION_ID) or addons.new()
             entry.module = EXTENSION_ID
-            addon.preferences().cache_dir = str(root / "cache")
+            prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+            prefs.preferences().cache_dir = str(root / "cache")
             yield types.SimpleNamespace(
                 package=package,
                 addon=addon,

@@ -34,13 +34,13 @@ def tf(bpy, tmp_path_factory):
         package.register()
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("gpu_draw", "scene_draw", "materials"):
+        for name in ("gpu_draw", "scene_draw", "props", "prefs"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID
         ns.cache_dir = str(root / "cache")
-        ns.addon.preferences().cache_dir = ns.cache_dir
+        ns.prefs.preferences().cache_dir = ns.cache_dir
         ns.gpu_draw.ensure_gpu_context()
         try:
             yield ns
@@ -239,14 +239,14 @@ def test_grouping_does_not_change_the_image(tf, drawn):
 def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     tf.package.register()
-    tf.addon.preferences().cache_dir = tf.cache_dir
+    tf.prefs.preferences().cache_dir = tf.cache_dir
     scene = bpy.context.scene  # no World: lit by nothing, no panorama to render
     meshes = []
     for k in range(3):
         mesh = bpy.data.meshes.new(f"film{k}")
         mesh.from_pydata([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], [], [(0, 1, 2, 3)])
         mat = bpy.data.materials.new(f"film{k}")
-        tf.materials.fill_from_material(mat.thinfilm_sh, FILM)
+        tf.props.fill_from_material(mat.thinfilm_sh, FILM)
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32
@@ -298,14 +298,14 @@ def test_collect_splits_a_mesh_by_material_slot(tf, bpy):
     material indices and the triangles' faces are read as arrays, not item by item)."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     tf.package.register()
-    tf.addon.preferences().cache_dir = tf.cache_dir
+    tf.prefs.preferences().cache_dir = tf.cache_dir
     scene = bpy.context.scene
     mesh = bpy.data.meshes.new("two slots")
     verts = [(x, 0.0, z) for z in (0.0, 1.0) for x in (0.0, 1.0, 2.0, 3.0)]
     mesh.from_pydata(verts, [], [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6)])  # three quads
     for k in range(2):
         mat = bpy.data.materials.new(f"slot{k}")
-        tf.materials.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
+        tf.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32

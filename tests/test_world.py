@@ -37,10 +37,28 @@ def world_mod(bpy, tmp_path_factory):
         yield importlib.import_module(f"{EXTENSION_ID}.addon.world")
 
 
+@pytest.fixture(scope="module")
+def panorama_mod(world_mod):
+    """``thinfilm_sh.addon.panorama``: the World rendered alone."""
+    return importlib.import_module(f"{EXTENSION_ID}.addon.panorama")
+
+
+@pytest.fixture(scope="module")
+def world_key_mod(world_mod):
+    """``thinfilm_sh.addon.world_key``: the World's content key."""
+    return importlib.import_module(f"{EXTENSION_ID}.addon.world_key")
+
+
+@pytest.fixture(scope="module")
+def caches_mod(world_mod):
+    """``thinfilm_sh.addon.caches``: the add-on's LRU type and cache registry."""
+    return importlib.import_module(f"{EXTENSION_ID}.addon.caches")
+
+
 @pytest.fixture
 def scene(bpy, world_mod):
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    world_mod.clear_cache()
+    world_mod.SH_CACHE.clear()
     return bpy.context.scene
 
 
@@ -136,7 +154,7 @@ def _scale(coeffs) -> float:
 # ----------------------------------------------------------------------------------------------
 
 
-def test_studio_hdri_equals_direct_projection_times_strength(bpy, world_mod, scene):
+def test_studio_hdri_equals_direct_projection_times_strength(bpy, world_mod, world_key_mod, scene):
     path = _studio_path(bpy, "studio.exr")
     _env_world(bpy, scene, bpy.data.images.load(path))
     result = world_mod.world_sh(scene, L_MAX)
@@ -147,7 +165,7 @@ def test_studio_hdri_equals_direct_projection_times_strength(bpy, world_mod, sce
     assert result.source == "environment texture 'studio.exr'"
     assert result.warnings == () and result.rejected_pixels == 0 and result.l_max == L_MAX
     assert result.working_space == "Linear Rec.709" == bpy.data.colorspace.working_space
-    assert result.key == world_mod.world_key(scene, L_MAX)
+    assert result.key == world_key_mod.world_key(scene, L_MAX)
     assert not result.coeffs.flags.writeable
 
     scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 2.0
@@ -185,7 +203,7 @@ def test_nan_pixels_are_rejected_counted_and_warned(bpy, world_mod, scene, tmp_p
     np.testing.assert_allclose(result.coeffs, sh.project_equirect(clean, 4), rtol=0, atol=1e-5)
 
 
-def test_packed_and_generated_images_are_read_from_memory(bpy, world_mod, scene, tmp_path):
+def test_packed_and_generated_images_are_read_from_memory(bpy, world_mod, panorama_mod, scene, tmp_path):
     image_data = _analytic_image(64, 128)
     path = _write_exr(tmp_path / "packed_sky.exr", image_data)
     image = bpy.data.images.load(path)
@@ -207,7 +225,7 @@ def test_packed_and_generated_images_are_read_from_memory(bpy, world_mod, scene,
     expected = sh.project_equirect(np.broadcast_to(linear, (32, 64, 3)), 2)  # 32 rows: tiny l = 2 term
     np.testing.assert_allclose(result.coeffs, expected, rtol=0, atol=1e-6)
     np.testing.assert_allclose(result.coeffs[0], math.sqrt(4.0 * math.pi) * linear, rtol=1e-5)
-    rendered = sh.project_equirect(world_mod.render_world_panorama(scene.world, width=64, samples=4), 0)
+    rendered = sh.project_equirect(panorama_mod.render_world_panorama(scene.world, width=64, samples=4), 0)
     np.testing.assert_allclose(result.coeffs[0], rendered[0], rtol=1e-4)
 
 
@@ -285,15 +303,15 @@ def test_mapping_kinds_match_direct_sampling(bpy, world_mod, scene, tmp_path, ma
 # ----------------------------------------------------------------------------------------------
 
 
-def test_panorama_orientation_matches_environment_convention(bpy, world_mod, scene):
+def test_panorama_orientation_matches_environment_convention(bpy, world_mod, panorama_mod, scene):
     _env_world(bpy, scene, bpy.data.images.load(_studio_path(bpy, "forest.exr")))
     direct = world_mod.world_sh(scene, 2)
     assert direct.source.startswith("environment texture")
 
     start = time.perf_counter()
-    panorama = world_mod.render_world_panorama(scene.world)
+    panorama = panorama_mod.render_world_panorama(scene.world)
     seconds = time.perf_counter() - start
-    assert panorama.shape == (world_mod.PANORAMA_WIDTH // 2, world_mod.PANORAMA_WIDTH, 3)
+    assert panorama.shape == (panorama_mod.PANORAMA_WIDTH // 2, panorama_mod.PANORAMA_WIDTH, 3)
     rendered = sh.project_equirect(panorama, 2)
     error = np.max(np.abs(rendered - direct.coeffs), axis=1) / _scale(direct.coeffs)
     print(f"\npanorama vs direct (forest): bands 0-1 {error[:4].max():.4f}, band 2 {error[4:].max():.4f}, "
@@ -304,12 +322,12 @@ def test_panorama_orientation_matches_environment_convention(bpy, world_mod, sce
     assert np.max(np.abs(direct.coeffs[1:4:2])) > 0.1 * _scale(direct.coeffs)
 
 
-def test_mapping_and_texture_coordinates_match_cycles(bpy, world_mod, scene):
+def test_mapping_and_texture_coordinates_match_cycles(bpy, world_mod, panorama_mod, scene):
     mapping = {"type": "POINT", "rotation": (0.5, -0.3, 1.2)}
     _env_world(bpy, scene, bpy.data.images.load(_studio_path(bpy, "forest.exr")), mapping=mapping)
     direct = world_mod.world_sh(scene, 2)
     assert direct.source.startswith("environment texture")
-    rendered = sh.project_equirect(world_mod.render_world_panorama(scene.world), 2)
+    rendered = sh.project_equirect(panorama_mod.render_world_panorama(scene.world), 2)
     error = np.max(np.abs(rendered - direct.coeffs)) / _scale(direct.coeffs)
     assert error <= 0.05, error
 
@@ -402,7 +420,7 @@ def test_no_world_and_empty_trees_are_black_with_warnings(bpy, world_mod, scene)
     assert np.all(result.coeffs == 0.0) and "no active World Output" in result.warnings[0]
 
 
-def test_world_without_node_tree_uses_viewport_colour(bpy, world_mod, scene):
+def test_world_without_node_tree_uses_viewport_colour(bpy, world_mod, world_key_mod, scene):
     """Blender ≥ 5.0 always gives Worlds a node tree; the viewport colour is read for older ones."""
     world = bpy.data.worlds.new("Viewport")
     world.color = (0.1, 0.2, 0.3)
@@ -411,7 +429,7 @@ def test_world_without_node_tree_uses_viewport_colour(bpy, world_mod, scene):
     coeffs, source, rejected, warnings = result
     np.testing.assert_allclose(coeffs[0], math.sqrt(4.0 * math.pi) * np.array(tuple(world.color)), rtol=1e-12)
     assert source == "viewport colour" and rejected == 0 and "viewport colour" in warnings[0]
-    assert world_mod._world_uses_nodes(world)  # Blender 5.x
+    assert world_key_mod.world_uses_nodes(world)  # Blender 5.x
 
 
 def test_missing_and_unreadable_images_fall_back_with_a_warning(bpy, world_mod, scene, tmp_path):
@@ -466,7 +484,7 @@ def test_srgb_png_is_linearised(bpy, world_mod, scene, tmp_path):
 
 
 @pytest.mark.parametrize("space", ["Linear Rec.709", "Linear Rec.2020"])
-def test_srgb_conversion_agrees_with_cycles(bpy, world_mod, scene, tmp_path, space):
+def test_srgb_conversion_agrees_with_cycles(bpy, world_mod, panorama_mod, scene, tmp_path, space):
     """A uniform sRGB PNG (noise-free render) read directly vs rendered, in two working spaces."""
     if space != bpy.data.colorspace.working_space:
         bpy.ops.wm.set_working_color_space(working_space=space, convert_colors=False)
@@ -475,17 +493,17 @@ def test_srgb_conversion_agrees_with_cycles(bpy, world_mod, scene, tmp_path, spa
     _env_world(bpy, scene, image)
     direct = world_mod.world_sh(scene, 1)
     assert direct.working_space == space and direct.source.startswith("environment texture")
-    rendered = sh.project_equirect(world_mod.render_world_panorama(scene.world, width=64, samples=4), 1)
+    rendered = sh.project_equirect(panorama_mod.render_world_panorama(scene.world, width=64, samples=4), 1)
     np.testing.assert_allclose(direct.coeffs[0], rendered[0], rtol=2e-3)
     assert np.max(np.abs(direct.coeffs[1:])) <= 1e-6
 
 
-def test_colour_space_changes_key(bpy, world_mod, scene):
+def test_colour_space_changes_key(bpy, world_mod, world_key_mod, scene):
     world = bpy.data.worlds.new("Plain")
     scene.world = world
-    before = world_mod.world_key(scene)
+    before = world_key_mod.world_key(scene)
     bpy.ops.wm.set_working_color_space(working_space="ACEScg", convert_colors=True)
-    assert world_mod.world_key(scene) != before
+    assert world_key_mod.world_key(scene) != before
     assert world_mod.world_sh(scene).working_space == "ACEScg"
 
 
@@ -494,7 +512,9 @@ def test_colour_space_changes_key(bpy, world_mod, scene):
 # ----------------------------------------------------------------------------------------------
 
 
-def test_cache_returns_the_same_result_until_the_world_changes(bpy, world_mod, scene, tmp_path):
+def test_cache_returns_the_same_result_until_the_world_changes(
+    bpy, world_mod, world_key_mod, scene, tmp_path
+):
     path = _write_exr(tmp_path / "cached.exr", _analytic_image())
     _env_world(bpy, scene, bpy.data.images.load(path))
     cache = {}
@@ -506,7 +526,7 @@ def test_cache_returns_the_same_result_until_the_world_changes(bpy, world_mod, s
 
     start = time.perf_counter()
     for _ in range(20):
-        key = world_mod.world_key(scene, L_MAX)
+        key = world_key_mod.world_key(scene, L_MAX)
     key_seconds = (time.perf_counter() - start) / 20
     assert key == first.key and key_seconds < 0.01
     print(f"\nworld_key {key_seconds * 1e3:.2f} ms, cache hit {hit_seconds * 1e3:.2f} ms")
@@ -521,18 +541,18 @@ def test_cache_returns_the_same_result_until_the_world_changes(bpy, world_mod, s
     _write_exr(path, 2.0 * _analytic_image())
     os.utime(path, ns=(time.time_ns(), time.time_ns() + 10**9))
     bpy.data.images[0].reload()
-    assert world_mod.world_key(scene, L_MAX) != third.key
+    assert world_key_mod.world_key(scene, L_MAX) != third.key
     fourth = world_mod.world_sh(scene, L_MAX, cache=cache)
     np.testing.assert_allclose(fourth.coeffs, 2.0 * third.coeffs, rtol=1e-6)
 
 
-def test_default_cache_is_a_small_lru(bpy, world_mod, scene):
+def test_default_cache_is_a_small_lru(bpy, world_mod, caches_mod, scene):
     world = bpy.data.worlds.new("Plain")
     scene.world = world
     first = world_mod.world_sh(scene)
-    assert world_mod.world_sh(scene) is first and len(world_mod.default_cache()) == 1
+    assert world_mod.world_sh(scene) is first and len(world_mod.SH_CACHE) == 1
 
-    lru = world_mod.LRUCache(2)
+    lru = caches_mod.LRU(2)
     lru["a"], lru["b"] = 1, 2
     assert lru.get("a") == 1  # "a" is now the most recent
     lru["c"] = 3

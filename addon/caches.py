@@ -1,0 +1,143 @@
+"""Every cache the add-on keeps, in one registry, and the one :func:`clear` that empties them.
+
+A cache is registered by the module that owns it (:func:`register`); :func:`clear` is called
+when a blend file is loaded (``viewport``'s load_post handler, ``file_load=True``) and when the
+add-on is unregistered (``addon.unregister``). A cache's *scope* says which of the two empties
+it: ``FILE`` caches hold what belongs to the open file (object names, GPU objects of its
+World) and are emptied on both; ``SESSION`` caches are keyed by content (a hash of everything
+their value depends on), stay valid when another file is opened, and are emptied only on
+unregister. The bounded ones use :class:`LRU`, the add-on's one least-recently-used type.
+
+The caches (name in the registry — the object; keyed by; bound; filled by; scope):
+
+- ``tables`` — ``tables.MEMORY``: baked SH tables (``bake.BakeResult``) by
+  ``description.description_key`` (the material's parameters + the bake planner's version);
+  LRU of ``tables.LRU_SIZE`` (32); filled by ``tables.get_table_with_source`` (disk cache or a
+  bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION, also
+  emptied by the Clear Cache operator (``tables.clear_caches``) with the disk cache.
+- ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
+  ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
+  space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
+- ``plans`` — ``ui._PLANS``: the Plan panel's ``effects.MaterialPlan`` by description key; LRU
+  of ``ui._PLAN_MEMO_SIZE`` (64); filled by ``ui.plan_for`` and its timer; SESSION.
+- ``plan_orders_seen`` — ``ui._ORDERS_SEEN``: roughness values whose automatic SH order has been
+  planned (planning them again is cheap, so the panel does it at once); a set, one entry per
+  roughness planned (a few floats); filled by ``ui.plan_for``; SESSION.
+- ``scene_draw`` — ``scene_draw.CACHES``: what the draw collects per object and material:
+  mesh batches by (object name, material slot, instance), rebuilt when the geometry changes;
+  GPU table textures and film textures by description key; lighting uniform buffers by (World
+  key, l_max, roughness, lamps); the World's lighting (``scene_draw.WorldLighting``: its SH, the
+  analysed panorama, the prefilters on the GPU) for the current World key only; unbounded
+  dicts sized by the file (objects × slots, distinct materials), lightings pruned to the
+  current World on each World change; filled by ``scene_draw.collect`` and
+  ``scene_draw.world_lighting``; FILE.
+- ``shaders`` — ``gpu_draw.SHADERS``: compiled GPU shaders by variant; one per variant used
+  (a few dozen at most); filled by ``gpu_draw.draw_items``; SESSION (registered by
+  ``scene_draw``: gpu_draw keeps no registry).
+- ``uniforms`` — ``gpu_draw.UNIFORMS``: view and object uniform buffers by the values they are
+  made from; entries unused for ``keep_frames`` frames are recycled (at most ``max_spare``
+  spare buffers per size); filled by ``gpu_draw.prepare_draw``; SESSION (registered by
+  ``scene_draw``).
+
+Not registered, because they never go stale: ``functools.cache`` memos of values computed from
+the code alone (``gpu_draw.glsl_chunk``, ``banded_source``, ``x_rotation_scalars``, the
+full-screen triangle) and the bounded ``functools.lru_cache`` kernels inside ``precompute``.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+from dataclasses import dataclass
+
+__all__ = ["FILE", "LRU", "SESSION", "Registered", "clear", "register", "registered"]
+
+#: Scope of a cache emptied whenever a blend file is loaded (and on unregister).
+FILE = "file"
+#: Scope of a content-keyed cache, valid across files: emptied on unregister only.
+SESSION = "session"
+
+
+class LRU:
+    """A thread-safe least-recently-used mapping of at most ``maxsize`` entries.
+
+    ``get``, ``[]``, ``[]=``, ``in``, ``len`` and ``clear``; reading an entry (``get`` or ``[]``)
+    makes it the most recent, storing one beyond ``maxsize`` drops the least recent.
+    """
+
+    def __init__(self, maxsize: int):
+        if maxsize < 1:
+            raise ValueError(f"maxsize must be ≥ 1, got {maxsize}")
+        self.maxsize = int(maxsize)
+        self._data: collections.OrderedDict = collections.OrderedDict()
+        self._lock = threading.RLock()
+
+    def get(self, key, default=None):
+        with self._lock:
+            if key not in self._data:
+                return default
+            self._data.move_to_end(key)
+            return self._data[key]
+
+    def __getitem__(self, key):
+        with self._lock:
+            value = self._data[key]
+            self._data.move_to_end(key)
+            return value
+
+    def __setitem__(self, key, value):
+        with self._lock:
+            self._data[key] = value
+            self._data.move_to_end(key)
+            while len(self._data) > self.maxsize:
+                self._data.popitem(last=False)
+
+    def __contains__(self, key):
+        with self._lock:
+            return key in self._data
+
+    def __len__(self):
+        with self._lock:
+            return len(self._data)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._data.clear()
+
+
+@dataclass(frozen=True)
+class Registered:
+    """One registered cache: its ``name``, the object (anything with ``clear()``), its scope."""
+
+    name: str
+    cache: object
+    scope: str
+
+
+_REGISTRY: dict[str, Registered] = {}
+
+
+def register(name: str, cache, *, scope: str):
+    """Add ``cache`` (anything with ``clear()``) to the registry under ``name``; returns it.
+
+    ``scope`` is :data:`FILE` or :data:`SESSION` (see the module docstring, which must describe
+    every name). Registering a name again replaces the entry (a reloaded module's new object).
+    """
+    if scope not in (FILE, SESSION):
+        raise ValueError(f"scope must be {FILE!r} or {SESSION!r}, got {scope!r}")
+    if not callable(getattr(cache, "clear", None)):
+        raise TypeError(f"cache {name!r} has no clear()")
+    _REGISTRY[name] = Registered(name, cache, scope)
+    return cache
+
+
+def registered() -> dict[str, Registered]:
+    """Name → :class:`Registered`, in registration order."""
+    return dict(_REGISTRY)
+
+
+def clear(*, file_load: bool = False) -> None:
+    """Empty the caches: after a file load (``file_load``) the FILE ones, otherwise all."""
+    for entry in _REGISTRY.values():
+        if entry.scope == FILE or not file_load:
+            entry.cache.clear()

@@ -1,0 +1,62 @@
+"""What the preview shows for a Blender material: a precompute Material, its key, its caveats.
+
+- :func:`description` — the :class:`~precompute.material.Material` of a Blender material: from
+  the extension's settings when they are enabled (:mod:`.props`), else from a Principled
+  BSDF with a thin film (:mod:`.principled`, Cycles interop), else None;
+- :func:`warnings` — what the preview of a material cannot follow;
+- :func:`description_key` — the cache key of a description: equal descriptions share one
+  baked table (:mod:`.tables`) and one GPU texture.
+"""
+
+from __future__ import annotations
+
+from ..precompute import bake, spectra
+from ..precompute.material import Material
+from .principled import read_principled
+from .props import description_from_props, file_working_space
+
+__all__ = ["description", "description_key", "warnings"]
+
+
+def description(bpy_material) -> Material | None:
+    """What the preview shows for ``bpy_material``, or None if it has no thin film.
+
+    1. The extension's settings (``material.thinfilm_sh``) when enabled.
+    2. Otherwise a Principled BSDF with Thin Film Thickness > 0 (the one feeding the output's
+       Surface, else the first): film index = Thin Film IOR, thickness = Thin Film Thickness,
+       substrate = IOR (dielectric) or, for Metallic > 0.5, a Gulbrandsen (n, k) fit of Base
+       Color and Specular Tint; roughness = Roughness; per-channel colour like Cycles; ambient 1.
+       Linked sockets use their unlinked values (see :func:`warnings`).
+    3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF.
+
+    Raises ValueError (naming the parameter) for invalid settings.
+    """
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    if props is not None and props.enabled:
+        try:
+            return description_from_props(props)
+        except ValueError as exc:
+            raise ValueError(f"material {bpy_material.name!r}: {exc}") from None
+    return read_principled(bpy_material)[0]
+
+
+def warnings(bpy_material) -> list[str]:
+    """What the preview of ``bpy_material`` does not follow (empty when everything is shown)."""
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    if props is not None and props.enabled:
+        notes = []
+        if props.vary_thickness and props.thickness_source == "ATTRIBUTE" and not props.thickness_attribute:
+            notes.append("thickness source ATTRIBUTE needs an attribute name")
+        if props.vary_thickness and props.thickness_source == "IMAGE" and props.thickness_image is None:
+            notes.append("thickness source IMAGE needs an image")
+    else:
+        notes = read_principled(bpy_material)[1]
+    space = file_working_space()
+    if space and space not in spectra.WORKING_SPACES:
+        notes.append(f"working colour space {space!r} is not supported: previewing in Linear Rec.709")
+    return notes
+
+
+def description_key(desc: Material) -> str:
+    """Cache key of a description: :func:`precompute.bake.table_key` (parameters + planner version)."""
+    return bake.table_key(desc)
