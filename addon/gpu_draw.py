@@ -2,7 +2,7 @@
 
 Only ``bpy``/``gpu`` glue lives here and no scene logic: callers hand in arrays, matrices and baked
 tables. The per-pixel maths is in ``glsl/`` (joined here) and mirrors
-:func:`precompute.render.shade_sh` exactly; ``tests/test_gpu_draw.py`` checks one against the
+:func:`precompute.shading.sh_sum.shade_sh` exactly; ``tests/test_gpu_draw.py`` checks one against the
 other.
 
 GPU resources
@@ -20,7 +20,7 @@ GPU resources
     in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
     the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
     ``texelFetch``, on an NVIDIA GPU far more, so only software rasterisers use it
-    (:data:`TABLE_UBO_DEVICES`).
+    (policy.TABLE_UBO_DEVICES).
 ``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14688 bytes:
     ``vec4 sh[169]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
     ``vec4 lamps[17]``: the World's lamps (x of the first = count K ≤ 8, then direction and power
@@ -53,9 +53,8 @@ import bpy
 import gpu
 import numpy as np
 
-from ..precompute import lamps as np_lamps
-from ..precompute import prefilter, render
 from ..precompute.material import MAX_SH_ORDER
+from ..precompute.shading import policy, sh_rotation
 
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 
@@ -67,7 +66,7 @@ SH_SLOTS = (MAX_L + 1) ** 2
 RX_SCALARS = sum((2 * l + 1) ** 2 for l in range(MAX_L + 1))
 RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
 #: The World's lamps (precompute/lamps.py): a count, then direction and power per lamp.
-MAX_LAMPS = np_lamps.MAX_LAMPS
+MAX_LAMPS = policy.MAX_LAMPS
 LAMP_VEC4 = 1 + 2 * MAX_LAMPS
 LIGHTING_VEC4 = SH_SLOTS + LAMP_VEC4 + RX_PADDED // 4
 #: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
@@ -75,7 +74,7 @@ UBO_LIMIT_BYTES = 16384
 #: Table texels (layers × T × A) that fit the table UBO next to its size header.
 TABLE_UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
 
-#: Chunks of the shading library, in dependency order (counterparts in precompute.render).
+#: Chunks of the shading library, in dependency order (counterparts in precompute/shading/).
 LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl")
 
 TYPEDEFS = f"""
@@ -193,27 +192,23 @@ def join_chunks(*names: str) -> str:
     return "\n".join(f"/* ---- {n} ---- */\n{glsl_chunk(n)}" for n in names)
 
 
-#: Entries of the X(±90°) band blocks below this are structural zeros (rounding noise ≤ 3e-16
-#: from the recurrence; the smallest true entry is 2⁻⁷): the generated code skips them.
-X90_ZERO = 1e-9
-
-
 def _x90_band_lines(l: int, sign: int, indent: str) -> list[str]:
     """Band l of the X(±90°) product as straight-line GLSL on the band's variables ``q0 … q2l``.
 
-    Only the structurally non-zero entries (247 of 969 for l ≤ 8) are multiplied; their values
-    are read from the lighting UBO at constant offsets, so the maths is the dense band product
-    of ``render.apply_bands`` minus exact zeros: 3–5× faster than the loops of tf_sh_rotate.glsl
-    on llvmpipe. X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at j·size + i).
+    Only the structurally non-zero entries (247 of 969 for l ≤ 8; policy.X90_ZERO) are
+    multiplied; their values are read from the lighting UBO at constant offsets, so the maths is
+    the dense band product of ``sh_rotation.apply_bands`` minus exact zeros
+    (docs/tuning.md#x90-generated). X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at
+    j·size + i).
     """
-    block = np.asarray(render.x_rotation_bands(MAX_L, sign)[l])
+    block = np.asarray(sh_rotation.x_rotation_bands(MAX_L, sign)[l])
     size, off = 2 * l + 1, rx_offset(l)
     lines = []
     for i in range(size):
         terms = [
             f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * q{j}"
             for j in range(size)
-            if abs(block[i, j]) > X90_ZERO
+            if abs(block[i, j]) > policy.X90_ZERO
         ]
         lines.append(f"{indent}vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
     lines += [f"{indent}q{i} = r{i};" for i in range(size)]
@@ -316,11 +311,11 @@ def declare_shading_resources(info, variant: Variant) -> None:
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_3D", "tf_prefiltered")
         if variant.split_only:
             info.define("TF_SPLIT_ONLY", "1")
-        if prefilter.uses_moment(variant.l_max, variant.split_only):
+        if policy.uses_moment(variant.l_max, variant.split_only):
             info.define("TF_MOMENT", "1")
     if variant.lamps:
         info.define("TF_LAMPS", "1")
-        info.define("TF_LAMP_LEVEL", str(int(np_lamps.LAMP_LEVEL)))
+        info.define("TF_LAMP_LEVEL", str(int(policy.LAMP_LEVEL)))
         if variant.film_ubo:
             info.define("TF_FILM_UBO", "1")
             info.uniform_buf(UBO_FILM, "TFFilm", "tf_film_data")
@@ -453,21 +448,10 @@ def float_buffer(array) -> gpu.types.Buffer:
     return gpu.types.Buffer("FLOAT", data.size, data)
 
 
-#: Devices (``gpu.platform.device_type_get()``) that draw the film's table from the uniform
-#: buffer when it fits (``TF_TABLE_UBO``). Its index depends on the pixel (the view angle), so
-#: the threads of one warp read different addresses. On llvmpipe that load is cheaper than a
-#: ``texelFetch`` (docs/performance.md: 0.81–0.97× the frame); on an NVIDIA H100 it is far dearer
-#: (docs/gpu-frame.md, same film and variant, uniform buffer vs texture: SH only l = 2 4.01 vs
-#: 2.12 ms, l = 5 27.6 vs 6.6 ms, combined l = 2 12.3 vs 3.0 ms). Other GPUs are not measured and
-#: get the texture, the usual layout for a per-pixel lookup. (The lamps' small film table stays
-#: in its uniform buffer everywhere: it measured faster than its texture on both.)
-TABLE_UBO_DEVICES = ("SOFTWARE",)
-
-
 def uses_table_ubo(device_type: str) -> bool:
     """Whether a device of this ``gpu.platform.device_type_get()`` type draws tables from the
-    uniform buffer (:data:`TABLE_UBO_DEVICES`)."""
-    return str(device_type).upper() in TABLE_UBO_DEVICES
+    uniform buffer (policy.TABLE_UBO_DEVICES)."""
+    return str(device_type).upper() in policy.TABLE_UBO_DEVICES
 
 
 def table_ubo_preferred() -> bool:
@@ -555,7 +539,7 @@ def x_rotation_scalars() -> np.ndarray:
     """The Rx(+90°) band blocks, l = 0…MAX_L, row-major, padded to a vec4 (Rx(−90°) = transpose)."""
     out = np.zeros(RX_PADDED, dtype=np.float64)
     flat = np.concatenate(
-        [np.asarray(b, dtype=np.float64).ravel() for b in render.x_rotation_bands(MAX_L, +1)]
+        [np.asarray(b, dtype=np.float64).ravel() for b in sh_rotation.x_rotation_bands(MAX_L, +1)]
     )
     assert flat.size == RX_SCALARS
     out[:RX_SCALARS] = flat
@@ -605,7 +589,7 @@ class Lighting:
 
     @classmethod
     def from_sh(cls, world_coeffs, l_max: int, roughness: float, lamps=None) -> Lighting:
-        """World SH (≥ 1, 3) → windowed by :func:`render.lighting_window` for ``l_max``/``roughness``.
+        """World SH (≥ 1, 3) → windowed by policy.lighting_window for ``l_max``/``roughness``.
 
         Missing coefficients (fewer than (l_max+1)²) are zero; extra ones are dropped.
         ``lamps``: the World's lamps, when ``world_coeffs`` are those of the World without them.
@@ -620,7 +604,7 @@ class Lighting:
         full = np.zeros((k, 3))
         n = min(k, c.shape[0])
         full[:n] = c[:n, :3]
-        windowed = full * np.asarray(render.lighting_window(l_max, float(roughness)))[:k, None]
+        windowed = full * np.asarray(policy.lighting_window(l_max, float(roughness)))[:k, None]
         ensure_gpu_context()
         ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps)))
         return cls(
@@ -802,7 +786,7 @@ class PrefilterTexture:
 @dataclass
 class FilmTexture:
     """A film's reflectance against u = cos θ and its multiple-scattering factor, for the lamps
-    (precompute.lamps.FilmTable; layout in tf_lamps.glsl)."""
+    (precompute.film_colour.FilmTable; layout in tf_lamps.glsl)."""
 
     texture: gpu.types.GPUTexture
     samples: int

@@ -15,7 +15,7 @@ import time
 import bpy
 import numpy as np
 
-from ..precompute import render as np_render
+from ..precompute import image_io
 from . import gpu_draw, materials, scene_draw
 
 
@@ -150,9 +150,9 @@ def render_scene(
         rgb = np.where(bad, 0.0, rgb)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    np_render.write_exr(out.with_suffix(".exr"), rgb)
-    np_render.write_png(
-        out.with_suffix(".png"), np_render.srgb_encode(rgb, float(scene.view_settings.exposure))
+    image_io.write_exr(out.with_suffix(".exr"), rgb)
+    image_io.write_png(
+        out.with_suffix(".png"), image_io.srgb_encode(rgb, float(scene.view_settings.exposure))
     )
     return {
         "png": str(out.with_suffix(".png")),

@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ..precompute import film_colour, prefilter, sh
 from ..precompute import lamps as np_lamps
-from ..precompute import prefilter, sh
+from ..precompute.shading import policy
 from . import gpu_draw, materials, world
 
 log = logging.getLogger(__name__)
@@ -89,7 +90,7 @@ class WorldImage:
     """The World as an equirect image (a small Cycles panorama) and its GGX prefilter on the GPU.
 
     ``lamps``: its bright lamps (precompute.lamps.extract), shaded per light direction; then
-    ``prefiltered`` holds the World without them from lamps.LAMP_LEVEL on, and ``lamp_sh`` is
+    ``prefiltered`` holds the World without them from policy.LAMP_LEVEL on, and ``lamp_sh`` is
     their SH, which the lighting of lamp-shaded materials leaves out. Materials the lamps do
     not apply to (a diffuse base under the film, "World Lamps" off) use
     :meth:`prefiltered_whole`.
@@ -181,7 +182,7 @@ def lighting_for(world_entry, l_max: int, roughness: float, lamps: bool = False)
 
 def film_texture(desc_key: str, result) -> gpu_draw.FilmTexture:
     if desc_key not in CACHES.films:
-        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(np_lamps.film_table(result))
+        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(film_colour.film_table(result))
     return CACHES.films[desc_key]
 
 
@@ -286,7 +287,7 @@ def _material_entry(bpy_material, world_entry, allow_bake: bool, want_bake, mess
         table_texture(key, result),
         lighting_for(world_entry, result.sh_order, roughness, lamps),
         roughness,
-        prefilter.sh_weight(roughness),
+        policy.sh_weight(roughness),
         film_texture(key, result) if lamps else None,
     )
 

@@ -19,9 +19,11 @@ import time
 
 import numpy as np
 
-from precompute import bake, hdri, lamps, prefilter, render, spectra
+from precompute import bake, film_colour, hdri, image_io, lamps, prefilter, render, spectra
 from precompute.cli import studiolight
 from precompute.material import Layer, Material
+from precompute.shading import lamps as lamp_shading
+from precompute.shading import policy, sh_sum, split_sum
 
 SIZE = 64
 FOV_DEG = 32.0
@@ -123,23 +125,21 @@ def our_renders(hdri_path, thickness_nm, film_ior, base_ior, roughness, size=SIZ
     found, mask = lamps.extract(full)
     LAMPS_SEEN[pathlib.Path(hdri_path).stem] = (found.count, found.share)
     rest = lamps.remove(full, mask)
-    film = lamps.film_table(result)
+    film = film_colour.film_table(result)
     background_image, _ = render.prepare_environment(full, result.sh_order, roughness=roughness)
     _, coeffs = render.prepare_environment(rest, result.sh_order, roughness=roughness)
     pre = prefilter.prefilter(full, lamp_mask=mask)
     view = render.sphere_view(size, size, DISTANCE, FOV_DEG, supersample=SUPERSAMPLE)
     m = view.mask
     n, v = view.normals[m], view.views[m]
-    background = render.equirect_lookup(background_image, view.rays)
+    background = hdri.equirect_lookup(background_image, view.rays)
     split, sh_only, combined = background.copy(), background.copy(), background.copy()
-    lit = lamps.shade(film, found, roughness, n, v)
+    lit = lamp_shading.shade(film, found, roughness, n, v)
     cos_o = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
-    split_lamps = (
-        prefilter.lamp_weight_at(pre, prefilter.effective_roughness(roughness, cos_o))[:, None] * lit
-    )
-    split[m] = prefilter.shade_split_sum(result, pre, n, v) + split_lamps
-    sh_only[m] = render.shade_sh(result, coeffs, n, v) + lit
-    combined[m] = prefilter.shade_combined(result, coeffs, pre, n, v, lamps=found, film=film)
+    split_lamps = split_sum.lamp_weight_at(pre, policy.effective_roughness(roughness, cos_o))[:, None] * lit
+    split[m] = split_sum.shade_split_sum(result, pre, n, v) + split_lamps
+    sh_only[m] = sh_sum.shade_sh(result, coeffs, n, v) + lit
+    combined[m] = split_sum.shade_combined(result, coeffs, pre, n, v, lamps=found, film=film)
     out = {
         name: render.box_downsample(img, SUPERSAMPLE)
         for name, img in (("split_sum", split), ("sh", sh_only), ("combined", combined))
@@ -179,7 +179,7 @@ def brute_force_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, s
     while max_width is not None and full.shape[1] > max_width:
         full = hdri.downsample(full, 2)
     view = render.sphere_view(size, size, DISTANCE, FOV_DEG, supersample=BRUTE_SUPERSAMPLE)
-    out = render.equirect_lookup(full, view.rays)
+    out = hdri.equirect_lookup(full, view.rays)
     m = view.mask
     out[m] = render.shade_reference(material, full, view.normals[m], view.views[m], n_theta=48, n_phi=48)
     return render.box_downsample(out, BRUTE_SUPERSAMPLE)
@@ -256,11 +256,13 @@ def write_picture(rows, path) -> None:
         de[mask] = delta_e_2000(ours[mask], ref[mask], ref[mask])
         grey = np.repeat(np.clip(de / 20.0, 0.0, 1.0)[..., None], 3, axis=-1)
         strips.append(
-            np.concatenate([render.srgb_encode(ref * scale), render.srgb_encode(ours * scale), grey], axis=1)
+            np.concatenate(
+                [image_io.srgb_encode(ref * scale), image_io.srgb_encode(ours * scale), grey], axis=1
+            )
         )
     grid = np.concatenate(strips, axis=0)
     path.parent.mkdir(parents=True, exist_ok=True)
-    render.write_png(path, grid)  # 64 px per panel: the docs/images limit is 150 KB
+    image_io.write_png(path, grid)  # 64 px per panel: the docs/images limit is 150 KB
 
 
 def main(argv=None) -> int:
@@ -271,7 +273,7 @@ def main(argv=None) -> int:
     cases = CASES[2::4] if args.quick else CASES
     t0 = time.perf_counter()
     rows = [compare_case(*c, samples=64 if args.quick else 256, brute=not args.quick) for c in cases]
-    lo, hi = prefilter.SH_BLEND
+    lo, hi = policy.SH_BLEND
     met = sum(r["combined"][0] <= limit(r["roughness"]) for r in rows)
     lines = [
         "# Our renders vs Cycles (Principled thin film)",
@@ -297,7 +299,7 @@ def main(argv=None) -> int:
         "and ≥ 0.5, ≤ 3.5 at 0.3).",
         "",
         "All three of our paths shade the World's lamps as the add-on does (precompute/lamps.py):",
-        f"pixels brighter than {lamps.THRESHOLD:g}× the mean luminance become at most {lamps.MAX_LAMPS}",
+        f"pixels brighter than {lamps.THRESHOLD:g}× the mean luminance become at most {policy.MAX_LAMPS}",
         "directional lights, each shaded with the exact microfacet BRDF and the film's colour at its",
         "own half-vector; the SH and the prefilter see the World without them (the prefilter keeps",
         "them in its two sharpest levels, roughness < 0.0625). Lamps per HDRI: "
@@ -319,7 +321,7 @@ def main(argv=None) -> int:
         lim = limit(r["roughness"])
         lines.append(
             f"| {r['hdri']} | {r['thickness_nm']:g} | {r['film_ior']:g} | {r['base_ior']:g} | "
-            f"{r['roughness']:g} | {r['sh_order']} | {prefilter.sh_weight(r['roughness']):.2f} | "
+            f"{r['roughness']:g} | {r['sh_order']} | {policy.sh_weight(r['roughness']):.2f} | "
             f"{brute_cell} | {cells} | **{r['combined'][0]:.2f}** / {r['combined'][1]:.1f} | {lim:g} | "
             f"{'yes' if r['combined'][0] <= lim else 'no'} |"
         )
