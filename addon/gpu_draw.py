@@ -47,7 +47,6 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import bpy
 import gpu
@@ -55,6 +54,7 @@ import numpy as np
 
 from ..precompute.material import MAX_SH_ORDER
 from ..precompute.shading import policy, sh_rotation
+from ..precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, Variant, choose_variant
 
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 
@@ -69,10 +69,9 @@ RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
 MAX_LAMPS = policy.MAX_LAMPS
 LAMP_VEC4 = 1 + 2 * MAX_LAMPS
 LIGHTING_VEC4 = SH_SLOTS + LAMP_VEC4 + RX_PADDED // 4
-#: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
-UBO_LIMIT_BYTES = 16384
-#: Table texels (layers × T × A) that fit the table UBO next to its size header.
-TABLE_UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
+#: Table texels (layers × T × A) that fit the table UBO next to its size header (UBO_LIMIT_BYTES:
+#: the minimum uniform-buffer size every backend guarantees).
+TABLE_UBO_TEXELS = UBO_TEXELS
 
 #: Chunks of the shading library, in dependency order (counterparts in precompute/shading/).
 LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl")
@@ -277,54 +276,24 @@ def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
     )
 
 
-class Variant(NamedTuple):
-    """A compiled shader variant."""
-
-    l_max: int
-    spectral: bool
-    vary_thickness: bool
-    display: bool
-    split_sum: bool = False
-    table_ubo: bool = False
-    #: Split sum alone (``sh_weight`` = 0, glossy films): the SH half is compiled out.
-    split_only: bool = False
-    #: The World's lamps shaded per light direction (tf_lamps.glsl, the film texture).
-    lamps: bool = False
-    #: The lamps' film table read from the ``TFFilm`` uniform buffer (small tables).
-    film_ubo: bool = False
-
-
 def declare_shading_resources(info, variant: Variant) -> None:
-    """Defines, types, the lighting UBO and the table (sampler, or UBO with ``table_ubo``) that
-    :func:`shading_library` uses."""
+    """Defines (:meth:`Variant.defines`: the variant's switches and the shading rules), types, the
+    lighting UBO and the table (sampler, or UBO with ``table_ubo``) that :func:`shading_library`
+    uses."""
     if not 0 <= variant.l_max <= MAX_L:
         raise ValueError(f"l_max must lie in 0…{MAX_L}, got {variant.l_max}")
-    info.define("TF_L_MAX", str(int(variant.l_max)))
-    if variant.spectral:
-        info.define("TF_SPECTRAL", "1")
-    if variant.vary_thickness:
-        info.define("TF_VARY_THICKNESS", "1")
-    if variant.display:
-        info.define("TF_DISPLAY_SRGB", "1")
+    for name, value in variant.defines():
+        info.define(name, value)
     if variant.split_sum:
-        info.define("TF_SPLIT_SUM", "1")
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_3D", "tf_prefiltered")
-        if variant.split_only:
-            info.define("TF_SPLIT_ONLY", "1")
-        if policy.uses_moment(variant.l_max, variant.split_only):
-            info.define("TF_MOMENT", "1")
     if variant.lamps:
-        info.define("TF_LAMPS", "1")
-        info.define("TF_LAMP_LEVEL", str(int(policy.LAMP_LEVEL)))
         if variant.film_ubo:
-            info.define("TF_FILM_UBO", "1")
             info.uniform_buf(UBO_FILM, "TFFilm", "tf_film_data")
         else:
             info.sampler(SAMPLER_FILM, "FLOAT_2D_ARRAY", "tf_film")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
     if variant.table_ubo:
-        info.define("TF_TABLE_UBO", "1")
         info.uniform_buf(UBO_TABLE, "TFTable", "tf_table_data")
     else:
         info.sampler(SAMPLER_TABLE, "FLOAT_2D_ARRAY", "tf_table")
@@ -410,18 +379,16 @@ class ShaderCache:
         lamps: bool = False,
         film_ubo: bool = False,
     ):
-        """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
-        variant = Variant(
-            int(l_max),
-            bool(spectral),
-            bool(vary_thickness),
-            bool(display),
-            bool(split_sum),
-            bool(table_ubo),
-            bool(split_sum and split_only),
-            bool(lamps),
-            bool(lamps and film_ubo),
+        """The mesh shader of a variant given field by field (see :class:`Variant`)."""
+        return self.mesh(
+            Variant(
+                l_max, spectral, vary_thickness, display, split_sum, table_ubo, split_only, lamps, film_ubo
+            )
         )
+
+    def mesh(self, variant: Variant):
+        """The mesh shader of a :class:`Variant` (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
+        variant = variant.normalised()
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
     def background(self, display: bool):
@@ -972,7 +939,7 @@ def view_ubo(view_matrix, projection_matrix, exposure: float = 0.0, uniforms=Non
 class DrawGroup:
     """Consecutive draws that share a shader variant, lighting, table and prefiltered World."""
 
-    variant: tuple
+    variant: Variant
     shader: gpu.types.GPUShader
     lighting: gpu.types.GPUUniformBuf
     table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
@@ -1027,10 +994,24 @@ def prepare_draw(
         if batch is None:
             continue
         table = item.table
-        vary = has_thickness and table.thickness_count > 1
         prefiltered = getattr(item, "prefiltered", None)
         sh_weight = float(getattr(item, "sh_weight", 1.0))
-        split = prefiltered is not None and sh_weight < 1.0
+        table_ubo = getattr(table, "ubo", None)
+        film = getattr(item, "film", None)
+        variant = choose_variant(
+            l_max=table.l_max,
+            spectral=table.spectral,
+            thickness_rows=table.thickness_count,
+            has_thickness=has_thickness,
+            display=display_srgb,
+            prefiltered=prefiltered is not None,
+            sh_weight=sh_weight,
+            lamp_count=getattr(item.lighting, "lamp_count", 0),
+            film=film is not None,
+            film_ubo=film is not None and film.ubo is not None,
+            table_ubo=table_ubo is not None,
+        )
+        split = variant.split_sum
         roughness = float(getattr(item, "roughness", 0.0))
         weight = sh_weight if split else 1.0
         model = _matrix(item.model_matrix)
@@ -1038,26 +1019,9 @@ def prepare_draw(
             ("object", model.tobytes(), roughness, weight),
             lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
         )
-        table_ubo = getattr(table, "ubo", None)
-        table_data = table.texture if table_ubo is None else table_ubo
-        # sh_weight 0 (glossy films): a variant without the SH half. A run-time branch on the
-        # weight did not save it on llvmpipe (split only cost as much as split + SH).
-        split_only = split and sh_weight <= 0.0
-        film = getattr(item, "film", None)
-        lamps = film is not None and getattr(item.lighting, "lamp_count", 0) > 0
-        film_ubo = lamps and film.ubo is not None
-        film_data = (film.ubo if film_ubo else film.texture) if lamps else None
-        variant = (
-            table.l_max,
-            table.spectral,
-            vary,
-            display_srgb,
-            split,
-            table_ubo is not None,
-            split_only,
-            lamps,
-            film_ubo,
-        )
+        table_data = table.ubo if variant.table_ubo else table.texture
+        lamps = variant.lamps
+        film_data = (film.ubo if variant.film_ubo else film.texture) if lamps else None
         key = (
             variant,
             id(item.lighting.ubo),
@@ -1069,7 +1033,7 @@ def prepare_draw(
         if group is None:
             group = groups[key] = DrawGroup(
                 variant,
-                shaders.get(*variant),
+                shaders.mesh(variant),
                 item.lighting.ubo,
                 table_data,
                 prefiltered.texture if split else None,
@@ -1108,14 +1072,14 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.bind()
                 shader.uniform_block("tf_view", prepared.view)
             shader.uniform_block("tf_lighting", group.lighting)
-            if group.variant[5]:
+            if group.variant.table_ubo:
                 shader.uniform_block("tf_table_data", group.table)
             else:
                 shader.uniform_sampler("tf_table", group.table)
             if group.prefiltered is not None:
                 shader.uniform_sampler("tf_prefiltered", group.prefiltered)
             if group.film is not None:
-                if group.variant[8]:
+                if group.variant.film_ubo:
                     shader.uniform_block("tf_film_data", group.film)
                 else:
                     shader.uniform_sampler("tf_film", group.film)

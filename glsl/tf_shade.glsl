@@ -1,6 +1,6 @@
 /* tf_shade.glsl: one pixel of thin-film SH shading.
  *
- * numpy counterpart: render.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
+ * numpy counterpart: shading.sh_sum.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
  * fast library, TF_X90_GENERATED, straight from the frame for l <= 2: tf_sh_rotate.glsl, and from
  * l = 3 on rotated and summed band by band, gpu_draw.banded_source), table
  * lookup at theta_o (and thickness), out = max(sum_i M_i L_i, 0) over the kept (m >= 0)

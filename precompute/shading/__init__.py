@@ -22,6 +22,8 @@ tf_lamps.glsl ``tf_shade_lamps``,       lamps.py: ``shade``, ``lamp_weight``,
 ``tf_film_at``                          ``level_lamp_weights``
 ``#define``s of the shading rules       policy.py: ``glsl_defines`` (and every rule's value)
 (``TF_MAX_LAMPS``, ``TF_MIN_COS``, …)
+variant ``#define``s (``TF_L_MAX``,     variant.py: ``Variant.defines``, ``choose_variant``
+``TF_SPLIT_SUM``, ``TF_MOMENT``, …)
 ======================================  ====================================================
 
 The brute-force ground truth these are checked against (no SH) is precompute/render.py's
