@@ -44,7 +44,6 @@ No push constants are used (Vulkan keeps only 128 bytes of them).
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,7 +52,14 @@ import gpu
 import numpy as np
 
 from ..precompute.material import MAX_SH_ORDER
-from ..precompute.shading import policy, sh_rotation
+from ..precompute.shading import policy
+from ..precompute.shading.codegen import (
+    RX_PADDED,
+    X90_GENERATED,
+    banded_source,
+    define_block,
+    x_rotation_scalars,
+)
 from ..precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, Variant, choose_variant
 
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
@@ -62,9 +68,6 @@ GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 MAX_L = MAX_SH_ORDER
 #: World SH coefficients in the lighting UBO: (MAX_L + 1)².
 SH_SLOTS = (MAX_L + 1) ** 2
-#: Scalars of one set of x-rotation band blocks for l = 0…MAX_L, and with padding to a vec4.
-RX_SCALARS = sum((2 * l + 1) ** 2 for l in range(MAX_L + 1))
-RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
 #: The World's lamps (precompute/lamps.py): a count, then direction and power per lamp.
 MAX_LAMPS = policy.MAX_LAMPS
 LAMP_VEC4 = 1 + 2 * MAX_LAMPS
@@ -191,72 +194,6 @@ def join_chunks(*names: str) -> str:
     return "\n".join(f"/* ---- {n} ---- */\n{glsl_chunk(n)}" for n in names)
 
 
-def _x90_band_lines(l: int, sign: int, indent: str) -> list[str]:
-    """Band l of the X(±90°) product as straight-line GLSL on the band's variables ``q0 … q2l``.
-
-    Only the structurally non-zero entries (247 of 969 for l ≤ 8; policy.X90_ZERO) are
-    multiplied; their values are read from the lighting UBO at constant offsets, so the maths is
-    the dense band product of ``sh_rotation.apply_bands`` minus exact zeros
-    (docs/tuning.md#x90-generated). X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at
-    j·size + i).
-    """
-    block = np.asarray(sh_rotation.x_rotation_bands(MAX_L, sign)[l])
-    size, off = 2 * l + 1, rx_offset(l)
-    lines = []
-    for i in range(size):
-        terms = [
-            f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * q{j}"
-            for j in range(size)
-            if abs(block[i, j]) > policy.X90_ZERO
-        ]
-        lines.append(f"{indent}vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
-    lines += [f"{indent}q{i} = r{i};" for i in range(size)]
-    return lines
-
-
-@functools.cache
-def banded_source(l_max: int) -> str:
-    """``tf_banded_sum``: the z-y-z rotation and the SH sum of tf_shade, one band at a time.
-
-    Rotations never mix bands, so each band is loaded into its own variables, turned (Z(c),
-    X(+90°), Z(b), X(−90°), Z(a): the operations of ``tf_local_coefficients`` in the same order)
-    and summed against the table before the next is touched: at most one band (25 vec3 at
-    l = 12) and the angle powers are live at a time, instead of the (l + 1)² coefficients of
-    ``tf_c``. Used by the fast library from l = 3 on (below, ``tf_local_coefficients_direct``).
-    """
-    lines = [
-        "/* ---- generated: addon/gpu_draw.py banded_source ---- */",
-        "vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c)",
-        "{",
-        "  vec3 sum = vec3(0.0);",
-        "  tf_accumulate_value(sum, r, 0, tf_lighting.sh[0].rgb);",
-    ]
-    for l in range(1, int(l_max) + 1):
-        first = l * l
-        for name, angle in (("pc", "c"), ("pb", "b"), ("pa", "a")):  # c_m = c_(m-1) c_1 (tf_rotate_z)
-            power = angle if l == 1 else f"tf_cmul({name}{l - 1}, {angle})"
-            lines.append(f"  vec2 {name}{l} = {power};")
-        lines.append(f"  {{ /* band {l} */")
-        lines += [f"    vec3 q{j} = tf_lighting.sh[{first + j}].rgb;" for j in range(2 * l + 1)]
-        for stage in ("pc", +1, "pb", -1, "pa"):
-            if isinstance(stage, str):  # tf_zpair on (+m, -m) = local (l + m, l - m)
-                for m in range(1, l + 1):
-                    p, n, cm = f"q{l + m}", f"q{l - m}", f"{stage}{m}"
-                    lines.append(
-                        f"    {{ vec3 zc = {p}; vec3 zs = {n}; {p} = zc * {cm}.x - zs * {cm}.y;"
-                        f" {n} = zc * {cm}.y + zs * {cm}.x; }}"
-                    )
-            else:
-                lines.append("    {")
-                lines += _x90_band_lines(l, stage, "      ")
-                lines.append("    }")
-        kept = l * (l + 1) // 2
-        lines += [f"    tf_accumulate_value(sum, r, {kept + m}, q{l + m});" for m in range(l + 1)]
-        lines.append("  }")
-    lines += ["  return sum;", "}"]
-    return "\n".join(lines)
-
-
 def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
     """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
 
@@ -269,7 +206,7 @@ def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
         return join_chunks(*LIBRARY_CHUNKS)
     return "\n".join(
         [
-            "#define TF_X90_GENERATED 1",
+            define_block([X90_GENERATED]),
             join_chunks(*LIBRARY_CHUNKS),
             banded_source(l_max) if l_max > 2 else "",
         ]
@@ -499,24 +436,6 @@ class TableTexture:
         packed = cls.uniform_array(layers) if uniform else None
         ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
         return cls(texture, l_max, a, t, data.ndim == 5, n_layers, ubo)
-
-
-@functools.cache
-def x_rotation_scalars() -> np.ndarray:
-    """The Rx(+90°) band blocks, l = 0…MAX_L, row-major, padded to a vec4 (Rx(−90°) = transpose)."""
-    out = np.zeros(RX_PADDED, dtype=np.float64)
-    flat = np.concatenate(
-        [np.asarray(b, dtype=np.float64).ravel() for b in sh_rotation.x_rotation_bands(MAX_L, +1)]
-    )
-    assert flat.size == RX_SCALARS
-    out[:RX_SCALARS] = flat
-    out.setflags(write=False)
-    return out
-
-
-def rx_offset(l: int) -> int:
-    """Scalar offset of band l within one set of x-rotation blocks: Σ_{j<l} (2j+1)²."""
-    return l * (2 * l - 1) * (2 * l + 1) // 3
 
 
 @dataclass

@@ -9,14 +9,14 @@
  * It is written out band by band so that every array index is a constant: GPUs (and llvmpipe)
  * keep tf_c in registers only when no index is computed at run time.
  *
- * X(+-90) are constant band blocks read from the lighting UBO (gpu_draw.x_rotation_scalars):
+ * X(+-90) are constant band blocks read from the lighting UBO (codegen.x_rotation_scalars):
  *   tf_lighting.sh[169] world radiance coefficient i = l(l+1)+m in .rgb (windowed)
  *   tf_lighting.rx[732] the blocks of X(+90) for l = 0..12, row-major, band l at scalar offset
  *                       l(2l-1)(2l+1)/3; X(-90) is their transpose (indices swapped).
  * The z-y-z path below (tf_local_coefficients: loops for X(+-90)) is the readable reference,
  * used when the generated code is switched off. The fast library (TF_X90_GENERATED) compiles it
  * out: for TF_L_MAX <= 2 it uses tf_local_coefficients_direct (end of this file), the same
- * rotation from the frame rows; above, gpu_draw.banded_source generates the same operations as
+ * rotation from the frame rows; above, codegen.banded_source generates the same operations as
  * straight-line code over the structurally non-zero X(+-90) entries, one band at a time, summed
  * as it goes (tf_banded_sum). The tests compare both with numpy.
  * Needs: TF_L_MAX, TF_K_FULL, TF_BAND_MAX (tf_common.glsl).

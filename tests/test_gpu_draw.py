@@ -19,8 +19,8 @@ from _extension import EXTENSION_ID, REPO, linked_extension
 
 from precompute import bake, film_colour, hdri, image_io, render, sh
 from precompute.material import Layer, Material, Quality
+from precompute.shading import codegen, policy, sh_rotation, sh_sum, split_sum
 from precompute.shading import lamps as lamp_shading
-from precompute.shading import policy, sh_rotation, sh_sum, split_sum
 
 pytestmark = pytest.mark.blender
 
@@ -280,16 +280,16 @@ def test_table_layers_and_lighting_layout(gd):
     # One set: X(+90°) row-major; X(−90°) is read as its transpose.
     for sign in (+1, -1):
         for l, block in enumerate(sh_rotation.x_rotation_bands(gd.MAX_L, sign)):
-            stored = rx[gd.rx_offset(l) : gd.rx_offset(l) + block.size].reshape(block.shape)
+            stored = rx[codegen.rx_offset(l) : codegen.rx_offset(l) + block.size].reshape(block.shape)
             assert np.allclose(stored if sign > 0 else stored.T, block, atol=1e-7)
-    # The generated X(±90°) code (band by band, gpu_draw.banded_source) multiplies exactly the
+    # The generated X(±90°) code (band by band, codegen.banded_source) multiplies exactly the
     # structurally non-zero entries.
     nonzero = sum(
         int(np.sum(np.abs(b) > policy.X90_ZERO))
         for s in (1, -1)
         for b in sh_rotation.x_rotation_bands(8, s)[1:]
     )
-    assert gd.banded_source(8).count("tf_rx(") == nonzero == 2 * 246
+    assert codegen.banded_source(8).count("tf_rx(") == nonzero == 2 * 246
 
 
 # ----------------------------------------------------------------------------------------------

@@ -24,6 +24,8 @@ tf_lamps.glsl ``tf_shade_lamps``,       lamps.py: ``shade``, ``lamp_weight``,
 (``TF_MAX_LAMPS``, ``TF_MIN_COS``, …)
 variant ``#define``s (``TF_L_MAX``,     variant.py: ``Variant.defines``, ``choose_variant``
 ``TF_SPLIT_SUM``, ``TF_MOMENT``, …)
+generated code (``tf_banded_sum``,      codegen.py: ``banded_source``, ``x90_band_lines``,
+the X(±90°) constants' layout)          ``x_rotation_scalars``, ``operation_counts``
 ======================================  ====================================================
 
 The brute-force ground truth these are checked against (no SH) is precompute/render.py's
