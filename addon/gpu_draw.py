@@ -2,7 +2,7 @@
 
 Only ``bpy``/``gpu`` glue lives here and no scene logic: callers hand in arrays, matrices and baked
 tables. The per-pixel maths is in ``glsl/`` (joined here) and mirrors
-:func:`precompute.render.shade_sh` exactly; ``tests/test_gpu_draw.py`` checks one against the
+:func:`precompute.shading.sh_sum.shade_sh` exactly; ``tests/test_gpu_draw.py`` checks one against the
 other.
 
 GPU resources
@@ -20,7 +20,7 @@ GPU resources
     in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
     the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
     ``texelFetch``, on an NVIDIA GPU far more, so only software rasterisers use it
-    (:data:`TABLE_UBO_DEVICES`).
+    (policy.TABLE_UBO_DEVICES).
 ``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14688 bytes:
     ``vec4 sh[169]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
     ``vec4 lamps[17]``: the World's lamps (x of the first = count K ≤ 8, then direction and power
@@ -44,18 +44,23 @@ No push constants are used (Vulkan keeps only 128 bytes of them).
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import bpy
 import gpu
 import numpy as np
 
-from ..precompute import lamps as np_lamps
-from ..precompute import prefilter, render
 from ..precompute.material import MAX_SH_ORDER
+from ..precompute.shading import policy
+from ..precompute.shading.codegen import (
+    RX_PADDED,
+    X90_GENERATED,
+    banded_source,
+    define_block,
+    x_rotation_scalars,
+)
+from ..precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, Variant, choose_variant
 
 GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 
@@ -63,19 +68,15 @@ GLSL_DIR = Path(__file__).resolve().parent.parent / "glsl"
 MAX_L = MAX_SH_ORDER
 #: World SH coefficients in the lighting UBO: (MAX_L + 1)².
 SH_SLOTS = (MAX_L + 1) ** 2
-#: Scalars of one set of x-rotation band blocks for l = 0…MAX_L, and with padding to a vec4.
-RX_SCALARS = sum((2 * l + 1) ** 2 for l in range(MAX_L + 1))
-RX_PADDED = 4 * math.ceil(RX_SCALARS / 4)
 #: The World's lamps (precompute/lamps.py): a count, then direction and power per lamp.
-MAX_LAMPS = np_lamps.MAX_LAMPS
+MAX_LAMPS = policy.MAX_LAMPS
 LAMP_VEC4 = 1 + 2 * MAX_LAMPS
 LIGHTING_VEC4 = SH_SLOTS + LAMP_VEC4 + RX_PADDED // 4
-#: Minimum UBO size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
-UBO_LIMIT_BYTES = 16384
-#: Table texels (layers × T × A) that fit the table UBO next to its size header.
-TABLE_UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
+#: Table texels (layers × T × A) that fit the table UBO next to its size header (UBO_LIMIT_BYTES:
+#: the minimum uniform-buffer size every backend guarantees).
+TABLE_UBO_TEXELS = UBO_TEXELS
 
-#: Chunks of the shading library, in dependency order (counterparts in precompute.render).
+#: Chunks of the shading library, in dependency order (counterparts in precompute/shading/).
 LIBRARY_CHUNKS = ("tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl")
 
 TYPEDEFS = f"""
@@ -193,76 +194,6 @@ def join_chunks(*names: str) -> str:
     return "\n".join(f"/* ---- {n} ---- */\n{glsl_chunk(n)}" for n in names)
 
 
-#: Entries of the X(±90°) band blocks below this are structural zeros (rounding noise ≤ 3e-16
-#: from the recurrence; the smallest true entry is 2⁻⁷): the generated code skips them.
-X90_ZERO = 1e-9
-
-
-def _x90_band_lines(l: int, sign: int, indent: str) -> list[str]:
-    """Band l of the X(±90°) product as straight-line GLSL on the band's variables ``q0 … q2l``.
-
-    Only the structurally non-zero entries (247 of 969 for l ≤ 8) are multiplied; their values
-    are read from the lighting UBO at constant offsets, so the maths is the dense band product
-    of ``render.apply_bands`` minus exact zeros: 3–5× faster than the loops of tf_sh_rotate.glsl
-    on llvmpipe. X(−90°) reads the X(+90°) blocks transposed (entry (i, j) at j·size + i).
-    """
-    block = np.asarray(render.x_rotation_bands(MAX_L, sign)[l])
-    size, off = 2 * l + 1, rx_offset(l)
-    lines = []
-    for i in range(size):
-        terms = [
-            f"tf_rx({off + (i * size + j if sign > 0 else j * size + i)}) * q{j}"
-            for j in range(size)
-            if abs(block[i, j]) > X90_ZERO
-        ]
-        lines.append(f"{indent}vec3 r{i} = " + (" + ".join(terms) or "vec3(0.0)") + ";")
-    lines += [f"{indent}q{i} = r{i};" for i in range(size)]
-    return lines
-
-
-@functools.cache
-def banded_source(l_max: int) -> str:
-    """``tf_banded_sum``: the z-y-z rotation and the SH sum of tf_shade, one band at a time.
-
-    Rotations never mix bands, so each band is loaded into its own variables, turned (Z(c),
-    X(+90°), Z(b), X(−90°), Z(a): the operations of ``tf_local_coefficients`` in the same order)
-    and summed against the table before the next is touched: at most one band (25 vec3 at
-    l = 12) and the angle powers are live at a time, instead of the (l + 1)² coefficients of
-    ``tf_c``. Used by the fast library from l = 3 on (below, ``tf_local_coefficients_direct``).
-    """
-    lines = [
-        "/* ---- generated: addon/gpu_draw.py banded_source ---- */",
-        "vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c)",
-        "{",
-        "  vec3 sum = vec3(0.0);",
-        "  tf_accumulate_value(sum, r, 0, tf_lighting.sh[0].rgb);",
-    ]
-    for l in range(1, int(l_max) + 1):
-        first = l * l
-        for name, angle in (("pc", "c"), ("pb", "b"), ("pa", "a")):  # c_m = c_(m-1) c_1 (tf_rotate_z)
-            power = angle if l == 1 else f"tf_cmul({name}{l - 1}, {angle})"
-            lines.append(f"  vec2 {name}{l} = {power};")
-        lines.append(f"  {{ /* band {l} */")
-        lines += [f"    vec3 q{j} = tf_lighting.sh[{first + j}].rgb;" for j in range(2 * l + 1)]
-        for stage in ("pc", +1, "pb", -1, "pa"):
-            if isinstance(stage, str):  # tf_zpair on (+m, -m) = local (l + m, l - m)
-                for m in range(1, l + 1):
-                    p, n, cm = f"q{l + m}", f"q{l - m}", f"{stage}{m}"
-                    lines.append(
-                        f"    {{ vec3 zc = {p}; vec3 zs = {n}; {p} = zc * {cm}.x - zs * {cm}.y;"
-                        f" {n} = zc * {cm}.y + zs * {cm}.x; }}"
-                    )
-            else:
-                lines.append("    {")
-                lines += _x90_band_lines(l, stage, "      ")
-                lines.append("    }")
-        kept = l * (l + 1) // 2
-        lines += [f"    tf_accumulate_value(sum, r, {kept + m}, q{l + m});" for m in range(l + 1)]
-        lines.append("  }")
-    lines += ["  return sum;", "}"]
-    return "\n".join(lines)
-
-
 def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
     """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
 
@@ -275,61 +206,31 @@ def shading_library(l_max: int, *, generated_x90: bool = True) -> str:
         return join_chunks(*LIBRARY_CHUNKS)
     return "\n".join(
         [
-            "#define TF_X90_GENERATED 1",
+            define_block([X90_GENERATED]),
             join_chunks(*LIBRARY_CHUNKS),
             banded_source(l_max) if l_max > 2 else "",
         ]
     )
 
 
-class Variant(NamedTuple):
-    """A compiled shader variant."""
-
-    l_max: int
-    spectral: bool
-    vary_thickness: bool
-    display: bool
-    split_sum: bool = False
-    table_ubo: bool = False
-    #: Split sum alone (``sh_weight`` = 0, glossy films): the SH half is compiled out.
-    split_only: bool = False
-    #: The World's lamps shaded per light direction (tf_lamps.glsl, the film texture).
-    lamps: bool = False
-    #: The lamps' film table read from the ``TFFilm`` uniform buffer (small tables).
-    film_ubo: bool = False
-
-
 def declare_shading_resources(info, variant: Variant) -> None:
-    """Defines, types, the lighting UBO and the table (sampler, or UBO with ``table_ubo``) that
-    :func:`shading_library` uses."""
+    """Defines (:meth:`Variant.defines`: the variant's switches and the shading rules), types, the
+    lighting UBO and the table (sampler, or UBO with ``table_ubo``) that :func:`shading_library`
+    uses."""
     if not 0 <= variant.l_max <= MAX_L:
         raise ValueError(f"l_max must lie in 0…{MAX_L}, got {variant.l_max}")
-    info.define("TF_L_MAX", str(int(variant.l_max)))
-    if variant.spectral:
-        info.define("TF_SPECTRAL", "1")
-    if variant.vary_thickness:
-        info.define("TF_VARY_THICKNESS", "1")
-    if variant.display:
-        info.define("TF_DISPLAY_SRGB", "1")
+    for name, value in variant.defines():
+        info.define(name, value)
     if variant.split_sum:
-        info.define("TF_SPLIT_SUM", "1")
         info.sampler(SAMPLER_PREFILTERED, "FLOAT_3D", "tf_prefiltered")
-        if variant.split_only:
-            info.define("TF_SPLIT_ONLY", "1")
-        if prefilter.uses_moment(variant.l_max, variant.split_only):
-            info.define("TF_MOMENT", "1")
     if variant.lamps:
-        info.define("TF_LAMPS", "1")
-        info.define("TF_LAMP_LEVEL", str(int(np_lamps.LAMP_LEVEL)))
         if variant.film_ubo:
-            info.define("TF_FILM_UBO", "1")
             info.uniform_buf(UBO_FILM, "TFFilm", "tf_film_data")
         else:
             info.sampler(SAMPLER_FILM, "FLOAT_2D_ARRAY", "tf_film")
     info.typedef_source(TYPEDEFS)
     info.uniform_buf(UBO_LIGHTING, "TFLighting", "tf_lighting")
     if variant.table_ubo:
-        info.define("TF_TABLE_UBO", "1")
         info.uniform_buf(UBO_TABLE, "TFTable", "tf_table_data")
     else:
         info.sampler(SAMPLER_TABLE, "FLOAT_2D_ARRAY", "tf_table")
@@ -415,18 +316,16 @@ class ShaderCache:
         lamps: bool = False,
         film_ubo: bool = False,
     ):
-        """The mesh shader of a variant (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
-        variant = Variant(
-            int(l_max),
-            bool(spectral),
-            bool(vary_thickness),
-            bool(display),
-            bool(split_sum),
-            bool(table_ubo),
-            bool(split_sum and split_only),
-            bool(lamps),
-            bool(lamps and film_ubo),
+        """The mesh shader of a variant given field by field (see :class:`Variant`)."""
+        return self.mesh(
+            Variant(
+                l_max, spectral, vary_thickness, display, split_sum, table_ubo, split_only, lamps, film_ubo
+            )
         )
+
+    def mesh(self, variant: Variant):
+        """The mesh shader of a :class:`Variant` (``TF_L_MAX``, ``TF_SPECTRAL``, ``TF_SPLIT_SUM``, …)."""
+        variant = variant.normalised()
         return self._compile(variant, lambda: _mesh_shader_info(variant, self.generated_x90))
 
     def background(self, display: bool):
@@ -453,21 +352,10 @@ def float_buffer(array) -> gpu.types.Buffer:
     return gpu.types.Buffer("FLOAT", data.size, data)
 
 
-#: Devices (``gpu.platform.device_type_get()``) that draw the film's table from the uniform
-#: buffer when it fits (``TF_TABLE_UBO``). Its index depends on the pixel (the view angle), so
-#: the threads of one warp read different addresses. On llvmpipe that load is cheaper than a
-#: ``texelFetch`` (docs/performance.md: 0.81–0.97× the frame); on an NVIDIA H100 it is far dearer
-#: (docs/gpu-frame.md, same film and variant, uniform buffer vs texture: SH only l = 2 4.01 vs
-#: 2.12 ms, l = 5 27.6 vs 6.6 ms, combined l = 2 12.3 vs 3.0 ms). Other GPUs are not measured and
-#: get the texture, the usual layout for a per-pixel lookup. (The lamps' small film table stays
-#: in its uniform buffer everywhere: it measured faster than its texture on both.)
-TABLE_UBO_DEVICES = ("SOFTWARE",)
-
-
 def uses_table_ubo(device_type: str) -> bool:
     """Whether a device of this ``gpu.platform.device_type_get()`` type draws tables from the
-    uniform buffer (:data:`TABLE_UBO_DEVICES`)."""
-    return str(device_type).upper() in TABLE_UBO_DEVICES
+    uniform buffer (policy.TABLE_UBO_DEVICES)."""
+    return str(device_type).upper() in policy.TABLE_UBO_DEVICES
 
 
 def table_ubo_preferred() -> bool:
@@ -550,24 +438,6 @@ class TableTexture:
         return cls(texture, l_max, a, t, data.ndim == 5, n_layers, ubo)
 
 
-@functools.cache
-def x_rotation_scalars() -> np.ndarray:
-    """The Rx(+90°) band blocks, l = 0…MAX_L, row-major, padded to a vec4 (Rx(−90°) = transpose)."""
-    out = np.zeros(RX_PADDED, dtype=np.float64)
-    flat = np.concatenate(
-        [np.asarray(b, dtype=np.float64).ravel() for b in render.x_rotation_bands(MAX_L, +1)]
-    )
-    assert flat.size == RX_SCALARS
-    out[:RX_SCALARS] = flat
-    out.setflags(write=False)
-    return out
-
-
-def rx_offset(l: int) -> int:
-    """Scalar offset of band l within one set of x-rotation blocks: Σ_{j<l} (2j+1)²."""
-    return l * (2 * l - 1) * (2 * l + 1) // 3
-
-
 @dataclass
 class Lighting:
     """The World's radiance SH, windowed for one material, in a UBO with the rotation constants."""
@@ -605,7 +475,7 @@ class Lighting:
 
     @classmethod
     def from_sh(cls, world_coeffs, l_max: int, roughness: float, lamps=None) -> Lighting:
-        """World SH (≥ 1, 3) → windowed by :func:`render.lighting_window` for ``l_max``/``roughness``.
+        """World SH (≥ 1, 3) → windowed by policy.lighting_window for ``l_max``/``roughness``.
 
         Missing coefficients (fewer than (l_max+1)²) are zero; extra ones are dropped.
         ``lamps``: the World's lamps, when ``world_coeffs`` are those of the World without them.
@@ -620,7 +490,7 @@ class Lighting:
         full = np.zeros((k, 3))
         n = min(k, c.shape[0])
         full[:n] = c[:n, :3]
-        windowed = full * np.asarray(render.lighting_window(l_max, float(roughness)))[:k, None]
+        windowed = full * np.asarray(policy.lighting_window(l_max, float(roughness)))[:k, None]
         ensure_gpu_context()
         ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps)))
         return cls(
@@ -802,7 +672,7 @@ class PrefilterTexture:
 @dataclass
 class FilmTexture:
     """A film's reflectance against u = cos θ and its multiple-scattering factor, for the lamps
-    (precompute.lamps.FilmTable; layout in tf_lamps.glsl)."""
+    (precompute.film_colour.FilmTable; layout in tf_lamps.glsl)."""
 
     texture: gpu.types.GPUTexture
     samples: int
@@ -988,7 +858,7 @@ def view_ubo(view_matrix, projection_matrix, exposure: float = 0.0, uniforms=Non
 class DrawGroup:
     """Consecutive draws that share a shader variant, lighting, table and prefiltered World."""
 
-    variant: tuple
+    variant: Variant
     shader: gpu.types.GPUShader
     lighting: gpu.types.GPUUniformBuf
     table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
@@ -1043,10 +913,24 @@ def prepare_draw(
         if batch is None:
             continue
         table = item.table
-        vary = has_thickness and table.thickness_count > 1
         prefiltered = getattr(item, "prefiltered", None)
         sh_weight = float(getattr(item, "sh_weight", 1.0))
-        split = prefiltered is not None and sh_weight < 1.0
+        table_ubo = getattr(table, "ubo", None)
+        film = getattr(item, "film", None)
+        variant = choose_variant(
+            l_max=table.l_max,
+            spectral=table.spectral,
+            thickness_rows=table.thickness_count,
+            has_thickness=has_thickness,
+            display=display_srgb,
+            prefiltered=prefiltered is not None,
+            sh_weight=sh_weight,
+            lamp_count=getattr(item.lighting, "lamp_count", 0),
+            film=film is not None,
+            film_ubo=film is not None and film.ubo is not None,
+            table_ubo=table_ubo is not None,
+        )
+        split = variant.split_sum
         roughness = float(getattr(item, "roughness", 0.0))
         weight = sh_weight if split else 1.0
         model = _matrix(item.model_matrix)
@@ -1054,26 +938,9 @@ def prepare_draw(
             ("object", model.tobytes(), roughness, weight),
             lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
         )
-        table_ubo = getattr(table, "ubo", None)
-        table_data = table.texture if table_ubo is None else table_ubo
-        # sh_weight 0 (glossy films): a variant without the SH half. A run-time branch on the
-        # weight did not save it on llvmpipe (split only cost as much as split + SH).
-        split_only = split and sh_weight <= 0.0
-        film = getattr(item, "film", None)
-        lamps = film is not None and getattr(item.lighting, "lamp_count", 0) > 0
-        film_ubo = lamps and film.ubo is not None
-        film_data = (film.ubo if film_ubo else film.texture) if lamps else None
-        variant = (
-            table.l_max,
-            table.spectral,
-            vary,
-            display_srgb,
-            split,
-            table_ubo is not None,
-            split_only,
-            lamps,
-            film_ubo,
-        )
+        table_data = table.ubo if variant.table_ubo else table.texture
+        lamps = variant.lamps
+        film_data = (film.ubo if variant.film_ubo else film.texture) if lamps else None
         key = (
             variant,
             id(item.lighting.ubo),
@@ -1085,7 +952,7 @@ def prepare_draw(
         if group is None:
             group = groups[key] = DrawGroup(
                 variant,
-                shaders.get(*variant),
+                shaders.mesh(variant),
                 item.lighting.ubo,
                 table_data,
                 prefiltered.texture if split else None,
@@ -1124,14 +991,14 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.bind()
                 shader.uniform_block("tf_view", prepared.view)
             shader.uniform_block("tf_lighting", group.lighting)
-            if group.variant[5]:
+            if group.variant.table_ubo:
                 shader.uniform_block("tf_table_data", group.table)
             else:
                 shader.uniform_sampler("tf_table", group.table)
             if group.prefiltered is not None:
                 shader.uniform_sampler("tf_prefiltered", group.prefiltered)
             if group.film is not None:
-                if group.variant[8]:
+                if group.variant.film_ubo:
                     shader.uniform_block("tf_film_data", group.film)
                 else:
                     shader.uniform_sampler("tf_film", group.film)

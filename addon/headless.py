@@ -15,8 +15,7 @@ import time
 import bpy
 import numpy as np
 
-from ..precompute import effects
-from ..precompute import render as np_render
+from ..precompute import effects, image_io
 from . import gpu_draw, scene_draw, tables, world
 from .description import description, description_key
 
@@ -152,9 +151,9 @@ def render_scene(
         rgb = np.where(bad, 0.0, rgb)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    np_render.write_exr(out.with_suffix(".exr"), rgb)
-    np_render.write_png(
-        out.with_suffix(".png"), np_render.srgb_encode(rgb, float(scene.view_settings.exposure))
+    image_io.write_exr(out.with_suffix(".exr"), rgb)
+    image_io.write_png(
+        out.with_suffix(".png"), image_io.srgb_encode(rgb, float(scene.view_settings.exposure))
     )
     return {
         "png": str(out.with_suffix(".png")),

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..precompute import lamps as np_lamps
-from ..precompute import prefilter
+from ..precompute import film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
+from ..precompute.shading import policy
 from . import caches, description, gpu_draw, panorama, tables, world, world_key
 from .thickness import thickness_per_vertex
 
@@ -193,7 +193,7 @@ def lighting_for(
 
 def film_texture(desc_key: str, result) -> gpu_draw.FilmTexture:
     if desc_key not in CACHES.films:
-        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(np_lamps.film_table(result))
+        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(film_colour.film_table(result))
     return CACHES.films[desc_key]
 
 
@@ -299,7 +299,7 @@ def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, wan
         table_texture(key, result),
         lighting_for(lighting, result.sh_order, roughness, lamps),
         roughness,
-        prefilter.sh_weight(roughness),
+        policy.sh_weight(roughness),
         film_texture(key, result) if lamps else None,
     )
 

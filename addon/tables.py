@@ -20,8 +20,9 @@ import threading
 
 import numpy as np
 
-from ..precompute import bake, prefilter, table_io
+from ..precompute import bake, table_io
 from ..precompute.material import Material
+from ..precompute.shading import policy
 from . import caches
 from .description import description_key
 from .prefs import cache_dir
@@ -152,10 +153,10 @@ _PLAN_ORDER = ("sh_order", "view_samples", "thickness_samples", "wavelength_coun
 def shading_path(roughness: float) -> str:
     """How the viewport and the headless render shade a film of this roughness, for the panel.
 
-    prefilter.sh_weight: 0 → the split sum alone (prefiltered World × the film's albedo at the
+    policy.sh_weight: 0 → the split sum alone (prefiltered World × the film's albedo at the
     lobe light's angle), 1 → the SH path alone, between them a blend.
     """
-    w = prefilter.sh_weight(roughness)
+    w = policy.sh_weight(roughness)
     if w <= 0.0:
         return "Shading: split sum (glossy)"
     if w >= 1.0:

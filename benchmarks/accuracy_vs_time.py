@@ -35,6 +35,7 @@ import numpy as np
 from precompute import bake, cli, effects, hdri, render, table_io
 from precompute.colour_difference import delta_e_2000
 from precompute.material import AUTO, Layer, Material, Quality
+from precompute.shading import sh_sum
 
 from . import common
 
@@ -304,7 +305,7 @@ def run(scenes: list[Scene], configs: list[Config], sphere: int = SPHERE) -> dic
             coeffs = envs.sh(s.hdri, result.sh_order, s.roughness)
             thickness = s.thickness if cfg.thickness_samples is not None else None
             ts, img = common.time_once(
-                lambda result=result, coeffs=coeffs, thickness=thickness: render.shade_sh(
+                lambda result=result, coeffs=coeffs, thickness=thickness: sh_sum.shade_sh(
                     result, coeffs, normals, views, thickness
                 )
             )

@@ -17,9 +17,10 @@ import time
 
 import numpy as np
 
-from precompute import lamps, prefilter, render
+from precompute import image_io, lamps, render
 from precompute.cli import studiolight
 from precompute.colour_difference import delta_e_2000, exposure_scale
+from precompute.shading import policy
 from tests._cycles_scenes import (
     DISTANCE,
     FOV_DEG,
@@ -103,11 +104,13 @@ def write_picture(rows, path) -> None:
         de[mask] = delta_e_2000(ours[mask], ref[mask], scale=scale, xyz="E")
         grey = np.repeat(np.clip(de / 20.0, 0.0, 1.0)[..., None], 3, axis=-1)
         strips.append(
-            np.concatenate([render.srgb_encode(ref * scale), render.srgb_encode(ours * scale), grey], axis=1)
+            np.concatenate(
+                [image_io.srgb_encode(ref * scale), image_io.srgb_encode(ours * scale), grey], axis=1
+            )
         )
     grid = np.concatenate(strips, axis=0)
     path.parent.mkdir(parents=True, exist_ok=True)
-    render.write_png(path, grid)  # 64 px per panel: the docs/images limit is 150 KB
+    image_io.write_png(path, grid)  # 64 px per panel: the docs/images limit is 150 KB
 
 
 def main(argv=None) -> int:
@@ -118,7 +121,7 @@ def main(argv=None) -> int:
     cases = CASES[2::4] if args.quick else CASES
     t0 = time.perf_counter()
     rows = [compare_case(*c, samples=64 if args.quick else 256, brute=not args.quick) for c in cases]
-    lo, hi = prefilter.SH_BLEND
+    lo, hi = policy.SH_BLEND
     met = sum(r["combined"][0] <= limit(r["roughness"]) for r in rows)
     lines = [
         "# Our renders vs Cycles (Principled thin film)",
@@ -144,7 +147,7 @@ def main(argv=None) -> int:
         "and ≥ 0.5, ≤ 3.5 at 0.3).",
         "",
         "All three of our paths shade the World's lamps as the add-on does (precompute/lamps.py):",
-        f"pixels brighter than {lamps.THRESHOLD:g}× the mean luminance become at most {lamps.MAX_LAMPS}",
+        f"pixels brighter than {lamps.THRESHOLD:g}× the mean luminance become at most {policy.MAX_LAMPS}",
         "directional lights, each shaded with the exact microfacet BRDF and the film's colour at its",
         "own half-vector; the SH and the prefilter see the World without them (the prefilter keeps",
         "them in its two sharpest levels, roughness < 0.0625). Lamps per HDRI: "
@@ -166,7 +169,7 @@ def main(argv=None) -> int:
         lim = limit(r["roughness"])
         lines.append(
             f"| {r['hdri']} | {r['thickness_nm']:g} | {r['film_ior']:g} | {r['base_ior']:g} | "
-            f"{r['roughness']:g} | {r['sh_order']} | {prefilter.sh_weight(r['roughness']):.2f} | "
+            f"{r['roughness']:g} | {r['sh_order']} | {policy.sh_weight(r['roughness']):.2f} | "
             f"{brute_cell} | {cells} | **{r['combined'][0]:.2f}** / {r['combined'][1]:.1f} | {lim:g} | "
             f"{'yes' if r['combined'][0] <= lim else 'no'} |"
         )

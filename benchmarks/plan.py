@@ -248,13 +248,13 @@ def empty_frame(gd, shaders) -> float:
 
 def world_orders() -> list[tuple[str, int, np.ndarray]]:
     """(name, content order, tails) for Blender's studio lights and two smooth synthetic Worlds."""
-    from precompute import cli, render
+    from precompute import cli
 
     out = []
     for path in sorted(cli.studiolight("studio").parent.glob("*.exr")):
         image = hdri.read_equirect(path)
         while image.shape[1] > 512:
-            image = render.downsample(image, 2)
+            image = hdri.downsample(image, 2)
         c = sh.project_equirect(image, 8)
         out.append((f"`{path.stem}` HDRI", effects.world_content_order(c)[0], effects.world_tails(c)))
     h, w = 64, 128

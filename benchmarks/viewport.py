@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-from precompute import prefilter
 from precompute.material import Layer, Material
+from precompute.shading import policy
 
 from . import common
 
@@ -82,8 +82,8 @@ FILM = Material(layers=(Layer(1.33, 400.0),), substrate=1.5)
 
 
 def roughness_cases() -> dict[str, float]:
-    """Roughness of the SH-only, combined (both halves) and split-sum-only films (prefilter.SH_BLEND)."""
-    lo, hi = prefilter.SH_BLEND
+    """Roughness of the SH-only, combined (both halves) and split-sum-only films (policy.SH_BLEND)."""
+    lo, hi = policy.SH_BLEND
     return {"sh": min(hi + 0.1, 1.0), "combined": 0.5 * (lo + hi), "split": max(lo - 0.05, 0.0)}
 
 

@@ -1,6 +1,6 @@
 /* tf_background_frag.glsl: the World's equirectangular image behind everything.
  *
- * numpy counterpart: render.equirect_lookup (conventions.md mapping): u = 1/2 - phi / 2pi with
+ * numpy counterpart: hdri.equirect_lookup (conventions.md mapping): u = 1/2 - phi / 2pi with
  * phi = atan2(y, x), texture row 0 = the image's top row (theta = 0), so t = theta / pi.
  * Texture `tf_environment`: RGBA32F, hardware LINEAR filtering, REPEAT in u, EXTEND in t.
  * The ray is unprojected through the inverse view-projection matrix (perspective or ortho).

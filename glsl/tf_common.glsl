@@ -1,7 +1,6 @@
 /* tf_common.glsl: constants and safe helpers shared by every Thin Film SH shader.
  *
- * numpy counterpart: the np.clip / norm guards of precompute/render.py (GIMBAL_SIN, the
- * tangent threshold of view_aligned_frame) and render.srgb_encode.
+ * numpy counterpart: the np.clip / norm guards of precompute/shading/ and image_io.srgb_encode.
  *
  * Variant defines (set from Python through GPUShaderCreateInfo.define):
  *   TF_L_MAX           SH order of the baked table, 0..12
@@ -10,15 +9,16 @@
  *   TF_DISPLAY_SRGB    output display-encoded (exposure, clamp, sRGB OETF), else scene-linear
  * Set at the top of the joined library by gpu_draw.shading_library:
  *   TF_X90_GENERATED   the X(+-90) products come as generated straight-line code
+ * Shading rules, never typed here (precompute/shading/policy.py glsl_defines, declared with
+ * the variant's defines):
+ *   TF_GIMBAL_SIN      below this sin(beta) the z-y-z split is a single z-rotation
+ *   TF_TANGENT_EPS     below this |v - n (n.v)| the view is taken as parallel to n (float32)
+ *   TF_MIN_COS, TF_MIN_ALPHA, TF_MAX_LAMPS, TF_LAMP_LEVEL, TF_GRAZING(x),
+ *   TF_LADDER_ROUGHNESS(x), TF_LADDER_POSITION(r)   (see policy.py)
  */
 
 #define TF_PI 3.14159265358979323846
 #define TF_HALF_PI 1.57079632679489661923
-/* render.GIMBAL_SIN: below this sin(beta) the z-y-z split is a single z-rotation. */
-#define TF_GIMBAL_SIN 1e-7
-/* Below this |v - n (n.v)| the view is taken as parallel to n (render.view_aligned_frame uses
- * 1e-9 in float64; float32 rounding of two equal unit vectors leaves ~1e-7 of noise). */
-#define TF_TANGENT_EPS 1e-6
 /* Number of SH coefficients up to band TF_L_MAX: all of them, and those with m >= 0. */
 #define TF_K_FULL ((TF_L_MAX + 1) * (TF_L_MAX + 1))
 #define TF_K_KEPT ((TF_L_MAX + 1) * (TF_L_MAX + 2) / 2)

@@ -1,6 +1,6 @@
 /* tf_frame.glsl: the view-aligned shading frame and its z-y-z Euler angles.
  *
- * numpy counterpart: render.view_aligned_frame and render.zyz_from_frame.
+ * numpy counterpart: shading.frame.view_aligned_frame and shading.frame.zyz_from_frame.
  * Rows (x, y, z) of the frame: z = n, x = normalise(v - n (n.v)), y = z cross x. When v is
  * parallel to n the tangent closest to world +x (or +y when n is near x) is used.
  *

@@ -1,6 +1,6 @@
 /* tf_lamps.glsl: the World's lamps, shaded per light direction.
  *
- * numpy counterpart: lamps.shade (and the weights of prefilter.shade_combined).
+ * numpy counterpart: shading.lamps.shade (and the weights of shading.split_sum.shade_combined).
  * Lamps: tf_lighting.lamps[0].x = count K <= TF_MAX_LAMPS; lamps[1 + 2k].xyz = direction
  * (unit, towards the lamp), lamps[2 + 2k].rgb = power (sum of L d omega).
  * Texture `tf_film` (sampler2DArray, RGBA32F): width U = u = cos theta uniform 0..1 inclusive,
@@ -12,10 +12,6 @@
  * Each lamp: D G2 F(v.h) / (4 cos theta_o) x power (Walter et al. 2007; height-correlated
  * Smith G2, Heitz 2014), as brdf.D_ggx and brdf.G2_smith_height_correlated.
  */
-
-#define TF_MAX_LAMPS 8
-#define TF_MIN_COS 1e-4
-#define TF_MIN_ALPHA 1e-4
 
 #ifdef TF_FILM_UBO
 int tf_film_count()

@@ -1,6 +1,6 @@
 /* tf_main_frag.glsl: shade a mesh fragment.
  *
- * numpy counterpart: render.shade_sh (via tf_shade) with render.srgb_encode for display.
+ * numpy counterpart: shading.sh_sum.shade_sh (via tf_shade) with image_io.srgb_encode for display.
  * v = normalize(camera - position) in perspective, the constant direction towards the viewer
  * in orthographic views (tf_view.camera.w = 1); the normal is flipped to face the viewer
  * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF.
@@ -27,7 +27,7 @@ void main()
   TFLerp r = tf_table_lerp(f.cos_o, f.sin_o, thickness01);
   vec3 rgb = tf_shade_at(f, r);
 #ifdef TF_LAMPS
-  rgb += tf_shade_lamps(f, r, n, v, tf_object.material.x); /* lamps.shade */
+  rgb += tf_shade_lamps(f, r, n, v, tf_object.material.x); /* shading.lamps.shade */
 #endif
 #endif
 #ifdef TF_DISPLAY_SRGB

@@ -1,6 +1,6 @@
 /* tf_sh_rotate.glsl: rotate the World's radiance SH into the view-aligned frame.
  *
- * numpy counterpart: render.rotate_z_batch, render.apply_bands, render.local_coefficients.
+ * numpy counterpart: shading.sh_rotation.rotate_z_batch, apply_bands, local_coefficients.
  * rotation(Rz(a) Ry(b) Rz(c)) = Z(a) X(-90) Z(b) X(+90) Z(c), applied right to left
  * (Kautz, Sloan & Snyder 2002, section 4), because Ry(b) = Rx(-90) Rz(b) Rx(+90).
  *
@@ -9,14 +9,14 @@
  * It is written out band by band so that every array index is a constant: GPUs (and llvmpipe)
  * keep tf_c in registers only when no index is computed at run time.
  *
- * X(+-90) are constant band blocks read from the lighting UBO (addon/gpu_draw.py Lighting):
+ * X(+-90) are constant band blocks read from the lighting UBO (codegen.x_rotation_scalars):
  *   tf_lighting.sh[169] world radiance coefficient i = l(l+1)+m in .rgb (windowed)
  *   tf_lighting.rx[732] the blocks of X(+90) for l = 0..12, row-major, band l at scalar offset
  *                       l(2l-1)(2l+1)/3; X(-90) is their transpose (indices swapped).
  * The z-y-z path below (tf_local_coefficients: loops for X(+-90)) is the readable reference,
  * used when the generated code is switched off. The fast library (TF_X90_GENERATED) compiles it
  * out: for TF_L_MAX <= 2 it uses tf_local_coefficients_direct (end of this file), the same
- * rotation from the frame rows; above, gpu_draw.banded_source generates the same operations as
+ * rotation from the frame rows; above, codegen.banded_source generates the same operations as
  * straight-line code over the structurally non-zero X(+-90) entries, one band at a time, summed
  * as it goes (tf_banded_sum). The tests compare both with numpy.
  * Needs: TF_L_MAX, TF_K_FULL, TF_BAND_MAX (tf_common.glsl).
@@ -277,7 +277,7 @@ void tf_local_coefficients(vec2 a, vec2 b, vec2 c)
  * and that of band 2 quadratic in the direction, so turning them into the frame needs a few dot
  * products instead of five rotations and the z-y-z angles (0.9x the frame time at l <= 2 on
  * llvmpipe). Only the kept m >= 0 coefficients are written (tf_shade reads no others); the
- * result is rotation(frame) @ world like tf_local_coefficients (numpy: render.local_coefficients).
+ * result is rotation(frame) @ world like tf_local_coefficients (numpy: sh_rotation.local_coefficients).
  *
  * Band 1 (Y = K1 (y, z, x) for m = -1, 0, 1, K1 = sqrt(3/4pi)): L(w) = K1 a.w with
  * a = (c3, c1, c2); in the frame w = F^T w', so a' = F a: c'2 = z.a, c'3 = x.a.

@@ -1,8 +1,8 @@
 /* tf_shade.glsl: one pixel of thin-film SH shading.
  *
- * numpy counterpart: render.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
+ * numpy counterpart: shading.sh_sum.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
  * fast library, TF_X90_GENERATED, straight from the frame for l <= 2: tf_sh_rotate.glsl, and from
- * l = 3 on rotated and summed band by band, gpu_draw.banded_source), table
+ * l = 3 on rotated and summed band by band, codegen.banded_source), table
  * lookup at theta_o (and thickness), out = max(sum_i M_i L_i, 0) over the kept (m >= 0)
  * coefficients i = l(l+1)+m, ordered by l then m (bake.coefficient_indices).
  *
@@ -34,7 +34,7 @@ void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
 
 #if TF_L_MAX > 2 && defined(TF_X90_GENERATED)
 /* Rotation and sum band by band in local variables, generated after this file
- * (gpu_draw.banded_source): only one band's coefficients are live at a time. */
+ * (codegen.banded_source): only one band's coefficients are live at a time. */
 vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c);
 #endif
 

@@ -1,16 +1,16 @@
 /* tf_table.glsl: bilinear lookup of the baked table at (theta_o, thickness).
  *
- * numpy counterpart: render._lerp_index and render.lookup.
+ * numpy counterpart: shading.table.lerp_index and shading.table.lookup.
  * Texture `tf_table` (sampler2DArray, RGBA32F): width A = view angles (theta_o uniform
  * 0..90 deg inclusive), height T = thickness rows, one layer per table row:
  *   TF_SPECTRAL: layer 3i+k = row k of the 3x3 matrix of kept coefficient i (.rgb = lighting RGB)
  *   otherwise:   layer i = the RGB factors of kept coefficient i.
- * Without TF_VARY_THICKNESS the first thickness row is used (render.lookup without thickness).
+ * Without TF_VARY_THICKNESS the first thickness row is used (table.lookup without thickness).
  * With TF_TABLE_UBO the same texels come from the uniform buffer tf_table_data instead (small
  * tables; cheaper loads on llvmpipe).
  * Interpolation is done here with texelFetch (4 fetches, 2 for one thickness row), in full
  * float32: hardware filtering quantises the weights (8 bits of sub-texel precision on common
- * GPUs) and would not reproduce render.lookup to 1e-4.
+ * GPUs) and would not reproduce table.lookup to 1e-4.
  */
 
 /* The table's size (A, T, layers) and one texel's .rgb, from the texture or, with TF_TABLE_UBO,
@@ -45,7 +45,7 @@ struct TFLerp {
   vec2 w;
 };
 
-/* render._lerp_index: position clamped to [0, count - 1], lower index <= count - 2. */
+/* shading.table.lerp_index: position clamped to [0, count - 1], lower index <= count - 2. */
 void tf_lerp_index(float pos, int count, out int i0, out int i1, out float w)
 {
   pos = clamp(pos, 0.0, float(count - 1));

@@ -22,6 +22,7 @@ import functools
 import numpy as np
 
 from . import _checks, constants
+from .optics.fresnel import fresnel_dielectric
 
 
 def alpha_from_roughness(roughness) -> np.ndarray:
@@ -197,8 +198,6 @@ def ggx_E_avg(roughness: float) -> float:
 
 def fresnel_average_dielectric(eta: float) -> float:
     """Hemispherical average of the unpolarised dielectric Fresnel, F_avg = 2 ∫₀¹ F(μ) μ dμ."""
-    from .optics.fresnel import fresnel_dielectric
-
     mu, w = np.polynomial.legendre.leggauss(64)
     mu, w = 0.5 * (mu + 1.0), 0.5 * w
     return float(2.0 * np.sum(fresnel_dielectric(mu, eta) * mu * w))

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from . import bake, hdri, prefilter, render, table_io
+from . import bake, hdri, image_io, prefilter, render, table_io
 from .material import AUTO, PRESETS, Layer, Material, Quality, preset
 
 EPILOG = """examples:
@@ -233,8 +233,8 @@ def cmd_render(args) -> int:
     )
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    render.write_png(out, render.srgb_encode(rgb, args.exposure))
-    render.write_exr(out.with_suffix(".exr"), rgb)
+    image_io.write_png(out, image_io.srgb_encode(rgb, args.exposure))
+    image_io.write_exr(out.with_suffix(".exr"), rgb)
     progress(1.0, "done")
     if not np.all(np.isfinite(rgb)):
         print("warning: the render contains non-finite pixels", file=sys.stderr)

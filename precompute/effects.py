@@ -29,10 +29,16 @@ multiscatter        Kulla–Conty energy compensation (roughness > 0 and multisc
 It also carries the resolved :class:`precompute.bake.Plan` (SH order from roughness, view
 angles, thickness rows, wavelengths), the table's shape and bytes, an estimated bake time
 (:data:`TIME_MODEL`), the per-pixel shader cost and shader variant defines, and a reason for
-every choice. :func:`scene_plan` combines the materials of a scene: identical materials share
-one table (same :func:`precompute.table_io.content_key` as the add-on's cache), shared
-microfacet kernels are cold only once, cached tables cost nothing, and the World's SH order
-follows its frequency content. :func:`format_plan` prints either plan for people.
+every choice. The shader cost is the draw's own: the
+:class:`~precompute.shading.variant.Variant` that :func:`~precompute.shading.variant.choose_variant`
+picks from the material's facts (as the add-on's draw does), costed by
+:func:`precompute.shading.codegen.operation_counts` on the code that variant runs.
+:func:`scene_plan` combines the materials of a scene: identical materials share one table (same
+:func:`precompute.table_io.content_key` as the add-on's cache), shared microfacet kernels are cold
+only once, cached tables cost nothing. Its World order is the one drawn: the add-on projects the
+World to l = MAX_ORDER and windows it to each material's l_max, so the highest l_max among the
+scene's materials; the World's own content order (:func:`world_content_order`) is reported beside
+it. :func:`format_plan` prints either plan for people.
 
 Nothing here bakes: :func:`material_plan` resolves :func:`precompute.bake.plan` (whose
 automatic SH order computes one small kernel per new roughness, ≈ 0.5 s, then cached) and
@@ -47,8 +53,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import bake
+from .film_colour import FILM_SAMPLES
 from .material import AUTO, MAX_SH_ORDER, Material
 from .optics.dispersion import is_dispersive
+from .shading import codegen, policy
+from .shading.variant import Variant, choose_variant, fits_uniform_buffer
 
 EFFECTS = (
     "interference",
@@ -63,7 +72,7 @@ EFFECTS = (
 
 #: Highest SH order a table or the World can have (material.MAX_SH_ORDER, the shaders' MAX_L).
 MAX_ORDER = MAX_SH_ORDER
-#: The World's SH order is the smallest l whose band-energy tail Σ_{l' > l} |c_l'|² is below
+#: The World's content order is the smallest l whose band-energy tail Σ_{l' > l} |c_l'|² is below
 #: this fraction of the total energy (see :func:`world_content_order`).
 WORLD_TAIL = 0.01
 #: Wavelengths at which a medium is checked for absorption (the spectral grid's ends and middle).
@@ -91,56 +100,67 @@ TIME_MODEL = {
 # ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class ShaderCost:
-    """Per-pixel work of the thin-film shader variant that draws a table.
+    """Per-pixel work of the thin-film shader variant that draws a material.
 
-    Same model as ``benchmarks/accuracy_vs_time.py`` (docs/accuracy-vs-time.md): with K =
-    (L+1)(L+2)/2 stored coefficients, C = 9 floats per coefficient (3×3 spectral) or 3 (per
-    channel) and taps = 2 (1-D table, linear in θo) or 4 (2-D, bilinear in θo × thickness),
-
-    - floats fetched = taps · K · C (texel fetches = taps · K · C / 3, RGBA texels)
-    - multiply-adds = 6 Σ_{l ≤ L} (2l+1)² (two fixed ±90° x-rotations, dense per band, 3
-      channels) + 18 L(L+1) + 12 L (three z-rotations and their cos/sin recurrence)
-      + taps · K · C (interpolation) + K · C (Σ M_i · L_i).
+    ``draw``: the :class:`~precompute.shading.variant.Variant` the add-on compiles for it;
+    the counts are :func:`precompute.shading.codegen.operation_counts` of that variant (see there
+    for what is counted): the SH half rotated and summed band by band as the generated code
+    does (only the structurally non-zero X(±90°) entries), the split sum, the lamp loop. With K
+    = (L+1)(L+2)/2 stored coefficients, C = 9 floats per coefficient (3×3 spectral) or 3 (per
+    channel) and taps = 2 (1-D table, linear in θo) or 4 (2-D, bilinear in θo × thickness), the
+    SH sum reads taps · K · C floats of the table.
     """
 
-    l_max: int
+    draw: Variant
     channels: int
     taps: int
-    floats_fetched: int
-    texel_fetches: int
+    floats_fetched: int  # floats read from the film's baked table
+    texel_fetches: int  # texelFetch / texture calls (table, prefiltered World, film)
+    uniform_loads: int  # vec4 or scalar reads from uniform buffers
     multiply_adds: int
-    defines: tuple  # ((name, value), ...) as gpu_draw.declare_shading_resources sets them
+    defines: tuple  # ((name, value), ...): the variant's switches (Variant.switches)
+    stages: dict = field(default_factory=dict)  # stage → (multiply-adds, texel fetches, uniform loads)
+
+    @property
+    def l_max(self) -> int:
+        return int(self.draw.l_max)
 
     @property
     def variant(self) -> tuple:
-        """(l_max, spectral, vary_thickness): the key of ``gpu_draw.ShaderCache`` without display."""
-        names = dict(self.defines)
-        return (self.l_max, "TF_SPECTRAL" in names, "TF_VARY_THICKNESS" in names)
+        """(l_max, spectral, vary_thickness): the part of :attr:`draw` the table decides."""
+        return (self.draw.l_max, self.draw.spectral, self.draw.vary_thickness)
 
 
-def shader_cost(l_max: int, spectral: bool, vary_thickness: bool) -> ShaderCost:
-    """The :class:`ShaderCost` of a variant."""
-    l_max = int(l_max)
-    k = (l_max + 1) * (l_max + 2) // 2
-    channels = 9 if spectral else 3
-    taps = 4 if vary_thickness else 2
-    fetched = taps * k * channels
-    x_rot = 6 * sum((2 * l + 1) ** 2 for l in range(l_max + 1))
-    z_rot = 18 * l_max * (l_max + 1) + 12 * l_max
-    defines = [("TF_L_MAX", str(l_max))]
-    if spectral:
-        defines.append(("TF_SPECTRAL", "1"))
-    if vary_thickness:
-        defines.append(("TF_VARY_THICKNESS", "1"))
+def shader_cost(variant: Variant, lamp_count: int = policy.MAX_LAMPS) -> ShaderCost:
+    """The :class:`ShaderCost` of a variant (its lamp loop at ``lamp_count`` lamps)."""
+    variant = variant.normalised()
+    counts = codegen.operation_counts(variant, lamp_count)
     return ShaderCost(
-        l_max=l_max,
-        channels=channels,
-        taps=taps,
-        floats_fetched=fetched,
-        texel_fetches=fetched // 3,
-        multiply_adds=x_rot + z_rot + fetched + k * channels,
-        defines=tuple(defines),
+        draw=variant,
+        channels=9 if variant.spectral else 3,
+        taps=4 if variant.vary_thickness else 2,
+        floats_fetched=counts.table_floats,
+        texel_fetches=counts.texel_fetches,
+        uniform_loads=counts.uniform_loads,
+        multiply_adds=counts.multiply_adds,
+        defines=variant.switches(),
+        stages=dict(counts.stages),
     )
+
+
+def _shading_words(variant: Variant, weight: float) -> str:
+    """How the variant shades, in words, for the plan's reasons."""
+    if not variant.split_sum:
+        path = "SH only"
+    elif variant.split_only:
+        path = "split sum only (SH weight 0)"
+    else:
+        path = f"split sum × {1.0 - weight:.2f} + SH × {weight:.2f}"
+    if variant.split_sum:
+        path += ", albedo at the dominant direction" if variant.moment else ", albedo at the view angle"
+    if variant.lamps:
+        path += f", lamp loop (≤ {policy.MAX_LAMPS} lamps)"
+    return path
 
 
 # ----------------------------------------------------------------------------------------------
@@ -293,9 +313,11 @@ class MaterialPlan:
             "bake_seconds": self.bake_seconds,
             "bake_breakdown": dict(self.bake_breakdown),
             "shader": {
+                "variant": self.shader.draw._asdict(),
                 "defines": dict(self.shader.defines),
                 "floats_fetched": self.shader.floats_fetched,
                 "texel_fetches": self.shader.texel_fetches,
+                "uniform_loads": self.shader.uniform_loads,
                 "multiply_adds": self.shader.multiply_adds,
             },
             "reasons": dict(self.reasons),
@@ -366,13 +388,25 @@ def _film_effects(material: Material, reasons: dict) -> tuple[bool, bool]:
 
 
 def material_plan(
-    material: Material, *, kernel_cold: bool = True, order_kernel_cold: bool | None = None
+    material: Material,
+    *,
+    kernel_cold: bool = True,
+    order_kernel_cold: bool | None = None,
+    prefiltered: bool = True,
+    world_lamps: bool = False,
+    table_ubo: bool = False,
 ) -> MaterialPlan:
     """The :class:`MaterialPlan` of ``material`` (no bake; see the module docstring).
 
     ``kernel_cold``: whether the bake will have to compute its microfacet kernel (True for the
     first bake of a roughness/order/view count in a session). ``order_kernel_cold``: whether the
     automatic SH order's kernel is new (default: same as ``kernel_cold``).
+
+    The draw's facts that are not the material's, for its shader variant: ``prefiltered``, the
+    World has a prefiltered panorama (the split sum runs; the add-on's viewport always has one);
+    ``world_lamps``, the World has lamps and the material shades them (its "World Lamps" on; never
+    under a diffuse base); ``table_ubo``, the device draws tables from uniform buffers
+    (policy.TABLE_UBO_DEVICES: software rasterisers; default a GPU).
     """
     if order_kernel_cold is None:
         order_kernel_cold = kernel_cold
@@ -481,10 +515,28 @@ def material_plan(
     parts = ", ".join(f"{name} {sec:.2g} s" for name, sec in breakdown.items() if name != "total" and sec > 0)
     reasons["bake_time"] = f"≈ {breakdown['total']:.2g} s ({parts})"
 
-    cost = shader_cost(p.sh_order, spectral, thickness_axis and p.thickness_samples > 1)
+    weight = policy.sh_weight(material.roughness)
+    film = world_lamps and material.base_color is None
+    draw = choose_variant(
+        l_max=p.sh_order,
+        spectral=spectral,
+        thickness_rows=p.thickness_samples,
+        has_thickness=thickness_axis,
+        display=False,
+        prefiltered=prefiltered,
+        sh_weight=weight,
+        lamp_count=policy.MAX_LAMPS if film else 0,
+        film=film,
+        film_ubo=fits_uniform_buffer(4 if spectral else 2, p.thickness_samples, FILM_SAMPLES),
+        table_ubo=table_ubo and fits_uniform_buffer(layers, p.thickness_samples, p.view_samples),
+    )
+    cost = shader_cost(draw)
+    stages = ", ".join(f"{name} {n[0]}" for name, n in cost.stages.items())
     reasons["shader"] = (
-        f"l_max {p.sh_order} from the table, {cost.taps} taps × {k} coefficients × {cost.channels} floats"
-        f" = {cost.floats_fetched} floats fetched, {cost.multiply_adds} multiply-adds per pixel"
+        f"l_max {p.sh_order} from the table, roughness {material.roughness:g} → "
+        f"{_shading_words(draw, weight)}; {cost.taps} taps × {cost.channels} floats per table read, "
+        f"{cost.floats_fetched} floats fetched, {cost.texel_fetches} texel fetches, "
+        f"{cost.uniform_loads} uniform loads, {cost.multiply_adds} multiply-adds per pixel ({stages})"
     )
     return MaterialPlan(
         material=material,
@@ -549,14 +601,14 @@ class ScenePlan:
 
     materials: dict  # name → MaterialPlan (sorted by name)
     tables: dict  # content key → names sharing that table (first = the one baked)
-    variants: dict  # (l_max, spectral, vary) → names drawn with that shader variant
+    variants: dict  # Variant → names drawn with that shader variant (display off)
     table_bytes: int  # unique tables, float32
     texture_bytes: int  # unique tables on the GPU
     bake_seconds: float  # estimated, unique tables not cached, kernels shared
     bake_seconds_each: dict  # name → estimated seconds in this scene (0 for a shared/cached table)
     cached: frozenset  # keys whose table is already in memory or on disk
-    world_order: int | None
-    world_content_order: int | None
+    world_order: int | None  # the highest l_max the draw windows the World to (None: no material)
+    world_content_order: int | None  # the World's own (:func:`world_content_order`), for reference
     reasons: dict
 
     @property
@@ -579,8 +631,9 @@ def scene_plan(
 
     Unique tables are keyed by :func:`table_io.content_key` (the add-on's ``description_key``);
     a microfacet kernel shared by several tables is charged to the first only. World order: the
-    World's content order (:func:`world_content_order`), but never below the highest order any
-    visible material's table uses, capped at 8.
+    one drawn, the highest l_max among the materials (the add-on projects the World to
+    MAX_ORDER and windows it to each material's l_max); the World's content order
+    (:func:`world_content_order`) is reported beside it.
     """
     cached = frozenset(cached)
     plans: dict[str, MaterialPlan] = {}
@@ -592,7 +645,7 @@ def scene_plan(
     for name in sorted(materials):
         mp = material_plan(materials[name], kernel_cold=kernels_cold)
         plans[name] = mp
-        variants.setdefault(mp.shader.variant, []).append(name)
+        variants.setdefault(mp.shader.draw, []).append(name)
         if mp.key in tables:
             tables[mp.key].append(name)
             each[name] = 0.0
@@ -633,10 +686,10 @@ def scene_plan(
         if cached & set(tables):
             reasons["cache"] = f"{len(cached & set(tables))} table(s) already cached: not baked again"
     need = max((mp.plan.sh_order for mp in plans.values()), default=0)
-    world_order = content = None
+    world_order = need if plans else None  # the draw windows the World to each material's l_max
+    content = None
     if world_coeffs is not None:
         content, rest = world_content_order(world_coeffs)
-        world_order = min(MAX_ORDER, max(content, need))
         tails = world_tails(world_coeffs)
         if content > 0 and tails[content - 1] >= WORLD_TAIL and content == min(MAX_ORDER, tails.size - 1):
             why = (
@@ -648,9 +701,14 @@ def scene_plan(
                 f"World energy above l = {content} is {100 * rest:.2g} % (< {100 * WORLD_TAIL:g} %)"
                 f" → content order {content}"
             )
-        reasons["world"] = f"{why}; materials need up to {need} → World SH order {world_order}"
+        if plans:
+            reasons["world"] = (
+                f"{why}; the draw windows the World's SH (projected to l = {MAX_ORDER}) to each"
+                f" material's l_max → World SH order {need}, the materials' highest"
+            )
+        else:
+            reasons["world"] = f"{why}; no material draws it"
     elif plans:
-        world_order = need
         reasons["world"] = f"no World coefficients given: the materials' highest order, {need}"
     return ScenePlan(
         materials=plans,
@@ -706,7 +764,8 @@ def _material_lines(name: str, mp: MaterialPlan, scene: ScenePlan | None = None)
     seconds = mp.bake_seconds if scene is None else scene.bake_seconds_each[name]
     lines.append(
         f"  bake ≈ {seconds:.2g} s; shader {' '.join(f'{k}={v}' for k, v in mp.shader.defines)}: "
-        f"{mp.shader.floats_fetched} floats fetched, {mp.shader.multiply_adds} multiply-adds per pixel"
+        f"{mp.shader.floats_fetched} floats fetched, {mp.shader.texel_fetches} texel fetches, "
+        f"{mp.shader.uniform_loads} uniform loads, {mp.shader.multiply_adds} multiply-adds per pixel"
     )
     lines.append("  why:")
     for key, reason in mp.reasons.items():

@@ -25,6 +25,7 @@ __all__ = [
     "downsample",
     "equirect_azimuths",
     "equirect_directions",
+    "equirect_lookup",
     "equirect_polar",
     "equirect_row_solid_angles",
     "equirect_solid_angles",
@@ -85,6 +86,28 @@ def equirect_directions(height: int, width: int) -> np.ndarray:
             cos_t[:, None],
         ),
         axis=-1,
+    )
+
+
+def equirect_lookup(image: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Bilinear radiance lookup in an equirect image (H, W, 3), conventions.md mapping.
+
+    Wraps around in u; rows clamp at the poles. Used by the prefilter, the split sum's level
+    lookup and the ground truth alike (glsl/tf_background_frag.glsl reads the same mapping).
+    """
+    h, w = image.shape[:2]
+    d = directions / np.linalg.norm(directions, axis=-1, keepdims=True)
+    u = 0.5 - np.arctan2(d[..., 1], d[..., 0]) / (2 * np.pi)
+    theta = np.arccos(np.clip(d[..., 2], -1.0, 1.0))
+    x = u * w - 0.5
+    y = theta / np.pi * h - 0.5
+    x0 = np.floor(x).astype(int)
+    y0 = np.clip(np.floor(y).astype(int), 0, h - 1)
+    fx, fy = (x - x0)[..., None], np.clip(y - y0, 0.0, 1.0)[..., None]
+    y1 = np.clip(y0 + 1, 0, h - 1)
+    x0w, x1w = x0 % w, (x0 + 1) % w
+    return (1 - fy) * ((1 - fx) * image[y0, x0w] + fx * image[y0, x1w]) + fy * (
+        (1 - fx) * image[y1, x0w] + fx * image[y1, x1w]
     )
 
 

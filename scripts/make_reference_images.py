@@ -100,7 +100,7 @@ def read_exr(path, channels="RGB") -> np.ndarray:
 
 def srgb8(linear, exposure: float = 0.0) -> np.ndarray:
     """8-bit sRGB of scene-linear RGB ("Standard" view), as the headless PNG."""
-    from precompute.render import srgb_encode
+    from precompute.image_io import srgb_encode
 
     return np.clip(np.rint(srgb_encode(linear, exposure) * 255.0), 0, 255).astype(np.uint8)
 

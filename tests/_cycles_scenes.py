@@ -18,8 +18,10 @@ import tempfile
 
 import numpy as np
 
-from precompute import bake, hdri, lamps, prefilter, render
+from precompute import bake, film_colour, hdri, lamps, prefilter, render
 from precompute.material import Layer, Material
+from precompute.shading import lamps as lamp_shading
+from precompute.shading import policy, sh_sum, split_sum
 
 SIZE = 64
 FOV_DEG = 32.0
@@ -103,23 +105,21 @@ def our_renders(hdri_path, thickness_nm, film_ior, base_ior, roughness, size=SIZ
     found, mask = lamps.extract(full)
     LAMPS_SEEN[pathlib.Path(hdri_path).stem] = (found.count, found.share)
     rest = lamps.remove(full, mask)
-    film = lamps.film_table(result)
+    film = film_colour.film_table(result)
     background_image, _ = render.prepare_environment(full, result.sh_order, roughness=roughness)
     _, coeffs = render.prepare_environment(rest, result.sh_order, roughness=roughness)
     pre = prefilter.prefilter(full, lamp_mask=mask)
     view = render.sphere_view(size, size, DISTANCE, FOV_DEG, supersample=SUPERSAMPLE)
     m = view.mask
     n, v = view.normals[m], view.views[m]
-    background = render.equirect_lookup(background_image, view.rays)
+    background = hdri.equirect_lookup(background_image, view.rays)
     split, sh_only, combined = background.copy(), background.copy(), background.copy()
-    lit = lamps.shade(film, found, roughness, n, v)
+    lit = lamp_shading.shade(film, found, roughness, n, v)
     cos_o = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
-    split_lamps = (
-        prefilter.lamp_weight_at(pre, prefilter.effective_roughness(roughness, cos_o))[:, None] * lit
-    )
-    split[m] = prefilter.shade_split_sum(result, pre, n, v) + split_lamps
-    sh_only[m] = render.shade_sh(result, coeffs, n, v) + lit
-    combined[m] = prefilter.shade_combined(result, coeffs, pre, n, v, lamps=found, film=film)
+    split_lamps = split_sum.lamp_weight_at(pre, policy.effective_roughness(roughness, cos_o))[:, None] * lit
+    split[m] = split_sum.shade_split_sum(result, pre, n, v) + split_lamps
+    sh_only[m] = sh_sum.shade_sh(result, coeffs, n, v) + lit
+    combined[m] = split_sum.shade_combined(result, coeffs, pre, n, v, lamps=found, film=film)
     out = {
         name: render.box_downsample(img, SUPERSAMPLE)
         for name, img in (("split_sum", split), ("sh", sh_only), ("combined", combined))
@@ -159,7 +159,7 @@ def brute_force_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, s
     while max_width is not None and full.shape[1] > max_width:
         full = hdri.downsample(full, 2)
     view = render.sphere_view(size, size, DISTANCE, FOV_DEG, supersample=BRUTE_SUPERSAMPLE)
-    out = render.equirect_lookup(full, view.rays)
+    out = hdri.equirect_lookup(full, view.rays)
     m = view.mask
     out[m] = render.shade_reference(material, full, view.normals[m], view.views[m], n_theta=48, n_phi=48)
     return render.box_downsample(out, BRUTE_SUPERSAMPLE)

@@ -212,16 +212,16 @@ def test_principled_linked_socket_uses_its_value_and_warns(bpy, description_mod)
 
 
 def test_shading_path_names_the_path_the_roughness_selects(tables_mod):
-    from precompute import prefilter
+    from precompute.shading import policy
 
-    lo, hi = prefilter.SH_BLEND
+    lo, hi = policy.SH_BLEND
     assert tables_mod.shading_path(0.0) == tables_mod.shading_path(lo) == "Shading: split sum (glossy)"
     assert (
         tables_mod.shading_path(hi) == tables_mod.shading_path(1.0) == "Shading: spherical harmonics (rough)"
     )
     mid = tables_mod.shading_path(0.5 * (lo + hi))  # smoothstep midpoint: half and half
     assert mid == "Shading: split sum 50 % + SH 50 %", mid
-    w = prefilter.sh_weight(0.3)
+    w = policy.sh_weight(0.3)
     assert f"SH {100 * w:.0f} %" in tables_mod.shading_path(0.3) and 0.0 < w < 0.5
 
 

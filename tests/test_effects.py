@@ -27,6 +27,8 @@ import precompute.optics as optics
 from precompute import bake, brdf, cli, effects
 from precompute.material import Layer, Material, Quality
 from precompute.optics import dispersion, metals, stack
+from precompute.shading import policy, sh_rotation
+from precompute.shading.variant import Variant
 
 #: Small explicit quality: a bake takes a fraction of a second.
 FAST = Quality(sh_order=2, view_samples=6, thickness_samples=6, wavelength_count=32)
@@ -205,14 +207,26 @@ def test_per_channel_tables_and_texture_bytes():
 
 
 def test_shader_cost_follows_the_documented_formula():
-    # L = 8: 6·Σ(2l+1)² = 5814, z-rotations 18·8·9 + 12·8 = 1392, K = 45.
-    c = effects.shader_cost(8, spectral=True, vary_thickness=False)
-    assert (c.floats_fetched, c.multiply_adds, c.texel_fetches) == (810, 5814 + 1392 + 810 + 405, 270)
-    c = effects.shader_cost(8, spectral=True, vary_thickness=True)
-    assert c.floats_fetched == 1620 and c.multiply_adds == 5814 + 1392 + 1620 + 405
-    c = effects.shader_cost(2, spectral=False, vary_thickness=False)
+    # SH only, L = 8, K = 45. The generated band-by-band code multiplies only the structurally
+    # non-zero X(±90°) entries (246 per sign for l = 1…8), 3 channels each; three z-rotations of
+    # Σ l = 36 pairs at 12 each; the angle powers c_m = c_(m-1) c_1 from l = 2, 4 each.
+    nonzero = sum(
+        int(np.sum(np.abs(b) > policy.X90_ZERO))
+        for s in (1, -1)
+        for b in sh_rotation.x_rotation_bands(8, s)[1:]
+    )
+    rotation = 3 * nonzero + 12 * 3 * 36 + 4 * 3 * 7
+    assert rotation == 3 * 492 + 1296 + 84
+    c = effects.shader_cost(Variant(8, spectral=True, vary_thickness=False, display=False))
+    assert (c.floats_fetched, c.multiply_adds, c.texel_fetches) == (810, rotation + 810 + 405, 270)
+    c = effects.shader_cost(Variant(8, spectral=True, vary_thickness=True, display=False))
+    assert c.floats_fetched == 1620 and c.multiply_adds == rotation + 1620 + 405
+    c = effects.shader_cost(Variant(2, spectral=False, vary_thickness=False, display=False))
     assert c.floats_fetched == 2 * 6 * 3 and c.variant == (2, False, False)
-    assert c.multiply_adds == 6 * (1 + 9 + 25) + 18 * 6 + 24 + 36 + 18
+    # l ≤ 2: bands 1 and 2 turned straight from the frame rows (tf_local_coefficients_direct):
+    # band 1 two 3-term vec3 sums (18), band 2 the Q entries (21), Q z and Q x (54), three
+    # quadratic forms (27) and the scaled outputs (12).
+    assert c.multiply_adds == (18 + 21 + 54 + 27 + 12) + 36 + 18
 
 
 def test_sh_order_follows_roughness_and_sets_the_variant():
@@ -318,7 +332,7 @@ def _world_with_bands(energies) -> np.ndarray:
     return c
 
 
-def test_world_order_follows_its_content_but_never_drops_below_the_materials():
+def test_world_order_is_the_highest_material_order_and_the_content_order_is_reported():
     smooth_world = _world_with_bands([1.0, 0.05, 0.003] + [0.0] * 6)  # tail above l = 1: 0.3 %
     assert effects.world_content_order(smooth_world)[0] == 1
     detailed_world = _world_with_bands([1.0] + [0.1] * 8)  # 10 % per band up to l = 8
@@ -329,7 +343,9 @@ def test_world_order_follows_its_content_but_never_drops_below_the_materials():
     sp = effects.scene_plan({"low": low}, world_coeffs=smooth_world)
     assert (sp.world_content_order, sp.world_order) == (1, 2)  # the material needs 2
     sp = effects.scene_plan({"low": low}, world_coeffs=detailed_world)
-    assert sp.world_order == 8 and "World SH order 8" in sp.reasons["world"]
+    # The draw windows the World to each material's l_max: a detailed World is drawn at 2 here.
+    assert sp.world_order == 2 and "World SH order 2" in sp.reasons["world"]
+    assert sp.world_content_order == 8
     high = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)  # needs the cap
     assert effects.scene_plan({"high": high}, world_coeffs=smooth_world).world_order == effects.MAX_ORDER
 

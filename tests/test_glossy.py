@@ -12,8 +12,9 @@ import _cycles_scenes as cc
 import numpy as np
 import pytest
 
-from precompute import bake, hdri, lamps, optics, prefilter, render, spectra
+from precompute import bake, film_colour, hdri, image_io, lamps, optics, prefilter, render, spectra
 from precompute.material import Layer, Material, Quality
+from precompute.shading import split_sum
 
 SKY = 0.25
 SUN = 2.0e4
@@ -28,7 +29,7 @@ def sky_with_sun(path, width=1024):
     d = hdri.equirect_directions(width // 2, width)
     image = np.full(d.shape, SKY)
     image[d @ SUN_DIR > math.cos(math.radians(SUN_RADIUS_DEG))] = SUN
-    render.write_exr(path, image)
+    image_io.write_exr(path, image)
     return image
 
 
@@ -116,7 +117,7 @@ def test_combined_path_under_a_1e5_sun_is_finite_non_negative_and_firefly_free(n
     if with_lamps:  # as the add-on: the sun lifted out (precompute/lamps.py), shaded per direction
         found, mask = lamps.extract(image)
         assert found.count >= 1 and found.share > 0.9
-        film = lamps.film_table(result)
+        film = film_colour.film_table(result)
         coeffs = render.prepare_environment(lamps.remove(image, mask), 8, roughness=roughness)[1]
         pre = prefilter.prefilter(image, lamp_mask=mask)
     else:
@@ -125,7 +126,7 @@ def test_combined_path_under_a_1e5_sun_is_finite_non_negative_and_firefly_free(n
     view = render.sphere_view(48, 48, cc.DISTANCE, cc.FOV_DEG)
     m = view.mask
     out = np.zeros(view.mask.shape + (3,))
-    out[m] = prefilter.shade_combined(
+    out[m] = split_sum.shade_combined(
         result, coeffs, pre, view.normals[m], view.views[m], lamps=found, film=film
     )
     assert np.isfinite(out).all() and (out >= 0).all()

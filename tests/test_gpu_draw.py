@@ -17,8 +17,10 @@ import numpy as np
 import pytest
 from _extension import EXTENSION_ID, REPO, linked_extension
 
-from precompute import bake, render, sh
+from precompute import bake, film_colour, hdri, image_io, render, sh
 from precompute.material import Layer, Material, Quality
+from precompute.shading import codegen, policy, sh_rotation, sh_sum, split_sum
+from precompute.shading import lamps as lamp_shading
 
 pytestmark = pytest.mark.blender
 
@@ -230,7 +232,7 @@ def check_against_numpy(gd, l_max, colour_mode, thickness, generated):
     n, v, t01 = shading_inputs(width * 16, seed=l_max)
     got = shade_on_gpu(gd, gpu, table, lighting, n, v, t01, vary, width, generated)
     thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0]) if vary else None
-    expected = render.shade_sh(result, lighting.coefficients, n, v, thick_nm)
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, v, thick_nm)
     scale = np.max(np.abs(expected))
     assert scale > 0.05 and np.all(np.isfinite(got))
     per_pixel = np.max(np.abs(got - expected), axis=-1) / scale
@@ -267,7 +269,7 @@ def test_table_layers_and_lighting_layout(gd):
 
     world, _img = world_sh()
     lighting = gd.Lighting.from_sh(world, 5, 0.3)
-    window = render.lighting_window(5, 0.3)
+    window = policy.lighting_window(5, 0.3)
     assert np.allclose(lighting.coefficients, world[:36] * window[:, None])
     packed = gd.Lighting.pack(lighting.coefficients).reshape(-1, 4)
     assert packed.nbytes == gd.LIGHTING_VEC4 * 16 <= gd.UBO_LIMIT_BYTES
@@ -277,15 +279,17 @@ def test_table_layers_and_lighting_layout(gd):
     rx = packed[slots + gd.LAMP_VEC4 :].ravel()
     # One set: X(+90°) row-major; X(−90°) is read as its transpose.
     for sign in (+1, -1):
-        for l, block in enumerate(render.x_rotation_bands(gd.MAX_L, sign)):
-            stored = rx[gd.rx_offset(l) : gd.rx_offset(l) + block.size].reshape(block.shape)
+        for l, block in enumerate(sh_rotation.x_rotation_bands(gd.MAX_L, sign)):
+            stored = rx[codegen.rx_offset(l) : codegen.rx_offset(l) + block.size].reshape(block.shape)
             assert np.allclose(stored if sign > 0 else stored.T, block, atol=1e-7)
-    # The generated X(±90°) code (band by band, gpu_draw.banded_source) multiplies exactly the
+    # The generated X(±90°) code (band by band, codegen.banded_source) multiplies exactly the
     # structurally non-zero entries.
     nonzero = sum(
-        int(np.sum(np.abs(b) > gd.X90_ZERO)) for s in (1, -1) for b in render.x_rotation_bands(8, s)[1:]
+        int(np.sum(np.abs(b) > policy.X90_ZERO))
+        for s in (1, -1)
+        for b in sh_rotation.x_rotation_bands(8, s)[1:]
     )
-    assert gd.banded_source(8).count("tf_rx(") == nonzero == 2 * 246
+    assert codegen.banded_source(8).count("tf_rx(") == nonzero == 2 * 246
 
 
 # ----------------------------------------------------------------------------------------------
@@ -406,7 +410,7 @@ def test_sphere_render_silhouette_and_values(gd, sphere_scene):
     assert np.all(bg_only[..., 3] == 1.0)
 
     # The background is the equirect image seen through the camera (hardware-filtered lookup).
-    expected_bg = render.equirect_lookup(s["image"], view.rays)
+    expected_bg = hdri.equirect_lookup(s["image"], view.rays)
     bg_err = np.max(np.abs(bg_only[..., :3] - expected_bg)) / np.max(expected_bg)
     assert bg_err < 1e-3, bg_err  # measured 8e-5 on llvmpipe (hardware bilinear weights)
 
@@ -414,7 +418,7 @@ def test_sphere_render_silhouette_and_values(gd, sphere_scene):
     # mesh's interpolated normals and flat facets differ from the sphere's by ~1e-3 (measured:
     # median 2e-4, max 1.2e-2 of the peak, the max near the rim where the lobe changes fastest).
     inner = erode(erode(view.mask))
-    expected = render.shade_sh(
+    expected = sh_sum.shade_sh(
         s["result"], s["lighting"].coefficients, view.normals[inner], view.views[inner]
     )
     rel = np.abs(bare[inner][:, :3] - expected) / np.max(expected)
@@ -463,7 +467,7 @@ def test_flat_quad_matches_shade_sh_per_pixel(gd, flip):
     views = unit(cam - hit[inside])
     n = np.broadcast_to(normal, views.shape)
     n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
-    expected = render.shade_sh(result, lighting.coefficients, n, views)
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, views)
     err = np.max(np.abs(img[inside][:, :3] - expected)) / np.max(expected)
     assert err < 1e-4, err
 
@@ -482,7 +486,7 @@ def test_orthographic_view_uses_the_constant_view_direction(gd, sphere_scene):
     inner = erode(erode(mask))
     normals = np.stack([x, -np.sqrt(np.maximum(1 - r2, 0)), z], -1)[inner]
     views = np.broadcast_to([0.0, -1.0, 0.0], normals.shape)
-    expected = render.shade_sh(s["result"], s["lighting"].coefficients, normals, views)
+    expected = sh_sum.shade_sh(s["result"], s["lighting"].coefficients, normals, views)
     rel = np.abs(img[inner][:, :3] - expected) / np.max(expected)
     assert np.median(rel) < 1e-3 and np.max(rel) < 3e-2, (np.median(rel), np.max(rel))
 
@@ -503,7 +507,7 @@ def test_display_output_is_srgb_encoded_with_exposure(gd, sphere_scene):
     finally:
         offscreen.free()
     drawn = linear[..., 3] > 0.5
-    expected = render.srgb_encode(linear[..., :3], 0.7)
+    expected = image_io.srgb_encode(linear[..., :3], 0.7)
     assert np.max(np.abs(display[..., :3][drawn] - expected[drawn])) < 1e-4
 
 
@@ -648,7 +652,7 @@ def test_varying_thickness_attribute_reaches_the_shader(gd, bpy):
     t01 = (xs + 1) / 2
     thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
     n = np.tile([0.0, -1.0, 0.0], (32, 1))
-    expected = render.shade_sh(result, lighting.coefficients, n, n, thick_nm)
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, n, thick_nm)
     got = img[1, :, :3]
     assert np.max(np.abs(got - expected)) / np.max(expected) < 1e-4
 
@@ -723,12 +727,12 @@ def quad_pixels(model):
     ],
 )
 def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments, weight, l_max):
-    """tf_split_sum.glsl against prefilter.shade_combined on a flat quad, split/SH 50:50.
+    """tf_split_sum.glsl against split_sum.shade_combined on a flat quad, split/SH 50:50.
 
     With the direction moments the albedo is read at the lobe light's half-vector angle
-    (prefilter.dominant_cosine); without them (zeros on the GPU, None in numpy) at the view angle.
-    Below prefilter.MOMENT_MIN_L a film drawn by both halves does not read them (TF_MOMENT is
-    not defined: prefilter.uses_moment), split-only films always do. SH weight 0 draws the
+    (split_sum.dominant_cosine); without them (zeros on the GPU, None in numpy) at the view angle.
+    Below policy.MOMENT_MIN_L a film drawn by both halves does not read them (TF_MOMENT is
+    not defined: policy.uses_moment), split-only films always do. SH weight 0 draws the
     split-only variant (TF_SPLIT_ONLY: no SH half), which must give the split sum alone.
     """
     from precompute import prefilter
@@ -742,7 +746,7 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     moments = full.resampled_moments(64) if with_moments else None
     pre = prefilter.Prefiltered(
         tuple(levels),
-        np.asarray(prefilter.ROUGHNESS_LEVELS),
+        np.asarray(policy.ROUGHNESS_LEVELS),
         0,
         tuple(moments) if with_moments else None,
     )
@@ -754,18 +758,18 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     inside, n, views = quad_pixels(item.model_matrix)
-    reads_moment = prefilter.uses_moment(l_max, weight == 0.0)
-    assert reads_moment == (weight == 0.0 or l_max >= prefilter.MOMENT_MIN_L)
+    reads_moment = policy.uses_moment(l_max, weight == 0.0)
+    assert reads_moment == (weight == 0.0 or l_max >= policy.MOMENT_MIN_L)
     used = pre if reads_moment else dataclasses.replace(pre, moments=None)
-    sh_half = render.shade_sh(result, lighting.coefficients, n, views)
-    expected = (1.0 - weight) * prefilter.shade_split_sum(result, used, n, views) + weight * sh_half
+    sh_half = sh_sum.shade_sh(result, lighting.coefficients, n, views)
+    expected = (1.0 - weight) * split_sum.shade_split_sum(result, used, n, views) + weight * sh_half
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
     # float32 shading plus hardware bilinear filtering of the prefiltered levels (llvmpipe's is
     # exact to 6e-8 in weights): 1e-4 of the peak, as for the SH path.
     assert inside.sum() > 300 and err < 1e-4, err
     if with_moments:  # the other choice of albedo angle is told apart at this tolerance
         other = pre if not reads_moment else dataclasses.replace(pre, moments=None)
-        wrong = (1.0 - weight) * prefilter.shade_split_sum(result, other, n, views) + weight * sh_half
+        wrong = (1.0 - weight) * split_sum.shade_split_sum(result, other, n, views) + weight * sh_half
         assert np.max(np.abs(wrong - expected)) / np.max(expected) > 1e-3
 
 
@@ -780,12 +784,12 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     ],
 )
 def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, film_ubo):
-    """tf_lamps.glsl against lamps.shade with the weights of prefilter.shade_combined.
+    """tf_lamps.glsl against lamp_shading.shade with the weights of split_sum.shade_combined.
 
     The World gets two small suns (so precompute.lamps.extract finds lamps); the SH and the
     prefiltered levels are those of the World without them, the lamps are shaded per light
     direction with the film table (uniform buffer, or the texture). Split: the lamps' weight
-    follows the level blend (prefilter.lamp_weight_at); SH alone (no prefiltered World): weight 1.
+    follows the level blend (split_sum.lamp_weight_at); SH alone (no prefiltered World): weight 1.
     """
     from precompute import lamps, prefilter, sh
 
@@ -799,11 +803,11 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     assert found.count == 2
     rest_coeffs = sh.project_equirect(lamps.remove(img, mask), 12)
     lighting = gd.Lighting.from_sh(rest_coeffs, 5, result.material.roughness, found)
-    film = lamps.film_table(result)
+    film = film_colour.film_table(result)
     full = prefilter.prefilter(img, width=64, lamp_mask=mask)
     levels, moments = full.resampled(64), full.resampled_moments(64)
     pre = prefilter.Prefiltered(
-        tuple(levels), np.asarray(prefilter.ROUGHNESS_LEVELS), 0, tuple(moments), full.lamp_weights
+        tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments), full.lamp_weights
     )
     item = tilted_quad_item(gd, table, lighting)
     item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments) if split else None
@@ -816,16 +820,14 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     inside, n, views = quad_pixels(item.model_matrix)
-    lit = lamps.shade(film, found, result.material.roughness, n, views)
-    expected = render.shade_sh(result, lighting.coefficients, n, views)
+    lit = lamp_shading.shade(film, found, result.material.roughness, n, views)
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, views)
     if split:
         cos_o = np.clip(np.sum(n * views, -1), 0.0, 1.0)
-        lamp_w = prefilter.lamp_weight_at(
-            pre, prefilter.effective_roughness(result.material.roughness, cos_o)
-        )
-        if not prefilter.uses_moment(5, weight == 0.0):  # l = 5 below MOMENT_MIN_L
+        lamp_w = split_sum.lamp_weight_at(pre, policy.effective_roughness(result.material.roughness, cos_o))
+        if not policy.uses_moment(5, weight == 0.0):  # l = 5 below MOMENT_MIN_L
             pre = dataclasses.replace(pre, moments=None)
-        expected = (1.0 - weight) * prefilter.shade_split_sum(result, pre, n, views) + weight * expected
+        expected = (1.0 - weight) * split_sum.shade_split_sum(result, pre, n, views) + weight * expected
         lit = (weight + (1.0 - weight) * lamp_w)[:, None] * lit
     assert np.max(lit) > 0.05 * np.max(expected)  # the lamps show
     expected = expected + lit

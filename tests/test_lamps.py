@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 import tmm
 
-from precompute import bake, brdf, hdri, lamps, prefilter
+from precompute import bake, brdf, film_colour, hdri, lamps, prefilter
 from precompute.material import Layer, Material, Quality
+from precompute.shading import lamps as lamp_shading
+from precompute.shading import policy, split_sum
 
 H, W = 64, 128
 
@@ -79,7 +81,7 @@ def test_at_most_max_lamps_and_deterministic():
     img = with_suns(sky(), spots)
     a, mask = lamps.extract(img)
     b, _ = lamps.extract(img)
-    assert a.count == lamps.MAX_LAMPS
+    assert a.count == policy.MAX_LAMPS
     assert np.array_equal(a.directions, b.directions) and np.array_equal(a.power, b.power)
     assert np.allclose(a.power.sum(axis=0), power(np.where(mask[..., None], img, 0.0)), rtol=1e-12)
     assert np.allclose(np.linalg.norm(a.directions, axis=1), 1.0)
@@ -116,9 +118,9 @@ def film_material(colour_mode="spectral", roughness=0.3, multiscatter="none", th
 
 @pytest.mark.parametrize("colour_mode", ["spectral", "per_channel"])
 def test_one_lamp_is_the_microfacet_brdf_times_its_power(colour_mode):
-    """lamps.shade against brdf.film_brdf (D G₂ F / 4 cos cos) × cos θi × power, per direction."""
+    """lamp_shading.shade against brdf.film_brdf (D G₂ F / 4 cos cos) × cos θi × power, per direction."""
     result = bake.bake(film_material(colour_mode))
-    film = lamps.film_table(result)
+    film = film_colour.film_table(result)
     rng = np.random.default_rng(4)
     n = np.tile([0.0, 0.0, 1.0], (200, 1))
     v = rng.normal(size=(200, 3))
@@ -127,7 +129,7 @@ def test_one_lamp_is_the_microfacet_brdf_times_its_power(colour_mode):
     d = np.array([0.3, -0.2, 0.9])
     d /= np.linalg.norm(d)
     p = np.array([2.0, 1.0, 0.5])
-    got = lamps.shade(film, lamps.Lamps(d[None], p[None]), 0.3, n, v)
+    got = lamp_shading.shade(film, lamps.Lamps(d[None], p[None]), 0.3, n, v)
     u_grid = np.linspace(0, 1, film.reflectance.shape[1])
 
     def film_r(u):  # the table's own reflectance, interpolated in u (per output row)
@@ -145,8 +147,8 @@ def test_film_table_matches_tmm_at_every_angle():
     """The per-channel film table is the CIE-weighted tmm reflectance (independent code)."""
     material = film_material("per_channel")
     result = bake.bake(material)
-    film = lamps.film_table(result, samples=9)
-    from precompute.render import film_rgb_matrices
+    film = film_colour.film_table(result, samples=9)
+    from precompute.film_colour import film_rgb_matrices
 
     u, rg, r, wl, g = film_rgb_matrices(material, None, 9)
     nk = [1.0, 1.33, 1.5]
@@ -175,7 +177,7 @@ def test_multiscatter_factor_matches_the_bake():
     for mode, tol in (("cycles", 1e-5), ("film", 5e-3)):
         material = film_material("per_channel", roughness=0.6, multiscatter=mode)
         result = bake.bake(material)
-        film = lamps.film_table(result)
+        film = film_colour.film_table(result)
         plain = bake.bake(film_material("per_channel", roughness=0.6, multiscatter="none"))
         # the bake's factor at its own view angles: scaled table ÷ unscaled table (l = 0 entry)
         cos_o = np.cos(result.view_angles_rad)
@@ -200,11 +202,11 @@ def test_split_sum_levels_keep_the_lamps_only_at_the_mirror_level():
     pre = prefilter.prefilter(img, width=W, lamp_mask=mask)
     whole = prefilter.prefilter(img, width=W)
     rest = prefilter.prefilter(lamps.remove(img, mask), width=W)
-    assert np.array_equal(pre.lamp_weights, (np.arange(len(pre.levels)) >= lamps.LAMP_LEVEL).astype(float))
+    assert np.array_equal(pre.lamp_weights, (np.arange(len(pre.levels)) >= policy.LAMP_LEVEL).astype(float))
     for j, level in enumerate(pre.levels):
-        ref = whole.levels[j] if j < lamps.LAMP_LEVEL else rest.levels[j]
+        ref = whole.levels[j] if j < policy.LAMP_LEVEL else rest.levels[j]
         assert np.allclose(level, ref, rtol=1e-9, atol=1e-9 * np.max(ref)), j
     # the analytic weight follows the level blend: 0 at roughness 0, 1 from level LAMP_LEVEL on
-    assert prefilter.lamp_weight_at(pre, 0.0) == 0.0
-    assert prefilter.lamp_weight_at(pre, pre.roughness[lamps.LAMP_LEVEL]) == 1.0
-    assert prefilter.lamp_weight_at(pre, 0.6) == 1.0
+    assert split_sum.lamp_weight_at(pre, 0.0) == 0.0
+    assert split_sum.lamp_weight_at(pre, pre.roughness[policy.LAMP_LEVEL]) == 1.0
+    assert split_sum.lamp_weight_at(pre, 0.6) == 1.0

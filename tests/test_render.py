@@ -5,8 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from precompute import bake, render, sh
+from precompute import bake, image_io, render, sh
 from precompute.material import Layer, Material, Quality
+from precompute.shading import frame as shading_frame
+from precompute.shading import policy, sh_rotation, sh_sum, split_sum, table
 
 
 def random_unit(rng, n):
@@ -22,7 +24,7 @@ def test_view_aligned_frame_is_orthonormal_right_handed_and_stable():
     v[5:10] = -n[5:10]
     n[10:12] = [[0, 0, 1], [0, 0, -1]]
     v[10:12] = [[0, 0, 1], [0, 0, -1]]
-    f = render.view_aligned_frame(n, v)
+    f = shading_frame.view_aligned_frame(n, v)
     assert np.all(np.isfinite(f))
     assert np.allclose(f @ np.swapaxes(f, -1, -2), np.eye(3), atol=1e-12)
     assert np.allclose(np.linalg.det(f), 1.0, atol=1e-12)
@@ -38,9 +40,9 @@ def test_zyz_rotation_equals_general_rotation_including_poles(l_max):
     n = random_unit(rng, 40)
     n[:4] = [[0, 0, 1], [0, 0, -1], [1e-9, 0, 1], [0, -1e-9, -1]]
     v = random_unit(rng, 40)
-    frames = render.view_aligned_frame(n, v)
+    frames = shading_frame.view_aligned_frame(n, v)
     world = rng.normal(size=((l_max + 1) ** 2, 3))
-    fast = render.local_coefficients(world, frames, l_max)
+    fast = sh_rotation.local_coefficients(world, frames, l_max)
     for p in range(frames.shape[0]):
         expected = sh.rotation(l_max, frames[p]) @ world
         # Rows 2–3 tilt 1e-9 off the pole, below GIMBAL_SIN: treated as the pole, they err by
@@ -54,8 +56,8 @@ def test_local_coefficients_describe_the_rotated_function():
     rng = np.random.default_rng(7)
     l_max = 6
     world = rng.normal(size=((l_max + 1) ** 2, 1))
-    frame = render.view_aligned_frame(random_unit(rng, 1), random_unit(rng, 1))[0]
-    local = render.local_coefficients(world, frame[None], l_max)[0]
+    frame = shading_frame.view_aligned_frame(random_unit(rng, 1), random_unit(rng, 1))[0]
+    local = sh_rotation.local_coefficients(world, frame[None], l_max)[0]
     d = random_unit(rng, 50)
     assert np.allclose(sh.basis(l_max, d) @ local, sh.basis(l_max, d @ frame) @ world, atol=1e-10)
 
@@ -71,9 +73,9 @@ def test_constant_environment_gives_the_directional_albedo_everywhere():
     n = random_unit(rng, 300)
     v = random_unit(rng, 300)
     v = np.where(np.sum(n * v, -1, keepdims=True) < 0, -v, v)
-    out = render.shade_sh(result, world, n, v)
+    out = sh_sum.shade_sh(result, world, n, v)
     cos_o = np.sum(n * v, -1)
-    albedo = render.lookup(result.data, cos_o)[:, 0] @ np.full(3, math.sqrt(4 * math.pi))
+    albedo = table.lookup(result.data, cos_o)[:, 0] @ np.full(3, math.sqrt(4 * math.pi))
     # Rotating a constant changes nothing: the result is the l = 0 albedo at θo, to rounding.
     assert np.allclose(out, np.maximum(albedo, 0), atol=1e-12)
 
@@ -104,9 +106,9 @@ def test_sh_render_converges_to_ground_truth_for_a_rough_film():
     coeffs = sh.project_equirect(image, 8)
     rng = np.random.default_rng(5)
     n = random_unit(rng, 12)
-    v = render.view_aligned_frame(n, random_unit(rng, 12))[:, 0] * 0.6 + n * 0.8
+    v = shading_frame.view_aligned_frame(n, random_unit(rng, 12))[:, 0] * 0.6 + n * 0.8
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    fast = render.shade_sh(result, coeffs, n, v)
+    fast = sh_sum.shade_sh(result, coeffs, n, v)
     truth = render.shade_reference(material, image, n, v)
     # l ≤ 1 lighting is represented exactly, so only the table's θo interpolation (32 samples),
     # the 4097-sample u tabulation and quadrature remain: measured ≤ 0.4 % of the value.
@@ -115,9 +117,9 @@ def test_sh_render_converges_to_ground_truth_for_a_rough_film():
 
 def test_images_write(tmp_path):
     img = np.linspace(0, 1, 4 * 5 * 3).reshape(4, 5, 3)
-    render.write_png(tmp_path / "a.png", render.srgb_encode(img))
+    image_io.write_png(tmp_path / "a.png", image_io.srgb_encode(img))
     assert (tmp_path / "a.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    render.write_exr(tmp_path / "a.exr", img)
+    image_io.write_exr(tmp_path / "a.exr", img)
     from precompute import hdri
 
     assert np.allclose(hdri.read_equirect(tmp_path / "a.exr"), img, atol=1e-7)
@@ -133,15 +135,15 @@ def test_hdr_sun_of_1e5_stays_finite_and_firefly_free():
         layers=(Layer(1.33, 450.0),), roughness=0.3, quality=Quality(sh_order=8, view_samples=16)
     )
     result = bake.bake(material)
-    coeffs = sh.project_equirect(image, 8) * render.lighting_window(8, 0.3)[:, None]
+    coeffs = sh.project_equirect(image, 8) * policy.lighting_window(8, 0.3)[:, None]
     rng = np.random.default_rng(11)
     n = random_unit(rng, 400)
-    v = render.view_aligned_frame(n, random_unit(rng, 400))[:, 0] * 0.5 + n
+    v = shading_frame.view_aligned_frame(n, random_unit(rng, 400))[:, 0] * 0.5 + n
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
     pre = prefilter.prefilter(image)
     outputs = {
-        "sh": render.shade_sh(result, coeffs, n, v),
-        "split": prefilter.shade_split_sum(result, pre, n, v),
+        "sh": sh_sum.shade_sh(result, coeffs, n, v),
+        "split": split_sum.shade_split_sum(result, pre, n, v),
         "reference": render.shade_reference(material, image, n[:40], v[:40], n_theta=32, n_phi=32),
     }
     for name, out in outputs.items():

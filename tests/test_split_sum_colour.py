@@ -1,6 +1,6 @@
 """The split sum's film colour at the half-vector angle of the light its lobe gathers.
 
-prefilter.dominant_cosine reads the film's albedo at cos θ' = √((1 + v·c)/2), c the direction
+split_sum.dominant_cosine reads the film's albedo at cos θ' = √((1 + v·c)/2), c the direction
 of the prefiltered luminance × direction moment. Checked against closed forms (uniform World:
 θ' = θo; one small lamp: θ' = the lamp's half-vector angle) and against the brute-force
 integral with the exact film per light direction (render.shade_reference).
@@ -16,6 +16,7 @@ import pytest
 
 from precompute import bake, hdri, prefilter, render
 from precompute.material import Layer, Material
+from precompute.shading import policy, sh_sum, split_sum
 
 
 def unit(x):
@@ -65,7 +66,7 @@ def test_uniform_world_keeps_the_view_angle(roughness):
     v = unit(rng.normal(size=(500, 3)))
     v = np.where(np.sum(n * v, -1, keepdims=True) < 0, -v, v)
     refl, cos_o = mirror(n, v)
-    cos_p = prefilter.dominant_cosine(pre, refl, np.full(500, roughness), v, cos_o)
+    cos_p = split_sum.dominant_cosine(pre, refl, np.full(500, roughness), v, cos_o)
     assert np.max(np.abs(cos_p - cos_o)) < 2e-3
 
 
@@ -79,7 +80,7 @@ def test_one_small_lamp_gives_its_half_vector_angle(roughness):
     pre = prefilter.prefilter(lamp_world(s, 2.0, 50.0), width=256)
     n, v = views_around(s, [10.0, 20.0, 30.0], np.random.default_rng(1), min_cos=0.1)
     refl, cos_o = mirror(n, v)
-    cos_p = prefilter.dominant_cosine(pre, refl, np.full(len(n), roughness), v, cos_o)
+    cos_p = split_sum.dominant_cosine(pre, refl, np.full(len(n), roughness), v, cos_o)
     want = np.sqrt((1.0 + v @ s) / 2.0)
     assert len(n) > 40
     assert np.max(np.abs(cos_p - want)) < 0.01
@@ -90,10 +91,10 @@ def test_black_world_keeps_the_view_angle_and_stays_finite():
     pre = prefilter.prefilter(np.zeros((32, 64, 3)), width=64)
     n, v = views_around(unit(np.array([0.0, -1.0, 0.2])), [15.0], np.random.default_rng(2))
     refl, cos_o = mirror(n, v)
-    cos_p = prefilter.dominant_cosine(pre, refl, np.full(len(n), 0.3), v, cos_o)
+    cos_p = split_sum.dominant_cosine(pre, refl, np.full(len(n), 0.3), v, cos_o)
     assert np.array_equal(cos_p, cos_o)
     result = bake.bake(Material(layers=(Layer(1.33, 400.0),), roughness=0.3, colour_mode="per_channel"))
-    out = prefilter.shade_split_sum(result, pre, n, v)
+    out = split_sum.shade_split_sum(result, pre, n, v)
     assert np.all(np.isfinite(out)) and np.all(out == 0.0)
 
 
@@ -112,8 +113,8 @@ def test_tail_lit_soap_film_takes_the_lamps_colour_not_the_view_angles():
     result = bake.bake(material)
     n, v = views_around(s, np.linspace(12.0, 30.0, 7), np.random.default_rng(5))
     ref = render.shade_reference(material, image, n, v, n_theta=96, n_phi=96)
-    with_moments = prefilter.shade_split_sum(result, pre, n, v)
-    without = prefilter.shade_split_sum(result, dataclasses.replace(pre, moments=None), n, v)
+    with_moments = split_sum.shade_split_sum(result, pre, n, v)
+    without = split_sum.shade_split_sum(result, dataclasses.replace(pre, moments=None), n, v)
     lit = ref.sum(-1) > 1e-3 * ref.sum(-1).max()
 
     def chroma_error(x):
@@ -142,7 +143,7 @@ def test_moments_are_the_prefilter_of_luminance_times_direction():
 
 @pytest.mark.parametrize("sh_order, roughness", [(5, 0.3), (6, 0.3), (5, 0.1)])
 def test_combined_path_reads_the_moment_where_uses_moment_says(sh_order, roughness):
-    # prefilter.MOMENT_MIN_L: a film drawn by both halves (0 < SH weight < 1, roughness 0.3) reads
+    # policy.MOMENT_MIN_L: a film drawn by both halves (0 < SH weight < 1, roughness 0.3) reads
     # its albedo at the dominant-direction angle from SH order 6, at the view angle below; a
     # split-only film (roughness 0.1, weight 0) always at the dominant angle. shade_combined is
     # the sum of its halves with exactly that split sum.
@@ -159,14 +160,14 @@ def test_combined_path_reads_the_moment_where_uses_moment_says(sh_order, roughne
     result = bake.bake(material)
     coeffs = render.prepare_environment(image, sh_order, roughness=roughness)[1]
     n, v = views_around(s, np.linspace(12.0, 30.0, 4), np.random.default_rng(3))
-    w = prefilter.sh_weight(roughness)
-    reads = prefilter.uses_moment(sh_order, w <= 0.0)
+    w = policy.sh_weight(roughness)
+    reads = policy.uses_moment(sh_order, w <= 0.0)
     assert reads == (w <= 0.0 or sh_order >= 6)
-    sh_half = render.shade_sh(result, coeffs, n, v) if w > 0.0 else 0.0
+    sh_half = sh_sum.shade_sh(result, coeffs, n, v) if w > 0.0 else 0.0
     split = {
-        m: prefilter.shade_split_sum(result, pre if m else dataclasses.replace(pre, moments=None), n, v)
+        m: split_sum.shade_split_sum(result, pre if m else dataclasses.replace(pre, moments=None), n, v)
         for m in (True, False)
     }
-    got = prefilter.shade_combined(result, coeffs, pre, n, v)
+    got = split_sum.shade_combined(result, coeffs, pre, n, v)
     assert np.allclose(got, (1.0 - w) * split[reads] + w * sh_half, rtol=1e-12, atol=1e-15)
     assert not np.allclose(got, (1.0 - w) * split[not reads] + w * sh_half, rtol=1e-3, atol=0.0)

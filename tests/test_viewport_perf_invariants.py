@@ -22,8 +22,10 @@ pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, linked_extension  # noqa: E402
 
-from precompute import bake, render, sh  # noqa: E402
+from precompute import bake, sh  # noqa: E402
 from precompute.material import Layer, Material, Quality  # noqa: E402
+from precompute.shading import frame as shading_frame  # noqa: E402
+from precompute.shading import sh_rotation, sh_sum  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -400,8 +402,8 @@ def test_direct_low_band_rotation_matches_numpy(tf, l_max):
     finally:
         offscreen.free()
     got = out[..., :3].reshape(height, len(kept), 4, 3).transpose(0, 2, 1, 3).reshape(count, len(kept), 3)
-    frames = render.view_aligned_frame(n.astype(float), v.astype(float))
-    expected = render.local_coefficients(lighting.coefficients, frames, l_max)[:, kept]
+    frames = shading_frame.view_aligned_frame(n.astype(float), v.astype(float))
+    expected = sh_rotation.local_coefficients(lighting.coefficients, frames, l_max)[:, kept]
     scale = np.max(np.abs(expected))
     # float32 maths of the same rotation: a few ulps of the largest coefficient.
     assert np.max(np.abs(got - expected)) / scale < 2e-6
@@ -458,7 +460,7 @@ def test_table_uniform_buffer_only_on_software_rasterisers(tf, gpu_helpers):
     [(2, "spectral", "constant"), (2, "per_channel", "varying"), (5, "spectral", "constant")],
 )
 def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode, thickness):
-    """tf_shade with TF_TABLE_UBO against render.shade_sh, as tests/test_gpu_draw.py does for the
+    """tf_shade with TF_TABLE_UBO against sh_sum.shade_sh, as tests/test_gpu_draw.py does for the
     texture (same bounds: float32 maths of the same interpolation)."""
     import gpu
 
@@ -504,7 +506,7 @@ def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode
     finally:
         offscreen.free()
     lo, hi = h.THICKNESS_RANGE
-    expected = render.shade_sh(result, lighting.coefficients, n, v, lo + t01 * (hi - lo) if vary else None)
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, v, lo + t01 * (hi - lo) if vary else None)
     per_pixel = np.max(np.abs(got - expected), axis=-1) / np.max(np.abs(expected))
     assert per_pixel.max() <= 1e-4 and np.median(per_pixel) <= 2e-6, (per_pixel.max(), np.median(per_pixel))
 

@@ -1,0 +1,151 @@
+"""Every shading rule, once: the constants and small decisions the shader and its numpy mirror share.
+
+Each constant carries one line of why and a link to ``docs/tuning.md``, where the measurements
+behind its value are. The GLSL never types these values: :func:`glsl_defines` emits them as
+``#define``s (the add-on passes them to ``GPUShaderCreateInfo.define`` through
+:meth:`precompute.shading.variant.Variant.defines`), and where a rule has to be GLSL code (the
+grazing narrowing r · cos^0.5 is written ``sqrt(c)``) the expression itself is emitted from the
+constant, so a change here changes both sides and the pictures stay bit-identical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import constants, sh
+
+# ----------------------------------------------------------------------------------------------
+# Split sum and SH
+# ----------------------------------------------------------------------------------------------
+#: Roughness range of the hand-over from the split sum to SH: each where it is closer to Cycles
+#: (docs/tuning.md#sh-blend).
+SH_BLEND = (0.2, 0.45)
+
+
+def sh_weight(roughness: float) -> float:
+    """Weight of the SH path, smoothstep over ``SH_BLEND`` (0 = split sum only, 1 = SH only)."""
+    lo, hi = SH_BLEND
+    t = min(max((float(roughness) - lo) / (hi - lo), 0.0), 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+#: Lanczos width (l_max + 1)(1 + this · r): glossy lobes need a narrow window against ringing, rough
+#: ones are blurred by it (docs/tuning.md#window-width).
+WINDOW_WIDTH_PER_ROUGHNESS = 0.9
+
+
+def lighting_window(l_max: int, roughness: float) -> np.ndarray:
+    """Per-coefficient factors applied to the World's SH for a material of this roughness."""
+    r = min(max(float(roughness), 0.0), 1.0)
+    return sh.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
+
+
+#: From this l_max on a combined film reads its albedo at the dominant direction: below, the second
+#: fetch costs more than it gains (docs/tuning.md#moment).
+MOMENT_MIN_L = 6
+
+
+def uses_moment(l_max: int, split_only: bool) -> bool:
+    """Whether the split sum reads the albedo at the dominant-direction angle (see
+    :data:`MOMENT_MIN_L`): always for split-only films, from l_max 6 on for combined ones."""
+    return bool(split_only) or int(l_max) >= MOMENT_MIN_L
+
+
+# ----------------------------------------------------------------------------------------------
+# Prefiltered levels
+# ----------------------------------------------------------------------------------------------
+#: Prefiltered levels of the split sum: no roughness far from one (docs/tuning.md#level-ladder).
+LEVEL_COUNT = 9
+#: Level k holds roughness (k / (J − 1))^this: dense where the lobe changes fastest
+#: (docs/tuning.md#level-ladder).
+LEVEL_EXPONENT = 2
+#: Roughness of each prefiltered level (Blender roughness; α = r²).
+ROUGHNESS_LEVELS = tuple(((np.arange(LEVEL_COUNT) / (LEVEL_COUNT - 1)) ** LEVEL_EXPONENT).tolist())
+
+#: r_eff = r · cos(θo)^this: the prefilter's n = v = r lobe is wider than the masked one at grazing
+#: views (docs/tuning.md#grazing-exponent).
+GRAZING_EXPONENT = 0.5
+
+
+def effective_roughness(roughness: float, cos_o) -> np.ndarray:
+    """r_eff = r · cos(θo)^GRAZING_EXPONENT (cos θo clamped to [MIN_COS, 1])."""
+    c = np.clip(np.asarray(cos_o, dtype=float), MIN_COS, 1.0)
+    return np.clip(roughness, 0.0, 1.0) * c**GRAZING_EXPONENT
+
+
+# ----------------------------------------------------------------------------------------------
+# The World's lamps
+# ----------------------------------------------------------------------------------------------
+#: At most this many lamps (the shader's loop bound): more gains little (docs/tuning.md#max-lamps).
+MAX_LAMPS = 8
+#: Levels below this keep the lamps in the image (a mirror shows their shape), from it on the lamps
+#: are shaded per direction (docs/tuning.md#lamp-level).
+LAMP_LEVEL = 2
+
+# ----------------------------------------------------------------------------------------------
+# Guards
+# ----------------------------------------------------------------------------------------------
+#: Smallest cosine the shaders divide by (grazing views): constants.MIN_COS.
+MIN_COS = constants.MIN_COS
+#: Smallest GGX α of the lamps' lobe (below, a delta no sample resolves): constants.MIN_ALPHA.
+MIN_ALPHA = constants.MIN_ALPHA
+#: sin β below which the z-y-z split is one z-rotation (gimbal): far below any table resolution.
+GIMBAL_SIN = 1e-7
+#: |v − n (n·v)| below which the GLSL takes v ∥ n: float32 rounding leaves ~1e-7 (numpy: 1e-9).
+TANGENT_EPS = 1e-6
+#: X(±90°) entries below this are structural zeros (noise ≤ 3e-16, the least true entry 2⁻⁷): the
+#: generated code skips them (docs/tuning.md#x90-generated).
+X90_ZERO = 1e-9
+
+# ----------------------------------------------------------------------------------------------
+# Devices
+# ----------------------------------------------------------------------------------------------
+#: Device types drawing tables from a uniform buffer: cheaper than texelFetch on llvmpipe, dearer
+#: on an NVIDIA GPU (docs/tuning.md#table-ubo-devices).
+TABLE_UBO_DEVICES = ("SOFTWARE",)
+
+
+# ----------------------------------------------------------------------------------------------
+# GLSL
+# ----------------------------------------------------------------------------------------------
+def glsl_float(value: float) -> str:
+    """A GLSL float literal for ``value`` (Python's shortest repr, with a point or an exponent)."""
+    text = repr(float(value))
+    if not all(c in "0123456789.e-+" for c in text):
+        raise ValueError(f"{value!r} has no GLSL literal")
+    return text if ("." in text or "e" in text) else text + ".0"
+
+
+def glsl_power(x: str, exponent: float) -> str:
+    """x^exponent as GLSL: ``sqrt`` for ½ and a product for 2 (what the shaders were written with,
+    so the compiled code is unchanged), ``pow`` otherwise."""
+    e = float(exponent)
+    if e == 1.0:
+        return f"({x})"
+    if e == 0.5:
+        return f"sqrt({x})"
+    if e == 2.0:
+        return f"(({x}) * ({x}))"
+    return f"pow({x}, {glsl_float(e)})"
+
+
+def glsl_defines() -> tuple[tuple[str, str], ...]:
+    """(name, value) of every ``#define`` of a shading rule the shaders use (read at call time).
+
+    - ``TF_MAX_LAMPS``, ``TF_LAMP_LEVEL``: :data:`MAX_LAMPS`, :data:`LAMP_LEVEL`;
+    - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``: the guards;
+    - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
+    - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
+      k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse.
+    """
+    return (
+        ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
+        ("TF_LAMP_LEVEL", str(int(LAMP_LEVEL))),
+        ("TF_MIN_COS", glsl_float(MIN_COS)),
+        ("TF_MIN_ALPHA", glsl_float(MIN_ALPHA)),
+        ("TF_GIMBAL_SIN", glsl_float(GIMBAL_SIN)),
+        ("TF_TANGENT_EPS", glsl_float(TANGENT_EPS)),
+        ("TF_GRAZING(x)", glsl_power("x", GRAZING_EXPONENT)),
+        ("TF_LADDER_ROUGHNESS(x)", glsl_power("x", LEVEL_EXPONENT)),
+        ("TF_LADDER_POSITION(r)", glsl_power("r", 1.0 / LEVEL_EXPONENT)),
+    )

@@ -1,0 +1,139 @@
+"""The shader variant: which GLSL a draw compiles, and the pure decisions that pick it.
+
+A :class:`Variant` names every switch of the shading library (each a ``#define``); the add-on
+compiles one shader per variant (addon/gpu_draw.py ``ShaderCache``) and the effect plan
+(precompute/effects.py) costs the same variant (codegen.operation_counts).
+:func:`choose_variant` turns the facts of one draw item (its table, mesh, World and film) into
+it, for the draw and for the plan alike.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from . import policy
+
+#: Minimum uniform-buffer size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
+UBO_LIMIT_BYTES = 16384
+#: RGBA32F texels of a table (or the lamps' film table) that fit one uniform buffer next to its
+#: vec4 size header: only then can it be drawn from the buffer (``TF_TABLE_UBO``, ``TF_FILM_UBO``).
+UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
+
+
+def fits_uniform_buffer(layers: int, rows: int, columns: int) -> bool:
+    """Whether a table of ``layers`` × ``rows`` × ``columns`` RGBA texels fits :data:`UBO_TEXELS`."""
+    return int(layers) * int(rows) * int(columns) <= UBO_TEXELS
+
+
+class Variant(NamedTuple):
+    """A compiled shader variant (a NamedTuple: hashable, the shader cache's key)."""
+
+    #: Highest SH band of the table (``TF_L_MAX``).
+    l_max: int
+    #: A 3×3 colour matrix per coefficient (``TF_SPECTRAL``), else RGB factors.
+    spectral: bool
+    #: Thickness from the per-vertex attribute over the table's rows (``TF_VARY_THICKNESS``).
+    vary_thickness: bool
+    #: Output display-encoded: exposure, clamp, sRGB (``TF_DISPLAY_SRGB``).
+    display: bool
+    #: Split sum blended with SH by roughness (``TF_SPLIT_SUM``, tf_split_sum.glsl).
+    split_sum: bool = False
+    #: The table read from the ``TFTable`` uniform buffer instead of its texture (``TF_TABLE_UBO``).
+    table_ubo: bool = False
+    #: Split sum alone (``sh_weight`` = 0, glossy films): the SH half is compiled out.
+    split_only: bool = False
+    #: The World's lamps shaded per light direction (tf_lamps.glsl, the film texture).
+    lamps: bool = False
+    #: The lamps' film table read from the ``TFFilm`` uniform buffer (small tables).
+    film_ubo: bool = False
+
+    @property
+    def moment(self) -> bool:
+        """The split sum reads its albedo at the dominant-direction angle (``TF_MOMENT``,
+        policy.uses_moment)."""
+        return bool(self.split_sum) and policy.uses_moment(self.l_max, self.split_only)
+
+    def normalised(self) -> Variant:
+        """The same variant with plain ``int``/``bool`` fields and the flags that need another
+        cleared (split-only without the split sum, a film uniform buffer without lamps)."""
+        return Variant(
+            int(self.l_max),
+            bool(self.spectral),
+            bool(self.vary_thickness),
+            bool(self.display),
+            bool(self.split_sum),
+            bool(self.table_ubo),
+            bool(self.split_sum and self.split_only),
+            bool(self.lamps),
+            bool(self.lamps and self.film_ubo),
+        )
+
+    def switches(self) -> tuple[tuple[str, str], ...]:
+        """The variant's own ``#define``s (name, value), in the order the shader declares them."""
+        out = [("TF_L_MAX", str(int(self.l_max)))]
+        if self.spectral:
+            out.append(("TF_SPECTRAL", "1"))
+        if self.vary_thickness:
+            out.append(("TF_VARY_THICKNESS", "1"))
+        if self.display:
+            out.append(("TF_DISPLAY_SRGB", "1"))
+        if self.split_sum:
+            out.append(("TF_SPLIT_SUM", "1"))
+            if self.split_only:
+                out.append(("TF_SPLIT_ONLY", "1"))
+            if self.moment:
+                out.append(("TF_MOMENT", "1"))
+        if self.lamps:
+            out.append(("TF_LAMPS", "1"))
+            if self.film_ubo:
+                out.append(("TF_FILM_UBO", "1"))
+        if self.table_ubo:
+            out.append(("TF_TABLE_UBO", "1"))
+        return tuple(out)
+
+    def defines(self) -> tuple[tuple[str, str], ...]:
+        """Every ``#define`` the shading library needs: :meth:`switches`, then the shading rules
+        (policy.glsl_defines)."""
+        return self.switches() + policy.glsl_defines()
+
+
+def choose_variant(
+    *,
+    l_max: int,
+    spectral: bool,
+    thickness_rows: int,
+    has_thickness: bool,
+    display: bool,
+    prefiltered: bool,
+    sh_weight: float,
+    lamp_count: int = 0,
+    film: bool = False,
+    film_ubo: bool = False,
+    table_ubo: bool = False,
+) -> Variant:
+    """The variant that draws one item, from its facts.
+
+    - ``l_max``, ``spectral``, ``thickness_rows``: the baked table's;
+    - ``has_thickness``: the mesh carries the thickness attribute (vary only with > 1 row);
+    - ``prefiltered``: a prefiltered World is there; the split sum runs where it is and
+      ``sh_weight`` (policy.sh_weight of the roughness) < 1, alone where the weight is 0 (a
+      run-time branch on the weight did not save the SH half on llvmpipe: split only cost as
+      much as split + SH);
+    - ``lamp_count``, ``film``: the World's lamps and the material's film table; the lamp loop
+      runs with both; ``film_ubo``: the film table is in a uniform buffer;
+    - ``table_ubo``: the table is drawn from its uniform buffer (policy.TABLE_UBO_DEVICES and
+      :func:`fits_uniform_buffer`).
+    """
+    split = bool(prefiltered) and float(sh_weight) < 1.0
+    lamps = bool(film) and int(lamp_count) > 0
+    return Variant(
+        l_max=int(l_max),
+        spectral=bool(spectral),
+        vary_thickness=bool(has_thickness) and int(thickness_rows) > 1,
+        display=bool(display),
+        split_sum=split,
+        table_ubo=bool(table_ubo),
+        split_only=split and float(sh_weight) <= 0.0,
+        lamps=lamps,
+        film_ubo=lamps and bool(film_ubo),
+    )
