@@ -28,7 +28,7 @@ repeated frames and the ratio is ours / Workbench of those medians.
 Scenes: N ∈ {1, 10, 100} tori (each its own mesh, smooth shaded, quads) sharing the total
 triangle count T, laid out on a grid in front of the camera, all with one thin-film material
 (a 400 nm film of n = 1.33 on glass, spectral, constant thickness, rough enough to be drawn by
-SH alone; its SH order forced through the material's Quality), lit by Blender's ``studio`` HDRI
+SH alone; its l_max forced through the material's Quality), lit by Blender's ``studio`` HDRI
 as the World.
 """
 
@@ -63,7 +63,7 @@ OBJECT_COUNTS = (1, 10, 100)
 TRIANGLES = (10_000, 100_000, 1_000_000, 2_000_000)
 #: 4K only for these (objects, triangles): a Workbench frame takes 6-9 s there on llvmpipe.
 CELLS_4K = ((10, 10_000), (10, 2_000_000))
-#: SH order n means bands l ≤ n − 1; the headline is order 3.
+#: The headline is l_max = 2 (bands l ≤ 2; docs/conventions.md: "SH order" is l_max).
 HEADLINE_L = 2
 SWEEP_L = (*range(1, 9), 10, 12)
 #: The scene of the order sweep and of the split-sum comparison: (objects, triangles).
@@ -207,7 +207,7 @@ class Scene:
         self.scene.world = world
 
     def material(self, l_max: int, case: str = "sh"):
-        """The film material at SH order ``l_max`` and roughness of ``case`` (made once)."""
+        """The film material at ``l_max`` and roughness of ``case`` (made once)."""
         import bpy
 
         key = (int(l_max), case)
@@ -504,7 +504,7 @@ def order_sweep(scene: Scene, quick: bool, baseline=None, orders=None, log=print
         cell = frame_cell(scene, res, repeats_for(w, h, triangles, quick), baseline=baseline)
         rows.append({"l_max": l_max, "objects": objects, "triangles": scene.triangles, "res": res, **cell})
         log(
-            f"  order {l_max + 1} (l ≤ {l_max}) {res}: Workbench {cell['workbench']:7.1f} ms,"
+            f"  l_max = {l_max} {res}: Workbench {cell['workbench']:7.1f} ms,"
             f" ours {cell['ours']:7.1f} ms ({cell['ours'] / cell['workbench']:.2f}×)"
             + (f", baseline {cell['baseline']:7.1f} ms" if "baseline" in cell else "")
         )
@@ -794,7 +794,7 @@ def report(res: dict) -> str:
         worst, typical = head["worst"], head["typical"]
         verdict = "met" if ratio(worst) <= RATIO_LIMIT else "**not met**"
         lines += [
-            f"- **SH order 3 (l ≤ 2) at 1080p: ours / Workbench = {ratio(typical):.2f}×** for"
+            f"- **l_max = 2 at 1080p: ours / Workbench = {ratio(typical):.2f}×** for"
             f" {_objects(typical['objects'])} with {_tri(typical['triangles'])} triangles"
             f" ({typical['ours']:.0f} ms vs {typical['workbench']:.0f} ms, median frames, same run); over"
             f" all {len(head['cells'])} scenes at 1080p"
@@ -892,7 +892,7 @@ def gpu_statement(res: dict) -> str:
             " cannot run on the GPU machine lent to some tasks. Our draw alone (the same shaders and"
             " data, recorded from the extension) was timed on an NVIDIA H100 by"
             " `benchmarks/gpu_frame/`: [gpu-frame.md](gpu-frame.md), including the 1 M-triangle"
-            " figure (1080p, SH order 5: 70 fps there, not the 240 asked for, on a GPU whose graphics"
+            " figure (1080p, l_max = 4: 70 fps there, not the 240 asked for, on a GPU whose graphics"
             " hardware is a small part of the chip)."
         )
     return f"measured on {renderer}."
@@ -926,7 +926,7 @@ def _method_lines() -> list[str]:
         + " (a Workbench frame takes 6–9 s there).",
         "- Scenes: N tori (each its own mesh of quads, smooth shaded) sharing T triangles on a grid"
         " facing the camera; all with one film material: 400 nm of n = 1.33 on glass, constant thickness,"
-        f" spectral colour, roughness {rough['sh']:g} (drawn by SH alone: `sh_weight` = 1), SH order"
+        f" spectral colour, roughness {rough['sh']:g} (drawn by SH alone: `sh_weight` = 1), l_max"
         " forced through the material's Quality; the World is Blender's"
         f" `{HDRI}` studio-light HDRI, whose small bright lamps the films shade per light direction"
         ' (the material\'s "World Lamps", on by default: a loop over 8 lamps in every variant, about'
@@ -944,7 +944,7 @@ def _grid_section(res: dict) -> list[str]:
         return []
     resolutions = [r for r in RESOLUTIONS if any(x["res"] == r for x in rows)]
     out = [
-        f"## Frame time at SH order {HEADLINE_L + 1} (l ≤ {HEADLINE_L}): objects × triangles × resolution",
+        f"## Frame time at l_max = {HEADLINE_L}: objects × triangles × resolution",
         "",
         "Median frame time in ms, Workbench / ours, and the ratio ours ÷ Workbench.",
         "",
@@ -1014,18 +1014,18 @@ def _sweep_section(res: dict) -> list[str]:
     r0 = rows[0]
     base = any("baseline" in r for r in rows)
     out = [
-        "## Every SH order",
+        "## Every l_max",
         "",
-        f"{r0['objects']} objects, {_tri(r0['triangles'])} triangles, {r0['res']}; order n = bands l ≤ n − 1."
-        f" The headline order is {HEADLINE_L + 1}.",
+        f"{r0['objects']} objects, {_tri(r0['triangles'])} triangles, {r0['res']}."
+        f" The headline is l_max = {HEADLINE_L}.",
         "",
-        "| SH order | l ≤ | Workbench ms | ours ms | ours fps | ratio |" + (" baseline ms |" if base else ""),
-        "|---|---|---|---|---|---|" + ("---|" if base else ""),
+        "| l_max | Workbench ms | ours ms | ours fps | ratio |" + (" baseline ms |" if base else ""),
+        "|---|---|---|---|---|" + ("---|" if base else ""),
     ]
     for r in rows:
         mark = " **(headline)**" if r["l_max"] == HEADLINE_L else ""
         out.append(
-            f"| {r['l_max'] + 1}{mark} | {r['l_max']} | {r['workbench']:.0f} | {r['ours']:.0f} |"
+            f"| {r['l_max']}{mark} | {r['workbench']:.0f} | {r['ours']:.0f} |"
             f" {_fps(r['ours'])} | {r['ours'] / r['workbench']:.2f}× |"
             + (f" {r['baseline']:.0f} |" if base else "")
         )
@@ -1271,7 +1271,7 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, 
             log("grid at the headline order …")
             res["grid"] = grid(scene, quick, baseline, log)
         if "sweep" in parts:
-            log("SH order sweep …")
+            log("l_max sweep …")
             res["sweep"] = order_sweep(scene, quick, baseline, orders, log)
         if "split_sum" in parts:
             log("split sum vs SH …")

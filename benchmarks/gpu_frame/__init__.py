@@ -43,7 +43,7 @@ nothing but numpy and moderngl:
   100 k triangles at l = 2, 5, 8, 12, each film as SH only, combined (split sum + SH) and split
   sum only (``viewport.roughness_cases``), with the World's lamps shaded per light direction
   (the product's default) and with the films' "World Lamps" off; ``grid``, 1 torus with 1.00 M
-  triangles at l = 4 (SH order 5) and l = 2, SH only, lamps on and off. 1920×1080, the view of
+  triangles at l_max = 4 and 2, SH only, lamps on and off. 1920×1080, the view of
   the scene camera. ``prepare`` runs on llvmpipe, where small tables are read from the uniform
   buffer; cases "<film>-tex" are the same films with the table read from its texture, as a
   hardware GPU draws them (``gpu_draw.TABLE_UBO_DEVICES``), and "sh-loops" (l = 8, 12) the SH

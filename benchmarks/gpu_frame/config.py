@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[2]
 #: Frame size of the timed frames and of the pictures that ``check`` compares.
 RESOLUTION = (1920, 1080)
 CHECK_SIZE = (480, 270)
-#: The scenes: (objects, triangles), SH orders, film cases, World lamps (viewport.py's constants
+#: The scenes: (objects, triangles), l_max values, film cases, World lamps (viewport.py's constants
 #: are read in ``prepare``; these must agree with them and are checked there).
 SCENES = {
     "sweep": {"layout": (10, 100_000), "l_max": (2, 5, 8, 12), "cases": ("sh", "combined", "split")},
@@ -35,7 +35,7 @@ PNG_CASES = ("sweep-l5-sh-lamps", "sweep-l5-combined-lamps", "sweep-l5-split-lam
 #: Arrays above this many bytes are stored as byte planes (compresses float data far better).
 SHUFFLE_BYTES = 1 << 20
 FORMAT_VERSION = 1
-#: The acceptance figure for a GPU (issue: 1080p, 1 M triangles, SH order 5).
+#: The acceptance figure for a GPU (issue: 1080p, 1 M triangles, l_max = 4).
 FPS_TARGET = 240.0
 DOC = "gpu-frame.md"
 
