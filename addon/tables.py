@@ -97,7 +97,7 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
         return hit, "memory"
     if cache is None:
         cache = table_cache()
-    expect = {"material": desc.to_dict()}
+    expect = {"material": bake.table_material(desc).to_dict()}  # what bake() stores
     table = None
     try:
         table = cache.load(key, expect=expect, kind=bake.FORMAT_KIND)
