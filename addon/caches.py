@@ -15,6 +15,15 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   LRU of ``tables.LRU_SIZE`` (32); filled by ``tables.get_table_with_source`` (disk cache or a
   bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION, also
   emptied by the Clear Cache operator (``tables.clear_caches``) with the disk cache.
+- ``bake_failures`` — ``tables.FAILURES``: the error text of failed bakes by description key;
+  LRU of ``tables.FAILURE_MEMORY`` (64); filled by ``viewport``'s bake worker, ``scene_draw``'s
+  headless bakes and the Bake operator (``tables.record_failure``), emptied of a key when its
+  bake succeeds; read by the viewport (no retry until the description changes) and the panel;
+  SESSION, also emptied by Clear Cache.
+- ``cache_errors`` — ``tables.CACHE_ERRORS``: why a description's table is not in the disk
+  cache (an unusable folder, a full disk: the table is in memory and drawn); LRU of
+  ``tables.FAILURE_MEMORY`` (64); filled by ``tables.get_table_with_source``; SESSION, also
+  emptied by Clear Cache.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
@@ -61,8 +70,11 @@ SESSION = "session"
 class LRU:
     """A thread-safe least-recently-used mapping of at most ``maxsize`` entries.
 
-    ``get``, ``[]``, ``[]=``, ``in``, ``len`` and ``clear``; reading an entry (``get`` or ``[]``)
-    makes it the most recent, storing one beyond ``maxsize`` drops the least recent.
+    ``get``, ``[]``, ``[]=``, ``pop``, ``in``, ``len``, ``items`` (a snapshot) and ``clear``;
+    reading an entry (``get`` or ``[]``) makes it the most recent, storing one beyond ``maxsize``
+    drops the least recent. :meth:`resize` changes the bound (dropping the least recent entries
+    at once when it shrinks). A dropped value is only dereferenced: GPU objects in it are freed
+    when nothing else holds them.
     """
 
     def __init__(self, maxsize: int):
@@ -92,9 +104,27 @@ class LRU:
             while len(self._data) > self.maxsize:
                 self._data.popitem(last=False)
 
+    def pop(self, key, default=None):
+        with self._lock:
+            return self._data.pop(key, default)
+
     def __contains__(self, key):
         with self._lock:
             return key in self._data
+
+    def items(self) -> list:
+        """(key, value) pairs, least recent first (a copy: safe to iterate while others store)."""
+        with self._lock:
+            return list(self._data.items())
+
+    def resize(self, maxsize: int) -> None:
+        """Bound the mapping to ``maxsize`` (≥ 1) entries, dropping the least recent beyond it."""
+        if maxsize < 1:
+            raise ValueError(f"maxsize must be ≥ 1, got {maxsize}")
+        with self._lock:
+            self.maxsize = int(maxsize)
+            while len(self._data) > self.maxsize:
+                self._data.popitem(last=False)
 
     def __len__(self):
         with self._lock:
