@@ -168,6 +168,10 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
                 layout.prop_search(settings, "thickness_uv_map", obj.data, "uv_layers", text="UV Map")
             else:
                 layout.prop(settings, "thickness_uv_map")
+        obj = context.object
+        if obj is not None:  # NaN values, a missing attribute: what the last draw found
+            for note in scene_draw.object_notes(obj.name):
+                layout.label(text=note, icon="ERROR")
 
 
 class THINFILM_PT_substrate(_SubPanel, Panel):
