@@ -4,6 +4,11 @@
 scene first (Blender's own Solid drawing, for depth and for the objects we don't shade), then
 the World as background, then every thin-film object, depth-tested. Writes a scene-linear EXR
 and a PNG (sRGB "Standard" view with the scene's exposure).
+
+The table cache is the add-on's (:func:`.tables.table_cache`: ``THINFILM_SH_CACHE``, the
+preference, the private default); every command takes ``--cache-dir`` to name another. An
+unusable cache folder or a write that fails (a full disk) is an ``error: …`` line and exit
+status 2, never a traceback; a table that could not be saved to the cache is still used.
 """
 
 from __future__ import annotations
@@ -41,8 +46,13 @@ def scene_materials(scene):
     return found, errors
 
 
-def bake_scene(scene, out_dir=None, progress=print) -> dict:
-    """Bake (or load from cache) every material the scene shows; optional EXR copies in ``out_dir``."""
+def bake_scene(scene, out_dir=None, progress=print, cache=None) -> dict:
+    """Bake (or load from cache) every material the scene shows; optional EXR copies in ``out_dir``.
+
+    ``cache``: as :func:`.tables.get_table_with_source` takes it (None: the add-on's). A table
+    the cache could not keep is used anyway, and named in ``errors`` (with ``cache_error`` in its
+    entry).
+    """
     from ..precompute import table_io
 
     found, errors = scene_materials(scene)
@@ -51,7 +61,7 @@ def bake_scene(scene, out_dir=None, progress=print) -> dict:
     for i, (name, desc) in enumerate(sorted(found.items())):
         key = description_key(desc)
         t0 = time.perf_counter()
-        result, source = tables.get_table_with_source(desc)
+        result, source = tables.get_table_with_source(desc, cache)
         entry = {
             "key": key,
             "source": source,
@@ -60,6 +70,10 @@ def bake_scene(scene, out_dir=None, progress=print) -> dict:
             "sh_order": result.sh_order,
             "shared_with": shared.get(key),
         }
+        problem = tables.cache_error(desc)
+        if problem is not None:
+            entry["cache_error"] = problem
+            errors[name] = f"material {name!r}: {problem}"
         shared.setdefault(key, name)
         if out_dir:
             path = pathlib.Path(out_dir) / f"{bpy.path.clean_name(name)}.exr"
@@ -187,62 +201,86 @@ def main(argv) -> int:
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
     r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
-    sub.add_parser(
+    p = sub.add_parser(
         "plan",
         help="print what each visible material needs simulated (effects, table size, orders, estimated "
         "bake time and shader cost) and why; bakes nothing",
     )
+    for command in (b, r, p):
+        command.add_argument(
+            "--cache-dir",
+            help="the table cache's folder (default: $THINFILM_SH_CACHE, else the add-on's preference, "
+            "else a private per-user folder); tables go in its thinfilm_sh_tables subfolder",
+        )
     args = parser.parse_args(argv)
     scene = bpy.context.scene
     try:
-        if args.command == "bake":
-            summary = bake_scene(scene, args.out_dir)
-            if args.json:
-                pathlib.Path(args.json).write_text(json.dumps(summary, indent=2))
-            for err in summary["errors"].values():
-                print(f"error: {err}")
-            return 1 if summary["errors"] else 0
-        if args.command == "render":
-            result = render_scene(scene, args.out, args.width, args.height, background=not args.no_background)
-            for msg in result["messages"]:
-                print(f"note: {msg}")
-            print(
-                f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
-                f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
-            )
-            return 0
-        # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
-        # sets the World order; tables already in memory or in the disk cache cost no bake.
-        found, errors = scene_materials(scene)
-        coeffs = world.world_sh(scene).coeffs if found else None
-        disk = tables.table_cache()
-        keys = {name: description_key(desc) for name, desc in found.items()}
-        cached = {
-            keys[name]
-            for name, desc in found.items()
-            if tables.peek_table(desc) is not None or disk.path_for(keys[name]).is_file()
-        }
-        plan = effects.scene_plan(found, coeffs, cached=cached)
-        print(effects.format_plan(plan))
-        for name, mp in plan.materials.items():  # one JSON line per material, for scripts
-            first = plan.tables[mp.key][0]
-            summary = {
-                "material": name,
-                "sh_order": mp.plan.sh_order,
-                "view_samples": mp.plan.view_samples,
-                "thickness_samples": mp.plan.thickness_samples,
-                "wavelengths": mp.plan.wavelength_count,
-                "shared_with": first if first != name else None,
-                "world_order": plan.world_order,
-                **mp.to_dict(),
-            }
-            print("plan-json " + json.dumps(summary))
-        for err in errors.values():
-            print(f"error: {err}")
-        return 1 if errors else 0
-    except ValueError as exc:
+        with tables.cache_dir_override(args.cache_dir):
+            cache = tables.open_cache()
+            if not isinstance(cache, tables.UnusableCache):
+                try:
+                    cache.size_bytes()  # checks the folder: no symbolic link, yours, private
+                except OSError as exc:
+                    cache = tables.UnusableCache(f"table cache unusable: {exc}")
+            if isinstance(cache, tables.UnusableCache):
+                if args.command == "bake":  # filling the cache is what it is for
+                    print(f"error: {cache.reason}")
+                    return 2
+                print(f"note: {cache.reason}; tables are baked but not kept on disk")
+            return _run(args, scene, cache)
+    except (ValueError, OSError) as exc:  # TableWriteError, CacheDirError: the message names the path
         print(f"error: {exc}")
         return 2
+
+
+def _run(args, scene, cache) -> int:
+    from ..precompute import table_io
+
+    if args.command == "bake":
+        summary = bake_scene(scene, args.out_dir, cache=cache)
+        if args.json:
+            table_io.write_bytes(args.json, json.dumps(summary, indent=2).encode())
+        for err in summary["errors"].values():
+            print(f"error: {err}")
+        return 1 if summary["errors"] else 0
+    if args.command == "render":
+        result = render_scene(scene, args.out, args.width, args.height, background=not args.no_background)
+        for msg in result["messages"]:
+            print(f"note: {msg}")
+        print(
+            f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
+            f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
+        )
+        return 0
+    # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
+    # sets the World order; tables already in memory or in the disk cache cost no bake.
+    found, errors = scene_materials(scene)
+    coeffs = world.world_sh(scene).coeffs if found else None
+    keys = {name: description_key(desc) for name, desc in found.items()}
+    on_disk = not isinstance(cache, tables.UnusableCache)
+    cached = {
+        keys[name]
+        for name, desc in found.items()
+        if tables.peek_table(desc) is not None or (on_disk and cache.path_for(keys[name]).is_file())
+    }
+    plan = effects.scene_plan(found, coeffs, cached=cached)
+    print(effects.format_plan(plan))
+    for name, mp in plan.materials.items():  # one JSON line per material, for scripts
+        first = plan.tables[mp.key][0]
+        summary = {
+            "material": name,
+            "sh_order": mp.plan.sh_order,
+            "view_samples": mp.plan.view_samples,
+            "thickness_samples": mp.plan.thickness_samples,
+            "wavelengths": mp.plan.wavelength_count,
+            "shared_with": first if first != name else None,
+            "world_order": plan.world_order,
+            **mp.to_dict(),
+        }
+        print("plan-json " + json.dumps(summary))
+    for err in errors.values():
+        print(f"error: {err}")
+    return 1 if errors else 0
 
 
 def _cli(argv) -> int:

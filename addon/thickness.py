@@ -1,18 +1,47 @@
 """A film's thickness over a mesh: one parameter in [0, 1] per face corner.
 
 The top layer's thickness at a corner is min + value·(max − min) of the material's range.
-:func:`thickness_per_vertex` reads one of three sources (a mesh attribute, procedural noise,
-an image at the UVs); :func:`corner_order` lists the corners of the mesh's loop triangles, so
+:func:`thickness_field` reads one of three sources (a mesh attribute, procedural noise, an
+image at the UVs) and counts the NaN values it met; :func:`thickness_per_vertex` is its array;
+:func:`corner_order` lists the corners of the mesh's loop triangles, so
 ``thickness_per_vertex(...)[corner_order(mesh)]`` gives one value per triangle corner.
+
+:func:`thickness_inputs` is what the field depends on besides the mesh itself (the source and
+its settings, the image's identity and, while it is edited, its pixels): the draw keys its
+batches by it, so an edit to any of them reaches the preview. Edits to the mesh (and so to a
+thickness attribute) arrive as depsgraph geometry updates.
 """
 
 from __future__ import annotations
 
+import time
+import zlib
+
 import numpy as np
 
 from ..precompute.noise import value_noise
+from . import caches
+from .world_key import describe_image
 
-__all__ = ["corner_order", "thickness_per_vertex"]
+__all__ = [
+    "IMAGE_RECHECK_S",
+    "NAN_PARAMETER",
+    "corner_order",
+    "image_stamp",
+    "thickness_field",
+    "thickness_inputs",
+    "thickness_per_vertex",
+]
+
+#: Where a NaN thickness value is drawn: the middle of the material's range (finite, as far
+#: from either end as possible). The NaN values are counted and reported, never hidden.
+NAN_PARAMETER = 0.5
+#: An image with unsaved edits (painted, or pixels set from Python) has its pixels
+#: fingerprinted at most this often (a 2048² float image: ≈ 35 ms), so a stroke reaches the
+#: preview within this time without hashing the image on every frame.
+IMAGE_RECHECK_S = 0.5
+#: Pixel fingerprints of edited thickness images by image name: (identity, time, crc).
+_PRINTS = caches.register("thickness_images", caches.LRU(16), scope=caches.FILE)
 
 
 def corner_order(mesh) -> np.ndarray:
@@ -114,8 +143,60 @@ def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
     )
 
 
+def _pixel_print(image) -> int:
+    """CRC-32 of the image's first channel (the one the thickness reads)."""
+    channels = max(1, int(image.channels))
+    pixels = np.empty(int(image.size[0]) * int(image.size[1]) * channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    return zlib.crc32(np.ascontiguousarray(pixels[::channels]))
+
+
+def image_stamp(image, now: float | None = None):
+    """What identifies a thickness image's pixels, as a hashable value (None for no image).
+
+    Its identity without reading pixels (:func:`.world_key.describe_image`: name, source, file
+    path with the file's size and mtime, packed size, generated settings, whether it has unsaved
+    edits) and its size; an image with unsaved edits also adds a fingerprint of its first
+    channel, refreshed at most every :data:`IMAGE_RECHECK_S` seconds.
+    """
+    if image is None:
+        return None
+    identity = repr((sorted(describe_image(image).items()), tuple(image.size), int(image.channels)))
+    if not image.is_dirty:
+        return identity
+    now = time.monotonic() if now is None else now
+    seen = _PRINTS.get(image.name_full)
+    if seen is None or seen[0] != identity or now - seen[1] >= IMAGE_RECHECK_S:
+        seen = (identity, now, _pixel_print(image))
+        _PRINTS[image.name_full] = seen
+    return identity, seen[2]
+
+
+def thickness_inputs(props):
+    """What the thickness field of ``props`` depends on besides the mesh (hashable), or None
+    when the thickness is constant: the source and its settings (attribute name; noise scale
+    and seed; image :func:`image_stamp` and UV map)."""
+    if not props.vary_thickness:
+        return None
+    source = props.thickness_source
+    if source == "ATTRIBUTE":
+        return source, props.thickness_attribute
+    if source == "NOISE":
+        return source, float(props.noise_scale), int(props.noise_seed)
+    if source == "IMAGE":
+        return source, props.thickness_uv_map, image_stamp(props.thickness_image)
+    return (source,)
+
+
 def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
-    """Per-corner (loop) thickness parameter in [0, 1], or None when the thickness is constant.
+    """Per-corner (loop) thickness parameter in [0, 1], or None when the thickness is constant:
+    :func:`thickness_field`'s values (NaN values at :data:`NAN_PARAMETER`)."""
+    return thickness_field(obj, mesh, props)[0]
+
+
+def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
+    """(per-corner (loop) thickness parameter in [0, 1], how many values were NaN), or
+    (None, 0) when the thickness is constant.
 
     The top layer's thickness at a corner is min + value·(max − min). Sources:
 
@@ -127,10 +208,12 @@ def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
       ``props.thickness_uv_map``, empty = the active render map), bilinear, repeating, raw pixel
       values (use Non-Color images).
 
-    Index the result with :func:`corner_order` for loop-triangle corners.
+    A NaN value (an attribute or a float image can hold them) is counted and drawn at
+    :data:`NAN_PARAMETER`, the middle of the range; ±∞ are clipped to the range's ends. Index
+    the values with :func:`corner_order` for loop-triangle corners.
     """
     if not props.vary_thickness:
-        return None
+        return None, 0
     source = props.thickness_source
     if source == "ATTRIBUTE":
         values = _attribute_values(obj, mesh, props.thickness_attribute)
@@ -143,5 +226,9 @@ def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
         values = _image_values(obj, mesh, props.thickness_image, props.thickness_uv_map)
     else:
         raise ValueError(f"unknown thickness source {source!r}")
-    values = np.nan_to_num(np.asarray(values, dtype=np.float64), nan=0.0)
-    return np.clip(values, 0.0, 1.0)
+    values = np.asarray(values, dtype=np.float64)
+    nan = np.isnan(values)
+    nan_count = int(np.count_nonzero(nan))
+    if nan_count:
+        values = np.where(nan, NAN_PARAMETER, values)
+    return np.clip(values, 0.0, 1.0), nan_count

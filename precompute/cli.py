@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import sys
 import time
@@ -157,13 +158,44 @@ def cmd_plan(args) -> int:
     return 0
 
 
+def summary_path(out: pathlib.Path, json_arg: str | None) -> pathlib.Path:
+    """Where ``bake`` writes its JSON summary: ``--json``, else beside ``--out`` with ``.json``.
+
+    Never the table's own path: ``--out x.json`` puts the summary in ``x.json.json``, and
+    ``--json`` naming the same file as ``--out`` is a ``ValueError`` (the summary would replace
+    the table).
+    """
+    if json_arg:
+        path = pathlib.Path(json_arg)
+        if _same_file(path, out):
+            raise ValueError(
+                f"--json and --out both name {str(out)!r}: the summary would replace the table; "
+                "give --json another path (or leave it out for one beside the table)"
+            )
+        return path
+    path = out.with_suffix(".json")
+    return path if not _same_file(path, out) else out.with_name(out.name + ".json")
+
+
+def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
+    """Whether two output paths may name one file: equal once made absolute (ignoring case, as
+    macOS and Windows file systems do), or already one file (hard or symbolic links)."""
+    if os.path.abspath(a).casefold() == os.path.abspath(b).casefold():
+        return True
+    return a.exists() and b.exists() and os.path.samefile(a, b)
+
+
 def cmd_bake(args) -> int:
     m = material_from_args(args)
+    out = pathlib.Path(args.out)
+    json_path = summary_path(out, args.json)
+    for path in (out, json_path):  # refuse a FIFO, device, link, … before a long bake, not after
+        table_io.check_destination(path)
     progress = Progress("bake", not args.quiet)
     t0 = time.perf_counter()
     result = bake.bake(m, progress=progress)
-    out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    json_path.parent.mkdir(parents=True, exist_ok=True)
     precision = "half" if args.half else "float"
     table_io.write_table(out, result.data, result.attributes(), precision=precision)
     summary = dict(
@@ -176,8 +208,7 @@ def cmd_bake(args) -> int:
     if args.half:
         err = table_io.half_precision_error(result.data)
         summary["half_error"] = {"max_abs": err.max_abs, "max_rel": err.max_rel}
-    json_path = pathlib.Path(args.json) if args.json else out.with_suffix(".json")
-    json_path.write_text(json.dumps(summary, indent=2))
+    table_io.write_bytes(json_path, json.dumps(summary, indent=2).encode("utf-8"))
     if not args.quiet:
         print(f"wrote {out} ({summary['file_bytes']} bytes, table {result.data.shape}) and {json_path}")
     return 0
@@ -203,6 +234,15 @@ def studiolight(name: str) -> pathlib.Path:
 
 def cmd_render(args) -> int:
     m = material_from_args(args)
+    out = pathlib.Path(args.out)
+    exr_out = out.with_suffix(".exr")
+    if _same_file(exr_out, out):
+        raise ValueError(
+            f"--out {str(out)!r} names the PNG, and the scene-linear EXR is written beside it with .exr: "
+            "give --out a .png path"
+        )
+    for target in (out, exr_out):  # refuse a FIFO, device, link, … before rendering, not after
+        table_io.check_destination(target)
     path = pathlib.Path(args.hdri)
     if not path.exists():
         path = studiolight(args.hdri)
@@ -231,17 +271,34 @@ def cmd_render(args) -> int:
         reference_material=m if args.reference else None,
         prefiltered=pre,
     )
-    out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    image_io.write_png(out, image_io.srgb_encode(rgb, args.exposure))
-    image_io.write_exr(out.with_suffix(".exr"), rgb)
+    display = image_io.srgb_encode(rgb, args.exposure)
+    table_io.write_file(out, lambda tmp: image_io.write_png(tmp, display), verify=verify_png)
+    table_io.write_file(exr_out, lambda tmp: image_io.write_exr(tmp, rgb), verify=table_io.verify_exr)
     progress(1.0, "done")
     if not np.all(np.isfinite(rgb)):
         print("warning: the render contains non-finite pixels", file=sys.stderr)
         return 1
     if not args.quiet:
-        print(f"wrote {out} and {out.with_suffix('.exr')} ({args.size}×{args.size}, HDRI {path.name})")
+        print(f"wrote {out} and {exr_out} ({args.size}×{args.size}, HDRI {path.name})")
     return 0
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the IEND chunk: length 0, type, CRC
+
+
+def verify_png(path) -> None:
+    """``ValueError`` unless ``path`` starts with the PNG signature and ends with the IEND chunk
+    (what :func:`render.write_png` writes): a truncated PNG, e.g. on a full disk, is caught."""
+    with open(path, "rb") as handle:
+        head = handle.read(len(_PNG_SIGNATURE))
+        handle.seek(0, os.SEEK_END)
+        size = handle.tell()
+        handle.seek(max(0, size - len(_PNG_END)))
+        tail = handle.read()
+    if head != _PNG_SIGNATURE or tail != _PNG_END:
+        raise ValueError(f"{str(path)!r} is not a complete PNG ({size} bytes)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -263,8 +320,14 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_material_arguments(b)
-    b.add_argument("--out", required=True, help="output .exr path")
-    b.add_argument("--json", help="summary path (default: beside --out, .json)")
+    b.add_argument(
+        "--out",
+        required=True,
+        help="output .exr path (a FIFO, device, symbolic link or directory there is refused)",
+    )
+    b.add_argument(
+        "--json", help="summary path (default: beside --out with .json; never the same file as --out)"
+    )
     b.add_argument("--half", action="store_true", help="store half floats (half the size; error reported)")
     b.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     b.set_defaults(func=cmd_bake)
@@ -282,7 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(city, courtyard, forest, interior, night, studio, sunrise, sunset)",
     )
     r.add_argument(
-        "--out", required=True, help="output .png (an .exr with scene-linear values is written beside)"
+        "--out", required=True, help="output .png (an .exr with scene-linear values is written beside it)"
     )
     r.add_argument("--size", type=int, default=256, help="image size in pixels (square)")
     r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for the PNG")
@@ -300,6 +363,6 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, OSError) as exc:  # OSError: table_io.TableWriteError names the path
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -17,6 +17,7 @@ import importlib
 import importlib.util
 import json
 import math
+import os
 import subprocess
 import sys
 import types
@@ -298,6 +299,47 @@ def test_cli_bake_shares_one_table_between_equal_materials(bpy, tf, cli_blend, t
         assert Path(entry["file"]).is_file()
 
 
+def test_cli_cache_dir_is_used_and_an_unsafe_one_is_a_clear_error(bpy, tf, cli_blend, tmp_path, capsys):
+    """Issue 24: ``--cache-dir`` names the cache on every command; an unsafe folder (a symbolic
+    link) is an ``error:`` line for ``bake`` (exit 2) and a note for ``plan``, never a traceback."""
+    _open(bpy, tf, cli_blend)
+    tf.tables.clear_memory_cache()
+    chosen = tmp_path / "flag cache"
+    assert tf.headless.main(["bake", "--cache-dir", str(chosen)]) == 0
+    out = capsys.readouterr().out
+    assert "Film A: bake" in out, out  # not read from the preference's cache, which may hold it
+    stored = sorted(p.name for p in (chosen / "thinfilm_sh_tables").glob("*.exr"))
+    assert len(stored) == 1  # the two equal materials share one table
+
+    link = tmp_path / "link"
+    link.symlink_to(chosen, target_is_directory=True)
+    tf.tables.clear_memory_cache()
+    assert tf.headless.main(["bake", "--cache-dir", str(link)]) == 2
+    out = capsys.readouterr().out
+    assert "error:" in out and "symbolic link" in out and "Traceback" not in out
+    assert tf.headless.main(["plan", "--cache-dir", str(link)]) == 0
+    out = capsys.readouterr().out
+    assert "note:" in out and "symbolic link" in out and "plan-json" in out
+
+
+def test_cli_bake_json_summary_is_a_verified_write(bpy, tf, cli_blend, tmp_path, capsys):
+    """The summary is written like every other output: a FIFO or a symbolic link at ``--json``
+    is refused with a clear error, exit 2."""
+    _open(bpy, tf, cli_blend)
+    target = tmp_path / "elsewhere.json"
+    target.write_text("keep")
+    link = tmp_path / "summary.json"
+    link.symlink_to(target)
+    assert tf.headless.main(["bake", "--json", str(link)]) == 2
+    out = capsys.readouterr().out
+    assert "error:" in out and "summary.json" in out and "Traceback" not in out
+    assert target.read_text() == "keep" and link.is_symlink()
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    assert tf.headless.main(["bake", "--json", str(fifo)]) == 2
+    assert "error:" in capsys.readouterr().out
+
+
 def test_cli_plan_prints_a_plan(bpy, tf, cli_blend, capsys):
     _open(bpy, tf, cli_blend)
     assert tf.headless.main(["plan"]) == 0
@@ -330,9 +372,14 @@ def test_script_renders_a_file_in_a_subprocess(cli_blend, tmp_path):
         "36",
         "--no-background",
     ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False)
+    cache = tmp_path / "env cache"  # THINFILM_SH_CACHE is honoured inside Blender too (issue 24)
+    env = {**os.environ, "THINFILM_SH_CACHE": str(cache)}
+    proc = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False, env=env
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert out.is_file() and out.with_suffix(".exr").is_file()
+    assert len(list((cache / "thinfilm_sh_tables").glob("*.exr"))) == 1  # both films share one table
     image = read_exr(out.with_suffix(".exr"))
     assert image.shape == (36, 48, 3) and np.isfinite(image).all() and image.max() > 0.0
 
