@@ -40,6 +40,10 @@ def _corner_faces(mesh) -> np.ndarray:
     return np.repeat(np.arange(len(totals), dtype=np.int32), totals)
 
 
+#: Largest noise scale (cycles per object-space unit): a million features per unit is finer than
+#: any mesh samples, and keeps position × scale far inside the integers value noise hashes.
+MAX_NOISE_SCALE = 1e6
+
 _NUMERIC_ATTRIBUTES = {"FLOAT": np.float32, "INT": np.int32, "INT8": np.int8, "BOOLEAN": bool}
 
 
@@ -114,7 +118,7 @@ def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
     )
 
 
-def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
+def thickness_per_vertex(obj, mesh, props, notes: list | None = None) -> np.ndarray | None:
     """Per-corner (loop) thickness parameter in [0, 1], or None when the thickness is constant.
 
     The top layer's thickness at a corner is min + value·(max − min). Sources:
@@ -128,13 +132,23 @@ def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
       values (use Non-Color images).
 
     Index the result with :func:`corner_order` for loop-triangle corners.
+
+    NaN/Inf values (from a script, a broken image) are drawn at the middle of the range, 0.5,
+    with a line appended to ``notes``; a source with no finite value at all raises ValueError
+    (the caller then draws the whole object at the middle of the range, with its message).
     """
     if not props.vary_thickness:
         return None
+    where = f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
     source = props.thickness_source
     if source == "ATTRIBUTE":
         values = _attribute_values(obj, mesh, props.thickness_attribute)
     elif source == "NOISE":
+        if not 0.0 <= props.noise_scale <= MAX_NOISE_SCALE:
+            raise ValueError(
+                f"{where}: the thickness noise scale is {props.noise_scale!r}; it must lie in "
+                f"[0, {MAX_NOISE_SCALE:g}]"
+            )
         co = np.empty(3 * len(mesh.vertices), dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
         per_vertex = value_noise(co.reshape(-1, 3), props.noise_scale, props.noise_seed)
@@ -143,5 +157,17 @@ def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
         values = _image_values(obj, mesh, props.thickness_image, props.thickness_uv_map)
     else:
         raise ValueError(f"unknown thickness source {source!r}")
-    values = np.nan_to_num(np.asarray(values, dtype=np.float64), nan=0.0)
+    values = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(values)
+    if not finite.all():
+        what = {"ATTRIBUTE": f"attribute {props.thickness_attribute!r}", "IMAGE": "image"}.get(source, source)
+        bad = int(values.size - np.count_nonzero(finite))
+        if not finite.any():
+            raise ValueError(f"{where}: thickness {what} has no finite value ({bad} NaN/Inf)")
+        if notes is not None:
+            notes.append(
+                f"{where}: {bad} of {values.size} thickness values from the {what} are NaN/Inf; "
+                "drawn at the middle of the thickness range"
+            )
+        values = np.where(finite, values, 0.5)
     return np.clip(values, 0.0, 1.0)
