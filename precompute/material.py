@@ -36,7 +36,7 @@ def _index_model(name: str, spec):
     """Turn an IndexSpec into a dispersion model, raising ValueError naming ``name``.
 
     Every value is checked (:mod:`.validate`): finite numbers, and a dispersive index gives
-    0 < n ≤ 100 and 0 ≤ k ≤ 100 at every wavelength of 360–830 nm. Specs found valid are
+    0 < n ≤ 1000 and 0 ≤ k ≤ 1000 at every wavelength of 360–830 nm. Specs found valid are
     remembered, so building the same description again costs no evaluation.
     """
     if validate.is_real(spec):
@@ -151,7 +151,7 @@ class Material:
         """Raise ValueError naming the first invalid parameter.
 
         Every value is checked, with the limits of :mod:`.validate` and their reasons: indices
-        finite with 0 < n ≤ 100 and 0 ≤ k ≤ 100 over 360–830 nm, thicknesses finite in
+        finite with 0 < n ≤ 1000 and 0 ≤ k ≤ 1000 over 360–830 nm, thicknesses finite in
         [0, 100 µm], at most 128 layers, roughness and the diffuse colour in [0, 1].
         """
         validate.real("ambient", self.ambient, 1.0, validate.MAX_INDEX_N, why="air 1.0, water 1.33")

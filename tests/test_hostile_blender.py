@@ -193,16 +193,16 @@ SETTINGS = [
     ("layer", "n", NAN, "layers[0].index"),
     ("layer", "n", INF, "layers[0].index"),  # Blender stores 3.4e38: the 293 s bake
     ("layer", "n", 1e30, "layers[0].index"),
-    ("layer", "n", 150.0, "n ≤ 100"),
+    ("layer", "n", 1500.0, "n ≤ 1000"),
     ("layer", "k", NAN, "layers[0].index"),
     ("layer", "k", INF, "layers[0].index"),
-    ("layer", "k", 1e30, "k ≤ 100"),
+    ("layer", "k", 1e30, "k ≤ 1000"),
     ("cauchy", "cauchy_a", NAN, "Cauchy"),
     ("cauchy", "cauchy_a", INF, "Cauchy A"),
     ("cauchy", "cauchy_b", NAN, "Cauchy"),
     ("cauchy", "cauchy_b", -10.0, "n > 0"),  # the Cauchy B that makes n negative
     ("cauchy", "cauchy_b", INF, "Cauchy"),
-    ("cauchy", "cauchy_b", 1e30, "n ≤ 100"),
+    ("cauchy", "cauchy_b", 1e30, "n ≤ 1000"),
     ("cauchy", "cauchy_c", NAN, "Cauchy"),
     ("cauchy", "cauchy_c", -5.0, "n > 0"),
     ("cauchy", "cauchy_c", INF, "Cauchy"),
@@ -667,7 +667,7 @@ def test_bake_with_one_invalid_material_bakes_the_others(bpy, tf, fresh, tmp_pat
     sphere(bpy, scene, "B", (2.0, 0.0, 0.0), material=bad)
     code = tf.headless.main(["bake", "--out-dir", str(tmp_path / "t"), "--json", str(tmp_path / "b.json")])
     err = capsys.readouterr().err
-    assert code == 1 and "'Bad'" in err and "n ≤ 100" in err, err
+    assert code == 1 and "'Bad'" in err and "n ≤ 1000" in err, err
     summary = json.loads((tmp_path / "b.json").read_text())
     assert set(summary["materials"]) == {"Good"} and set(summary["errors"]) == {"Bad"}
     assert set(summary["manifest"]) == {"Good"} and Path(summary["manifest"]["Good"]).is_file()

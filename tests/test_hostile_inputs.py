@@ -21,6 +21,7 @@ import OpenEXR
 import pytest
 
 from precompute import cli, cli_support, validate
+from precompute.conductors import conductor_from_rgb
 from precompute.material import FALLBACK, Layer, Material, Quality
 from precompute.table_io import TableCache, TableError, read_table, write_table
 
@@ -64,11 +65,11 @@ MATERIALS = [
     (_layers(INF), "layers[0].index n must be finite"),
     (_layers(-1.0), "n > 0"),
     (_layers(0.0), "n > 0"),
-    (_layers(101.0), "n ≤ 100"),
-    (_layers(3.4028234663852886e38), "n ≤ 100"),  # what Blender stores for inf
+    (_layers(1001.0), "n ≤ 1000"),
+    (_layers(3.4028234663852886e38), "n ≤ 1000"),  # what Blender stores for inf
     (_layers([1.5, NAN]), "layers[0].index k must be finite"),
     (_layers([1.5, -0.1]), "extinction k ≥ 0"),
-    (_layers([1.5, 101.0]), "k ≤ 100"),
+    (_layers([1.5, 1001.0]), "k ≤ 1000"),
     (_layers([NAN, 0.0]), "layers[0].index n"),
     (_layers(True), "layers[0].index"),
     (_layers("glass"), "layers[0].index"),
@@ -83,7 +84,7 @@ MATERIALS = [
     (_layers({"cauchy": []}), "at least 1"),
     (_layers({"cauchy": [1.5, 0.0, 0.0, 1.0]}), "at most 3"),
     (_layers({"cauchy": "abc"}), "list of numbers"),
-    (_layers({"cauchy": [1.5, 1e300]}), "n ≤ 100"),
+    (_layers({"cauchy": [1.5, 1e300]}), "n ≤ 1000"),
     (_layers({"cauchy": [-1.5, 1.0]}), "Cauchy A"),
     (_layers({"sellmeier": {"B": [1.0], "C": [0.25]}}), "resonance at 500.0 nm"),
     (_layers({"sellmeier": {"B": [-5.0], "C": [0.0]}}), "n²"),
@@ -119,8 +120,8 @@ MATERIALS = [
     ({"substrate": {"metal": "gold!"}}, "substrate"),
     ({"substrate": [2.0, INF]}, "substrate k must be finite"),
     ({"ambient": NAN}, "ambient must be finite"),
-    ({"ambient": 0.5}, "ambient must lie in [1, 100]"),
-    ({"ambient": 101.0}, "ambient must lie in [1, 100]"),
+    ({"ambient": 0.5}, "ambient must lie in [1, 1000]"),
+    ({"ambient": 1001.0}, "ambient must lie in [1, 1000]"),
     ({"ambient": True}, "ambient must be a number"),
     ({"roughness": NAN}, "roughness must be finite"),
     ({"roughness": -0.1}, "roughness must lie in [0, 1]"),
@@ -177,8 +178,12 @@ def test_material_from_hostile_dict_is_a_value_error(data):
 
 
 def test_extreme_but_valid_values_are_accepted():
-    """The limits refuse garbage, not physics: the densest indices, metals, 100 µm, 128 layers."""
-    Material(layers=(Layer(100.0, 100_000.0),), substrate=[4.0, 100.0], roughness=1.0)
+    """The limits refuse garbage, not physics or interop: the largest indices, 100 µm, 128 layers."""
+    Material(layers=(Layer(1000.0, 100_000.0),), substrate=[4.0, 1000.0], roughness=1.0)
+    # A Principled metal with a bright Base Color and a low Specular Tint: Gulbrandsen's fit gives
+    # n ≈ 398, k up to ≈ 199 (why the limits are 1000, not 100).
+    Material(layers=(), substrate=conductor_from_rgb((1.0, 1.0, 1.0), (0.0, 0.0, 0.0)))
+    Material(layers=(), substrate=conductor_from_rgb((0.99, 0.5, 0.1), (0.2, 0.9, 1.0)))
     Material(layers=tuple(Layer(1.5 if i % 2 else 2.3, 80.0) for i in range(128)))
     Material(layers=(Layer({"sellmeier": {"B": [1.03961212], "C": [0.00600069867]}}, 100.0),))
     Material(layers=(Layer({"cauchy": [1.5, 0.2, -0.01]}, 100.0),))  # vertex outside the range
@@ -463,7 +468,7 @@ def test_unique_file_names(names, expected):
 
 
 def test_validate_limits_are_stated():
-    assert validate.MAX_INDEX_N == 100.0 and validate.MAX_THICKNESS_NM == 100_000.0
+    assert validate.MAX_INDEX_N == 1000.0 and validate.MAX_THICKNESS_NM == 100_000.0
     assert validate.VISIBLE_GRID_NM[0] == 360.0 and validate.VISIBLE_GRID_NM[-1] == 830.0
 
 
