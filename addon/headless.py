@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import json
 import pathlib
+import sys
 import time
 
 import bpy
 import numpy as np
 
-from ..precompute import effects, image_io
+from ..precompute import cli_support, effects, image_io, table_io
 from . import gpu_draw, scene_draw, tables, world
 from .description import description, description_key
 
@@ -50,8 +51,6 @@ def bake_scene(scene, out_dir=None, progress=print) -> dict:
     ``Mat.001`` and ``Mat_001`` never share one), ``manifest`` maps material names to the files
     written, and every destination is checked (``UsageError``) before the first bake.
     """
-    from ..precompute import cli_support, table_io
-
     found, errors = scene_materials(scene)
     summary = {"materials": {}, "errors": errors, "manifest": {}}
     files = {}
@@ -201,8 +200,6 @@ def _mathutils_matrix(m):
 def render_size(scene, width=None, height=None) -> tuple[int, int]:
     """The render's size: ``width``/``height``, else the scene's resolution × percentage;
     ``UsageError`` naming where a size outside 1–16384 pixels came from."""
-    from ..precompute import cli_support
-
     scale = scene.render.resolution_percentage / 100.0
     sizes = []
     for given, option, axis in ((width, "--width", "x"), (height, "--height", "y")):
@@ -222,16 +219,10 @@ def main(argv) -> int:
     bad option, path, size or scene value, named); 3 internal error (traceback in the log file
     named); 4 an output could not be written. Never a traceback.
     """
-    from ..precompute import cli_support
-
     return cli_support.run(lambda: _main(argv), prog="thinfilm_sh")
 
 
 def _main(argv) -> int:
-    import sys
-
-    from ..precompute import cli_support, table_io
-
     parser = cli_support.ArgumentParser(
         prog="thinfilm_sh", description="Thin Film SH: headless bake and render of the open .blend file."
     )
