@@ -33,11 +33,12 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..precompute import film_colour, prefilter
+from ..precompute import cli_support, film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
+from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
 from . import caches, description, gpu_draw, panorama, tables, world, world_key
-from .thickness import NAN_PARAMETER, thickness_field, thickness_inputs
+from .thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +56,8 @@ class DrawItem:
     roughness: float = 0.0
     sh_weight: float = 1.0
     film: gpu_draw.FilmTexture | None = None
+    #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
+    fallback: bool = False
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -240,7 +243,11 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     analysed = textures = None
     if need_image and scene.world is not None:
         try:
-            image = panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
+            image = (
+                _constant_panorama(result.coeffs)  # the World failed: its fallback colour all round
+                if result.errors
+                else panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
+            )
             found = analyse_world(image, result.coeffs, l_max=gpu_draw.MAX_L, width=PREFILTER_WIDTH)
             analysed, textures = found, PrefilterTextures(found)
         except (RuntimeError, ValueError) as exc:
@@ -249,6 +256,12 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     for stale in [k for k, _ in CACHES.lightings.items() if k[0] != key]:
         CACHES.lightings.pop(stale)
     return CACHES.world
+
+
+def _constant_panorama(coeffs) -> np.ndarray:
+    """A panorama of the constant radiance whose SH band 0 is ``coeffs[0]`` (= √(4π)·c)."""
+    rgb = np.asarray(coeffs[0], dtype=np.float32) / np.float32(np.sqrt(4.0 * np.pi))
+    return np.ascontiguousarray(np.broadcast_to(rgb, (PANORAMA_WIDTH // 2, PANORAMA_WIDTH, 3)))
 
 
 def lighting_for(
@@ -285,8 +298,11 @@ def uses_lamps(bpy_material, desc) -> bool:
 
 
 def lamps_summary(enabled: bool) -> str:
-    """One line for the Surface panel: what the current World's lamps are and how they are shaded."""
+    """One line for the Surface panel: what the current World's lamps are and how they are shaded,
+    or why the World could not be evaluated (it is then lit by its fallback colour)."""
     lighting = CACHES.world
+    if lighting is not None and lighting.sh.errors:
+        return lighting.sh.errors[0]
     env = lighting.environment if lighting is not None else None
     if env is None:
         return "World lamps: World not analysed yet"
@@ -335,10 +351,7 @@ def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) ->
             notes.append(f"{name}: {exc}; using the middle of the thickness range")
         else:
             if nan_count:
-                notes.append(
-                    f"object {name!r}: {nan_count} of {thickness.size} thickness values are NaN "
-                    "(not a number); drawn at the middle of the thickness range"
-                )
+                notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
     if desc.varies and thickness is None:
         thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
     if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
@@ -363,22 +376,68 @@ class _MaterialEntry:
     film: gpu_draw.FilmTexture | None = None
     props: object = None  # the original material's thinfilm_sh settings when enabled, else None
     thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
+    fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
 
 
-def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages):
+def _table_of(desc, allow_bake: bool, want_bake):
+    """The baked table of ``desc``: in memory, else baked (``allow_bake``) or asked for."""
+    result = tables.peek_table(desc)
+    if result is None and allow_bake:
+        result = tables.get_table(desc)
+    elif result is None and want_bake is not None:
+        want_bake(desc)
+    return result
+
+
+def bake_failure(name: str, exc: Exception) -> str:
+    """One line on why material ``name`` could not be baked; a bug's traceback goes to a log file."""
+    text = f"material {name!r} could not be baked ({type(exc).__name__}: {' '.join(str(exc).split())}"
+    if isinstance(exc, (ValueError, OSError)):
+        return text + ")"
+    where = cli_support.write_log("thinfilm_sh", exc)
+    log.error("Thin Film SH: material %r could not be baked: %s (details in %s)", name, exc, where)
+    return text + f"; details in {where})"
+
+
+def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, messages, errors):
+    """Report why ``bpy_material`` cannot be drawn and draw it as FALLBACK (matte magenta)."""
+    messages.append(f"{why}: drawn in magenta (the fallback) until it is fixed")
+    if errors is not None:
+        errors[bpy_material.name] = why
+    result = _table_of(FALLBACK, allow_bake, want_bake)
+    if result is None:
+        return None
+    key = description.description_key(FALLBACK)
+    roughness = float(FALLBACK.roughness)
+    return _MaterialEntry(
+        FALLBACK,
+        key,
+        table_texture(key, result),
+        lighting_for(lighting, result.sh_order, roughness, False),
+        roughness,
+        policy.sh_weight(roughness),
+        fallback=True,
+    )
+
+
+def _material_entry(
+    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None
+):
     """The material's description, table texture and lighting, or None (no film / not baked yet /
-    its bake failed).
+    its bake failed in the viewport).
 
-    A bake that failed is remembered by description key (:func:`.tables.failure`): it is not
-    tried again, here or by ``want_bake``, until the description changes, and its error is in
-    ``messages`` on every frame. With ``allow_bake`` a failing bake is recorded the same way.
-    A table that could not be saved to the disk cache is drawn, with the reason in ``messages``.
+    Invalid settings are reported in ``messages`` (and ``errors``, by material name) and the
+    material is drawn as the fallback (matte magenta). A bake that failed is remembered by
+    description key (:func:`.tables.failure`): it is not tried again, here or by ``want_bake``,
+    until the description changes, and its error is in ``messages`` (and ``errors``) on every
+    frame; a headless frame (``allow_bake``) draws it as the fallback, the viewport draws
+    nothing for it (its header and material panel say why). A table that could not be saved to
+    the disk cache is drawn, with the reason in ``messages``.
     """
     try:
         desc = description.description(bpy_material)
-    except ValueError as exc:
-        messages.append(str(exc))  # description() names the material
-        return None
+    except ValueError as exc:  # description() names the material and the parameter
+        return _fallback_entry(bpy_material, str(exc), lighting, allow_bake, want_bake, messages, errors)
     if desc is None:
         return None
     name = bpy_material.name
@@ -390,9 +449,15 @@ def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, wan
             try:
                 result = tables.get_table(desc)
             except Exception as exc:  # one material's failure must not stop the others
-                failed = tables.record_failure(desc, exc)
+                tables.record_failure(desc, exc)
+                failed = bake_failure(name, exc)  # a bug's traceback goes to a log file
         if failed is not None:
-            messages.append(f"material {name!r}: bake failed: {failed} (not retried until it changes)")
+            why = f"material {name!r}: bake failed: {failed} (not retried until it changes)"
+            if allow_bake:
+                return _fallback_entry(bpy_material, why, lighting, allow_bake, want_bake, messages, errors)
+            messages.append(why)
+            if errors is not None:
+                errors[name] = why
             return None
         if result is None:
             if want_bake is not None:
@@ -428,11 +493,16 @@ def _prefiltered_for(lighting: WorldLighting, entry):
     return textures.prefiltered_whole()
 
 
-def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None):
+def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None, errors=None):
     """Draw items for every visible mesh object with a thin-film material, and messages.
 
     With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
     skipped and passed to ``want_bake(desc)`` so the caller can bake them outside drawing.
+
+    A material that cannot be evaluated is drawn as :data:`precompute.material.FALLBACK` (matte
+    magenta, its items' ``fallback`` set), with a message naming it and the parameter; with an
+    ``errors`` dict it is also recorded there as {material name: why}. The World's errors
+    (``WorldLighting.sh.errors``) join the messages: it is lit by its fallback colour.
 
     Per frame, each material's description, table and lighting are worked out once
     (:func:`_material_entry`), not once per object using it; per object only the batch cache
@@ -446,6 +516,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     if lighting is None:
         return items, ["World lighting is being updated"]
     messages.extend(lighting.sh.warnings)
+    messages.extend(lighting.sh.errors)
     entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
     used = set()  # this frame's batch keys
@@ -462,7 +533,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             pointer = source.as_pointer()
             if pointer not in entries:
                 CACHES.make_room(materials=len(entries) + 1)
-                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages)
+                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages, errors)
             entry = entries[pointer]
             if entry is None:
                 continue
@@ -502,6 +573,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     roughness=entry.roughness,
                     sh_weight=entry.sh_weight,
                     film=entry.film,
+                    fallback=entry.fallback,
                 )
             )
     CACHES.dirty -= seen

@@ -69,6 +69,10 @@ def _corner_faces(mesh) -> np.ndarray:
     return np.repeat(np.arange(len(totals), dtype=np.int32), totals)
 
 
+#: Largest noise scale (cycles per object-space unit): a million features per unit is finer than
+#: any mesh samples, and keeps position × scale far inside the integers value noise hashes.
+MAX_NOISE_SCALE = 1e6
+
 _NUMERIC_ATTRIBUTES = {"FLOAT": np.float32, "INT": np.int32, "INT8": np.int8, "BOOLEAN": bool}
 
 
@@ -188,14 +192,30 @@ def thickness_inputs(props):
     return (source,)
 
 
-def thickness_per_vertex(obj, mesh, props) -> np.ndarray | None:
+def thickness_per_vertex(obj, mesh, props, notes: list | None = None) -> np.ndarray | None:
     """Per-corner (loop) thickness parameter in [0, 1], or None when the thickness is constant:
-    :func:`thickness_field`'s values (NaN values at :data:`NAN_PARAMETER`)."""
-    return thickness_field(obj, mesh, props)[0]
+    :func:`thickness_field`'s values; a line on the non-finite values, if any, is appended to
+    ``notes`` (:func:`non_finite_note`)."""
+    values, bad = thickness_field(obj, mesh, props)
+    if bad and notes is not None:
+        notes.append(non_finite_note(_where(obj, mesh), bad, values.size))
+    return values
+
+
+def non_finite_note(where: str, bad: int, total: int) -> str:
+    """The message for ``bad`` non-finite thickness values out of ``total`` (NaN or ±∞)."""
+    return (
+        f"{where}: {bad} of {total} thickness values are NaN or infinite; drawn at the middle of "
+        "the thickness range"
+    )
+
+
+def _where(obj, mesh) -> str:
+    return f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
 
 
 def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
-    """(per-corner (loop) thickness parameter in [0, 1], how many values were NaN), or
+    """(per-corner (loop) thickness parameter in [0, 1], how many values were not finite), or
     (None, 0) when the thickness is constant.
 
     The top layer's thickness at a corner is min + value·(max − min). Sources:
@@ -203,21 +223,28 @@ def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
     - ATTRIBUTE: the float attribute ``props.thickness_attribute`` on points, corners or faces
       (values clipped to [0, 1]); a missing attribute raises ValueError naming it.
     - NOISE: :func:`precompute.noise.value_noise` of the object-space vertex positions,
-      ``noise_scale`` and ``noise_seed``; deterministic.
+      ``noise_scale`` (in [0, :data:`MAX_NOISE_SCALE`]) and ``noise_seed``; deterministic.
     - IMAGE: the first channel of ``props.thickness_image`` at the corners' UVs (UV map
       ``props.thickness_uv_map``, empty = the active render map), bilinear, repeating, raw pixel
       values (use Non-Color images).
 
-    A NaN value (an attribute or a float image can hold them) is counted and drawn at
-    :data:`NAN_PARAMETER`, the middle of the range; ±∞ are clipped to the range's ends. Index
-    the values with :func:`corner_order` for loop-triangle corners.
+    A NaN or infinite value (an attribute or a float image can hold them) is counted and drawn
+    at :data:`NAN_PARAMETER`, the middle of the range; a source with no finite value at all
+    raises ValueError (the caller then draws the object at the middle, with that message).
+    Index the values with :func:`corner_order` for loop-triangle corners.
     """
     if not props.vary_thickness:
         return None, 0
+    where = _where(obj, mesh)
     source = props.thickness_source
     if source == "ATTRIBUTE":
         values = _attribute_values(obj, mesh, props.thickness_attribute)
     elif source == "NOISE":
+        if not 0.0 <= props.noise_scale <= MAX_NOISE_SCALE:
+            raise ValueError(
+                f"{where}: the thickness noise scale is {props.noise_scale!r}; it must lie in "
+                f"[0, {MAX_NOISE_SCALE:g}]"
+            )
         co = np.empty(3 * len(mesh.vertices), dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
         per_vertex = value_noise(co.reshape(-1, 3), props.noise_scale, props.noise_seed)
@@ -227,8 +254,13 @@ def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
     else:
         raise ValueError(f"unknown thickness source {source!r}")
     values = np.asarray(values, dtype=np.float64)
-    nan = np.isnan(values)
-    nan_count = int(np.count_nonzero(nan))
-    if nan_count:
-        values = np.where(nan, NAN_PARAMETER, values)
-    return np.clip(values, 0.0, 1.0), nan_count
+    finite = np.isfinite(values)
+    bad = int(values.size - np.count_nonzero(finite))
+    if bad:
+        if bad == values.size:
+            what = {"ATTRIBUTE": f"attribute {props.thickness_attribute!r}", "IMAGE": "image"}.get(
+                source, source.lower()
+            )
+            raise ValueError(f"{where}: thickness {what} has no finite value ({bad} NaN/Inf)")
+        values = np.where(finite, values, NAN_PARAMETER)
+    return np.clip(values, 0.0, 1.0), bad

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from . import bake, hdri, image_io, prefilter, render, table_io
+from . import bake, cli_support, hdri, image_io, prefilter, render, table_io
 from .material import AUTO, PRESETS, Layer, Material, Quality, preset
 
 EPILOG = """examples:
@@ -105,12 +105,28 @@ def add_material_arguments(p: argparse.ArgumentParser) -> None:
     q.add_argument("--wavelengths", type=_quality_value, help="wavelength samples")
 
 
+def _layers_arg(text: str) -> list[Layer]:
+    """``--layers`` JSON: a list of [index, thickness_nm] rows (ValueError naming the option)."""
+    try:
+        rows = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ValueError(f"--layers is not valid JSON: {exc}") from None
+    if not isinstance(rows, list):
+        raise ValueError(f"--layers must be a JSON list of [index, thickness_nm] rows, got {text[:60]!r}")
+    layers = []
+    for i, row in enumerate(rows):
+        if not isinstance(row, list) or len(row) != 2:
+            raise ValueError(f"--layers row {i} must be [index, thickness_nm], got {json.dumps(row)[:60]}")
+        layers.append(Layer(*row))
+    return layers
+
+
 def material_from_args(args) -> Material:
     base = preset(args.preset) if args.preset else Material()
     changes = {}
     layers = list(base.layers)
     if args.layers:
-        layers = [Layer(*row) for row in json.loads(args.layers)]
+        layers = _layers_arg(args.layers)
     if args.film_index is not None or args.thickness is not None:
         top = layers[0] if layers else Layer(1.33, 400.0)
         layers[0:1] = [
@@ -154,7 +170,9 @@ def cmd_presets(args) -> int:
 def cmd_plan(args) -> int:
     from . import effects
 
-    print(effects.format_plan(effects.material_plan(material_from_args(args))))
+    with cli_support.refusing():
+        material = material_from_args(args)
+    print(effects.format_plan(effects.material_plan(material)))
     return 0
 
 
@@ -186,11 +204,13 @@ def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
 
 
 def cmd_bake(args) -> int:
-    m = material_from_args(args)
-    out = pathlib.Path(args.out)
-    json_path = summary_path(out, args.json)
-    for path in (out, json_path):  # refuse a FIFO, device, link, … before a long bake, not after
-        table_io.check_destination(path)
+    with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
+        m = material_from_args(args)
+        out = cli_support.output_file("--out", args.out)
+        if args.json is not None:
+            cli_support.output_file("--json", args.json)  # as given: "dir/" and "" are refused
+        json_path = summary_path(out, args.json)
+        cli_support.output_file("--json", json_path)
     progress = Progress("bake", not args.quiet)
     t0 = time.perf_counter()
     result = bake.bake(m, progress=progress)
@@ -208,7 +228,7 @@ def cmd_bake(args) -> int:
     if args.half:
         err = table_io.half_precision_error(result.data)
         summary["half_error"] = {"max_abs": err.max_abs, "max_rel": err.max_rel}
-    table_io.write_bytes(json_path, json.dumps(summary, indent=2).encode("utf-8"))
+    table_io.write_bytes(json_path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
     if not args.quiet:
         print(f"wrote {out} ({summary['file_bytes']} bytes, table {result.data.shape}) and {json_path}")
     return 0
@@ -232,26 +252,35 @@ def studiolight(name: str) -> pathlib.Path:
     return hits[0]
 
 
-def cmd_render(args) -> int:
-    m = material_from_args(args)
-    out = pathlib.Path(args.out)
-    exr_out = out.with_suffix(".exr")
-    if _same_file(exr_out, out):
-        raise ValueError(
-            f"--out {str(out)!r} names the PNG, and the scene-linear EXR is written beside it with .exr: "
-            "give --out a .png path"
-        )
-    for target in (out, exr_out):  # refuse a FIFO, device, link, … before rendering, not after
-        table_io.check_destination(target)
-    path = pathlib.Path(args.hdri)
+def _read_hdri(text: str) -> tuple[pathlib.Path, np.ndarray, int]:
+    """(path, image, NaN/Inf pixels set to 0) of ``--hdri``: a file, or a studio light of bpy."""
+    path = pathlib.Path(text)
     if not path.exists():
-        path = studiolight(args.hdri)
+        path = studiolight(text)
+    image = hdri.read_equirect(path)
+    bad = ~np.isfinite(image).all(axis=-1)
+    if bad.any():  # left out (black), as the World's SH projection does, and reported
+        image = np.where(bad[..., None], 0.0, image).astype(np.float32)
+    return path, image, int(bad.sum())
+
+
+def cmd_render(args) -> int:
+    with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
+        m = material_from_args(args)
+        out = cli_support.output_file("--out", args.out)
+        exr_out = out.with_suffix(".exr")
+        if _same_file(exr_out, out):
+            raise ValueError(
+                f"--out {str(out)!r} names the PNG, and the scene-linear EXR is written beside it with .exr: "
+                "give --out a .png path"
+            )
+        cli_support.output_file("--out (the .exr beside it)", exr_out)
+        path, environment, rejected = _read_hdri(args.hdri)
+    notes = [f"HDRI {path.name}: {rejected} NaN/Inf pixels left out (black)"] if rejected else []
     progress = Progress("render", not args.quiet)
     progress(0.02, "reading HDRI")
     result = bake.bake(m, progress=lambda f, t: progress(0.05 + 0.4 * f, t))
-    image, coeffs = render.prepare_environment(
-        hdri.read_equirect(path), result.sh_order, roughness=m.roughness
-    )
+    image, coeffs = render.prepare_environment(environment, result.sh_order, roughness=m.roughness)
     progress(0.5, "shading")
     view = render.sphere_view(args.size, args.size)
     thickness = (
@@ -271,17 +300,20 @@ def cmd_render(args) -> int:
         reference_material=m if args.reference else None,
         prefiltered=pre,
     )
+    bad = ~np.isfinite(rgb).all(axis=-1)
+    if bad.any():  # never a NaN written without a word: 0, reported, exit "partial"
+        notes.append(f"{int(bad.sum())} non-finite pixels written as 0")
+        rgb = np.where(bad[..., None], 0.0, rgb)
     out.parent.mkdir(parents=True, exist_ok=True)
     display = image_io.srgb_encode(rgb, args.exposure)
     table_io.write_file(out, lambda tmp: image_io.write_png(tmp, display), verify=verify_png)
     table_io.write_file(exr_out, lambda tmp: image_io.write_exr(tmp, rgb), verify=table_io.verify_exr)
     progress(1.0, "done")
-    if not np.all(np.isfinite(rgb)):
-        print("warning: the render contains non-finite pixels", file=sys.stderr)
-        return 1
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
     if not args.quiet:
         print(f"wrote {out} and {exr_out} ({args.size}×{args.size}, HDRI {path.name})")
-    return 0
+    return cli_support.EXIT_PARTIAL if notes else cli_support.EXIT_OK
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -302,7 +334,7 @@ def verify_png(path) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = cli_support.ArgumentParser(
         prog="python -m precompute",
         description="Thin Film SH: bake thin-film interference into SH tables, or preview a material.",
         epilog=EPILOG,
@@ -347,8 +379,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--out", required=True, help="output .png (an .exr with scene-linear values is written beside it)"
     )
-    r.add_argument("--size", type=int, default=256, help="image size in pixels (square)")
-    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for the PNG")
+    r.add_argument(
+        "--size",
+        type=cli_support.image_size_arg("--size"),
+        default=256,
+        help=f"image size in pixels (square, 1–{cli_support.MAX_IMAGE_SIZE})",
+    )
+    r.add_argument(
+        "--exposure",
+        type=cli_support.exposure_arg("--exposure"),
+        default=0.0,
+        help=f"exposure in stops for the PNG (finite, within ±{cli_support.MAX_EXPOSURE:g})",
+    )
     r.add_argument("--reference", action="store_true", help="brute-force spectral ground truth (slow)")
     r.add_argument(
         "--sh-only", action="store_true", help="the paper's SH path alone (no split sum for gloss)"
@@ -359,10 +401,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Run one command; the exit code is one of docs/cli-exit-codes.md (cli_support.EXIT_*).
+
+    Never a traceback: input refused before work is exit 2, an output that cannot be written
+    exit 4, a bug exit 3 with the traceback in a log file the one-line message names.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
+
+    def body() -> int:
+        args = parser.parse_args(argv)  # argparse's own refusals exit 2 through SystemExit
         return args.func(args)
-    except (ValueError, OSError) as exc:  # OSError: table_io.TableWriteError names the path
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+
+    return cli_support.run(body, prog="precompute")

@@ -137,6 +137,9 @@ def main(argv=None) -> int:
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:  # bpy.ops.wm.open_mainfile: not a .blend file, or a damaged one
+        print(f"error: {blend}: cannot be opened: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

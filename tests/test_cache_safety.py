@@ -23,7 +23,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from precompute import cli, table_io
+from precompute import cli, cli_support, table_io
 from precompute.table_io import (
     CacheDirError,
     TableCache,
@@ -373,7 +373,7 @@ def test_cli_full_disk_fails_and_keeps_the_previous_table(tmp_path, monkeypatch,
     assert cli.main([*BAKE, "--out", str(out)]) == 0
     before, summary_before = out.read_bytes(), summary.read_bytes()
     monkeypatch.setattr(OpenEXR, "File", binding_that_writes("nothing"))
-    assert cli.main([*BAKE, "--out", str(out)]) == 2
+    assert cli.main([*BAKE, "--out", str(out)]) == cli_support.EXIT_IO  # a write failed during work
     err = capsys.readouterr().err
     assert f"could not write {str(out)!r}" in err and "previous file is unchanged" in err
     assert out.read_bytes() == before and summary.read_bytes() == summary_before
