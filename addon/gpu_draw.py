@@ -18,9 +18,8 @@ GPU resources
     :data:`TABLE_UBO_TEXELS`; variant define ``TF_TABLE_UBO``): ``vec4 size`` = (A, T, layers),
     then ``vec4 texel[1023]``, texel (row t, column a, layer j) at (t·A + a)·layers + j, .rgb as
     in the texture: one pixel's fetches are neighbours. Always 16 KiB (padded). Same values and
-    the same interpolation as the texture; on llvmpipe a uniform-buffer load costs less than a
-    ``texelFetch``, on an NVIDIA GPU far more, so only software rasterisers use it
-    (policy.TABLE_UBO_DEVICES).
+    the same interpolation as the texture; used on the devices of policy.TABLE_UBO_DEVICES
+    (docs/tuning.md#table-ubo-devices).
 ``tf_lighting`` (UBO slot 0, :class:`Lighting`), std140, arrays of vec4 only, 14688 bytes:
     ``vec4 sh[169]`` windowed world radiance SH (rgb, w = 0), index l(l+1)+m, zero beyond the data;
     ``vec4 lamps[17]``: the World's lamps (x of the first = count K ≤ 8, then direction and power
@@ -545,8 +544,8 @@ class MeshBatch:
 def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):
     """A mesh attribute's values read in one block, or None where the attribute is not there.
 
-    ``foreach_get`` on ``mesh.loops`` / ``mesh.vertices`` goes through RNA item by item (about
-    100 ms per million corners); on the attribute it copies the array (about 1 ms).
+    ``foreach_get`` on the attribute copies the array; on ``mesh.loops`` / ``mesh.vertices`` it
+    goes through RNA item by item, far slower (docs/tuning.md#mesh-attributes).
     """
     attr = mesh.attributes.get(name)
     if attr is None or attr.domain != domain or attr.data_type != data_type:
@@ -659,9 +658,8 @@ class PrefilterTexture:
                 raise ValueError("prefiltered moments contain NaN or Inf")
             rgba[j:, ..., :3] = mom[..., :3]
         ensure_gpu_context()
-        # A 3-D texture, not an array: the level blend is the hardware's linear filter in z, one
-        # fetch for radiance and one for the moment (an array needs two each; measured at l = 2,
-        # 1080p: 1.48× the SH-only frame with four fetches).
+        # A 3-D texture, not an array: the level blend is one linear fetch
+        # (docs/tuning.md#prefilter-texture).
         texture = gpu.types.GPUTexture((w, h, 2 * j), format="RGBA32F", data=float_buffer(rgba))
         texture.filter_mode(True)
         texture.extend_mode("EXTEND")
@@ -678,8 +676,8 @@ class FilmTexture:
     samples: int
     thickness_count: int
     spectral: bool
-    #: The same texels as a ``TFFilm`` uniform buffer when they fit (drawn from there: on
-    #: llvmpipe a uniform-buffer load is cheaper than a texelFetch, as for the table).
+    #: The same texels as a ``TFFilm`` uniform buffer when they fit: drawn from there on every
+    #: device (docs/tuning.md#table-ubo-devices).
     ubo: gpu.types.GPUUniformBuf | None = None
 
     @staticmethod

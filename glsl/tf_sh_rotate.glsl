@@ -201,8 +201,8 @@ void tf_load(int i)
   tf_c[i] = tf_lighting.sh[i].rgb;
 }
 
-/* tf_c = the world radiance coefficients, band by band with constant indices (a loop here
- * costs 15 % of the frame at l <= 8 on llvmpipe: see tf_shade). */
+/* tf_c = the world radiance coefficients, band by band with constant indices
+ * (docs/tuning.md#constant-indices). */
 void tf_load_world()
 {
   tf_load(0);
@@ -273,11 +273,12 @@ void tf_local_coefficients(vec2 a, vec2 b, vec2 c)
 }
 #endif /* !TF_X90_GENERATED */
 
-/* Bands 0..2 straight from the frame rows, for TF_L_MAX <= 2 (with TF_X90_GENERATED): the radiance of band 1 is linear
- * and that of band 2 quadratic in the direction, so turning them into the frame needs a few dot
- * products instead of five rotations and the z-y-z angles (0.9x the frame time at l <= 2 on
- * llvmpipe). Only the kept m >= 0 coefficients are written (tf_shade reads no others); the
- * result is rotation(frame) @ world like tf_local_coefficients (numpy: sh_rotation.local_coefficients).
+/* Bands 0..2 straight from the frame rows, for TF_L_MAX <= 2 (with TF_X90_GENERATED): the
+ * radiance of band 1 is linear and that of band 2 quadratic in the direction, so turning them
+ * into the frame needs a few dot products instead of five rotations and the z-y-z angles
+ * (docs/tuning.md#direct-low-bands). Only the kept m >= 0 coefficients are written (tf_shade
+ * reads no others); the result is rotation(frame) @ world like tf_local_coefficients
+ * (numpy: sh_rotation.local_coefficients).
  *
  * Band 1 (Y = K1 (y, z, x) for m = -1, 0, 1, K1 = sqrt(3/4pi)): L(w) = K1 a.w with
  * a = (c3, c1, c2); in the frame w = F^T w', so a' = F a: c'2 = z.a, c'3 = x.a.

@@ -56,8 +56,7 @@ vec3 tf_shade_at(TFFrame f, TFLerp r)
 #endif
 
   /* Written out band by band, (k, i) constant: a loop that computes the index into tf_c makes
-   * the compiler move tf_c out of registers (measured on llvmpipe: 1.6x the frame at l <= 2,
-   * 2.2x at l <= 8; benchmarks/viewport.py). */
+   * the compiler move tf_c out of registers (docs/tuning.md#constant-indices). */
   vec3 sum = vec3(0.0);
   tf_accumulate(sum, r, 0, 0);
 #if TF_L_MAX >= 1
