@@ -12,7 +12,8 @@ Shared by the viewport draw handler and the headless render, so both draw the sa
 - the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
   the current World key.
 
-gpu_draw's shader and uniform-buffer caches are registered in :mod:`.caches` here too.
+The GPU layer's shader and uniform-buffer caches (``gpu.shaders.SHADERS``, ``gpu.draw.UNIFORMS``)
+are registered in :mod:`.caches` here too.
 """
 
 from __future__ import annotations
@@ -26,7 +27,9 @@ import numpy as np
 from ..precompute import film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
 from ..precompute.shading import policy
-from . import caches, description, gpu_draw, panorama, tables, world, world_key
+from . import caches, description, panorama, tables, world, world_key
+from .gpu import draw, resources, shaders
+from .gpu.mesh import MeshBatch, mesh_arrays
 from .thickness import thickness_per_vertex
 
 log = logging.getLogger(__name__)
@@ -34,17 +37,17 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class DrawItem:
-    """One (object, material slot) to draw: what :func:`gpu_draw.draw_items` needs."""
+    """One (object, material slot) to draw: what :func:`.gpu.draw.draw_items` needs."""
 
-    batch: gpu_draw.MeshBatch
+    batch: MeshBatch
     model_matrix: np.ndarray
-    table: gpu_draw.TableTexture
-    lighting: gpu_draw.Lighting
+    table: resources.TableTexture
+    lighting: resources.Lighting
     name: str
-    prefiltered: gpu_draw.PrefilterTexture | None = None
+    prefiltered: resources.PrefilterTexture | None = None
     roughness: float = 0.0
     sh_weight: float = 1.0
-    film: gpu_draw.FilmTexture | None = None
+    film: resources.FilmTexture | None = None
 
 
 @dataclass
@@ -67,8 +70,8 @@ class Caches:
 
 
 CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
-caches.register("shaders", gpu_draw.SHADERS, scope=caches.SESSION)
-caches.register("uniforms", gpu_draw.UNIFORMS, scope=caches.SESSION)
+caches.register("shaders", shaders.SHADERS, scope=caches.SESSION)
+caches.register("uniforms", draw.UNIFORMS, scope=caches.SESSION)
 
 
 def on_depsgraph_update(scene, depsgraph) -> None:
@@ -97,8 +100,8 @@ PANORAMA_WIDTH = 512
 PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
 
 
-def _prefilter_texture(pre) -> gpu_draw.PrefilterTexture:
-    return gpu_draw.PrefilterTexture.from_levels(
+def _prefilter_texture(pre) -> resources.PrefilterTexture:
+    return resources.PrefilterTexture.from_levels(
         pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
     )
 
@@ -114,9 +117,9 @@ class PrefilterTextures:
     def __init__(self, analysed: Environment):
         self.environment = analysed
         self.prefiltered = _prefilter_texture(analysed.prefiltered)
-        self._whole: gpu_draw.PrefilterTexture | None = None
+        self._whole: resources.PrefilterTexture | None = None
 
-    def prefiltered_whole(self) -> gpu_draw.PrefilterTexture:
+    def prefiltered_whole(self) -> resources.PrefilterTexture:
         """The prefilter with the lamps in every level (uploaded on first use)."""
         if self.environment.lamps is None:
             return self.prefiltered
@@ -166,7 +169,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     if need_image and scene.world is not None:
         try:
             image = panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
-            found = analyse_world(image, result.coeffs, l_max=gpu_draw.MAX_L, width=PREFILTER_WIDTH)
+            found = analyse_world(image, result.coeffs, l_max=resources.MAX_L, width=PREFILTER_WIDTH)
             analysed, textures = found, PrefilterTextures(found)
         except (RuntimeError, ValueError) as exc:
             log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
@@ -177,7 +180,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
 
 def lighting_for(
     lighting: WorldLighting, l_max: int, roughness: float, lamps: bool = False
-) -> gpu_draw.Lighting:
+) -> resources.Lighting:
     """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
     the lamps themselves."""
     env = lighting.environment
@@ -185,15 +188,15 @@ def lighting_for(
     key = (lighting.key, int(l_max), round(float(roughness), 6), lamps)
     if key not in CACHES.lightings:
         coeffs = env.sh_without_lamps if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
-        CACHES.lightings[key] = gpu_draw.Lighting.from_sh(
+        CACHES.lightings[key] = resources.Lighting.from_sh(
             coeffs, l_max, roughness, env.lamps if lamps else None
         )
     return CACHES.lightings[key]
 
 
-def film_texture(desc_key: str, result) -> gpu_draw.FilmTexture:
+def film_texture(desc_key: str, result) -> resources.FilmTexture:
     if desc_key not in CACHES.films:
-        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(film_colour.film_table(result))
+        CACHES.films[desc_key] = resources.FilmTexture.from_film(film_colour.film_table(result))
     return CACHES.films[desc_key]
 
 
@@ -219,16 +222,16 @@ def lamps_summary(enabled: bool) -> str:
     return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
-def table_texture(desc_key: str, result) -> gpu_draw.TableTexture:
+def table_texture(desc_key: str, result) -> resources.TableTexture:
     if desc_key not in CACHES.tables:
-        CACHES.tables[desc_key] = gpu_draw.TableTexture.from_result(result)
+        CACHES.tables[desc_key] = resources.TableTexture.from_result(result)
         CACHES.stats["table_uploads"] += 1
     return CACHES.tables[desc_key]
 
 
 def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
     """MeshBatch of the triangles of material slot ``slot`` (None if it has none)."""
-    arrays = gpu_draw.mesh_arrays(mesh)
+    arrays = mesh_arrays(mesh)
     if arrays is None:
         return None
     positions, normals, triangles, _ = arrays
@@ -257,7 +260,7 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
     if thickness is not None:
         thickness = np.nan_to_num(np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=0.5)
     CACHES.stats["batch_builds"] += 1
-    return gpu_draw.MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    return MeshBatch.from_arrays(positions, normals, triangles, thickness)
 
 
 @dataclass
@@ -266,11 +269,11 @@ class _MaterialEntry:
 
     desc: object  # precompute Material
     key: str  # description.description_key(desc)
-    table: gpu_draw.TableTexture
-    lighting: gpu_draw.Lighting
+    table: resources.TableTexture
+    lighting: resources.Lighting
     roughness: float
     sh_weight: float
-    film: gpu_draw.FilmTexture | None = None
+    film: resources.FilmTexture | None = None
 
 
 def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages):
