@@ -46,17 +46,18 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   of edits cannot grow them, and a large frame does not rebuild every frame); lightings are
   also pruned to the current World on each World change; filled by ``scene_draw.collect`` and
   ``scene_draw.world_lighting``; FILE.
-- ``shaders`` — ``gpu_draw.SHADERS``: compiled GPU shaders by variant; one per variant used
-  (a few dozen at most); filled by ``gpu_draw.draw_items``; SESSION (registered by
-  ``scene_draw``: gpu_draw keeps no registry).
-- ``uniforms`` — ``gpu_draw.UNIFORMS``: view and object uniform buffers by the values they are
+- ``shaders`` — ``gpu.shaders.SHADERS``: compiled GPU shaders by variant; one per variant used
+  (a few dozen at most); filled by ``gpu.draw.draw_items``; SESSION (registered by
+  ``scene_draw``: the GPU layer keeps no registry).
+- ``uniforms`` — ``gpu.draw.UNIFORMS``: view and object uniform buffers by the values they are
   made from; entries unused for ``keep_frames`` frames are recycled (at most ``max_spare``
-  spare buffers per size); filled by ``gpu_draw.prepare_draw``; SESSION (registered by
+  spare buffers per size); filled by ``gpu.draw.prepare_draw``; SESSION (registered by
   ``scene_draw``).
 
 Not registered, because they never go stale: ``functools.cache`` memos of values computed from
-the code alone (``gpu_draw.glsl_chunk``, ``banded_source``, ``x_rotation_scalars``, the
-full-screen triangle) and the bounded ``functools.lru_cache`` kernels inside ``precompute``.
+the code alone (the parsed GLSL chunks of ``gpu.shaders``, ``banded_source``,
+``x_rotation_scalars``, the full-screen triangle of ``gpu.draw``) and the bounded
+``functools.lru_cache`` kernels inside ``precompute``.
 """
 
 from __future__ import annotations

@@ -22,8 +22,10 @@ import bpy
 import numpy as np
 
 from ..precompute import cli_support, effects, image_io, table_io
-from . import gpu_draw, scene_draw, tables, world
+from . import scene_draw, tables, world
 from .description import description, description_key
+from .gpu.context import ensure_gpu_context
+from .gpu.draw import render_offscreen
 
 
 def scene_materials(scene):
@@ -128,7 +130,7 @@ def render_scene(
     scene, out_path, width: int | None = None, height: int | None = None, background: bool = True
 ) -> dict:
     """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it."""
-    gpu_draw.ensure_gpu_context()
+    ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
     width = int(width or round(scene.render.resolution_x * scale))
     height = int(height or round(scene.render.resolution_y * scale))
@@ -177,7 +179,7 @@ def render_scene(
             if hidden:
                 bpy.context.view_layer.update()
 
-    rgba = gpu_draw.render_offscreen(items, view, proj, width, height, background=env, depth_from=depth_from)
+    rgba = render_offscreen(items, view, proj, width, height, background=env, depth_from=depth_from)
     rgb = rgba[..., :3].astype(np.float64)
     bad = ~np.isfinite(rgb)
     nonfinite = int(bad.any(axis=-1).sum())

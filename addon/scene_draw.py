@@ -22,7 +22,8 @@ so a large scene does not rebuild every frame): a long session of edits, each ma
 keeps at most that many. A dropped entry is only dereferenced; its GPU buffers and textures are
 freed with the last reference (the draw items of the frame being drawn).
 
-gpu_draw's shader and uniform-buffer caches are registered in :mod:`.caches` here too.
+The GPU layer's shader and uniform-buffer caches (``gpu.shaders.SHADERS``, ``gpu.draw.UNIFORMS``)
+are registered in :mod:`.caches` here too.
 """
 
 from __future__ import annotations
@@ -37,7 +38,9 @@ from ..precompute import cli_support, film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, gpu_draw, panorama, tables, world, world_key
+from . import caches, description, panorama, tables, world, world_key
+from .gpu import draw, resources, shaders
+from .gpu.mesh import MeshBatch, mesh_arrays
 from .thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
 log = logging.getLogger(__name__)
@@ -45,17 +48,17 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class DrawItem:
-    """One (object, material slot) to draw: what :func:`gpu_draw.draw_items` needs."""
+    """One (object, material slot) to draw: what :func:`.gpu.draw.draw_items` needs."""
 
-    batch: gpu_draw.MeshBatch
+    batch: MeshBatch
     model_matrix: np.ndarray
-    table: gpu_draw.TableTexture
-    lighting: gpu_draw.Lighting
+    table: resources.TableTexture
+    lighting: resources.Lighting
     name: str
-    prefiltered: gpu_draw.PrefilterTexture | None = None
+    prefiltered: resources.PrefilterTexture | None = None
     roughness: float = 0.0
     sh_weight: float = 1.0
-    film: gpu_draw.FilmTexture | None = None
+    film: resources.FilmTexture | None = None
     #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
     fallback: bool = False
 
@@ -83,7 +86,7 @@ class BatchEntry:
     """
 
     signature: tuple
-    batch: gpu_draw.MeshBatch | None
+    batch: MeshBatch | None
     thickness: np.ndarray | None = None
     notes: tuple = ()
 
@@ -145,8 +148,8 @@ class Caches:
 
 
 CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
-caches.register("shaders", gpu_draw.SHADERS, scope=caches.SESSION)
-caches.register("uniforms", gpu_draw.UNIFORMS, scope=caches.SESSION)
+caches.register("shaders", shaders.SHADERS, scope=caches.SESSION)
+caches.register("uniforms", draw.UNIFORMS, scope=caches.SESSION)
 
 
 def on_depsgraph_update(scene, depsgraph) -> None:
@@ -173,8 +176,8 @@ PANORAMA_WIDTH = 512
 PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
 
 
-def _prefilter_texture(pre) -> gpu_draw.PrefilterTexture:
-    return gpu_draw.PrefilterTexture.from_levels(
+def _prefilter_texture(pre) -> resources.PrefilterTexture:
+    return resources.PrefilterTexture.from_levels(
         pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
     )
 
@@ -190,9 +193,9 @@ class PrefilterTextures:
     def __init__(self, analysed: Environment):
         self.environment = analysed
         self.prefiltered = _prefilter_texture(analysed.prefiltered)
-        self._whole: gpu_draw.PrefilterTexture | None = None
+        self._whole: resources.PrefilterTexture | None = None
 
-    def prefiltered_whole(self) -> gpu_draw.PrefilterTexture:
+    def prefiltered_whole(self) -> resources.PrefilterTexture:
         """The prefilter with the lamps in every level (uploaded on first use)."""
         if self.environment.lamps is None:
             return self.prefiltered
@@ -248,7 +251,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
                 if result.errors
                 else panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
             )
-            found = analyse_world(image, result.coeffs, l_max=gpu_draw.MAX_L, width=PREFILTER_WIDTH)
+            found = analyse_world(image, result.coeffs, l_max=resources.MAX_L, width=PREFILTER_WIDTH)
             analysed, textures = found, PrefilterTextures(found)
         except (RuntimeError, ValueError) as exc:
             log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
@@ -266,7 +269,7 @@ def _constant_panorama(coeffs) -> np.ndarray:
 
 def lighting_for(
     lighting: WorldLighting, l_max: int, roughness: float, lamps: bool = False
-) -> gpu_draw.Lighting:
+) -> resources.Lighting:
     """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
     the lamps themselves."""
     env = lighting.environment
@@ -275,15 +278,15 @@ def lighting_for(
     found = CACHES.lightings.get(key)
     if found is None:
         coeffs = env.sh_without_lamps if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
-        found = gpu_draw.Lighting.from_sh(coeffs, l_max, roughness, env.lamps if lamps else None)
+        found = resources.Lighting.from_sh(coeffs, l_max, roughness, env.lamps if lamps else None)
         CACHES.lightings[key] = found
     return found
 
 
-def film_texture(desc_key: str, result) -> gpu_draw.FilmTexture:
+def film_texture(desc_key: str, result) -> resources.FilmTexture:
     found = CACHES.films.get(desc_key)
     if found is None:
-        found = gpu_draw.FilmTexture.from_film(film_colour.film_table(result))
+        found = resources.FilmTexture.from_film(film_colour.film_table(result))
         CACHES.films[desc_key] = found
     return found
 
@@ -313,10 +316,10 @@ def lamps_summary(enabled: bool) -> str:
     return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
-def table_texture(desc_key: str, result) -> gpu_draw.TableTexture:
+def table_texture(desc_key: str, result) -> resources.TableTexture:
     found = CACHES.tables.get(desc_key)
     if found is None:
-        found = gpu_draw.TableTexture.from_result(result)
+        found = resources.TableTexture.from_result(result)
         CACHES.tables[desc_key] = found
         CACHES.stats["table_uploads"] += 1
     return found
@@ -328,7 +331,7 @@ def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) ->
     ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
     material is not refreshed when an add-on property changes), or None; ``name``: the object's.
     """
-    arrays = gpu_draw.mesh_arrays(mesh)
+    arrays = mesh_arrays(mesh)
     if arrays is None:
         return BatchEntry(signature, None)
     positions, normals, triangles, _ = arrays
@@ -359,7 +362,7 @@ def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) ->
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
     CACHES.stats["batch_builds"] += 1
-    batch = gpu_draw.MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
     return BatchEntry(signature, batch, thickness, tuple(notes))
 
 
@@ -369,11 +372,11 @@ class _MaterialEntry:
 
     desc: object  # precompute Material
     key: str  # description.description_key(desc)
-    table: gpu_draw.TableTexture
-    lighting: gpu_draw.Lighting
+    table: resources.TableTexture
+    lighting: resources.Lighting
     roughness: float
     sh_weight: float
-    film: gpu_draw.FilmTexture | None = None
+    film: resources.FilmTexture | None = None
     props: object = None  # the original material's thinfilm_sh settings when enabled, else None
     thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)

@@ -19,8 +19,9 @@ import threading
 
 import bpy
 
-from . import caches, gpu_draw, scene_draw, tables
+from . import caches, scene_draw, tables
 from .description import description_key
+from .gpu.draw import draw_items
 
 log = logging.getLogger(__name__)
 
@@ -108,7 +109,7 @@ def draw_callback() -> None:
         if _pending:
             _schedule()
         exposure = float(depsgraph.scene.view_settings.exposure)
-        gpu_draw.draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
+        draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
     except Exception as exc:  # a draw callback must never raise
         log.error("Thin Film SH: viewport draw failed: %s", exc)
 

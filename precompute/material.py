@@ -28,7 +28,7 @@ COLOUR_MODES = ("spectral", "per_channel")
 #: thin film (for interop parity).
 MULTISCATTER = ("none", "film", "cycles")
 #: Highest SH order of a table or the World: the one constant behind effects.MAX_ORDER and the
-#: shaders' gpu_draw.MAX_L (the lighting UBO has room for exactly this many bands).
+#: shaders' addon/gpu/resources.py MAX_L (the lighting UBO has room for exactly this many bands).
 MAX_SH_ORDER = 12
 
 

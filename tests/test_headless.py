@@ -28,7 +28,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, REPO, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID, REPO, gpu_layer, linked_extension  # noqa: E402
 
 from precompute.material import MAX_SH_ORDER  # noqa: E402
 
@@ -55,11 +55,12 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw", "gpu_draw"):
+            for name in ("headless", "description", "tables", "prefs", "scene_draw"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            ns.gpu = gpu_layer()
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
             _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
-            ns.gpu_draw.ensure_gpu_context()
+            ns.gpu.context.ensure_gpu_context()
             yield ns
         finally:
             entry = bpy.context.preferences.addons.get(EXTENSION_ID)
@@ -728,7 +729,7 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     (item,) = items()
     image_entry = tf.scene_draw.CACHES.world.environment
     assert image_entry is not None and image_entry.lamps is not None
-    assert 1 <= image_entry.lamps.count <= tf.gpu_draw.MAX_LAMPS and image_entry.lamps.share > 0.5
+    assert 1 <= image_entry.lamps.count <= tf.gpu.resources.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
     summary = tf.scene_draw.lamps_summary(True)  # the Surface panel's line
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary

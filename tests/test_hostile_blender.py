@@ -52,13 +52,13 @@ def tf(bpy, tmp_path_factory):
         try:
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw", "gpu_draw", "world"):
+            for name in ("headless", "description", "tables", "prefs", "scene_draw", "world"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness")
             ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.cli_support")
             ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.material")
             _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
-            ns.gpu_draw.ensure_gpu_context()
+            importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
             yield ns
         finally:
             entry = bpy.context.preferences.addons.get(EXTENSION_ID)

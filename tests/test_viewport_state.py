@@ -40,14 +40,14 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("gpu_draw", "scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
+        for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
         ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID
-        ns.gpu_draw.ensure_gpu_context()
+        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
         try:
             yield ns
         finally:

@@ -19,13 +19,15 @@ SCENES = {
 }
 LAMPS = (True, False)
 #: Scenes and orders whose films are also drawn with the table read from its texture (case
-#: "<case>-tex"): what a hardware GPU draws (gpu_draw.TABLE_UBO_DEVICES), since ``prepare`` runs on
+#: "<case>-tex"): what a hardware GPU draws (policy.TABLE_UBO_DEVICES), since ``prepare`` runs on
 #: llvmpipe, which draws small tables from the uniform buffer.
 TEXTURE_CASES_SCENES = ("sweep", "grid")
 #: Sweep orders whose SH-only film (lamps on, table from the texture) is also drawn with the
-#: generic rotation loops of tf_sh_rotate.glsl instead of the generated X(±90°) code (case
-#: "sh-loops"; ``gpu_draw.ShaderCache(generated_x90=False)``).
+#: generic rotation loops of :data:`REFERENCE_ROTATION` instead of the generated X(±90°) code
+#: (case "sh-loops"; ``gpu.shaders.ShaderCache(reference_rotation=REFERENCE_ROTATION)``).
 LOOP_CASES_L = (8, 12)
+#: The reference rotation of the shading library (tests only, never shipped).
+REFERENCE_ROTATION = ROOT / "tests" / "glsl" / "tf_sh_rotate_loops.glsl"
 TEXTURE_CASES_L = (2, 4, 5, 8)
 #: Warm-up frames per case and timed rounds per scene (every case once a round).
 WARMUP = 5
