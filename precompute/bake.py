@@ -36,6 +36,7 @@ import numpy as np
 from . import brdf, composite, constants, sh, spectra, table_io
 from .material import AUTO, MAX_SH_ORDER, Material
 from .optics import reflectance, reflectance_sweep
+from .progress import Phases, checkpoint
 
 #: R(u) is interpolated by piecewise Chebyshev polynomials on intervals graded geometrically
 #: toward u = 0: near grazing both interfaces reflect almost fully and the film becomes a
@@ -54,6 +55,20 @@ U_TEST_MIN = U_EDGES[1]
 N_THETA = 96
 N_PHI = 48
 FORMAT_KIND = "sh_table"
+#: Film reflectances (thickness rows × u nodes × wavelengths × layers) evaluated between two
+#: progress checkpoints of a reflectance sweep, and rows × coefficients × u nodes × 9 multiply-
+#: adds between two of the contraction: each ≈ 0.05 s on a loaded two-core machine, so an Esc
+#: waits ≪ 0.5 s (benchmarks/bake_progress.py measures the gaps; docs/bake-progress.md).
+SWEEP_CHUNK = 250_000
+CONTRACT_CHUNK = 50_000_000
+#: Multiply-adds of one block of a view angle's kernel product (half-vector nodes × SH
+#: coefficients × u nodes): l = 12 with 64 nodes per interval is 215 M, 0.3 s unloaded and up
+#: to 1 s on a loaded two-core machine in one piece; blocks of 32 M keep each step ≲ 0.15 s.
+KERNEL_CHUNK = 32_000_000
+#: Array elements an elementwise pass (the multiple-scattering scale) handles between two.
+ELEMENT_CHUNK = 2_000_000
+#: The bake's phases and their shares of the progress bar (≈ their share of a cold bake's time).
+PHASES = {"planning": 0.10, "reflectance": 0.15, "kernel": 0.60, "contracting": 0.15}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -160,7 +175,13 @@ def microfacet_kernel(
     out = []
     for cos_o in view_cosines(view_samples):
         u, ty = transfer_samples(float(cos_o), alpha, l_max, n_theta, n_phi)
-        out.append(ty.T @ u_interpolation_matrix(u_degree, u))
+        checkpoint()  # progress and cancellation points: ≤ KERNEL_CHUNK multiply-adds apart
+        interp = u_interpolation_matrix(u_degree, u)
+        row = np.empty((ty.shape[1], interp.shape[1]))
+        for cols in kernel_blocks(ty.shape[0], ty.shape[1], interp.shape[1]):
+            row[:, cols] = ty.T @ interp[:, cols]
+            checkpoint()
+        out.append(row)
     kernel = np.array(out)
     kernel.setflags(write=False)
     return kernel
@@ -316,6 +337,55 @@ def auto_sh_order(material: Material, target: float = 0.10) -> tuple[int, str]:
     )
 
 
+def kernel_blocks(nodes: int, coefficients: int, u_count: int, budget: int = KERNEL_CHUNK) -> list[slice]:
+    """Column blocks of the u nodes for one view angle's kernel product, each ≤ ``budget``
+    multiply-adds (at least one column): a :func:`checkpoint` follows each."""
+    cols = max(1, budget // max(1, nodes * coefficients))
+    return [slice(lo, lo + cols) for lo in range(0, u_count, cols)]
+
+
+def chunked_sweep(indices, thickness_sets, wavelengths_nm, cos_theta, method: str) -> np.ndarray:
+    """:func:`~precompute.optics.reflectance_sweep` in blocks of ≤ :data:`SWEEP_CHUNK` film
+    evaluations (thickness rows, then u nodes within a row), a progress :func:`checkpoint`
+    after each; element by element the same result as one call, shape (T, U, W)."""
+    sets = np.atleast_2d(np.asarray(thickness_sets, dtype=float))
+    cos = np.asarray(cos_theta, dtype=float)
+    per_node = max(1, np.size(wavelengths_nm) * max(1, sets.shape[1]))
+    per_row = per_node * cos.size
+    if sets.shape[0] * per_row <= SWEEP_CHUNK:
+        out = reflectance_sweep(indices, sets, wavelengths_nm, cos, method=method)
+        checkpoint()
+        return out
+    rows = max(1, SWEEP_CHUNK // per_row)
+    cols = cos.size if rows > 1 else max(1, SWEEP_CHUNK // per_node)
+    out = np.empty((sets.shape[0], cos.size, np.size(wavelengths_nm)))
+    for r in range(0, sets.shape[0], rows):
+        for c in range(0, cos.size, cols):
+            out[r : r + rows, c : c + cols] = reflectance_sweep(
+                indices, sets[r : r + rows], wavelengths_nm, cos[c : c + cols], method=method
+            )
+            checkpoint()
+    return out
+
+
+def _row_blocks(t: int, per_row: int, budget: int = CONTRACT_CHUNK) -> list[slice]:
+    """Slices of ``t`` thickness rows, each of ≤ ``budget`` units of work (at least one row)."""
+    rows = max(1, budget // max(1, per_row))
+    return [slice(lo, lo + rows) for lo in range(0, t, rows)]
+
+
+def sweep_checkpoints(rows: int, layers: int, nodes: int, wavelengths: int) -> int:
+    """How many checkpoints :func:`chunked_sweep` makes for a sweep of this size."""
+    per_node = max(1, wavelengths * max(1, layers))
+    per_row = per_node * nodes
+    if rows * per_row <= SWEEP_CHUNK:
+        return 1
+    per_block = max(1, SWEEP_CHUNK // per_row)
+    if per_block > 1:
+        return math.ceil(rows / per_block)
+    return rows * math.ceil(nodes / max(1, SWEEP_CHUNK // per_node))
+
+
 def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
     """Smallest nodes-per-interval whose interpolation of R(u) meets ``U_TOLERANCE``.
 
@@ -334,7 +404,7 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
         nodes = u_nodes(candidate)
         test = u_nodes(candidate + 1)
         test = test[test >= U_TEST_MIN]
-        both = reflectance_sweep(indices, probe, wavelengths_nm, np.concatenate([nodes, test]), method=method)
+        both = chunked_sweep(indices, probe, wavelengths_nm, np.concatenate([nodes, test]), method)
         at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
         interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
         err = float(np.max(np.abs(interp - exact))) / max(float(exact.max()), 1e-6)
@@ -344,7 +414,7 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
     return (
         degree,
         err,
-        reflectance_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method=method),
+        chunked_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method),
     )
 
 
@@ -496,7 +566,11 @@ def apply_multiscatter(data: np.ndarray, material: Material, cos_o: np.ndarray) 
         scale = np.stack([brdf.multiscatter_scale(cos_o, material.roughness, f) for f in f_avg])  # (T, A, 3)
     if scale.ndim == 2:
         scale = np.broadcast_to(scale[None], (data.shape[0],) + scale.shape)
-    return data * scale[:, :, None, :, None]
+    out = np.empty(np.broadcast_shapes(data.shape, scale[:, :, None, :, None].shape))
+    for rows in _row_blocks(data.shape[0], data[0].size, ELEMENT_CHUNK):
+        np.multiply(data[rows], scale[rows, :, None, :, None], out=out[rows])
+        checkpoint()
+    return out
 
 
 def base_spectrum(material: Material, wavelengths_nm: np.ndarray) -> np.ndarray:
@@ -568,46 +642,94 @@ def table_key(material: Material) -> str:
     return table_io.content_key({"material": table_material(material).to_dict(), "planner": PLANNER_VERSION})
 
 
+def contract(kernel: np.ndarray, r_nodes: np.ndarray, g: np.ndarray, colour_mode: str) -> np.ndarray:
+    """The table (T, A, K, 3, 3): M[t, a, i] = Σ_k K[a, i, k] clamp(Σ_λ R[t, k, λ] G[λ]).
+
+    In blocks of thickness rows of ≤ :data:`CONTRACT_CHUNK` multiply-adds, a progress
+    :func:`checkpoint` after each; every row is contracted on its own, so the blocks change
+    nothing but the checkpoints.
+    """
+    a, k, u = kernel.shape
+    flat = kernel.reshape(a * k, u)
+    g2 = g.reshape(g.shape[0], -1)
+    t = r_nodes.shape[0]
+    rows = max(1, CONTRACT_CHUNK // (9 * u * (a * k + g2.shape[0])))
+    out = np.empty((t, a, k, 3, 3))
+    for lo in range(0, t, rows):
+        rg = clamp_film_rgb(r_nodes[lo : lo + rows] @ g2, colour_mode)  # (t', U, 9)
+        n = rg.shape[0]
+        rg = rg.transpose(1, 0, 2).reshape(u, -1)  # (U, t'·9)
+        out[lo : lo + n] = (flat @ rg).reshape(a, k, n, 3, 3).transpose(2, 0, 1, 3, 4)
+        checkpoint()
+    return out
+
+
 def bake(material: Material, progress=None) -> BakeResult:
     """Fast factorised bake of ``material`` (see the module docstring). ``progress(fraction, text)``.
 
-    The result's ``material`` is :func:`table_material` of ``material`` (what the table depends
-    on), so equal keys give equal tables and equal header attributes.
+    ``progress`` is called at every step of ≲ 0.1 s (:mod:`.progress`: the fraction moves by
+    ≤ 5 % per call and reaches 1.0 at the end); an exception it raises stops the bake there
+    and propagates (nothing half-made is cached). The result's ``material`` is
+    :func:`table_material` of ``material`` (what the table depends on), so equal keys give
+    equal tables and equal header attributes.
     """
     t0 = time.perf_counter()
-    report = progress or (lambda fraction, text: None)
-    material = table_material(material)
-    p = plan(material)
-    wl, g = spectral_quadrature(
-        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
-    )
-    indices, sets, axis = active_stack(material, p.thickness_samples)
-    method = _method(material)
-    report(0.05, "choosing reflectance nodes")
-    t1 = time.perf_counter()
-    if sets.shape[1] == 0:
-        u_count, u_err = U_DEGREE_LADDER[0], 0.0
-        r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
-    else:
-        u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
-    t2 = time.perf_counter()
-    report(0.3, "microfacet kernel")
-    kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
-    t3 = time.perf_counter()
-    report(0.8, "contracting")
-    rg = clamp_film_rgb(r_nodes @ g.reshape(g.shape[0], -1), material.colour_mode)  # (T, U, 9)
-    rg = rg.transpose(1, 0, 2).reshape(kernel.shape[2], -1)  # (U, T·9)
-    a, k, u = kernel.shape
-    data = (kernel.reshape(a * k, u) @ rg).reshape(a, k, r_nodes.shape[0], 3, 3).transpose(2, 0, 1, 3, 4)
-    data = apply_multiscatter(data, material, view_cosines(p.view_samples))
-    if material.base_color is not None:
-        data = data + _diffuse_term(
-            material, p.sh_order, view_cosines(p.view_samples), r_nodes, u_count, g, wl
+    phases = Phases(progress or (lambda fraction, text: None), PHASES)
+    with phases.reporting():
+        material = table_material(material)
+        auto_order = material.quality.sh_order == AUTO
+        phases.start("planning", "planning", expected=21 if auto_order else 1)
+        p = plan(material)
+        wl, g = spectral_quadrature(
+            p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
         )
-    if material.colour_mode == "per_channel":
-        data = np.einsum("taikk->taik", data)
-    t4 = time.perf_counter()
-    report(1.0, "done")
+        indices, sets, axis = active_stack(material, p.thickness_samples)
+        method = _method(material)
+        guess = U_DEGREE_LADDER[1] * (len(U_EDGES) - 1)
+        phases.start(
+            "reflectance",
+            "choosing reflectance nodes",
+            expected=2 + sweep_checkpoints(sets.shape[0], sets.shape[1], guess, wl.size),
+        )
+        t1 = time.perf_counter()
+        if sets.shape[1] == 0:
+            u_count, u_err = U_DEGREE_LADDER[0], 0.0
+            r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
+        else:
+            u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
+        t2 = time.perf_counter()
+        blocks = len(
+            kernel_blocks(N_THETA * N_PHI, len(coefficient_indices(p.sh_order)), u_count * (len(U_EDGES) - 1))
+        )
+        phases.start("kernel", "microfacet kernel", expected=(1 + blocks) * p.view_samples)
+        kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
+        t3 = time.perf_counter()
+        a, k, u = kernel.shape
+        t = r_nodes.shape[0]
+        diffuse_blocks = (
+            _row_blocks(t, 9 * a * (p.sh_order + 1) * wl.size) if material.base_color is not None else []
+        )
+        phases.start(
+            "contracting",
+            "contracting",
+            expected=len(_row_blocks(t, 9 * u * (a * k + g.shape[0])))
+            + (
+                a + 34 + len(_row_blocks(t, a * k * 9, ELEMENT_CHUNK))
+                if material.multiscatter != "none"
+                else 0
+            )
+            + len(diffuse_blocks),
+        )
+        data = contract(kernel, r_nodes, g, material.colour_mode)
+        data = apply_multiscatter(data, material, view_cosines(p.view_samples))
+        cos_o = view_cosines(p.view_samples)
+        for rows in diffuse_blocks:
+            data[rows] += _diffuse_term(material, p.sh_order, cos_o, r_nodes[rows], u_count, g, wl)
+            checkpoint()
+        if material.colour_mode == "per_channel":
+            data = np.einsum("taikk->taik", data)
+        t4 = time.perf_counter()
+        phases.done()
     reasons = dict(
         p.reasons,
         u_nodes=f"{u_count} Chebyshev nodes in each of {len(U_EDGES) - 1} graded intervals: "
