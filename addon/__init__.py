@@ -31,7 +31,15 @@ def register():
         if not cls.is_registered:
             bpy.utils.register_class(cls)
     if not hasattr(bpy.types.Material, MATERIAL_PROPERTY):
-        setattr(bpy.types.Material, MATERIAL_PROPERTY, PointerProperty(type=props.ThinFilmMaterialSettings))
+        setattr(
+            bpy.types.Material,
+            MATERIAL_PROPERTY,
+            PointerProperty(
+                type=props.ThinFilmMaterialSettings,
+                name="Thin Film SH",
+                description="Thin-film interference settings of this material for the viewport preview",
+            ),
+        )
     for module in modules:
         module.register()
 

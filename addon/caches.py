@@ -24,6 +24,13 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   cache (an unusable folder, a full disk: the table is in memory and drawn); LRU of
   ``tables.FAILURE_MEMORY`` (64); filled by ``tables.get_table_with_source``; SESSION, also
   emptied by Clear Cache.
+- ``material_outputs`` — ``props.OUTPUTS``: what the Bake button found for a material
+  (``last_bake_ms``, ``last_plan``, ``last_error``, read through those properties' getters) by
+  (material ``session_uid``, name); one entry per material baked (three short values); filled
+  by the bake operator; FILE (the file's materials, kept out of the saved file on purpose).
+- ``hidden_viewports`` — ``viewport.HIDDEN_IN``: the 3D viewports (their space's address)
+  whose Thin Film SH overlay is switched off; a set, one entry per viewport switched off; filled
+  by the *Thin Film SH* toggle in the Overlays popover; FILE.
 - ``thickness_images`` — ``thickness._PRINTS``: pixel fingerprints of thickness images with
   unsaved edits, by image name, refreshed at most every ``thickness.IMAGE_RECHECK_S``; LRU of
   16; filled by ``thickness.image_stamp``; FILE.

@@ -28,7 +28,8 @@ def description(bpy_material) -> Material | None:
        substrate = IOR (dielectric) or, for Metallic > 0.5, a Gulbrandsen (n, k) fit of Base
        Color and Specular Tint; roughness = Roughness; per-channel colour like Cycles; ambient 1.
        Linked sockets use their unlinked values (see :func:`warnings`).
-    3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF.
+    3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF; nor is
+       a Principled film whose *Preview Principled Film* switch is off.
 
     Raises ValueError (naming the material and the parameter) for invalid settings: every
     value is checked when the Material is built (precompute.validate), so nothing invalid
@@ -38,6 +39,8 @@ def description(bpy_material) -> Material | None:
     try:
         if props is not None and props.enabled:
             return description_from_props(props)
+        if props is not None and not props.preview_principled:
+            return None  # the artist switched the Principled film's preview off
         return read_principled(bpy_material)[0]
     except ValueError as exc:
         raise ValueError(f"material {bpy_material.name!r}: {exc}") from None
@@ -64,7 +67,7 @@ def warnings(bpy_material) -> list[str]:
             notes = [f"{exc}: drawn in magenta (the fallback) until it is fixed"]
     space = file_working_space()
     if space and space not in spectra.WORKING_SPACES:
-        notes.append(f"working colour space {space!r} is not supported: previewing in Linear Rec.709")
+        notes.append(f"working color space {space!r} is not supported: previewing in Linear Rec.709")
     return notes
 
 

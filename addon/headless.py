@@ -22,10 +22,13 @@ import bpy
 import numpy as np
 
 from ..precompute import cli_support, effects, image_io, table_io
-from . import scene_draw, tables, world
+from . import prefs, scene_draw, tables, world
 from .description import description, description_key
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
+
+#: The message of a render made while the *Show Thin Film Overlay* preference is off.
+OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
 
 
 def scene_materials(scene):
@@ -138,7 +141,10 @@ def render_scene(
     view, proj = camera_matrices(scene, depsgraph, width, height)
     t0 = time.perf_counter()
     errors: dict[str, str] = {}  # materials drawn as the magenta fallback, and why
-    items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
+    if prefs.overlay_enabled():
+        items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
+    else:  # the artist's off switch holds for renders too: Blender's own drawing only
+        items, messages = [], [OVERLAY_OFF]
     env = None
     lighting = scene_draw.CACHES.world
     if background and lighting is not None and lighting.environment is not None:

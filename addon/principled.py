@@ -232,7 +232,7 @@ def write_back_to_principled(bpy_material) -> list[str]:
         _set_socket(node, SOCKET_BASE_COLOR, (*base, 1.0), notes)
         _set_socket(node, SOCKET_SPECULAR_TINT, (*tint, 1.0), notes)
         if desc.base_color is not None:
-            notes.append("a metal has no diffuse base in the Principled BSDF: the diffuse colour is dropped")
+            notes.append("a metal has no diffuse base in the Principled BSDF: the diffuse color is dropped")
     else:
         _set_socket(node, SOCKET_METALLIC, 0.0, notes)
         _set_socket(node, SOCKET_IOR, substrate.real, notes)

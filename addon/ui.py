@@ -249,6 +249,10 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
         layout = self.layout
         node = principled_node(mat)
         if not settings.enabled:
+            layout.prop(settings, "preview_principled")
+            if not settings.preview_principled:
+                layout.label(text="The Principled film is not previewed: Cycles still renders it")
+        if not settings.enabled and settings.preview_principled:
             try:
                 desc = description(mat)
             except ValueError as exc:
@@ -262,7 +266,7 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
                 layout.label(text="No Principled BSDF")
             else:
                 layout.label(text="Principled Thin Film Thickness is 0: not previewed")
-        else:
+        elif settings.enabled:
             layout.label(text="Cycles renders the Principled BSDF's single film")
         row = layout.row()
         row.enabled = settings.enabled

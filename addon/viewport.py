@@ -10,6 +10,15 @@ and not queued again until the material's description changes (or Clear Cache, o
 successful Bake button): one failing bake per change, not one per redraw. The error is in the
 material panel's error line and, with every other message of the last frame, in the 3D
 viewport's header (:func:`draw_header`).
+
+The overlay can be switched off (:func:`shown_in`): everywhere by the *Show Thin Film Overlay*
+preference, or in one 3D viewport by the *Thin Film SH* toggle in its Overlays popover
+(:data:`HIDDEN_IN`, :func:`draw_overlay_toggle`). Switched off, the draw callback returns
+before collecting anything: nothing is drawn, queued or baked for that viewport.
+
+Background work is visible: while bakes run or the World is analysed, the header says so with
+the bakes' progress (:func:`activity`), and ``viewport.cancel_bakes`` stops them at their next
+progress checkpoint.
 """
 
 from __future__ import annotations
@@ -19,7 +28,7 @@ import threading
 
 import bpy
 
-from . import caches, scene_draw, tables
+from . import caches, prefs, scene_draw, tables
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -33,6 +42,55 @@ _world_stale = False
 _lock = threading.Lock()
 #: The messages of the last frame drawn (scene_draw.collect's), shown in the viewport header.
 _messages: list[str] = []
+#: 3D viewports (``SpaceView3D.as_pointer()``) whose overlay is switched off (see :mod:`.caches`).
+HIDDEN_IN: set = caches.register("hidden_viewports", set(), scope=caches.FILE)
+#: Progress (0–1) of each running viewport bake, by description key.
+_progress: dict[str, float] = {}
+#: Set to stop every running viewport bake at its next progress checkpoint.
+_cancel = threading.Event()
+
+
+class BakesCancelled(Exception):
+    """Raised inside a viewport bake's progress callback once :func:`cancel_bakes` was called."""
+
+
+def shown_in(space) -> bool:
+    """Whether the overlay is drawn in the 3D viewport ``space``: the preference is on and the
+    viewport's own toggle is not off."""
+    return prefs.overlay_enabled() and space.as_pointer() not in HIDDEN_IN
+
+
+def set_shown_in(space, shown: bool) -> None:
+    """Switch the overlay on or off in one 3D viewport."""
+    if shown:
+        HIDDEN_IN.discard(space.as_pointer())
+    else:
+        HIDDEN_IN.add(space.as_pointer())
+
+
+def activity() -> str:
+    """What runs in the background, for the header: "" when nothing does."""
+    parts = []
+    with _lock:
+        running = dict(_progress)
+    if running:
+        done = sum(running.values()) / len(running)
+        parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
+    if _world_stale:
+        parts.append("analyzing the World")
+    return ", ".join(parts)
+
+
+def cancel_bakes() -> int:
+    """Stop the running viewport bakes at their next progress checkpoint (≤ one step of the
+    bake, :mod:`precompute.progress`); returns how many were running. Nothing half-made is
+    cached, and a cancelled bake is not remembered as failed: the next draw queues it again
+    unless the overlay is switched off."""
+    with _lock:
+        count = len(_running)
+    if count:
+        _cancel.set()
+    return count
 
 
 def _tag_redraw() -> None:
@@ -53,14 +111,24 @@ def _want_bake(desc) -> None:
 
 
 def _bake_worker(key: str, desc, cache) -> None:
+    def report(fraction, text):
+        if _cancel.is_set():
+            raise BakesCancelled
+        _progress[key] = float(fraction)
+
     try:
-        tables.get_table(desc, cache)
+        tables.get_table(desc, cache, report)
+    except BakesCancelled:
+        pass
     except Exception as exc:  # reported, never raised into Blender's timer
         text = tables.record_failure(desc, exc)  # before leaving _running: the draw must not re-queue
         log.error("Thin Film SH: bake failed: %s", text)
     finally:
         with _lock:
             _running.discard(key)
+            _progress.pop(key, None)
+            if not _running:
+                _cancel.clear()
 
 
 def _service() -> float | None:
@@ -90,10 +158,13 @@ def _schedule() -> None:
 
 
 def draw_callback() -> None:
+    """The POST_VIEW draw handler: the thin-film objects of the scene, unless switched off."""
     global _world_stale
     context = bpy.context
     space = context.space_data
     if space is None or space.type != "VIEW_3D" or space.shading.type not in SHADING_TYPES:
+        return
+    if not shown_in(space):
         return
     rv3d = context.region_data
     depsgraph = context.evaluated_depsgraph_get()
@@ -115,12 +186,35 @@ def draw_callback() -> None:
 
 
 def draw_header(self, context) -> None:
-    """In the 3D viewport's header: the last frame's first message (a failed bake, a table the
-    disk cache could not keep, NaN thickness values, …) and how many more there are."""
+    """In the 3D viewport's header: what runs in the background (bakes with their progress, the
+    World's analysis), then the last frame's first message (a failed bake, a table the disk
+    cache could not keep, NaN thickness values, …) and how many more there are."""
+    busy = activity()
+    if busy:
+        row = self.layout.row(align=True)
+        row.label(text=f"Thin Film SH: {busy}", icon="TIME")
+        row.operator("thinfilm.cancel_bakes", text="", icon="CANCEL")
     if not _messages:
         return
     more = f" (+{len(_messages) - 1} more)" if len(_messages) > 1 else ""
     self.layout.label(text=f"Thin Film SH: {_messages[0]}{more}", icon="ERROR")
+
+
+def draw_overlay_toggle(self, context) -> None:
+    """In the 3D viewport's Overlays popover: this viewport's Thin Film SH switch."""
+    space = context.space_data
+    if space is None or space.type != "VIEW_3D":
+        return
+    layout = self.layout
+    row = layout.row()
+    row.active = prefs.overlay_enabled()
+    shown = space.as_pointer() not in HIDDEN_IN
+    row.operator(
+        "thinfilm.toggle_overlay",
+        text="Thin Film SH",
+        icon="CHECKBOX_HLT" if shown else "CHECKBOX_DEHLT",
+        depress=shown,
+    )
 
 
 @bpy.app.handlers.persistent
@@ -140,6 +234,8 @@ def register() -> None:
         _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
     bpy.types.VIEW3D_HT_header.remove(draw_header)  # once, however often register() runs
     bpy.types.VIEW3D_HT_header.append(draw_header)
+    bpy.types.VIEW3D_PT_overlay.remove(draw_overlay_toggle)
+    bpy.types.VIEW3D_PT_overlay.append(draw_overlay_toggle)
     for handlers, fn in (
         (bpy.app.handlers.load_post, _on_load),
         (bpy.app.handlers.depsgraph_update_post, _on_depsgraph),
@@ -154,6 +250,7 @@ def unregister() -> None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
         _handle = None
     bpy.types.VIEW3D_HT_header.remove(draw_header)
+    bpy.types.VIEW3D_PT_overlay.remove(draw_overlay_toggle)
     _messages.clear()
     for handlers, fn in (
         (bpy.app.handlers.load_post, _on_load),
