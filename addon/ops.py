@@ -19,7 +19,8 @@ import threading
 import time
 
 import bpy
-from bpy.props import EnumProperty, StringProperty
+from bl_operators.presets import AddPresetBase
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy.types import Operator
 
 from . import prefs, tables, viewport
@@ -506,6 +507,69 @@ class THINFILM_OT_clear_cache(Operator):
         return {"FINISHED"}
 
 
+#: Where user presets live, under Blender's ``scripts/presets`` folders (user and extension).
+PRESET_SUBDIR = "thinfilm_sh/material"
+#: The settings a user preset stores: the film and the surface, not the viewing or quality choices
+#: (as the built-in presets, :func:`.props.fill_from_material`).
+PRESET_VALUES = [
+    f"settings.{name}"
+    for name in (
+        "layers",
+        "vary_thickness",
+        "thickness_min_nm",
+        "thickness_max_nm",
+        "substrate_mode",
+        "substrate_ior",
+        "substrate_metal",
+        "substrate_n",
+        "substrate_k",
+        "ambient_ior",
+        "roughness",
+        "diffuse_base",
+        "diffuse_color",
+        "model",
+    )
+]
+
+
+class THINFILM_OT_preset_add(AddPresetBase, Operator):
+    """Save this material's film and surface settings as a preset of your own, or remove one"""
+
+    bl_idname = "thinfilm.preset_add"
+    bl_label = "Add Thin Film Preset"
+    preset_menu = "THINFILM_MT_presets"
+    preset_subdir = PRESET_SUBDIR
+    preset_defines = ["settings = bpy.context.material.thinfilm_sh"]
+    preset_values = PRESET_VALUES
+
+    # AddPresetBase's hidden switches, with tooltips.
+    remove_name: BoolProperty(
+        name="Remove by Name",
+        description="Remove the preset with this name instead of adding one",
+        default=False,
+        options={"HIDDEN", "SKIP_SAVE"},
+    )
+    remove_active: BoolProperty(
+        name="Remove Active",
+        description="Remove the preset chosen last in the menu instead of adding one",
+        default=False,
+        options={"HIDDEN", "SKIP_SAVE"},
+    )
+
+    @classmethod
+    def poll(cls, context):
+        """An editable material in the context (presets read and write ``context.material``)."""
+        mat = getattr(context, "material", None)
+        if mat is None:
+            cls.poll_message_set("No material in this context")
+            return False
+        reason = read_only_reason(mat)
+        if reason:
+            cls.poll_message_set(reason)
+            return False
+        return True
+
+
 class THINFILM_OT_toggle_overlay(Operator):
     """Show or hide thin films in this 3D viewport"""
 
@@ -557,6 +621,7 @@ class THINFILM_OT_cancel_bakes(Operator):
 
 
 classes = (
+    THINFILM_OT_preset_add,
     THINFILM_OT_toggle_overlay,
     THINFILM_OT_cancel_bakes,
     THINFILM_OT_bake,

@@ -3,7 +3,7 @@
 import time
 
 import bpy
-from bpy.types import Panel, UIList
+from bpy.types import Menu, Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
@@ -32,6 +32,15 @@ class THINFILM_UL_layers(UIList):
         row.prop(item, "thickness_nm", text="nm", emboss=False)
 
 
+class THINFILM_MT_presets(Menu):
+    """The user's thin film presets (Blender's preset system: ``scripts/presets/thinfilm_sh/material``)."""
+
+    bl_label = "My Presets"
+    preset_subdir = "thinfilm_sh/material"
+    preset_operator = "script.execute_preset"
+    draw = Menu.draw_preset
+
+
 class _MaterialPanel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
@@ -43,7 +52,12 @@ class _MaterialPanel:
 
 
 class THINFILM_PT_material(_MaterialPanel, Panel):
+    """The extension's panel in the Material tab."""
+
     bl_label = "Thin Film SH"
+    #: After Blender's Surface, Volume, Displacement and Settings panels (order 0), before Line
+    #: Art and Viewport Display (10), Animation (999) and Custom Properties (1000).
+    bl_order = 5
 
     def draw_header(self, context):
         self.layout.prop(_settings(context)[1], "enabled", text="")
@@ -56,6 +70,11 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
         layout.active = settings.enabled
         row = layout.row(align=True)
         row.prop(settings, "preset")
+        row = layout.row(align=True)  # the user's own presets, beside the built-in ones
+        row.enabled = mat.is_editable
+        row.menu("THINFILM_MT_presets", text=THINFILM_MT_presets.bl_label)
+        row.operator("thinfilm.preset_add", text="", icon="ADD")
+        row.operator("thinfilm.preset_add", text="", icon="REMOVE").remove_active = True
         errors = material_errors(mat)
         if errors:
             box = layout.box()
@@ -398,6 +417,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
 
 
 classes = (
+    THINFILM_MT_presets,
     THINFILM_UL_layers,
     THINFILM_PT_material,
     THINFILM_PT_film,

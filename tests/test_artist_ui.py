@@ -135,13 +135,19 @@ def test_every_property_enum_item_and_operator_has_an_artist_tooltip(bpy, tf):
     problems = []
     structs = _structs(bpy, tf)
     assert len(structs) >= 10  # two property groups, the preferences and the operators
+    assert any(label.startswith("THINFILM_OT") for label, _ in structs)
     pointer = bpy.types.Material.bl_rna.properties["thinfilm_sh"]
     checked = [("Material.thinfilm_sh", pointer)]
     for label, rna in structs:
-        if label.startswith("THINFILM_OT"):  # the operator's own tooltip (its docstring)
+        if label.startswith("THINFILM_OT"):  # the operator's tooltip (docstring) and parameters
             module, name = getattr(tf.addon.ops, label).bl_idname.split(".")
-            checked.append((label, getattr(getattr(bpy.ops, module), name).get_rna_type()))
-        checked += [(f"{label}.{p.identifier}", p) for p in _own_properties(bpy, rna)]
+            op_rna = getattr(getattr(bpy.ops, module), name).get_rna_type()
+            checked.append((label, op_rna))
+            checked += [
+                (f"{label}.{p.identifier}", p) for p in op_rna.properties if p.identifier != "rna_type"
+            ]
+        else:
+            checked += [(f"{label}.{p.identifier}", p) for p in _own_properties(bpy, rna)]
     for where, item in checked:
         text = item.description.strip()
         name = getattr(item, "name", "")
@@ -282,7 +288,15 @@ def test_a_linked_material_is_not_modified_by_any_operator(bpy, tf, scene, tmp_p
     assert bpy.ops.thinfilm.bake(material=linked.name) == {"FINISHED"}  # baking changes no data
     assert linked.thinfilm_sh.last_plan  # its outputs live in memory
     assert bpy.ops.thinfilm.clear_cache() == {"FINISHED"}
-    covered = {name for name, _ in editing} | {"bake", "clear_cache", "toggle_overlay", "cancel_bakes"}
+    with bpy.context.temp_override(material=linked):
+        assert not bpy.ops.thinfilm.preset_add.poll()  # saving a preset reads the context's material
+    covered = {name for name, _ in editing} | {
+        "bake",
+        "clear_cache",
+        "toggle_overlay",
+        "cancel_bakes",
+        "preset_add",
+    }
     assert covered == {cls.bl_idname.split(".")[1] for cls in tf.ops.classes}
     assert _snapshot(linked) == before
 
@@ -403,3 +417,61 @@ def test_a_cancelled_modal_bake_stops_its_worker_and_caches_nothing(bpy, tf, sce
     assert job.result is None and job.error is None
     assert tf.tables.peek_table(desc) is None
     assert np.isfinite(job.elapsed_s)
+
+
+# ----------------------------------------------------------------------------------------------
+# User presets and the panel's place
+# ----------------------------------------------------------------------------------------------
+def _film_values(settings) -> dict:
+    """The values a user preset stores (ops.PRESET_VALUES), layers included."""
+    out = {}
+    for path in ("vary_thickness", "thickness_min_nm", "thickness_max_nm", "substrate_mode", "substrate_ior"):
+        out[path] = getattr(settings, path)
+    out["roughness"] = round(settings.roughness, 6)
+    out["diffuse_color"] = tuple(round(v, 6) for v in settings.diffuse_color)
+    out["layers"] = [
+        (layer.index_mode, round(layer.n, 6), round(layer.thickness_nm, 3)) for layer in settings.layers
+    ]
+    return out
+
+
+def test_a_user_preset_saves_applies_and_removes_through_blenders_preset_system(
+    bpy, tf, scene, tmp_path, monkeypatch
+):
+    """Add Preset writes a file under the user's scripts/presets/thinfilm_sh/material; Blender's
+    execute_preset applies it to another material (layers included); Remove deletes it."""
+    monkeypatch.setenv("BLENDER_USER_SCRIPTS", str(tmp_path / "scripts"))
+    mat = film(bpy, "Mine")
+    s = mat.thinfilm_sh
+    s.layers[0].thickness_nm = 321.0
+    bpy.ops.thinfilm.layer_add(material=mat.name)
+    s.layers[1].n = 1.7
+    s.layers[1].thickness_nm = 88.0
+    s.roughness = 0.27
+    s.diffuse_base = True
+    s.diffuse_color = (0.2, 0.3, 0.4)
+    assert not bpy.ops.thinfilm.preset_add.poll()  # no material in the context
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.thinfilm.preset_add(name="My Bubble") == {"FINISHED"}
+    path = tmp_path / "scripts" / "presets" / "thinfilm_sh" / "material" / "My_Bubble.py"
+    assert path.is_file()
+    assert str(path.parent) in bpy.utils.preset_paths(tf.ops.PRESET_SUBDIR)  # the menu lists it
+
+    other = bpy.data.materials.new("Other")
+    other.thinfilm_sh.preset = "HEAT_TINTED_STEEL"
+    other.thinfilm_sh.enabled = True
+    assert _film_values(other.thinfilm_sh) != _film_values(s)
+    with bpy.context.temp_override(material=other):
+        bpy.ops.script.execute_preset(filepath=str(path), menu_idname="THINFILM_MT_presets")
+    assert _film_values(other.thinfilm_sh) == _film_values(s)
+    assert other.thinfilm_sh.preset == "CUSTOM"  # a user preset is the artist's own settings
+
+    with bpy.context.temp_override(material=mat):
+        assert bpy.ops.thinfilm.preset_add(name="My Bubble", remove_name=True) == {"FINISHED"}
+    assert not path.exists()
+
+
+def test_the_panel_sits_among_blenders_material_panels(bpy, tf):
+    """After Surface/Volume/Settings (order 0), before Viewport Display, Animation, Custom Props."""
+    order = tf.ui.THINFILM_PT_material.bl_order
+    assert 0 < order < bpy.types.MATERIAL_PT_viewport.bl_order < bpy.types.MATERIAL_PT_custom_props.bl_order
