@@ -176,7 +176,7 @@ def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
     """Linear RGB → RGB matrix between two working spaces, or None if it cannot be built here."""
     if source == target:
         return np.eye(3)
-    try:  # colour-science is only needed for non-Rec.709 working spaces
+    try:  # a failed import of the spectral code must not break the World's SH
         from ..precompute import spectra
     except ImportError:
         return None

@@ -452,9 +452,9 @@ def _xyz_to_rgb(space: str) -> np.ndarray:
 def xyz_to_rgb_matrix(space: str = DEFAULT_SPACE) -> np.ndarray:
     """3×3 matrix from XYZ(E) to linear ``space`` RGB: M_XYZ→RGB(space) · Bradford(E → white).
 
-    The space's primaries, white and XYZ → RGB matrix come from colour-science
-    (``RGB_COLOURSPACES``); E's white is XYZ (1, 1, 1). A flat spectrum (XYZ = 1, 1, 1) maps
-    to RGB (1, 1, 1) to rounding.
+    The space's primaries, white and XYZ → RGB matrix are colour-science's
+    ``RGB_COLOURSPACES`` (shipped as data, :mod:`.colour_tables`); E's white is XYZ (1, 1, 1).
+    A flat spectrum (XYZ = 1, 1, 1) maps to RGB (1, 1, 1) to rounding.
 
     Blender's config builds "Linear CIE-XYZ E" with a D65 white of XYZ (0.95047, 1, 1.08883)
     while its Rec.709/2020 matrices use xy (0.3127, 0.3290); the two D65s differ by 2e-4 in Z,
