@@ -52,7 +52,7 @@ class _MaterialPanel:
 
 
 class THINFILM_PT_material(_MaterialPanel, Panel):
-    """The extension's panel in the Material tab."""
+    """Material Properties › Thin Film SH: the switch, the preset and presets menu, any error."""
 
     bl_label = "Thin Film SH"
     #: After Blender's Surface, Volume, Displacement and Settings panels (order 0), before Line
@@ -127,6 +127,8 @@ class _SubPanel(_MaterialPanel):
 
 
 class THINFILM_PT_film(_SubPanel, Panel):
+    """The film layers: index and thickness of each."""
+
     bl_label = "Film"
 
     def draw_settings(self, context, layout, mat, settings):
@@ -158,6 +160,8 @@ class THINFILM_PT_film(_SubPanel, Panel):
 
 
 class THINFILM_PT_thickness(_SubPanel, Panel):
+    """Thickness varying over the surface: range and the attribute or texture driving it."""
+
     bl_label = "Thickness Variation"
     bl_options = {"DEFAULT_CLOSED"}
 
@@ -194,6 +198,8 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
 
 
 class THINFILM_PT_substrate(_SubPanel, Panel):
+    """What lies under the film (dielectric, metal or n + ik) and above it (ambient index)."""
+
     bl_label = "Substrate"
 
     def draw_settings(self, context, layout, mat, settings):
@@ -210,6 +216,8 @@ class THINFILM_PT_substrate(_SubPanel, Panel):
 
 
 class THINFILM_PT_surface(_SubPanel, Panel):
+    """Roughness, diffuse base, World lamps, colour mode and illuminant."""
+
     bl_label = "Surface"
 
     def draw_settings(self, context, layout, mat, settings):
@@ -229,6 +237,8 @@ class THINFILM_PT_surface(_SubPanel, Panel):
 
 
 class THINFILM_PT_quality(_SubPanel, Panel):
+    """Sampling of the baked table (auto or set), the last bake, Bake and Clear Cache."""
+
     bl_label = "Quality"
     bl_options = {"DEFAULT_CLOSED"}
 
@@ -259,6 +269,8 @@ class THINFILM_PT_quality(_SubPanel, Panel):
 
 
 class THINFILM_PT_principled(_MaterialPanel, Panel):
+    """Reading and writing a Principled BSDF's thin film."""
+
     bl_label = "Principled Interop"
     bl_parent_id = "THINFILM_PT_material"
     bl_options = {"DEFAULT_CLOSED"}
@@ -379,6 +391,8 @@ def plan_lines(mp) -> list[str]:
 
 
 class THINFILM_PT_plan(_SubPanel, Panel):
+    """Which effects the material needs and what they cost (the effect plan)."""
+
     bl_label = "Plan"
     bl_options = {"DEFAULT_CLOSED"}
 

@@ -158,7 +158,8 @@ def _schedule() -> None:
 
 
 def draw_callback() -> None:
-    """The POST_VIEW draw handler: the thin-film objects of the scene, unless switched off."""
+    """POST_VIEW draw handler: draw the film of every visible material in this 3D view, unless
+    the overlay is switched off there (:func:`shown_in`)."""
     global _world_stale
     context = bpy.context
     space = context.space_data
@@ -229,6 +230,7 @@ def _on_depsgraph(scene, depsgraph) -> None:
 
 
 def register() -> None:
+    """Add the viewport draw handler (not in background mode)."""
     global _handle
     if _handle is None and not bpy.app.background:
         _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
@@ -245,6 +247,7 @@ def register() -> None:
 
 
 def unregister() -> None:
+    """Remove the viewport draw handler."""
     global _handle
     if _handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
