@@ -34,8 +34,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import brdf, composite, constants, sh, spectra, table_io
+from .chunks import (
+    CONTRACT_CHUNK,
+    ELEMENT_CHUNK,
+    chunked_sweep,
+    kernel_blocks,
+    row_blocks,
+    sweep_checkpoints,
+)
 from .material import AUTO, MAX_SH_ORDER, Material
-from .optics import reflectance, reflectance_sweep
+from .optics import reflectance
 from .progress import Phases, checkpoint
 
 #: R(u) is interpolated by piecewise Chebyshev polynomials on intervals graded geometrically
@@ -55,18 +63,6 @@ U_TEST_MIN = U_EDGES[1]
 N_THETA = 96
 N_PHI = 48
 FORMAT_KIND = "sh_table"
-#: Film reflectances (thickness rows × u nodes × wavelengths × layers) evaluated between two
-#: progress checkpoints of a reflectance sweep, and rows × coefficients × u nodes × 9 multiply-
-#: adds between two of the contraction: each ≈ 0.05 s on a loaded two-core machine, so an Esc
-#: waits ≪ 0.5 s (benchmarks/bake_progress.py measures the gaps; docs/bake-progress.md).
-SWEEP_CHUNK = 250_000
-CONTRACT_CHUNK = 50_000_000
-#: Multiply-adds of one block of a view angle's kernel product (half-vector nodes × SH
-#: coefficients × u nodes): l = 12 with 64 nodes per interval is 215 M, 0.3 s unloaded and up
-#: to 1 s on a loaded two-core machine in one piece; blocks of 32 M keep each step ≲ 0.15 s.
-KERNEL_CHUNK = 32_000_000
-#: Array elements an elementwise pass (the multiple-scattering scale) handles between two.
-ELEMENT_CHUNK = 2_000_000
 #: The bake's phases and their shares of the progress bar (≈ their share of a cold bake's time).
 PHASES = {"planning": 0.10, "reflectance": 0.15, "kernel": 0.60, "contracting": 0.15}
 
@@ -337,55 +333,6 @@ def auto_sh_order(material: Material, target: float = 0.10) -> tuple[int, str]:
     )
 
 
-def kernel_blocks(nodes: int, coefficients: int, u_count: int, budget: int = KERNEL_CHUNK) -> list[slice]:
-    """Column blocks of the u nodes for one view angle's kernel product, each ≤ ``budget``
-    multiply-adds (at least one column): a :func:`checkpoint` follows each."""
-    cols = max(1, budget // max(1, nodes * coefficients))
-    return [slice(lo, lo + cols) for lo in range(0, u_count, cols)]
-
-
-def chunked_sweep(indices, thickness_sets, wavelengths_nm, cos_theta, method: str) -> np.ndarray:
-    """:func:`~precompute.optics.reflectance_sweep` in blocks of ≤ :data:`SWEEP_CHUNK` film
-    evaluations (thickness rows, then u nodes within a row), a progress :func:`checkpoint`
-    after each; element by element the same result as one call, shape (T, U, W)."""
-    sets = np.atleast_2d(np.asarray(thickness_sets, dtype=float))
-    cos = np.asarray(cos_theta, dtype=float)
-    per_node = max(1, np.size(wavelengths_nm) * max(1, sets.shape[1]))
-    per_row = per_node * cos.size
-    if sets.shape[0] * per_row <= SWEEP_CHUNK:
-        out = reflectance_sweep(indices, sets, wavelengths_nm, cos, method=method)
-        checkpoint()
-        return out
-    rows = max(1, SWEEP_CHUNK // per_row)
-    cols = cos.size if rows > 1 else max(1, SWEEP_CHUNK // per_node)
-    out = np.empty((sets.shape[0], cos.size, np.size(wavelengths_nm)))
-    for r in range(0, sets.shape[0], rows):
-        for c in range(0, cos.size, cols):
-            out[r : r + rows, c : c + cols] = reflectance_sweep(
-                indices, sets[r : r + rows], wavelengths_nm, cos[c : c + cols], method=method
-            )
-            checkpoint()
-    return out
-
-
-def _row_blocks(t: int, per_row: int, budget: int = CONTRACT_CHUNK) -> list[slice]:
-    """Slices of ``t`` thickness rows, each of ≤ ``budget`` units of work (at least one row)."""
-    rows = max(1, budget // max(1, per_row))
-    return [slice(lo, lo + rows) for lo in range(0, t, rows)]
-
-
-def sweep_checkpoints(rows: int, layers: int, nodes: int, wavelengths: int) -> int:
-    """How many checkpoints :func:`chunked_sweep` makes for a sweep of this size."""
-    per_node = max(1, wavelengths * max(1, layers))
-    per_row = per_node * nodes
-    if rows * per_row <= SWEEP_CHUNK:
-        return 1
-    per_block = max(1, SWEEP_CHUNK // per_row)
-    if per_block > 1:
-        return math.ceil(rows / per_block)
-    return rows * math.ceil(nodes / max(1, SWEEP_CHUNK // per_node))
-
-
 def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
     """Smallest nodes-per-interval whose interpolation of R(u) meets ``U_TOLERANCE``.
 
@@ -568,7 +515,7 @@ def apply_multiscatter(data: np.ndarray, material: Material, cos_o: np.ndarray) 
     if scale.ndim == 2:
         scale = np.broadcast_to(scale[None], (data.shape[0],) + scale.shape)
     out = np.empty(np.broadcast_shapes(data.shape, scale[:, :, None, :, None].shape))
-    for rows in _row_blocks(data.shape[0], data[0].size, ELEMENT_CHUNK):
+    for rows in row_blocks(data.shape[0], data[0].size, ELEMENT_CHUNK):
         np.multiply(data[rows], scale[rows, :, None, :, None], out=out[rows])
         checkpoint()
     return out
@@ -708,14 +655,14 @@ def bake(material: Material, progress=None) -> BakeResult:
         a, k, u = kernel.shape
         t = r_nodes.shape[0]
         diffuse_blocks = (
-            _row_blocks(t, 9 * a * (p.sh_order + 1) * wl.size) if material.base_color is not None else []
+            row_blocks(t, 9 * a * (p.sh_order + 1) * wl.size) if material.base_color is not None else []
         )
         phases.start(
             "contracting",
             "contracting",
-            expected=len(_row_blocks(t, 9 * u * (a * k + g.shape[0])))
+            expected=len(row_blocks(t, 9 * u * (a * k + g.shape[0])))
             + (
-                a + 34 + len(_row_blocks(t, a * k * 9, ELEMENT_CHUNK))
+                a + 34 + len(row_blocks(t, a * k * 9, ELEMENT_CHUNK))
                 if material.multiscatter != "none"
                 else 0
             )

@@ -5,7 +5,7 @@ import threading
 import numpy as np
 import pytest
 
-from precompute import bake, progress
+from precompute import bake, chunks, progress
 from precompute.material import PRESETS, Quality
 
 #: Small enough to bake in well under a second, big enough to have every phase.
@@ -70,12 +70,12 @@ def test_phases_never_exceed_the_largest_step_even_when_a_phase_is_skipped():
 def test_the_work_between_two_checkpoints_is_bounded_by_design():
     """Each step's size is a named constant, not the material's: a chunk of a reflectance sweep,
     a block of the contraction, one view angle of the kernel. Bigger tables make more steps."""
-    small = bake.sweep_checkpoints(rows=8, layers=1, nodes=40, wavelengths=64)
-    large = bake.sweep_checkpoints(rows=512, layers=2, nodes=80, wavelengths=1024)
+    small = chunks.sweep_checkpoints(rows=8, layers=1, nodes=40, wavelengths=64)
+    large = chunks.sweep_checkpoints(rows=512, layers=2, nodes=80, wavelengths=1024)
     assert small == 1 and large > 100
-    assert bake.SWEEP_CHUNK <= 250_000 and bake.CONTRACT_CHUNK <= 50_000_000
-    blocks = bake._row_blocks(512, 9 * 80 * 25 * 90)
-    assert all(b.stop - b.start <= max(1, bake.CONTRACT_CHUNK // (9 * 80 * 25 * 90)) for b in blocks)
+    assert chunks.SWEEP_CHUNK <= 250_000 and chunks.CONTRACT_CHUNK <= 50_000_000
+    blocks = chunks.row_blocks(512, 9 * 80 * 25 * 90)
+    assert all(b.stop - b.start <= max(1, chunks.CONTRACT_CHUNK // (9 * 80 * 25 * 90)) for b in blocks)
 
 
 @pytest.mark.parametrize("cancel_after", [1, 5, 40])
