@@ -200,7 +200,9 @@ def test_principled_zero_thickness_or_no_principled_is_not_previewed(bpy, descri
     assert description_mod.description(mat) is None
 
 
-def test_principled_linked_socket_uses_its_value_and_warns(bpy, description_mod):
+def test_principled_linked_socket_without_users_uses_its_value_and_warns(bpy, description_mod):
+    # No object uses the material, so the link has no surface to be evaluated on (issue 21:
+    # tests/test_linked_thickness.py evaluates it over the objects that use it).
     mat, node = _principled(bpy, **{"Thin Film Thickness": 320.0, "Transmission Weight": 1.0})
     value = mat.node_tree.nodes.new("ShaderNodeValue")
     mat.node_tree.links.new(value.outputs[0], node.inputs["Thin Film Thickness"])
