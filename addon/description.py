@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import json
+
 from ..precompute import bake, spectra
 from ..precompute.material import Material
 from .linked import Pending
@@ -69,10 +71,24 @@ def warnings(bpy_material) -> list[str]:
             notes = [f"{exc}: drawn when the bake is done"]
         except ValueError as exc:
             notes = [f"{exc}: drawn in magenta (the fallback) until it is fixed"]
+    notes.extend(_gltf_notes(bpy_material))
     space = file_working_space()
     if space and space not in spectra.WORKING_SPACES:
         notes.append(f"working colour space {space!r} is not supported: previewing in Linear Rec.709")
     return notes
+
+
+def _gltf_notes(bpy_material) -> list[str]:
+    """What the preview does not follow of a glTF file's KHR_materials_iridescence (kept by the
+    import hook, :func:`.gltf.repair_import`, as the custom property of that name)."""
+    kept = bpy_material.get("KHR_materials_iridescence") if hasattr(bpy_material, "get") else None
+    try:
+        factor = float(json.loads(kept)["iridescenceFactor"]) if isinstance(kept, str) else 1.0
+    except (ValueError, KeyError, TypeError):
+        return []
+    if factor == 1.0:
+        return []
+    return [f"glTF iridescence factor {factor:g}: previewed (as Cycles renders it) at full strength"]
 
 
 def description_key(desc: Material) -> str:
