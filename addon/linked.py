@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import caches
+from . import caches, thickness_nodes
 from .thickness import image_stamp
 
 __all__ = [
@@ -72,7 +72,7 @@ _RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear CIE-XYZ E", "Raw"}
 _BAKE_PREFIX = ".thinfilm_sh_bake"
 
 _geometry_epoch: dict[str, int] = {}
-_pending: dict[str, object] = {}  # object name → the material whose field is wanted
+_pending: dict = {}  # (kind, object name) → a callable that evaluates the wanted field
 _defer = False  # True inside the draw callback: bakes are queued, never run
 
 
@@ -431,17 +431,24 @@ def _bake_material(bpy_material, node_name: str, socket_id: str):
 
 def _bake(obj, bpy_material, socket) -> Field:
     """Bake the value linked into ``socket`` per face corner of ``obj``'s evaluated mesh."""
+    values = _bake_emission(obj, _bake_material(bpy_material, socket.node.name, socket.identifier))
+    how = f"baked with Cycles at {values.size} face corners (the mesh's resolution)"
+    return Field(values, how, baked=True)
+
+
+def _bake_emission(obj, material) -> np.ndarray:
+    """Bake ``material``'s Emission colour (red) per face corner of a copy of ``obj``'s evaluated
+    mesh; the copy, a temporary scene and ``material`` are removed afterwards."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True, depsgraph=depsgraph)
-    material = _bake_material(bpy_material, socket.node.name, socket.identifier)
     scene = bpy.data.scenes.new(_BAKE_PREFIX)
     temp = bpy.data.objects.new(_BAKE_PREFIX, mesh)
     try:
         mesh.materials.clear()
         mesh.materials.append(material)
-        for poly_slot in range(len(mesh.polygons)):
-            mesh.polygons[poly_slot].material_index = 0
+        indices = np.zeros(len(mesh.polygons), dtype=np.int32)
+        mesh.polygons.foreach_set("material_index", indices)
         temp.matrix_world = obj.matrix_world
         scene.collection.objects.link(temp)
         scene.render.engine = "CYCLES"
@@ -472,8 +479,50 @@ def _bake(obj, bpy_material, socket) -> Field:
         bpy.data.materials.remove(material)
         bpy.data.scenes.remove(scene)
     STATS["bakes"] += 1
-    how = f"baked with Cycles at {values.size} face corners (the mesh's resolution)"
-    return Field(values, how, baked=True)
+    return values
+
+
+def _noise_material(props):
+    """A temporary material whose Emission is the BLENDER_NOISE source's value in [0, 1]."""
+    material = bpy.data.materials.new(_BAKE_PREFIX)
+    tree = material.node_tree
+    tree.nodes.clear()
+    value = thickness_nodes.build(tree, props, 0.0, 1.0)
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(value, emission.inputs["Color"])
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    return material
+
+
+def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
+    """(per-corner parameter in [0, 1], 0) of the extension's BLENDER_NOISE source: Blender's own
+    Noise Texture, baked with Cycles from the graph write-back writes
+    (:func:`.thickness_nodes.build`), so the preview and Cycles see the same values. Cached by
+    the noise settings and the mesh; queued (:class:`Pending`) inside :func:`deferring`."""
+    props = bpy_material.thinfilm_sh
+    name = obj.original.name if hasattr(obj, "original") else obj.name
+    settings = ("BLENDER_NOISE", round(float(props.noise_scale), 7), int(props.noise_seed))
+    cache_key = _field_key(name, mesh, repr(settings))
+    found = FIELDS.get(cache_key)
+    if found is None:
+        if _defer:
+            _pending[("noise", name)] = lambda: noise_parameters(
+                bpy.data.objects[name], _mesh_of(name), bpy_material
+            )
+            raise Pending("Blender's Noise Texture is being baked with Cycles")
+        values = _bake_emission(bpy.data.objects[name], _noise_material(props))
+        if values.size != len(mesh.loops):
+            raise ValueError("the baked noise does not match the mesh's corners")
+        found = Field(
+            values, f"Blender's Noise Texture baked with Cycles at {values.size} face corners", True
+        )
+        FIELDS[cache_key] = found
+    return np.clip(found.values, 0.0, 1.0), 0
+
+
+def _mesh_of(name: str):
+    return bpy.data.objects[name].evaluated_get(bpy.context.evaluated_depsgraph_get()).data
 
 
 # ----------------------------------------------------------------------------------------------
@@ -505,7 +554,8 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
 def _bake_or_queue(name: str, mesh, bpy_material, socket, why) -> Field:
     """Bake the field with Cycles, or queue the bake (:class:`Pending`) inside :func:`deferring`."""
     if _defer:
-        _pending[name] = (bpy_material, socket.node.name, socket.identifier)
+        node_name, socket_id = socket.node.name, socket.identifier
+        _pending[("linked", name)] = lambda: _run_linked(name, bpy_material, node_name, socket_id)
         raise Pending(f"thickness from {why} is being baked with Cycles")
     try:
         found = _bake(bpy.data.objects[name], bpy_material, socket)
@@ -571,20 +621,20 @@ def has_pending() -> bool:
     return bool(_pending)
 
 
+def _run_linked(name: str, bpy_material, node_name: str, socket_id: str) -> None:
+    node = bpy_material.node_tree.nodes[node_name]
+    socket = next(s for s in node.inputs if s.identifier == socket_id)
+    evaluate(bpy.data.objects[name], _mesh_of(name), bpy_material, socket)
+
+
 def run_pending() -> list[str]:
     """Run the queued bakes (main thread, outside drawing); returns the errors met."""
     errors = []
     jobs = list(_pending.items())
     _pending.clear()
-    for name, (bpy_material, node_name, socket_id) in jobs:
-        obj = bpy.data.objects.get(name)
-        if obj is None:
-            continue
+    for (_, name), job in jobs:
         try:
-            node = bpy_material.node_tree.nodes[node_name]
-            socket = next(s for s in node.inputs if s.identifier == socket_id)
-            mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
-            evaluate(obj, mesh, bpy_material, socket)
-        except (ValueError, ReferenceError, KeyError, StopIteration) as exc:
+            job()
+        except (ValueError, ReferenceError, KeyError, StopIteration, RuntimeError) as exc:
             errors.append(f"{name}: {exc}")
     return errors

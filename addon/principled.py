@@ -17,7 +17,7 @@ import math
 from ..precompute import validate
 from ..precompute.conductors import conductor_from_rgb, metal_rgb, real_index
 from ..precompute.material import Layer, Material
-from . import linked
+from . import linked, thickness_nodes
 from .props import description_from_props, f32, working_space
 
 __all__ = [
@@ -228,11 +228,36 @@ def _set_socket(node, name: str, value, notes: list[str]) -> None:
         notes.append(f"'{name}' is linked in '{node.name}': Cycles uses the link, not the written value")
 
 
+def _write_thickness_graph(bpy_material, node, props, thickness_range, notes: list[str]) -> float:
+    """Link the thickness source, as nodes (:func:`.thickness_nodes.build`), into Thin Film
+    Thickness so Cycles renders the variation; returns the socket's own value (the middle)."""
+    lo, hi = (float(v) for v in thickness_range)
+    middle = 0.5 * (lo + hi)
+    tree = bpy_material.node_tree
+    socket = node.inputs[SOCKET_THICKNESS]
+    if props.thickness_source == "IMAGE" and props.thickness_image is None:
+        notes.append(f"thickness varies {lo:g}–{hi:g} nm from no image: wrote the middle, {middle:g} nm")
+        return middle
+    for link in list(socket.links):
+        tree.links.remove(link)
+    location = (node.location.x - 100.0, node.location.y - 400.0)
+    tree.links.new(thickness_nodes.build(tree, props, lo, hi, location), socket)
+    socket.default_value = middle
+    if props.thickness_source == "NOISE":
+        notes.append(
+            "the preview's value noise is written as Blender's Noise Texture: same scale and range, "
+            "another pattern (choose the Blender Noise source for the same pattern in both)"
+        )
+    return middle
+
+
 def write_back_to_principled(bpy_material) -> list[str]:
     """Write the extension's settings into the material's Principled BSDF; returns warnings.
 
     Creates a Principled BSDF connected to the output if there is none. Thin Film Thickness is
-    the top layer's thickness (the middle of the range when it varies), Thin Film IOR the top
+    the top layer's thickness; when it varies, the source is written as nodes linked into it
+    (:func:`.thickness_nodes.build`: Noise Texture / Image / Attribute → Map Range min–max,
+    replacing an earlier write), so Cycles renders the variation. Thin Film IOR the top
     layer's n at 550 nm; a dielectric substrate sets IOR (Transmission 1 unless the diffuse base
     is on, which sets Base Color), a conductor sets Metallic 1 with Base Color = its normal-
     incidence reflectance and Specular Tint = its F82 tint, both integrated from the spectrum.
@@ -246,16 +271,12 @@ def write_back_to_principled(bpy_material) -> list[str]:
         top = desc.layers[0]
         thickness = float(top.thickness_nm)
         if desc.thickness_range_nm is not None:
-            lo, hi = desc.thickness_range_nm
-            thickness = 0.5 * (lo + hi)
-            notes.append(
-                f"thickness varies {lo:g}–{hi:g} nm: wrote the middle, {thickness:g} nm "
-                "(drive Thin Film Thickness with a texture for the variation)"
-            )
+            thickness = _write_thickness_graph(bpy_material, node, props, desc.thickness_range_nm, notes)
         film = real_index(top.index)
         if film.imag != 0.0 or isinstance(top.index, dict):
             notes.append(f"the film index is written as n = {film.real:.4g} at 550 nm (no k, no dispersion)")
-        _set_socket(node, SOCKET_THICKNESS, thickness, notes)
+        if not node.inputs[SOCKET_THICKNESS].is_linked:
+            _set_socket(node, SOCKET_THICKNESS, thickness, notes)
         _set_socket(node, SOCKET_FILM_IOR, max(1.0, film.real), notes)
         if film.real < 1.0:
             notes.append(f"film n {film.real:.4g} < 1 is clamped to 1 by the Principled BSDF")

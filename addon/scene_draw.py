@@ -335,27 +335,33 @@ def table_texture(desc_key: str, result) -> resources.TableTexture:
 
 
 def _batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
-    """(per-corner thickness parameter or None, notes) of a batch: from the extension's source
-    (``props``), or from the link into a Principled BSDF's Thin Film Thickness
+    """(per-corner thickness parameter or None, notes, whether a bake is awaited) of a batch:
+    from the extension's source (``props``; BLENDER_NOISE: :func:`.linked.noise_parameters`),
+    or from the link into a Principled BSDF's Thin Film Thickness
     (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`)."""
     notes = []
     if not desc.varies:
-        return None, notes
+        return None, notes, False
     try:
-        if props is not None and props.enabled:
+        if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
+            thickness, nan_count = linked.noise_parameters(obj_eval, mesh, props.id_data)
+        elif props is not None and props.enabled:
             thickness, nan_count = thickness_field(obj_eval, mesh, props)
         elif linked_source is not None:
             thickness, nan_count = linked.corner_parameters(
                 obj_eval, mesh, *linked_source, desc.thickness_range_nm
             )
         else:
-            return None, notes
-    except (ValueError, linked.Pending) as exc:
+            return None, notes, False
+    except linked.Pending as exc:  # built again on the next frame, after the timer's bake
+        notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
+        return None, notes, True
+    except ValueError as exc:
         notes.append(f"{name}: {exc}; using the middle of the thickness range")
-        return None, notes
+        return None, notes, False
     if nan_count:
         notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
-    return thickness, notes
+    return thickness, notes, False
 
 
 def _slot_batch(
@@ -382,7 +388,7 @@ def _slot_batch(
         triangles = triangles[poly_mat[tri_poly] == slot]
     if triangles.shape[0] == 0:
         return BatchEntry(signature, None)
-    thickness, notes = _batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
+    thickness, notes, waiting = _batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
     if desc.varies and thickness is None:
         thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
     if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
@@ -391,6 +397,8 @@ def _slot_batch(
         )
     CACHES.stats["batch_builds"] += 1
     batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    if waiting:
+        signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))
 
 

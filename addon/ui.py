@@ -164,7 +164,7 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
                 layout.prop_search(settings, "thickness_attribute", mesh, "attributes", text="Attribute 0–1")
             else:
                 layout.prop(settings, "thickness_attribute", text="Attribute 0–1")
-        elif settings.thickness_source == "NOISE":
+        elif settings.thickness_source in {"NOISE", "BLENDER_NOISE"}:
             layout.prop(settings, "noise_scale")
             layout.prop(settings, "noise_seed")
         else:

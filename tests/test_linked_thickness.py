@@ -254,3 +254,100 @@ def test_plan_says_what_drives_a_linked_thickness(bpy, tf, capsys):
     assert tf.headless.main(["plan"]) == 0
     out = capsys.readouterr().out
     assert "baked with Cycles at" in out and "face corners" in out and "Noise" in out
+
+
+# ----------------------------------------------------------------------------------------------
+# The extension's Blender Noise source, written back to the Principled BSDF as nodes
+# ----------------------------------------------------------------------------------------------
+def _blender_noise_material(bpy, lo=200.0, hi=700.0):
+    mat = bpy.data.materials.new("Oil")
+    settings = mat.thinfilm_sh
+    settings.preset = "SOAP_FILM"
+    settings.enabled = True
+    settings.vary_thickness = True
+    settings.thickness_min_nm, settings.thickness_max_nm = lo, hi
+    settings.thickness_source = "BLENDER_NOISE"
+    settings.noise_scale, settings.noise_seed = 4.0, 3
+    settings.sh_order, settings.view_samples, settings.wavelength_count = "2", 4, 32
+    settings.thickness_samples = 4
+    return mat
+
+
+def test_write_back_of_blender_noise_is_the_node_graph_the_preview_draws(bpy, tf):
+    """The Blender Noise source is previewed from a Cycles bake of Blender's Noise Texture; write-
+    back links that same graph (Noise Texture → Map Range min–max) into Thin Film Thickness, and
+    the Principled preview of the written material reads back the same thickness per corner."""
+    lo, hi = 200.0, 700.0
+    mat = _blender_noise_material(bpy, lo, hi)
+    _sphere(bpy, mat)
+    entry, messages = _batch_thickness_nm(bpy, tf, "Sphere")
+    preview_nm = lo + entry.thickness.astype(np.float64) * (hi - lo)
+    assert np.ptp(preview_nm) > 100.0, messages  # it varies
+
+    notes = tf.principled.write_back_to_principled(mat)
+    node = tf.principled.principled_node(mat)
+    socket = node.inputs["Thin Film Thickness"]
+    assert socket.is_linked and socket.links[0].from_node.bl_idname == "ShaderNodeMapRange"
+    ranged = socket.links[0].from_node
+    assert (ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value) == (lo, hi)
+    noise = ranged.inputs["Value"].links[0].from_node
+    assert noise.bl_idname == "ShaderNodeTexNoise" and noise.inputs["Scale"].default_value == 4.0
+    assert not any("middle" in n for n in notes), notes
+    tf.principled.write_back_to_principled(mat)  # writing again replaces, never duplicates
+    assert sum(n.bl_idname == "ShaderNodeTexNoise" for n in mat.node_tree.nodes) == 1
+
+    mat.thinfilm_sh.enabled = False
+    field = tf.linked.evaluate(bpy.data.objects["Sphere"], bpy.data.objects["Sphere"].data, mat, socket)
+    assert field.baked
+    assert np.max(np.abs(field.values - preview_nm)) < 0.05  # float32 parameter over 500 nm
+
+
+def _render_centre(bpy, mat, size=48, samples=8):
+    """Cycles render of a sphere with ``mat`` under a white World; the central pixels (near
+    normal incidence, where a constant film has one colour)."""
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("white")
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+    if scene.camera is None:
+        camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+        scene.collection.objects.link(camera)
+        camera.location = (0.0, -4.0, 0.0)
+        camera.rotation_euler = (np.pi / 2, 0.0, 0.0)
+        camera.data.angle = np.radians(32.0)
+        scene.camera = camera
+    sphere = bpy.data.objects["Sphere"]
+    sphere.data.materials[0] = mat
+    scene.render.filepath = "/tmp/tfsh_write_back_render.exr"
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(scene.render.filepath, check_existing=False)
+    pixels = np.empty(size * size * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    bpy.data.images.remove(image)
+    rgb = pixels.reshape(size, size, 4)[..., :3]
+    c = size // 2
+    return rgb[c - 6 : c + 6, c - 6 : c + 6].reshape(-1, 3)
+
+
+def test_cycles_render_of_the_written_back_noise_varies(bpy, tf):
+    """Cycles renders the written-back graph with a varying colour where a film of one thickness
+    (the same material with the link removed) has one colour."""
+    mat = _blender_noise_material(bpy)
+    _sphere(bpy, mat)
+    tf.principled.write_back_to_principled(mat)
+    mat.thinfilm_sh.enabled = False
+    node = tf.principled.principled_node(mat)
+    node.inputs["Transmission Weight"].default_value = 0.0  # opaque, black base: the film alone
+    node.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node.inputs["Roughness"].default_value = 0.0
+    constant = mat.copy()
+    socket = tf.principled.principled_node(constant).inputs["Thin Film Thickness"]
+    constant.node_tree.links.remove(socket.links[0])
+    chroma = [np.std(np.diff(_render_centre(bpy, m), axis=1), axis=0).max() for m in (mat, constant)]
+    assert chroma[0] > 4 * chroma[1], chroma
