@@ -89,12 +89,23 @@ class Field:
     """Thickness in nm per face corner of an evaluated mesh, and how it was obtained.
 
     ``how``: one line for the panel and ``plan`` (what drives the thickness and at what
-    resolution it was sampled); ``baked``: whether Cycles computed it.
+    resolution it was sampled); ``baked``: whether Cycles computed it; ``lo``/``hi``: its finite
+    values' min and max, worked out once (the draw reads them every frame).
     """
 
     values: np.ndarray
     how: str
     baked: bool = False
+    lo: float = 0.0
+    hi: float = 0.0
+
+
+def _field(values, how: str, baked: bool = False) -> Field:
+    values = np.asarray(values, dtype=np.float64)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        raise ValueError("the linked thickness has no finite value")
+    return Field(values, how, baked, float(finite.min()), float(finite.max()))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -404,7 +415,7 @@ def _direct(mesh, socket) -> Field:
     STATS["direct"] += 1
     sources = ", ".join(dict.fromkeys(ctx.notes)) or "constant nodes"
     how = f"evaluated directly from {sources} at {ctx.n} face corners"
-    return Field(np.array(values, dtype=np.float64), how)
+    return _field(np.array(values, dtype=np.float64), how)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -433,7 +444,7 @@ def _bake(obj, bpy_material, socket) -> Field:
     """Bake the value linked into ``socket`` per face corner of ``obj``'s evaluated mesh."""
     values = _bake_emission(obj, _bake_material(bpy_material, socket.node.name, socket.identifier))
     how = f"baked with Cycles at {values.size} face corners (the mesh's resolution)"
-    return Field(values, how, baked=True)
+    return _field(values, how, baked=True)
 
 
 def _bake_emission(obj, material) -> np.ndarray:
@@ -514,7 +525,7 @@ def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
         values = _bake_emission(bpy.data.objects[name], _noise_material(props))
         if values.size != len(mesh.loops):
             raise ValueError("the baked noise does not match the mesh's corners")
-        found = Field(
+        found = _field(
             values, f"Blender's Noise Texture baked with Cycles at {values.size} face corners", True
         )
         FIELDS[cache_key] = found
@@ -545,8 +556,6 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
         found = _direct(mesh, socket)
     except _Unsupported as why:
         found = _bake_or_queue(name, mesh, bpy_material, socket, why)
-    if not np.isfinite(found.values).any():
-        raise ValueError("the linked thickness has no finite value")
     FIELDS[cache_key] = found
     return found
 
@@ -587,8 +596,7 @@ def material_range(bpy_material, socket) -> tuple[float, float, str] | None:
     for obj in _users(bpy_material):
         mesh = obj.evaluated_get(depsgraph).data
         field = evaluate(obj, mesh, bpy_material, socket, key)
-        finite = field.values[np.isfinite(field.values)]
-        lo, hi = min(lo, float(finite.min())), max(hi, float(finite.max()))
+        lo, hi = min(lo, field.lo), max(hi, field.hi)
         hows.append(f"{obj.name}: {field.how}")
     if not hows:
         return None
