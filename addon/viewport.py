@@ -95,6 +95,11 @@ def _schedule() -> None:
         bpy.app.timers.register(_service, first_interval=0.0)
 
 
+def schedule() -> None:
+    """Start the timer that runs queued work (a panel queued a linked thickness's bake)."""
+    _schedule()
+
+
 def draw_callback() -> None:
     """POST_VIEW draw handler: draw the film of every visible material in this 3D view."""
     global _world_stale

@@ -33,7 +33,7 @@ def tf(bpy, package, tmp_path):
     package.register()
     mods = {
         n: importlib.import_module(f"{EXTENSION_ID}.addon.{n}")
-        for n in ("description", "linked", "scene_draw", "tables", "prefs", "headless", "principled")
+        for n in ("description", "linked", "scene_draw", "tables", "prefs", "headless", "principled", "ui")
     }
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
@@ -223,6 +223,18 @@ def test_the_draw_callback_never_bakes_it_queues(bpy, tf):
     assert tf.linked.STATS["bakes"] == before + 1 and not tf.linked.has_pending()
     with tf.linked.deferring():
         assert tf.description.description(mat).varies
+
+
+def test_the_material_panel_never_bakes_it_queues(bpy, tf):
+    """The panel's lines (drawn inside Blender's draw) queue a needed bake, like the viewport."""
+    mat = _noise_material(bpy)
+    _sphere(bpy, mat)
+    before = tf.linked.STATS["bakes"]
+    notes = tf.ui.warnings(mat)
+    assert tf.ui.description(mat) is None and tf.linked.STATS["bakes"] == before
+    assert tf.linked.has_pending() and any("being baked" in n for n in notes), notes
+    tf.linked.run_pending()
+    assert any("baked with Cycles" in n for n in tf.ui.warnings(mat))
 
 
 def test_a_thickness_that_cannot_be_evaluated_says_so_in_panel_and_plan(bpy, tf, capsys):
