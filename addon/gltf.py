@@ -18,8 +18,9 @@ maximum; re-import it).
 :class:`ExportUserExtension` (``glTF2ExportUserExtension``) adds the extension to every material
 the preview shows a film for (:func:`export_iridescence`): the glTF add-on itself writes it only
 for materials with its "glTF Material Output" group, and then keeps its own values and texture.
-A film whose thickness varies through anything but the importer's texture graph is written with
-its range and a warning (glTF carries a varying thickness only as a texture). What glTF cannot
+A film whose thickness varies through anything but the importer's texture graph (a Noise
+Texture, the extension's own source) is baked by Cycles into a Non-Color texture at the first
+user's UVs and written as ``iridescenceThicknessTexture`` with its range. What glTF cannot
 carry — several layers, a metal's n + ik, a dispersive film, an ambient index ≠ 1 — is warned
 about (:data:`LAST_EXPORT_WARNINGS`, and the exporter's log).
 """
@@ -28,8 +29,11 @@ from __future__ import annotations
 
 import json
 
+import bpy
+
 from ..precompute.conductors import real_index
 from .description import description
+from .linked import bake_thickness_image
 from .principled import SOCKET_FILM_IOR, SOCKET_THICKNESS, principled_node
 
 __all__ = [
@@ -121,9 +125,47 @@ def _texture_graph(bpy_material) -> bool:
     return _MAX_LABEL in labels and _MIN_LABEL in labels
 
 
-def export_iridescence(extensions: dict, bpy_material) -> list[str]:
+def _users(bpy_material) -> list:
+    return [
+        obj
+        for obj in bpy.context.scene.objects
+        if obj.type == "MESH"
+        and obj.data.uv_layers
+        and any(s.material == bpy_material for s in obj.material_slots)
+    ]
+
+
+def _baked_texture(bpy_material, thickness_range, export_settings):
+    """(glTF TextureInfo of the thickness baked at the first user's UVs, or None, a note)."""
+    users = _users(bpy_material)
+    if not users or export_settings is None:
+        return None, "no object with a UV map uses it to bake the thickness on"
+    image = bake_thickness_image(users[0], bpy_material, thickness_range)
+    if image is None:
+        return None, "its thickness could not be baked"
+    from io_scene_gltf2.blender.exp.material.search_node_tree import NodeSocket  # optional add-on
+    from io_scene_gltf2.blender.exp.material.texture_info import gather_texture_info  # same
+
+    tree = bpy_material.node_tree
+    texture = tree.nodes.new("ShaderNodeTexImage")  # removed below: the exporter reads nodes
+    texture.image = image
+    separate = tree.nodes.new("ShaderNodeSeparateColor")
+    tree.links.new(texture.outputs["Color"], separate.inputs["Color"])
+    try:
+        socket = NodeSocket(separate.inputs["Color"], [tree])
+        info = gather_texture_info(socket, (socket,), export_settings)[0]
+    finally:
+        tree.nodes.remove(separate)
+        tree.nodes.remove(texture)
+    where = users[0].name
+    return info, f"thickness baked by Cycles into a {image.size[0]}² texture at {where!r}'s UVs"
+
+
+def export_iridescence(extensions: dict, bpy_material, export_settings=None) -> list[str]:
     """Add KHR_materials_iridescence to a glTF material's ``extensions`` (name → Extension);
-    returns warnings. A material without a film is left alone."""
+    returns warnings. A material without a film is left alone. A thickness that varies by
+    anything but the importer's texture graph is baked into a texture (Cycles, at the first
+    user's UVs; ``export_settings`` is the exporter's, needed to add it)."""
     try:
         desc = description(bpy_material)
     except ValueError as exc:
@@ -142,11 +184,16 @@ def export_iridescence(extensions: dict, bpy_material) -> list[str]:
             lo, hi = (float(v) for v in desc.thickness_range_nm)
             data["iridescenceThicknessMinimum"], data["iridescenceThicknessMaximum"] = lo, hi
             if not _texture_graph(bpy_material):
-                notes.append(
-                    f"thickness varies {lo:g}–{hi:g} nm but not through an image texture: glTF "
-                    "carries a varying thickness only as iridescenceThicknessTexture; exported "
-                    "the maximum (bake the thickness to an image for the variation)"
-                )
+                info, why = _baked_texture(bpy_material, (lo, hi), export_settings)
+                if info is not None:
+                    data["iridescenceThicknessTexture"] = info
+                    props = getattr(bpy_material, "thinfilm_sh", None)
+                    if props is not None and props.enabled and props.thickness_source == "NOISE":
+                        notes.append(
+                            "the value noise is exported as Blender's Noise Texture (another pattern)"
+                        )
+                else:
+                    notes.append(f"thickness varies {lo:g}–{hi:g} nm but {why}: exported its range only")
     from io_scene_gltf2.io.com.gltf2_io_extensions import Extension  # optional add-on, at export
 
     extensions[EXTENSION] = Extension(EXTENSION, data, False)
@@ -173,7 +220,7 @@ class ExportUserExtension:
         """After a material is gathered: add KHR_materials_iridescence for a film material."""
         if gltf2_material.extensions is None:
             gltf2_material.extensions = {}
-        for note in export_iridescence(gltf2_material.extensions, bpy_material):
+        for note in export_iridescence(gltf2_material.extensions, bpy_material, export_settings):
             line = f"material {bpy_material.name!r}: {note}"
             LAST_EXPORT_WARNINGS.append(line)
             log = export_settings.get("log")

@@ -447,9 +447,10 @@ def _bake(obj, bpy_material, socket) -> Field:
     return _field(values, how, baked=True)
 
 
-def _bake_emission(obj, material) -> np.ndarray:
+def _bake_emission(obj, material, image=None) -> np.ndarray | None:
     """Bake ``material``'s Emission colour (red) per face corner of a copy of ``obj``'s evaluated
-    mesh; the copy, a temporary scene and ``material`` are removed afterwards."""
+    mesh, or into ``image`` at its active UV map (returns None); the copy, a temporary scene and
+    ``material`` are removed afterwards."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True, depsgraph=depsgraph)
@@ -478,12 +479,20 @@ def _bake_emission(obj, material) -> np.ndarray:
         ):
             temp.select_set(True, view_layer=layer)
             layer.objects.active = temp
-            result = bpy.ops.object.bake(type="EMIT", target="VERTEX_COLORS", use_clear=True)
+            if image is not None:  # the bake writes into the active Image Texture node's image
+                target = material.node_tree.nodes.new("ShaderNodeTexImage")
+                target.image = image
+                material.node_tree.nodes.active = target
+            result = bpy.ops.object.bake(
+                type="EMIT", target="IMAGE_TEXTURES" if image is not None else "VERTEX_COLORS", use_clear=True
+            )
         if "FINISHED" not in result:
             raise RuntimeError(f"Cycles bake of the thickness returned {result}")
-        colours = np.empty(4 * len(attribute.data), dtype=np.float32)
-        attribute.data.foreach_get("color", colours)
-        values = colours.reshape(-1, 4)[:, 0].astype(np.float64)
+        values = None
+        if image is None:
+            colours = np.empty(4 * len(attribute.data), dtype=np.float32)
+            attribute.data.foreach_get("color", colours)
+            values = colours.reshape(-1, 4)[:, 0].astype(np.float64)
     finally:
         bpy.data.objects.remove(temp)
         bpy.data.meshes.remove(mesh)
@@ -530,6 +539,44 @@ def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
         )
         FIELDS[cache_key] = found
     return np.clip(found.values, 0.0, 1.0), 0
+
+
+def bake_thickness_image(obj, bpy_material, thickness_range, size: int = 512):
+    """A Non-Color image (``size``²) of the material's varying thickness at ``obj``'s UVs, mapped
+    from ``thickness_range`` (nm) to [0, 1] in every channel (glTF reads G): the extension's
+    source (:func:`.thickness_nodes.build`) or the link into Thin Film Thickness, baked by Cycles.
+    Returns None when the thickness does not vary by either."""
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    lo, hi = (float(v) for v in thickness_range)
+    if props is not None and props.enabled and props.vary_thickness:
+        material = bpy.data.materials.new(_BAKE_PREFIX)
+        tree = material.node_tree
+        tree.nodes.clear()
+        value = thickness_nodes.build(tree, props, lo, hi)
+        tree.nodes.new("ShaderNodeOutputMaterial")
+    else:
+        principled = next(
+            (n for n in bpy_material.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"), None
+        )
+        if principled is None or not principled.inputs["Thin Film Thickness"].is_linked:
+            return None
+        material = bpy_material.copy()
+        tree = material.node_tree
+        value = tree.nodes[principled.name].inputs["Thin Film Thickness"].links[0].from_socket
+    ranged = tree.nodes.new("ShaderNodeMapRange")
+    ranged.inputs["From Min"].default_value, ranged.inputs["From Max"].default_value = lo, hi
+    tree.links.new(value, ranged.inputs["Value"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(ranged.outputs["Result"], emission.inputs["Color"])
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeOutputMaterial":
+            node.is_active_output = node == output
+    image = bpy.data.images.new(f"{bpy_material.name} thickness", size, size)
+    image.colorspace_settings.name = "Non-Color"
+    _bake_emission(obj, material, image)
+    return image
 
 
 def _mesh_of(name: str):
