@@ -6,8 +6,6 @@ forwards to it. The glTF add-on looks its user extensions up by these two names 
 add-on's module (``addon/gltf.py``: KHR_materials_iridescence both ways).
 """
 
-from .addon import register, unregister
-from .addon.gltf import ExportUserExtension as glTF2ExportUserExtension
-from .addon.gltf import ImportUserExtension as glTF2ImportUserExtension
+from .addon import glTF2ExportUserExtension, glTF2ImportUserExtension, register, unregister
 
 __all__ = ["glTF2ExportUserExtension", "glTF2ImportUserExtension", "register", "unregister"]
