@@ -363,3 +363,61 @@ def test_cycles_render_of_the_written_back_noise_varies(bpy, tf):
     constant.node_tree.links.remove(socket.links[0])
     chroma = [np.std(np.diff(_render_centre(bpy, m), axis=1), axis=0).max() for m in (mat, constant)]
     assert chroma[0] > 4 * chroma[1], chroma
+
+
+@pytest.mark.parametrize(
+    "graph",
+    ["map_range", "map_range_clamped", "math_chain", "mix_colour", "reroute_value"],
+)
+def test_direct_evaluation_equals_cycles_bake_of_the_same_link(bpy, tf, graph):
+    """Each node the direct evaluator mirrors gives what Cycles computes for the same link."""
+    width, height = 5, 4
+    rng = np.random.default_rng(7)
+    image = bpy.data.images.new("img", width, height, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(rng.uniform(-0.2, 1.2, width * height * 4).astype(np.float32))
+    mat, node = _principled(bpy, graph)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    sep = nodes.new("ShaderNodeSeparateColor")
+    links.new(tex.outputs["Color"], sep.inputs["Color"])
+    value = sep.outputs["Blue"]
+    if graph.startswith("map_range"):
+        ranged = nodes.new("ShaderNodeMapRange")
+        ranged.clamp = graph.endswith("clamped")
+        for name, v in (("From Min", 0.1), ("From Max", 0.9), ("To Min", 100.0), ("To Max", 900.0)):
+            ranged.inputs[name].default_value = v
+        links.new(value, ranged.inputs["Value"])
+        value = ranged.outputs["Result"]
+    elif graph == "math_chain":
+        for op, b in (("MULTIPLY", 300.0), ("ADD", 200.0), ("MAXIMUM", 150.0), ("DIVIDE", 0.5)):
+            math_node = nodes.new("ShaderNodeMath")
+            math_node.operation = op
+            math_node.inputs[1].default_value = b
+            links.new(value, math_node.inputs[0])
+            value = math_node.outputs[0]
+    elif graph == "mix_colour":
+        mix = nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        by_id = {s.identifier: s for s in (*mix.inputs, *mix.outputs)}
+        by_id["A_Color"].default_value = (100.0, 200.0, 300.0, 1.0)
+        by_id["B_Color"].default_value = (800.0, 700.0, 600.0, 1.0)
+        links.new(sep.outputs["Red"], by_id["Factor_Float"])
+        sep2 = nodes.new("ShaderNodeSeparateColor")
+        links.new(by_id["Result_Color"], sep2.inputs["Color"])
+        value = sep2.outputs["Green"]
+    else:
+        constant = nodes.new("ShaderNodeValue")
+        constant.outputs[0].default_value = 333.0
+        reroute = nodes.new("NodeReroute")
+        links.new(constant.outputs[0], reroute.inputs[0])
+        value = reroute.outputs[0]
+    links.new(value, node.inputs["Thin Film Thickness"])
+    obj, _ = _grid_with_pixel_centre_uvs(bpy, width, height)
+    obj.data.materials.append(mat)
+    socket = node.inputs["Thin Film Thickness"]
+    direct = tf.linked.evaluate(obj, obj.data, mat, socket)
+    baked = tf.linked._bake(obj, mat, socket)
+    assert not direct.baked
+    np.testing.assert_allclose(direct.values, baked.values, atol=BAKE_TOLERANCE_NM * 1000)
