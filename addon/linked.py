@@ -531,7 +531,10 @@ def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
                 bpy.data.objects[name], _mesh_of(name), bpy_material
             )
             raise Pending("Blender's Noise Texture is being baked with Cycles")
-        values = _bake_emission(bpy.data.objects[name], _noise_material(props))
+        try:
+            values = _bake_emission(bpy.data.objects[name], _noise_material(props))
+        except RuntimeError as exc:
+            raise ValueError(f"Blender's Noise Texture could not be baked: {exc}") from None
         if values.size != len(mesh.loops):
             raise ValueError("the baked noise does not match the mesh's corners")
         found = _field(
