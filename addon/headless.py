@@ -24,7 +24,7 @@ from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, table_io
 from . import prefs, scene_draw, tables, world
-from .description import description, description_key
+from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
 
@@ -367,6 +367,10 @@ def _run_plan(scene, cache) -> int:
             "world_order": plan.world_order,
             **mp.to_dict(),
         }
+        # What the preview cannot follow, and what drives a linked thickness at what resolution.
+        summary["notes"] = warnings(bpy.data.materials[name]) if name in bpy.data.materials else []
+        for note in summary["notes"]:
+            print(f"note: material {name!r}: {note}")
         print("plan-json " + json.dumps(summary))
     failed = [*errors.values(), *(sh.errors if sh is not None else ())]
     for err in failed:

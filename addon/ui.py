@@ -7,9 +7,31 @@ from bpy.types import Menu, Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
-from . import caches, scene_draw, tables
-from .description import description, description_key, warnings
+from . import caches, linked, scene_draw, tables, viewport
+from .description import description as _description_now
+from .description import description_key
+from .description import warnings as _warnings_now
 from .principled import principled_node
+
+
+def _deferred(function, mat):
+    """``function(mat)`` as a panel may call it: a linked thickness that needs a Cycles bake is
+    queued for the viewport's timer (:func:`.linked.deferring`), never baked inside a draw."""
+    with linked.deferring():
+        result = function(mat)
+    if linked.has_pending():
+        viewport.schedule()
+    return result
+
+
+def description(mat):
+    """:func:`.description.description` for panels (bakes deferred, :func:`_deferred`)."""
+    return _deferred(_description_now, mat)
+
+
+def warnings(mat):
+    """:func:`.description.warnings` for panels (bakes deferred, :func:`_deferred`)."""
+    return _deferred(_warnings_now, mat)
 
 
 def _settings(context):
@@ -181,7 +203,7 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
                 layout.prop_search(settings, "thickness_attribute", mesh, "attributes", text="Attribute 0–1")
             else:
                 layout.prop(settings, "thickness_attribute", text="Attribute 0–1")
-        elif settings.thickness_source == "NOISE":
+        elif settings.thickness_source in {"NOISE", "BLENDER_NOISE"}:
             layout.prop(settings, "noise_scale")
             layout.prop(settings, "noise_seed")
         else:

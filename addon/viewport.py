@@ -2,7 +2,9 @@
 
 Drawing never bakes or renders: a material whose table is missing, or a World that changed, is
 queued and handled by a timer outside the draw callback (a bake runs on a worker thread; the
-World update may render a small Cycles panorama for procedural worlds). Works in Solid and
+World update may render a small Cycles panorama for procedural worlds; a Principled BSDF's
+linked Thin Film Thickness that needs a Cycles bake, :mod:`.linked`, is baked by the timer on
+the main thread, where Blender's bakes must run). Works in Solid and
 Material Preview shading; the viewport's depth buffer masks the objects against the scene.
 
 A bake that fails is remembered with its error by description key (:func:`.tables.failure`)
@@ -28,7 +30,7 @@ import threading
 
 import bpy
 
-from . import caches, prefs, scene_draw, tables
+from . import caches, linked, prefs, scene_draw, tables
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -141,13 +143,17 @@ def _service() -> float | None:
     cache = tables.open_cache() if jobs else None  # here: it reads the preferences
     for key, desc in jobs:
         threading.Thread(target=_bake_worker, args=(key, desc, cache), daemon=True).start()
+    baked = linked.has_pending()
+    if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw
+        for error in linked.run_pending():
+            log.error("Thin Film SH: linked thickness: %s", error)
     if _world_stale and bpy.context.scene is not None:
         _world_stale = False
         try:
             scene_draw.world_lighting(bpy.context.scene, allow_compute=True)
         except Exception as exc:
             log.error("Thin Film SH: World lighting failed: %s", exc)
-    if jobs or _running:
+    if jobs or _running or baked:
         _tag_redraw()
     return 0.1 if (_running or _pending) else None
 
@@ -155,6 +161,11 @@ def _service() -> float | None:
 def _schedule() -> None:
     if not bpy.app.timers.is_registered(_service):
         bpy.app.timers.register(_service, first_interval=0.0)
+
+
+def schedule() -> None:
+    """Start the timer that runs queued work (a panel queued a linked thickness's bake)."""
+    _schedule()
 
 
 def draw_callback() -> None:
@@ -174,11 +185,14 @@ def draw_callback() -> None:
             _world_stale = True
             _schedule()
             return
-        items, messages = scene_draw.collect(
-            depsgraph, allow_bake=False, allow_world=False, want_bake=_want_bake
-        )
+        with linked.deferring():  # a linked thickness that needs a bake is queued for the timer
+            items, messages = scene_draw.collect(
+                depsgraph, allow_bake=False, allow_world=False, want_bake=_want_bake
+            )
+        if linked.has_pending():
+            messages.append("a linked Thin Film Thickness is being baked with Cycles")
         _messages[:] = messages
-        if _pending:
+        if _pending or linked.has_pending():
             _schedule()
         exposure = float(depsgraph.scene.view_settings.exposure)
         draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
