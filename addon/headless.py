@@ -4,6 +4,13 @@
 scene first (Blender's own Solid drawing, for depth and for the objects we don't shade), then
 the World as background, then every thin-film object, depth-tested. Writes a scene-linear EXR
 and a PNG (sRGB "Standard" view with the scene's exposure).
+
+The frame is anti-aliased as Cycles' is: drawn :data:`SUPERSAMPLE` times larger (over a window
+widened by the filter's support, so border pixels see beyond the frame) and filtered down with
+the scene's Cycles pixel filter, type and width (``scene.cycles.pixel_filter_type`` /
+``filter_width``; Cycles' defaults, Blackman–Harris of ±1.5 px, without the Cycles add-on):
+:func:`pixel_filter_settings`, :mod:`precompute.pixel_filter`. The viewport keeps Blender's own
+anti-aliasing.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ import time
 import bpy
 import numpy as np
 
-from ..precompute import effects, image_io
+from ..precompute import effects, image_io, pixel_filter
 from . import gpu_draw, scene_draw, tables, world
 from .description import description, description_key
 
@@ -91,16 +98,68 @@ def camera_matrices(scene, depsgraph, width: int, height: int):
     return view, proj
 
 
+#: Samples per pixel along each axis of the headless frame (4 × 4 per pixel), filtered with the
+#: scene's pixel filter. Against Cycles (issue 22's spheres under studio HDRIs) 4× lowered the
+#: mean ΔE2000 from 1.36 to 1.20 (edges, lamp highlights and reflected detail alias without).
+SUPERSAMPLE = 4
+
+
+def pixel_filter_settings(scene) -> tuple[str, float]:
+    """The scene's Cycles pixel filter (type, width in pixels), Cycles' defaults without the add-on."""
+    cycles = getattr(scene, "cycles", None)
+    kind = getattr(cycles, "pixel_filter_type", pixel_filter.DEFAULT_FILTER)
+    width = float(getattr(cycles, "filter_width", pixel_filter.DEFAULT_WIDTH))
+    if kind not in pixel_filter.FILTERS:
+        kind = pixel_filter.DEFAULT_FILTER
+    return kind, width
+
+
+def widened_projection(projection, width: int, height: int, pad: int) -> np.ndarray:
+    """The projection of the window ``pad`` pixels wider on each side: the frame's pixel grid
+    continues outside it (NDC scaled by W/(W + 2 pad) and H/(H + 2 pad))."""
+    scale = np.diag([width / (width + 2.0 * pad), height / (height + 2.0 * pad), 1.0, 1.0])
+    return scale @ np.asarray(projection, dtype=np.float64)
+
+
+def _max_texture_size() -> int:
+    import gpu
+
+    try:
+        return int(gpu.capabilities.max_texture_size_get())
+    except (AttributeError, SystemError):
+        return 16384
+
+
 def render_scene(
-    scene, out_path, width: int | None = None, height: int | None = None, background: bool = True
+    scene,
+    out_path,
+    width: int | None = None,
+    height: int | None = None,
+    background: bool = True,
+    supersample: int | None = None,
 ) -> dict:
-    """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it."""
+    """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it.
+
+    ``supersample``: samples per pixel along each axis (default :data:`SUPERSAMPLE`; lowered when
+    the enlarged buffer would exceed the GPU's texture size), filtered with the scene's Cycles
+    pixel filter; 1 draws one sample per pixel, unfiltered.
+    """
     gpu_draw.ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
     width = int(width or round(scene.render.resolution_x * scale))
     height = int(height or round(scene.render.resolution_y * scale))
     depsgraph = bpy.context.evaluated_depsgraph_get()
     view, proj = camera_matrices(scene, depsgraph, width, height)
+    kind, filter_width = pixel_filter_settings(scene)
+    factor = max(1, int(SUPERSAMPLE if supersample is None else supersample))
+    pad = pixel_filter.margin(kind, filter_width) if factor > 1 else 0
+    limit = _max_texture_size()
+    while factor > 1 and factor * (max(width, height) + 2 * pad) > limit:
+        factor -= 1
+    if factor == 1:
+        pad = 0
+    proj = widened_projection(proj, width, height, pad)
+    frame_w, frame_h = factor * (width + 2 * pad), factor * (height + 2 * pad)
     t0 = time.perf_counter()
     items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True)
     env = None
@@ -143,12 +202,16 @@ def render_scene(
             if hidden:
                 bpy.context.view_layer.update()
 
-    rgba = gpu_draw.render_offscreen(items, view, proj, width, height, background=env, depth_from=depth_from)
+    rgba = gpu_draw.render_offscreen(
+        items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from
+    )
     rgb = rgba[..., :3].astype(np.float64)
     bad = ~np.isfinite(rgb)
     if bad.any():
-        messages.append(f"{int(bad.any(axis=-1).sum())} non-finite pixels set to 0")
+        messages.append(f"{int(bad.any(axis=-1).sum())} non-finite samples set to 0")
         rgb = np.where(bad, 0.0, rgb)
+    if factor > 1:
+        rgb = pixel_filter.downsample(rgb, kind, filter_width, factor, pad)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     image_io.write_exr(out.with_suffix(".exr"), rgb)
@@ -159,6 +222,8 @@ def render_scene(
         "png": str(out.with_suffix(".png")),
         "exr": str(out.with_suffix(".exr")),
         "size": [width, height],
+        "supersample": factor,
+        "pixel_filter": [kind, filter_width] if factor > 1 else None,
         "objects": [item.name for item in items],
         "messages": messages,
         "seconds": time.perf_counter() - t0,
@@ -187,6 +252,13 @@ def main(argv) -> int:
     r.add_argument("--width", type=int)
     r.add_argument("--height", type=int)
     r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
+    r.add_argument(
+        "--supersample",
+        type=int,
+        default=SUPERSAMPLE,
+        help=f"samples per pixel along each axis, filtered with the scene's Cycles pixel filter "
+        f"(default {SUPERSAMPLE}; 1: one sample per pixel, no filter)",
+    )
     sub.add_parser(
         "plan",
         help="print what each visible material needs simulated (effects, table size, orders, estimated "
@@ -203,11 +275,24 @@ def main(argv) -> int:
                 print(f"error: {err}")
             return 1 if summary["errors"] else 0
         if args.command == "render":
-            result = render_scene(scene, args.out, args.width, args.height, background=not args.no_background)
+            result = render_scene(
+                scene,
+                args.out,
+                args.width,
+                args.height,
+                background=not args.no_background,
+                supersample=args.supersample,
+            )
             for msg in result["messages"]:
                 print(f"note: {msg}")
+            aa = (
+                f"{result['supersample']}×{result['supersample']} samples per pixel, "
+                f"{result['pixel_filter'][0].replace('_', '-').title()} {result['pixel_filter'][1]:g} px"
+                if result["pixel_filter"]
+                else "1 sample per pixel"
+            )
             print(
-                f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
+                f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, {aa}, "
                 f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
             )
             return 0
