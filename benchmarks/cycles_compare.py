@@ -152,7 +152,14 @@ def write_picture(rows, path, size: int) -> None:
             )
         )
     path.parent.mkdir(parents=True, exist_ok=True)
-    image_io.write_png(path, np.concatenate(strips, axis=0))
+    picture = np.concatenate(strips, axis=0)
+    try:  # Pillow's optimised PNG (docs/images keeps each file under 150 KB)
+        from PIL import Image
+
+        rgb8 = np.clip(np.rint(picture * 255.0), 0, 255).astype(np.uint8)
+        Image.fromarray(np.ascontiguousarray(rgb8), "RGB").save(path, format="PNG", optimize=True)
+    except ImportError:
+        image_io.write_png(path, picture)
 
 
 def main(argv=None) -> int:
