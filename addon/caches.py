@@ -15,6 +15,18 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   LRU of ``tables.LRU_SIZE`` (32); filled by ``tables.get_table_with_source`` (disk cache or a
   bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION, also
   emptied by the Clear Cache operator (``tables.clear_caches``) with the disk cache.
+- ``bake_failures`` — ``tables.FAILURES``: the error text of failed bakes by description key;
+  LRU of ``tables.FAILURE_MEMORY`` (64); filled by ``viewport``'s bake worker, ``scene_draw``'s
+  headless bakes and the Bake operator (``tables.record_failure``), emptied of a key when its
+  bake succeeds; read by the viewport (no retry until the description changes) and the panel;
+  SESSION, also emptied by Clear Cache.
+- ``cache_errors`` — ``tables.CACHE_ERRORS``: why a description's table is not in the disk
+  cache (an unusable folder, a full disk: the table is in memory and drawn); LRU of
+  ``tables.FAILURE_MEMORY`` (64); filled by ``tables.get_table_with_source``; SESSION, also
+  emptied by Clear Cache.
+- ``thickness_images`` — ``thickness._PRINTS``: pixel fingerprints of thickness images with
+  unsaved edits, by image name, refreshed at most every ``thickness.IMAGE_RECHECK_S``; LRU of
+  16; filled by ``thickness.image_stamp``; FILE.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
@@ -24,24 +36,28 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   planned (planning them again is cheap, so the panel does it at once); a set, one entry per
   roughness planned (a few floats); filled by ``ui.plan_for``; SESSION.
 - ``scene_draw`` — ``scene_draw.CACHES``: what the draw collects per object and material:
-  mesh batches by (object name, material slot, instance), rebuilt when the geometry changes;
-  GPU table textures and film textures by description key; lighting uniform buffers by (World
-  key, l_max, roughness, lamps); the World's lighting (``scene_draw.WorldLighting``: its SH, the
-  analysed panorama, the prefilters on the GPU) for the current World key only; unbounded
-  dicts sized by the file (objects × slots, distinct materials), lightings pruned to the
-  current World on each World change; filled by ``scene_draw.collect`` and
+  mesh batches (``scene_draw.BatchEntry``) by (object name, material slot, instance), rebuilt
+  when the geometry or the thickness's inputs change; GPU table textures and film textures by
+  description key; lighting uniform buffers by (World key, l_max, roughness, lamps); the
+  World's lighting (``scene_draw.WorldLighting``: its SH, the analysed panorama, the prefilters
+  on the GPU) for the current World key only; LRUs of ``scene_draw.BATCH_CACHE_SIZE`` (256),
+  ``TABLE_CACHE_SIZE`` and ``FILM_CACHE_SIZE`` (32, as ``tables.LRU_SIZE``) and
+  ``LIGHTING_CACHE_SIZE`` (64) entries, or what the last frame used if more (so a long session
+  of edits cannot grow them, and a large frame does not rebuild every frame); lightings are
+  also pruned to the current World on each World change; filled by ``scene_draw.collect`` and
   ``scene_draw.world_lighting``; FILE.
-- ``shaders`` — ``gpu_draw.SHADERS``: compiled GPU shaders by variant; one per variant used
-  (a few dozen at most); filled by ``gpu_draw.draw_items``; SESSION (registered by
-  ``scene_draw``: gpu_draw keeps no registry).
-- ``uniforms`` — ``gpu_draw.UNIFORMS``: view and object uniform buffers by the values they are
+- ``shaders`` — ``gpu.shaders.SHADERS``: compiled GPU shaders by variant; one per variant used
+  (a few dozen at most); filled by ``gpu.draw.draw_items``; SESSION (registered by
+  ``scene_draw``: the GPU layer keeps no registry).
+- ``uniforms`` — ``gpu.draw.UNIFORMS``: view and object uniform buffers by the values they are
   made from; entries unused for ``keep_frames`` frames are recycled (at most ``max_spare``
-  spare buffers per size); filled by ``gpu_draw.prepare_draw``; SESSION (registered by
+  spare buffers per size); filled by ``gpu.draw.prepare_draw``; SESSION (registered by
   ``scene_draw``).
 
 Not registered, because they never go stale: ``functools.cache`` memos of values computed from
-the code alone (``gpu_draw.glsl_chunk``, ``banded_source``, ``x_rotation_scalars``, the
-full-screen triangle) and the bounded ``functools.lru_cache`` kernels inside ``precompute``.
+the code alone (the parsed GLSL chunks of ``gpu.shaders``, ``banded_source``,
+``x_rotation_scalars``, the full-screen triangle of ``gpu.draw``) and the bounded
+``functools.lru_cache`` kernels inside ``precompute``.
 """
 
 from __future__ import annotations
@@ -61,8 +77,11 @@ SESSION = "session"
 class LRU:
     """A thread-safe least-recently-used mapping of at most ``maxsize`` entries.
 
-    ``get``, ``[]``, ``[]=``, ``in``, ``len`` and ``clear``; reading an entry (``get`` or ``[]``)
-    makes it the most recent, storing one beyond ``maxsize`` drops the least recent.
+    ``get``, ``[]``, ``[]=``, ``pop``, ``in``, ``len``, ``items`` (a snapshot) and ``clear``;
+    reading an entry (``get`` or ``[]``) makes it the most recent, storing one beyond ``maxsize``
+    drops the least recent. :meth:`resize` changes the bound (dropping the least recent entries
+    at once when it shrinks). A dropped value is only dereferenced: GPU objects in it are freed
+    when nothing else holds them.
     """
 
     def __init__(self, maxsize: int):
@@ -92,9 +111,27 @@ class LRU:
             while len(self._data) > self.maxsize:
                 self._data.popitem(last=False)
 
+    def pop(self, key, default=None):
+        with self._lock:
+            return self._data.pop(key, default)
+
     def __contains__(self, key):
         with self._lock:
             return key in self._data
+
+    def items(self) -> list:
+        """(key, value) pairs, least recent first (a copy: safe to iterate while others store)."""
+        with self._lock:
+            return list(self._data.items())
+
+    def resize(self, maxsize: int) -> None:
+        """Bound the mapping to ``maxsize`` (≥ 1) entries, dropping the least recent beyond it."""
+        if maxsize < 1:
+            raise ValueError(f"maxsize must be ≥ 1, got {maxsize}")
+        with self._lock:
+            self.maxsize = int(maxsize)
+            while len(self._data) > self.maxsize:
+                self._data.popitem(last=False)
 
     def __len__(self):
         with self._lock:

@@ -3,7 +3,8 @@
 - :func:`description` — the :class:`~precompute.material.Material` of a Blender material: from
   the extension's settings when they are enabled (:mod:`.props`), else from a Principled
   BSDF with a thin film (:mod:`.principled`, Cycles interop), else None;
-- :func:`warnings` — what the preview of a material cannot follow;
+- :func:`warnings` — what the preview of a material cannot follow, and why it cannot be
+  evaluated at all (it is then drawn as the magenta fallback, ``precompute.material.FALLBACK``);
 - :func:`description_key` — the cache key of a description: equal descriptions share one
   baked table (:mod:`.tables`) and one GPU texture.
 """
@@ -30,28 +31,38 @@ def description(bpy_material) -> Material | None:
        Cycles layers it. Linked sockets use their unlinked values (see :func:`warnings`).
     3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF.
 
-    Raises ValueError (naming the parameter) for invalid settings.
+    Raises ValueError (naming the material and the parameter) for invalid settings: every
+    value is checked when the Material is built (precompute.validate), so nothing invalid
+    reaches a bake. The draw shows such a material as the magenta fallback.
     """
     props = getattr(bpy_material, "thinfilm_sh", None)
-    if props is not None and props.enabled:
-        try:
+    try:
+        if props is not None and props.enabled:
             return description_from_props(props)
-        except ValueError as exc:
-            raise ValueError(f"material {bpy_material.name!r}: {exc}") from None
-    return read_principled(bpy_material)[0]
+        return read_principled(bpy_material)[0]
+    except ValueError as exc:
+        raise ValueError(f"material {bpy_material.name!r}: {exc}") from None
 
 
 def warnings(bpy_material) -> list[str]:
-    """What the preview of ``bpy_material`` does not follow (empty when everything is shown)."""
+    """What the preview of ``bpy_material`` does not follow (empty when everything is shown),
+    first why it cannot be evaluated at all, if so: the panel shows these lines."""
     props = getattr(bpy_material, "thinfilm_sh", None)
     if props is not None and props.enabled:
         notes = []
+        try:
+            description_from_props(props)
+        except ValueError as exc:
+            notes.append(f"{exc}: drawn in magenta (the fallback) until it is fixed")
         if props.vary_thickness and props.thickness_source == "ATTRIBUTE" and not props.thickness_attribute:
             notes.append("thickness source ATTRIBUTE needs an attribute name")
         if props.vary_thickness and props.thickness_source == "IMAGE" and props.thickness_image is None:
             notes.append("thickness source IMAGE needs an image")
     else:
-        notes = read_principled(bpy_material)[1]
+        try:
+            notes = read_principled(bpy_material)[1]
+        except ValueError as exc:
+            notes = [f"{exc}: drawn in magenta (the fallback) until it is fixed"]
     space = file_working_space()
     if space and space not in spectra.WORKING_SPACES:
         notes.append(f"working colour space {space!r} is not supported: previewing in Linear Rec.709")

@@ -11,20 +11,28 @@ the scene's Cycles pixel filter, type and width (``scene.cycles.pixel_filter_typ
 ``filter_width``; Cycles' defaults, Blackman–Harris of ±1.5 px, without the Cycles add-on):
 :func:`pixel_filter_settings`, :mod:`precompute.pixel_filter`. The viewport keeps Blender's own
 anti-aliasing.
+
+The table cache is the add-on's (:func:`.tables.table_cache`: ``THINFILM_SH_CACHE``, the
+preference, the private default); every command takes ``--cache-dir`` to name another. An
+unusable cache folder or a write that fails (a full disk) is an ``error: …`` line and exit
+status 2, never a traceback; a table that could not be saved to the cache is still used.
 """
 
 from __future__ import annotations
 
 import json
 import pathlib
+import sys
 import time
 
 import bpy
 import numpy as np
 
-from ..precompute import effects, image_io, pixel_filter
-from . import gpu_draw, scene_draw, tables, world
+from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
+from . import scene_draw, tables, world
 from .description import description, description_key
+from .gpu.context import ensure_gpu_context
+from .gpu.draw import render_offscreen
 
 
 def scene_materials(scene):
@@ -48,17 +56,40 @@ def scene_materials(scene):
     return found, errors
 
 
-def bake_scene(scene, out_dir=None, progress=print) -> dict:
-    """Bake (or load from cache) every material the scene shows; optional EXR copies in ``out_dir``."""
-    from ..precompute import table_io
+def bake_scene(scene, out_dir=None, progress=print, cache=None) -> dict:
+    """Bake (or load from cache) every material the scene shows; optional EXR copies in ``out_dir``.
 
+    ``cache``: as :func:`.tables.get_table_with_source` takes it (None: the add-on's). A table
+    the cache could not keep is used anyway, and named in ``errors`` (with ``cache_error`` in its
+    entry).
+
+    One material's failure does not stop the others: a material that cannot be described or
+    baked is recorded in ``errors`` ({material name: why}). With ``out_dir`` each material gets
+    a file of its own, named by :func:`precompute.cli_support.unique_file_names` (``Mat 001``,
+    ``Mat.001`` and ``Mat_001`` never share one), ``manifest`` maps material names to the files
+    written, and every destination is checked (``UsageError``) before the first bake.
+    """
     found, errors = scene_materials(scene)
-    summary = {"materials": {}, "errors": errors}
+    summary = {"materials": {}, "errors": errors, "manifest": {}}
+    files = {}
+    if out_dir:
+        folder = cli_support.output_dir("--out-dir", out_dir)
+        files = {name: folder / file for name, file in cli_support.unique_file_names(found).items()}
+        for path in files.values():
+            try:
+                table_io.check_destination(path)
+            except table_io.TableWriteError as exc:
+                raise cli_support.UsageError(f"--out-dir: {exc}") from None
     shared: dict[str, str] = {}
     for i, (name, desc) in enumerate(sorted(found.items())):
         key = description_key(desc)
         t0 = time.perf_counter()
-        result, source = tables.get_table_with_source(desc)
+        try:
+            result, source = tables.get_table_with_source(desc, cache)
+        except Exception as exc:  # isolated: the other materials are still baked
+            errors[name] = scene_draw.bake_failure(name, exc)
+            progress(f"[{i + 1}/{len(found)}] {name}: failed")
+            continue
         entry = {
             "key": key,
             "source": source,
@@ -67,12 +98,16 @@ def bake_scene(scene, out_dir=None, progress=print) -> dict:
             "sh_order": result.sh_order,
             "shared_with": shared.get(key),
         }
+        problem = tables.cache_error(desc)
+        if problem is not None:
+            entry["cache_error"] = problem
+            errors[name] = f"material {name!r}: {problem}"
         shared.setdefault(key, name)
         if out_dir:
-            path = pathlib.Path(out_dir) / f"{bpy.path.clean_name(name)}.exr"
+            path = files[name]
             path.parent.mkdir(parents=True, exist_ok=True)
             table_io.write_table(path, result.data, result.attributes())
-            entry["file"] = str(path)
+            entry["file"] = summary["manifest"][name] = str(path)
         summary["materials"][name] = entry
         progress(f"[{i + 1}/{len(found)}] {name}: {source} ({entry['seconds'] * 1000:.0f} ms)")
     return summary
@@ -144,7 +179,7 @@ def render_scene(
     the enlarged buffer would exceed the GPU's texture size), filtered with the scene's Cycles
     pixel filter; 1 draws one sample per pixel, unfiltered.
     """
-    gpu_draw.ensure_gpu_context()
+    ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
     width = int(width or round(scene.render.resolution_x * scale))
     height = int(height or round(scene.render.resolution_y * scale))
@@ -161,7 +196,8 @@ def render_scene(
     proj = widened_projection(proj, width, height, pad)
     frame_w, frame_h = factor * (width + 2 * pad), factor * (height + 2 * pad)
     t0 = time.perf_counter()
-    items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True)
+    errors: dict[str, str] = {}  # materials drawn as the magenta fallback, and why
+    items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
     env = None
     lighting = scene_draw.CACHES.world
     if background and lighting is not None and lighting.environment is not None:
@@ -202,13 +238,12 @@ def render_scene(
             if hidden:
                 bpy.context.view_layer.update()
 
-    rgba = gpu_draw.render_offscreen(
-        items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from
-    )
+    rgba = render_offscreen(items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from)
     rgb = rgba[..., :3].astype(np.float64)
     bad = ~np.isfinite(rgb)
+    nonfinite = int(bad.any(axis=-1).sum())
     if bad.any():
-        messages.append(f"{int(bad.any(axis=-1).sum())} non-finite samples set to 0")
+        messages.append(f"{nonfinite} non-finite samples set to 0")
         rgb = np.where(bad, 0.0, rgb)
     if factor > 1:
         rgb = pixel_filter.downsample(rgb, kind, filter_width, factor, pad)
@@ -224,7 +259,11 @@ def render_scene(
         "size": [width, height],
         "supersample": factor,
         "pixel_filter": [kind, filter_width] if factor > 1 else None,
-        "objects": [item.name for item in items],
+        "objects": [item.name for item in items if not item.fallback],
+        "fallback_objects": [item.name for item in items if item.fallback],
+        "errors": errors,
+        "world_errors": list(lighting.sh.errors) if lighting is not None else [],
+        "nonfinite_pixels": nonfinite,
         "messages": messages,
         "seconds": time.perf_counter() - t0,
     }
@@ -236,98 +275,158 @@ def _mathutils_matrix(m):
     return Matrix(np.asarray(m).tolist())
 
 
-def main(argv) -> int:
-    """The CLI behind ``blender -b file.blend -c thinfilm_sh …`` and scripts/thinfilm_headless.py."""
-    import argparse
+def render_size(scene, width=None, height=None) -> tuple[int, int]:
+    """The render's size: ``width``/``height``, else the scene's resolution × percentage;
+    ``UsageError`` naming where a size outside 1–16384 pixels came from."""
+    scale = scene.render.resolution_percentage / 100.0
+    sizes = []
+    for given, option, axis in ((width, "--width", "x"), (height, "--height", "y")):
+        if given:
+            sizes.append(cli_support.image_size(option, given))
+        else:
+            value = round(getattr(scene.render, f"resolution_{axis}") * scale)
+            sizes.append(cli_support.image_size(f"the scene's resolution {axis} × percentage", value))
+    return sizes[0], sizes[1]
 
-    parser = argparse.ArgumentParser(
+
+def main(argv) -> int:
+    """The CLI behind ``blender -b file.blend -c thinfilm_sh …`` and scripts/thinfilm_headless.py.
+
+    Exit codes (docs/cli-exit-codes.md): 0 done; 1 partial (a material or the World could not
+    be evaluated and was replaced by its fallback, each reported); 2 refused before any work (a
+    bad option, path, size or scene value, named); 3 internal error (traceback in the log file
+    named); 4 an output could not be written. Never a traceback.
+    """
+    return cli_support.run(lambda: _main(argv), prog="thinfilm_sh")
+
+
+def _main(argv) -> int:
+    parser = cli_support.ArgumentParser(
         prog="thinfilm_sh", description="Thin Film SH: headless bake and render of the open .blend file."
     )
     sub = parser.add_subparsers(dest="command", required=True)
     b = sub.add_parser("bake", help="bake every thin-film material the scene shows (uses the cache)")
-    b.add_argument("--out-dir", help="also write each table as an EXR here")
-    b.add_argument("--json", help="write a JSON summary here")
+    b.add_argument("--out-dir", help="also write each table as an EXR here (one file per material)")
+    b.add_argument("--json", help="write a JSON summary here (errors and a manifest of the files)")
     r = sub.add_parser("render", help="render the scene camera's view with the thin-film shader to PNG + EXR")
     r.add_argument("--out", required=True, help="output .png (an .exr is written beside it)")
-    r.add_argument("--width", type=int)
-    r.add_argument("--height", type=int)
+    r.add_argument("--width", type=cli_support.image_size_arg("--width"))
+    r.add_argument("--height", type=cli_support.image_size_arg("--height"))
     r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
     r.add_argument(
         "--supersample",
-        type=int,
+        type=cli_support.supersample_arg("--supersample"),
         default=SUPERSAMPLE,
         help=f"samples per pixel along each axis, filtered with the scene's Cycles pixel filter "
         f"(default {SUPERSAMPLE}; 1: one sample per pixel, no filter)",
     )
-    sub.add_parser(
+    r.add_argument("--json", help="write a JSON summary here (objects, fallbacks, errors, messages)")
+    p = sub.add_parser(
         "plan",
         help="print what each visible material needs simulated (effects, table size, orders, estimated "
         "bake time and shader cost) and why; bakes nothing",
     )
+    for command in (b, r, p):
+        command.add_argument(
+            "--cache-dir",
+            help="the table cache's folder (default: $THINFILM_SH_CACHE, else the add-on's preference, "
+            "else a private per-user folder); tables go in its thinfilm_sh_tables subfolder",
+        )
     args = parser.parse_args(argv)
-    scene = bpy.context.scene
-    try:
-        if args.command == "bake":
-            summary = bake_scene(scene, args.out_dir)
-            if args.json:
-                pathlib.Path(args.json).write_text(json.dumps(summary, indent=2))
-            for err in summary["errors"].values():
-                print(f"error: {err}")
-            return 1 if summary["errors"] else 0
-        if args.command == "render":
-            result = render_scene(
-                scene,
-                args.out,
-                args.width,
-                args.height,
-                background=not args.no_background,
-                supersample=args.supersample,
-            )
-            for msg in result["messages"]:
-                print(f"note: {msg}")
-            aa = (
-                f"{result['supersample']}×{result['supersample']} samples per pixel, "
-                f"{result['pixel_filter'][0].replace('_', '-').title()} {result['pixel_filter'][1]:g} px"
-                if result["pixel_filter"]
-                else "1 sample per pixel"
-            )
-            print(
-                f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, {aa}, "
-                f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
-            )
-            return 0
-        # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
-        # sets the World order; tables already in memory or in the disk cache cost no bake.
-        found, errors = scene_materials(scene)
-        coeffs = world.world_sh(scene).coeffs if found else None
-        disk = tables.table_cache()
-        keys = {name: description_key(desc) for name, desc in found.items()}
-        cached = {
-            keys[name]
-            for name, desc in found.items()
-            if tables.peek_table(desc) is not None or disk.path_for(keys[name]).is_file()
+    with tables.cache_dir_override(args.cache_dir):
+        cache = tables.open_cache()
+        if not isinstance(cache, tables.UnusableCache):
+            try:
+                cache.size_bytes()  # checks the folder: no symbolic link, yours, private
+            except OSError as exc:
+                cache = tables.UnusableCache(f"table cache unusable: {exc}")
+        if isinstance(cache, tables.UnusableCache):
+            if args.command == "bake":  # filling the cache is what it is for: refused before work
+                raise cli_support.UsageError(cache.reason)
+            print(f"note: {cache.reason}; tables are baked but not kept on disk")
+        return _run(args, bpy.context.scene, cache)
+
+
+def _run(args, scene, cache) -> int:
+    def write_json(path, summary) -> None:
+        table_io.write_bytes(path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
+
+    if args.command == "bake":
+        with cli_support.refusing():  # before any bake: a refusal is exit 2
+            json_path = cli_support.output_file("--json", args.json) if args.json else None
+            if args.out_dir:
+                cli_support.output_dir("--out-dir", args.out_dir)
+        summary = bake_scene(scene, args.out_dir, cache=cache)
+        if json_path is not None:
+            json_path.parent.mkdir(parents=True, exist_ok=True)
+            write_json(json_path, summary)
+        for err in summary["errors"].values():
+            print(f"error: {err}", file=sys.stderr)
+        return cli_support.EXIT_PARTIAL if summary["errors"] else cli_support.EXIT_OK
+    if args.command == "render":
+        with cli_support.refusing():  # before any work: a refusal is exit 2
+            out = cli_support.output_file("--out", args.out)
+            cli_support.output_file("--out (the .png)", out.with_suffix(".png"))
+            cli_support.output_file("--out (the .exr beside it)", out.with_suffix(".exr"))
+            json_path = cli_support.output_file("--json", args.json) if args.json else None
+            width, height = render_size(scene, args.width, args.height)
+            cli_support.exposure("the scene's exposure (Color Management)", scene.view_settings.exposure)
+            if scene.camera is None:
+                raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
+        result = render_scene(
+            scene, args.out, width, height, background=not args.no_background, supersample=args.supersample
+        )
+        if json_path is not None:
+            json_path.parent.mkdir(parents=True, exist_ok=True)
+            write_json(json_path, result)
+        for msg in result["messages"]:
+            print(f"note: {msg}")
+        aa = (
+            f"{result['supersample']}×{result['supersample']} samples per pixel, "
+            f"{result['pixel_filter'][0].replace('_', '-').title()} {result['pixel_filter'][1]:g} px"
+            if result["pixel_filter"]
+            else "1 sample per pixel"
+        )
+        print(
+            f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, {aa}, "
+            f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
+        )
+        failed = [*result["errors"].values(), *result["world_errors"]]
+        for err in failed:
+            print(f"error: {err}", file=sys.stderr)
+        partial = failed or result["nonfinite_pixels"]
+        return cli_support.EXIT_PARTIAL if partial else cli_support.EXIT_OK
+    # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
+    # sets the World order; tables already in memory or in the disk cache cost no bake.
+    found, errors = scene_materials(scene)
+    sh = world.world_sh(scene) if found else None
+    coeffs = sh.coeffs if sh is not None else None
+    keys = {name: description_key(desc) for name, desc in found.items()}
+    on_disk = not isinstance(cache, tables.UnusableCache)
+    cached = {
+        keys[name]
+        for name, desc in found.items()
+        if tables.peek_table(desc) is not None or (on_disk and cache.path_for(keys[name]).is_file())
+    }
+    plan = effects.scene_plan(found, coeffs, cached=cached)
+    print(effects.format_plan(plan))
+    for name, mp in plan.materials.items():  # one JSON line per material, for scripts
+        first = plan.tables[mp.key][0]
+        summary = {
+            "material": name,
+            "sh_order": mp.plan.sh_order,
+            "view_samples": mp.plan.view_samples,
+            "thickness_samples": mp.plan.thickness_samples,
+            "wavelengths": mp.plan.wavelength_count,
+            "shared_with": first if first != name else None,
+            "world_order": plan.world_order,
+            **mp.to_dict(),
         }
-        plan = effects.scene_plan(found, coeffs, cached=cached)
-        print(effects.format_plan(plan))
-        for name, mp in plan.materials.items():  # one JSON line per material, for scripts
-            first = plan.tables[mp.key][0]
-            summary = {
-                "material": name,
-                "sh_order": mp.plan.sh_order,
-                "view_samples": mp.plan.view_samples,
-                "thickness_samples": mp.plan.thickness_samples,
-                "wavelengths": mp.plan.wavelength_count,
-                "shared_with": first if first != name else None,
-                "world_order": plan.world_order,
-                **mp.to_dict(),
-            }
-            print("plan-json " + json.dumps(summary))
-        for err in errors.values():
-            print(f"error: {err}")
-        return 1 if errors else 0
-    except ValueError as exc:
-        print(f"error: {exc}")
-        return 2
+        print("plan-json " + json.dumps(summary))
+    failed = [*errors.values(), *(sh.errors if sh is not None else ())]
+    for err in failed:
+        print(f"error: {err}", file=sys.stderr)
+    return cli_support.EXIT_PARTIAL if failed else cli_support.EXIT_OK
 
 
 def _cli(argv) -> int:

@@ -102,6 +102,14 @@ def _store_result(settings, result, source: str, elapsed_s: float) -> None:
     settings.last_error = ""
 
 
+def _report_cache_error(op, desc) -> None:
+    """A table baked but not saved to the disk cache (a full disk, an unusable folder): a
+    warning, the table itself is ready (in memory) and drawn."""
+    problem = tables.cache_error(desc)
+    if problem is not None:
+        op.report({"WARNING"}, problem)
+
+
 class THINFILM_OT_bake(Operator):
     """Bake (or load from the cache) the spherical-harmonic table of this material's thin film"""
 
@@ -152,14 +160,13 @@ class THINFILM_OT_bake(Operator):
         start = time.perf_counter()
         try:
             result, source = tables.get_table_with_source(desc)
-        except ValueError as exc:
-            return self._fail(mat, str(exc))
-        except OSError as exc:
-            return self._fail(mat, f"table cache: {exc}")
+        except (ValueError, OSError) as exc:
+            return self._fail(mat, tables.record_failure(desc, exc))
         _store_result(mat.thinfilm_sh, result, source, time.perf_counter() - start)
         self.report(
             {"INFO"}, f"Thin film table ready ({source}, {1000 * (time.perf_counter() - start):.0f} ms)"
         )
+        _report_cache_error(self, desc)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -173,7 +180,7 @@ class THINFILM_OT_bake(Operator):
             _store_result(mat.thinfilm_sh, hit, "memory", 0.0)
             return {"FINISHED"}
         self._material_name = mat.name
-        self._job = BakeJob(desc, tables.table_cache()).start()
+        self._job = BakeJob(desc, tables.open_cache()).start()  # opened here: it reads the preferences
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.modal_handler_add(self)
@@ -215,7 +222,7 @@ class THINFILM_OT_bake(Operator):
         self._finish(context)
         mat = bpy.data.materials.get(self._material_name)
         if job.error is not None:
-            message = str(job.error) if isinstance(job.error, (ValueError, OSError)) else repr(job.error)
+            message = tables.record_failure(job.desc, job.error)
             if mat is not None:
                 mat.thinfilm_sh.last_error = message
             self.report({"ERROR"}, message)
@@ -223,6 +230,7 @@ class THINFILM_OT_bake(Operator):
         if mat is not None and job.result is not None:
             _store_result(mat.thinfilm_sh, job.result, job.source, job.elapsed_s)
         self.report({"INFO"}, f"Thin film table ready ({job.source}, {1000 * job.elapsed_s:.0f} ms)")
+        _report_cache_error(self, job.desc)
         return {"FINISHED"}
 
     def cancel(self, context):
@@ -358,20 +366,22 @@ class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
 
 
 class THINFILM_OT_clear_cache(Operator):
-    """Delete the baked tables from memory and from the cache directory"""
+    """Delete the baked tables from memory and the tables this add-on wrote to its cache folder
+    (nothing else in the folder is touched)"""
 
     bl_idname = "thinfilm.clear_cache"
     bl_label = "Clear Thin Film Cache"
     bl_options = {"REGISTER"}
 
     def execute(self, context):
-        cache = tables.table_cache()
         try:
+            cache = tables.table_cache()
             removed = tables.clear_caches(cache)
-        except OSError as exc:
-            self.report({"ERROR"}, f"could not clear {cache.directory}: {exc}")
+        except (OSError, ValueError) as exc:  # CacheDirError: an unsafe or unusable folder
+            tables.clear_memory_cache()
+            self.report({"ERROR"}, f"Could not clear the table cache: {exc}")
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Removed {removed} cached table file(s) from {cache.directory}")
+        self.report({"INFO"}, f"Removed {removed} cached table file(s) from {cache.tables_dir}")
         return {"FINISHED"}
 
 

@@ -12,6 +12,9 @@ The socket names are Blender 4.0+'s, checked against 5.2.
 
 from __future__ import annotations
 
+import math
+
+from ..precompute import validate
 from ..precompute.conductors import metal_rgb, real_index
 from ..precompute.material import Layer, Material
 from .props import description_from_props, f32, working_space
@@ -108,6 +111,9 @@ def _socket_value(node, name: str, notes: list[str]):
     socket = node.inputs[name]
     value = socket.default_value
     value = tuple(value) if hasattr(value, "__len__") else float(value)
+    if not all(math.isfinite(v) for v in (value if isinstance(value, tuple) else (value,))):
+        shown = ", ".join(f"{v:g}" for v in value) if isinstance(value, tuple) else f"{value:g}"
+        raise ValueError(f"Principled BSDF '{node.name}' input '{name}' is {shown}, not finite")
     if socket.is_linked:
         shown = f"{value:g}" if isinstance(value, float) else ", ".join(f"{v:.3g}" for v in value[:3])
         notes.append(
@@ -126,7 +132,8 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
     fit spectrally); roughness = Roughness; per-channel colour like Cycles; ambient 1. An opaque
     dielectric shows a Base Color that is not black as a diffuse base (:func:`diffuse_base`).
     Linked sockets use their unlinked values, with a note. A zero thickness is not previewed:
-    it is the bare Principled BSDF, which Blender's own viewport already shows.
+    it is the bare Principled BSDF, which Blender's own viewport already shows. A NaN or Inf
+    input (set from Python) raises ValueError naming the node and the input.
     """
     node = principled_node(bpy_material)
     if node is None or SOCKET_THICKNESS not in node.inputs:
@@ -135,7 +142,10 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
     thickness = f32(_socket_value(node, SOCKET_THICKNESS, notes))
     if not thickness > 0.0:
         return None, []
+    where = f"Principled BSDF '{node.name}' input"
+    validate.real(f"{where} '{SOCKET_THICKNESS}'", thickness, 0.0, validate.MAX_THICKNESS_NM)
     film_ior = f32(_socket_value(node, SOCKET_FILM_IOR, notes))
+    validate.real(f"{where} '{SOCKET_FILM_IOR}'", film_ior, 0.0, validate.MAX_INDEX_N, lo_open=True)
     roughness = min(1.0, max(0.0, f32(_socket_value(node, SOCKET_ROUGHNESS, notes))))
     metallic = f32(_socket_value(node, SOCKET_METALLIC, notes))
     base = tuple(min(1.0, max(0.0, f32(v))) for v in _socket_value(node, SOCKET_BASE_COLOR, notes)[:3])
@@ -147,6 +157,7 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
             notes.append(f"Metallic {metallic:g} is previewed as a pure metal (Metallic 1)")
     else:
         substrate = f32(_socket_value(node, SOCKET_IOR, notes))
+        validate.real(f"{where} '{SOCKET_IOR}'", substrate, 0.0, validate.MAX_INDEX_N, lo_open=True)
         transmission = f32(_socket_value(node, SOCKET_TRANSMISSION, notes))
         base_color = diffuse_base(base, transmission)
         if metallic > 0.0:

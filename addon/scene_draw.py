@@ -4,15 +4,26 @@ Shared by the viewport draw handler and the headless render, so both draw the sa
 
 :data:`CACHES` (registered in :mod:`.caches` as ``scene_draw``, emptied on file load) holds:
 
-- batches per (object, material slot), rebuilt only when the object's geometry changed
-  (a depsgraph handler marks it) — moving an object only changes the matrix passed at draw time;
+- batches per (object, material slot, instance) (:class:`BatchEntry`), rebuilt only when the
+  object's geometry changed (a depsgraph handler marks it) or what its thickness is made of
+  changed (:func:`.thickness.thickness_inputs`: the source, noise scale and seed, attribute
+  name, image and its pixels) — moving an object only changes the matrix passed at draw time;
 - GPU table textures per material description key (equal materials share one);
 - lighting UBOs per (World key, SH order, roughness, lamps or not);
 - film textures (the lamps' reflectance table) per material description key;
 - the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
   the current World key.
 
-gpu_draw's shader and uniform-buffer caches are registered in :mod:`.caches` here too.
+The four GPU maps are :class:`.caches.LRU` s bounded by :data:`BATCH_CACHE_SIZE`,
+:data:`TABLE_CACHE_SIZE`, :data:`FILM_CACHE_SIZE` and :data:`LIGHTING_CACHE_SIZE` entries, or by
+what the last frame used when that is more (a map grows rather than drop an entry the frame
+already uses, :meth:`Caches.make_room`, and shrinks back after the frame, :meth:`Caches.fit`;
+so a large scene does not rebuild every frame): a long session of edits, each making new keys,
+keeps at most that many. A dropped entry is only dereferenced; its GPU buffers and textures are
+freed with the last reference (the draw items of the frame being drawn).
+
+The GPU layer's shader and uniform-buffer caches (``gpu.shaders.SHADERS``, ``gpu.draw.UNIFORMS``)
+are registered in :mod:`.caches` here too.
 """
 
 from __future__ import annotations
@@ -23,71 +34,139 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..precompute import film_colour, prefilter
+from ..precompute import cli_support, film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
+from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, gpu_draw, panorama, tables, world, world_key
-from .thickness import thickness_per_vertex
+from . import caches, description, panorama, tables, world, world_key
+from .gpu import draw, resources, shaders
+from .gpu.mesh import MeshBatch, mesh_arrays
+from .thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
 class DrawItem:
-    """One (object, material slot) to draw: what :func:`gpu_draw.draw_items` needs."""
+    """One (object, material slot) to draw: what :func:`.gpu.draw.draw_items` needs."""
 
-    batch: gpu_draw.MeshBatch
+    batch: MeshBatch
     model_matrix: np.ndarray
-    table: gpu_draw.TableTexture
-    lighting: gpu_draw.Lighting
+    table: resources.TableTexture
+    lighting: resources.Lighting
     name: str
-    prefiltered: gpu_draw.PrefilterTexture | None = None
+    prefiltered: resources.PrefilterTexture | None = None
     roughness: float = 0.0
     sh_weight: float = 1.0
-    film: gpu_draw.FilmTexture | None = None
+    film: resources.FilmTexture | None = None
+    #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
+    fallback: bool = False
+
+
+#: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
+BATCH_CACHE_SIZE = 256
+#: GPU table textures kept: as many as the tables kept in memory (tables.LRU_SIZE, 32).
+TABLE_CACHE_SIZE = tables.LRU_SIZE
+#: Film textures (the lamps' reflectance) kept, one per table.
+FILM_CACHE_SIZE = tables.LRU_SIZE
+#: Lighting uniform buffers kept (a roughness slider's drag makes one per step).
+LIGHTING_CACHE_SIZE = 64
+
+
+@dataclass
+class BatchEntry:
+    """One (object, material slot, instance)'s batch and what it was built from.
+
+    ``signature``: the mesh's name and sizes, whether the material's thickness varies and its
+    :func:`.thickness.thickness_inputs` (a different signature rebuilds the batch; nothing else
+    of the material is in the batch, so a roughness drag rebuilds none);
+    ``thickness``: the per-vertex thickness parameters uploaded (float32, one per corner; None
+    for a constant thickness), kept to be read back; ``notes``: what the build found wrong
+    (NaN thickness values, a missing attribute), repeated in every frame's messages.
+    """
+
+    signature: tuple
+    batch: MeshBatch | None
+    thickness: np.ndarray | None = None
+    notes: tuple = ()
+
+
+def _lru(size: int) -> caches.LRU:
+    return caches.LRU(size)
 
 
 @dataclass
 class Caches:
-    batches: dict = field(default_factory=dict)  # (object name, slot) → (signature, MeshBatch | None)
-    tables: dict = field(default_factory=dict)  # description key → TableTexture
-    films: dict = field(default_factory=dict)  # description key → FilmTexture (lamps)
-    lightings: dict = field(default_factory=dict)  # (world key, l_max, roughness, lamps) → Lighting
+    batches: caches.LRU = field(
+        default_factory=lambda: _lru(BATCH_CACHE_SIZE)
+    )  # (object, slot, instance) → BatchEntry
+    tables: caches.LRU = field(
+        default_factory=lambda: _lru(TABLE_CACHE_SIZE)
+    )  # description key → TableTexture
+    films: caches.LRU = field(default_factory=lambda: _lru(FILM_CACHE_SIZE))  # description key → FilmTexture
+    lightings: caches.LRU = field(
+        default_factory=lambda: _lru(LIGHTING_CACHE_SIZE)
+    )  # (world key, l_max, roughness, lamps) → Lighting
     world: WorldLighting | None = None  # the current World's lighting
     dirty: set = field(default_factory=set)  # object names whose geometry changed
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
 
     def clear(self):
-        self.batches.clear()
-        self.tables.clear()
-        self.films.clear()
-        self.lightings.clear()
+        for lru, size in self._bounded():
+            lru.clear()
+            lru.resize(size)
         self.world = None
         self.dirty.clear()
 
+    def _bounded(self):
+        return (
+            (self.batches, BATCH_CACHE_SIZE),
+            (self.tables, TABLE_CACHE_SIZE),
+            (self.films, FILM_CACHE_SIZE),
+            (self.lightings, LIGHTING_CACHE_SIZE),
+        )
+
+    def make_room(self, batches: int = 0, materials: int = 0) -> None:
+        """Before storing the frame's ``batches``-th batch or ``materials``-th material: grow a
+        map that would otherwise drop an entry this frame already uses."""
+        for lru, needed in (
+            (self.batches, batches),
+            (self.tables, materials),
+            (self.films, materials),
+            (self.lightings, materials),
+        ):
+            if lru.maxsize < needed:
+                lru.resize(needed)
+
+    def fit(self, batches: int, materials: int) -> None:
+        """Bound the GPU maps after a frame that used ``batches`` batches and ``materials``
+        materials: the base sizes, or the frame's own use when it is larger."""
+        self.batches.resize(max(BATCH_CACHE_SIZE, batches))
+        self.tables.resize(max(TABLE_CACHE_SIZE, materials))
+        self.films.resize(max(FILM_CACHE_SIZE, materials))
+        self.lightings.resize(max(LIGHTING_CACHE_SIZE, materials))
+
 
 CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
-caches.register("shaders", gpu_draw.SHADERS, scope=caches.SESSION)
-caches.register("uniforms", gpu_draw.UNIFORMS, scope=caches.SESSION)
+caches.register("shaders", shaders.SHADERS, scope=caches.SESSION)
+caches.register("uniforms", draw.UNIFORMS, scope=caches.SESSION)
 
 
 def on_depsgraph_update(scene, depsgraph) -> None:
-    """Mark objects whose geometry changed (transform-only updates keep their batch)."""
+    """Mark objects whose geometry changed (transform-only updates keep their batch).
+
+    Material updates mark nothing: what a batch takes from its material (the thickness source,
+    noise, image) is part of the batch's signature (:func:`.thickness.thickness_inputs`), read
+    from the material itself each frame, so any other material edit (dragging the roughness)
+    rebuilds no batch.
+    """
     for update in depsgraph.updates:
         data = update.id
         if isinstance(data, bpy.types.Object) and update.is_updated_geometry:
             CACHES.dirty.add(data.original.name if hasattr(data, "original") else data.name)
-        elif isinstance(data, bpy.types.Mesh):
+        elif isinstance(data, bpy.types.Mesh) and update.is_updated_geometry:
             for obj in scene.objects:
                 if obj.data is not None and obj.data.name == data.name:
-                    CACHES.dirty.add(obj.name)
-        elif isinstance(data, bpy.types.Material):
-            # Thickness sources (noise scale, image) live on the material: rebuild its users' batches.
-            for obj in scene.objects:
-                if any(
-                    slot.material is not None and slot.material.name == data.name
-                    for slot in obj.material_slots
-                ):
                     CACHES.dirty.add(obj.name)
 
 
@@ -97,8 +176,8 @@ PANORAMA_WIDTH = 512
 PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
 
 
-def _prefilter_texture(pre) -> gpu_draw.PrefilterTexture:
-    return gpu_draw.PrefilterTexture.from_levels(
+def _prefilter_texture(pre) -> resources.PrefilterTexture:
+    return resources.PrefilterTexture.from_levels(
         pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
     )
 
@@ -116,10 +195,10 @@ class PrefilterTextures:
 
     def __init__(self, analysed: Environment):
         self.environment = analysed
-        self._lifted: gpu_draw.PrefilterTexture | None = None
-        self._whole: gpu_draw.PrefilterTexture | None = None
+        self._lifted: resources.PrefilterTexture | None = None
+        self._whole: resources.PrefilterTexture | None = None
 
-    def prefiltered(self) -> gpu_draw.PrefilterTexture:
+    def prefiltered(self) -> resources.PrefilterTexture:
         """The prefilter with the lamps lifted out (the whole World when it has none)."""
         if self.environment.lamps is None:
             return self.prefiltered_whole()
@@ -127,7 +206,7 @@ class PrefilterTextures:
             self._lifted = _prefilter_texture(self.environment.prefiltered)
         return self._lifted
 
-    def prefiltered_whole(self) -> gpu_draw.PrefilterTexture:
+    def prefiltered_whole(self) -> resources.PrefilterTexture:
         """The prefilter with the lamps in every level."""
         if self._whole is None:
             self._whole = _prefilter_texture(self.environment.prefiltered_whole)
@@ -143,13 +222,15 @@ class WorldLighting:
     (:func:`precompute.environment.analyse_world`: lamps, prefiltered levels, the lamps' SH),
     or None when not asked for, without a World, or when the panorama render failed (glossy
     films then fall back to the SH path); ``textures``: the environment's prefilters on the GPU
-    (None when ``environment`` is).
+    (None when ``environment`` is); ``image_tried``: whether the environment was asked for (so a
+    World without one, or whose panorama failed, is not rendered again on every frame).
     """
 
     key: str
     sh: world.WorldSH
     environment: Environment | None = None
     textures: PrefilterTextures | None = None
+    image_tried: bool = False
 
 
 def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True) -> WorldLighting | None:
@@ -162,7 +243,7 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     """
     key = world_key.world_key(scene)
     cached = CACHES.world
-    if cached is not None and cached.key == key and (cached.environment is not None or not need_image):
+    if cached is not None and cached.key == key and (cached.image_tried or not need_image):
         return cached
     if not allow_compute:
         return None
@@ -174,36 +255,49 @@ def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True
     analysed = textures = None
     if need_image and scene.world is not None:
         try:
-            image = panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
-            found = analyse_world(image, result.coeffs, l_max=gpu_draw.MAX_L, width=PREFILTER_WIDTH)
+            image = (
+                _constant_panorama(result.coeffs)  # the World failed: its fallback colour all round
+                if result.errors
+                else panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
+            )
+            found = analyse_world(image, result.coeffs, l_max=resources.MAX_L, width=PREFILTER_WIDTH)
             analysed, textures = found, PrefilterTextures(found)
         except (RuntimeError, ValueError) as exc:
             log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
-    CACHES.world = WorldLighting(key, result, analysed, textures)
-    CACHES.lightings = {k: v for k, v in CACHES.lightings.items() if k[0] == key}
+    CACHES.world = WorldLighting(key, result, analysed, textures, image_tried=need_image)
+    for stale in [k for k, _ in CACHES.lightings.items() if k[0] != key]:
+        CACHES.lightings.pop(stale)
     return CACHES.world
+
+
+def _constant_panorama(coeffs) -> np.ndarray:
+    """A panorama of the constant radiance whose SH band 0 is ``coeffs[0]`` (= √(4π)·c)."""
+    rgb = np.asarray(coeffs[0], dtype=np.float32) / np.float32(np.sqrt(4.0 * np.pi))
+    return np.ascontiguousarray(np.broadcast_to(rgb, (PANORAMA_WIDTH // 2, PANORAMA_WIDTH, 3)))
 
 
 def lighting_for(
     lighting: WorldLighting, l_max: int, roughness: float, lamps: bool = False
-) -> gpu_draw.Lighting:
+) -> resources.Lighting:
     """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
     the lamps themselves."""
     env = lighting.environment
     lamps = bool(lamps and env is not None and env.lamps is not None)
     key = (lighting.key, int(l_max), round(float(roughness), 6), lamps)
-    if key not in CACHES.lightings:
+    found = CACHES.lightings.get(key)
+    if found is None:
         coeffs = env.sh_without_lamps if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
-        CACHES.lightings[key] = gpu_draw.Lighting.from_sh(
-            coeffs, l_max, roughness, env.lamps if lamps else None
-        )
-    return CACHES.lightings[key]
+        found = resources.Lighting.from_sh(coeffs, l_max, roughness, env.lamps if lamps else None)
+        CACHES.lightings[key] = found
+    return found
 
 
-def film_texture(desc_key: str, result) -> gpu_draw.FilmTexture:
-    if desc_key not in CACHES.films:
-        CACHES.films[desc_key] = gpu_draw.FilmTexture.from_film(film_colour.film_table(result))
-    return CACHES.films[desc_key]
+def film_texture(desc_key: str, result) -> resources.FilmTexture:
+    found = CACHES.films.get(desc_key)
+    if found is None:
+        found = resources.FilmTexture.from_film(film_colour.film_table(result))
+        CACHES.films[desc_key] = found
+    return found
 
 
 def uses_lamps(bpy_material, desc) -> bool:
@@ -216,8 +310,11 @@ def uses_lamps(bpy_material, desc) -> bool:
 
 
 def lamps_summary(enabled: bool) -> str:
-    """One line for the Surface panel: what the current World's lamps are and how they are shaded."""
+    """One line for the Surface panel: what the current World's lamps are and how they are shaded,
+    or why the World could not be evaluated (it is then lit by its fallback colour)."""
     lighting = CACHES.world
+    if lighting is not None and lighting.sh.errors:
+        return lighting.sh.errors[0]
     env = lighting.environment if lighting is not None else None
     if env is None:
         return "World lamps: World not analysed yet"
@@ -228,18 +325,24 @@ def lamps_summary(enabled: bool) -> str:
     return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
-def table_texture(desc_key: str, result) -> gpu_draw.TableTexture:
-    if desc_key not in CACHES.tables:
-        CACHES.tables[desc_key] = gpu_draw.TableTexture.from_result(result)
+def table_texture(desc_key: str, result) -> resources.TableTexture:
+    found = CACHES.tables.get(desc_key)
+    if found is None:
+        found = resources.TableTexture.from_result(result)
+        CACHES.tables[desc_key] = found
         CACHES.stats["table_uploads"] += 1
-    return CACHES.tables[desc_key]
+    return found
 
 
-def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
-    """MeshBatch of the triangles of material slot ``slot`` (None if it has none)."""
-    arrays = gpu_draw.mesh_arrays(mesh)
+def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) -> BatchEntry:
+    """The batch of the triangles of material slot ``slot`` (None if it has none).
+
+    ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
+    material is not refreshed when an add-on property changes), or None; ``name``: the object's.
+    """
+    arrays = mesh_arrays(mesh)
     if arrays is None:
-        return None
+        return BatchEntry(signature, None)
     positions, normals, triangles, _ = arrays
     if len(obj_eval.material_slots) > 1:
         tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
@@ -250,23 +353,26 @@ def _slot_batch(obj_eval, mesh, slot: int, bpy_material, desc, messages):
             attr.data.foreach_get("value", poly_mat)
         triangles = triangles[poly_mat[tri_poly] == slot]
     if triangles.shape[0] == 0:
-        return None
+        return BatchEntry(signature, None)
     thickness = None
-    if (
-        desc.varies
-        and getattr(bpy_material, "thinfilm_sh", None) is not None
-        and bpy_material.thinfilm_sh.enabled
-    ):
+    notes = []
+    if desc.varies and props is not None and props.enabled:
         try:
-            thickness = thickness_per_vertex(obj_eval, mesh, bpy_material.thinfilm_sh)
+            thickness, nan_count = thickness_field(obj_eval, mesh, props)
         except ValueError as exc:
-            messages.append(f"{obj_eval.name}: {exc}; using the middle of the thickness range")
+            notes.append(f"{name}: {exc}; using the middle of the thickness range")
+        else:
+            if nan_count:
+                notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
     if desc.varies and thickness is None:
-        thickness = np.full(positions.shape[0], 0.5, dtype=np.float32)
-    if thickness is not None:
-        thickness = np.nan_to_num(np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=0.5)
+        thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
+    if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
+        thickness = np.nan_to_num(
+            np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
+        )
     CACHES.stats["batch_builds"] += 1
-    return gpu_draw.MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    return BatchEntry(signature, batch, thickness, tuple(notes))
 
 
 @dataclass
@@ -275,33 +381,108 @@ class _MaterialEntry:
 
     desc: object  # precompute Material
     key: str  # description.description_key(desc)
-    table: gpu_draw.TableTexture
-    lighting: gpu_draw.Lighting
+    table: resources.TableTexture
+    lighting: resources.Lighting
     roughness: float
     sh_weight: float
-    film: gpu_draw.FilmTexture | None = None
+    film: resources.FilmTexture | None = None
+    props: object = None  # the original material's thinfilm_sh settings when enabled, else None
+    thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
+    fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
 
 
-def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages):
-    """The material's description, table texture and lighting, or None (no film / not baked yet)."""
+def _table_of(desc, allow_bake: bool, want_bake):
+    """The baked table of ``desc``: in memory, else baked (``allow_bake``) or asked for."""
+    result = tables.peek_table(desc)
+    if result is None and allow_bake:
+        result = tables.get_table(desc)
+    elif result is None and want_bake is not None:
+        want_bake(desc)
+    return result
+
+
+def bake_failure(name: str, exc: Exception) -> str:
+    """One line on why material ``name`` could not be baked; a bug's traceback goes to a log file."""
+    text = f"material {name!r} could not be baked ({type(exc).__name__}: {' '.join(str(exc).split())}"
+    if isinstance(exc, (ValueError, OSError)):
+        return text + ")"
+    where = cli_support.write_log("thinfilm_sh", exc)
+    log.error("Thin Film SH: material %r could not be baked: %s (details in %s)", name, exc, where)
+    return text + f"; details in {where})"
+
+
+def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, messages, errors):
+    """Report why ``bpy_material`` cannot be drawn and draw it as FALLBACK (matte magenta)."""
+    messages.append(f"{why}: drawn in magenta (the fallback) until it is fixed")
+    if errors is not None:
+        errors[bpy_material.name] = why
+    result = _table_of(FALLBACK, allow_bake, want_bake)
+    if result is None:
+        return None
+    key = description.description_key(FALLBACK)
+    roughness = float(FALLBACK.roughness)
+    return _MaterialEntry(
+        FALLBACK,
+        key,
+        table_texture(key, result),
+        lighting_for(lighting, result.sh_order, roughness, False),
+        roughness,
+        policy.sh_weight(roughness),
+        fallback=True,
+    )
+
+
+def _material_entry(
+    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None
+):
+    """The material's description, table texture and lighting, or None (no film / not baked yet /
+    its bake failed in the viewport).
+
+    Invalid settings are reported in ``messages`` (and ``errors``, by material name) and the
+    material is drawn as the fallback (matte magenta). A bake that failed is remembered by
+    description key (:func:`.tables.failure`): it is not tried again, here or by ``want_bake``,
+    until the description changes, and its error is in ``messages`` (and ``errors``) on every
+    frame; a headless frame (``allow_bake``) draws it as the fallback, the viewport draws
+    nothing for it (its header and material panel say why). A table that could not be saved to
+    the disk cache is drawn, with the reason in ``messages``.
+    """
     try:
         desc = description.description(bpy_material)
-    except ValueError as exc:
-        messages.append(str(exc))  # description() names the material
-        return None
+    except ValueError as exc:  # description() names the material and the parameter
+        return _fallback_entry(bpy_material, str(exc), lighting, allow_bake, want_bake, messages, errors)
     if desc is None:
         return None
-    result = tables.peek_table(desc)
+    name = bpy_material.name
+    key = description.description_key(desc)  # ≈ 1 ms: once per material per frame
+    result = tables.MEMORY.get(key)  # tables.peek_table, by the key at hand
     if result is None:
-        if not allow_bake:
+        failed = tables.FAILURES.get(key)  # tables.failure
+        if failed is None and allow_bake:
+            try:
+                result = tables.get_table(desc)
+            except Exception as exc:  # one material's failure must not stop the others
+                tables.record_failure(desc, exc)
+                failed = bake_failure(name, exc)  # a bug's traceback goes to a log file
+        if failed is not None:
+            why = f"material {name!r}: bake failed: {failed} (not retried until it changes)"
+            if allow_bake:
+                return _fallback_entry(bpy_material, why, lighting, allow_bake, want_bake, messages, errors)
+            messages.append(why)
+            if errors is not None:
+                errors[name] = why
+            return None
+        if result is None:
             if want_bake is not None:
                 want_bake(desc)
             return None
-        result = tables.get_table(desc)
-    key = description.description_key(desc)
+    problem = tables.CACHE_ERRORS.get(key)  # tables.cache_error
+    if problem is not None:
+        messages.append(f"material {name!r}: {problem}")
     roughness = float(desc.roughness)
     env = lighting.environment
     lamps = uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    props = props if props is not None and props.enabled else None
     return _MaterialEntry(
         desc,
         key,
@@ -310,6 +491,8 @@ def _material_entry(bpy_material, lighting: WorldLighting, allow_bake: bool, wan
         roughness,
         policy.sh_weight(roughness),
         film_texture(key, result) if lamps else None,
+        props,
+        thickness_inputs(props) if props is not None and desc.varies else None,
     )
 
 
@@ -329,11 +512,16 @@ def _prefiltered_for(lighting: WorldLighting, entry):
     return textures.prefiltered_whole()
 
 
-def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None):
+def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None, errors=None):
     """Draw items for every visible mesh object with a thin-film material, and messages.
 
     With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
     skipped and passed to ``want_bake(desc)`` so the caller can bake them outside drawing.
+
+    A material that cannot be evaluated is drawn as :data:`precompute.material.FALLBACK` (matte
+    magenta, its items' ``fallback`` set), with a message naming it and the parameter; with an
+    ``errors`` dict it is also recorded there as {material name: why}. The World's errors
+    (``WorldLighting.sh.errors``) join the messages: it is lit by its fallback colour.
 
     Per frame, each material's description, table and lighting are worked out once
     (:func:`_material_entry`), not once per object using it; per object only the batch cache
@@ -347,8 +535,10 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     if lighting is None:
         return items, ["World lighting is being updated"]
     messages.extend(lighting.sh.warnings)
+    messages.extend(lighting.sh.errors)
     entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
+    used = set()  # this frame's batch keys
     for inst in depsgraph.object_instances:
         obj_eval = inst.object
         if obj_eval.type != "MESH":  # the depsgraph lists only what is visible in this view layer
@@ -361,19 +551,31 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             source = bpy_material.original if hasattr(bpy_material, "original") else bpy_material
             pointer = source.as_pointer()
             if pointer not in entries:
-                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages)
+                CACHES.make_room(materials=len(entries) + 1)
+                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages, errors)
             entry = entries[pointer]
             if entry is None:
                 continue
             key = (original.name, slot_index, inst.is_instance and inst.persistent_id[0])
             mesh = obj_eval.data
-            signature = (mesh.name, len(mesh.vertices), len(mesh.loops), entry.key)
+            signature = (
+                mesh.name,
+                len(mesh.vertices),
+                len(mesh.loops),
+                entry.desc.varies,
+                entry.thickness_key,
+            )
             cached = CACHES.batches.get(key)
-            if cached is None or cached[0] != signature or original.name in CACHES.dirty:
-                batch = _slot_batch(obj_eval, mesh, slot_index, bpy_material, entry.desc, messages)
-                CACHES.batches[key] = (signature, batch)
+            if cached is None or cached.signature != signature or original.name in CACHES.dirty:
+                CACHES.make_room(batches=len(used | {key}))
+                cached = _slot_batch(
+                    original.name, obj_eval, mesh, slot_index, entry.props, entry.desc, signature
+                )
+                CACHES.batches[key] = cached
                 seen.add(original.name)
-            batch = CACHES.batches[key][1]
+            used.add(key)
+            messages.extend(cached.notes)
+            batch = cached.batch
             if batch is None:
                 messages.append(
                     f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw"
@@ -390,7 +592,19 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     roughness=entry.roughness,
                     sh_weight=entry.sh_weight,
                     film=entry.film,
+                    fallback=entry.fallback,
                 )
             )
     CACHES.dirty -= seen
+    CACHES.fit(len(used), sum(entry is not None for entry in entries.values()))
     return items, messages
+
+
+def batch_entry(object_name: str, slot: int = 0, instance=False) -> BatchEntry | None:
+    """The cached batch of an object's material slot as the last :func:`collect` built it."""
+    return CACHES.batches.get((object_name, slot, instance))
+
+
+def object_notes(object_name: str) -> list[str]:
+    """What the last builds of ``object_name``'s batches found wrong (for the panel)."""
+    return [note for key, entry in CACHES.batches.items() if key[0] == object_name for note in entry.notes]

@@ -7,6 +7,14 @@
   then :func:`precompute.bake.bake`. Equal descriptions share one table. Thread-safe: the bake
   operator calls it from a worker thread.
 - :func:`peek_table` — the table if it is in memory (the draw callback never bakes).
+- :func:`table_cache` — the disk cache: ``--cache-dir`` (:func:`cache_dir_override`), else
+  :func:`.prefs.cache_location` (``THINFILM_SH_CACHE``, the preference, the default), with the
+  size limit of :func:`.prefs.cache_max_bytes`.
+- :func:`failure` / :func:`record_failure` — bakes that failed, by description key: the
+  viewport does not retry them until the material's description changes (or the cache is
+  cleared, or the Bake button succeeds), and the panel shows the error.
+- :func:`cache_error` — why a table could not be read from or stored in the disk cache (an
+  unusable directory, a full disk): the table is still baked and kept in memory, and drawn.
 - :func:`format_plan` / :func:`parse_plan` / :func:`shading_path` — the lines the panel shows.
 
 :data:`bake_count` counts the real bakes (cache misses) since the module was loaded; the tests
@@ -15,29 +23,39 @@ read it.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..precompute import bake, table_io
 from ..precompute.material import Material
 from ..precompute.shading import policy
-from . import caches
+from . import caches, prefs
 from .description import description_key
-from .prefs import cache_dir
 
 __all__ = [
+    "CACHE_ERRORS",
+    "FAILURES",
+    "FAILURE_MEMORY",
     "LRU_SIZE",
     "MEMORY",
+    "UnusableCache",
     "bake_count",
+    "cache_dir_override",
+    "cache_error",
     "clear_caches",
     "clear_memory_cache",
+    "failure",
     "format_plan",
     "get_table",
     "get_table_with_source",
+    "open_cache",
     "parse_plan",
     "peek_table",
+    "record_failure",
     "shading_path",
     "table_cache",
 ]
@@ -49,14 +67,75 @@ LRU_SIZE = 32
 #: Baked tables by description key (see :mod:`.caches`).
 MEMORY = caches.register("tables", caches.LRU(LRU_SIZE), scope=caches.SESSION)
 
+#: Failures remembered (distinct failing descriptions; each entry is one error line).
+FAILURE_MEMORY = 64
+#: Error text of failed bakes by description key (see :func:`failure`, :mod:`.caches`).
+FAILURES = caches.register("bake_failures", caches.LRU(FAILURE_MEMORY), scope=caches.SESSION)
+#: Why the disk cache could not be used for a description key's table (see :func:`cache_error`).
+CACHE_ERRORS = caches.register("cache_errors", caches.LRU(FAILURE_MEMORY), scope=caches.SESSION)
+
 #: Number of real bakes (cache misses) since the module was loaded; the tests read it.
 bake_count = 0
 _count_lock = threading.Lock()
+_override: str | None = None
+
+
+@contextlib.contextmanager
+def cache_dir_override(directory):
+    """Use ``directory`` for the disk cache inside the ``with`` block (the headless commands'
+    ``--cache-dir``); None changes nothing."""
+    global _override
+    saved = _override
+    if directory is not None:
+        _override = str(directory)
+    try:
+        yield
+    finally:
+        _override = saved
 
 
 def table_cache() -> table_io.TableCache:
-    """The on-disk cache in the directory chosen in the add-on preferences (or the default)."""
-    return table_io.TableCache(cache_dir())
+    """The disk cache: ``--cache-dir``, else ``THINFILM_SH_CACHE``, else the preference, else the
+    default (:func:`.prefs.cache_location`), bounded by :func:`.prefs.cache_max_bytes`.
+
+    Raises :class:`~precompute.table_io.CacheDirError` (an ``OSError``) or ``ValueError`` (a
+    malformed ``THINFILM_SH_CACHE_MAX_BYTES``) with a message for the user.
+    """
+    directory = _override if _override is not None else prefs.cache_location()[0]
+    return table_io.TableCache(directory, max_bytes=prefs.cache_max_bytes())
+
+
+@dataclass(frozen=True)
+class UnusableCache:
+    """Stands for a disk cache that could not be opened (:func:`open_cache`); ``reason`` says why."""
+
+    reason: str
+
+
+def open_cache():
+    """:func:`table_cache`, or an :class:`UnusableCache` with the reason: never raises. Call it in
+    the main thread (it reads the preferences) and hand the result to worker threads."""
+    try:
+        return table_cache()
+    except (OSError, ValueError) as exc:
+        return UnusableCache(f"table cache unusable: {exc}")
+
+
+def failure(desc: Material) -> str | None:
+    """The error of the last failed bake of ``desc`` (by description key), or None."""
+    return FAILURES.get(description_key(desc))
+
+
+def record_failure(desc: Material, exc: BaseException) -> str:
+    """Remember that baking ``desc`` failed with ``exc``; returns the error line kept."""
+    text = str(exc) if isinstance(exc, (ValueError, OSError)) and str(exc) else repr(exc)
+    FAILURES[description_key(desc)] = text
+    return text
+
+
+def cache_error(desc: Material) -> str | None:
+    """Why the table of ``desc`` is not in the disk cache (it is in memory), or None."""
+    return CACHE_ERRORS.get(description_key(desc))
 
 
 def peek_table(desc: Material):
@@ -95,14 +174,18 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
     hit = MEMORY.get(key)
     if hit is not None:
         return hit, "memory"
+    problem = None  # why the disk cache was not used: reported, never fatal
     if cache is None:
-        cache = table_cache()
-    expect = {"material": desc.to_dict()}
+        cache = open_cache()
+    if isinstance(cache, UnusableCache):
+        problem, cache = cache.reason, None
+    expect = {"material": bake.table_material(desc).to_dict()}
     table = None
-    try:
-        table = cache.load(key, expect=expect, kind=bake.FORMAT_KIND)
-    except OSError as exc:
-        log.warning("thinfilm_sh: cache %s unreadable (%s); baking", cache.directory, exc)
+    if cache is not None:
+        try:
+            table = cache.load(key, expect=expect, kind=bake.FORMAT_KIND)
+        except OSError as exc:
+            problem = f"table cache unreadable: {exc}"
     if table is not None:
         try:
             result = _from_table(table)
@@ -110,25 +193,37 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
             log.warning("thinfilm_sh: cached table %s unusable (%s); baking", table.path, exc)
         else:
             MEMORY[key] = result
+            CACHE_ERRORS.pop(key)
             return result, "disk"
     result = bake.bake(desc, progress)
     with _count_lock:
         bake_count += 1
-    try:
-        cache.store(key, result.data, _attributes(result), kind=bake.FORMAT_KIND)
-    except (OSError, ValueError) as exc:
-        log.warning("thinfilm_sh: could not store the table in %s: %s", cache.directory, exc)
-    MEMORY[key] = result
+    MEMORY[key] = result  # kept (and drawn) whatever happens to the disk copy
+    FAILURES.pop(key)
+    if cache is not None:
+        try:
+            cache.store(key, result.data, _attributes(result), kind=bake.FORMAT_KIND)
+        except (OSError, ValueError) as exc:  # TableWriteError (disk full, …), CacheDirError
+            problem = f"table not saved to the disk cache (kept in memory): {exc}"
+    if problem is None:
+        CACHE_ERRORS.pop(key)
+    else:
+        CACHE_ERRORS[key] = problem
+        log.warning("thinfilm_sh: %s", problem)
     return result, "bake"
 
 
 def get_table(desc: Material, cache=None, progress=None) -> bake.BakeResult:
     """The baked table of ``desc``: from memory, else the disk cache, else a fresh bake.
 
-    ``cache`` is a :class:`~precompute.table_io.TableCache` (default: :func:`table_cache`).
-    A corrupt disk entry is moved aside by the cache and re-baked. ``progress(fraction, text)``
-    is passed to :func:`precompute.bake.bake`; an exception it raises aborts the bake and
-    nothing is stored. Thread-safe.
+    ``cache`` is a :class:`~precompute.table_io.TableCache`, an :class:`UnusableCache` (none:
+    bake, keep in memory, report the reason) or None (:func:`open_cache`, which reads the
+    preferences: pass the cache in from the main thread when calling from a worker).
+    A corrupt disk entry is moved aside by the cache and re-baked. A disk cache that cannot be
+    used (an unsafe or uncreatable directory, a full disk) never fails the call: the table is
+    baked, kept in memory and returned, and :func:`cache_error` says what went wrong.
+    ``progress(fraction, text)`` is passed to :func:`precompute.bake.bake`; an exception it
+    raises aborts the bake and nothing is stored. Thread-safe.
     """
     return get_table_with_source(desc, cache, progress)[0]
 
@@ -139,8 +234,13 @@ def clear_memory_cache() -> None:
 
 
 def clear_caches(cache=None) -> int:
-    """Empty the in-memory tables and the disk cache; returns how many files were removed."""
+    """Empty the in-memory tables, the remembered failures and the disk cache (only the files
+    the cache wrote, :meth:`~precompute.table_io.TableCache.clear`); returns how many files were
+    removed. Raises ``OSError`` (:class:`~precompute.table_io.CacheDirError`) for an unusable
+    directory, after emptying memory."""
     clear_memory_cache()
+    FAILURES.clear()
+    CACHE_ERRORS.clear()
     return (cache or table_cache()).clear()
 
 

@@ -56,12 +56,36 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
         layout.active = settings.enabled
         row = layout.row(align=True)
         row.prop(settings, "preset")
-        if settings.last_error:
+        errors = material_errors(mat)
+        if errors:
             box = layout.box()
             box.alert = True
-            box.label(text=settings.last_error, icon="ERROR")
+            for line in errors:
+                box.label(text=line, icon="ERROR")
         for note in _safe_warnings(mat):
             layout.label(text=note, icon="INFO")
+
+
+def material_errors(mat) -> list[str]:
+    """The material panel's error lines: the last Bake button error, a failed background bake
+    of the current settings (the viewport does not retry it until they change) and why its
+    table is not in the disk cache."""
+    settings = getattr(mat, "thinfilm_sh", None)
+    lines = [settings.last_error] if settings is not None and settings.last_error else []
+    try:
+        desc = description(mat)
+    except ValueError:
+        return lines  # the warnings below say why
+    if desc is None:
+        return lines
+    key = description_key(desc)
+    failed = tables.FAILURES.get(key)  # tables.failure, by the key at hand
+    if failed is not None and failed not in lines:
+        lines.append(f"Bake failed: {failed} (not retried until the settings change)")
+    problem = tables.CACHE_ERRORS.get(key)  # tables.cache_error
+    if problem is not None:
+        lines.append(problem[:1].upper() + problem[1:])
+    return lines
 
 
 def _safe_warnings(mat) -> list[str]:
@@ -144,6 +168,10 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
                 layout.prop_search(settings, "thickness_uv_map", obj.data, "uv_layers", text="UV Map")
             else:
                 layout.prop(settings, "thickness_uv_map")
+        obj = context.object
+        if obj is not None:  # NaN values, a missing attribute: what the last draw found
+            for note in scene_draw.object_notes(obj.name):
+                layout.label(text=note, icon="ERROR")
 
 
 class THINFILM_PT_substrate(_SubPanel, Panel):

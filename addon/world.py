@@ -51,9 +51,12 @@ from .world_key import DEFAULT_WORKING_SPACE, image_path, working_space, world_k
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
+    "FALLBACK_RADIANCE",
+    "MAX_COEFFICIENT",
     "MAX_PROJECTION_WIDTH",
     "SH_CACHE",
     "WorldSH",
+    "fallback_colour",
     "world_sh",
 ]
 
@@ -90,6 +93,10 @@ class WorldSH:
     l_max : int
     working_space : str
         The blend file's working (scene linear) colour space, e.g. "Linear Rec.709".
+    errors : tuple of str
+        Why the World could not be evaluated (a NaN or Inf Strength or Color, lighting too bright
+        for float32), naming the values; ``coeffs`` are then the fallback lighting
+        (:func:`fallback_colour`). Empty for a World that was evaluated.
     """
 
     coeffs: np.ndarray
@@ -99,6 +106,55 @@ class WorldSH:
     warnings: tuple = ()
     l_max: int = 8
     working_space: str = DEFAULT_WORKING_SPACE
+    errors: tuple = ()
+
+
+#: Radiance of the fallback lighting when neither the World nor its viewport colour is finite:
+#: Blender's default World colour (sRGB 0.25, linear 0.0509): grey, never black.
+FALLBACK_RADIANCE = 0.0509
+
+#: Largest |SH coefficient| (√(4π) × radiance) accepted. The shader sums up to 169 products of a
+#: coefficient and a table entry (≤ ~1) in float32; 1e20 stays 10¹⁸ below float32's 3.4e38 and is
+#: ~10¹⁵ times the brightest sky a scene uses. Beyond it the World counts as not evaluable.
+MAX_COEFFICIENT = 1e20
+
+
+def _usable(values) -> bool:
+    v = np.asarray(values, dtype=np.float64)
+    return bool(np.all(np.isfinite(v)) and np.all(np.abs(v) <= MAX_COEFFICIENT))
+
+
+def fallback_colour(world) -> tuple[tuple, str]:
+    """The fallback lighting's radiance (RGB) and its description: the World's viewport colour
+    (World ▸ Viewport Display ▸ Color) when it is finite, non-negative and not black, else
+    :data:`FALLBACK_RADIANCE` grey (never black: the film stays visible)."""
+    colour = tuple(world.color)[:3] if world is not None else None
+    if colour is not None and _usable(colour) and min(colour) >= 0.0 and max(colour) > 0.0:
+        return colour, "the World's viewport colour"
+    return (FALLBACK_RADIANCE,) * 3, f"grey {FALLBACK_RADIANCE:g} (Blender's default World colour)"
+
+
+def _bad_values(world, limit: int = 3) -> list[str]:
+    """Unlinked node inputs (and the viewport colour) of ``world`` that are NaN, Inf or beyond
+    :data:`MAX_COEFFICIENT`, named as a user finds them: "Background 'Background' Strength = nan"."""
+    found = []
+    tree = getattr(world, "node_tree", None)
+    for node in tree.nodes if tree is not None else ():
+        for socket in node.inputs:
+            if socket.is_linked or not hasattr(socket, "default_value"):
+                continue
+            value = socket.default_value
+            try:
+                values = tuple(value) if hasattr(value, "__len__") else (float(value),)
+                ok = _usable(values)
+            except (TypeError, ValueError):
+                continue  # strings, shaders, …
+            if not ok:
+                shown = ", ".join(f"{float(v):g}" for v in values[:3])
+                found.append(f"{node.bl_rna.name} '{node.name}' {socket.name} = {shown}")
+    if world is not None and not _usable(tuple(world.color)):
+        found.append("Viewport Display Color = " + ", ".join(f"{v:g}" for v in world.color))
+    return found[:limit]
 
 
 #: World SH results by :func:`.world_key.world_key` (see :mod:`.caches`).
@@ -486,9 +542,11 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     Notes
     -----
     Never raises for odd Worlds: missing World, nodes, images or failing renders fall back
-    to the viewport colour (or black) with a warning. The panorama route runs the render
-    operator, so call this from an operator, timer or handler, not from a draw callback
-    (use :func:`.world_key.world_key` there to detect changes).
+    to the viewport colour (or black) with a warning. A World whose values are not finite (a
+    NaN or Inf Strength or Color set from Python) or too bright for float32 gives the fallback
+    lighting of :func:`fallback_colour` and an entry in ``errors`` naming the values. The
+    panorama route runs the render operator, so call this from an operator, timer or handler,
+    not from a draw callback (use :func:`.world_key.world_key` there to detect changes).
     """
     l_max = sh._check_l_max(l_max)
     cache = SH_CACHE if cache is None else cache
@@ -497,8 +555,20 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     if hit is not None:
         return hit
     space = working_space()
-    coeffs, source, rejected, warnings = _compute(scene, l_max, space)
-    coeffs = np.array(coeffs, dtype=np.float64)
+    with np.errstate(all="ignore"):  # a NaN or huge Strength is caught below, not warned about
+        coeffs, source, rejected, warnings = _compute(scene, l_max, space)
+        coeffs = np.array(coeffs, dtype=np.float64)
+    errors = ()
+    if not _usable(coeffs):  # never NaN lighting: the documented fallback, and why
+        world = scene.world
+        bad = _bad_values(world) or [
+            f"its lighting from {source} is not finite or beyond {MAX_COEFFICIENT:g}"
+        ]
+        colour, what = fallback_colour(world)
+        coeffs = _constant(l_max, colour)
+        name = f"World '{world.name}'" if world is not None else "The World"
+        errors = (f"{name} cannot be evaluated ({'; '.join(bad)}): lit by {what} instead",)
+        source = f"fallback ({what})"
     coeffs.setflags(write=False)
     result = WorldSH(
         coeffs=coeffs,
@@ -508,6 +578,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
         warnings=tuple(w for w in warnings if w),
         l_max=l_max,
         working_space=space,
+        errors=errors,
     )
     cache[key] = result
     return result

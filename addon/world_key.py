@@ -19,6 +19,7 @@ from ..precompute import table_io
 __all__ = [
     "DEFAULT_WORKING_SPACE",
     "KEY_VERSION",
+    "describe_image",
     "image_path",
     "working_space",
     "world_key",
@@ -80,8 +81,8 @@ def image_path(image) -> str:
     return bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
 
 
-def _describe_image(image) -> dict:
-    """What identifies an image's pixels, without loading them."""
+def describe_image(image) -> dict:
+    """What identifies an image's pixels, without loading them (also the thickness image's key)."""
     desc = {
         "name": image.name_full,
         "source": image.source,
@@ -134,7 +135,7 @@ def _describe_pointer(value, depth: int, seen: set):
     if value is None:
         return None
     if isinstance(value, bpy.types.Image):
-        return _describe_image(value)
+        return describe_image(value)
     if isinstance(value, bpy.types.NodeTree):
         return _describe_tree(value, seen)
     if isinstance(value, bpy.types.Object):

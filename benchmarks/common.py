@@ -6,6 +6,7 @@ machine in the same words. Colour errors come from ``precompute.colour_differenc
 
 from __future__ import annotations
 
+import importlib
 import os
 import platform
 import statistics
@@ -15,6 +16,16 @@ from collections.abc import Callable
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: The add-on's GPU layer, module by module (addon/gpu/).
+GPU_MODULES = ("context", "shaders", "resources", "mesh", "draw")
+
+
+def gpu_layer(package: str):
+    """``<package>.addon.gpu`` of the extension imported under the id ``package``, with its modules
+    imported (``layer.draw.draw_items``, ``layer.resources.TableTexture``, …)."""
+    for name in GPU_MODULES:
+        importlib.import_module(f"{package}.addon.gpu.{name}")
+    return importlib.import_module(f"{package}.addon.gpu")
 
 
 # ----------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ per-channel (Principled-like) film. Two runs of the same materials:
 
 Bakes start from cleared kernel caches in both runs (a new session); within a run the
 microfacet-kernel cache works as usual. Frames: the 12 objects as spheres, off-screen at
-960×540 through :func:`addon.gpu_draw.render_offscreen` (allocation, draw, read-back) on
+960×540 through :func:`addon.gpu.draw.render_offscreen` (allocation, draw, read-back) on
 whatever OpenGL bpy finds (Mesa llvmpipe here), median of 7 frames after a warm-up frame that
 compiles the shader variants; an empty frame is timed as the fixed cost of allocation and
 read-back.
@@ -28,7 +28,6 @@ read-back.
 
 from __future__ import annotations
 
-import importlib
 import math
 import os
 import statistics
@@ -132,14 +131,15 @@ def bake_all(materials: dict[str, Material], share: bool) -> dict:
 # Frames (bpy)
 # ----------------------------------------------------------------------------------------------
 def _extension():
-    """``thinfilm_sh.addon.gpu_draw`` through a symlink, as Blender names the extension."""
+    """``thinfilm_sh.addon.gpu`` (its modules imported) through a symlink, as Blender names the
+    extension."""
     import bpy  # noqa: F401 — Blender as a module
 
     root = Path(tempfile.mkdtemp(prefix="tf_plan_bench_"))
     os.symlink(common.ROOT, root / EXTENSION_ID, target_is_directory=True)
     sys.path.insert(0, str(root))
-    gd = importlib.import_module(f"{EXTENSION_ID}.addon.gpu_draw")
-    gd.ensure_gpu_context()
+    gd = common.gpu_layer(EXTENSION_ID)
+    gd.context.ensure_gpu_context()
     return gd
 
 
@@ -175,7 +175,7 @@ def camera():
 
 
 class Item:
-    """What gpu_draw.draw_items reads from a draw item."""
+    """What gpu.draw.draw_items reads from a draw item."""
 
     def __init__(self, batch, model_matrix, table, lighting):
         self.batch, self.model_matrix, self.table, self.lighting = batch, model_matrix, table, lighting
@@ -184,17 +184,17 @@ class Item:
 def draw_items(gd, results: dict, world, vary_all: bool) -> tuple[list, dict]:
     """Draw items for the scene from ``results`` ({name: BakeResult}) and their textures."""
     pos, nor, tris, thickness = sphere()
-    plain_batch = gd.MeshBatch.from_arrays(pos, nor, tris)
-    thick_batch = gd.MeshBatch.from_arrays(pos, nor, tris, thickness)
+    plain_batch = gd.mesh.MeshBatch.from_arrays(pos, nor, tris)
+    thick_batch = gd.mesh.MeshBatch.from_arrays(pos, nor, tris, thickness)
     textures, lightings, items = {}, {}, []
     for i, name in enumerate(sorted(results)):
         result = results[name]
         if id(result) not in textures:  # shared results → one texture
-            textures[id(result)] = gd.TableTexture.from_result(result)
+            textures[id(result)] = gd.resources.TableTexture.from_result(result)
         table = textures[id(result)]
         key = (result.sh_order, round(float(result.material.roughness), 6))
         if key not in lightings:
-            lightings[key] = gd.Lighting.from_sh(world, result.sh_order, result.material.roughness)
+            lightings[key] = gd.resources.Lighting.from_sh(world, result.sh_order, result.material.roughness)
         model = np.eye(4)
         model[0, 3], model[2, 3] = -4.5 + 3.0 * (i % 4), 2.3 - 2.3 * (i // 4)
         batch = thick_batch if (vary_all or result.material.varies) else plain_batch
@@ -210,14 +210,14 @@ def frame_times(gd, scenes: dict, shaders) -> dict:
     """
     view, proj = camera()
     images = {
-        label: gd.render_offscreen(items, view, proj, WIDTH, HEIGHT, shaders=shaders)
+        label: gd.draw.render_offscreen(items, view, proj, WIDTH, HEIGHT, shaders=shaders)
         for label, items in scenes.items()
     }
     times = {label: [] for label in scenes}
     for _ in range(FRAMES):
         for label, items in scenes.items():
             start = time.perf_counter()
-            gd.render_offscreen(items, view, proj, WIDTH, HEIGHT, shaders=shaders)
+            gd.draw.render_offscreen(items, view, proj, WIDTH, HEIGHT, shaders=shaders)
             times[label].append(time.perf_counter() - start)
     out = {}
     for label, items in scenes.items():
@@ -239,9 +239,9 @@ def frame_times(gd, scenes: dict, shaders) -> dict:
 
 def empty_frame(gd, shaders) -> float:
     view, proj = camera()
-    gd.render_offscreen([], view, proj, WIDTH, HEIGHT, shaders=shaders)
+    gd.draw.render_offscreen([], view, proj, WIDTH, HEIGHT, shaders=shaders)
     return statistics.median(
-        common.time_once(lambda: gd.render_offscreen([], view, proj, WIDTH, HEIGHT, shaders=shaders))[0]
+        common.time_once(lambda: gd.draw.render_offscreen([], view, proj, WIDTH, HEIGHT, shaders=shaders))[0]
         for _ in range(FRAMES)
     )
 
@@ -401,7 +401,7 @@ def run() -> dict:
     allon = bake_all(everything, share=False)
     print(f"  {allon['wall']:.1f} s wall, {allon['cpu']:.1f} s CPU; drawing …", flush=True)
     gd = _extension()
-    shaders = gd.ShaderCache()
+    shaders = gd.shaders.ShaderCache()
     empty = empty_frame(gd, shaders)
     frames = frame_times(
         gd,
@@ -495,7 +495,7 @@ def report(res: dict) -> str:
         "The plan also carries the resolved `bake.Plan` — SH order from roughness (`auto_sh_order`), view"
         " angles, thickness rows, wavelengths — the table shape and bytes (float32, and the RGBA32F texture),"
         " the estimated bake time, the per-pixel shader cost and the shader variant's defines"
-        " (`TF_L_MAX`, `TF_SPECTRAL`, `TF_VARY_THICKNESS`; `gpu_draw.ShaderCache` compiles each variant"
+        " (`TF_L_MAX`, `TF_SPECTRAL`, `TF_VARY_THICKNESS`; `gpu.shaders.ShaderCache` compiles each variant"
         " once),"
         " and a reason for every choice (`MaterialPlan.reasons`).",
         "",

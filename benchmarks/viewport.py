@@ -5,7 +5,7 @@ Usage (from the repository root)::
     .venv/bin/python -m benchmarks.viewport            # → docs/performance.md (about 12 min here)
     .venv/bin/python -m benchmarks.viewport --quick    # smoke run (< 1 min), writes nothing
     .venv/bin/python -m benchmarks.viewport --baseline REV
-        # also draws every headline frame with revision REV's addon/gpu_draw.py + glsl/ (a git
+        # also draws every headline frame with revision REV's addon/gpu/ + glsl/ (a git
         # worktree), interleaved with the current code: before/after of an optimisation
 
 Everything runs in one bpy process on whatever OpenGL bpy finds (Mesa llvmpipe on the machine
@@ -16,7 +16,7 @@ viewport's display-referred output):
   factory settings of a 3D view (studio light, material colour, object outline, the scene's
   viewport anti-aliasing), overlays off.
 - *ours*: what the viewport's draw callback does per frame: ``scene_draw.collect`` (nothing is
-  baked or rendered in it) and ``gpu_draw.draw_items`` with sRGB display output, into the same
+  baked or rendered in it) and ``gpu.draw.draw_items`` with sRGB display output, into the same
   off-screen buffer after a clear; no Workbench pass underneath.
 
 Each timed frame ends with a 1-pixel ``read_color`` of the off-screen buffer, which waits until
@@ -28,7 +28,7 @@ repeated frames and the ratio is ours / Workbench of those medians.
 Scenes: N ∈ {1, 10, 100} tori (each its own mesh, smooth shaded, quads) sharing the total
 triangle count T, laid out on a grid in front of the camera, all with one thin-film material
 (a 400 nm film of n = 1.33 on glass, spectral, constant thickness, rough enough to be drawn by
-SH alone; its SH order forced through the material's Quality), lit by Blender's ``studio`` HDRI
+SH alone; its l_max forced through the material's Quality), lit by Blender's ``studio`` HDRI
 as the World.
 """
 
@@ -63,7 +63,7 @@ OBJECT_COUNTS = (1, 10, 100)
 TRIANGLES = (10_000, 100_000, 1_000_000, 2_000_000)
 #: 4K only for these (objects, triangles): a Workbench frame takes 6-9 s there on llvmpipe.
 CELLS_4K = ((10, 10_000), (10, 2_000_000))
-#: SH order n means bands l ≤ n − 1; the headline is order 3.
+#: The headline is l_max = 2 (bands l ≤ 2; docs/conventions.md: "SH order" is l_max).
 HEADLINE_L = 2
 SWEEP_L = (*range(1, 9), 10, 12)
 #: The scene of the order sweep and of the split-sum comparison: (objects, triangles).
@@ -101,14 +101,16 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("gpu_draw", "scene_draw", "props", "headless"):
+        for name in ("scene_draw", "props", "headless"):
             setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        self.gpu_draw.ensure_gpu_context()
+        self.gpu = common.gpu_layer(EXTENSION_ID)
+        self.gpu.context.ensure_gpu_context()
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
         self.package.register()  # harmless when registered; the file load cleared the caches
 
     def baseline(self, rev: str):
-        """``addon.gpu_draw`` of git revision ``rev`` as a second package (a detached worktree)."""
+        """The draw module of git revision ``rev`` (``addon.gpu.draw``, ``addon.gpu_draw`` before the
+        GPU layer was a package) as a second package (a detached worktree)."""
         tree = self.root / "baseline_tree"
         subprocess.run(
             ["git", "worktree", "add", "--detach", str(tree), rev],
@@ -117,7 +119,8 @@ class Extension:
             capture_output=True,
         )
         os.symlink(tree, self.root / BASELINE_ID, target_is_directory=True)
-        module = importlib.import_module(f"{BASELINE_ID}.addon.gpu_draw")
+        name = "addon.gpu.draw" if (tree / "addon" / "gpu" / "draw.py").is_file() else "addon.gpu_draw"
+        module = importlib.import_module(f"{BASELINE_ID}.{name}")
         commit = subprocess.run(
             ["git", "log", "-1", "--format=%h %s", rev], cwd=common.ROOT, capture_output=True, text=True
         ).stdout.strip()
@@ -207,7 +210,7 @@ class Scene:
         self.scene.world = world
 
     def material(self, l_max: int, case: str = "sh"):
-        """The film material at SH order ``l_max`` and roughness of ``case`` (made once)."""
+        """The film material at ``l_max`` and roughness of ``case`` (made once)."""
         import bpy
 
         key = (int(l_max), case)
@@ -354,30 +357,30 @@ class Frame:
         )
         return items
 
-    def ours(self, items_hook=None, gpu_draw=None) -> None:
+    def ours(self, items_hook=None, draw_module=None) -> None:
         """One frame of the viewport callback: collect, draw, finish."""
         import gpu
 
-        gd = self.scene.ext.gpu_draw if gpu_draw is None else gpu_draw
+        draw = self.scene.ext.gpu.draw if draw_module is None else draw_module
         self.next_view()
         with self.offscreen.bind():
             gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
             items = self.items()
             if items_hook is not None:
                 items = items_hook(items)
-            gd.draw_items(items, self.view, self.proj, display_srgb=True)
+            draw.draw_items(items, self.view, self.proj, display_srgb=True)
             self._finish()
 
     def coverage(self) -> float:
         """Fraction of the frame our draw covers."""
         import gpu
 
-        gd = self.scene.ext.gpu_draw
+        gd = self.scene.ext.gpu
         with self.offscreen.bind():
             fb = gpu.state.active_framebuffer_get()
             fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-            gd.draw_items(self.items(), self.view, self.proj, display_srgb=True)
-            rgba = gd.read_framebuffer(fb, self.width, self.height)
+            gd.draw.draw_items(self.items(), self.view, self.proj, display_srgb=True)
+            rgba = gd.draw.read_framebuffer(fb, self.width, self.height)
         return float(np.mean(rgba[..., 3] > 0.5))
 
 
@@ -423,7 +426,7 @@ def frame_cell(scene: Scene, res: str, repeats: int, cases=None, baseline=None) 
         for name, hook in (cases or {}).items():
             draws[name] = lambda hook=hook: frame.ours(items_hook=hook)
         if baseline is not None:
-            draws["baseline"] = lambda: frame.ours(items_hook=_as_plain_items, gpu_draw=baseline)
+            draws["baseline"] = lambda: frame.ours(items_hook=_as_plain_items, draw_module=baseline)
         times = interleaved(draws, repeats)
         out = {name: median_ms(t) for name, t in times.items()}
         out["times"] = times
@@ -436,7 +439,7 @@ def frame_cell(scene: Scene, res: str, repeats: int, cases=None, baseline=None) 
 
 
 def _as_plain_items(items):
-    """Draw items as another revision's gpu_draw reads them (its MeshBatch class is not ours)."""
+    """Draw items as another revision's draw module reads them (its MeshBatch class is not ours)."""
     from types import SimpleNamespace
 
     return [
@@ -504,7 +507,7 @@ def order_sweep(scene: Scene, quick: bool, baseline=None, orders=None, log=print
         cell = frame_cell(scene, res, repeats_for(w, h, triangles, quick), baseline=baseline)
         rows.append({"l_max": l_max, "objects": objects, "triangles": scene.triangles, "res": res, **cell})
         log(
-            f"  order {l_max + 1} (l ≤ {l_max}) {res}: Workbench {cell['workbench']:7.1f} ms,"
+            f"  l_max = {l_max} {res}: Workbench {cell['workbench']:7.1f} ms,"
             f" ours {cell['ours']:7.1f} ms ({cell['ours'] / cell['workbench']:.2f}×)"
             + (f", baseline {cell['baseline']:7.1f} ms" if "baseline" in cell else "")
         )
@@ -589,8 +592,8 @@ def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dic
     """Per-frame CPU work in this (Python) thread with nothing changed, by triangle count.
 
     ``collect``: ``scene_draw.collect`` as the draw callback calls it. ``prepare``:
-    ``gpu_draw.prepare_draw`` (matrices → uniform buffers, variants, grouping). ``submit``:
-    ``gpu_draw.submit`` (state, binds, draw calls); on llvmpipe this includes the driver's vertex
+    ``gpu.draw.prepare_draw`` (matrices → uniform buffers, variants, grouping). ``submit``:
+    ``gpu.draw.submit`` (state, binds, draw calls); on llvmpipe this includes the driver's vertex
     processing, which runs in the calling thread, so it is listed but is not Python work.
     Thread CPU time (``time.thread_time``), median of ``runs`` frames after 3 warm-up frames.
     With a ``baseline`` module its ``draw_items`` is timed in the same frames (after ours).
@@ -598,7 +601,7 @@ def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dic
     import bpy
     import gpu
 
-    gd, sd = scene.ext.gpu_draw, scene.ext.scene_draw
+    gd, sd = scene.ext.gpu, scene.ext.scene_draw
     runs = 5 if quick else PYTHON_FRAMES
     rows = []
     w, h = 320, 180  # small: the fragment work does not matter here
@@ -618,17 +621,17 @@ def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dic
                     if k == 3:  # warm: count from here
                         counters = {
                             "rebuilt": sd.CACHES.stats["batch_builds"],
-                            "compiled": gd.SHADERS.compile_count,
-                            "ubo_allocations": gd.UNIFORMS.stats["allocations"],
-                            "ubo_uploads": gd.UNIFORMS.stats["uploads"],
+                            "compiled": gd.shaders.SHADERS.compile_count,
+                            "ubo_allocations": gd.draw.UNIFORMS.stats["allocations"],
+                            "ubo_uploads": gd.draw.UNIFORMS.stats["uploads"],
                         }
                     fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
                     t0 = time.thread_time()
                     items, _ = sd.collect(depsgraph, allow_bake=False, allow_world=False)
                     t1 = time.thread_time()
-                    prepared = gd.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
+                    prepared = gd.draw.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
                     t2 = time.thread_time()
-                    gd.submit(prepared)
+                    gd.draw.submit(prepared)
                     t3 = time.thread_time()
                     frame._finish()
                     if baseline is not None:
@@ -649,7 +652,7 @@ def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dic
                 t0 = time.thread_time()
                 items, _ = sd.collect(depsgraph, allow_bake=False, allow_world=False)
                 t1 = time.thread_time()
-                gd.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
+                gd.draw.prepare_draw(items, frame.view, frame.proj, display_srgb=True)
                 t2 = time.thread_time()
                 if k >= 3:
                     samples["collect_alone"].append(t1 - t0)
@@ -659,9 +662,9 @@ def python_time(scene: Scene, quick: bool, baseline=None, log=print) -> list[dic
         row = {"objects": objects, "triangles": scene.triangles, "materials": objects if distinct else 1}
         row.update({k: median_ms(v) for k, v in samples.items() if v})
         row["rebuilt"] = sd.CACHES.stats["batch_builds"] - counters["rebuilt"]
-        row["compiled"] = gd.SHADERS.compile_count - counters["compiled"]
-        row["ubo_allocations"] = gd.UNIFORMS.stats["allocations"] - counters["ubo_allocations"]
-        row["ubo_uploads"] = gd.UNIFORMS.stats["uploads"] - counters["ubo_uploads"]
+        row["compiled"] = gd.shaders.SHADERS.compile_count - counters["compiled"]
+        row["ubo_allocations"] = gd.draw.UNIFORMS.stats["allocations"] - counters["ubo_allocations"]
+        row["ubo_uploads"] = gd.draw.UNIFORMS.stats["uploads"] - counters["ubo_uploads"]
         rows.append(row)
         if distinct:
             scene.assign(HEADLINE_L)  # back to the one shared material
@@ -794,7 +797,7 @@ def report(res: dict) -> str:
         worst, typical = head["worst"], head["typical"]
         verdict = "met" if ratio(worst) <= RATIO_LIMIT else "**not met**"
         lines += [
-            f"- **SH order 3 (l ≤ 2) at 1080p: ours / Workbench = {ratio(typical):.2f}×** for"
+            f"- **l_max = 2 at 1080p: ours / Workbench = {ratio(typical):.2f}×** for"
             f" {_objects(typical['objects'])} with {_tri(typical['triangles'])} triangles"
             f" ({typical['ours']:.0f} ms vs {typical['workbench']:.0f} ms, median frames, same run); over"
             f" all {len(head['cells'])} scenes at 1080p"
@@ -892,7 +895,7 @@ def gpu_statement(res: dict) -> str:
             " cannot run on the GPU machine lent to some tasks. Our draw alone (the same shaders and"
             " data, recorded from the extension) was timed on an NVIDIA H100 by"
             " `benchmarks/gpu_frame/`: [gpu-frame.md](gpu-frame.md), including the 1 M-triangle"
-            " figure (1080p, SH order 5: 70 fps there, not the 240 asked for, on a GPU whose graphics"
+            " figure (1080p, l_max = 4: 70 fps there, not the 240 asked for, on a GPU whose graphics"
             " hardware is a small part of the chip)."
         )
     return f"measured on {renderer}."
@@ -908,7 +911,7 @@ def _method_lines() -> list[str]:
         " (listed above), overlays off: Blender's plain solid draw of the same objects.",
         "- **Ours**: what the viewport's draw callback does each frame: clear, `scene_draw.collect`"
         " (draw items from the depsgraph, with every cache warm: nothing is baked, rendered or rebuilt)"
-        " and `gpu_draw.draw_items` (display sRGB). The Workbench pass that the viewport draws underneath"
+        " and `gpu.draw.draw_items` (display sRGB). The Workbench pass that the viewport draws underneath"
         " is not part of it.",
         "- **The view moves by a negligible amount before every frame** (1e-6…1e-4 sideways), as while"
         " orbiting. With an unchanged view and scene `draw_view3d` does not draw the scene at all: it"
@@ -926,7 +929,7 @@ def _method_lines() -> list[str]:
         + " (a Workbench frame takes 6–9 s there).",
         "- Scenes: N tori (each its own mesh of quads, smooth shaded) sharing T triangles on a grid"
         " facing the camera; all with one film material: 400 nm of n = 1.33 on glass, constant thickness,"
-        f" spectral colour, roughness {rough['sh']:g} (drawn by SH alone: `sh_weight` = 1), SH order"
+        f" spectral colour, roughness {rough['sh']:g} (drawn by SH alone: `sh_weight` = 1), l_max"
         " forced through the material's Quality; the World is Blender's"
         f" `{HDRI}` studio-light HDRI, whose small bright lamps the films shade per light direction"
         ' (the material\'s "World Lamps", on by default: a loop over 8 lamps in every variant, about'
@@ -944,7 +947,7 @@ def _grid_section(res: dict) -> list[str]:
         return []
     resolutions = [r for r in RESOLUTIONS if any(x["res"] == r for x in rows)]
     out = [
-        f"## Frame time at SH order {HEADLINE_L + 1} (l ≤ {HEADLINE_L}): objects × triangles × resolution",
+        f"## Frame time at l_max = {HEADLINE_L}: objects × triangles × resolution",
         "",
         "Median frame time in ms, Workbench / ours, and the ratio ours ÷ Workbench.",
         "",
@@ -1014,18 +1017,18 @@ def _sweep_section(res: dict) -> list[str]:
     r0 = rows[0]
     base = any("baseline" in r for r in rows)
     out = [
-        "## Every SH order",
+        "## Every l_max",
         "",
-        f"{r0['objects']} objects, {_tri(r0['triangles'])} triangles, {r0['res']}; order n = bands l ≤ n − 1."
-        f" The headline order is {HEADLINE_L + 1}.",
+        f"{r0['objects']} objects, {_tri(r0['triangles'])} triangles, {r0['res']}."
+        f" The headline is l_max = {HEADLINE_L}.",
         "",
-        "| SH order | l ≤ | Workbench ms | ours ms | ours fps | ratio |" + (" baseline ms |" if base else ""),
-        "|---|---|---|---|---|---|" + ("---|" if base else ""),
+        "| l_max | Workbench ms | ours ms | ours fps | ratio |" + (" baseline ms |" if base else ""),
+        "|---|---|---|---|---|" + ("---|" if base else ""),
     ]
     for r in rows:
         mark = " **(headline)**" if r["l_max"] == HEADLINE_L else ""
         out.append(
-            f"| {r['l_max'] + 1}{mark} | {r['l_max']} | {r['workbench']:.0f} | {r['ours']:.0f} |"
+            f"| {r['l_max']}{mark} | {r['workbench']:.0f} | {r['ours']:.0f} |"
             f" {_fps(r['ours'])} | {r['ours'] / r['workbench']:.2f}× |"
             + (f" {r['baseline']:.0f} |" if base else "")
         )
@@ -1048,7 +1051,7 @@ def _split_sum_section(res: dict) -> list[str]:
         " variant runs both the prefiltered lookup and the SH sum) and split sum only (roughness"
         f" {rough['split']:g}, `sh_weight` {w['split']:.2f}: the `TF_SPLIT_ONLY` variant, no SH half)."
         " The prefiltered World is a 3-D texture, radiance and direction-moment levels"
-        " (`gpu_draw.PrefilterTexture`); the combined film reads the moment (a second fetch) from"
+        " (`gpu.resources.PrefilterTexture`); the combined film reads the moment (a second fetch) from"
         " l = 6 on, split-only films always (`prefilter.uses_moment`, `TF_MOMENT`). Each film is drawn"
         " twice: as the product draws it, with the"
         f" World's lamps shaded per light direction ({r0.get('lamps', {}).get('sh', 0)} lamps in this"
@@ -1108,7 +1111,7 @@ def _split_sum_section(res: dict) -> list[str]:
     else:
         out += [
             "",
-            "Split sum only draws the `TF_SPLIT_ONLY` variant (`gpu_draw.prepare_draw` picks it for"
+            "Split sum only draws the `TF_SPLIT_ONLY` variant (`gpu.draw.prepare_draw` picks it for"
             " `sh_weight` = 0), which compiles the SH half out; a run-time branch on the weight did"
             " not save it on llvmpipe (split only then cost as much as combined, within 5 %). Glossy"
             " films (roughness ≤ 0.2) are drawn this way.",
@@ -1143,7 +1146,7 @@ def _python_section(res: dict) -> list[str]:
         f"CPU time of the drawing thread (`time.thread_time`), median of {PYTHON_FRAMES} frames at l ≤ 2,"
         " one shared"
         " material: `collect` = `scene_draw.collect` (depsgraph → draw items; caches warm), `prepare` ="
-        " `gpu_draw.prepare_draw` (uniform buffers, variants, grouping), `submit` = `gpu_draw.submit`"
+        " `gpu.draw.prepare_draw` (uniform buffers, variants, grouping), `submit` = `gpu.draw.submit`"
         " (state, binds, draw calls). On llvmpipe `submit` also contains the driver's vertex shading and"
         " binning, which run in the calling thread, so it grows with the triangles; on a GPU that work"
         " is the GPU's. The Python work is `collect` + `prepare`; it depends on the number of objects"
@@ -1188,7 +1191,7 @@ def _python_section(res: dict) -> list[str]:
         f" rebuilt, {sum(r['compiled'] for r in all_rows)} shader variants compiled,"
         f" {sum(r['ubo_allocations'] for r in all_rows)} uniform buffers allocated and"
         f" {sum(r['ubo_uploads'] for r in all_rows)} updated (`scene_draw.CACHES.stats`,"
-        " `gpu_draw.SHADERS.compile_count`, `gpu_draw.UNIFORMS.stats`);"
+        " `gpu.shaders.SHADERS.compile_count`, `gpu.draw.UNIFORMS.stats`);"
         " tests/test_viewport_perf_invariants.py checks each of these properties.",
     ]
     if any("baseline" in r for r in all_rows):
@@ -1271,7 +1274,7 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, 
             log("grid at the headline order …")
             res["grid"] = grid(scene, quick, baseline, log)
         if "sweep" in parts:
-            log("SH order sweep …")
+            log("l_max sweep …")
             res["sweep"] = order_sweep(scene, quick, baseline, orders, log)
         if "split_sum" in parts:
             log("split sum vs SH …")
@@ -1293,7 +1296,7 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke run (< 1 min) that writes nothing")
-    parser.add_argument("--baseline", metavar="REV", help="also draw with git revision REV's gpu_draw")
+    parser.add_argument("--baseline", metavar="REV", help="also draw with git revision REV's draw module")
     parser.add_argument(
         "--only", nargs="+", choices=PARTS, help="measure only these parts (prints, writes nothing)"
     )

@@ -1,8 +1,10 @@
+#include "tf_common.glsl"
+
 /* tf_background_frag.glsl: the World's equirectangular image behind everything.
  *
  * numpy counterpart: hdri.equirect_lookup (conventions.md mapping): u = 1/2 - phi / 2pi with
  * phi = atan2(y, x), texture row 0 = the image's top row (theta = 0), so t = theta / pi.
- * Texture `tf_environment`: RGBA32F, hardware LINEAR filtering, REPEAT in u, EXTEND in t.
+ * Texture `tf_environment`: addon/gpu/resources.py EnvironmentTexture (hardware LINEAR filtering).
  * The ray is unprojected through the inverse view-projection matrix (perspective or ortho).
  */
 

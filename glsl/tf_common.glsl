@@ -7,7 +7,7 @@
  *   TF_SPECTRAL        3x3 colour matrix per coefficient (else one RGB triple, per channel)
  *   TF_VARY_THICKNESS  thickness from the per-vertex attribute `thickness` in [0, 1]
  *   TF_DISPLAY_SRGB    output display-encoded (exposure, clamp, sRGB OETF), else scene-linear
- * Set at the top of the joined library by gpu_draw.shading_library:
+ * Set at the top of the joined library by addon/gpu/shaders.py shading_library:
  *   TF_X90_GENERATED   the X(+-90) products come as generated straight-line code
  * Shading rules, never typed here (precompute/shading/policy.py glsl_defines, declared with
  * the variant's defines):

@@ -1,3 +1,5 @@
+#include "tf_common.glsl"
+
 /* tf_frame.glsl: the view-aligned shading frame and its z-y-z Euler angles.
  *
  * numpy counterpart: shading.frame.view_aligned_frame and shading.frame.zyz_from_frame.

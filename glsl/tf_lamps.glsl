@@ -1,14 +1,15 @@
+#include "tf_common.glsl"
+#include "tf_frame.glsl"
+#include "tf_table.glsl"
+
 /* tf_lamps.glsl: the World's lamps, shaded per light direction.
  *
  * numpy counterpart: shading.lamps.shade (and the weights of shading.split_sum.shade_combined).
- * Lamps: tf_lighting.lamps[0].x = count K <= TF_MAX_LAMPS; lamps[1 + 2k].xyz = direction
- * (unit, towards the lamp), lamps[2 + 2k].rgb = power (sum of L d omega).
- * Texture `tf_film` (sampler2DArray, RGBA32F): width U = u = cos theta uniform 0..1 inclusive,
- * height T = the table's thickness rows; TF_SPECTRAL: layers 0..2 = rows of the film's 3x3
- * reflectance, layer 3 = the multiple-scattering factor at view cosine u; otherwise layer 0 =
- * the RGB reflectance, layer 1 = the factor. Interpolated in full float32 like tf_table.
- * With TF_FILM_UBO the same texels come from the uniform buffer tf_film_data (texel (row,
- * column, layer) at (row * U + column) * layers + layer), as TF_TABLE_UBO for the table.
+ * Lamps: count, directions and powers in tf_lighting.lamps (layout: addon/gpu/resources.py
+ * LIGHTING). Texture `tf_film`: the film's reflectance against u = cos theta and, in its last
+ * layer, the multiple-scattering factor (resources.FilmTexture); with TF_FILM_UBO the same
+ * texels come from the uniform buffer tf_film_data (resources.FILM), as TF_TABLE_UBO for the
+ * table. Interpolated in full float32 like tf_table.
  * Each lamp: D G2 F(v.h) / (4 cos theta_o) x power (Walter et al. 2007; height-correlated
  * Smith G2, Heitz 2014), as brdf.D_ggx and brdf.G2_smith_height_correlated.
  */

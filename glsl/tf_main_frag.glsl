@@ -1,9 +1,13 @@
+#include "tf_shade.glsl"
+
 /* tf_main_frag.glsl: shade a mesh fragment.
  *
  * numpy counterpart: shading.sh_sum.shade_sh (via tf_shade) with image_io.srgb_encode for display.
  * v = normalize(camera - position) in perspective, the constant direction towards the viewer
  * in orthographic views (tf_view.camera.w = 1); the normal is flipped to face the viewer
  * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF.
+ * tf_lamps.glsl (TF_LAMPS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
+ * for the variants that have them (addon/gpu/shaders.py).
  */
 
 void main()

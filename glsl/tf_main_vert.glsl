@@ -1,8 +1,9 @@
 /* tf_main_vert.glsl: world-space position and normal of a mesh vertex.
  *
  * numpy counterpart: none (geometry); the normal matrix is inverse-transpose(model) 3x3,
- * computed in Python (addon/gpu_draw.py). Vertex inputs: pos, nor (object space) and, with
- * TF_VARY_THICKNESS, thickness in [0, 1]. UBOs: tf_view (TFView), tf_object (TFObject).
+ * computed in Python (addon/gpu/draw.py object_uniforms). Vertex inputs: pos, nor (object space)
+ * and, with TF_VARY_THICKNESS, thickness in [0, 1]. Uniform buffers: tf_view, tf_object (layouts:
+ * addon/gpu/resources.py VIEW, OBJECT).
  */
 
 void main()

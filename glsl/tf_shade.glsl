@@ -1,3 +1,7 @@
+#include "tf_frame.glsl"
+#include "tf_sh_rotate.glsl"
+#include "tf_table.glsl"
+
 /* tf_shade.glsl: one pixel of thin-film SH shading.
  *
  * numpy counterpart: shading.sh_sum.shade_sh. Frame, rotation of the World's SH into it (z-y-z; in the
@@ -6,8 +10,8 @@
  * lookup at theta_o (and thickness), out = max(sum_i M_i L_i, 0) over the kept (m >= 0)
  * coefficients i = l(l+1)+m, ordered by l then m (bake.coefficient_indices).
  *
- * The sum is written out per band like tf_rotate_z (tf_sh_rotate.glsl), so that every index
- * into tf_c is a constant.
+ * The sum is written out per band, so that every index into tf_c is a constant. Above l = 2 the
+ * library reaches it only with the reference rotation (tests/glsl/tf_sh_rotate_loops.glsl).
  *
  * n, v: unit normal and unit direction towards the viewer (world space); thickness01: the
  * position on the table's thickness axis in [0, 1] (ignored without TF_VARY_THICKNESS).
@@ -49,15 +53,14 @@ vec3 tf_shade_at(TFFrame f, TFLerp r)
 #else
 #if TF_L_MAX <= 2 && defined(TF_X90_GENERATED)
   tf_local_coefficients_direct(f);
-#else
+#else /* the reference: tf_local_coefficients of tests/glsl/tf_sh_rotate_loops.glsl */
   vec2 a, b, c;
   tf_zyz_from_frame(f, a, b, c);
   tf_local_coefficients(a, b, c);
 #endif
 
   /* Written out band by band, (k, i) constant: a loop that computes the index into tf_c makes
-   * the compiler move tf_c out of registers (measured on llvmpipe: 1.6x the frame at l <= 2,
-   * 2.2x at l <= 8; benchmarks/viewport.py). */
+   * the compiler move tf_c out of registers (docs/tuning.md#constant-indices). */
   vec3 sum = vec3(0.0);
   tf_accumulate(sum, r, 0, 0);
 #if TF_L_MAX >= 1

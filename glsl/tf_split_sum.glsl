@@ -1,12 +1,14 @@
+#include "tf_shade.glsl"
+
 /* tf_split_sum.glsl: glossy films by the split sum, blended with SH by roughness.
  *
  * numpy counterpart: shading.split_sum.shade_split_sum and shading.split_sum.shade_combined,
  * with the prefiltered levels resampled to one size (prefilter.Prefiltered.resampled).
- * Texture `tf_prefiltered` (sampler3D, RGBA32F, LINEAR, REPEAT in u, EXTEND in v and z), depth
- * 2 J: slice j < J = the World prefiltered by a GGX lobe of roughness
- * TF_LADDER_ROUGHNESS(j / (J - 1)) (policy.ROUGHNESS_LEVELS), equirect
- * (conventions.md mapping); slice J + j = the same prefilter of luminance x direction
- * (Prefiltered.moments). The blend of two levels is the linear filter in z: one fetch each.
+ * Texture `tf_prefiltered` (addon/gpu/resources.py PrefilterTexture), depth 2 J: slice j < J =
+ * the World prefiltered by a GGX lobe of roughness TF_LADDER_ROUGHNESS(j / (J - 1)), equirect
+ * (conventions.md mapping); slice J + j = its moment (Prefiltered.moments). The blend of two
+ * levels is the linear filter in z: one fetch each.
+ * With TF_LAMPS, tf_lamps.glsl is joined before this chunk (addon/gpu/shaders.py).
  * Split sum (Karis 2013): film albedo (the l = 0 table entry x sqrt(4 pi), a 3x3 matrix or 3
  * factors) times the prefiltered radiance in the reflection direction; with TF_MOMENT the albedo
  * is read at the half-vector angle of the lobe's light-weighted mean direction

@@ -1,21 +1,21 @@
+#include "tf_common.glsl"
+
 /* tf_table.glsl: bilinear lookup of the baked table at (theta_o, thickness).
  *
  * numpy counterpart: shading.table.lerp_index and shading.table.lookup.
- * Texture `tf_table` (sampler2DArray, RGBA32F): width A = view angles (theta_o uniform
- * 0..90 deg inclusive), height T = thickness rows, one layer per table row:
- *   TF_SPECTRAL: layer 3i+k = row k of the 3x3 matrix of kept coefficient i (.rgb = lighting RGB)
- *   otherwise:   layer i = the RGB factors of kept coefficient i.
- * Without TF_VARY_THICKNESS the first thickness row is used (table.lookup without thickness).
+ * Texture `tf_table`: width A = view angles (theta_o uniform 0..90 deg inclusive), height T =
+ * thickness rows, one layer per table row (3 per kept coefficient with TF_SPECTRAL); layout in
+ * addon/gpu/resources.py (TableTexture). Without TF_VARY_THICKNESS the first thickness row is
+ * used (table.lookup without thickness).
  * With TF_TABLE_UBO the same texels come from the uniform buffer tf_table_data instead (small
- * tables; cheaper loads on llvmpipe).
+ * tables on policy.TABLE_UBO_DEVICES; layout: resources.TABLE).
  * Interpolation is done here with texelFetch (4 fetches, 2 for one thickness row), in full
  * float32: hardware filtering quantises the weights (8 bits of sub-texel precision on common
  * GPUs) and would not reproduce table.lookup to 1e-4.
  */
 
 /* The table's size (A, T, layers) and one texel's .rgb, from the texture or, with TF_TABLE_UBO,
- * from the uniform buffer tf_table_data (gpu_draw.TableTexture.ubo: the same values, texel
- * (row, column, layer) at (row * A + column) * layers + layer). */
+ * from the uniform buffer tf_table_data (the same values; resources.TABLE). */
 #ifdef TF_TABLE_UBO
 ivec3 tf_table_size()
 {

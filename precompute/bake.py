@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -242,14 +242,16 @@ def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_m
 # Automatic choices
 # ----------------------------------------------------------------------------------------------
 def optical_path_nm(material: Material) -> float:
-    """Upper bound of the round-trip optical path 2 Σ |N_j| d_j over the film (nm), at max thickness."""
+    """Upper bound of the round-trip optical path 2 Σ |N_j| d_j over the film (nm), at max thickness.
+
+    A varying top layer counts at the top of its range (the thickest row of the table), never at
+    its own ``thickness_nm``, which the table does not use (:func:`table_material`).
+    """
     wl = np.array(
         [spectra.WAVELENGTH_MIN_NM if hasattr(spectra, "WAVELENGTH_MIN_NM") else constants.WAVELENGTH_MIN_NM]
     )
     total = 0.0
-    for i, (model, d) in enumerate(zip(material.indices()[1:-1], material.thicknesses(), strict=False)):
-        if i == 0 and material.varies:
-            d = max(d, material.thickness_range_nm[1])
+    for model, d in zip(material.indices()[1:-1], table_material(material).thicknesses(), strict=False):
         total += float(np.abs(model.index(wl))[0]) * d
     return 2.0 * total
 
@@ -647,15 +649,39 @@ U_TOLERANCE_CHANNELS = 1e-3
 PLANNER_VERSION = 3
 
 
+def table_material(material: Material) -> Material:
+    """``material`` as its table sees it: what the table does not depend on set to one value.
+
+    With a thickness range the top layer's thickness at each table row is the row's value, so
+    the layer's own ``thickness_nm`` is unused; it is set to the top of the range (the thickest
+    row, where the wavelength count and the u nodes are planned). Two materials that differ only
+    in that unused value then share one plan, one key and one table. Other materials are
+    returned unchanged (the same object).
+    """
+    if not material.varies:
+        return material
+    top = material.layers[0]
+    hi = float(material.thickness_range_nm[1])
+    if float(top.thickness_nm) == hi:
+        return material
+    return material.with_(layers=(replace(top, thickness_nm=hi), *material.layers[1:]))
+
+
 def table_key(material: Material) -> str:
-    """Cache key of a material's table: its parameters and :data:`PLANNER_VERSION`."""
-    return table_io.content_key({"material": material.to_dict(), "planner": PLANNER_VERSION})
+    """Cache key of a material's table: the parameters it uses (:func:`table_material`) and
+    :data:`PLANNER_VERSION`."""
+    return table_io.content_key({"material": table_material(material).to_dict(), "planner": PLANNER_VERSION})
 
 
 def bake(material: Material, progress=None) -> BakeResult:
-    """Fast factorised bake of ``material`` (see the module docstring). ``progress(fraction, text)``."""
+    """Fast factorised bake of ``material`` (see the module docstring). ``progress(fraction, text)``.
+
+    The result's ``material`` is :func:`table_material` of ``material`` (what the table depends
+    on), so equal keys give equal tables and equal header attributes.
+    """
     t0 = time.perf_counter()
     report = progress or (lambda fraction, text: None)
+    material = table_material(material)
     p = plan(material)
     per_channel = material.colour_mode == "per_channel"
     wl, g = spectral_quadrature(
@@ -735,6 +761,7 @@ def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PH
     Same plan and quadrature nodes as :func:`bake`, so the two differ only by the factorisation.
     """
     t0 = time.perf_counter()
+    material = table_material(material)
     p = plan(material)
     wl, g = spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode

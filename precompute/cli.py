@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import sys
 import time
 
 import numpy as np
 
-from . import bake, hdri, image_io, prefilter, render, table_io
+from . import bake, cli_support, hdri, image_io, prefilter, render, table_io
 from .material import AUTO, PRESETS, Layer, Material, Quality, preset
 
 EPILOG = """examples:
@@ -104,12 +105,28 @@ def add_material_arguments(p: argparse.ArgumentParser) -> None:
     q.add_argument("--wavelengths", type=_quality_value, help="wavelength samples")
 
 
+def _layers_arg(text: str) -> list[Layer]:
+    """``--layers`` JSON: a list of [index, thickness_nm] rows (ValueError naming the option)."""
+    try:
+        rows = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ValueError(f"--layers is not valid JSON: {exc}") from None
+    if not isinstance(rows, list):
+        raise ValueError(f"--layers must be a JSON list of [index, thickness_nm] rows, got {text[:60]!r}")
+    layers = []
+    for i, row in enumerate(rows):
+        if not isinstance(row, list) or len(row) != 2:
+            raise ValueError(f"--layers row {i} must be [index, thickness_nm], got {json.dumps(row)[:60]}")
+        layers.append(Layer(*row))
+    return layers
+
+
 def material_from_args(args) -> Material:
     base = preset(args.preset) if args.preset else Material()
     changes = {}
     layers = list(base.layers)
     if args.layers:
-        layers = [Layer(*row) for row in json.loads(args.layers)]
+        layers = _layers_arg(args.layers)
     if args.film_index is not None or args.thickness is not None:
         top = layers[0] if layers else Layer(1.33, 400.0)
         layers[0:1] = [
@@ -153,17 +170,52 @@ def cmd_presets(args) -> int:
 def cmd_plan(args) -> int:
     from . import effects
 
-    print(effects.format_plan(effects.material_plan(material_from_args(args))))
+    with cli_support.refusing():
+        material = material_from_args(args)
+    print(effects.format_plan(effects.material_plan(material)))
     return 0
 
 
+def summary_path(out: pathlib.Path, json_arg: str | None) -> pathlib.Path:
+    """Where ``bake`` writes its JSON summary: ``--json``, else beside ``--out`` with ``.json``.
+
+    Never the table's own path: ``--out x.json`` puts the summary in ``x.json.json``, and
+    ``--json`` naming the same file as ``--out`` is a ``ValueError`` (the summary would replace
+    the table).
+    """
+    if json_arg:
+        path = pathlib.Path(json_arg)
+        if _same_file(path, out):
+            raise ValueError(
+                f"--json and --out both name {str(out)!r}: the summary would replace the table; "
+                "give --json another path (or leave it out for one beside the table)"
+            )
+        return path
+    path = out.with_suffix(".json")
+    return path if not _same_file(path, out) else out.with_name(out.name + ".json")
+
+
+def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
+    """Whether two output paths may name one file: equal once made absolute (ignoring case, as
+    macOS and Windows file systems do), or already one file (hard or symbolic links)."""
+    if os.path.abspath(a).casefold() == os.path.abspath(b).casefold():
+        return True
+    return a.exists() and b.exists() and os.path.samefile(a, b)
+
+
 def cmd_bake(args) -> int:
-    m = material_from_args(args)
+    with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
+        m = material_from_args(args)
+        out = cli_support.output_file("--out", args.out)
+        if args.json is not None:
+            cli_support.output_file("--json", args.json)  # as given: "dir/" and "" are refused
+        json_path = summary_path(out, args.json)
+        cli_support.output_file("--json", json_path)
     progress = Progress("bake", not args.quiet)
     t0 = time.perf_counter()
     result = bake.bake(m, progress=progress)
-    out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    json_path.parent.mkdir(parents=True, exist_ok=True)
     precision = "half" if args.half else "float"
     table_io.write_table(out, result.data, result.attributes(), precision=precision)
     summary = dict(
@@ -176,8 +228,7 @@ def cmd_bake(args) -> int:
     if args.half:
         err = table_io.half_precision_error(result.data)
         summary["half_error"] = {"max_abs": err.max_abs, "max_rel": err.max_rel}
-    json_path = pathlib.Path(args.json) if args.json else out.with_suffix(".json")
-    json_path.write_text(json.dumps(summary, indent=2))
+    table_io.write_bytes(json_path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
     if not args.quiet:
         print(f"wrote {out} ({summary['file_bytes']} bytes, table {result.data.shape}) and {json_path}")
     return 0
@@ -201,17 +252,35 @@ def studiolight(name: str) -> pathlib.Path:
     return hits[0]
 
 
-def cmd_render(args) -> int:
-    m = material_from_args(args)
-    path = pathlib.Path(args.hdri)
+def _read_hdri(text: str) -> tuple[pathlib.Path, np.ndarray, int]:
+    """(path, image, NaN/Inf pixels set to 0) of ``--hdri``: a file, or a studio light of bpy."""
+    path = pathlib.Path(text)
     if not path.exists():
-        path = studiolight(args.hdri)
+        path = studiolight(text)
+    image = hdri.read_equirect(path)
+    bad = ~np.isfinite(image).all(axis=-1)
+    if bad.any():  # left out (black), as the World's SH projection does, and reported
+        image = np.where(bad[..., None], 0.0, image).astype(np.float32)
+    return path, image, int(bad.sum())
+
+
+def cmd_render(args) -> int:
+    with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
+        m = material_from_args(args)
+        out = cli_support.output_file("--out", args.out)
+        exr_out = out.with_suffix(".exr")
+        if _same_file(exr_out, out):
+            raise ValueError(
+                f"--out {str(out)!r} names the PNG, and the scene-linear EXR is written beside it with .exr: "
+                "give --out a .png path"
+            )
+        cli_support.output_file("--out (the .exr beside it)", exr_out)
+        path, environment, rejected = _read_hdri(args.hdri)
+    notes = [f"HDRI {path.name}: {rejected} NaN/Inf pixels left out (black)"] if rejected else []
     progress = Progress("render", not args.quiet)
     progress(0.02, "reading HDRI")
     result = bake.bake(m, progress=lambda f, t: progress(0.05 + 0.4 * f, t))
-    image, coeffs = render.prepare_environment(
-        hdri.read_equirect(path), result.sh_order, roughness=m.roughness
-    )
+    image, coeffs = render.prepare_environment(environment, result.sh_order, roughness=m.roughness)
     progress(0.5, "shading")
     view = render.sphere_view(args.size, args.size)
     thickness = (
@@ -231,21 +300,41 @@ def cmd_render(args) -> int:
         reference_material=m if args.reference else None,
         prefiltered=pre,
     )
-    out = pathlib.Path(args.out)
+    bad = ~np.isfinite(rgb).all(axis=-1)
+    if bad.any():  # never a NaN written without a word: 0, reported, exit "partial"
+        notes.append(f"{int(bad.sum())} non-finite pixels written as 0")
+        rgb = np.where(bad[..., None], 0.0, rgb)
     out.parent.mkdir(parents=True, exist_ok=True)
-    image_io.write_png(out, image_io.srgb_encode(rgb, args.exposure))
-    image_io.write_exr(out.with_suffix(".exr"), rgb)
+    display = image_io.srgb_encode(rgb, args.exposure)
+    table_io.write_file(out, lambda tmp: image_io.write_png(tmp, display), verify=verify_png)
+    table_io.write_file(exr_out, lambda tmp: image_io.write_exr(tmp, rgb), verify=table_io.verify_exr)
     progress(1.0, "done")
-    if not np.all(np.isfinite(rgb)):
-        print("warning: the render contains non-finite pixels", file=sys.stderr)
-        return 1
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
     if not args.quiet:
-        print(f"wrote {out} and {out.with_suffix('.exr')} ({args.size}×{args.size}, HDRI {path.name})")
-    return 0
+        print(f"wrote {out} and {exr_out} ({args.size}×{args.size}, HDRI {path.name})")
+    return cli_support.EXIT_PARTIAL if notes else cli_support.EXIT_OK
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"  # the IEND chunk: length 0, type, CRC
+
+
+def verify_png(path) -> None:
+    """``ValueError`` unless ``path`` starts with the PNG signature and ends with the IEND chunk
+    (what :func:`render.write_png` writes): a truncated PNG, e.g. on a full disk, is caught."""
+    with open(path, "rb") as handle:
+        head = handle.read(len(_PNG_SIGNATURE))
+        handle.seek(0, os.SEEK_END)
+        size = handle.tell()
+        handle.seek(max(0, size - len(_PNG_END)))
+        tail = handle.read()
+    if head != _PNG_SIGNATURE or tail != _PNG_END:
+        raise ValueError(f"{str(path)!r} is not a complete PNG ({size} bytes)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = cli_support.ArgumentParser(
         prog="python -m precompute",
         description="Thin Film SH: bake thin-film interference into SH tables, or preview a material.",
         epilog=EPILOG,
@@ -263,8 +352,14 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_material_arguments(b)
-    b.add_argument("--out", required=True, help="output .exr path")
-    b.add_argument("--json", help="summary path (default: beside --out, .json)")
+    b.add_argument(
+        "--out",
+        required=True,
+        help="output .exr path (a FIFO, device, symbolic link or directory there is refused)",
+    )
+    b.add_argument(
+        "--json", help="summary path (default: beside --out with .json; never the same file as --out)"
+    )
     b.add_argument("--half", action="store_true", help="store half floats (half the size; error reported)")
     b.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     b.set_defaults(func=cmd_bake)
@@ -282,10 +377,20 @@ def build_parser() -> argparse.ArgumentParser:
         "(city, courtyard, forest, interior, night, studio, sunrise, sunset)",
     )
     r.add_argument(
-        "--out", required=True, help="output .png (an .exr with scene-linear values is written beside)"
+        "--out", required=True, help="output .png (an .exr with scene-linear values is written beside it)"
     )
-    r.add_argument("--size", type=int, default=256, help="image size in pixels (square)")
-    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for the PNG")
+    r.add_argument(
+        "--size",
+        type=cli_support.image_size_arg("--size"),
+        default=256,
+        help=f"image size in pixels (square, 1–{cli_support.MAX_IMAGE_SIZE})",
+    )
+    r.add_argument(
+        "--exposure",
+        type=cli_support.exposure_arg("--exposure"),
+        default=0.0,
+        help=f"exposure in stops for the PNG (finite, within ±{cli_support.MAX_EXPOSURE:g})",
+    )
     r.add_argument("--reference", action="store_true", help="brute-force spectral ground truth (slow)")
     r.add_argument(
         "--sh-only", action="store_true", help="the paper's SH path alone (no split sum for gloss)"
@@ -296,10 +401,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Run one command; the exit code is one of docs/cli-exit-codes.md (cli_support.EXIT_*).
+
+    Never a traceback: input refused before work is exit 2, an output that cannot be written
+    exit 4, a bug exit 3 with the traceback in a log file the one-line message names.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
+
+    def body() -> int:
+        args = parser.parse_args(argv)  # argparse's own refusals exit 2 through SystemExit
         return args.func(args)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+
+    return cli_support.run(body, prog="precompute")

@@ -270,7 +270,7 @@ def bake_time_breakdown(*args, **kwargs) -> dict:
 class MaterialPlan:
     """What one material needs: effects, resolved quality, table, costs and the reasons."""
 
-    material: Material
+    material: Material  # bake.table_material of the material planned: what its table uses
     key: str  # bake.table_key(material): equal keys share one table
     effects: dict  # name → bool, the names of EFFECTS in order
     plan: bake.Plan
@@ -356,14 +356,12 @@ def _film_effects(material: Material, reasons: dict) -> tuple[bool, bool]:
         )
         reasons["stack"] = "no layer thicker than 0 nm"
         return False, False
-    top = layers[0]
-    vary = ""
+    top = f"top {float(layers[0].thickness_nm):g} nm"
     if material.varies:
         lo, hi = material.thickness_range_nm
-        vary = f", top layer varying {lo:g}–{hi:g} nm"
+        top = f"top layer varying {lo:g}–{hi:g} nm"
     reasons["interference"] = (
-        f"{len(thick)} film layer(s) thicker than 0 nm (top {float(top.thickness_nm):g} nm{vary}): "
-        "wave optics per wavelength"
+        f"{len(thick)} film layer(s) thicker than 0 nm ({top}): wave optics per wavelength"
     )
     zeros = len(layers) - len(thick)
     zero_note = (
@@ -410,6 +408,7 @@ def material_plan(
     """
     if order_kernel_cold is None:
         order_kernel_cold = kernel_cold
+    material = bake.table_material(material)  # what the table uses: an unused value costs nothing
     p = bake.plan(material)
     reasons: dict[str, str] = {}
     interference, stack = _film_effects(material, reasons)

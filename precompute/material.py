@@ -16,10 +16,9 @@ Index specifications (``IndexSpec``) accepted everywhere a medium is named:
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import asdict, dataclass, field, replace
 
-from . import _checks
+from . import _checks, validate
 from .optics.dispersion import CauchyIndex, ConstantIndex, SellmeierIndex, TabulatedIndex
 from .optics.gulbrandsen2014 import conductor_from_rgb
 
@@ -32,56 +31,60 @@ COLOUR_MODES = ("spectral", "per_channel")
 #: thin film (for interop parity).
 MULTISCATTER = ("none", "film", "cycles")
 #: Highest SH order of a table or the World: the one constant behind effects.MAX_ORDER and the
-#: shaders' gpu_draw.MAX_L (the lighting UBO has room for exactly this many bands).
+#: shaders' addon/gpu/resources.py MAX_L (the lighting UBO has room for exactly this many bands).
 MAX_SH_ORDER = 12
 
 
 def _index_model(name: str, spec):
-    """Turn an IndexSpec into a dispersion model, raising ValueError naming ``name``."""
+    """Turn an IndexSpec into a dispersion model, raising ValueError naming ``name``.
+
+    Every value is checked (:mod:`.validate`): finite numbers, and a dispersive index gives
+    0 < n ≤ 1000 and 0 ≤ k ≤ 1000 at every wavelength of 360–830 nm. Specs found valid are
+    remembered, so building the same description again costs no evaluation.
+    """
+    if validate.is_real(spec):
+        return ConstantIndex(*validate.constant_index(name, spec))
+    if isinstance(spec, (list, tuple)) and len(spec) == 2 and all(validate.is_real(v) for v in spec):
+        return ConstantIndex(*validate.constant_index(name, spec[0], spec[1]))
     if isinstance(spec, bool):
         raise ValueError(f"{name} must be an index, got {spec!r}")
-    if isinstance(spec, (int, float)):
-        n, k = float(spec), 0.0
-    elif (
-        isinstance(spec, (list, tuple)) and len(spec) == 2 and all(isinstance(v, (int, float)) for v in spec)
-    ):
-        n, k = float(spec[0]), float(spec[1])
-    elif isinstance(spec, dict) and len(spec) == 1:
+    key = validate.spec_key(spec)
+    known = validate.known_valid(key)
+    if isinstance(spec, dict) and len(spec) == 1:
         ((kind, value),) = spec.items()
         if kind == "cauchy":
-            coeffs = list(value) + [0.0] * (3 - len(value))
-            if not math.isfinite(coeffs[0]) or coeffs[0] <= 0:
-                raise ValueError(f"{name}: Cauchy A must be finite and > 0, got {coeffs[0]!r}")
-            return CauchyIndex(*map(float, coeffs[:3]))
-        if kind == "sellmeier":
-            return SellmeierIndex(tuple(map(float, value["B"])), tuple(map(float, value["C"])))
-        if kind == "metal":
+            model = CauchyIndex(*map(float, value if known else validate.cauchy_coefficients(name, value)))
+        elif kind == "sellmeier":
+            b, c = (value["B"], value["C"]) if known else validate.sellmeier_coefficients(name, value)
+            model = SellmeierIndex(tuple(map(float, b)), tuple(map(float, c)))
+        elif kind == "metal":
+            if not isinstance(value, str):
+                raise ValueError(f"{name}: a metal is named by a string, got {value!r}")
             from .optics import metals
 
-            return metals.get_metal(value)
-        if kind == "f82_tint":
-            return _f82_tint_index(name, value)
-        if kind == "table":
-            return TabulatedIndex(
-                tuple(map(float, value["wavelengths_nm"])),
-                tuple(map(float, value["n"])),
-                tuple(map(float, value.get("k", [0.0] * len(value["n"])))),
-                name=name,
+            try:
+                model = metals.get_metal(value)
+            except ValueError as exc:
+                raise ValueError(f"{name}: {exc}") from None
+        elif kind == "table":
+            wl, n, k = (
+                (value["wavelengths_nm"], value["n"], value.get("k", [0.0] * len(value["n"])))
+                if known
+                else validate.table_columns(name, value)
             )
-        raise ValueError(
-            f"{name}: unknown index kind {kind!r} (use cauchy, sellmeier, metal, table or f82_tint)"
-        )
+            model = TabulatedIndex(
+                tuple(map(float, wl)), tuple(map(float, n)), tuple(map(float, k)), name=name
+            )
+        elif kind == "f82_tint":
+            model = _f82_tint_index(name, value)
+        else:
+            raise ValueError(
+                f"{name}: unknown index kind {kind!r} (use cauchy, sellmeier, metal, table or f82_tint)"
+            )
     else:
         raise ValueError(f"{name} must be n, [n, k] or a dict such as {{'metal': 'gold'}}, got {spec!r}")
-    if not (math.isfinite(n) and math.isfinite(k)):
-        raise ValueError(f"{name} must be finite, got n={n!r}, k={k!r}")
-    if n <= 0:
-        raise ValueError(f"{name} must have n > 0, got {n!r}")
-    if k < 0:
-        raise ValueError(
-            f"{name} has a negative extinction coefficient k = {k!r} (absorbing media need k ≥ 0)"
-        )
-    return ConstantIndex(n, k)
+    validate.remember_valid(key)
+    return model
 
 
 def _f82_tint_index(name: str, value):
@@ -144,57 +147,67 @@ class Material:
     quality: Quality = field(default_factory=Quality)
 
     def __post_init__(self):
-        layers = tuple(
-            l if isinstance(l, Layer) else Layer(**l) if isinstance(l, dict) else Layer(*l)
-            for l in self.layers
-        )
-        object.__setattr__(self, "layers", layers)
+        if isinstance(self.layers, (str, bytes, dict)) or not hasattr(self.layers, "__iter__"):
+            raise ValueError(f"layers must be a list of layers, got {self.layers!r}")
+        layers = []
+        for i, l in enumerate(self.layers):
+            if i >= validate.MAX_LAYERS:
+                raise ValueError(
+                    f"layers: at most {validate.MAX_LAYERS} layers (the bake's cost grows with each), "
+                    f"got more"
+                )
+            try:
+                layers.append(l if isinstance(l, Layer) else Layer(**l) if isinstance(l, dict) else Layer(*l))
+            except TypeError:
+                raise ValueError(f"layers[{i}] must be (index, thickness_nm), got {l!r}") from None
+        object.__setattr__(self, "layers", tuple(layers))
         if not isinstance(self.quality, Quality):
-            object.__setattr__(self, "quality", Quality(**dict(self.quality)))
+            try:
+                object.__setattr__(self, "quality", Quality(**dict(self.quality)))
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"quality must be a Quality or a dict of its fields, got {self.quality!r}"
+                ) from None
         self.validate()
 
     # ----------------------------------------------------------------------------------------
     def validate(self) -> None:
-        """Raise ValueError naming the first invalid parameter."""
-        if (
-            not isinstance(self.ambient, (int, float))
-            or not math.isfinite(self.ambient)
-            or self.ambient < 1.0
-        ):
-            raise ValueError(f"ambient must be a real index ≥ 1 (air 1.0, water 1.33), got {self.ambient!r}")
+        """Raise ValueError naming the first invalid parameter.
+
+        Every value is checked, with the limits of :mod:`.validate` and their reasons: indices
+        finite with 0 < n ≤ 1000 and 0 ≤ k ≤ 1000 over 360–830 nm, thicknesses finite in
+        [0, 100 µm], at most 128 layers, roughness and the diffuse colour in [0, 1].
+        """
+        validate.real("ambient", self.ambient, 1.0, validate.MAX_INDEX_N, why="air 1.0, water 1.33")
+        if len(self.layers) > validate.MAX_LAYERS:
+            raise ValueError(f"layers: at most {validate.MAX_LAYERS} layers, got {len(self.layers)}")
         for i, layer in enumerate(self.layers):
             _index_model(f"layers[{i}].index", layer.index)
-            d = layer.thickness_nm
-            if isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or d < 0:
-                raise ValueError(f"layers[{i}].thickness_nm must be finite and ≥ 0, got {d!r}")
+            validate.real(
+                f"layers[{i}].thickness_nm",
+                layer.thickness_nm,
+                0.0,
+                validate.MAX_THICKNESS_NM,
+                why="100 µm is Blender's Thin Film Thickness maximum",
+            )
         _index_model("substrate", self.substrate)
-        r = self.roughness
-        if (
-            isinstance(r, bool)
-            or not isinstance(r, (int, float))
-            or not math.isfinite(r)
-            or not 0.0 <= r <= 1.0
-        ):
-            raise ValueError(f"roughness must lie in [0, 1], got {r!r}")
+        validate.real("roughness", self.roughness, 0.0, 1.0)
         if self.thickness_range_nm is not None:
             if not self.layers:
                 raise ValueError("thickness_range_nm needs at least one film layer")
-            lo, hi = (
-                (self.thickness_range_nm + (None, None))[:2]
-                if len(self.thickness_range_nm) == 2
-                else (None, None)
-            )
-            if lo is None or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (lo, hi)):
-                raise ValueError(
-                    f"thickness_range_nm must be (min, max) finite numbers, got {self.thickness_range_nm!r}"
-                )
-            if not 0 <= lo < hi:
-                raise ValueError(f"thickness_range_nm needs 0 ≤ min < max, got {self.thickness_range_nm!r}")
+            rng = self.thickness_range_nm
+            if isinstance(rng, (str, bytes, dict)) or not hasattr(rng, "__len__") or len(rng) != 2:
+                raise ValueError(f"thickness_range_nm must be (min, max) finite numbers, got {rng!r}")
+            lo = validate.real("thickness_range_nm min", rng[0], 0.0, validate.MAX_THICKNESS_NM)
+            hi = validate.real("thickness_range_nm max", rng[1], 0.0, validate.MAX_THICKNESS_NM)
+            if not lo < hi:
+                raise ValueError(f"thickness_range_nm needs 0 ≤ min < max, got {tuple(rng)!r}")
         if self.base_color is not None:
-            if len(self.base_color) != 3 or not all(
-                isinstance(v, (int, float)) and 0 <= v <= 1 for v in self.base_color
-            ):
-                raise ValueError(f"base_color must be three values in [0, 1], got {self.base_color!r}")
+            c = self.base_color
+            if isinstance(c, (str, bytes, dict)) or not hasattr(c, "__len__") or len(c) != 3:
+                raise ValueError(f"base_color must be three values in [0, 1], got {c!r}")
+            for channel, v in zip("RGB", c, strict=True):
+                validate.real(f"base_color {channel}", v, 0.0, 1.0)
         _checks.choice("model", self.model, MODELS)
         _checks.choice("colour_mode", self.colour_mode, COLOUR_MODES)
         _checks.choice("multiscatter", self.multiscatter, MULTISCATTER)
@@ -210,8 +223,11 @@ class Material:
             ("wavelength_count", 3, 8192),
         ):
             v = getattr(q, name)
-            if v != AUTO:
+            if not (isinstance(v, str) and v == AUTO):
                 _checks.positive_int(f"quality.{name}", v, minimum=lo, maximum=hi)
+        for name in ("colour_space", "illuminant"):
+            if not isinstance(getattr(self, name), str):
+                raise ValueError(f"{name} must be a name, got {getattr(self, name)!r}")
         from . import spectra
 
         spectra.xyz_to_rgb_matrix(self.colour_space)  # raises for unknown spaces
@@ -244,14 +260,10 @@ class Material:
         unknown = set(data) - set(cls.__dataclass_fields__)
         if unknown:
             raise ValueError(f"unknown material parameters: {sorted(unknown)}")
-        if "layers" in data:
-            data["layers"] = tuple(Layer(**l) if isinstance(l, dict) else Layer(*l) for l in data["layers"])
-        for key in ("thickness_range_nm", "base_color"):
-            if data.get(key) is not None:
+        for key in ("thickness_range_nm", "base_color"):  # JSON lists back to tuples
+            if isinstance(data.get(key), list):
                 data[key] = tuple(data[key])
-        if "quality" in data and isinstance(data["quality"], dict):
-            data["quality"] = Quality(**data["quality"])
-        return cls(**data)
+        return cls(**data)  # __post_init__ turns layer rows and a quality dict into their types
 
     def with_(self, **changes) -> Material:
         return replace(self, **changes)
@@ -298,6 +310,20 @@ PRESETS: dict[str, Material] = {
         layers=(Layer(1.38, 140.0),), substrate=1.52, roughness=0.15, thickness_range_nm=(100.0, 300.0)
     ),
 }
+
+
+#: What a material that cannot be evaluated is drawn as, so it is seen and not mistaken for a film
+#: (docs/hostile-input.md): matte magenta, a diffuse base (1, 0, 1) under no film on a substrate
+#: that matches the ambient (no specular reflection at all), lit by the World like every film.
+#: SH order 2 holds a Lambertian lobe (≥ 99 % of its irradiance) and the surface looks the same
+#: from every angle, so two view samples suffice: it bakes in ~10 ms.
+FALLBACK = Material(
+    layers=(),
+    substrate=1.0,
+    roughness=1.0,
+    base_color=(1.0, 0.0, 1.0),
+    quality=Quality(sh_order=2, view_samples=2),
+)
 
 
 def preset(name: str) -> Material:

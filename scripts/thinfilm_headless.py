@@ -11,13 +11,14 @@ Blender as a module (``pip install bpy``; the repository's .venv):
 and, for a folder of files, a batch render of every .blend in it (sorted by name):
 
     .venv/bin/python scripts/thinfilm_headless.py --all-scenes sample_scenes/out --out-dir out/renders \\
-        [--width W --height H]
+        [--width W --height H] [--cache-dir DIR]
 
 It opens the file, registers the extension from this repository (imported as ``thinfilm_sh``
 through a symlink in a temporary folder, as Blender imports an installed extension), runs
 ``addon.headless.main`` with the remaining arguments and exits with its code (batch: 0 when
-every file rendered, else 1). Baked tables go to the extension's default cache
-(``$TMPDIR/thinfilm_sh/cache`` outside an installed Blender).
+every file rendered, else 1). Baked tables go to the add-on's table cache: ``--cache-dir DIR``
+(every command takes it), else ``$THINFILM_SH_CACHE``, else the private per-user
+``~/.cache/thinfilm_sh`` (``$XDG_CACHE_HOME/thinfilm_sh``); see docs/cache.md.
 """
 
 from __future__ import annotations
@@ -70,7 +71,7 @@ def run_file(blend, argv) -> int:
     return int(headless().main(list(argv)))
 
 
-def render_all(folder, out_dir, width=None, height=None, background=True) -> int:
+def render_all(folder, out_dir, width=None, height=None, background=True, cache_dir=None) -> int:
     """Render every .blend in ``folder`` to ``out_dir/<stem>.png`` (+ .exr); 0 if all succeeded."""
     files = sorted(pathlib.Path(folder).glob("*.blend"))
     if not files:
@@ -87,6 +88,8 @@ def render_all(folder, out_dir, width=None, height=None, background=True) -> int
             argv += ["--height", str(height)]
         if not background:
             argv.append("--no-background")
+        if cache_dir:
+            argv += ["--cache-dir", str(cache_dir)]
         print(f"== {blend.name}")
         try:
             open_blend(blend)
@@ -117,8 +120,11 @@ def main(argv=None) -> int:
         parser.add_argument("--width", type=int)
         parser.add_argument("--height", type=int)
         parser.add_argument("--no-background", action="store_true")
+        parser.add_argument("--cache-dir", help="the table cache's folder (see docs/cache.md)")
         args = parser.parse_args(argv)
-        return render_all(args.all_scenes, args.out_dir, args.width, args.height, not args.no_background)
+        return render_all(
+            args.all_scenes, args.out_dir, args.width, args.height, not args.no_background, args.cache_dir
+        )
     blend, rest = argv[0], argv[1:]
     if not blend.endswith(".blend") or not rest:
         print(USAGE, file=sys.stderr)
@@ -130,6 +136,9 @@ def main(argv=None) -> int:
         return run_file(blend, rest)
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except RuntimeError as exc:  # bpy.ops.wm.open_mainfile: not a .blend file, or a damaged one
+        print(f"error: {blend}: cannot be opened: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
 
 

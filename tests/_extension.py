@@ -31,3 +31,17 @@ def linked_extension(root: Path, *, unregister: bool = True):
         sys.path.remove(str(root))
         for name in [n for n in sys.modules if n == EXTENSION_ID or n.startswith(EXTENSION_ID + ".")]:
             del sys.modules[name]
+
+
+#: The add-on's GPU layer, module by module (addon/gpu/).
+GPU_MODULES = ("context", "shaders", "resources", "mesh", "draw")
+#: The reference rotation of the shading library: generic loops, compiled by tests only.
+REFERENCE_ROTATION = REPO / "tests" / "glsl" / "tf_sh_rotate_loops.glsl"
+
+
+def gpu_layer():
+    """``thinfilm_sh.addon.gpu`` with its modules imported (``gpu_layer().draw.draw_items``);
+    call inside :func:`linked_extension`."""
+    for name in GPU_MODULES:
+        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.{name}")
+    return importlib.import_module(f"{EXTENSION_ID}.addon.gpu")

@@ -11,6 +11,11 @@ settings.register_profile(
 settings.register_profile("dev", max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("ci" if os.environ.get("CI") else os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 
+# The table cache's environment variables win over the add-on's preference (docs/cache.md): a
+# developer's own must not send the tests' tables to their cache. Tests that need them set them.
+for _name in ("THINFILM_SH_CACHE", "THINFILM_SH_CACHE_MAX_BYTES"):
+    os.environ.pop(_name, None)
+
 
 @pytest.fixture(scope="session")
 def bpy():

@@ -354,7 +354,12 @@ def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(
         description_mod.description(b)
     )
 
+    # The soap film varies its thickness: the top layer's own thickness is unused (issue 24).
+    assert b.thinfilm_sh.vary_thickness
     b.thinfilm_sh.layers[0].thickness_nm = 420.0
+    assert tables_mod.get_table(description_mod.description(b), cache) is ta
+    assert tables_mod.bake_count == start + 1
+    b.thinfilm_sh.thickness_max_nm = 900.0
     tables_mod.get_table(description_mod.description(b), cache)
     assert tables_mod.bake_count == start + 2
 
@@ -381,7 +386,8 @@ def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, description_mod,
     loaded, source = tables_mod.get_table_with_source(desc, cache)
     assert source == "disk" and tables_mod.bake_count == start + 1
     np.testing.assert_allclose(loaded.data, baked.data, rtol=1e-6, atol=1e-7)  # float32 on disk
-    assert loaded.sh_order == baked.sh_order and loaded.material == desc
+    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
+    assert loaded.sh_order == baked.sh_order and loaded.material == bake.table_material(desc)
     np.testing.assert_array_equal(loaded.thicknesses_nm, baked.thicknesses_nm)
     np.testing.assert_allclose(loaded.view_angles_rad, baked.view_angles_rad)
     assert tables_mod.format_plan(loaded) == tables_mod.format_plan(baked)
@@ -482,12 +488,113 @@ def test_clear_cache_operator_empties_memory_and_disk(bpy, tables_mod, descripti
     mat = _enabled(bpy)
     bpy.ops.thinfilm.bake(material=mat.name)
     cache = tables_mod.table_cache()
-    assert list(cache.directory.glob("*.exr"))
+    assert list(cache.tables_dir.glob("*.exr"))
     assert bpy.ops.thinfilm.clear_cache() == {"FINISHED"}
     assert (
-        not list(cache.directory.glob("*.exr"))
+        not list(cache.tables_dir.glob("*.exr"))
         and tables_mod.peek_table(description_mod.description(mat)) is None
     )
+
+
+def test_clear_cache_operator_leaves_foreign_exr_files_alone(bpy, tables_mod, description_mod):
+    """Issue 24: the cache folder is a preference, so it may hold the user's HDRIs; clearing
+    deletes only the tables the cache wrote (tagged, in its own subfolder)."""
+    image_io = importlib.import_module(f"{EXTENSION_ID}.precompute.image_io")
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    cache = tables_mod.table_cache()
+    hdri = cache.directory / "courtyard.exr"
+    hdri.parent.mkdir(parents=True)
+    image_io.write_exr(hdri, np.full((4, 8, 3), 0.5))
+    mat = _enabled(bpy)
+    assert bpy.ops.thinfilm.bake(material=mat.name) == {"FINISHED"}
+    entry = cache.path_for(description_mod.description_key(description_mod.description(mat)))
+    # A table the user wrote into the subfolder under a key-like name: valid, but not tagged.
+    mine = table_io.write_table(cache.tables_dir / "0123456789abcdef.exr", np.ones((2, 3)))
+    sidecar = cache.directory / "notes.exr.txt"
+    sidecar.write_text("keep me")
+    before = {p: p.read_bytes() for p in (hdri, mine, sidecar)}
+
+    assert bpy.ops.thinfilm.clear_cache() == {"FINISHED"}
+    assert not entry.exists()
+    assert {p: p.read_bytes() for p in before} == before
+
+
+def test_cache_location_env_preference_default_and_size_limit(bpy, ext, tables_mod, tmp_path, monkeypatch):
+    """Issue 24: THINFILM_SH_CACHE wins inside Blender too; an empty preference means the private
+    per-user default (never $TMPDIR); the size limit preference reaches the TableCache."""
+    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    monkeypatch.delenv("THINFILM_SH_CACHE", raising=False)
+    monkeypatch.delenv("THINFILM_SH_CACHE_MAX_BYTES", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    settings = prefs.preferences()
+    assert settings.cache_limit_mib == 2048
+
+    chosen = tables_mod.table_cache()
+    assert chosen.directory == tmp_path / "cache" and chosen.max_bytes == 2 * 1024**3
+    settings.cache_limit_mib = 3
+    assert tables_mod.table_cache().max_bytes == 3 * 1024**2
+
+    settings.cache_dir = ""
+    default = tables_mod.table_cache()
+    assert default.directory == tmp_path / "xdg" / "thinfilm_sh" and default.private
+    assert prefs.cache_dir() == str(default.directory)
+
+    monkeypatch.setenv("THINFILM_SH_CACHE", str(tmp_path / "env"))
+    settings.cache_dir = str(tmp_path / "pref")
+    assert tables_mod.table_cache().directory == tmp_path / "env"
+    assert prefs.cache_location() == (None, "THINFILM_SH_CACHE")
+    monkeypatch.setenv("THINFILM_SH_CACHE_MAX_BYTES", "5M")
+    assert tables_mod.table_cache().max_bytes == 5 * 1024**2
+    with tables_mod.cache_dir_override(tmp_path / "flag"):  # the headless --cache-dir
+        assert tables_mod.table_cache().directory == tmp_path / "flag"
+    monkeypatch.delenv("THINFILM_SH_CACHE")
+
+    settings.cache_dir = "//tables"  # relative to a .blend file that is not saved
+    with pytest.raises(table_io.CacheDirError, match="not saved"):
+        tables_mod.table_cache()
+    assert any("unusable" in line and "not saved" in line for line, _icon in prefs.cache_status())
+
+
+def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
+    bpy, ext, tables_mod, description_mod, tmp_path, monkeypatch
+):
+    """Issue 24: a full cache disk (simulated ENOSPC) or an unsafe cache folder is a clear
+    message in the operator and the panel, never a traceback; the baked table is kept."""
+    import errno
+
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    ui = importlib.import_module(f"{EXTENSION_ID}.addon.ui")
+
+    def full(self, key, *args, **kwargs):
+        path = self.path_for(key)
+        raise table_io.TableWriteError(
+            path, f"could not write {str(path)!r}: No space left on device", errno.ENOSPC
+        )
+
+    monkeypatch.setattr(table_io.TableCache, "store", full)
+    mat = _enabled(bpy)
+    desc = description_mod.description(mat)
+    assert bpy.ops.thinfilm.bake(material=mat.name) == {"FINISHED"}
+    assert tables_mod.peek_table(desc) is not None
+    problem = tables_mod.cache_error(desc)
+    assert "No space left on device" in problem and "kept in memory" in problem
+    assert any("No space left" in line for line in ui.material_errors(mat))
+    monkeypatch.undo()
+
+    tables_mod.clear_memory_cache()
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / "cache", target_is_directory=True)
+    importlib.import_module(f"{EXTENSION_ID}.addon.prefs").preferences().cache_dir = str(link)
+    other = _enabled(bpy, "Other")
+    other.thinfilm_sh.roughness = 0.4
+    assert bpy.ops.thinfilm.bake(material=other.name) == {"FINISHED"}
+    problem = tables_mod.cache_error(description_mod.description(other))
+    assert "symbolic link" in problem and "Traceback" not in problem
+    assert any("symbolic link" in line for line in ui.material_errors(other))
+    with pytest.raises(RuntimeError) as caught:  # an ERROR report, not a traceback
+        bpy.ops.thinfilm.clear_cache()
+    assert "symbolic link" in str(caught.value) and "Traceback" not in str(caught.value)
 
 
 # ----------------------------------------------------------------------------------------------

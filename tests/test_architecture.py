@@ -108,8 +108,8 @@ def test_the_graph_sees_every_kind_of_import():
     assert "precompute.hdri" in graph["precompute.shading.split_sum"]  # from ..hdri import
     assert "precompute.shading.lamps" in graph["precompute.shading.split_sum"]  # from . import lamps
     assert "precompute.effects" in graph["precompute.cli"]  # a function-local import
-    assert "precompute.shading.variant" in graph["addon.gpu_draw"]  # from ..precompute.shading.x
-    assert "bpy" in external["addon.gpu_draw"] and "numpy" in external["precompute.sh"]
+    assert "precompute.shading.variant" in graph["addon.gpu.shaders"]  # from ...precompute.shading.x
+    assert "bpy" in external["addon.gpu.context"] and "numpy" in external["precompute.sh"]
 
 
 def test_precompute_has_no_import_cycle():

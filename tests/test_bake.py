@@ -171,6 +171,40 @@ def test_automatic_choices_follow_the_physics():
     assert bake.lobe_truncation_error(1.0, 4) < bake.lobe_truncation_error(0.3, 4)
 
 
+@pytest.mark.parametrize("unused_nm", [0.0, 300.0, 100000.0])
+def test_an_unused_top_layer_thickness_changes_neither_plan_nor_key_nor_cost(unused_nm):
+    """Issue 24: with a thickness range the top layer's own thickness is unused by the table,
+    yet 100 µm of it made the wavelength count 3,348 instead of 48 (a 5–7× slower bake of an
+    identical table). It must change neither the plan, the table key, the planned cost nor the
+    table."""
+    from precompute import effects
+
+    quality = Quality(sh_order=2, view_samples=4, thickness_samples=4)  # wavelengths automatic
+    used = Material(
+        layers=(Layer(1.33, 300.0),), substrate=1.5, roughness=0.3, thickness_range_nm=(100.0, 300.0)
+    )
+    used = used.with_(quality=quality)
+    other = used.with_(layers=(Layer(1.33, unused_nm),))
+    assert bake.plan(other) == bake.plan(used) and bake.plan(used).wavelength_count == 48
+    assert bake.table_key(other) == bake.table_key(used)
+    assert bake.table_material(other) == bake.table_material(used)
+    a, b = effects.material_plan(used), effects.material_plan(other)
+    assert (a.key, a.plan, a.bake_seconds, a.u_degree, a.reasons) == (
+        b.key,
+        b.plan,
+        b.bake_seconds,
+        b.u_degree,
+        b.reasons,
+    )
+    first, second = bake.bake(used), bake.bake(other)
+    np.testing.assert_array_equal(first.data, second.data)  # the same computation, bit for bit
+    assert first.attributes()["material"] == second.attributes()["material"]
+    # A constant thickness is used: there it still counts.
+    still = Material(layers=(Layer(1.33, 300.0),), substrate=1.5)
+    assert bake.table_key(still.with_(layers=(Layer(1.33, 310.0),))) != bake.table_key(still)
+    assert bake.table_material(still) is still
+
+
 def test_constant_thickness_table_has_a_single_thickness_row():
     result = bake.bake(preset("beetle_multilayer").with_(quality=Quality(sh_order=2, view_samples=4)))
     assert result.data.shape[0] == 1 and result.thicknesses_nm.size == 1

@@ -1,4 +1,4 @@
-"""GPU drawing (addon/gpu_draw.py + glsl/) in a real bpy session on whatever OpenGL is present.
+"""GPU drawing (addon/gpu/ + glsl/) in a real bpy session on whatever OpenGL is present.
 
 The key test runs the production GLSL chunks (frame, SH rotation, table lookup, sum) on normals
 and views read from textures, one per pixel, and compares them with
@@ -7,7 +7,6 @@ masking through the ``depth_from`` hook, the restored GPU state, the shader cach
 """
 
 import dataclasses
-import importlib
 import os
 import subprocess
 import sys
@@ -15,12 +14,13 @@ import textwrap
 
 import numpy as np
 import pytest
-from _extension import EXTENSION_ID, REPO, linked_extension
+from _extension import EXTENSION_ID, REFERENCE_ROTATION, REPO, gpu_layer, linked_extension
 
 from precompute import bake, film_colour, hdri, image_io, render, sh
 from precompute.material import Layer, Material, Quality
 from precompute.shading import codegen, policy, sh_rotation, sh_sum, split_sum
 from precompute.shading import lamps as lamp_shading
+from precompute.shading.variant import Variant
 
 pytestmark = pytest.mark.blender
 
@@ -32,11 +32,12 @@ THICKNESS_RANGE = (200.0, 800.0)
 # ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def gd(bpy, tmp_path_factory):
-    """``addon.gpu_draw`` imported inside the package ``thinfilm_sh`` (relative imports work)."""
+    """``addon.gpu`` (its modules imported) inside the package ``thinfilm_sh`` (relative imports
+    work)."""
     with linked_extension(tmp_path_factory.mktemp("ext"), unregister=False):
-        module = importlib.import_module(f"{EXTENSION_ID}.addon.gpu_draw")
-        module.ensure_gpu_context()
-        yield module
+        layer = gpu_layer()
+        layer.context.ensure_gpu_context()
+        yield layer
 
 
 _BAKES = {}
@@ -157,20 +158,23 @@ def shade_on_gpu(
     height = count // width
     assert width * height == count
     info = gpu.types.GPUShaderCreateInfo()
-    gd.declare_shading_resources(info, gd.Variant(table.l_max, table.spectral, vary, False))
+    gd.shaders.declare_shading_resources(info, Variant(table.l_max, table.spectral, vary, False))
     info.sampler(1, "FLOAT_2D", "tf_test_normal")
     info.sampler(2, "FLOAT_2D", "tf_test_view")
     info.vertex_in(0, "VEC2", "pos")
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(TEST_VERTEX)
-    info.fragment_source(gd.shading_library(table.l_max, generated_x90=generated) + TEST_FRAGMENT)
+    reference = None if generated else REFERENCE_ROTATION
+    info.fragment_source(
+        gd.shaders.shading_library(table.l_max, reference_rotation=reference) + TEST_FRAGMENT
+    )
     shader = gpu.shader.create_from_info(info)
 
     def tex(rgb, w):
         data = np.zeros((height, width, 4), dtype=np.float32)
         data[..., :3] = rgb.reshape(height, width, 3)
         data[..., 3] = w.reshape(height, width)
-        return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gd.float_buffer(data))
+        return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gd.resources.float_buffer(data))
 
     tex_n = tex(normals, thickness01)
     tex_v = tex(views, np.zeros(count))
@@ -184,8 +188,8 @@ def shade_on_gpu(
             shader.uniform_sampler("tf_table", table.texture)
             shader.uniform_sampler("tf_test_normal", tex_n)
             shader.uniform_sampler("tf_test_view", tex_v)
-            gd._fullscreen_triangle().draw(shader)
-            out = gd.read_framebuffer(fb, width, height)
+            gd.draw._fullscreen_triangle().draw(shader)
+            out = gd.draw.read_framebuffer(fb, width, height)
     finally:
         offscreen.free()
     return out[::-1].reshape(count, 4)[:, :3]  # back to row 0 = first pixel row (gl_FragCoord.y = 0)
@@ -215,7 +219,8 @@ def test_glsl_shading_matches_numpy_shade_sh(gd, l_max, colour_mode, thickness):
     ],
 )
 def test_glsl_loop_rotation_matches_numpy_shade_sh(gd, l_max, colour_mode, thickness):
-    """The generic X(±90°) loops of tf_sh_rotate.glsl (the generated code switched off)."""
+    """The generic X(±90°) loops of tests/glsl/tf_sh_rotate_loops.glsl (the generated code switched
+    off)."""
     check_against_numpy(gd, l_max, colour_mode, thickness, generated=False)
 
 
@@ -225,9 +230,9 @@ def check_against_numpy(gd, l_max, colour_mode, thickness, generated):
     varies = thickness != "constant"
     vary = thickness == "varying"
     result = baked(l_max, colour_mode, varies)
-    table = gd.TableTexture.from_result(result)
+    table = gd.resources.TableTexture.from_result(result)
     world, _img = world_sh()
-    lighting = gd.Lighting.from_sh(world, l_max, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, l_max, result.material.roughness)
     width = 32
     n, v, t01 = shading_inputs(width * 16, seed=l_max)
     got = shade_on_gpu(gd, gpu, table, lighting, n, v, t01, vary, width, generated)
@@ -257,29 +262,29 @@ def test_print_agreement():
 
 def test_table_layers_and_lighting_layout(gd):
     result = baked(2, "spectral", True)
-    layers = gd.TableTexture.layer_array(result.data)
+    layers = gd.resources.TableTexture.layer_array(result.data)
     t, a, k = result.data.shape[:3]
     assert layers.shape == (3 * k, t, a, 4) and layers.dtype == np.float32
     assert np.array_equal(layers[3 * 4 + 2, 5, 7, :3], result.data[5, 7, 4, 2].astype(np.float32))
     assert np.all(layers[..., 3] == 0)
     pc = baked(2, "per_channel", False)
     assert np.array_equal(
-        gd.TableTexture.layer_array(pc.data)[3, 0, 9, :3], pc.data[0, 9, 3].astype(np.float32)
+        gd.resources.TableTexture.layer_array(pc.data)[3, 0, 9, :3], pc.data[0, 9, 3].astype(np.float32)
     )
 
     world, _img = world_sh()
-    lighting = gd.Lighting.from_sh(world, 5, 0.3)
+    lighting = gd.resources.Lighting.from_sh(world, 5, 0.3)
     window = policy.lighting_window(5, 0.3)
     assert np.allclose(lighting.coefficients, world[:36] * window[:, None])
-    packed = gd.Lighting.pack(lighting.coefficients).reshape(-1, 4)
-    assert packed.nbytes == gd.LIGHTING_VEC4 * 16 <= gd.UBO_LIMIT_BYTES
-    slots = gd.SH_SLOTS
+    packed = gd.resources.Lighting.pack(lighting.coefficients).reshape(-1, 4)
+    assert packed.nbytes == gd.resources.LIGHTING_VEC4 * 16 <= gd.resources.UBO_LIMIT_BYTES
+    slots = gd.resources.SH_SLOTS
     assert np.allclose(packed[:36, :3], lighting.coefficients) and np.all(packed[36:slots] == 0)
-    assert np.all(packed[slots : slots + gd.LAMP_VEC4] == 0)  # no lamps: count 0
-    rx = packed[slots + gd.LAMP_VEC4 :].ravel()
+    assert np.all(packed[slots : slots + gd.resources.LAMP_VEC4] == 0)  # no lamps: count 0
+    rx = packed[slots + gd.resources.LAMP_VEC4 :].ravel()
     # One set: X(+90°) row-major; X(−90°) is read as its transpose.
     for sign in (+1, -1):
-        for l, block in enumerate(sh_rotation.x_rotation_bands(gd.MAX_L, sign)):
+        for l, block in enumerate(sh_rotation.x_rotation_bands(gd.resources.MAX_L, sign)):
             stored = rx[codegen.rx_offset(l) : codegen.rx_offset(l) + block.size].reshape(block.shape)
             assert np.allclose(stored if sign > 0 else stored.T, block, atol=1e-7)
     # The generated X(±90°) code (band by band, codegen.banded_source) multiplies exactly the
@@ -349,14 +354,14 @@ class Item:
 @pytest.fixture(scope="module")
 def sphere_scene(gd, bpy):
     mesh = uv_sphere_mesh(bpy)
-    arrays = gd.mesh_arrays(mesh)
+    arrays = gd.mesh.mesh_arrays(mesh)
     bpy.data.meshes.remove(mesh)
     positions, normals, tris, _ = arrays
     result = baked(5, "spectral", False)
     world, img = world_sh()
-    table = gd.TableTexture.from_result(result)
-    lighting = gd.Lighting.from_sh(world, 5, result.material.roughness)
-    batch = gd.MeshBatch.from_arrays(positions, normals, tris)
+    table = gd.resources.TableTexture.from_result(result)
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    batch = gd.mesh.MeshBatch.from_arrays(positions, normals, tris)
     return dict(result=result, table=table, lighting=lighting, batch=batch, image=img)
 
 
@@ -395,9 +400,9 @@ def test_sphere_render_silhouette_and_values(gd, sphere_scene):
     model = np.eye(4)
     model[:3, :3] = [[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]]
     item = Item(s["batch"], s["table"], s["lighting"], model)
-    bg_only = gd.render_offscreen([], VIEW, PROJ, SIZE, SIZE, background=s["image"])
-    img = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, background=s["image"])
-    bare = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    bg_only = gd.draw.render_offscreen([], VIEW, PROJ, SIZE, SIZE, background=s["image"])
+    img = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, background=s["image"])
+    bare = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
     assert img.shape == (SIZE, SIZE, 4) and img.dtype == np.float32
     assert np.all(np.isfinite(img)) and np.all(img >= 0)
 
@@ -441,16 +446,16 @@ def test_flat_quad_matches_shade_sh_per_pixel(gd, flip):
     hit point: v = normalise(camera − hit), n = the transformed normal, flipped towards the viewer.
     """
     result = baked(8, "spectral", False)
-    table = gd.TableTexture.from_result(result)
+    table = gd.resources.TableTexture.from_result(result)
     world, _img = world_sh()
-    lighting = gd.Lighting.from_sh(world, 8, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, 8, result.material.roughness)
     pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
     nor = np.tile([0.0, 1.0 if flip else -1.0, 0.0], (4, 1))  # towards or away from the camera
-    batch = gd.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]])
+    batch = gd.mesh.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]])
     translate = np.eye(4)
     translate[:3, 3] = [0.1, 0.3, -0.2]
     model = translate @ rotation(2, 20.0) @ rotation(0, 50.0) @ np.diag([1.4, 1.0, 0.6, 1.0])
-    img = gd.render_offscreen([Item(batch, table, lighting, model)], VIEW, PROJ, SIZE, SIZE)
+    img = gd.draw.render_offscreen([Item(batch, table, lighting, model)], VIEW, PROJ, SIZE, SIZE)
 
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
     cam = np.array([0.0, -DISTANCE, 0.0])
@@ -476,7 +481,7 @@ def test_orthographic_view_uses_the_constant_view_direction(gd, sphere_scene):
     s = sphere_scene
     item = Item(s["batch"], s["table"], s["lighting"])
     half = 1.25
-    img = gd.render_offscreen([item], VIEW, orthographic(half), SIZE, SIZE)
+    img = gd.draw.render_offscreen([item], VIEW, orthographic(half), SIZE, SIZE)
     xs = ((np.arange(SIZE) + 0.5) / SIZE * 2 - 1) * half
     x, z = np.meshgrid(xs, -xs)
     r2 = x * x + z * z
@@ -496,14 +501,14 @@ def test_display_output_is_srgb_encoded_with_exposure(gd, sphere_scene):
 
     s = sphere_scene
     item = Item(s["batch"], s["table"], s["lighting"])
-    linear = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    linear = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
     offscreen = gpu.types.GPUOffScreen(SIZE, SIZE, format="RGBA32F")
     try:
         with offscreen.bind():
             fb = gpu.state.active_framebuffer_get()
             fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-            gd.draw_items([item], VIEW, PROJ, display_srgb=True, exposure=0.7)
-            display = gd.read_framebuffer(fb, SIZE, SIZE)
+            gd.draw.draw_items([item], VIEW, PROJ, display_srgb=True, exposure=0.7)
+            display = gd.draw.read_framebuffer(fb, SIZE, SIZE)
     finally:
         offscreen.free()
     drawn = linear[..., 3] > 0.5
@@ -538,8 +543,10 @@ def test_depth_from_hook_masks_the_sphere(gd, sphere_scene):
         batch.draw(shader)
         gpu.state.depth_test_set("NONE")
 
-    free = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
-    masked = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, background=s["image"], depth_from=occluder)
+    free = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    masked = gd.draw.render_offscreen(
+        [item], VIEW, PROJ, SIZE, SIZE, background=s["image"], depth_from=occluder
+    )
     assert len(calls) == 1
     left, right = np.s_[:, : SIZE // 2], np.s_[:, SIZE // 2 :]
     assert np.allclose(masked[left][..., :3], colour[:3], atol=1e-6)  # quad everywhere, no sphere
@@ -567,7 +574,7 @@ def test_gpu_state_is_restored_after_draw_items(gd, sphere_scene):
                 gpu.state.depth_mask_set(mask)
                 gpu.state.blend_set(blend)
                 before = (gpu.state.depth_test_get(), gpu.state.depth_mask_get(), gpu.state.blend_get())
-                gd.draw_items([item], VIEW, PROJ, display_srgb=False)
+                gd.draw.draw_items([item], VIEW, PROJ, display_srgb=False)
                 after = (gpu.state.depth_test_get(), gpu.state.depth_mask_get(), gpu.state.blend_get())
                 assert before == after == (depth_test, mask, blend)
             gpu.state.depth_test_set("NONE")
@@ -578,7 +585,7 @@ def test_gpu_state_is_restored_after_draw_items(gd, sphere_scene):
 
 
 def test_shader_cache_compiles_each_variant_once(gd):
-    cache = gd.ShaderCache()
+    cache = gd.shaders.ShaderCache()
     first = cache.get(2, True, False, False)
     assert cache.compile_count == 1
     assert cache.get(2, True, False, False) is first
@@ -594,7 +601,37 @@ def test_shader_cache_compiles_each_variant_once(gd):
     cache.background(False)
     assert cache.compile_count == 6 == len(cache)
     with pytest.raises(ValueError):
-        cache.get(gd.MAX_L + 1, True, False, False)
+        cache.get(gd.resources.MAX_L + 1, True, False, False)
+
+
+def test_chunks_are_joined_by_their_includes(gd, tmp_path):
+    """Each chunk names what it needs; the closure comes once each, after what it includes, and
+    the product never joins the reference rotation of tests/glsl/."""
+    shaders = gd.shaders
+    library = ["tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl"]
+    assert shaders.chunk_order(["tf_shade.glsl"]) == library
+    assert shaders.chunk_order(["tf_lamps.glsl", "tf_main_frag.glsl"], done=library) == [
+        "tf_lamps.glsl",
+        "tf_main_frag.glsl",
+    ]
+    reference = shaders.chunk_order(
+        [REFERENCE_ROTATION.name, "tf_shade.glsl"], (REFERENCE_ROTATION.parent, shaders.GLSL_DIR)
+    )
+    assert reference == library[:3] + [REFERENCE_ROTATION.name] + library[3:]
+    assert "#include" not in shaders.shading_library(8) and "tf_apply_x90" not in shaders.shading_library(8)
+    assert "tf_apply_x90" in shaders.shading_library(8, reference_rotation=REFERENCE_ROTATION)
+    assert not list(shaders.GLSL_DIR.glob(REFERENCE_ROTATION.name))
+
+    (tmp_path / "a.glsl").write_text('#include "b.glsl"\n\nvoid a() {}\n')
+    (tmp_path / "b.glsl").write_text('#include "a.glsl"\nvoid b() {}\n')
+    (tmp_path / "c.glsl").write_text('#include "missing.glsl"\nvoid c() {}\n')
+    (tmp_path / "d.glsl").write_text('void d() {}\n#include "a.glsl"\n')
+    with pytest.raises(shaders.ChunkError, match="cycle: a.glsl → b.glsl → a.glsl"):
+        shaders.chunk_order(["a.glsl"], (tmp_path,))
+    with pytest.raises(shaders.ChunkError, match="missing.glsl .included by c.glsl. not found"):
+        shaders.chunk_order(["c.glsl"], (tmp_path,))
+    with pytest.raises(shaders.ChunkError, match="at the top"):
+        shaders.chunk_order(["d.glsl"], (tmp_path,))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -609,7 +646,7 @@ def test_mesh_arrays_of_a_smooth_sphere_and_attributes(gd, bpy):
         face = mesh.attributes.new("film_face", "FLOAT", "FACE")
         face.data.foreach_set("value", np.arange(len(mesh.polygons), dtype=np.float32))
         mesh.attributes.new("film_int", "INT", "POINT")
-        positions, normals, tris, thickness = gd.mesh_arrays(mesh, "film")
+        positions, normals, tris, thickness = gd.mesh.mesh_arrays(mesh, "film")
         assert positions.dtype == normals.dtype == np.float32 and tris.dtype == np.int32
         assert positions.shape == normals.shape == (len(mesh.loops), 3)
         assert tris.shape == (len(mesh.loop_triangles), 3) and tris.max() < len(mesh.loops)
@@ -617,37 +654,37 @@ def test_mesh_arrays_of_a_smooth_sphere_and_attributes(gd, bpy):
         assert np.all(np.sum(normals * positions, axis=1) > 0.98)  # smooth: close to radial
         loop_vert = np.array([loop.vertex_index for loop in mesh.loops])
         assert np.array_equal(thickness, values[loop_vert])
-        face_values = gd.mesh_arrays(mesh, "film_face")[3]
+        face_values = gd.mesh.mesh_arrays(mesh, "film_face")[3]
         expected = np.concatenate([[i] * p.loop_total for i, p in enumerate(mesh.polygons)])
         assert np.array_equal(face_values, expected)
-        assert gd.mesh_arrays(mesh, "film_int")[3] is None
-        assert gd.mesh_arrays(mesh, "missing")[3] is None
-        batch = gd.MeshBatch.from_arrays(positions, normals, tris, thickness)
+        assert gd.mesh.mesh_arrays(mesh, "film_int")[3] is None
+        assert gd.mesh.mesh_arrays(mesh, "missing")[3] is None
+        batch = gd.mesh.MeshBatch.from_arrays(positions, normals, tris, thickness)
         assert batch.has_thickness and batch.triangle_count == len(mesh.loop_triangles)
     finally:
         bpy.data.meshes.remove(mesh)
     empty = bpy.data.meshes.new("tf_empty")
     try:
-        assert gd.mesh_arrays(empty) is None
+        assert gd.mesh.mesh_arrays(empty) is None
     finally:
         bpy.data.meshes.remove(empty)
-    assert gd.MeshBatch.from_arrays(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))) is None
+    assert gd.mesh.MeshBatch.from_arrays(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))) is None
     with pytest.raises(ValueError):
-        gd.MeshBatch.from_arrays(np.zeros((3, 3)), np.zeros((3, 3)), [[0, 1, 3]])
+        gd.mesh.MeshBatch.from_arrays(np.zeros((3, 3)), np.zeros((3, 3)), [[0, 1, 3]])
 
 
 def test_varying_thickness_attribute_reaches_the_shader(gd, bpy):
     """A flat quad facing the camera whose thickness runs 0 → 1 left to right."""
     result = baked(2, "per_channel", True)
-    table = gd.TableTexture.from_result(result)
+    table = gd.resources.TableTexture.from_result(result)
     world, _img = world_sh()
-    lighting = gd.Lighting.from_sh(world, 2, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, 2, result.material.roughness)
     pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
     nor = np.tile([0.0, -1.0, 0.0], (4, 1))
     thickness = np.array([0.0, 1.0, 1.0, 0.0])
-    batch = gd.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]], thickness)
+    batch = gd.mesh.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]], thickness)
     half = 1.0
-    img = gd.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(half), 32, 4)
+    img = gd.draw.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(half), 32, 4)
     xs = ((np.arange(32) + 0.5) / 32 * 2 - 1) * half
     t01 = (xs + 1) / 2
     thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
@@ -667,16 +704,16 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
         import sys
         sys.path.insert(0, {str(tmp_path)!r})
         import bpy
-        from {EXTENSION_ID}.addon import gpu_draw
+        from {EXTENSION_ID}.addon.gpu import context
         counts = lambda: (len(bpy.data.scenes), len(bpy.data.objects), len(bpy.data.cameras))
         before = counts()
-        assert not gpu_draw.drawing_available()
-        gpu_draw._context_from_workbench_render()
-        assert gpu_draw.drawing_available()
+        assert not context.drawing_available()
+        context._context_from_workbench_render()
+        assert context.drawing_available()
         assert counts() == before, (counts(), before)
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        assert gpu_draw.drawing_available()
-        gpu_draw.ensure_gpu_context()  # no-op now
+        assert context.drawing_available()
+        context.ensure_gpu_context()  # no-op now
         print("CONTEXT_OK")
         """
     )
@@ -689,7 +726,7 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
 def tilted_quad_item(gd, table, lighting):
     """A 2×2 quad facing −y, tilted 35° about x and 25° about z: many view angles in one frame."""
     return Item(
-        gd.MeshBatch.from_arrays(
+        gd.mesh.MeshBatch.from_arrays(
             np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
             np.tile([0.0, -1.0, 0.0], (4, 1)),
             [[0, 1, 2], [0, 2, 3]],
@@ -738,9 +775,9 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     from precompute import prefilter
 
     result = baked(l_max, colour_mode, False)
-    table = gd.TableTexture.from_result(result)
+    table = gd.resources.TableTexture.from_result(result)
     world, img = world_sh()
-    lighting = gd.Lighting.from_sh(world, l_max, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, l_max, result.material.roughness)
     full = prefilter.prefilter(img, width=64)
     levels = full.resampled(64)
     moments = full.resampled_moments(64) if with_moments else None
@@ -751,11 +788,11 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
         tuple(moments) if with_moments else None,
     )
     item = tilted_quad_item(gd, table, lighting)
-    item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments)
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
     item.roughness, item.sh_weight = result.material.roughness, weight
-    (group,) = gd.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
     assert group.variant[4] and group.variant[6] == (weight == 0.0), group.variant
-    image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     inside, n, views = quad_pixels(item.model_matrix)
     reads_moment = policy.uses_moment(l_max, weight == 0.0)
@@ -794,7 +831,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     from precompute import lamps, prefilter, sh
 
     result = baked(5, colour_mode, False)
-    table = gd.TableTexture.from_result(result)
+    table = gd.resources.TableTexture.from_result(result)
     _world, img = world_sh()
     img = img.copy()
     img[6, 40] = (4e4, 3.8e4, 3e4)
@@ -802,7 +839,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     found, mask = lamps.extract(img)
     assert found.count == 2
     rest_coeffs = sh.project_equirect(lamps.remove(img, mask), 12)
-    lighting = gd.Lighting.from_sh(rest_coeffs, 5, result.material.roughness, found)
+    lighting = gd.resources.Lighting.from_sh(rest_coeffs, 5, result.material.roughness, found)
     film = film_colour.film_table(result)
     full = prefilter.prefilter(img, width=64, lamp_mask=mask)
     levels, moments = full.resampled(64), full.resampled_moments(64)
@@ -810,14 +847,14 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
         tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments), full.lamp_weights
     )
     item = tilted_quad_item(gd, table, lighting)
-    item.prefiltered = gd.PrefilterTexture.from_levels(levels, moments) if split else None
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments) if split else None
     item.roughness, item.sh_weight = result.material.roughness, weight
-    item.film = gd.FilmTexture.from_film(film)
+    item.film = gd.resources.FilmTexture.from_film(film)
     if not film_ubo:  # the texture path (tables too large for the uniform buffer)
         item.film = dataclasses.replace(item.film, ubo=None)
-    (group,) = gd.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
     assert group.variant[7] and group.variant[4] == split and group.variant[8] == film_ubo, group.variant
-    image = gd.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
 
     inside, n, views = quad_pixels(item.model_matrix)
     lit = lamp_shading.shade(film, found, result.material.roughness, n, views)

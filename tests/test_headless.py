@@ -17,6 +17,7 @@ import importlib
 import importlib.util
 import json
 import math
+import os
 import subprocess
 import sys
 import types
@@ -27,7 +28,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, REPO, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID, REPO, gpu_layer, linked_extension  # noqa: E402
 
 from precompute.material import MAX_SH_ORDER  # noqa: E402
 
@@ -54,11 +55,12 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw", "gpu_draw"):
+            for name in ("headless", "description", "tables", "prefs", "scene_draw"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            ns.gpu = gpu_layer()
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
             _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
-            ns.gpu_draw.ensure_gpu_context()
+            ns.gpu.context.ensure_gpu_context()
             yield ns
         finally:
             entry = bpy.context.preferences.addons.get(EXTENSION_ID)
@@ -300,6 +302,47 @@ def test_cli_bake_shares_one_table_between_equal_materials(bpy, tf, cli_blend, t
         assert Path(entry["file"]).is_file()
 
 
+def test_cli_cache_dir_is_used_and_an_unsafe_one_is_a_clear_error(bpy, tf, cli_blend, tmp_path, capsys):
+    """Issue 24: ``--cache-dir`` names the cache on every command; an unsafe folder (a symbolic
+    link) is an ``error:`` line for ``bake`` (exit 2) and a note for ``plan``, never a traceback."""
+    _open(bpy, tf, cli_blend)
+    tf.tables.clear_memory_cache()
+    chosen = tmp_path / "flag cache"
+    assert tf.headless.main(["bake", "--cache-dir", str(chosen)]) == 0
+    out = (lambda c: c.out + c.err)(capsys.readouterr())
+    assert "Film A: bake" in out, out  # not read from the preference's cache, which may hold it
+    stored = sorted(p.name for p in (chosen / "thinfilm_sh_tables").glob("*.exr"))
+    assert len(stored) == 1  # the two equal materials share one table
+
+    link = tmp_path / "link"
+    link.symlink_to(chosen, target_is_directory=True)
+    tf.tables.clear_memory_cache()
+    assert tf.headless.main(["bake", "--cache-dir", str(link)]) == 2
+    out = (lambda c: c.out + c.err)(capsys.readouterr())
+    assert "error:" in out and "symbolic link" in out and "Traceback" not in out
+    assert tf.headless.main(["plan", "--cache-dir", str(link)]) == 0
+    out = (lambda c: c.out + c.err)(capsys.readouterr())
+    assert "note:" in out and "symbolic link" in out and "plan-json" in out
+
+
+def test_cli_bake_json_summary_is_a_verified_write(bpy, tf, cli_blend, tmp_path, capsys):
+    """The summary is written like every other output: a FIFO or a symbolic link at ``--json``
+    is refused with a clear error, exit 2."""
+    _open(bpy, tf, cli_blend)
+    target = tmp_path / "elsewhere.json"
+    target.write_text("keep")
+    link = tmp_path / "summary.json"
+    link.symlink_to(target)
+    assert tf.headless.main(["bake", "--json", str(link)]) == 2
+    out = (lambda c: c.out + c.err)(capsys.readouterr())
+    assert "error:" in out and "summary.json" in out and "Traceback" not in out
+    assert target.read_text() == "keep" and link.is_symlink()
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    assert tf.headless.main(["bake", "--json", str(fifo)]) == 2
+    assert "error:" in (lambda c: c.out + c.err)(capsys.readouterr())
+
+
 def test_cli_plan_prints_a_plan(bpy, tf, cli_blend, capsys):
     _open(bpy, tf, cli_blend)
     assert tf.headless.main(["plan"]) == 0
@@ -311,9 +354,7 @@ def test_cli_plan_prints_a_plan(bpy, tf, cli_blend, capsys):
 
 
 def test_cli_bad_arguments_exit_nonzero(tf, capsys):
-    with pytest.raises(SystemExit) as info:
-        tf.headless.main(["render"])  # --out is required
-    assert info.value.code != 0
+    assert tf.headless.main(["render"]) == 2  # --out is required: argparse's refusal, no SystemExit
     assert "--out" in capsys.readouterr().err
 
 
@@ -332,9 +373,14 @@ def test_script_renders_a_file_in_a_subprocess(cli_blend, tmp_path):
         "36",
         "--no-background",
     ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False)
+    cache = tmp_path / "env cache"  # THINFILM_SH_CACHE is honoured inside Blender too (issue 24)
+    env = {**os.environ, "THINFILM_SH_CACHE": str(cache)}
+    proc = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path, check=False, env=env
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert out.is_file() and out.with_suffix(".exr").is_file()
+    assert len(list((cache / "thinfilm_sh_tables").glob("*.exr"))) == 1  # both films share one table
     image = read_exr(out.with_suffix(".exr"))
     assert image.shape == (36, 48, 3) and np.isfinite(image).all() and image.max() > 0.0
 
@@ -689,7 +735,7 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     (item,) = items()
     image_entry = tf.scene_draw.CACHES.world.environment
     assert image_entry is not None and image_entry.lamps is not None
-    assert 1 <= image_entry.lamps.count <= tf.gpu_draw.MAX_LAMPS and image_entry.lamps.share > 0.5
+    assert 1 <= image_entry.lamps.count <= tf.gpu.resources.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
     summary = tf.scene_draw.lamps_summary(True)  # the Surface panel's line
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary

@@ -471,7 +471,7 @@ def test_cache_clear_and_key_validation(tmp_path):
     cache = TableCache(tmp_path)
     for key in ("a", "b"):
         cache.store(key, np.ones((2, 3)), {})
-    (tmp_path / "b.exr.corrupt").write_bytes(b"x")
+    cache.path_for("b").with_name("b.exr.corrupt").write_bytes(b"x")  # entries live in a subfolder
     (tmp_path / "unrelated.txt").write_text("keep me")
     assert cache.clear() == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["unrelated.txt"]
@@ -488,7 +488,7 @@ def test_cache_concurrent_writers_of_one_key(tmp_path):
     table = cache.load("shared")
     assert table is not None
     assert np.array_equal(table.data, candidates[int(table.attributes["v"])])
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["shared.exr"]  # no temporaries left
+    assert sorted(p.name for p in cache.path_for("shared").parent.iterdir()) == ["shared.exr"]  # no temps
 
 
 def test_default_cache_dir_env(tmp_path, monkeypatch):
@@ -498,7 +498,7 @@ def test_default_cache_dir_env(tmp_path, monkeypatch):
     cache = TableCache()
     assert cache.directory == tmp_path / "override"
     cache.store("k", np.ones((2, 2)), {})
-    assert (tmp_path / "override" / "k.exr").is_file()
+    assert cache.path_for("k").is_file() and cache.path_for("k").is_relative_to(tmp_path / "override")
 
     monkeypatch.delenv("THINFILM_SH_CACHE")
     assert default_cache_dir() == tmp_path / "xdg" / "thinfilm_sh"

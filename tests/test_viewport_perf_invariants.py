@@ -20,12 +20,13 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID, gpu_layer, linked_extension  # noqa: E402
 
 from precompute import bake, sh  # noqa: E402
 from precompute.material import Layer, Material, Quality  # noqa: E402
 from precompute.shading import frame as shading_frame  # noqa: E402
 from precompute.shading import sh_rotation, sh_sum  # noqa: E402
+from precompute.shading.variant import Variant  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -36,14 +37,15 @@ def tf(bpy, tmp_path_factory):
         package.register()
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("gpu_draw", "scene_draw", "props", "prefs"):
+        ns.gpu = gpu_layer()
+        for name in ("scene_draw", "props", "prefs"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID
         ns.cache_dir = str(root / "cache")
         ns.prefs.preferences().cache_dir = ns.cache_dir
-        ns.gpu_draw.ensure_gpu_context()
+        ns.gpu.context.ensure_gpu_context()
         try:
             yield ns
         finally:
@@ -111,13 +113,13 @@ class Item:
 def quad_batch(gd):
     pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
     nor = np.tile([0.0, -1.0, 0.0], (4, 1))
-    return gd.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]])
+    return gd.mesh.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]])
 
 
 @pytest.fixture(scope="module")
 def drawn(tf):
     """Items of two shader variants (spectral l ≤ 2 and per-channel l ≤ 1) for the draw tests."""
-    gd = tf.gpu_draw
+    gd = tf.gpu
     world = world_coefficients()
     spectral = bake.bake(FILM)
     per_channel = bake.bake(
@@ -125,9 +127,10 @@ def drawn(tf):
             colour_mode="per_channel", quality=Quality(sh_order=1, view_samples=8, wavelength_count=32)
         )
     )
-    tables = [gd.TableTexture.from_result(r) for r in (spectral, per_channel)]
+    tables = [gd.resources.TableTexture.from_result(r) for r in (spectral, per_channel)]
     lightings = [
-        gd.Lighting.from_sh(world, r.sh_order, r.material.roughness) for r in (spectral, per_channel)
+        gd.resources.Lighting.from_sh(world, r.sh_order, r.material.roughness)
+        for r in (spectral, per_channel)
     ]
     batch = quad_batch(gd)
     items = [Item(batch, tables[k % 2], lightings[k % 2], offset=0.5 * k) for k in range(6)]
@@ -141,8 +144,8 @@ def frame(gd, items, view=VIEW, **kwargs):
     try:
         with offscreen.bind():
             gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-            prepared = gd.prepare_draw(items, view, PROJ, display_srgb=True, **kwargs)
-            gd.submit(prepared)
+            prepared = gd.draw.prepare_draw(items, view, PROJ, display_srgb=True, **kwargs)
+            gd.draw.submit(prepared)
     finally:
         offscreen.free()
     return prepared
@@ -152,9 +155,9 @@ def frame(gd, items, view=VIEW, **kwargs):
 # Uniform buffers, shader variants, grouping
 # ----------------------------------------------------------------------------------------------
 def test_unchanged_frames_allocate_and_upload_no_uniform_buffer(tf, drawn):
-    gd = tf.gpu_draw
-    uniforms = gd.UniformCache()
-    shaders = gd.ShaderCache()
+    gd = tf.gpu
+    uniforms = gd.resources.UniformCache()
+    shaders = gd.shaders.ShaderCache()
     frame(gd, drawn.items, uniforms=uniforms, shaders=shaders)
     after_first = dict(uniforms.stats)
     # One view buffer and one per distinct object matrix (the six items all differ).
@@ -171,8 +174,8 @@ def test_unchanged_frames_allocate_and_upload_no_uniform_buffer(tf, drawn):
 
 
 def test_a_moving_view_recycles_uniform_buffers(tf, drawn):
-    gd = tf.gpu_draw
-    uniforms = gd.UniformCache(keep_frames=3)
+    gd = tf.gpu
+    uniforms = gd.resources.UniformCache(keep_frames=3)
     frames = 20
     for k in range(frames):
         frame(gd, drawn.items[:1], view=look_at((0.1 * k, -5.0, 1.0)), uniforms=uniforms)
@@ -185,8 +188,8 @@ def test_a_moving_view_recycles_uniform_buffers(tf, drawn):
 
 
 def test_an_unused_entry_is_dropped_and_its_buffer_reused(tf):
-    gd = tf.gpu_draw
-    uniforms = gd.UniformCache(keep_frames=1)
+    gd = tf.gpu
+    uniforms = gd.resources.UniformCache(keep_frames=1)
     data = np.arange(8, dtype=np.float32)
     first = uniforms.get("a", lambda: data)
     uniforms.next_frame()
@@ -199,16 +202,16 @@ def test_an_unused_entry_is_dropped_and_its_buffer_reused(tf):
 
 
 def test_draws_are_grouped_by_variant_in_item_order(tf, drawn):
-    gd = tf.gpu_draw
+    gd = tf.gpu
     items = drawn.items  # variants alternate A, B, A, B, A, B
-    prepared = frame(gd, items, uniforms=gd.UniformCache())
+    prepared = frame(gd, items, uniforms=gd.resources.UniformCache())
     assert prepared.draw_count == len(items)
     assert len(prepared.groups) == 2 and prepared.shader_binds == 2
     first, second = prepared.groups
     assert first.table is drawn.tables[0].ubo and second.table is drawn.tables[1].ubo  # small: UBO tables
     assert [b for b, _ in first.draws] == [items[k].batch.batch for k in (0, 2, 4)]
     # An empty list prepares nothing and submits nothing.
-    assert gd.prepare_draw([], VIEW, PROJ, display_srgb=True).groups == []
+    assert gd.draw.prepare_draw([], VIEW, PROJ, display_srgb=True).groups == []
 
 
 def test_grouping_does_not_change_the_image(tf, drawn):
@@ -216,7 +219,7 @@ def test_grouping_does_not_change_the_image(tf, drawn):
     of coplanar overlaps, which grouping may change: these quads do not overlap)."""
     import gpu
 
-    gd = tf.gpu_draw
+    gd = tf.gpu
     items = [Item(it.batch, it.table, it.lighting, offset=2.2 * k - 5.5) for k, it in enumerate(drawn.items)]
     view = look_at((0.0, -20.0, 2.0))
     images = []
@@ -227,8 +230,8 @@ def test_grouping_does_not_change_the_image(tf, drawn):
                 fb = gpu.state.active_framebuffer_get()
                 fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
                 for group in batches:
-                    gd.draw_items(group, view, PROJ, display_srgb=False)
-                images.append(gd.read_framebuffer(fb, 48, 48))
+                    gd.draw.draw_items(group, view, PROJ, display_srgb=False)
+                images.append(gd.draw.read_framebuffer(fb, 48, 48))
         finally:
             offscreen.free()
     assert np.mean(images[0][..., 3] > 0.5) > 0.05  # all six quads are in view
@@ -354,7 +357,7 @@ def test_direct_low_band_rotation_matches_numpy(tf, l_max):
     """tf_local_coefficients_direct gives render.local_coefficients' kept coefficients (float32)."""
     import gpu
 
-    gd = tf.gpu_draw
+    gd = tf.gpu
     rng = np.random.default_rng(7 + l_max)
     count = 64  # 4 × 16 pixels per coefficient column block
     n = rng.normal(size=(count, 3))
@@ -368,22 +371,22 @@ def test_direct_low_band_rotation_matches_numpy(tf, l_max):
     v = (v / np.linalg.norm(v, axis=-1, keepdims=True)).astype(np.float32)
     v = np.where(np.sum(n * v, -1, keepdims=True) < 0, -v, v)
     world = world_coefficients(l_max)
-    lighting = gd.Lighting.from_sh(world, l_max, 0.6)
+    lighting = gd.resources.Lighting.from_sh(world, l_max, 0.6)
 
     info = gpu.types.GPUShaderCreateInfo()
-    gd.declare_shading_resources(info, gd.Variant(l_max, True, False, False))
+    gd.shaders.declare_shading_resources(info, Variant(l_max, True, False, False))
     info.sampler(1, "FLOAT_2D", "tf_test_normal")
     info.sampler(2, "FLOAT_2D", "tf_test_view")
     info.vertex_in(0, "VEC2", "pos")
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source("void main() { gl_Position = vec4(pos, 0.0, 1.0); }")
-    info.fragment_source(gd.shading_library(l_max) + LOCAL_FRAGMENT)
+    info.fragment_source(gd.shaders.shading_library(l_max) + LOCAL_FRAGMENT)
     shader = gpu.shader.create_from_info(info)
 
     def texture(vectors):
         data = np.zeros((1, count, 4), dtype=np.float32)
         data[0, :, :3] = vectors
-        return gpu.types.GPUTexture((count, 1), format="RGBA32F", data=gd.float_buffer(data))
+        return gpu.types.GPUTexture((count, 1), format="RGBA32F", data=gd.resources.float_buffer(data))
 
     kept = [0, 2, 3, 6, 7, 8][: (l_max + 1) * (l_max + 2) // 2]
     width, height = 4 * len(kept), count // 4
@@ -397,8 +400,8 @@ def test_direct_low_band_rotation_matches_numpy(tf, l_max):
             shader.uniform_block("tf_lighting", lighting.ubo)
             shader.uniform_sampler("tf_test_normal", tex_n)
             shader.uniform_sampler("tf_test_view", tex_v)
-            gd._fullscreen_triangle().draw(shader)
-            out = gd.read_framebuffer(fb, width, height)[::-1]  # row 0 = gl_FragCoord.y 0
+            gd.draw._fullscreen_triangle().draw(shader)
+            out = gd.draw.read_framebuffer(fb, width, height)[::-1]  # row 0 = gl_FragCoord.y 0
     finally:
         offscreen.free()
     got = out[..., :3].reshape(height, len(kept), 4, 3).transpose(0, 2, 1, 3).reshape(count, len(kept), 3)
@@ -421,38 +424,40 @@ def gpu_helpers(tf):
 
 
 def test_uniform_table_layout_and_size_limit(tf, gpu_helpers):
-    gd = tf.gpu_draw
+    gd = tf.gpu
     result = gpu_helpers.baked(2, "per_channel", True)  # 8 rows × 16 views × 6 layers: fits
-    layers = gd.TableTexture.layer_array(result.data)
-    packed = gd.TableTexture.uniform_array(layers)
+    layers = gd.resources.TableTexture.layer_array(result.data)
+    packed = gd.resources.TableTexture.uniform_array(layers)
     n_layers, t, a = layers.shape[:3]
-    assert packed.shape == (1024, 4) and packed.nbytes == gd.UBO_LIMIT_BYTES
+    assert packed.shape == (1024, 4) and packed.nbytes == gd.resources.UBO_LIMIT_BYTES
     assert tuple(packed[0, :3]) == (a, t, n_layers)
     row, column, layer = 5, 7, 4
     assert np.array_equal(packed[1 + (row * a + column) * n_layers + layer], layers[layer, row, column])
     assert np.all(packed[1 + n_layers * t * a :] == 0)
-    table = gd.TableTexture.from_result(result, uniform=True)
+    table = gd.resources.TableTexture.from_result(result, uniform=True)
     assert table.ubo is not None
-    assert gd.TableTexture.from_result(result, uniform=False).ubo is None
+    assert gd.resources.TableTexture.from_result(result, uniform=False).ubo is None
     big = gpu_helpers.baked(8, "spectral", False)  # 135 layers × 16 views > 1023 texels
-    assert gd.TableTexture.uniform_array(gd.TableTexture.layer_array(big.data)) is None
-    assert gd.TableTexture.from_result(big).ubo is None
+    assert gd.resources.TableTexture.uniform_array(gd.resources.TableTexture.layer_array(big.data)) is None
+    assert gd.resources.TableTexture.from_result(big).ubo is None
 
 
 def test_table_uniform_buffer_only_on_software_rasterisers(tf, gpu_helpers):
-    # gpu_draw.TABLE_UBO_DEVICES: the per-pixel-indexed uniform buffer was measured faster than
+    # policy.TABLE_UBO_DEVICES: the per-pixel-indexed uniform buffer was measured faster than
     # the texture on llvmpipe and 2-4x slower on an NVIDIA H100 (docs/gpu-frame.md); GPUs not
     # measured get the texture. The default of from_result follows the device Blender draws with.
     import gpu
 
-    gd = tf.gpu_draw
-    assert gd.uses_table_ubo("SOFTWARE") and gd.uses_table_ubo("software")
+    gd = tf.gpu
+    assert gd.resources.uses_table_ubo("SOFTWARE") and gd.resources.uses_table_ubo("software")
     for device in ("NVIDIA", "AMD", "INTEL", "APPLE", "UNKNOWN"):
-        assert not gd.uses_table_ubo(device)
+        assert not gd.resources.uses_table_ubo(device)
     device = gpu.platform.device_type_get()
-    assert gd.table_ubo_preferred() == gd.uses_table_ubo(device)
+    assert gd.resources.table_ubo_preferred() == gd.resources.uses_table_ubo(device)
     result = gpu_helpers.baked(2, "per_channel", True)  # fits the uniform buffer
-    assert (gd.TableTexture.from_result(result).ubo is not None) == gd.uses_table_ubo(device)
+    assert (gd.resources.TableTexture.from_result(result).ubo is not None) == gd.resources.uses_table_ubo(
+        device
+    )
 
 
 @pytest.mark.parametrize(
@@ -464,31 +469,31 @@ def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode
     texture (same bounds: float32 maths of the same interpolation)."""
     import gpu
 
-    gd, h = tf.gpu_draw, gpu_helpers
+    gd, h = tf.gpu, gpu_helpers
     vary = thickness == "varying"
     result = h.baked(l_max, colour_mode, vary)
-    table = gd.TableTexture.from_result(result)
+    table = gd.resources.TableTexture.from_result(result)
     assert table.ubo is not None
     world, _img = h.world_sh()
-    lighting = gd.Lighting.from_sh(world, l_max, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, l_max, result.material.roughness)
     width, height = 32, 16
     n, v, t01 = h.shading_inputs(width * height, seed=l_max)
 
     info = gpu.types.GPUShaderCreateInfo()
-    gd.declare_shading_resources(info, gd.Variant(l_max, table.spectral, vary, False, table_ubo=True))
+    gd.shaders.declare_shading_resources(info, Variant(l_max, table.spectral, vary, False, table_ubo=True))
     info.sampler(1, "FLOAT_2D", "tf_test_normal")
     info.sampler(2, "FLOAT_2D", "tf_test_view")
     info.vertex_in(0, "VEC2", "pos")
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(h.TEST_VERTEX)
-    info.fragment_source(gd.shading_library(l_max) + h.TEST_FRAGMENT)
+    info.fragment_source(gd.shaders.shading_library(l_max) + h.TEST_FRAGMENT)
     shader = gpu.shader.create_from_info(info)
 
     def texture(rgb, w):
         data = np.zeros((height, width, 4), dtype=np.float32)
         data[..., :3] = rgb.reshape(height, width, 3)
         data[..., 3] = w.reshape(height, width)
-        return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gd.float_buffer(data))
+        return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gd.resources.float_buffer(data))
 
     tex_n, tex_v = texture(n, t01), texture(v, np.zeros(width * height))
     offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
@@ -501,8 +506,8 @@ def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode
             shader.uniform_block("tf_table_data", table.ubo)
             shader.uniform_sampler("tf_test_normal", tex_n)
             shader.uniform_sampler("tf_test_view", tex_v)
-            gd._fullscreen_triangle().draw(shader)
-            got = gd.read_framebuffer(fb, width, height)[::-1].reshape(-1, 4)[:, :3]
+            gd.draw._fullscreen_triangle().draw(shader)
+            got = gd.draw.read_framebuffer(fb, width, height)[::-1].reshape(-1, 4)[:, :3]
     finally:
         offscreen.free()
     lo, hi = h.THICKNESS_RANGE
@@ -513,19 +518,19 @@ def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode
 
 def test_uniform_table_draws_the_image_of_the_texture(tf, gpu_helpers):
     """draw_items with the table in a uniform buffer and in the texture: the same pixels."""
-    gd, h = tf.gpu_draw, gpu_helpers
+    gd, h = tf.gpu, gpu_helpers
     result = h.baked(5, "spectral", False)
     world, _img = h.world_sh()
-    lighting = gd.Lighting.from_sh(world, 5, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
     mesh_batch = quad_batch(gd)
     images = []
     for uniform in (True, False):
-        table = gd.TableTexture.from_result(result, uniform=uniform)
+        table = gd.resources.TableTexture.from_result(result, uniform=uniform)
         assert (table.ubo is not None) == uniform
         item = Item(mesh_batch, table, lighting)
         item.model_matrix = np.array(
             [[1.0, 0.0, 0.0, 0.0], [0.0, 0.6, -0.8, 0.0], [0.0, 0.8, 0.6, 0.0], [0.0, 0.0, 0.0, 1.0]]
         )
-        images.append(gd.render_offscreen([item], VIEW, PROJ, 48, 48))
+        images.append(gd.draw.render_offscreen([item], VIEW, PROJ, 48, 48))
     assert np.mean(images[0][..., 3] > 0.5) > 0.1
     assert np.array_equal(images[0], images[1])

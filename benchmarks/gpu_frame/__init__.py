@@ -6,7 +6,7 @@ Usage (from the repository root)::
         # with bpy: the benchmark scenes of benchmarks/viewport.py → OUTDIR (every shader variant,
         # uniform buffer, texture and mesh a frame draws; about 30 MiB)
     .venv/bin/python -m benchmarks.gpu_frame check OUTDIR
-        # with bpy: this harness's pictures against gpu_draw.draw_items on the same OpenGL
+        # with bpy: this harness's pictures against gpu.draw.draw_items on the same OpenGL
         # (→ OUTDIR/check.json, OUTDIR/pictures-check.npz); needs moderngl
     python3 -m benchmarks.gpu_frame measure OUTDIR --out RESULT.json [--backend egl]
         [--pictures DIR] [--rounds N] [--skip 'sweep-l12-*' …] [--budget-s S] [--no-blender-sources]
@@ -23,8 +23,8 @@ wheel is far over what can be carried there, and it has Python 3.12 only), so ``
 everything a frame of ours needs out of the real extension, and ``measure`` draws it again with
 nothing but numpy and moderngl:
 
-- *Shaders*: for every variant that ``gpu_draw.prepare_draw`` picks, the create-info exactly as
-  ``gpu_draw._mesh_shader_info`` fills it (recorded by standing in for ``gpu.types``'s create-info
+- *Shaders*: for every variant that ``gpu.draw.prepare_draw`` picks, the create-info exactly as
+  ``gpu.shaders.mesh_shader_info`` fills it (recorded by standing in for ``gpu.types``'s create-info
   classes: defines, ``TYPEDEFS``, uniform buffers and samplers with their slots, vertex inputs,
   the interface, the fragment output, the vertex and fragment bodies: ``shading_library`` and the
   chunks). ``measure`` writes the declarations Blender 5.2's OpenGL backend generates from it
@@ -34,7 +34,7 @@ nothing but numpy and moderngl:
   Where bpy runs on OpenGL, ``prepare`` also keeps the source Blender itself compiled for each
   variant (read back from the driver), and ``measure`` compiles that too and draws the pictures
   with both: Blender's adds only its GLSL compatibility macros.
-- *Data*: uniform buffers and textures as ``gpu_draw`` uploads them (recorded where it creates
+- *Data*: uniform buffers and textures as ``gpu.resources`` uploads them (recorded where it creates
   them: lighting, table and film in a uniform buffer or a 2-D array texture, the prefiltered World
   as a 3-D texture), the view and object uniform buffers as ``prepare_draw`` fills them, the draws
   in the order and grouping ``prepare_draw`` gives them, and each mesh as ``MeshBatch.from_arrays``
@@ -43,18 +43,18 @@ nothing but numpy and moderngl:
   100 k triangles at l = 2, 5, 8, 12, each film as SH only, combined (split sum + SH) and split
   sum only (``viewport.roughness_cases``), with the World's lamps shaded per light direction
   (the product's default) and with the films' "World Lamps" off; ``grid``, 1 torus with 1.00 M
-  triangles at l = 4 (SH order 5) and l = 2, SH only, lamps on and off. 1920×1080, the view of
+  triangles at l_max = 4 and 2, SH only, lamps on and off. 1920×1080, the view of
   the scene camera. ``prepare`` runs on llvmpipe, where small tables are read from the uniform
   buffer; cases "<film>-tex" are the same films with the table read from its texture, as a
-  hardware GPU draws them (``gpu_draw.TABLE_UBO_DEVICES``), and "sh-loops" (l = 8, 12) the SH
+  hardware GPU draws them (``policy.TABLE_UBO_DEVICES``), and "sh-loops" (l = 8, 12) the SH
   film with the generic rotation loops instead of the generated X(±90°) code.
 
-``measure`` draws each case as ``gpu_draw.submit`` does: into an RGBA8 framebuffer with a 24-bit
+``measure`` draws each case as ``gpu.draw.submit`` does: into an RGBA8 framebuffer with a 24-bit
 depth buffer, cleared to 0 and depth 1, depth test LEQUAL with writes, no blending, no culling,
 display sRGB variants (exposure 0), one bind of each group's resources and one draw call per
 object. Textures: RGBA32F; the table and film read with ``texelFetch`` (NEAREST, CLAMP_TO_EDGE:
 Blender's default sampler), the prefiltered World LINEAR without mipmaps, REPEAT in u and
-CLAMP_TO_EDGE in v and w (``gpu_draw.PrefilterTexture``). Each case: warm-up frames, then
+CLAMP_TO_EDGE in v and w (``gpu.resources.PrefilterTexture``). Each case: warm-up frames, then
 rounds over the cases of one scene in alternating order; per frame the GPU time of a
 ``GL_TIME_ELAPSED`` query around the clear and the draws, and the wall time from the first call
 to the return of ``glFinish``. Medians are reported; a case ``clear`` (the clear alone) is timed
@@ -63,7 +63,7 @@ work per frame (``scene_draw.collect``, ``prepare_draw``) are not in it (docs/pe
 measures those).
 
 ``check`` proves that the harness draws what the product draws: the same cases at 480×270
-through ``gpu_draw.draw_items`` into a ``GPUOffScreen`` (RGBA8, display sRGB) and through
+through ``gpu.draw.draw_items`` into a ``GPUOffScreen`` (RGBA8, display sRGB) and through
 ``measure`` (a subprocess) on the same OpenGL; the 8-bit pictures must agree to 1 level.
 ``measure`` compares its pictures with ``OUTDIR/pictures-check.npz`` when it is there (the
 harness's pictures from ``check``), which gives the difference between the two drivers.

@@ -34,7 +34,7 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("prepare", help="record shaders and data with bpy")
     p.add_argument("outdir")
-    p = sub.add_parser("check", help="harness pictures vs gpu_draw.draw_items (bpy + moderngl)")
+    p = sub.add_parser("check", help="harness pictures vs gpu.draw.draw_items (bpy + moderngl)")
     p.add_argument("outdir")
     p = sub.add_parser("measure", help="compile, draw and time (numpy + moderngl)")
     p.add_argument("outdir")

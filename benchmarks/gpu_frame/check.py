@@ -22,7 +22,7 @@ from .store import Prepared
 
 
 def check(outdir, log=print) -> dict:
-    """Draw every case with ``gpu_draw.draw_items`` at :data:`CHECK_SIZE` and with ``measure`` on
+    """Draw every case with ``gpu.draw.draw_items`` at :data:`CHECK_SIZE` and with ``measure`` on
     the same OpenGL; compare the 8-bit pictures. Writes OUTDIR/check.json and the harness's
     pictures to OUTDIR/pictures-check.npz."""
     outdir = Path(outdir)
@@ -32,12 +32,12 @@ def check(outdir, log=print) -> dict:
     ours, notes = {}, []
     if data.manifest.get("source_digest") != source_digest():
         notes.append(
-            "addon/, glsl/ or precompute/ differ from what prepare recorded: gpu_draw now draws other"
+            "addon/, glsl/ or precompute/ differ from what prepare recorded: the add-on now draws other"
             " shaders or data than the prepared ones (run prepare again)"
         )
     for meta, items, view, proj, _capture, ext in record_cases(CHECK_SIZE, log):
-        gd = ext.gpu_draw
-        view_ubo = gd.view_uniforms(view, proj)
+        gd = ext.gpu
+        view_ubo = gd.draw.view_uniforms(view, proj)
         recorded = data.array(stored[meta["id"]]["view"])
         if not np.array_equal(view_ubo.astype(np.float32), recorded):
             notes.append(f"{meta['id']}: the view at {w}×{h} differs from the prepared one")
@@ -46,7 +46,7 @@ def check(outdir, log=print) -> dict:
             with offscreen.bind():
                 fb = gpu.state.active_framebuffer_get()
                 fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-                gd.draw_items(items, view, proj, display_srgb=True)
+                gd.draw.draw_items(items, view, proj, display_srgb=True)
                 buf = fb.read_color(0, 0, w, h, 4, 0, "UBYTE")
                 buf.dimensions = w * h * 4
                 ours[meta["id"]] = np.asarray(buf, dtype=np.uint8).reshape(h, w, 4)[::-1].copy()
@@ -97,7 +97,7 @@ def check(outdir, log=print) -> dict:
         result["blender_source_vs_header"] = harness_result["blender_source"]["vs_header"]
     (outdir / "check.json").write_text(json.dumps(result, indent=1), encoding="utf-8")
     log(
-        f"harness vs gpu_draw.draw_items on {renderer}, {w}×{h} RGBA8: max {result['max']} levels,"
+        f"harness vs gpu.draw.draw_items on {renderer}, {w}×{h} RGBA8: max {result['max']} levels,"
         f" mean {result['mean']:.4f} over {len(cases)} cases" + ("; " + "; ".join(notes) if notes else "")
     )
     return result

@@ -167,7 +167,7 @@ class Harness:
         else:
             h, w = a.shape[:2]
             tex = self.ctx.texture((w, h), 4, a.tobytes(), dtype="f4")
-        if role == "prefiltered":  # gpu_draw.PrefilterTexture: filter_mode(True), EXTEND, REPEAT in x
+        if role == "prefiltered":  # gpu.resources.PrefilterTexture: filter_mode(True), EXTEND, REPEAT in x
             tex.filter = (mgl.LINEAR, mgl.LINEAR)
             tex.repeat_x = True
             tex.repeat_y = False
@@ -229,7 +229,7 @@ class Harness:
 
     # -- frames
     def draw(self, case: dict, fbo) -> None:
-        """Clear and draw one case into ``fbo`` (as gpu_draw.submit, see the module docstring)."""
+        """Clear and draw one case into ``fbo`` (as gpu.draw.submit, see the module docstring)."""
         ctx, mgl = self.ctx, self.mgl
         fbo.use()
         fbo.depth_mask = True

@@ -12,7 +12,7 @@ import bpy  # noqa: F401 (gpu is importable once bpy is)
 import gpu
 
 from .. import common
-from .config import FORMAT_VERSION, RESOLUTION, ROOT, SCENES
+from .config import FORMAT_VERSION, REFERENCE_ROTATION, RESOLUTION, ROOT, SCENES
 from .gl import GLSources
 from .record import Writer, record_cases, source_key
 
@@ -24,9 +24,10 @@ def _blender_sources(gd, variants: dict, sources: dict, log) -> None:
         return
     reader = GLSources()
     for name, entry in variants.items():
-        variant = gd.Variant(**entry["variant"])
-        cache = gd.ShaderCache(generated_x90=entry.get("generated_x90", True))
-        got = reader.during(lambda variant=variant, cache=cache: cache.get(*variant))
+        reference = None if entry.get("generated_x90", True) else REFERENCE_ROTATION
+        cache = gd.shaders.ShaderCache(reference_rotation=reference)
+        fields = entry["variant"]
+        got = reader.during(lambda fields=fields, cache=cache: cache.get(**fields))
         if got is None:
             log(f"  Blender's own GLSL of {name}: not found among the driver's shader objects")
             continue
@@ -44,9 +45,9 @@ def prepare(outdir, log=print) -> dict:
     ext = None
     for meta, items, view, proj, capture, ext in record_cases(RESOLUTION, log):
         writer = writer or Writer(capture)
-        gd = ext.gpu_draw
+        gd = ext.gpu
         shaders = capture.loop_shaders if meta.get("loops") else capture.shaders
-        prepared = gd.prepare_draw(
+        prepared = gd.draw.prepare_draw(
             items, view, proj, display_srgb=True, shaders=shaders, uniforms=capture.uniforms
         )
         cases.append(writer.case(prepared, items, meta, gd))
@@ -57,7 +58,7 @@ def prepare(outdir, log=print) -> dict:
             f" lamps {meta['lamp_count']}"
         )
     capture = writer.capture
-    _blender_sources(ext.gpu_draw, capture.variants, capture.sources, log)
+    _blender_sources(ext.gpu, capture.variants, capture.sources, log)
     manifest = {
         "format": FORMAT_VERSION,
         "resolution": list(RESOLUTION),
@@ -88,10 +89,10 @@ def _code_state() -> str:
 
 
 def source_digest() -> str:
-    """sha256 over the extension's drawing code (addon/*.py, glsl/*.glsl, precompute/*.py): ``check``
-    compares it with the one ``prepare`` recorded."""
+    """sha256 over the extension's drawing code (addon/**/*.py, glsl/*.glsl, precompute/**/*.py):
+    ``check`` compares it with the one ``prepare`` recorded."""
     h = hashlib.sha256()
-    for pattern in ("addon/*.py", "glsl/*.glsl", "precompute/*.py"):
+    for pattern in ("addon/**/*.py", "glsl/*.glsl", "precompute/**/*.py"):
         for path in sorted(ROOT.glob(pattern)):
             h.update(path.relative_to(ROOT).as_posix().encode() + b"\0" + path.read_bytes())
     return h.hexdigest()

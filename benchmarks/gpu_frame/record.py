@@ -9,7 +9,15 @@ from dataclasses import replace
 import numpy as np
 
 from .. import viewport as vp
-from .config import LAMPS, LOOP_CASES_L, SCENES, TEXTURE_CASES_L, TEXTURE_CASES_SCENES, case_id
+from .config import (
+    LAMPS,
+    LOOP_CASES_L,
+    REFERENCE_ROTATION,
+    SCENES,
+    TEXTURE_CASES_L,
+    TEXTURE_CASES_SCENES,
+    case_id,
+)
 from .store import ArrayStore, digest
 
 
@@ -108,7 +116,7 @@ class _NamedVariant:
 
 
 def variant_key(variant) -> str:
-    """A readable name of a ``gpu_draw.Variant``: l, then the flags that are set."""
+    """A readable name of a ``Variant``: l, then the flags that are set."""
     if isinstance(variant, _NamedVariant):
         return variant.name
     flags = [name for name, value in variant._asdict().items() if name != "l_max" and value]
@@ -116,13 +124,15 @@ def variant_key(variant) -> str:
 
 
 class Capture:
-    """Records, while active, what ``gpu_draw`` uploads and compiles, through stand-ins:
+    """Records, while active, what the GPU layer (``addon.gpu``, its modules imported) uploads and
+    compiles, through stand-ins:
 
-    - ``gpu.types.GPUTexture`` / ``GPUUniformBuf`` as seen from gpu_draw: the real object is made
-      and returned, its data kept by ``id`` (every table, film, lighting and prefiltered World);
-    - ``MeshBatch.from_arrays``: the arrays of each batch, by ``id`` of its GPUBatch;
+    - ``gpu.types.GPUTexture`` / ``GPUUniformBuf`` as seen from ``gpu.resources``: the real object
+      is made and returned, its data kept by ``id`` (every table, film, lighting and prefiltered
+      World);
+    - ``MeshBatch.from_arrays`` (``gpu.mesh``): the arrays of each batch, by ``id`` of its GPUBatch;
     - a ``ShaderCache`` whose ``_compile`` records the variant's create-info instead of compiling
-      (``_mesh_shader_info`` runs with create-info recorders in place of gpu.types's);
+      (``gpu.shaders.mesh_shader_info`` runs with create-info recorders in place of gpu.types's);
     - a uniform cache whose ``get`` keeps what ``make()`` returns (view and object buffers).
     """
 
@@ -135,7 +145,7 @@ class Capture:
         self.variants: dict[str, dict] = {}
         capture = self
 
-        class Shaders(gd.ShaderCache):
+        class Shaders(gd.shaders.ShaderCache):
             def _compile(self, key, make_info):
                 name = variant_key(key)
                 if name not in capture.variants:
@@ -149,8 +159,8 @@ class Capture:
             def get(self, key, make):
                 return _Uniform(np.asarray(make(), dtype=np.float32).ravel().copy())
 
-        class LoopShaders(gd.ShaderCache):
-            """The generic rotation loops (``generated_x90=False``), recorded as "<variant>-loops"."""
+        class LoopShaders(gd.shaders.ShaderCache):
+            """The reference rotation's generic loops (tests/glsl/), recorded as "<variant>-loops"."""
 
             def _compile(self, key, make_info):
                 name = variant_key(key) + "-loops"
@@ -163,23 +173,23 @@ class Capture:
                 return _NamedVariant(key, name)
 
         self.shaders = Shaders()
-        self.loop_shaders = LoopShaders(generated_x90=False)
+        self.loop_shaders = LoopShaders(reference_rotation=REFERENCE_ROTATION)
         self.uniforms = Uniforms()
 
     def create_info(self, make_info) -> dict:
-        gd = self.gd
-        real = gd.gpu
+        shaders = self.gd.shaders
+        real = shaders.gpu
         types = _Namespace(real.types, GPUShaderCreateInfo=_Recorder, GPUStageInterfaceInfo=_Recorder)
-        gd.gpu = _Namespace(real, types=types)
+        shaders.gpu = _Namespace(real, types=types)
         try:
             info, iface = make_info()
         finally:
-            gd.gpu = real
+            shaders.gpu = real
         return _create_info_dict(info, iface, self.sources)
 
     def __enter__(self):
         gd, capture = self.gd, self
-        real = gd.gpu
+        real = gd.resources.gpu
 
         def texture(*args, **kwargs):
             tex = real.types.GPUTexture(*args, **kwargs)
@@ -202,8 +212,10 @@ class Capture:
             return ubo
 
         self._real_gpu = real
-        gd.gpu = _Namespace(real, types=_Namespace(real.types, GPUTexture=texture, GPUUniformBuf=uniform_buf))
-        self._from_arrays = gd.MeshBatch.__dict__["from_arrays"]
+        gd.resources.gpu = _Namespace(
+            real, types=_Namespace(real.types, GPUTexture=texture, GPUUniformBuf=uniform_buf)
+        )
+        self._from_arrays = gd.mesh.MeshBatch.__dict__["from_arrays"]
         original = self._from_arrays.__func__
 
         def from_arrays(cls, positions, normals, indices, thickness=None):
@@ -220,12 +232,12 @@ class Capture:
                 capture.keep.append(batch)
             return batch
 
-        gd.MeshBatch.from_arrays = classmethod(from_arrays)
+        gd.mesh.MeshBatch.from_arrays = classmethod(from_arrays)
         return self
 
     def __exit__(self, *exc):
-        self.gd.gpu = self._real_gpu
-        self.gd.MeshBatch.from_arrays = self._from_arrays
+        self.gd.resources.gpu = self._real_gpu
+        self.gd.mesh.MeshBatch.from_arrays = self._from_arrays
         return False
 
 
@@ -311,7 +323,7 @@ class Writer:
         groups = []
         for group in prepared.groups:
             lighting = self.upload(group.lighting, "lighting")
-            packed = gd.Lighting.pack(
+            packed = gd.resources.Lighting.pack(
                 by_lighting[id(group.lighting)].coefficients, by_lighting[id(group.lighting)].lamps
             )
             if digest(packed.astype(np.float32)) != digest(self.store.get(lighting["array"])):
@@ -394,7 +406,7 @@ def _frames(scene, size):
 
 def _textures_only(items):
     """The same items with the film's table read from its texture (no ``TF_TABLE_UBO``), as a
-    hardware GPU draws them (``gpu_draw.TABLE_UBO_DEVICES``: only software rasterisers, where
+    hardware GPU draws them (``policy.TABLE_UBO_DEVICES``: only software rasterisers, where
     ``prepare`` runs, use the uniform buffer), or None where the table already is a texture. The
     lamps' film table keeps its uniform buffer, as on every device."""
     if not any(it.table.ubo is not None for it in items):
@@ -414,7 +426,7 @@ def record_cases(size, log=print):
     capture active; the extension instance is created here."""
     _check_constants()
     ext = vp.Extension()
-    capture = Capture(ext.gpu_draw)
+    capture = Capture(ext.gpu)
     ext.scene_draw.CACHES.clear()
     with capture:
         scene = vp.Scene(ext)

@@ -64,7 +64,7 @@ def report(res: dict) -> str:
         "",
         "- **What is timed: our draw only**: one frame = clear (colour 0, depth 1) of a"
         f" {res['size'][0]}×{res['size'][1]} RGBA8 framebuffer with depth, then every draw of the"
-        " scene with the extension's shaders and data, as `gpu_draw.submit` issues it (depth test"
+        " scene with the extension's shaders and data, as `gpu.draw.submit` issues it (depth test"
         " LEQUAL, no blending, no culling, display sRGB output). **GPU time** = a `GL_TIME_ELAPSED`"
         " query around the frame; **wall** = from the first call to the return of `glFinish`"
         " (CPU submission + GPU + synchronisation).",
@@ -73,10 +73,10 @@ def report(res: dict) -> str:
         " measures those (on llvmpipe). bpy cannot run on the GPU machine, so the extension's shaders and"
         " data were recorded with bpy (`prepare`) and are drawn here by moderngl over EGL.",
         "- **Same shaders, same data**: the GLSL bodies and create-info of every variant are those"
-        " `gpu_draw` builds; the declarations are written as Blender 5.2's OpenGL backend writes them."
+        " `gpu.shaders` builds; the declarations are written as Blender 5.2's OpenGL backend writes them."
         " Uniform buffers, textures (RGBA32F), meshes (one vertex per face corner, as `MeshBatch`) and"
         " the grouping of the draws are recorded from the extension itself. The picture check below shows"
-        " that the harness draws what `gpu_draw.draw_items` draws.",
+        " that the harness draws what `gpu.draw.draw_items` draws.",
         f"- **Rounds**: {res['warmup']} warm-up frames per case, then {res['rounds']} rounds over the"
         " cases of one scene, every case once per round, the order reversed every other round; medians"
         " (10th–90th percentile in the JSON). `clear` = the clear alone.",
@@ -121,7 +121,7 @@ def _sweep_tables(res: dict) -> list[str]:
         "",
         "### As a GPU draws it",
         "",
-        "Films' tables read from their textures (`gpu_draw.TABLE_UBO_DEVICES`: only software rasterisers"
+        "Films' tables read from their textures (`policy.TABLE_UBO_DEVICES`: only software rasterisers"
         " read small tables from the uniform buffer), the lamps' film table from its uniform buffer.",
         "",
         "| l | World lamps | SH only | combined | split only | combined ÷ SH only | split only ÷ SH only |",
@@ -176,7 +176,7 @@ def _sweep_tables(res: dict) -> list[str]:
         "On this driver a uniform-buffer table read with an index that depends on the pixel (the view"
         " angle) is far slower than the texture: the threads of a warp read different addresses, and"
         " NVIDIA's uniform path serialises them. On llvmpipe it is the cheaper of the two"
-        " (docs/performance.md), hence `gpu_draw.TABLE_UBO_DEVICES`. The lamps' film table (a few texels"
+        " (docs/performance.md), hence `policy.TABLE_UBO_DEVICES`. The lamps' film table (a few texels"
         " per lamp) measured faster from its uniform buffer on both.",
         "",
         "Roughness and SH weight of the three films: "
@@ -221,25 +221,22 @@ def _grid_section(res: dict) -> list[str]:
         "## 1 M triangles: the GPU acceptance figure",
         "",
         f"1 torus, {grid[0]['triangles']:,} triangles, {res['size'][0]}×{res['size'][1]}, SH only. The"
-        f" product's earlier acceptance asked for ≥ {FPS_TARGET:.0f} fps at 1080p with 1 M triangles at SH"
-        " order 5 (l_max = 4) on a GPU. fps = 1000 / median frame ms (our draw only, see Method).",
+        f" product's earlier acceptance asked for ≥ {FPS_TARGET:.0f} fps at 1080p with 1 M triangles at"
+        " l_max = 4 on a GPU. fps = 1000 / median frame ms (our draw only, see Method).",
         "",
-        "| SH order (l_max) | World lamps | GPU ms | GPU fps | wall ms | wall fps | ≥ 240 fps (GPU time) |",
+        "| l_max | World lamps | GPU ms | GPU fps | wall ms | wall fps | ≥ 240 fps (GPU time) |",
         "|---|---|---|---|---|---|---|",
     ]
     # as a GPU draws it (the table from its texture) first, then the uniform-buffer table
     grid.sort(key=lambda c: (not c["case"].endswith("-tex"), -c["l_max"], not c["lamps"]))
-    out[-2] = (
-        "| SH order (l_max) | World lamps | table | GPU ms | GPU fps | wall ms | wall fps"
-        " | ≥ 240 fps (GPU time) |"
-    )
+    out[-2] = "| l_max | World lamps | table | GPU ms | GPU fps | wall ms | wall fps | ≥ 240 fps (GPU time) |"
     out[-1] = "|---|---|---|---|---|---|---|---|"
     for c in grid:
         gpu_ms, wall = _ms(c), _ms(c, "wall_ms")
         layout = "texture (as on a GPU)" if c["case"].endswith("-tex") else "uniform buffer" + _ubo_mark(c)
         ok = "—" if gpu_ms is None else ("yes" if 1e3 / gpu_ms >= FPS_TARGET else "**no**")
         out.append(
-            f"| {c['l_max'] + 1} ({c['l_max']}) | {'on' if c['lamps'] else 'off'} | {layout} | {_f(gpu_ms)} |"
+            f"| {c['l_max']} | {'on' if c['lamps'] else 'off'} | {layout} | {_f(gpu_ms)} |"
             f" {_f(None if gpu_ms is None else 1e3 / gpu_ms, '{:.0f}')} | {_f(wall)} |"
             f" {_f(None if wall is None else 1e3 / wall, '{:.0f}')} | {ok} |"
         )
@@ -259,7 +256,7 @@ def _picture_section(res: dict) -> list[str]:
     if check:
         out.append(
             f"- **Harness vs the product** (`check`, {check['size'][0]}×{check['size'][1]}, RGBA8, display"
-            f" sRGB, both on {check['blender_renderer']}): `gpu_draw.draw_items` in bpy against this"
+            f" sRGB, both on {check['blender_renderer']}): `gpu.draw.draw_items` in bpy against this"
             f" harness over {len(check['cases'])} cases: max {check['max']} levels (of 255), mean"
             f" {check['mean']:.4f}; largest per case "
             + ", ".join(
@@ -339,8 +336,8 @@ def _extra_section(res: dict) -> list[str]:
         "",
         "Separate `measure` runs on this kind of machine, merged into the JSON by `report --extra`: l = 12"
         " (whose frames took seconds before the band-by-band sum) and the rotation's two forms. *loops*:"
-        " the same variant with the generic rotation loops of glsl/tf_sh_rotate.glsl"
-        " (`ShaderCache(generated_x90=False)`) instead of the generated code. *code*: the revision the"
+        " the same variant with the generic rotation loops of tests/glsl/tf_sh_rotate_loops.glsl"
+        " (`ShaderCache(reference_rotation=…)`) instead of the generated code. *code*: the revision the"
         " run's data and shaders were prepared from (\"this report's\" = the tables above).",
         "",
         "| run | code | case | size | rounds | GPU ms | compile + link s |",
@@ -378,7 +375,7 @@ def _extra_findings(extra: list[dict], main_code: str) -> list[str]:
         if old and new:
             lines.append(
                 f"- SH only with lamps at l = 12, {size}: {old:.0f} → {new:.1f} ms ({old / new:.0f}× faster)"
-                " with the band-by-band sum (`gpu_draw.banded_source`: each band rotated and summed in its"
+                " with the band-by-band sum (`codegen.banded_source`: each band rotated and summed in its"
                 " own variables, one band live at a time) instead of every band rotated in the (l + 1)²"
                 " array `tf_c` before the sum (507 floats at l = 12, against at most 255 registers per"
                 " thread)."

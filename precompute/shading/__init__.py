@@ -6,9 +6,12 @@ GLSL (glsl/ and generated)              numpy (precompute/shading/)
 tf_frame.glsl                           frame.py: ``view_aligned_frame``, ``zyz_from_frame``
 ``tf_view_aligned_frame``,              (``GIMBAL_SIN``: policy.py)
 ``tf_zyz_from_frame``
-tf_sh_rotate.glsl ``tf_rotate_z``,      sh_rotation.py: ``rotate_z_batch``,
-``tf_apply_x90``,                       ``x_rotation_bands``, ``apply_bands``,
-``tf_local_coefficients(_direct)``      ``local_coefficients``
+tf_sh_rotate.glsl                       sh_rotation.py: ``rotate_z_batch``,
+``tf_local_coefficients_direct``;       ``x_rotation_bands``, ``apply_bands``,
+tests/glsl/tf_sh_rotate_loops.glsl      ``local_coefficients``
+(reference) ``tf_rotate_z``,
+``tf_apply_x90``,
+``tf_local_coefficients``
 tf_table.glsl ``tf_lerp_index``,        table.py: ``lerp_index``, ``lookup``,
 ``tf_table_lerp``, ``tf_table_fetch``   ``thickness_position``
 tf_shade.glsl ``tf_shade``,             sh_sum.py: ``shade_sh``

@@ -10,7 +10,7 @@
   :class:`~precompute.shading.variant.Variant` costs, counted in the generated source where there
   is one; the effect plan reports them (precompute/effects.py).
 
-Pure Python and numpy: the add-on (addon/gpu_draw.py) joins these with the chunks of glsl/.
+Pure Python and numpy: the add-on (addon/gpu/shaders.py) joins these with the chunks of glsl/.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from .variant import Variant
 
 #: Highest l_max the shaders support; the lighting uniform buffer always has room for it.
 MAX_L = MAX_SH_ORDER
-#: The library switch that selects the generated code (set by gpu_draw.shading_library).
+#: The library switch that selects the generated code (set by addon/gpu/shaders.py shading_library).
 X90_GENERATED = ("TF_X90_GENERATED", "1")
 
 

@@ -1,7 +1,7 @@
 """The shader variant: which GLSL a draw compiles, and the pure decisions that pick it.
 
 A :class:`Variant` names every switch of the shading library (each a ``#define``); the add-on
-compiles one shader per variant (addon/gpu_draw.py ``ShaderCache``) and the effect plan
+compiles one shader per variant (addon/gpu/shaders.py ``ShaderCache``) and the effect plan
 (precompute/effects.py) costs the same variant (codegen.operation_counts).
 :func:`choose_variant` turns the facts of one draw item (its table, mesh, World and film) into
 it, for the draw and for the plan alike.

@@ -1,0 +1,381 @@
+"""Drawing: view and object uniforms, draw items grouped by variant, the background, off-screen.
+
+:func:`prepare_draw` is the CPU half of a frame (variants, uniform buffers, grouping),
+:func:`submit` the GPU half (state, binds, draw calls); :func:`draw_items` is both. Items are
+made by addon/scene_draw.py (or tests): a :class:`.mesh.MeshBatch`, a model matrix, a
+:class:`.resources.TableTexture` and :class:`.resources.Lighting`, optionally a
+:class:`.resources.PrefilterTexture` and :class:`.resources.FilmTexture`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import gpu
+import numpy as np
+
+from ...precompute.shading.variant import Variant, choose_variant
+from . import resources
+from .context import ensure_gpu_context
+from .mesh import MeshBatch
+from .resources import EnvironmentTexture, UniformCache
+from .shaders import SHADERS
+
+
+def _matrix(m) -> np.ndarray:
+    a = np.array(m, dtype=np.float64)  # mathutils.Matrix rows, numpy or nested lists
+    if a.shape != (4, 4):
+        raise ValueError(f"expected a 4×4 matrix, got shape {a.shape}")
+    return a
+
+
+def _columns(m: np.ndarray) -> np.ndarray:
+    """Columns of a 4×4 as four vec4s (what mat4(c0, c1, c2, c3) takes)."""
+    return np.ascontiguousarray(m.T).ravel()
+
+
+def is_orthographic(projection_matrix) -> bool:
+    p = _matrix(projection_matrix)
+    return bool(p[3, 3] == 1.0 and p[3, 2] == 0.0)
+
+
+def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.ndarray:
+    """:data:`.resources.VIEW` content, flat float32."""
+    view, proj = _matrix(view_matrix), _matrix(projection_matrix)
+    vp = proj @ view
+    inv_view = np.linalg.inv(view)
+    ortho = is_orthographic(proj)
+    toward_viewer = inv_view[:3, 2] / max(np.linalg.norm(inv_view[:3, 2]), 1e-30)
+    return resources.VIEW.pack(
+        view_proj=_columns(vp),
+        inv_view_proj=_columns(np.linalg.inv(vp)),
+        camera=[*inv_view[:3, 3], 1.0 if ortho else 0.0],
+        view_dir=[*toward_viewer, 0.0],
+        params=[2.0 ** float(exposure), 0.0, 0.0, 0.0],
+    ).reshape(-1)
+
+
+def object_uniforms(model_matrix, roughness: float = 0.0, sh_weight: float = 1.0) -> np.ndarray:
+    """:data:`.resources.OBJECT` content, flat float32: model matrix, normal matrix (inverse
+    transpose of its 3×3), material parameters."""
+    model = _matrix(model_matrix)
+    m3 = model[:3, :3]
+    try:
+        normal3 = np.linalg.inv(m3).T
+    except np.linalg.LinAlgError:
+        normal3 = np.linalg.pinv(m3).T
+    normal = np.eye(4)
+    normal[:3, :3] = normal3
+    return resources.OBJECT.pack(
+        model=_columns(model), normal=_columns(normal), material=[float(roughness), float(sh_weight)]
+    ).reshape(-1)
+
+
+def _batch_of(item):
+    """(GPUBatch, has_thickness) of a draw item whose ``batch`` is a MeshBatch or a GPUBatch."""
+    batch = item.batch
+    if isinstance(batch, MeshBatch):
+        return batch.batch, batch.has_thickness
+    return batch, bool(getattr(item, "has_thickness", False))
+
+
+class _SavedState:
+    """The gpu.state values we change and can read back (face culling has no getter)."""
+
+    def __init__(self):
+        self.depth_test = gpu.state.depth_test_get()
+        self.depth_mask = gpu.state.depth_mask_get()
+        self.blend = gpu.state.blend_get()
+
+    def restore(self):
+        gpu.state.depth_test_set(self.depth_test)
+        gpu.state.depth_mask_set(self.depth_mask)
+        gpu.state.blend_set(self.blend)
+
+
+#: The shared uniform-buffer cache used when none is passed.
+UNIFORMS = UniformCache()
+
+
+def view_ubo(view_matrix, projection_matrix, exposure: float = 0.0, uniforms=None):
+    """The :data:`.resources.VIEW` buffer of a view (from :class:`.resources.UniformCache`: reused
+    while unchanged)."""
+    uniforms = UNIFORMS if uniforms is None else uniforms
+    view, proj = _matrix(view_matrix), _matrix(projection_matrix)
+    key = ("view", view.tobytes(), proj.tobytes(), float(exposure))
+    return uniforms.get(key, lambda: view_uniforms(view, proj, exposure))
+
+
+@dataclass
+class DrawGroup:
+    """Consecutive draws that share a shader variant, lighting, table and prefiltered World."""
+
+    variant: Variant
+    shader: gpu.types.GPUShader
+    lighting: gpu.types.GPUUniformBuf
+    table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
+    prefiltered: gpu.types.GPUTexture | None
+    draws: list  # (GPUBatch, object GPUUniformBuf)
+    film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
+
+
+@dataclass
+class PreparedDraw:
+    """What :func:`submit` draws: the view's uniform buffer and the draws grouped by state."""
+
+    view: gpu.types.GPUUniformBuf | None
+    groups: list
+
+    @property
+    def draw_count(self) -> int:
+        return sum(len(g.draws) for g in self.groups)
+
+    @property
+    def shader_binds(self) -> int:
+        """Shader binds :func:`submit` makes: one per change of variant between groups."""
+        return sum(
+            1 for i, g in enumerate(self.groups) if i == 0 or g.shader is not self.groups[i - 1].shader
+        )
+
+
+def prepare_draw(
+    items,
+    view_matrix,
+    projection_matrix,
+    *,
+    display_srgb: bool,
+    exposure: float = 0.0,
+    shaders=None,
+    uniforms=None,
+) -> PreparedDraw:
+    """The CPU half of :func:`draw_items`: variants, uniform buffers and the order of the draws.
+
+    Items are grouped by (variant, lighting, table, prefiltered World) so that :func:`submit`
+    binds each shader and resource once per group; the order within a group is kept. Uniform
+    buffers come from ``uniforms`` (:class:`UniformCache`), keyed by the matrices and material
+    parameters they hold: an unchanged view or object reuses its buffer. Nothing is drawn.
+    """
+    ensure_gpu_context()
+    shaders = SHADERS if shaders is None else shaders
+    uniforms = UNIFORMS if uniforms is None else uniforms
+    uniforms.next_frame()
+    groups: dict = {}
+    for item in items:
+        batch, has_thickness = _batch_of(item)
+        if batch is None:
+            continue
+        table = item.table
+        prefiltered = getattr(item, "prefiltered", None)
+        sh_weight = float(getattr(item, "sh_weight", 1.0))
+        table_ubo = getattr(table, "ubo", None)
+        film = getattr(item, "film", None)
+        variant = choose_variant(
+            l_max=table.l_max,
+            spectral=table.spectral,
+            thickness_rows=table.thickness_count,
+            has_thickness=has_thickness,
+            display=display_srgb,
+            prefiltered=prefiltered is not None,
+            sh_weight=sh_weight,
+            lamp_count=getattr(item.lighting, "lamp_count", 0),
+            film=film is not None,
+            film_ubo=film is not None and film.ubo is not None,
+            table_ubo=table_ubo is not None,
+        )
+        split = variant.split_sum
+        roughness = float(getattr(item, "roughness", 0.0))
+        weight = sh_weight if split else 1.0
+        model = _matrix(item.model_matrix)
+        object_ubo = uniforms.get(
+            ("object", model.tobytes(), roughness, weight),
+            lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
+        )
+        table_data = table.ubo if variant.table_ubo else table.texture
+        lamps = variant.lamps
+        film_data = (film.ubo if variant.film_ubo else film.texture) if lamps else None
+        key = (
+            variant,
+            id(item.lighting.ubo),
+            id(table_data),
+            id(prefiltered.texture) if split else None,
+            id(film_data) if lamps else None,
+        )
+        group = groups.get(key)
+        if group is None:
+            group = groups[key] = DrawGroup(
+                variant,
+                shaders.mesh(variant),
+                item.lighting.ubo,
+                table_data,
+                prefiltered.texture if split else None,
+                [],
+                film_data,
+            )
+        group.draws.append((batch, object_ubo))
+    if not groups:
+        return PreparedDraw(None, [])
+    first = {}  # variant → rank of its first item: equal variants next to each other, else item order
+    for group in groups.values():
+        first.setdefault(group.variant, len(first))
+    ordered = sorted(groups.values(), key=lambda g: first[g.variant])
+    return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered)
+
+
+def submit(prepared: PreparedDraw) -> None:
+    """The GPU half of :func:`draw_items`: state, binds and draw calls; the GPU state is restored.
+
+    Depth test LESS_EQUAL with depth writes, no blending, no face culling. Face culling cannot be
+    read back from ``gpu.state`` and is left off (Blender's default); depth test, depth mask and
+    blend are restored.
+    """
+    if not prepared.groups:
+        return
+    saved = _SavedState()
+    try:
+        gpu.state.depth_test_set("LESS_EQUAL")
+        gpu.state.depth_mask_set(True)
+        gpu.state.face_culling_set("NONE")
+        gpu.state.blend_set("NONE")
+        shader = None
+        for group in prepared.groups:
+            if group.shader is not shader:
+                shader = group.shader
+                shader.bind()
+                shader.uniform_block(resources.VIEW.name, prepared.view)
+            shader.uniform_block(resources.LIGHTING.name, group.lighting)
+            if group.variant.table_ubo:
+                shader.uniform_block(resources.TABLE.name, group.table)
+            else:
+                shader.uniform_sampler(resources.TABLE_SAMPLER.name, group.table)
+            if group.prefiltered is not None:
+                shader.uniform_sampler(resources.PREFILTERED_SAMPLER.name, group.prefiltered)
+            if group.film is not None:
+                if group.variant.film_ubo:
+                    shader.uniform_block(resources.FILM.name, group.film)
+                else:
+                    shader.uniform_sampler(resources.FILM_SAMPLER.name, group.film)
+            for batch, object_ubo in group.draws:
+                shader.uniform_block(resources.OBJECT.name, object_ubo)
+                batch.draw(shader)
+    finally:
+        saved.restore()
+
+
+def draw_items(
+    items,
+    view_matrix,
+    projection_matrix,
+    *,
+    display_srgb: bool,
+    exposure: float = 0.0,
+    shaders=None,
+    uniforms=None,
+):
+    """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
+
+    ``items``: objects with ``.batch`` (:class:`.mesh.MeshBatch` or a GPUBatch),
+    ``.model_matrix`` (4×4), ``.table`` (:class:`.resources.TableTexture`) and ``.lighting``
+    (:class:`.resources.Lighting`); optionally ``.prefiltered``
+    (:class:`.resources.PrefilterTexture`), ``.film`` (:class:`.resources.FilmTexture`),
+    ``.roughness`` and ``.sh_weight`` (the split sum). :func:`prepare_draw` then :func:`submit`;
+    see there.
+    """
+    submit(
+        prepare_draw(
+            items,
+            view_matrix,
+            projection_matrix,
+            display_srgb=display_srgb,
+            exposure=exposure,
+            shaders=shaders,
+            uniforms=uniforms,
+        )
+    )
+
+
+@functools.cache
+def _fullscreen_triangle():
+    fmt = gpu.types.GPUVertFormat()
+    fmt.attr_add(id="pos", comp_type="F32", len=2, fetch_mode="FLOAT")
+    vbo = gpu.types.GPUVertBuf(fmt, 3)
+    vbo.attr_fill("pos", np.array([[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0]], dtype=np.float32))
+    return gpu.types.GPUBatch(type="TRIS", buf=vbo)
+
+
+def draw_background(
+    environment,
+    view_matrix,
+    projection_matrix,
+    *,
+    display_srgb: bool = False,
+    exposure: float = 0.0,
+    shaders=None,
+) -> None:
+    """Draw the equirect environment at the far plane where nothing has been drawn (depth = 1).
+
+    ``environment``: an :class:`.resources.EnvironmentTexture` or an image array (H, W, 3|4).
+    """
+    ensure_gpu_context()
+    if not isinstance(environment, EnvironmentTexture):
+        environment = EnvironmentTexture.from_image(environment)
+    shaders = SHADERS if shaders is None else shaders
+    shader = shaders.background(display_srgb)
+    view = view_ubo(view_matrix, projection_matrix, exposure)
+    saved = _SavedState()
+    try:
+        gpu.state.depth_test_set("LESS_EQUAL")
+        gpu.state.depth_mask_set(False)
+        gpu.state.face_culling_set("NONE")
+        gpu.state.blend_set("NONE")
+        shader.bind()
+        shader.uniform_block(resources.VIEW.name, view)
+        shader.uniform_sampler(resources.ENVIRONMENT_SAMPLER.name, environment.texture)
+        _fullscreen_triangle().draw(shader)
+    finally:
+        saved.restore()
+
+
+def read_framebuffer(framebuffer, width: int, height: int) -> np.ndarray:
+    """RGBA float32 (H, W, 4), top row first, of a bound framebuffer."""
+    buf = framebuffer.read_color(0, 0, width, height, 4, 0, "FLOAT")
+    buf.dimensions = width * height * 4
+    return np.asarray(buf, dtype=np.float32).reshape(height, width, 4)[::-1].copy()
+
+
+def render_offscreen(
+    items,
+    view_matrix,
+    projection_matrix,
+    width: int,
+    height: int,
+    *,
+    background=None,
+    depth_from=None,
+    shaders=None,
+) -> np.ndarray:
+    """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first.
+
+    Order: clear (colour 0, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
+    scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
+    bound) → the ``background`` equirect image where depth is still 1 → the items, depth-tested.
+    Alpha is 1 where anything was drawn and 0 elsewhere (without a background).
+    """
+    ensure_gpu_context()
+    width, height = int(width), int(height)
+    if width < 1 or height < 1:
+        raise ValueError(f"size must be positive, got {width}×{height}")
+    offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                if depth_from is not None:
+                    depth_from(offscreen)
+                if background is not None:
+                    draw_background(background, view_matrix, projection_matrix, shaders=shaders)
+                draw_items(items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders)
+            return read_framebuffer(fb, width, height)
+    finally:
+        offscreen.free()

@@ -1,0 +1,113 @@
+"""Meshes for the shaders: a mesh's arrays per face corner, and the GPU batch made from them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gpu
+import numpy as np
+
+from .context import ensure_gpu_context
+
+
+@dataclass
+class MeshBatch:
+    """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1])."""
+
+    batch: gpu.types.GPUBatch
+    vertex_count: int
+    triangle_count: int
+    has_thickness: bool
+
+    @classmethod
+    def from_arrays(cls, positions, normals, indices, thickness=None) -> MeshBatch | None:
+        """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness.
+
+        Everything is converted to float32 / int32. Returns None for an empty mesh.
+        """
+        pos = np.ascontiguousarray(np.asarray(positions, dtype=np.float32).reshape(-1, 3))
+        nor = np.ascontiguousarray(np.asarray(normals, dtype=np.float32).reshape(-1, 3))
+        idx = np.ascontiguousarray(np.asarray(indices).reshape(-1, 3).astype(np.int32))
+        if pos.shape[0] == 0 or idx.shape[0] == 0:
+            return None
+        if nor.shape != pos.shape:
+            raise ValueError(f"normals {nor.shape} must match positions {pos.shape}")
+        if idx.min() < 0 or idx.max() >= pos.shape[0]:
+            raise ValueError("triangle indices out of range")
+        fmt = gpu.types.GPUVertFormat()
+        fmt.attr_add(id="pos", comp_type="F32", len=3, fetch_mode="FLOAT")
+        fmt.attr_add(id="nor", comp_type="F32", len=3, fetch_mode="FLOAT")
+        th = None
+        if thickness is not None:
+            th = np.ascontiguousarray(np.asarray(thickness, dtype=np.float32).reshape(-1))
+            if th.shape[0] != pos.shape[0]:
+                raise ValueError(f"thickness {th.shape} must have one value per vertex ({pos.shape[0]})")
+            fmt.attr_add(id="thickness", comp_type="F32", len=1, fetch_mode="FLOAT")
+        ensure_gpu_context()
+        vbo = gpu.types.GPUVertBuf(fmt, pos.shape[0])
+        vbo.attr_fill("pos", pos)
+        vbo.attr_fill("nor", nor)
+        if th is not None:
+            vbo.attr_fill("thickness", th)
+        ibo = gpu.types.GPUIndexBuf(type="TRIS", seq=idx)
+        batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
+        return cls(batch, pos.shape[0], idx.shape[0], th is not None)
+
+
+def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):
+    """A mesh attribute's values read in one block, or None where the attribute is not there.
+
+    ``foreach_get`` on the attribute copies the array; on ``mesh.loops`` / ``mesh.vertices`` it
+    goes through RNA item by item, far slower (docs/tuning.md#mesh-attributes).
+    """
+    attr = mesh.attributes.get(name)
+    if attr is None or attr.domain != domain or attr.data_type != data_type:
+        return None
+    out = np.empty(size, dtype=dtype)
+    attr.data.foreach_get("vector" if data_type == "FLOAT_VECTOR" else "value", out)
+    return out
+
+
+def mesh_arrays(mesh, thickness_attribute: str | None = None):
+    """(positions, normals, triangles, thickness | None) of a mesh, one vertex per face corner.
+
+    Positions and split/custom normals (``mesh.corner_normals``) per corner (loop), triangles
+    from the loop triangulation as corner indices, and the named FLOAT attribute (point, corner
+    or face domain) per corner, raw (the caller maps it to [0, 1]); None when it is missing or of
+    another type. Returns None for a mesh without triangles.
+    """
+    tris = mesh.loop_triangles
+    if len(tris) == 0:
+        mesh.calc_loop_triangles()
+        tris = mesh.loop_triangles
+    n_tri, n_loop = len(tris), len(mesh.loops)
+    if n_tri == 0 or n_loop == 0:
+        return None
+    loop_vert = _attribute_array(mesh, ".corner_vert", "CORNER", "INT", n_loop, np.int32)
+    if loop_vert is None:
+        loop_vert = np.empty(n_loop, dtype=np.int32)
+        mesh.loops.foreach_get("vertex_index", loop_vert)
+    co = _attribute_array(mesh, "position", "POINT", "FLOAT_VECTOR", 3 * len(mesh.vertices), np.float32)
+    if co is None:
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+    positions = co.reshape(-1, 3)[loop_vert]
+    normals = np.empty(n_loop * 3, dtype=np.float32)
+    mesh.corner_normals.foreach_get("vector", normals)
+    triangles = np.empty(n_tri * 3, dtype=np.int32)
+    tris.foreach_get("loops", triangles)
+    thickness = None
+    if thickness_attribute:
+        attr = mesh.attributes.get(thickness_attribute)
+        if attr is not None and attr.data_type == "FLOAT":
+            values = np.empty(len(attr.data), dtype=np.float32)
+            attr.data.foreach_get("value", values)
+            if attr.domain == "POINT":
+                thickness = values[loop_vert]
+            elif attr.domain == "CORNER":
+                thickness = values
+            elif attr.domain == "FACE":
+                totals = np.empty(len(mesh.polygons), dtype=np.int32)
+                mesh.polygons.foreach_get("loop_total", totals)
+                thickness = np.repeat(values, totals)  # polygons own consecutive loop ranges
+    return positions, normals.reshape(-1, 3), triangles.reshape(-1, 3), thickness

@@ -1,0 +1,562 @@
+"""What the shaders read: binding slots, uniform-buffer layouts, and the GPU objects made from arrays.
+
+Every uniform buffer is described once, as a :class:`Block` of vec4 members (std140 with vec4s
+only, so a member's offset is the sum of the members before it): :data:`LIGHTING`, :data:`VIEW`,
+:data:`OBJECT`, :data:`TABLE` and :data:`FILM`. Its binding slot, its GLSL struct
+(:data:`TYPEDEFS`, with each member's description as a comment) and its packing
+(:meth:`Block.pack`) all come from that description, and its size is checked against
+UBO_LIMIT_BYTES (16 KiB, the minimum every backend guarantees) when this module loads. The
+samplers are :class:`Sampler` records; each texture's layout is in the docstring of the class that
+fills it (:class:`TableTexture`, :class:`FilmTexture`, :class:`PrefilterTexture`,
+:class:`EnvironmentTexture`). The GLSL chunks name the members and point here. No push constants
+are used (Vulkan keeps only 128 bytes of them).
+
+Also here: :class:`Lighting` (the World's SH for one material, in :data:`LIGHTING`),
+:class:`UniformCache` (view and object buffers kept across frames) and :func:`float_buffer`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gpu
+import numpy as np
+
+from ...precompute.material import MAX_SH_ORDER
+from ...precompute.shading import policy
+from ...precompute.shading.codegen import RX_PADDED, x_rotation_scalars
+from ...precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, fits_uniform_buffer
+from .context import ensure_gpu_context
+
+#: Highest SH order the shaders support (the lighting buffer always has room for it).
+MAX_L = MAX_SH_ORDER
+#: World SH coefficients in the lighting buffer: (MAX_L + 1)².
+SH_SLOTS = (MAX_L + 1) ** 2
+#: The World's lamps the lighting buffer holds (precompute/lamps.py): a count, then direction and
+#: power of each.
+MAX_LAMPS = policy.MAX_LAMPS
+LAMP_VEC4 = 1 + 2 * MAX_LAMPS
+
+
+# ----------------------------------------------------------------------------------------------
+# Layouts
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Member:
+    """``count`` vec4s of a uniform block (None: one vec4, not an array) and what they hold.
+
+    ``doc`` is the layout's one description: it is written into the GLSL struct as a comment, so
+    it is plain ASCII.
+    """
+
+    name: str
+    count: int | None
+    doc: str
+
+    @property
+    def vec4s(self) -> int:
+        return 1 if self.count is None else int(self.count)
+
+    def glsl(self) -> str:
+        array = "" if self.count is None else f"[{self.count}]"
+        return f"  vec4 {self.name}{array}; /* {self.doc} */"
+
+
+@dataclass(frozen=True)
+class Block:
+    """A std140 uniform buffer of vec4 members: the GLSL type ``struct``, the resource ``name``
+    the shaders read it as, its binding ``slot`` and its members in order."""
+
+    struct: str
+    name: str
+    slot: int
+    members: tuple[Member, ...]
+
+    def __post_init__(self):
+        if self.nbytes > UBO_LIMIT_BYTES:
+            raise ValueError(
+                f"{self.struct} is {self.nbytes} bytes, over the {UBO_LIMIT_BYTES} every GPU has"
+            )
+        for m in self.members:
+            if not m.doc.isascii() or "*/" in m.doc:
+                raise ValueError(f"{self.struct}.{m.name}: the description goes into GLSL (ASCII, no */)")
+
+    @property
+    def vec4s(self) -> int:
+        return sum(m.vec4s for m in self.members)
+
+    @property
+    def nbytes(self) -> int:
+        return 16 * self.vec4s
+
+    def offset(self, member: str) -> int:
+        """The vec4 offset of ``member``."""
+        at = 0
+        for m in self.members:
+            if m.name == member:
+                return at
+            at += m.vec4s
+        raise KeyError(f"{self.struct} has no member {member!r}")
+
+    def typedef(self) -> str:
+        return "\n".join([f"struct {self.struct} {{", *(m.glsl() for m in self.members), "};"])
+
+    def pack(self, **values) -> np.ndarray:
+        """The buffer's content, (vec4s, 4) float32: each member from ``values`` (anything of at
+        most its vec4s × 4 floats, read row-major), zero where a member or its tail is not given."""
+        unknown = set(values) - {m.name for m in self.members}
+        if unknown:
+            raise KeyError(f"{self.struct} has no member(s) {sorted(unknown)}")
+        out = np.zeros((self.vec4s, 4), dtype=np.float32)
+        flat = out.reshape(-1)
+        for m in self.members:
+            if m.name not in values:
+                continue
+            data = np.asarray(values[m.name], dtype=np.float64).reshape(-1)
+            if data.size > 4 * m.vec4s:
+                raise ValueError(f"{self.struct}.{m.name} holds {4 * m.vec4s} floats, got {data.size}")
+            start = 4 * self.offset(m.name)
+            flat[start : start + data.size] = data
+        return out
+
+
+@dataclass(frozen=True)
+class Sampler:
+    """A texture binding: slot, ``GPUShaderCreateInfo.sampler`` type and resource name."""
+
+    slot: int
+    type: str
+    name: str
+
+
+#: The World's radiance SH (windowed for one material), its lamps and the SH rotation constants
+#: (:class:`Lighting`). One set of X(+90°) blocks: reading X(−90°) as their transpose fits l ≤ 12
+#: in 16 KiB (both sets would need 26 KiB).
+LIGHTING = Block(
+    "TFLighting",
+    "tf_lighting",
+    0,
+    (
+        Member(
+            "sh",
+            SH_SLOTS,
+            "World radiance SH, windowed: coefficient i = l(l+1)+m in .rgb (w = 0), zero beyond the data",
+        ),
+        Member(
+            "lamps",
+            LAMP_VEC4,
+            "the World's lamps: [0].x = count K <= TF_MAX_LAMPS, [1+2k].xyz = direction of lamp k"
+            " (unit, towards it), [2+2k].rgb = its power (sum of L d omega); all 0 without lamps",
+        ),
+        Member(
+            "rx",
+            RX_PADDED // 4,
+            f"Rx(+90) band blocks, l = 0..{MAX_L}, row-major, band l at scalar offset l(2l-1)(2l+1)/3"
+            " (codegen.x_rotation_scalars); Rx(-90) = their transpose",
+        ),
+    ),
+)
+#: The view (:func:`.draw.view_uniforms`).
+VIEW = Block(
+    "TFView",
+    "tf_view",
+    1,
+    (
+        Member("view_proj", 4, "view-projection matrix, columns"),
+        Member("inv_view_proj", 4, "its inverse, columns"),
+        Member("camera", None, "camera position, w = 1 for an orthographic view"),
+        Member("view_dir", None, "unit direction towards the viewer"),
+        Member("params", None, "x: 2^exposure"),
+    ),
+)
+#: One drawn object (:func:`.draw.object_uniforms`).
+OBJECT = Block(
+    "TFObject",
+    "tf_object",
+    2,
+    (
+        Member("model", 4, "model matrix, columns"),
+        Member("normal", 4, "normal matrix (inverse transpose of the model's 3x3), columns"),
+        Member("material", None, "x: roughness, y: SH weight of the split-sum blend"),
+    ),
+)
+#: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).
+TABLE = Block(
+    "TFTable",
+    "tf_table_data",
+    3,
+    (
+        Member("size", None, "view angles A, thickness rows T, layers"),
+        Member(
+            "texel",
+            UBO_TEXELS,
+            "texel (row t, column a, layer j) at (t * A + a) * layers + j, .rgb as in the texture tf_table",
+        ),
+    ),
+)
+#: The lamps' small film table instead of its texture (``TF_FILM_UBO``, :attr:`FilmTexture.ubo`).
+FILM = Block(
+    "TFFilm",
+    "tf_film_data",
+    4,
+    (
+        Member("size", None, "u samples U, thickness rows T, layers"),
+        Member(
+            "texel",
+            UBO_TEXELS,
+            "texel (row t, column u, layer j) at (t * U + u) * layers + j, .rgb as in the texture tf_film",
+        ),
+    ),
+)
+#: The GLSL structs of every block, declared by every shader.
+TYPEDEFS = "\n" + "\n".join(b.typedef() for b in (LIGHTING, VIEW, OBJECT, TABLE, FILM)) + "\n"
+#: vec4s of the lighting buffer.
+LIGHTING_VEC4 = LIGHTING.vec4s
+assert TABLE.nbytes == FILM.nbytes == UBO_LIMIT_BYTES  # the tables use all of it (UBO_TEXELS)
+
+TABLE_SAMPLER = Sampler(0, "FLOAT_2D_ARRAY", "tf_table")
+PREFILTERED_SAMPLER = Sampler(3, "FLOAT_3D", "tf_prefiltered")
+FILM_SAMPLER = Sampler(4, "FLOAT_2D_ARRAY", "tf_film")
+#: The background shader's only texture.
+ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")
+
+
+# ----------------------------------------------------------------------------------------------
+# Data on the GPU
+# ----------------------------------------------------------------------------------------------
+def float_buffer(array) -> gpu.types.Buffer:
+    """A flat FLOAT Buffer from any array (converted to contiguous float32 first)."""
+    data = np.ascontiguousarray(np.asarray(array, dtype=np.float32).ravel())
+    return gpu.types.Buffer("FLOAT", data.size, data)
+
+
+def uses_table_ubo(device_type: str) -> bool:
+    """Whether a device of this ``gpu.platform.device_type_get()`` type draws tables from the
+    uniform buffer (policy.TABLE_UBO_DEVICES)."""
+    return str(device_type).upper() in policy.TABLE_UBO_DEVICES
+
+
+def table_ubo_preferred() -> bool:
+    """:func:`uses_table_ubo` for the GPU Blender draws with."""
+    ensure_gpu_context()
+    return uses_table_ubo(gpu.platform.device_type_get())
+
+
+def texel_block(block: Block, layers: np.ndarray) -> np.ndarray | None:
+    """:data:`TABLE` or :data:`FILM` content from (layers, rows, columns, 4) texture content, or None
+    when it does not fit (variant.fits_uniform_buffer)."""
+    n_layers, rows, columns = layers.shape[:3]
+    if not fits_uniform_buffer(n_layers, rows, columns):
+        return None
+    return block.pack(size=(columns, rows, n_layers, 0), texel=layers.transpose(1, 2, 0, 3))
+
+
+@dataclass
+class TableTexture:
+    """A baked table on the GPU and its metadata.
+
+    ``texture`` (:data:`TABLE_SAMPLER`, RGBA32F): width A = view angles θo (uniform 0…90°
+    inclusive), height T = thickness rows, one layer per table row: spectral tables have 3 layers
+    per kept coefficient i (layer 3i + k = row k of the 3×3 matrix, .rgb = lighting RGB),
+    per-channel tables 1 (layer i = the RGB factors). The shader interpolates with ``texelFetch``
+    in full float32 (tf_table.glsl), so the texture's filter mode is irrelevant.
+    """
+
+    texture: gpu.types.GPUTexture
+    l_max: int
+    view_samples: int
+    thickness_count: int
+    spectral: bool
+    layers: int
+    #: The same texels as a :data:`TABLE` uniform buffer when they fit (:meth:`uniform_array`).
+    ubo: gpu.types.GPUUniformBuf | None = None
+
+    @staticmethod
+    def uniform_array(layers: np.ndarray) -> np.ndarray | None:
+        """:data:`TABLE` content (1024 × 4 float32) from :meth:`layer_array`'s output, or None when
+        layers × T × A exceeds UBO_TEXELS."""
+        return texel_block(TABLE, layers)
+
+    @staticmethod
+    def layer_array(data) -> np.ndarray:
+        """(layers, T, A, 4) float32 texture content from a table (T, A, K, 3[, 3])."""
+        data = np.asarray(data, dtype=np.float32)
+        t, a, k = data.shape[:3]
+        if data.ndim == 5:  # (T, A, K, 3 out, 3 light) → layer 3i + out
+            rows = data.transpose(2, 3, 0, 1, 4).reshape(3 * k, t, a, 3)
+        elif data.ndim == 4:
+            rows = data.transpose(2, 0, 1, 3)
+        else:
+            raise ValueError(f"table data must be (T, A, K, 3) or (T, A, K, 3, 3), got {data.shape}")
+        out = np.zeros(rows.shape[:3] + (4,), dtype=np.float32)
+        out[..., :3] = rows
+        return out
+
+    @classmethod
+    def from_result(cls, result, *, uniform: bool | None = None) -> TableTexture:
+        """Upload a :class:`precompute.bake.BakeResult` (or anything with ``data``, ``sh_order``).
+
+        ``uniform``: also make the uniform-buffer copy when the table fits (drawn from there);
+        None (default): where this device draws faster from it (:func:`table_ubo_preferred`).
+        """
+        if uniform is None:
+            uniform = table_ubo_preferred()
+        data = np.asarray(result.data)
+        l_max = int(result.sh_order)
+        if not 0 <= l_max <= MAX_L:
+            raise ValueError(f"sh_order must lie in 0…{MAX_L}, got {l_max}")
+        kept = (l_max + 1) * (l_max + 2) // 2
+        if data.ndim not in (4, 5) or data.shape[2] != kept or data.shape[3] != 3:
+            raise ValueError(
+                f"table of shape {data.shape} does not match sh_order {l_max} ({kept} coefficients)"
+            )
+        if data.shape[1] < 2:
+            raise ValueError("the table needs at least 2 view angles")
+        if not np.all(np.isfinite(data)):
+            raise ValueError("the table holds non-finite values")
+        layers = cls.layer_array(data)
+        ensure_gpu_context()
+        n_layers, t, a = layers.shape[:3]
+        limit = gpu.capabilities.max_texture_layers_get()
+        if n_layers > limit:
+            raise ValueError(f"{n_layers} table layers exceed this GPU's limit of {limit}")
+        texture = gpu.types.GPUTexture((a, t), layers=n_layers, format="RGBA32F", data=float_buffer(layers))
+        packed = cls.uniform_array(layers) if uniform else None
+        ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
+        return cls(texture, l_max, a, t, data.ndim == 5, n_layers, ubo)
+
+
+@dataclass
+class Lighting:
+    """The World's radiance SH, windowed for one material, in a :data:`LIGHTING` buffer with the
+    rotation constants."""
+
+    ubo: gpu.types.GPUUniformBuf
+    coefficients: np.ndarray  # ((l_max+1)², 3) float64, windowed: what the shader sees
+    l_max: int
+    roughness: float
+    #: The World's lamps (precompute.lamps.Lamps) the coefficients were taken without, or None.
+    lamps: object = None
+
+    @property
+    def lamp_count(self) -> int:
+        return 0 if self.lamps is None else int(self.lamps.count)
+
+    @staticmethod
+    def pack(coefficients, lamps=None) -> np.ndarray:
+        """:data:`LIGHTING` content, flat float32, for windowed coefficients (≤ SH_SLOTS, 3) and up
+        to MAX_LAMPS lamps."""
+        c = np.asarray(coefficients, dtype=np.float64)
+        sh_rows = np.zeros((c.shape[0], 4), dtype=np.float64)
+        sh_rows[:, :3] = c[:, :3]
+        lamp_rows = np.zeros((LAMP_VEC4, 4), dtype=np.float64)
+        if lamps is not None and lamps.count:
+            if lamps.count > MAX_LAMPS:
+                raise ValueError(f"{lamps.count} lamps exceed the shader's {MAX_LAMPS}")
+            if not (np.all(np.isfinite(lamps.directions)) and np.all(np.isfinite(lamps.power))):
+                raise ValueError("lamp directions and power must be finite")
+            lamp_rows[0, 0] = lamps.count
+            lamp_rows[1 : 1 + 2 * lamps.count : 2, :3] = lamps.directions
+            lamp_rows[2 : 2 + 2 * lamps.count : 2, :3] = lamps.power
+        return LIGHTING.pack(sh=sh_rows, lamps=lamp_rows, rx=x_rotation_scalars()).reshape(-1)
+
+    @classmethod
+    def from_sh(cls, world_coeffs, l_max: int, roughness: float, lamps=None) -> Lighting:
+        """World SH (≥ 1, 3) → windowed by policy.lighting_window for ``l_max``/``roughness``.
+
+        Missing coefficients (fewer than (l_max+1)²) are zero; extra ones are dropped.
+        ``lamps``: the World's lamps, when ``world_coeffs`` are those of the World without them.
+        """
+        l_max = int(l_max)
+        if not 0 <= l_max <= MAX_L:
+            raise ValueError(f"l_max must lie in 0…{MAX_L}, got {l_max}")
+        c = np.asarray(world_coeffs, dtype=np.float64)
+        if c.ndim != 2 or c.shape[1] < 3 or not np.all(np.isfinite(c)):
+            raise ValueError(f"world_coeffs must be finite, shape (K, 3), got {c.shape}")
+        k = (l_max + 1) ** 2
+        full = np.zeros((k, 3))
+        n = min(k, c.shape[0])
+        full[:n] = c[:n, :3]
+        windowed = full * np.asarray(policy.lighting_window(l_max, float(roughness)))[:k, None]
+        ensure_gpu_context()
+        ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps)))
+        return cls(
+            ubo, windowed, l_max, float(roughness), lamps if lamps is not None and lamps.count else None
+        )
+
+
+@dataclass
+class EnvironmentTexture:
+    """The World's equirect image (H, W, C ≥ 3, top row first) as a texture
+    (:data:`ENVIRONMENT_SAMPLER`, RGBA32F): hardware LINEAR filtering, REPEAT in u, EXTEND in v."""
+
+    texture: gpu.types.GPUTexture
+    width: int
+    height: int
+
+    @classmethod
+    def from_image(cls, image) -> EnvironmentTexture:
+        img = np.asarray(image, dtype=np.float32)
+        if img.ndim != 3 or img.shape[2] < 3:
+            raise ValueError(f"environment image must be (H, W, 3|4), got {img.shape}")
+        h, w = img.shape[:2]
+        rgba = np.ones((h, w, 4), dtype=np.float32)
+        rgba[..., :3] = img[..., :3]
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((w, h), format="RGBA32F", data=float_buffer(rgba))
+        texture.filter_mode(True)
+        texture.extend_mode_x("REPEAT")
+        texture.extend_mode_y("EXTEND")
+        return cls(texture, w, h)
+
+
+@dataclass
+class PrefilterTexture:
+    """The World prefiltered by GGX at J roughness levels and their direction moments.
+
+    ``texture`` (:data:`PREFILTERED_SAMPLER`, RGBA32F, LINEAR, REPEAT in u, EXTEND in v and z):
+    a 3-D texture of depth 2J, equirect slices top row first; slice j < J = the World prefiltered
+    at the roughness of level j (policy.ROUGHNESS_LEVELS), slice J + j = the same prefilter of
+    luminance × direction (the moment; zero when not given). A 3-D texture rather than an array,
+    so the blend of two levels is one linear fetch (docs/tuning.md#prefilter-texture).
+    """
+
+    texture: gpu.types.GPUTexture
+    levels: int
+    width: int
+    height: int
+
+    @classmethod
+    def from_levels(cls, levels, moments=None) -> PrefilterTexture:
+        """From (J, H, W, 3) radiance, J ≥ 2 levels at roughness (j / (J − 1))², top row first.
+
+        ``moments``: the levels' luminance × direction prefilter, same shape
+        (prefilter.Prefiltered.resampled_moments), stored as layers J … 2J − 1; None stores
+        zeros, and the shader then reads the film's albedo at the view angle.
+        """
+        data = np.asarray(levels, dtype=np.float32)
+        if data.ndim != 4 or data.shape[0] < 2 or data.shape[3] < 3:
+            raise ValueError(f"prefiltered levels must be (J ≥ 2, H, W, 3), got {data.shape}")
+        if not np.all(np.isfinite(data)):
+            raise ValueError("prefiltered levels contain NaN or Inf")
+        j, h, w = data.shape[:3]
+        rgba = np.zeros((2 * j, h, w, 4), dtype=np.float32)
+        rgba[:j, ..., :3] = data[..., :3]
+        if moments is not None:
+            mom = np.asarray(moments, dtype=np.float32)
+            if mom.shape[:3] != data.shape[:3] or mom.shape[3] < 3:
+                raise ValueError(f"prefiltered moments must be {data.shape[:3] + (3,)}, got {mom.shape}")
+            if not np.all(np.isfinite(mom)):
+                raise ValueError("prefiltered moments contain NaN or Inf")
+            rgba[j:, ..., :3] = mom[..., :3]
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((w, h, 2 * j), format="RGBA32F", data=float_buffer(rgba))
+        texture.filter_mode(True)
+        texture.extend_mode("EXTEND")
+        texture.extend_mode_x("REPEAT")
+        return cls(texture, j, w, h)
+
+
+@dataclass
+class FilmTexture:
+    """A film's reflectance against u = cos θ and its multiple-scattering factor, for the lamps
+    (precompute.film_colour.FilmTable).
+
+    ``texture`` (:data:`FILM_SAMPLER`, RGBA32F): width U = u uniform 0…1 inclusive, height T =
+    the table's thickness rows; spectral films: layers 0…2 = rows of the film's 3×3 reflectance,
+    layer 3 = the multiple-scattering factor at view cosine u; per-channel films: layer 0 = the RGB
+    reflectance, layer 1 = the factor. Interpolated in full float32 like the table (tf_lamps.glsl).
+    """
+
+    texture: gpu.types.GPUTexture
+    samples: int
+    thickness_count: int
+    spectral: bool
+    #: The same texels as a :data:`FILM` uniform buffer when they fit: drawn from there on every
+    #: device (docs/tuning.md#table-ubo-devices).
+    ubo: gpu.types.GPUUniformBuf | None = None
+
+    @staticmethod
+    def layer_array(film) -> np.ndarray:
+        """(layers, T, U, 4) float32: the reflectance rows, then the multiple-scattering factor."""
+        r = np.asarray(film.reflectance, dtype=np.float32)
+        rows = [r[:, :, k, :] for k in range(3)] if r.ndim == 4 else [r]
+        rows.append(np.asarray(film.multiscatter, dtype=np.float32))
+        out = np.zeros((len(rows),) + r.shape[:2] + (4,), dtype=np.float32)
+        for i, row in enumerate(rows):
+            out[i, ..., :3] = row
+        return out
+
+    @classmethod
+    def from_film(cls, film) -> FilmTexture:
+        layers = cls.layer_array(film)
+        if not np.all(np.isfinite(layers)):
+            raise ValueError("the film table holds non-finite values")
+        n_layers, t, u = layers.shape[:3]
+        if u < 2:
+            raise ValueError("the film table needs at least 2 samples in u")
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((u, t), layers=n_layers, format="RGBA32F", data=float_buffer(layers))
+        packed = texel_block(FILM, layers)
+        ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
+        return cls(texture, u, t, film.reflectance.ndim == 4, ubo)
+
+
+class UniformCache:
+    """Uniform buffers keyed by what they are made from, kept across frames.
+
+    :meth:`get` returns the buffer made for an equal key before (no upload, no allocation), else
+    fills one from ``make()`` (a float32 array): a buffer that no frame has used for
+    ``keep_frames`` frames is updated in place, and only when there is none is a new one
+    allocated. :meth:`next_frame` (called by :func:`.draw.prepare_draw`) ages the entries. So a
+    frame in which nothing moved allocates and uploads nothing, and a moving view or object
+    recycles old buffers instead of allocating one per frame. A buffer is updated only
+    ``keep_frames`` frames after its last use, when those draws have long been submitted.
+
+    ``stats``: ``allocations`` (new GPUUniformBuf), ``uploads`` (updates of a recycled one),
+    ``hits`` (reused unchanged).
+    """
+
+    def __init__(self, keep_frames: int = 4, max_spare: int = 256):
+        self.keep_frames = int(keep_frames)
+        self.max_spare = int(max_spare)
+        self.frame = 0
+        self._entries: dict = {}  # key → [ubo, nbytes, last frame used]
+        self._spare: dict[int, list] = {}  # nbytes → buffers free for reuse
+        self.stats = {"allocations": 0, "uploads": 0, "hits": 0}
+
+    def next_frame(self) -> None:
+        self.frame += 1
+        oldest = self.frame - self.keep_frames
+        stale = [key for key, entry in self._entries.items() if entry[2] < oldest]
+        for key in stale:
+            ubo, nbytes, _last = self._entries.pop(key)
+            spare = self._spare.setdefault(nbytes, [])
+            if len(spare) < self.max_spare:
+                spare.append(ubo)
+
+    def get(self, key, make) -> gpu.types.GPUUniformBuf:
+        entry = self._entries.get(key)
+        if entry is not None:
+            entry[2] = self.frame
+            self.stats["hits"] += 1
+            return entry[0]
+        data = float_buffer(make())
+        nbytes = 4 * len(data)
+        spare = self._spare.get(nbytes)
+        if spare:
+            ubo = spare.pop()
+            ubo.update(data)
+            self.stats["uploads"] += 1
+        else:
+            ubo = gpu.types.GPUUniformBuf(data)
+            self.stats["allocations"] += 1
+        self._entries[key] = [ubo, nbytes, self.frame]
+        return ubo
+
+    def __len__(self):
+        return len(self._entries)
+
+    def clear(self) -> None:
+        self._entries.clear()
+        self._spare.clear()
