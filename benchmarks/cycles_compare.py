@@ -12,7 +12,8 @@ out (``precompute.colour_difference.delta_e_2000``, route "E").
 Cycles' renders are cached in ``benchmarks/.cache/cycles_compare/`` by the case, size, sample
 count and Blender version, so a rerun renders only the headless frames.
 
-Run: ``.venv/bin/python -m benchmarks.cycles_compare [--quick]`` → ``docs/cycles-comparison.md``.
+Run: ``.venv/bin/python -m benchmarks.cycles_compare [--quick]`` → ``docs/cycles-comparison.md``;
+``--case N`` (repeatable) runs only those cases, ``--out NAME`` writes the report elsewhere.
 """
 
 from __future__ import annotations
@@ -166,8 +167,17 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="three cases, 64 px, 128 samples")
     parser.add_argument("--out", default="cycles-comparison.md")
+    parser.add_argument(
+        "--case",
+        type=int,
+        action="append",
+        help="run only this case (index into CASES, from 0; repeatable); the report goes to --out "
+        "without pictures, so pass a scratch name",
+    )
     args = parser.parse_args(argv)
     cases = CASES[2::4] if args.quick else CASES
+    if args.case:
+        cases = [CASES[i] for i in args.case]
     size, samples = (64, 128) if args.quick else (SIZE, SAMPLES)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="thinfilm_cycles_compare_") as tmp:
@@ -214,7 +224,7 @@ def main(argv=None) -> int:
             f"{r['ours_s']:.0f} | {cyc} |"
         )
     lines.append(f"| **mean** | | | | | **{overall:.2f}** | | | |")
-    if not args.quick:
+    if not args.quick and not args.case:
         lines += [
             "",
             "Per case (rows in table order), left to right: Cycles, the headless frame, ΔE2000 (white = 10).",
