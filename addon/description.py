@@ -28,11 +28,12 @@ def description(bpy_material) -> Material | None:
     1. The extension's settings (``material.thinfilm_sh``) when enabled.
     2. Otherwise a Principled BSDF with Thin Film Thickness > 0 (the one feeding the output's
        Surface, else the first): film index = Thin Film IOR, thickness = Thin Film Thickness,
-       substrate = IOR (dielectric) or, for Metallic > 0.5, a Gulbrandsen (n, k) fit of Base
-       Color and Specular Tint; roughness = Roughness; per-channel colour like Cycles; ambient 1.
-       A linked Thin Film Thickness is evaluated over the objects using the material
-       (:mod:`.linked`; None while its Cycles bake is queued inside the draw); other linked
-       sockets use their unlinked values (see :func:`warnings`).
+       substrate = IOR (dielectric) or, for Metallic > 0.5, Blender's F82-tint metal of Base
+       Color and Specular Tint; roughness = Roughness; Cycles' colour pipeline (the per-channel
+       mode); ambient 1; a dielectric's Base Color, unless black, as a diffuse base layered as
+       Cycles layers it. A linked Thin Film Thickness is evaluated over the objects using the
+       material (:mod:`.linked`; None while its Cycles bake is queued inside the draw); other
+       linked sockets use their unlinked values (see :func:`warnings`).
     3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF; nor is
        a Principled film whose *Preview Principled Film* switch is off.
 

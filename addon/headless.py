@@ -5,6 +5,13 @@ scene first (Blender's own Solid drawing, for depth and for the objects we don't
 the World as background, then every thin-film object, depth-tested. Writes a scene-linear EXR
 and a PNG (sRGB "Standard" view with the scene's exposure).
 
+The frame is anti-aliased as Cycles' is: drawn :data:`SUPERSAMPLE` times larger (over a window
+widened by the filter's support, so border pixels see beyond the frame) and filtered down with
+the scene's Cycles pixel filter, type and width (``scene.cycles.pixel_filter_type`` /
+``filter_width``; Cycles' defaults, Blackman–Harris of ±1.5 px, without the Cycles add-on):
+:func:`pixel_filter_settings`, :mod:`precompute.pixel_filter`. The viewport keeps Blender's own
+anti-aliasing.
+
 The table cache is the add-on's (:func:`.tables.table_cache`: ``THINFILM_SH_CACHE``, the
 preference, the private default); every command takes ``--cache-dir`` to name another. An
 unusable cache folder or a write that fails (a full disk) is an ``error: …`` line and exit
@@ -22,7 +29,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..precompute import cli_support, effects, image_io, table_io
+from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
 from . import prefs, scene_draw, tables, world
 from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
@@ -131,16 +138,68 @@ def camera_matrices(scene, depsgraph, width: int, height: int):
     return view, proj
 
 
+#: Samples per pixel along each axis of the headless frame (4 × 4 per pixel), filtered with the
+#: scene's pixel filter. Against Cycles (issue 22's spheres under studio HDRIs) 4× lowered the
+#: mean ΔE2000 from 1.36 to 1.20 (edges, lamp highlights and reflected detail alias without).
+SUPERSAMPLE = 4
+
+
+def pixel_filter_settings(scene) -> tuple[str, float]:
+    """The scene's Cycles pixel filter (type, width in pixels), Cycles' defaults without the add-on."""
+    cycles = getattr(scene, "cycles", None)
+    kind = getattr(cycles, "pixel_filter_type", pixel_filter.DEFAULT_FILTER)
+    width = float(getattr(cycles, "filter_width", pixel_filter.DEFAULT_WIDTH))
+    if kind not in pixel_filter.FILTERS:
+        kind = pixel_filter.DEFAULT_FILTER
+    return kind, width
+
+
+def widened_projection(projection, width: int, height: int, pad: int) -> np.ndarray:
+    """The projection of the window ``pad`` pixels wider on each side: the frame's pixel grid
+    continues outside it (NDC scaled by W/(W + 2 pad) and H/(H + 2 pad))."""
+    scale = np.diag([width / (width + 2.0 * pad), height / (height + 2.0 * pad), 1.0, 1.0])
+    return scale @ np.asarray(projection, dtype=np.float64)
+
+
+def _max_texture_size() -> int:
+    import gpu
+
+    try:
+        return int(gpu.capabilities.max_texture_size_get())
+    except (AttributeError, SystemError):
+        return 16384
+
+
 def render_scene(
-    scene, out_path, width: int | None = None, height: int | None = None, background: bool = True
+    scene,
+    out_path,
+    width: int | None = None,
+    height: int | None = None,
+    background: bool = True,
+    supersample: int | None = None,
 ) -> dict:
-    """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it."""
+    """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it.
+
+    ``supersample``: samples per pixel along each axis (default :data:`SUPERSAMPLE`; lowered when
+    the enlarged buffer would exceed the GPU's texture size), filtered with the scene's Cycles
+    pixel filter; 1 draws one sample per pixel, unfiltered.
+    """
     ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
     width = int(width or round(scene.render.resolution_x * scale))
     height = int(height or round(scene.render.resolution_y * scale))
     depsgraph = bpy.context.evaluated_depsgraph_get()
     view, proj = camera_matrices(scene, depsgraph, width, height)
+    kind, filter_width = pixel_filter_settings(scene)
+    factor = max(1, int(SUPERSAMPLE if supersample is None else supersample))
+    pad = pixel_filter.margin(kind, filter_width) if factor > 1 else 0
+    limit = _max_texture_size()
+    while factor > 1 and factor * (max(width, height) + 2 * pad) > limit:
+        factor -= 1
+    if factor == 1:
+        pad = 0
+    proj = widened_projection(proj, width, height, pad)
+    frame_w, frame_h = factor * (width + 2 * pad), factor * (height + 2 * pad)
     t0 = time.perf_counter()
     errors: dict[str, str] = {}  # materials drawn as the magenta fallback, and why
     if prefs.overlay_enabled():
@@ -187,13 +246,15 @@ def render_scene(
             if hidden:
                 bpy.context.view_layer.update()
 
-    rgba = render_offscreen(items, view, proj, width, height, background=env, depth_from=depth_from)
+    rgba = render_offscreen(items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from)
     rgb = rgba[..., :3].astype(np.float64)
     bad = ~np.isfinite(rgb)
     nonfinite = int(bad.any(axis=-1).sum())
     if bad.any():
-        messages.append(f"{nonfinite} non-finite pixels set to 0")
+        messages.append(f"{nonfinite} non-finite samples set to 0")
         rgb = np.where(bad, 0.0, rgb)
+    if factor > 1:
+        rgb = pixel_filter.downsample(rgb, kind, filter_width, factor, pad)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     image_io.write_exr(out.with_suffix(".exr"), rgb)
@@ -204,6 +265,8 @@ def render_scene(
         "png": str(out.with_suffix(".png")),
         "exr": str(out.with_suffix(".exr")),
         "size": [width, height],
+        "supersample": factor,
+        "pixel_filter": [kind, filter_width] if factor > 1 else None,
         "objects": [item.name for item in items if not item.fallback],
         "fallback_objects": [item.name for item in items if item.fallback],
         "errors": errors,
@@ -256,6 +319,13 @@ def _main(argv) -> int:
     r.add_argument("--width", type=cli_support.image_size_arg("--width"))
     r.add_argument("--height", type=cli_support.image_size_arg("--height"))
     r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
+    r.add_argument(
+        "--supersample",
+        type=cli_support.supersample_arg("--supersample"),
+        default=SUPERSAMPLE,
+        help=f"samples per pixel along each axis, filtered with the scene's Cycles pixel filter "
+        f"(default {SUPERSAMPLE}; 1: one sample per pixel, no filter)",
+    )
     r.add_argument("--json", help="write a JSON summary here (objects, fallbacks, errors, messages)")
     p = sub.add_parser(
         "plan",
@@ -322,14 +392,22 @@ def _run_render(args, scene) -> int:
         cli_support.exposure("the scene's exposure (Color Management)", scene.view_settings.exposure)
         if scene.camera is None:
             raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
-    result = render_scene(scene, args.out, width, height, background=not args.no_background)
+    result = render_scene(
+        scene, args.out, width, height, background=not args.no_background, supersample=args.supersample
+    )
     if json_path is not None:
         json_path.parent.mkdir(parents=True, exist_ok=True)
         _write_json(json_path, result)
     for msg in result["messages"]:
         print(f"note: {msg}")
+    aa = (
+        f"{result['supersample']}×{result['supersample']} samples per pixel, "
+        f"{result['pixel_filter'][0].replace('_', '-').title()} {result['pixel_filter'][1]:g} px"
+        if result["pixel_filter"]
+        else "1 sample per pixel"
+    )
     print(
-        f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
+        f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, {aa}, "
         f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
     )
     failed = [*result["errors"].values(), *result["world_errors"]]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from ..precompute import validate
-from ..precompute.conductors import conductor_from_rgb, metal_rgb, real_index
+from ..precompute.conductors import metal_rgb, real_index
 from ..precompute.material import Layer, Material
 from . import linked, thickness_nodes
 from .props import description_from_props, f32, working_space
@@ -29,6 +29,7 @@ __all__ = [
     "SOCKET_SPECULAR_TINT",
     "SOCKET_THICKNESS",
     "SOCKET_TRANSMISSION",
+    "diffuse_base",
     "linked_thickness_socket",
     "principled_node",
     "read_principled",
@@ -48,6 +49,26 @@ SOCKET_TRANSMISSION = "Transmission Weight"
 #: Extra Material fields for a Principled preview: Cycles' film-free multiscatter compensation,
 #: where precompute offers that choice.
 _CYCLES_PARITY = {"multiscatter": "cycles"} if "multiscatter" in Material.__dataclass_fields__ else {}
+
+#: A Base Color whose every channel is at most this is black: no diffuse base. Cycles drops a
+#: closure whose weight is below CLOSURE_WEIGHT_CUTOFF (1e-5, kernel/svm/types.h), and the
+#: Principled diffuse closure's weight is Base Color × the layering weight ≤ Base Color.
+BLACK_BASE_COLOR = 1e-5
+
+
+def diffuse_base(base_color, transmission: float) -> tuple | None:
+    """The diffuse base a dielectric Principled BSDF shows under its film, or None.
+
+    Cycles weights the Principled diffuse lobe by Base Color × (1 − Transmission) × the
+    specular layer's layering weight: a black Base Color has no diffuse lobe at all, and a grey
+    one a Lambertian lobe of that albedo (the layering weight is the bake's,
+    ``bake.layering_weight``). A transmissive dielectric (Transmission ≥ 0.5: glass, water, a
+    soap bubble) is previewed as the film alone.
+    """
+    base = tuple(float(v) for v in base_color[:3])
+    if transmission >= 0.5 or max(base) <= BLACK_BASE_COLOR:
+        return None
+    return base
 
 
 # ----------------------------------------------------------------------------------------------
@@ -117,9 +138,10 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
     """(Material, notes) of the material's Principled BSDF thin film; (None, []) without one.
 
     Film index = Thin Film IOR, thickness = Thin Film Thickness, substrate = IOR (dielectric)
-    or, for Metallic > 0.5, a Gulbrandsen (n, k) fit of Base Color and Specular Tint
-    (:func:`precompute.conductors.conductor_from_rgb`); roughness = Roughness; per-channel
-    colour like Cycles; ambient 1. An opaque dielectric shows its Base Color as a diffuse base.
+    or, for Metallic > 0.5, Blender's F82-tint metal of Base Color and Specular Tint (the
+    ``{"f82_tint": …}`` index: Cycles' own metal in the per-channel mode, a Gulbrandsen (n, k)
+    fit spectrally); roughness = Roughness; per-channel colour like Cycles; ambient 1. An opaque
+    dielectric shows a Base Color that is not black as a diffuse base (:func:`diffuse_base`).
     A linked Thin Film Thickness is evaluated over the scene's objects using the material
     (:func:`.linked.material_range`): its min/max is the table's thickness range, with a note
     saying how it was obtained (raises :class:`.linked.Pending` while a bake is queued, and
@@ -149,8 +171,8 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
     metallic = f32(_socket_value(node, SOCKET_METALLIC, notes))
     base = tuple(min(1.0, max(0.0, f32(v))) for v in _socket_value(node, SOCKET_BASE_COLOR, notes)[:3])
     if metallic > 0.5:
-        tint = _socket_value(node, SOCKET_SPECULAR_TINT, notes)[:3]
-        substrate = conductor_from_rgb(base, tint)
+        tint = tuple(min(1.0, max(0.0, f32(v))) for v in _socket_value(node, SOCKET_SPECULAR_TINT, notes)[:3])
+        substrate = {"f82_tint": {"f0": list(base), "tint": list(tint)}}
         base_color = None
         if metallic < 1.0:
             notes.append(f"Metallic {metallic:g} is previewed as a pure metal (Metallic 1)")
@@ -158,9 +180,7 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
         substrate = f32(_socket_value(node, SOCKET_IOR, notes))
         validate.real(f"{where} '{SOCKET_IOR}'", substrate, 0.0, validate.MAX_INDEX_N, lo_open=True)
         transmission = f32(_socket_value(node, SOCKET_TRANSMISSION, notes))
-        # An opaque dielectric shows its Base Color as diffuse under the specular layer; a
-        # transmissive one (glass, water, a soap bubble) reflects only the film.
-        base_color = base if transmission < 0.5 else None
+        base_color = diffuse_base(base, transmission)
         if metallic > 0.0:
             notes.append(f"Metallic {metallic:g} is previewed as a dielectric (Metallic 0)")
         if 0.0 < transmission < 1.0:

@@ -190,22 +190,31 @@ def _prefilter_texture(pre) -> resources.PrefilterTexture:
 
 
 class PrefilterTextures:
-    """An :class:`~precompute.environment.Environment`'s prefilters on the GPU.
+    """An :class:`~precompute.environment.Environment`'s prefilters on the GPU, each computed and
+    uploaded the first time a drawn material reads it (:func:`_prefiltered_for`).
 
-    ``prefiltered``: its split-sum levels (the World without its lamps from lamps.LAMP_LEVEL
-    on, when it has lamps); :meth:`prefiltered_whole`: the whole World in every level, for the
-    materials the lamps do not apply to (a diffuse base under the film, "World Lamps" off).
+    :meth:`prefiltered`: the split-sum levels with the World's lamps lifted out from
+    lamps.LAMP_LEVEL on, for glossy materials that shade the lamps per light;
+    :meth:`prefiltered_whole`: the whole World in every level, for the glossy materials the lamps
+    do not apply to (a diffuse base under the film, "World Lamps" off). Without lamps they are one
+    texture.
     """
 
     def __init__(self, analysed: Environment):
         self.environment = analysed
-        self.prefiltered = _prefilter_texture(analysed.prefiltered)
+        self._lifted: resources.PrefilterTexture | None = None
         self._whole: resources.PrefilterTexture | None = None
 
-    def prefiltered_whole(self) -> resources.PrefilterTexture:
-        """The prefilter with the lamps in every level (uploaded on first use)."""
+    def prefiltered(self) -> resources.PrefilterTexture:
+        """The prefilter with the lamps lifted out (the whole World when it has none)."""
         if self.environment.lamps is None:
-            return self.prefiltered
+            return self.prefiltered_whole()
+        if self._lifted is None:
+            self._lifted = _prefilter_texture(self.environment.prefiltered)
+        return self._lifted
+
+    def prefiltered_whole(self) -> resources.PrefilterTexture:
+        """The prefilter with the lamps in every level."""
         if self._whole is None:
             self._whole = _prefilter_texture(self.environment.prefiltered_whole)
         return self._whole
@@ -540,11 +549,18 @@ def _material_entry(
 
 
 def _prefiltered_for(lighting: WorldLighting, entry):
+    """The prefilter the entry's draw reads, computed on first use; None when it reads none.
+
+    Only the split sum reads a prefilter, and only below an SH weight of 1
+    (variant.choose_variant): rough films draw from the SH alone and get none, so a scene of
+    rough films computes no prefilter at all. A lamp-shaded film reads the prefilter with the
+    lamps lifted out, any other the whole World's.
+    """
     textures = lighting.textures
-    if textures is None:
+    if textures is None or entry.sh_weight >= 1.0:
         return None
-    if entry.film is not None or lighting.environment.lamps is None:
-        return textures.prefiltered
+    if entry.film is not None:
+        return textures.prefiltered()
     return textures.prefiltered_whole()
 
 

@@ -15,7 +15,7 @@ For each preset with a thickness range, at its default (all ``"auto"``) quality:
 - *warm*: after one bake of the preset, 11 re-bakes, each of a slightly changed film (odd
   changes scale the film index by 1 + 0.002·i, even ones shift the thickness range by 0.5·i nm),
   so nothing but the microfacet kernel can be reused; median;
-- *reference*: :func:`precompute.bake.bake_reference` on the same material with the same plan
+- *reference*: :func:`precompute.bake_reference.bake_reference` on the same material with the same plan
   (same SH order, view angles, wavelengths and half-vector quadrature nodes), timed on the
   last (thickest) 3 rows of the thickness axis and scaled by T/3. Linearity is checked by timing 1 row
   (the same material at constant thickness) against 3 rows. The fast table's last 3 rows are
@@ -35,6 +35,7 @@ import time
 import numpy as np
 
 from precompute import bake
+from precompute.bake_reference import bake_reference
 from precompute.material import Layer, Quality, preset
 
 from . import common
@@ -136,10 +137,10 @@ def measure_preset(name: str) -> dict:
     assert bake.plan(sub3).wavelength_count == p.wavelength_count
     ones, threes, ones_cpu, threes_cpu = [], [], [], []
     for _ in range(REF_REPEATS):  # alternate, so load changes hit both alike
-        t, c, ref1 = common.time_once_cpu(lambda: bake.bake_reference(sub1))
+        t, c, ref1 = common.time_once_cpu(lambda: bake_reference(sub1))
         ones.append(t)
         ones_cpu.append(c)
-        t, c, ref3 = common.time_once_cpu(lambda: bake.bake_reference(sub3))
+        t, c, ref3 = common.time_once_cpu(lambda: bake_reference(sub3))
         threes.append(t)
         threes_cpu.append(c)
     t1, t3 = statistics.median(ones), statistics.median(threes)
@@ -250,8 +251,8 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         + (" (and the u-degree hint)." if hasattr(bake, "_DEGREE_HINT") else "."),
         "  *kernel hits* counts the warm bakes that found their kernel in the cache; *median of the",
         "  hits* is the median over those alone (a miss recomputes the kernel: not a warm-cache bake).",
-        "- **Reference**: `bake.bake_reference` (exact film reflectance at every half-vector node and",
-        "  wavelength, no factorisation, no cache) on the same material with the same plan pinned",
+        "- **Reference**: `bake_reference.bake_reference` (exact film reflectance at every half-vector",
+        "  node and wavelength, no factorisation, no cache) on the same material with the same plan pinned",
         "  explicitly, over the last (thickest) 3 rows of the T-row thickness axis; full-table time",
         "  = t(3 rows) × T/3.",
         "  Its cost is a loop over rows × view angles with identical work per iteration; the *linearity*",

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import brdf, composite, constants, sh, spectra, table_io
+from . import brdf, constants, film_channels, sh, spectra, table_io
 from .chunks import (
     CONTRACT_CHUNK,
     ELEMENT_CHUNK,
@@ -45,6 +45,7 @@ from .chunks import (
 from .material import AUTO, MAX_SH_ORDER, Material
 from .optics import reflectance
 from .progress import Phases, checkpoint
+from .quadrature import spectral_quadrature
 
 #: R(u) is interpolated by piecewise Chebyshev polynomials on intervals graded geometrically
 #: toward u = 0: near grazing both interfaces reflect almost fully and the film becomes a
@@ -194,55 +195,6 @@ def diffuse_kernel(l_max: int, u_degree: int, n_mu: int = 128) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
-# Spectral quadrature: λ → (output RGB k, lighting RGB c)
-# ----------------------------------------------------------------------------------------------
-def is_line_spectrum(illuminant: str) -> bool:
-    """Fluorescent lamps (FL1–FL12 / F1–F12) have emission lines: the Composite Model applies."""
-    return illuminant.upper().startswith("F")
-
-
-@functools.lru_cache(maxsize=16)
-def _illuminant_composite(illuminant: str):
-    wl, values = spectra.illuminant_table(illuminant)
-    return composite.fit_composite(wl, values)
-
-
-def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_mode: str):
-    """Wavelength nodes (W′,) and weights G (W′, 3, 3) with M[k, c] = Σ_λ F(λ) G[λ, k, c].
-
-    spectral: G[λ, k, c] = Σ_j M_xyz→rgb[k, j] · X_j(λ) · S(λ) · B_c(λ) — lighting channel c
-    upsampled with the linear basis B (Mallett & Yuksel 2019), times the illuminant S, integrated
-    against the CMFs (X includes dλ and the E normalisation) and taken to the working space.
-    per_channel (Cycles): the film's RGB reflectance R_k = (M X)_k · F multiplies light channel k:
-    G[λ, k, c] = δ_kc (M X)_k(λ) S(λ).
-
-    Line illuminants follow the Composite Model (Sun, Drew & Fracchia 1999): the smooth part is
-    integrated on the grid, and each emission line becomes one more node at its exact wavelength
-    with weight P_j c̄(λ_j) / ∫c̄, so the film is evaluated exactly where the lamp emits.
-    """
-    wl = spectra.wavelength_grid(count)
-    m = spectra.xyz_to_rgb_matrix(colour_space)
-    basis = spectra.rgb_basis(wl, colour_space)  # (3, W)
-    if is_line_spectrum(illuminant):
-        comp = _illuminant_composite(illuminant)
-        scale = 1.0 / comp.to_xyz()[1]  # Y = 1, as illuminant_spd
-        smooth = comp.evaluate_smooth(wl) * scale
-        lines = np.asarray(comp.spike_wavelengths_nm, dtype=float)
-        line_xyz = (
-            spectra.cmfs(lines) * (np.asarray(comp.spike_powers) * scale)[:, None] / spectra.cmf_integrals()
-        )
-        rgb_w = np.concatenate([(spectra.xyz_weights(wl) @ m.T) * smooth[:, None], line_xyz @ m.T])
-        line_basis = np.stack([np.interp(lines, wl, b) for b in basis])
-        basis = np.concatenate([basis, line_basis], axis=1)
-        wl = np.concatenate([wl, lines])
-    else:
-        rgb_w = (spectra.xyz_weights(wl) @ m.T) * spectra.illuminant_spd(illuminant, wl)[:, None]
-    if colour_mode == "per_channel":
-        return wl, rgb_w[:, :, None] * np.eye(3)[None, :, :]
-    return wl, rgb_w[:, :, None] * basis.T[:, None, :]
-
-
-# ----------------------------------------------------------------------------------------------
 # Automatic choices
 # ----------------------------------------------------------------------------------------------
 def optical_path_nm(material: Material) -> float:
@@ -333,16 +285,25 @@ def auto_sh_order(material: Material, target: float = 0.10) -> tuple[int, str]:
     )
 
 
-def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
-    """Smallest nodes-per-interval whose interpolation of R(u) meets ``U_TOLERANCE``.
+def choose_u_degree(
+    indices, thickness_sets, wavelengths_nm, method: str, evaluate=None, tolerance=U_TOLERANCE
+):
+    """Smallest nodes-per-interval whose interpolation of R(u) meets ``tolerance``.
 
     Checked on four thickness rows including the thickest (R oscillates fastest in u there) at
     test points interleaved with the nodes (the Chebyshev points of one degree more), for
     u ≥ ``U_TEST_MIN``; then R is evaluated at the chosen nodes for every row, once.
     The search always starts at the bottom of the ladder (a probe step costs 4 rows only), so a
     material's table never depends on what was baked before it.
-    Returns (degree, measured relative error, R at the nodes (T, U, W)).
+    ``evaluate(thickness_sets, u)`` → (T, U, C) replaces the spectral reflectance (e.g. the film
+    per colour channel, :func:`channel_film`).
+    Returns (degree, measured relative error, R at the nodes (T, U, W or C)).
     """
+    if evaluate is None:
+
+        def evaluate(sets, u):
+            return chunked_sweep(indices, sets, wavelengths_nm, u, method)
+
     rows = np.unique(np.linspace(0, thickness_sets.shape[0] - 1, 4).round().astype(int))
     probe = thickness_sets[rows]
     err = math.inf
@@ -351,18 +312,14 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
         nodes = u_nodes(candidate)
         test = u_nodes(candidate + 1)
         test = test[test >= U_TEST_MIN]
-        both = chunked_sweep(indices, probe, wavelengths_nm, np.concatenate([nodes, test]), method)
+        both = evaluate(probe, np.concatenate([nodes, test]))
         at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
         interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
-        err = float(np.max(np.abs(interp - exact))) / max(float(exact.max()), 1e-6)
-        if err <= U_TOLERANCE:
+        err = float(np.max(np.abs(interp - exact))) / max(float(np.abs(exact).max()), 1e-6)
+        if err <= tolerance:
             degree = candidate
             break
-    return (
-        degree,
-        err,
-        chunked_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method),
-    )
+    return degree, err, evaluate(thickness_sets, u_nodes(degree))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -491,6 +448,22 @@ def _method(material: Material) -> str:
     return "glassner2000" if material.model == "glassner2000" else "exact"
 
 
+def cycles_fresnel_average(material: Material):
+    """The F_avg Cycles' Multiscatter GGX compensates a Principled thin film with: the film-free
+    substrate's. A dielectric's hemispherical Fresnel average; Blender's F82-tint metal's, per
+    channel, mix(F0, 1, 1/21) − B/126 (``fresnel_f82_Fss``, B its F82 term); any other conductor 1.
+    """
+    spec = material.substrate
+    if isinstance(spec, dict) and "f82_tint" in spec:
+        f0 = np.clip(np.asarray(spec["f82_tint"]["f0"], dtype=float), 0.0, 1.0)
+        tint = np.clip(np.asarray(spec["f82_tint"]["tint"], dtype=float), 0.0, 1.0)
+        s82 = 6.0 / 7.0
+        b = (f0 + (1.0 - f0) * s82**5) * 7.0 / s82**6 * (1.0 - tint)
+        return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
+    substrate = material.indices()[-1].index(np.array([550.0]))[0]
+    return brdf.fresnel_average_dielectric(float(substrate.real)) if substrate.imag == 0 else 1.0
+
+
 def apply_multiscatter(data: np.ndarray, material: Material, cos_o: np.ndarray) -> np.ndarray:
     """Scale the specular table (T, A, K, 3, 3) for multiple scattering (``material.multiscatter``).
 
@@ -502,9 +475,8 @@ def apply_multiscatter(data: np.ndarray, material: Material, cos_o: np.ndarray) 
     if material.multiscatter == "none" or material.roughness <= 0.0:
         return data
     if material.multiscatter == "cycles":
-        substrate = material.indices()[-1].index(np.array([550.0]))[0]
-        f_avg = brdf.fresnel_average_dielectric(float(substrate.real)) if substrate.imag == 0 else 1.0
-        scale = np.repeat(brdf.multiscatter_scale(cos_o, material.roughness, f_avg)[:, None], 3, axis=1)
+        f_avg = np.broadcast_to(cycles_fresnel_average(material), (3,))
+        scale = brdf.multiscatter_scale(cos_o, material.roughness, f_avg)  # (A, 3)
     else:
         e = brdf.ggx_E(float(material.roughness), tuple(np.clip(cos_o, constants.MIN_COS, 1.0).tolist()))
         albedo = data[:, :, 0] @ np.full(3, math.sqrt(4 * math.pi))  # (T, A, 3) white-light response
@@ -529,18 +501,83 @@ def base_spectrum(material: Material, wavelengths_nm: np.ndarray) -> np.ndarray:
 
 
 def _diffuse_term(material, l_max, cos_o, r_nodes, nodes_u, g, wl) -> np.ndarray:
-    """(T, A, K, 3, 3) contribution of the diffuse base (m = 0 entries only)."""
+    """(T, A, K, 3, 3) contribution of the diffuse base (m = 0 entries only), spectral mode.
+
+    The base sees the light through the film both ways: (1 − R(θo, λ)) ∫ L (1 − R(θi, λ)) cos θi.
+    """
     kd = diffuse_kernel(l_max, nodes_u)  # (L+1, U)
     base = base_spectrum(material, wl)  # (W,)
     trans = 1.0 - r_nodes  # (T, U, W)
     z = np.einsum("lu,tuw->tlw", kd, trans)  # (T, L+1, W)
     r_o = np.einsum("au,tuw->taw", u_interpolation_matrix(nodes_u, cos_o), r_nodes)  # (T, A, W)
     zonal = np.einsum("taw,tlw,w,wkc->talkc", 1.0 - r_o, z, base / np.pi, g)
+    return _zonal_entries(zonal, l_max)
+
+
+def _zonal_entries(zonal: np.ndarray, l_max: int) -> np.ndarray:
+    """(T, A, L+1, …) per band → (T, A, K, …) with each band at its m = 0 coefficient."""
     out = np.zeros(zonal.shape[:2] + (len(coefficient_indices(l_max)),) + zonal.shape[3:])
     ci = coefficient_indices(l_max).tolist()
     for l in range(l_max + 1):
         out[:, :, ci.index(l * (l + 1))] = zonal[:, :, l]
     return out
+
+
+def cosine_zonal(l_max: int, n_mu: int = 128) -> np.ndarray:
+    """(L+1,): 2π ∫₀¹ μ Y_l0(μ) dμ, the zonal SH of the clamped cosine (the Lambertian kernel)."""
+    mu, wmu = np.polynomial.legendre.leggauss(n_mu)
+    mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu
+    dirs = np.stack([np.sqrt(1.0 - mu * mu), np.zeros_like(mu), mu], axis=-1)
+    zonal = sh.basis(l_max, dirs)[:, [l * (l + 1) for l in range(l_max + 1)]]
+    return 2.0 * np.pi * (zonal * (mu * wmu)[:, None]).sum(axis=0)
+
+
+def layering_weight(material: Material, film_o: np.ndarray, cos_o: np.ndarray) -> np.ndarray:
+    """Cycles' weight of the diffuse base under the film at the view angle, (T, A).
+
+    Cycles' Principled BSDF attenuates the layers under its specular layer by
+    1 − max_c(albedo_c) (``closure_layering_weight``), where the albedo is the film's reflectance
+    per channel at the view angle F_c(θo) (its estimate for thin films) times the multiple-
+    scattering "darkening" E(θo) + F_ms (1 − E(θo)) of Multiscatter GGX (Kulla & Conty with the
+    film-free dielectric's F_avg; 1 without multiple scattering or at roughness 0).
+    ``film_o``: (T, A, 3), the film per channel at ``cos_o``.
+    """
+    darkening = np.ones((cos_o.size, 1))
+    if material.multiscatter != "none" and material.roughness > 0.0:
+        e = brdf.ggx_E(float(material.roughness), tuple(np.clip(cos_o, constants.MIN_COS, 1.0).tolist()))
+        f_avg = np.broadcast_to(cycles_fresnel_average(material), (3,))
+        darkening = e[:, None] * brdf.multiscatter_scale(cos_o, material.roughness, f_avg)
+    return np.clip(1.0 - np.max(film_o * darkening[None], axis=-1), 0.0, 1.0)
+
+
+def _channel_diffuse_term(material, l_max, cos_o, film_o) -> np.ndarray:
+    """(T, A, K, 3, 3) diffuse base in the per-channel mode, layered as Cycles' Principled BSDF:
+    Lambertian with albedo Base Color × :func:`layering_weight` (no film on the light's way in)."""
+    weight = layering_weight(material, film_o, cos_o)  # (T, A)
+    base = np.asarray(material.base_color, dtype=float) / np.pi
+    zonal = np.einsum("ta,l,k,kc->talkc", weight, cosine_zonal(l_max), base, np.eye(3))
+    return _zonal_entries(zonal, l_max)
+
+
+def channel_film(material: Material, indices, sets, wavelengths_nm, g, u, method: str) -> np.ndarray:
+    """The film per colour channel (T, U, 3) at cosines ``u`` for thickness sets (T, L), clamped.
+
+    Cycles' Fourier-space film where its model expresses the material
+    (:func:`film_channels.cycles_stack`), else the exact reflectance integrated against the
+    channel weights ``g`` (the per-channel :func:`spectral_quadrature`).
+    """
+    u = np.asarray(u, dtype=float)
+    stack = film_channels.cycles_stack(material)
+    if stack is not None:
+        d = sets[:, 0] if sets.shape[1] else np.zeros(sets.shape[0])
+        return film_channels.fourier_reflectance(material, stack, d[:, None], u[None, :])
+    if sets.shape[1] == 0:
+        r = np.broadcast_to(
+            reflectance(indices, [], wavelengths_nm, u), (sets.shape[0], u.size, wavelengths_nm.size)
+        )
+    else:
+        r = chunked_sweep(indices, sets, wavelengths_nm, u, method)
+    return clamp_film_rgb(np.einsum("tuw,wkk->tuk", r, g), "per_channel")
 
 
 def clamp_film_rgb(rgb, colour_mode: str):
@@ -559,11 +596,18 @@ def clamp_film_rgb(rgb, colour_mode: str):
     return np.clip(rgb, 0.0, 1.0)
 
 
+#: Interpolation tolerance of the per-channel film in u (relative to its peak): Cycles' film
+#: reads its sensitivity table with linear interpolation, so R(u) has kinks of ≈ 1e-4 where
+#: the OPD crosses a table entry, and Chebyshev interpolation stalls there. 1e-3 keeps the
+#: table within the per-channel bake's accuracy (tests/test_bake.py).
+U_TOLERANCE_CHANNELS = 1e-3
+
 #: Version of the automatic choices and the bake's maths, part of every table's cache key
 #: (:func:`table_key`). Bump it when a material's table would come out different: cached tables
 #: of the old version are then not reused (they would be stale, not corrupt, so the checks on
-#: load cannot see it). 2: SH order up to 12 (was 8).
-PLANNER_VERSION = 2
+#: load cannot see it). 2: SH order up to 12 (was 8). 3: Cycles' colour pipeline in the
+#: per-channel mode (film_channels) and Cycles' layering of the diffuse base there.
+PLANNER_VERSION = 3
 
 
 def table_material(material: Material) -> Material:
@@ -590,26 +634,50 @@ def table_key(material: Material) -> str:
     return table_io.content_key({"material": table_material(material).to_dict(), "planner": PLANNER_VERSION})
 
 
-def contract(kernel: np.ndarray, r_nodes: np.ndarray, g: np.ndarray, colour_mode: str) -> np.ndarray:
-    """The table (T, A, K, 3, 3): M[t, a, i] = Σ_k K[a, i, k] clamp(Σ_λ R[t, k, λ] G[λ]).
+def contract(kernel: np.ndarray, rg: np.ndarray, wavelengths: int = 0) -> np.ndarray:
+    """The table (T, A, K, 3, 3): M[t, a, i] = Σ_k K[a, i, k] RG[t, k], RG (T, U, 9) the film's
+    clamped RGB matrices at the u nodes.
 
-    In blocks of thickness rows of ≤ :data:`CONTRACT_CHUNK` multiply-adds, a progress
-    :func:`checkpoint` after each; every row is contracted on its own, so the blocks change
-    nothing but the checkpoints.
+    In blocks of thickness rows of ≤ :data:`CONTRACT_CHUNK` multiply-adds (counting the
+    ``wavelengths`` that made RG, as the progress plan does), a progress :func:`checkpoint`
+    after each; every row is contracted on its own, so the blocks change nothing but the
+    checkpoints.
     """
     a, k, u = kernel.shape
     flat = kernel.reshape(a * k, u)
-    g2 = g.reshape(g.shape[0], -1)
-    t = r_nodes.shape[0]
-    rows = max(1, CONTRACT_CHUNK // (9 * u * (a * k + g2.shape[0])))
+    t = rg.shape[0]
+    rows = max(1, CONTRACT_CHUNK // (9 * u * (a * k + wavelengths)))
     out = np.empty((t, a, k, 3, 3))
     for lo in range(0, t, rows):
-        rg = clamp_film_rgb(r_nodes[lo : lo + rows] @ g2, colour_mode)  # (t', U, 9)
-        n = rg.shape[0]
-        rg = rg.transpose(1, 0, 2).reshape(u, -1)  # (U, t'·9)
-        out[lo : lo + n] = (flat @ rg).reshape(a, k, n, 3, 3).transpose(2, 0, 1, 3, 4)
+        block = rg[lo : lo + rows]
+        n = block.shape[0]
+        out[lo : lo + n] = (
+            (flat @ block.transpose(1, 0, 2).reshape(u, -1)).reshape(a, k, n, 3, 3).transpose(2, 0, 1, 3, 4)
+        )
         checkpoint()
     return out
+
+
+def _film_nodes(material, indices, sets, wl, g, method) -> tuple[int, float, np.ndarray, np.ndarray | None]:
+    """(u nodes per interval, interpolation error, the film's clamped RGB (T, U, 9) at the nodes,
+    the spectral reflectance (T, U, W) at the nodes or None in the per-channel mode)."""
+    if material.colour_mode == "per_channel":
+
+        def evaluate(rows, u):
+            return channel_film(material, indices, rows, wl, g, u, method)
+
+        u_count, u_err, film_nodes = choose_u_degree(
+            indices, sets, wl, method, evaluate=evaluate, tolerance=U_TOLERANCE_CHANNELS
+        )
+        rg = (film_nodes[..., None] * np.eye(3)).reshape(*film_nodes.shape[:2], 9)  # diagonal
+        return u_count, u_err, rg, None
+    if sets.shape[1] == 0:
+        u_count, u_err = U_DEGREE_LADDER[0], 0.0
+        r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
+    else:
+        u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
+    rg = clamp_film_rgb(r_nodes @ g.reshape(g.shape[0], -1), material.colour_mode)  # (T, U, 9)
+    return u_count, u_err, rg, r_nodes
 
 
 def bake(material: Material, progress=None) -> BakeResult:
@@ -625,6 +693,7 @@ def bake(material: Material, progress=None) -> BakeResult:
     phases = Phases(progress or (lambda fraction, text: None), PHASES)
     with phases.reporting():
         material = table_material(material)
+        per_channel = material.colour_mode == "per_channel"
         auto_order = material.quality.sh_order == AUTO
         phases.start("planning", "planning", expected=21 if auto_order else 1)
         p = plan(material)
@@ -640,11 +709,7 @@ def bake(material: Material, progress=None) -> BakeResult:
             expected=2 + sweep_checkpoints(sets.shape[0], sets.shape[1], guess, wl.size),
         )
         t1 = time.perf_counter()
-        if sets.shape[1] == 0:
-            u_count, u_err = U_DEGREE_LADDER[0], 0.0
-            r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
-        else:
-            u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
+        u_count, u_err, rg, r_nodes = _film_nodes(material, indices, sets, wl, g, method)
         t2 = time.perf_counter()
         blocks = len(
             kernel_blocks(N_THETA * N_PHI, len(coefficient_indices(p.sh_order)), u_count * (len(U_EDGES) - 1))
@@ -653,9 +718,11 @@ def bake(material: Material, progress=None) -> BakeResult:
         kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
         t3 = time.perf_counter()
         a, k, u = kernel.shape
-        t = r_nodes.shape[0]
+        t = rg.shape[0]
         diffuse_blocks = (
-            row_blocks(t, 9 * a * (p.sh_order + 1) * wl.size) if material.base_color is not None else []
+            row_blocks(t, 9 * a * (p.sh_order + 1) * wl.size)
+            if material.base_color is not None and not per_channel
+            else []
         )
         phases.start(
             "contracting",
@@ -666,15 +733,19 @@ def bake(material: Material, progress=None) -> BakeResult:
                 if material.multiscatter != "none"
                 else 0
             )
-            + len(diffuse_blocks),
+            + (len(diffuse_blocks) if not per_channel or material.base_color is None else 1),
         )
-        data = contract(kernel, r_nodes, g, material.colour_mode)
-        data = apply_multiscatter(data, material, view_cosines(p.view_samples))
+        data = contract(kernel, rg, g.shape[0])
         cos_o = view_cosines(p.view_samples)
+        data = apply_multiscatter(data, material, cos_o)
+        if per_channel and material.base_color is not None:
+            film_o = channel_film(material, indices, sets, wl, g, cos_o, method)
+            data = data + _channel_diffuse_term(material, p.sh_order, cos_o, film_o)
+            checkpoint()
         for rows in diffuse_blocks:
             data[rows] += _diffuse_term(material, p.sh_order, cos_o, r_nodes[rows], u_count, g, wl)
             checkpoint()
-        if material.colour_mode == "per_channel":
+        if per_channel:
             data = np.einsum("taikk->taik", data)
         t4 = time.perf_counter()
         phases.done()
@@ -683,6 +754,13 @@ def bake(material: Material, progress=None) -> BakeResult:
         u_nodes=f"{u_count} Chebyshev nodes in each of {len(U_EDGES) - 1} graded intervals: "
         f"interpolation error {u_err:.1e} (relative)",
     )
+    if per_channel:
+        reasons["colour_pipeline"] = (
+            "Cycles' Fourier-space film (Airy series to m = 3, per-channel sensitivities)"
+            if film_channels.cycles_stack(material) is not None
+            else "exact film integrated against Cycles' channel sensitivities (Cycles' film model "
+            "cannot express this stack)"
+        )
     return BakeResult(
         data=data,
         material=material,
@@ -693,61 +771,4 @@ def bake(material: Material, progress=None) -> BakeResult:
         u_nodes=u_count,
         reasons=reasons,
         timings_s={"reflectance": t2 - t1, "kernel": t3 - t2, "contract": t4 - t3, "total": t4 - t0},
-    )
-
-
-def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PHI) -> BakeResult:
-    """Brute-force reference: exact film reflectance at every quadrature node and wavelength.
-
-    No Chebyshev factorisation and no kernel cache: for each view angle and thickness, every
-    hemisphere node ωi is evaluated with the full spectral BRDF and projected on the SH basis.
-    Same plan and quadrature nodes as :func:`bake`, so the two differ only by the factorisation.
-    """
-    t0 = time.perf_counter()
-    material = table_material(material)
-    p = plan(material)
-    wl, g = spectral_quadrature(
-        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
-    )
-    indices, sets, axis = active_stack(material, p.thickness_samples)
-    method = _method(material)
-    alpha = float(brdf.alpha_from_roughness(material.roughness))
-    cos_os = view_cosines(p.view_samples)
-    ci = coefficient_indices(p.sh_order).tolist()
-    base = None
-    if material.base_color is not None:
-        base = base_spectrum(material, wl)
-        mu, wmu = np.polynomial.legendre.leggauss(128)
-        mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu
-        zon = sh.basis(p.sh_order, np.stack([np.sqrt(1 - mu * mu), 0 * mu, mu], -1))
-    out = np.zeros((sets.shape[0], cos_os.size, len(ci), 3, 3))
-    diffuse = np.zeros_like(out)
-    for t, row in enumerate(sets):
-        for a, cos_o in enumerate(cos_os):
-            u, ty = transfer_samples(float(cos_o), alpha, p.sh_order, n_theta, n_phi)
-            r = reflectance(indices, row, wl, u, method=method)  # (N, W) exact at every node
-            rgb = clamp_film_rgb(np.einsum("nw,wkc->nkc", r, g), material.colour_mode)  # (N, 3, 3)
-            f = ty.T @ r  # (K, W), for the diffuse term's shape
-            if base is not None:
-                r_o = reflectance(indices, row, wl, [cos_o], method=method)[0]
-                r_mu = reflectance(indices, row, wl, mu, method=method)
-                fd = np.zeros_like(f)
-                for l in range(p.sh_order + 1):
-                    zl = 2 * np.pi * np.sum((1 - r_mu) * (mu * wmu * zon[:, l * (l + 1)])[:, None], axis=0)
-                    fd[ci.index(l * (l + 1))] = base / np.pi * (1 - r_o) * zl
-                diffuse[t, a] = np.einsum("iw,wkc->ikc", fd, g)
-            out[t, a] = np.einsum("ni,nkc->ikc", ty, rgb)
-    out = apply_multiscatter(out, material, cos_os) + diffuse
-    if material.colour_mode == "per_channel":
-        out = np.einsum("taikk->taik", out)
-    return BakeResult(
-        data=out,
-        material=material,
-        sh_order=p.sh_order,
-        view_angles_rad=view_angles(p.view_samples),
-        thicknesses_nm=axis,
-        wavelengths_nm=wl,
-        u_nodes=0,
-        reasons=p.reasons,
-        timings_s={"total": time.perf_counter() - t0},
     )

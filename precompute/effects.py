@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bake
+from . import bake, quadrature
 from .film_colour import FILM_SAMPLES
 from .material import AUTO, MAX_SH_ORDER, Material
 from .optics.dispersion import is_dispersive
@@ -446,10 +446,10 @@ def material_plan(
     else:
         reasons["thickness_axis"] = "constant thickness: 1-D table (T = 1), 2 taps per coefficient"
 
-    illuminant_lines = bake.is_line_spectrum(material.illuminant)
+    illuminant_lines = quadrature.is_line_spectrum(material.illuminant)
     line_count = 0
     if illuminant_lines:
-        line_count = len(bake._illuminant_composite(material.illuminant).spike_wavelengths_nm)
+        line_count = len(quadrature._illuminant_composite(material.illuminant).spike_wavelengths_nm)
         reasons["illuminant_lines"] = (
             f"{material.illuminant} has {line_count} emission lines: one wavelength node at each "
             f"(Composite Model) besides the {p.wavelength_count}-sample grid"

@@ -5,13 +5,18 @@ needs from it (the add-on calls it when the World's key changes):
 
 1. its bright lamps and their pixels (:func:`precompute.lamps.extract`), shaded per light
    direction by the lamp loop;
-2. the GGX prefilter of the split sum (:func:`precompute.prefilter.prefilter`), with the lamps
-   lifted out from ``lamps.LAMP_LEVEL`` on (``lamp_mask``); without lamps, of the whole World;
-3. the prefilter of the whole World, for the materials the lamps do not apply to
-   (:attr:`Environment.prefiltered_whole`: computed on first use, once);
-4. the lamps' SH, the projection of the lamp pixels (:func:`precompute.sh.project_equirect`),
+2. the lamps' SH, the projection of the lamp pixels (:func:`precompute.sh.project_equirect`),
    so that the SH lighting of a lamp-shaded material is the World's SH without them
-   (:attr:`Environment.sh_without_lamps` = world − lamps over their common bands).
+   (:attr:`Environment.sh_without_lamps` = world − lamps over their common bands);
+3. the GGX prefilter of the split sum (:func:`precompute.prefilter.prefilter`) with the lamps
+   lifted out from ``lamps.LAMP_LEVEL`` on (:attr:`Environment.prefiltered`), for the glossy
+   materials whose lamps go through the lamp loop;
+4. the prefilter of the whole World (:attr:`Environment.prefiltered_whole`), for the glossy
+   materials the lamps do not apply to.
+
+A prefilter costs seconds, so neither is computed by :func:`analyse_world`: each is computed the
+first time a drawn material reads it, then kept (addon/scene_draw.py asks only for those its
+glossy materials read). Without lamps the two are one and the same.
 
 Every watt is kept: rest + lamps = the panorama, in power and in SH (tests/test_environment.py).
 Pure numpy; never imports ``bpy``.
@@ -48,9 +53,6 @@ class Environment:
         The lamps lifted out of the panorama; None when it has none.
     lamp_mask : ndarray, shape (H, W), bool
         The panorama's pixels the lamps carry (all False without lamps).
-    prefiltered : precompute.prefilter.Prefiltered
-        The split sum's levels: the whole World below ``lamps.LAMP_LEVEL``, the World without
-        its lamps from there on; without lamps, the whole World at every level.
     lamp_sh : ndarray, shape ((l_max+1)², 3), or None
         SH of the lamp pixels (the panorama times ``lamp_mask``); None without lamps.
     l_max : int
@@ -63,20 +65,33 @@ class Environment:
     world_sh: np.ndarray
     lamps: Lamps | None
     lamp_mask: np.ndarray
-    prefiltered: Prefiltered
     lamp_sh: np.ndarray | None
     l_max: int
     width: int
 
     @functools.cached_property
+    def prefiltered(self) -> Prefiltered:
+        """The split sum's levels with the lamps lifted out: the whole World below
+        ``lamps.LAMP_LEVEL``, the World without its lamps from there on (computed on first use,
+        then kept). Without lamps, the whole World at every level: :attr:`prefiltered_whole`.
+        """
+        if self.lamps is None:
+            return self.prefiltered_whole
+        return prefilter_mod.prefilter(self.panorama, width=self.width, lamp_mask=self.lamp_mask)
+
+    @functools.cached_property
     def prefiltered_whole(self) -> Prefiltered:
         """The prefilter with the lamps in every level (computed on first use, then kept).
 
-        Without lamps it is :attr:`prefiltered` itself: nothing is filtered twice.
+        Without lamps it is also :attr:`prefiltered`: nothing is filtered twice.
         """
-        if self.lamps is None:
-            return self.prefiltered
         return prefilter_mod.prefilter(self.panorama, width=self.width)
+
+    def computed_prefilters(self) -> tuple[str, ...]:
+        """Which prefilters exist so far: ``"prefiltered"``, ``"prefiltered_whole"`` (one entry
+        when the World has no lamps and the two are the same)."""
+        done = [name for name in ("prefiltered", "prefiltered_whole") if name in self.__dict__]
+        return ("prefiltered_whole",) if self.lamps is None and done else tuple(done)
 
     @functools.cached_property
     def sh_without_lamps(self) -> np.ndarray:
@@ -102,7 +117,7 @@ def analyse_world(
     l_max: int = MAX_SH_ORDER,
     width: int = prefilter_mod.LEVEL_WIDTH,
 ) -> Environment:
-    """Lamps, prefiltered levels and the lamps' SH of a World panorama, in one call.
+    """Lamps and the lamps' SH of a World panorama, in one call; the prefilters on demand.
 
     Parameters
     ----------
@@ -119,23 +134,21 @@ def analyse_world(
     Returns
     -------
     Environment
-        Frozen; the prefilter of the whole World is computed on first use.
+        Frozen; its prefilters are computed on first use (:attr:`Environment.prefiltered`,
+        :attr:`Environment.prefiltered_whole`).
     """
     panorama = np.asarray(panorama)
     found, mask = lamps_mod.extract(panorama)
     if found.count:
-        pre = prefilter_mod.prefilter(panorama, width=width, lamp_mask=mask)
         lamp_sh = sh.project_equirect(np.where(mask[..., None], panorama, 0.0), l_max)
         found_lamps = found
     else:
-        pre = prefilter_mod.prefilter(panorama, width=width)
         lamp_sh = found_lamps = None
     return Environment(
         panorama=panorama,
         world_sh=np.asarray(world_sh_coeffs, dtype=np.float64),
         lamps=found_lamps,
         lamp_mask=mask,
-        prefiltered=pre,
         lamp_sh=lamp_sh,
         l_max=int(l_max),
         width=int(width),

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import bake, brdf, constants
+from . import bake, brdf, constants, film_channels
 from .optics import reflectance
 
 #: Samples of the film table in u = cos θ (uniform 0…1 inclusive).
@@ -25,7 +25,9 @@ def film_rgb_matrices(material, thickness_nm=None, samples: int = 4097):
     """RG(u): Σ_λ R(u, λ) G[λ] as (samples, 3, 3) on a uniform u grid, for the ground truth.
 
     Returns (u, RG, R, λ, G): the grid, the matrices, the reflectance (samples, W), the
-    wavelength nodes and the spectral quadrature weights of the bake's plan.
+    wavelength nodes and the spectral quadrature weights of the bake's plan. In the per-channel
+    mode RG is diagonal, the film per channel (bake.channel_film: Cycles' film where it applies),
+    and R is None when that film does not go through a spectrum.
     """
     p = bake.plan(material)
     wl, g = bake.spectral_quadrature(
@@ -36,9 +38,44 @@ def film_rgb_matrices(material, thickness_nm=None, samples: int = 4097):
         d = [float(thickness_nm)] + d[1:]
     method = "glassner2000" if material.model == "glassner2000" else "exact"
     u = np.linspace(0.0, 1.0, samples)
+    if material.colour_mode == "per_channel":
+        row = np.array([d], dtype=float).reshape(1, len(d))
+        rgb = bake.channel_film(material, material.indices(), row, wl, g, u, method)[0]
+        r = (
+            None
+            if film_channels.cycles_stack(material) is not None
+            else reflectance(material.indices(), d, wl, u, method=method)
+        )
+        return u, rgb[..., None] * np.eye(3), r, wl, g
     r = reflectance(material.indices(), d, wl, u, method=method)
     rg = bake.clamp_film_rgb(np.einsum("uw,wkc->ukc", r, g), material.colour_mode)
     return u, rg, r, wl, g
+
+
+def white_reflectance(material, thickness_nm, cos_theta) -> np.ndarray:
+    """The film's RGB reflectance of white light (1, 1, 1), (…, 3), at broadcast thicknesses of
+    the top layer (nm) and incidence cosines: each pixel of a white furnace at roughness 0.
+
+    per_channel: the film per channel (Cycles' pipeline, bake.channel_film); spectral: the row
+    sums of the 3×3 matrices (E white, docs/conventions.md).
+    """
+    d, cos = np.broadcast_arrays(np.asarray(thickness_nm, dtype=float), np.asarray(cos_theta, dtype=float))
+    stack = film_channels.cycles_stack(material) if material.colour_mode == "per_channel" else None
+    if stack is not None:
+        return film_channels.fourier_reflectance(material, stack, d, cos)
+    p = bake.plan(material)
+    wl, g = bake.spectral_quadrature(
+        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
+    )
+    method = "glassner2000" if material.model == "glassner2000" else "exact"
+    out = np.zeros(d.shape + (3,))
+    rest = material.thicknesses()[1:]
+    for value in np.unique(d):
+        sel = d == value
+        layers = [float(value), *rest] if material.layers else []
+        r = reflectance(material.indices(), layers, wl, cos[sel], method=method)
+        out[sel] = bake.clamp_film_rgb(r @ g.sum(axis=2), material.colour_mode)
+    return out
 
 
 @dataclass(frozen=True)
@@ -79,9 +116,10 @@ def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
 def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
     """(U, 3): the factor :func:`bake.apply_multiscatter` applies at view cosine u.
 
-    "cycles": the bare dielectric's F_avg, as the bake. "film": F_avg per channel from the
-    film's single-scattering white-light albedo over E (the bake takes the same ratio on its
-    own view samples, so the two agree to the quadrature: a few 1e-3 of the factor).
+    "cycles": the film-free substrate's F_avg (bake.cycles_fresnel_average), as the bake.
+    "film": F_avg per channel from the film's single-scattering white-light albedo over E (the
+    bake takes the same ratio on its own view samples, so the two agree to the quadrature: a few
+    1e-3 of the factor).
     """
     if material.multiscatter == "none" or material.roughness <= 0.0:
         return np.ones((u.size, 3))

@@ -8,7 +8,9 @@ Index specifications (``IndexSpec``) accepted everywhere a medium is named:
 - a number ``1.33`` or ``[n, k]`` → constant N = n + ik;
 - ``{"cauchy": [A, B, C]}`` (λ in µm), ``{"sellmeier": {"B": [...], "C": [...]}}``;
 - ``{"metal": "gold"}`` → tabulated conductor from :mod:`precompute.optics.metals`;
-- ``{"table": {"wavelengths_nm": [...], "n": [...], "k": [...]}}``.
+- ``{"table": {"wavelengths_nm": [...], "n": [...], "k": [...]}}``;
+- ``{"f82_tint": {"f0": [r, g, b], "tint": [r, g, b]}}`` → Blender's metallic Principled BSDF
+  (Base Color, Specular Tint): a per-channel conductor (see ``_f82_tint_index``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from dataclasses import asdict, dataclass, field, replace
 from . import _checks, spectra, validate
 from .optics import metals
 from .optics.dispersion import CauchyIndex, ConstantIndex, SellmeierIndex, TabulatedIndex
+from .optics.gulbrandsen2014 import conductor_from_rgb
 
 AUTO = "auto"
 MODELS = ("exact", "glassner2000")
@@ -71,12 +74,33 @@ def _index_model(name: str, spec):
             model = TabulatedIndex(
                 tuple(map(float, wl)), tuple(map(float, n)), tuple(map(float, k)), name=name
             )
+        elif kind == "f82_tint":
+            model = _f82_tint_index(name, value)
         else:
-            raise ValueError(f"{name}: unknown index kind {kind!r} (use cauchy, sellmeier, metal or table)")
+            raise ValueError(
+                f"{name}: unknown index kind {kind!r} (use cauchy, sellmeier, metal, table or f82_tint)"
+            )
     else:
         raise ValueError(f"{name} must be n, [n, k] or a dict such as {{'metal': 'gold'}}, got {spec!r}")
     validate.remember_valid(key)
     return model
+
+
+def _f82_tint_index(name: str, value):
+    """Blender's metallic Principled BSDF, ``{"f0": Base Color, "tint": Specular Tint}`` (RGB in
+    [0, 1]): spectrally a Gulbrandsen (n, k) fit per channel (optics.gulbrandsen2014);
+    the Cycles-matching colour mode evaluates the F82-tint model itself (film_channels)."""
+    if not isinstance(value, dict) or set(value) - {"f0", "tint"} or "f0" not in value:
+        raise ValueError(f"{name}: f82_tint needs {{'f0': [r, g, b], 'tint': [r, g, b]}}, got {value!r}")
+    rgb = {key: value.get(key, (1.0, 1.0, 1.0)) for key in ("f0", "tint")}
+    for key, v in rgb.items():
+        if (
+            not isinstance(v, (list, tuple))
+            or len(v) != 3
+            or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and 0 <= c <= 1 for c in v)
+        ):
+            raise ValueError(f"{name}: f82_tint {key} must be three values in [0, 1], got {v!r}")
+    return _index_model(name, conductor_from_rgb(rgb["f0"], rgb["tint"]))
 
 
 @dataclass(frozen=True)

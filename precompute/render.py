@@ -58,11 +58,13 @@ def shade_reference(material, image, normals, views, thickness_nm=None, n_theta:
         idx = np.clip(np.rint(u[ok] * (u_grid.size - 1)).astype(int), 0, u_grid.size - 1)
         out[p] = np.einsum("n,nkc,nc->k", weight, rg[idx], radiance)
     if material.base_color is not None:
-        out += _reference_diffuse(material, image, frames, vv, u_grid, r_grid, wl, g)
+        out += _reference_diffuse(material, image, frames, vv, u_grid, r_grid, wl, g, rg)
     return np.maximum(out.reshape(shape + (3,)), 0.0)
 
 
-def _reference_diffuse(material, image, frames, views, u_grid, r_grid, wl, g, n: int = 64):
+def _reference_diffuse(material, image, frames, views, u_grid, r_grid, wl, g, rg, n: int = 64):
+    """The diffuse base by cosine-weighted quadrature. Spectral: seen through the film both ways;
+    per channel: Cycles' layering, Base Color × (1 − max_c F_c(θo)) (single scattering)."""
     mu, wmu = np.polynomial.legendre.leggauss(n)
     mu, wmu = 0.5 * (mu + 1), 0.5 * wmu
     phi = 2 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n)
@@ -74,6 +76,14 @@ def _reference_diffuse(material, image, frames, views, u_grid, r_grid, wl, g, n:
     base = bake.base_spectrum(material, wl) / np.pi
     idx_mu = np.clip(np.rint(np.repeat(mu, 2 * n) * (u_grid.size - 1)).astype(int), 0, u_grid.size - 1)
     out = np.zeros((frames.shape[0], 3))
+    if material.colour_mode == "per_channel":
+        film = np.einsum("ukk->uk", rg)
+        albedo = np.asarray(material.base_color, dtype=float) / np.pi
+        for p in range(frames.shape[0]):
+            cos_o = float(np.clip(frames[p, 2] @ views[p], 0.0, 1.0))
+            weight = 1.0 - np.max(film[int(round(cos_o * (u_grid.size - 1)))])
+            out[p] = albedo * weight * (wd @ equirect_lookup(image, d @ frames[p]))
+        return out
     for p in range(frames.shape[0]):
         cos_o = float(np.clip(frames[p, 2] @ views[p], 0.0, 1.0))
         r_o = r_grid[int(round(cos_o * (u_grid.size - 1)))]

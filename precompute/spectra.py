@@ -49,6 +49,8 @@ __all__ = [
     "bin_edges",
     "bin_width",
     "bradford_matrix",
+    "channel_sensitivities",
+    "channel_weights",
     "cell_edges",
     "cell_widths",
     "cmf_cell_integrals",
@@ -60,6 +62,7 @@ __all__ = [
     "rgb_basis_roundtrip_matrix",
     "rgb_to_rgb_matrix",
     "rgb_to_xyz_matrix",
+    "scene_linear_matrix",
     "spectrum_to_xyz",
     "wavelength_grid",
     "xyz_to_rgb_matrix",
@@ -490,6 +493,89 @@ def rgb_to_rgb_matrix(source: str, target: str) -> np.ndarray:
     White (1, 1, 1) stays white (both ends adapt to E the same way).
     """
     return xyz_to_rgb_matrix(target) @ rgb_to_xyz_matrix(source)
+
+
+@functools.cache
+def _xyz_d65_to_rgb(space: str) -> np.ndarray:
+    whitepoint, xyz_to_rgb = colour_tables.rgb_space(WORKING_SPACES[space])
+    d65 = colour_tables.xy_to_xyz(colour_tables.rgb_space("ITU-R BT.709")[0])
+    white = colour_tables.xy_to_xyz(whitepoint)
+    adapt = np.eye(3) if np.allclose(white, d65, atol=1e-12) else bradford_matrix(d65, white)
+    return _read_only(np.asarray(xyz_to_rgb, dtype=np.float64) @ adapt)
+
+
+def scene_linear_matrix(space: str = DEFAULT_SPACE) -> np.ndarray:
+    """3×3 matrix from CIE XYZ (D65-relative) to linear ``space`` RGB, as Blender's colour
+    management defines it: what Cycles turns its colour-matching functions into RGB with.
+
+    Blender's OCIO config relates every space to "Linear CIE-XYZ D65" (and to ACES2065-1, its
+    ``aces_interchange`` role, through OCIO's built-in ACES AP0 → XYZ D65 Bradford matrix):
+    Rec.709 and Rec.2020 use their own XYZ → RGB matrices, with no chromatic adaptation (their
+    white is D65); ACEScg adds a Bradford adaptation from D65 to the ACES white. Cycles'
+    ``ColorSpaceManager::get_xyz_to_scene_linear_rgb`` derives the matrix from the config's
+    ``aces_interchange`` role (or its ``XYZ`` role); the result agrees with this one to 1e-6
+    (tests/test_spectra.py, against PyOpenColorIO with Blender's config). Unlike
+    :func:`xyz_to_rgb_matrix` there is no adaptation from E: a flat spectrum is not white.
+
+    Parameters
+    ----------
+    space : str
+        "Linear Rec.709" (default), "Linear Rec.2020" or "ACEScg".
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        rgb = M @ xyz.
+
+    References
+    ----------
+    ITU-R BT.709-6; ITU-R BT.2020-2; Academy S-2014-004; Blender's ``datafiles/colormanagement/
+    config.ocio``.
+    """
+    return _xyz_d65_to_rgb(_space_name(space)).copy()
+
+
+#: The CMF table padded with a zero 1 nm beyond each end, so that the sensitivities' spline
+#: falls to zero there (the table's values at 360 and 830 nm are ≈ 1e-4 and 1e-6 of the peak).
+CMF_PAD_NM = 1.0
+
+
+@functools.cache
+def _channel_sensitivities(space: str) -> tuple[np.ndarray, np.ndarray]:
+    lam, table = _cmf_table()
+    lam = np.concatenate(([lam[0] - CMF_PAD_NM], lam, [lam[-1] + CMF_PAD_NM]))
+    table = np.concatenate((np.zeros((1, 3)), table, np.zeros((1, 3))))
+    return _read_only(lam), _read_only(table @ _xyz_d65_to_rgb(space).T)
+
+
+def channel_sensitivities(space: str = DEFAULT_SPACE) -> tuple[np.ndarray, np.ndarray]:
+    """The working space's RGB colour-matching functions s_c(λ) = Σ_j M[c, j] x̄_j(λ).
+
+    M is :func:`scene_linear_matrix`; x̄ the CIE 1931 2° table at 1 nm (360–830 nm) with a zero
+    :data:`CMF_PAD_NM` beyond each end. A channel's reflectance under Cycles' per-channel film
+    model is ∫ R s_c dλ / ∫ s_c dλ: each channel normalised on its own, so white reflects 1.
+
+    Returns
+    -------
+    wavelengths_nm : ndarray, shape (473,)
+    values : ndarray, shape (473, 3)
+        Unnormalised sensitivities (they have negative lobes where the space's gamut does not
+        reach the spectral locus).
+    """
+    lam, values = _channel_sensitivities(_space_name(space))
+    return lam.copy(), values.copy()
+
+
+def channel_weights(wavelengths_nm, space: str = DEFAULT_SPACE) -> np.ndarray:
+    """Quadrature weights (W, 3) of :func:`channel_sensitivities` on a grid: R_c = R @ w[:, c].
+
+    The sensitivities integrated exactly over each cell (as :func:`xyz_weights`), each column
+    divided by the channel's integral over 360–830 nm, so a flat spectrum of 1 gives 1 in every
+    channel.
+    """
+    m = _xyz_d65_to_rgb(_space_name(space))
+    table = cmf_cell_integrals(cell_edges(wavelengths_nm)) @ m.T
+    return table / (cmf_integrals() @ m.T)
 
 
 # --------------------------------------------------------------------------------------------

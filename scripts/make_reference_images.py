@@ -174,7 +174,8 @@ def cycles_render(out_exr, size, samples: int = CYCLES_SAMPLES, transparent: boo
     cycles.seed = 1
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
-    scene.render.filter_size = 1.0  # close to the one-sample-per-pixel raster it is compared with
+    # The file's own Cycles pixel filter (Blackman–Harris 1.5 px by default): the headless frame
+    # applies the same one to its 4× supersampled frame (addon/headless.py).
     scene.render.film_transparent = transparent
     scene.render.use_compositing = False
     scene.render.use_sequencer = False
@@ -282,8 +283,9 @@ ground is Blender's flat Solid grey rather than a shaded surface.
 
 PAGE_TAIL = """\
 
-Pictures are 320×240: headless renders on Mesa llvmpipe, Cycles on the CPU with {samples}
-samples and no denoising. Seconds at the last regeneration (two CPU cores, shared): the first
+Pictures are 320×240: headless renders on Mesa llvmpipe (4×4 samples per pixel, filtered with
+the file's Cycles pixel filter, docs/headless.md), Cycles on the CPU with {samples} samples and
+no denoising. Seconds at the last regeneration (two CPU cores, shared): the first
 headless render of a file (96×72, the test reference) includes the World's panorama (a small
 Cycles render, kept while the World does not change), reading or baking the tables and
 compiling shaders; the 320×240 picture that follows reuses them.

@@ -8,6 +8,11 @@ of radius 1 at the origin).
 
 Used by tests/test_cycles_parity.py, tests/test_glossy.py and ``benchmarks.cycles_compare``
 (docs/cycles-comparison.md). It lives in tests/ because the tests never import benchmarks/.
+
+:func:`white_furnace_render` is the white furnace of the colour pipeline (tests/test_cycles_parity.py,
+``benchmarks.white_furnace``): a mirror-smooth Principled film under a uniform white World, seen by
+an orthographic camera, so each pixel is the film's F_rgb(θ), with each pixel's cos θ and film
+thickness read back from a second render.
 """
 
 from __future__ import annotations
@@ -79,6 +84,99 @@ def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, sample
         scene.render.filepath = str(out)
         bpy.ops.render.render(write_still=True)
         return hdri.read_equirect(out)
+
+
+#: Version of :func:`build_sphere_blend`'s scene, part of the benchmarks' cache keys.
+SPHERE_SCENE_VERSION = 1
+
+
+def studiolight_path(name: str) -> pathlib.Path:
+    """bpy's studio-light HDRI ``name`` (courtyard, forest, studio, sunset, …)."""
+    from precompute.cli import studiolight
+
+    return pathlib.Path(studiolight(name))
+
+
+def build_sphere_blend(
+    path,
+    hdri_path,
+    thickness_nm,
+    film_ior,
+    base_ior,
+    roughness,
+    size=SIZE,
+    samples=256,
+    base_color=(0.0, 0.0, 0.0),
+):
+    """Save the Cycles comparison scene as a .blend: the sphere of :func:`cycles_render` with a
+    Principled thin film (Base Color ``base_color``, black by default) under the HDRI, the same
+    camera, Cycles settings for a reference (CPU, ``samples``, no denoising, fixed seed) and
+    Cycles' default pixel filter (Blackman–Harris, 1.5 px). Returns the path."""
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.seed = 1
+    scene.cycles.max_bounces = 1  # a single sphere: one bounce sees everything but self-reflection
+    scene.cycles.pixel_filter_type = "BLACKMAN_HARRIS"
+    scene.cycles.filter_width = 1.5
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = False
+    scene.view_settings.view_transform = "Standard"
+    world = bpy.data.worlds.new("env")
+    nt = world.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(hdri_path))
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    scene.world = world
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    mat = bpy.data.materials.new("film")
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (*base_color, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = base_ior
+    bsdf.inputs["Thin Film Thickness"].default_value = thickness_nm
+    bsdf.inputs["Thin Film IOR"].default_value = film_ior
+    sphere.data.materials.append(mat)
+    cam_data = bpy.data.cameras.new("cam")
+    cam_data.angle = math.radians(FOV_DEG)
+    cam = bpy.data.objects.new("cam", cam_data)
+    cam.location = (0.0, -DISTANCE, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=str(path.resolve()), check_existing=False)
+    return path
+
+
+def cycles_render_blend(blend) -> np.ndarray:
+    """Cycles' render of a .blend as it is (its own settings): scene-linear RGB, top row first."""
+    import bpy
+
+    bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(blend).resolve()))
+    scene = bpy.context.scene
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "cycles.exr"
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        scene.render.image_settings.color_depth = "32"
+        scene.render.filepath = str(out)
+        bpy.ops.render.render(write_still=True)
+        return read_exr(out)
+
+
+def read_exr(path) -> np.ndarray:
+    """RGB (H, W, 3) float64 of an EXR written by Blender (R, G, B[, A]) or by us ("RGB")."""
+    return hdri.read_equirect(path)
 
 
 SUPERSAMPLE = 4
@@ -163,3 +261,126 @@ def brute_force_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, s
     m = view.mask
     out[m] = render.shade_reference(material, full, view.normals[m], view.views[m], n_theta=48, n_phi=48)
     return render.box_downsample(out, BRUTE_SUPERSAMPLE)
+
+
+# ----------------------------------------------------------------------------------------------
+# White furnace
+# ----------------------------------------------------------------------------------------------
+#: Half-width of Cycles' box pixel filter in the white furnace (``filter_width`` 0.01 px, its
+#: minimum): every sample sits at the pixel centre, so a pixel is F at one angle, not an average.
+FURNACE_FILTER_WIDTH = 0.01
+
+
+def _furnace_scene(size: int, samples: int):
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.seed = 1
+    scene.cycles.max_bounces = 2
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = FURNACE_FILTER_WIDTH
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = False
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    world = bpy.data.worlds.new("furnace")
+    scene.world = world
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    cam_data = bpy.data.cameras.new("cam")
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = 2.05
+    cam = bpy.data.objects.new("cam", cam_data)
+    cam.location = (0.0, -5.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return scene, world, sphere
+
+
+def _thickness_socket(nt, thickness_range):
+    """A node output giving the film thickness (nm): ``lo`` + (x + 1)/2 · (hi − lo) of object x."""
+    lo, hi = thickness_range
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    split = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(coords.outputs["Object"], split.inputs[0])
+    remap = nt.nodes.new("ShaderNodeMapRange")
+    remap.inputs["From Min"].default_value = -1.0
+    remap.inputs["From Max"].default_value = 1.0
+    remap.inputs["To Min"].default_value = float(lo)
+    remap.inputs["To Max"].default_value = float(hi)
+    nt.links.new(split.outputs["X"], remap.inputs["Value"])
+    return remap.outputs["Result"]
+
+
+def _render_exr(scene, path) -> np.ndarray:
+    import bpy
+
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    return hdri.read_equirect(path)
+
+
+def white_furnace_render(film_ior, base_ior, thickness_range, metal=None, size=96, samples=4):
+    """Cycles' white furnace of a Principled film: (F_rgb, cos θ, thickness nm, mask), (size, size[, 3]).
+
+    A sphere of Principled BSDF (Roughness 0, Base Color black, IOR ``base_ior``; or Metallic 1 with
+    ``metal`` = (Base Color, Specular Tint)) under a uniform white World of strength 1, seen by an
+    orthographic camera: a pixel is the film's reflectance of white light at its angle. The thickness
+    varies linearly with object x over ``thickness_range`` (lo, hi) nm. A second render of the same
+    sphere with an Emission shader returns each pixel's cos θ = N·I and thickness (the Geometry
+    node's own normal and incoming vectors), against a black World (the mask).
+    """
+    import bpy
+
+    scene, world, sphere = _furnace_scene(size, samples)
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    mat = bpy.data.materials.new("film")
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    bsdf.inputs["Roughness"].default_value = 0.0
+    bsdf.inputs["Thin Film IOR"].default_value = float(film_ior)
+    nt.links.new(_thickness_socket(nt, thickness_range), bsdf.inputs["Thin Film Thickness"])
+    if metal is None:
+        bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        bsdf.inputs["IOR"].default_value = float(base_ior)
+    else:
+        f0, tint = metal
+        bsdf.inputs["Metallic"].default_value = 1.0
+        bsdf.inputs["Base Color"].default_value = (*f0, 1.0)
+        bsdf.inputs["Specular Tint"].default_value = (*tint, 1.0)
+    sphere.data.materials.append(mat)
+    with tempfile.TemporaryDirectory() as tmp:
+        film = _render_exr(scene, pathlib.Path(tmp) / "film.exr")
+        # The same pixels' angle and thickness: emission (N·I, d / 1000, 1) against a black World.
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        geometry = nt.nodes.new("ShaderNodeNewGeometry")
+        dot = nt.nodes.new("ShaderNodeVectorMath")
+        dot.operation = "DOT_PRODUCT"
+        nt.links.new(geometry.outputs["Normal"], dot.inputs[0])
+        nt.links.new(geometry.outputs["Incoming"], dot.inputs[1])
+        scale = nt.nodes.new("ShaderNodeMath")
+        scale.operation = "DIVIDE"
+        nt.links.new(_thickness_socket(nt, thickness_range), scale.inputs[0])
+        scale.inputs[1].default_value = 1000.0
+        combine = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(dot.outputs["Value"], combine.inputs["X"])
+        nt.links.new(scale.outputs["Value"], combine.inputs["Y"])
+        combine.inputs["Z"].default_value = 1.0
+        emission = nt.nodes.new("ShaderNodeEmission")
+        emission.inputs["Strength"].default_value = 1.0
+        nt.links.new(combine.outputs["Vector"], emission.inputs["Color"])
+        output = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+        nt.links.new(emission.outputs["Emission"], output.inputs["Surface"])
+        data = _render_exr(scene, pathlib.Path(tmp) / "data.exr")
+    mask = np.abs(data[..., 2] - 1.0) < 1e-4
+    return film, np.clip(data[..., 0], 0.0, 1.0), data[..., 1] * 1000.0, mask

@@ -192,6 +192,24 @@ def test_principled_thin_film_is_previewed_from_its_own_values(bpy, description_
     assert description_mod.warnings(mat) == []
 
 
+def test_principled_black_base_color_has_no_diffuse_base_and_gets_world_lamps(bpy, description_mod):
+    """Cycles gives a black Base Color no diffuse lobe: the preview shows the film alone, and
+    with it the World's lamps (scene_draw.uses_lamps), as for the extension's own films."""
+    scene_draw = _module("addon.scene_draw")
+    mat, node = _principled(bpy, **{"Thin Film Thickness": 500.0, "Base Color": (0.0, 0.0, 0.0, 1.0)})
+    desc = description_mod.description(mat)
+    assert desc.base_color is None
+    assert scene_draw.uses_lamps(mat, desc)
+    node.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    grey = description_mod.description(mat)
+    assert grey.base_color == (0.5, 0.5, 0.5)  # a diffuse base of that albedo
+    assert not scene_draw.uses_lamps(mat, grey)  # under a diffuse base the lamps stay in the World
+    node.inputs["Base Color"].default_value = (0.0, 0.0, 2e-6, 1.0)  # below Cycles' closure cutoff
+    assert description_mod.description(mat).base_color is None
+    node.inputs["Base Color"].default_value = (0.0, 0.0, 0.25, 1.0)  # only as much as it is not black
+    assert description_mod.description(mat).base_color == (0.0, 0.0, 0.25)
+
+
 def test_principled_zero_thickness_or_no_principled_is_not_previewed(bpy, description_mod):
     # Thickness 0 is the bare Principled BSDF, which Blender's viewport already shows.
     mat, node = _principled(bpy, **{"Thin Film Thickness": 0.0})
@@ -240,7 +258,10 @@ def test_principled_metal_becomes_a_conductor_matching_base_color(bpy, descripti
     base = (0.9, 0.6, 0.3)
     mat, _ = _principled(bpy, **{"Thin Film Thickness": 200.0, "Metallic": 1.0, "Base Color": (*base, 1.0)})
     desc = description_mod.description(mat)
-    assert desc.base_color is None and "table" in desc.substrate
+    # Blender's own F82-tint metal: what Cycles' per-channel film evaluates (precompute/
+    # film_channels.py); spectrally the Gulbrandsen fit checked below.
+    assert desc.base_color is None
+    assert desc.substrate == {"f82_tint": {"f0": list(base), "tint": [1.0, 1.0, 1.0]}}
     optics = importlib.import_module(f"{pre.__name__}.optics")
     substrate = desc.indices()[-1]
     # R, G, B sit at RGB_WAVELENGTHS_NM (blue, green, red).

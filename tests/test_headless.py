@@ -182,8 +182,10 @@ def read_exr(path) -> np.ndarray:
         return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
-def render(tf, scene, path, size=SIZE, background=False):
-    result = tf.headless.render_scene(scene, str(path), size[0], size[1], background=background)
+def render(tf, scene, path, size=SIZE, background=False, supersample=None):
+    result = tf.headless.render_scene(
+        scene, str(path), size[0], size[1], background=background, supersample=supersample
+    )
     assert Path(result["png"]).is_file() and Path(result["exr"]).is_file()
     image = read_exr(result["exr"])
     assert image.shape == (size[1], size[0], 3)
@@ -527,9 +529,11 @@ def test_depth_masking_by_an_opaque_cube(bpy, tf, fresh, tmp_path):
     sphere(bpy, scene, material=film(bpy, "Green Film", thickness_nm=300.0, roughness=0.2))
     camera(bpy, scene, distance=6.0)
     size = (96, 72)
-    without, _ = render(tf, scene, tmp_path / "no_cube.png", size)
+    # One sample per pixel: this is about depth, and the frame's 4× pixel filter would spread
+    # the cube's edge (and Blender's outline of it) over the filter's ±1.5 px too.
+    without, _ = render(tf, scene, tmp_path / "no_cube.png", size, supersample=1)
     block = cube(bpy, scene, location=(-0.5, -2.0, 0.0), size=0.8)
-    with_cube, result = render(tf, scene, tmp_path / "cube.png", size)
+    with_cube, result = render(tf, scene, tmp_path / "cube.png", size, supersample=1)
     assert result["objects"] == ["Sphere/Green Film"]
 
     # The cube's front face (y = −2.4) in pixels; the whole cube's outline.
@@ -665,12 +669,14 @@ def test_saved_and_reopened_file_renders_identically(bpy, tf, fresh, tmp_path):
     sphere(bpy, scene, material=mat)
     cube(bpy, scene, "Box", (1.3, 1.0, -0.8), size=0.8)  # a Solid-drawn object too
     camera(bpy, scene)
-    before, _ = render(tf, scene, tmp_path / "before.png", background=True)
+    # One sample per pixel: Blender's Solid drawing of the cube at 4× is not bit-reproducible
+    # across a reload (its edge pixels moved by ≤ 3e-5); our own state is what is tested here.
+    before, _ = render(tf, scene, tmp_path / "before.png", background=True, supersample=1)
     path = tmp_path / "saved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
     bpy.ops.wm.open_mainfile(filepath=str(path))
     _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
-    after, result = render(tf, bpy.context.scene, tmp_path / "after.png", background=True)
+    after, result = render(tf, bpy.context.scene, tmp_path / "after.png", background=True, supersample=1)
     assert result["objects"] == ["Sphere/Bubble"]
     np.testing.assert_allclose(after, before, rtol=0, atol=1e-6)
 
@@ -742,7 +748,9 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     mat.thinfilm_sh.world_lamps = False
     (item_off,) = items()
     assert item_off.film is None and item_off.lighting.lamp_count == 0
-    assert item_off.prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered_whole()
+    # A rough film (SH weight 1) reads no prefilter, so none is made for it (issue 22); the
+    # glossy films' prefilters: test_prefilters_are_computed_only_for_the_films_that_read_them.
+    assert item_off.prefiltered is None and item_off.sh_weight == 1.0
     off, _ = render(tf, scene, tmp_path / "lamps_off.png")
     sphere_px = on.sum(axis=-1) > 0
     ratio = off[sphere_px].mean() / on[sphere_px].mean()
@@ -752,3 +760,90 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     mat.thinfilm_sh.diffuse_base = True
     (item_diffuse,) = items()
     assert item_diffuse.film is None and item_diffuse.lighting.lamp_count == 0
+
+
+# ----------------------------------------------------------------------------------------------
+# Principled films, prefilters on demand, the anti-aliased frame (issue 22)
+# ----------------------------------------------------------------------------------------------
+def principled_film(bpy, name, roughness, base=(0.0, 0.0, 0.0), thickness_nm=500.0):
+    mat = bpy.data.materials.new(name)
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    node.inputs["Base Color"].default_value = (*base, 1.0)
+    node.inputs["Roughness"].default_value = roughness
+    node.inputs["IOR"].default_value = 1.5
+    node.inputs["Thin Film Thickness"].default_value = thickness_nm
+    node.inputs["Thin Film IOR"].default_value = 1.33
+    return mat
+
+
+def test_prefilters_are_computed_only_for_the_films_that_read_them(bpy, tf, fresh, monkeypatch):
+    """Under bpy's studio HDRI (it has lamps): a rough film makes no prefilter; a glossy black-base
+    Principled film gets the World's lamps and the prefilter with them lifted out, and only it;
+    a glossy film under a diffuse base adds the whole World's prefilter. Counted at the one
+    function that computes a prefilter, through the draw's real code path."""
+    prefilter_mod = importlib.import_module(f"{EXTENSION_ID}.precompute.prefilter")
+    calls = []
+    real = prefilter_mod.prefilter
+
+    def counting(image, *args, **kwargs):
+        calls.append("lifted" if kwargs.get("lamp_mask") is not None else "whole")
+        return real(image, *args, **kwargs)
+
+    monkeypatch.setattr(prefilter_mod, "prefilter", counting)
+    scene = fresh
+    hdri_world(bpy, scene, studiolight("studio"))
+    camera(bpy, scene)
+
+    def items():
+        found, _ = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+        return {item.name.split("/")[0]: item for item in found}
+
+    sphere(bpy, scene, "Rough", material=principled_film(bpy, "Rough", roughness=0.6))
+    rough = items()["Rough"]
+    assert calls == [] and rough.prefiltered is None  # SH only: no prefilter at all
+    assert rough.film is not None and rough.lighting.lamp_count > 0  # black Base Color: the lamps
+
+    sphere(bpy, scene, "Glossy", (2.5, 0.0, 0.0), material=principled_film(bpy, "Glossy", roughness=0.1))
+    glossy = items()["Glossy"]
+    assert calls == ["lifted"]
+    assert glossy.film is not None and glossy.lighting.lamp_count > 0
+    assert glossy.prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered()
+
+    base = principled_film(bpy, "Grey", roughness=0.1, base=(0.5, 0.5, 0.5))
+    sphere(bpy, scene, "Grey", (-2.5, 0.0, 0.0), material=base)
+    found = items()
+    assert calls == ["lifted", "whole"]
+    assert found["Grey"].film is None and found["Grey"].lighting.lamp_count == 0  # a diffuse base
+    assert found["Grey"].prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered_whole()
+    items()
+    assert calls == ["lifted", "whole"]  # kept: nothing is prefiltered twice
+
+
+def test_headless_frame_applies_the_scenes_pixel_filter(bpy, tf, fresh, tmp_path):
+    """Cycles' default filter (Blackman–Harris, 1.5 px) on a 4× frame by default; a 1 px box on
+    the 4× frame is exactly the block mean of a frame rendered 4× larger, one sample a pixel."""
+    scene = fresh
+    white_world(bpy, scene)
+    sphere(bpy, scene, material=film(bpy, "Film", thickness_nm=350.0, roughness=0.3))
+    camera(bpy, scene)
+    default, result = render(tf, scene, tmp_path / "default.png")
+    assert result["supersample"] == tf.headless.SUPERSAMPLE == 4
+    assert result["pixel_filter"] == ["BLACKMAN_HARRIS", 1.5]
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    box, result = render(tf, scene, tmp_path / "box.png")
+    assert result["pixel_filter"] == ["BOX", 1.0]
+    w, h = SIZE
+    big = tf.headless.render_scene(
+        scene, str(tmp_path / "big.png"), 4 * w, 4 * h, background=False, supersample=1
+    )
+    assert big["supersample"] == 1 and big["pixel_filter"] is None
+    fine = read_exr(big["exr"])
+    np.testing.assert_allclose(box, fine.reshape(h, 4, w, 4, 3).mean(axis=(1, 3)), atol=1e-6)
+    # The wider Blackman–Harris support softens the silhouette: its edge pixels differ from the
+    # box's, its interior (away from the silhouette) hardly.
+    assert np.abs(default - box).max() > 1e-3
+    inside = (fine.reshape(h, 4, w, 4, 3).min(axis=(1, 3, 4)) > 0) & (box.min(axis=-1) > 0)
+    core = inside.copy()
+    for _ in range(2):
+        core[1:-1, 1:-1] &= core[:-2, 1:-1] & core[2:, 1:-1] & core[1:-1, :-2] & core[1:-1, 2:]
+    assert np.abs(default - box)[core].max() < 0.05 * box[core].max()

@@ -510,6 +510,9 @@ SIZES = [
     (["--width", "abc"], "--width"),
     (["--height", "nan"], "--height"),
     (["--width", "1e3"], "--width"),
+    (["--supersample", "0"], "--supersample"),
+    (["--supersample", "17"], "--supersample"),
+    (["--supersample", "nan"], "--supersample"),
 ]
 
 
@@ -593,7 +596,12 @@ def test_one_invalid_material_renders_the_other_unchanged(bpy, tf, fresh, tmp_pa
     sphere(bpy, scene, "Right", (1.9, 0.0, 0.0), radius=0.7, material=bad)
     camera(bpy, scene)
     summary_path = tmp_path / "render.json"
-    code = tf.headless.main(["render", "--out", str(tmp_path / "both.png"), "--json", str(summary_path)])
+    # One sample per pixel: the anti-aliasing filter would blend the magenta edge into the World,
+    # and the colour test below is for the fallback's own pixels.
+    one = ["--supersample", "1"]
+    code = tf.headless.main(
+        ["render", "--out", str(tmp_path / "both.png"), "--json", str(summary_path), *one]
+    )
     captured = capsys.readouterr()
     assert code == 1, captured.out + captured.err
     assert "'Bad'" in captured.err and "Cauchy" in captured.err
@@ -606,7 +614,7 @@ def test_one_invalid_material_renders_the_other_unchanged(bpy, tf, fresh, tmp_pa
     both = read_exr(tmp_path / "both.exr")
 
     bpy.data.objects.remove(bpy.data.objects["Right"])
-    assert tf.headless.main(["render", "--out", str(tmp_path / "alone.png")]) == 0
+    assert tf.headless.main(["render", "--out", str(tmp_path / "alone.png"), *one]) == 0
     alone = read_exr(tmp_path / "alone.exr")
     assert np.isfinite(both).all() and np.isfinite(alone).all()
     differ = np.any(both != alone, axis=-1)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import tmm
 
-from precompute import bake, brdf, film_colour, hdri, lamps, prefilter
+from precompute import bake, brdf, film_channels, film_colour, hdri, lamps, prefilter
 from precompute.material import Layer, Material, Quality
 from precompute.shading import lamps as lamp_shading
 from precompute.shading import policy, split_sum
@@ -144,14 +144,27 @@ def test_one_lamp_is_the_microfacet_brdf_times_its_power(colour_mode):
 
 
 def test_film_table_matches_tmm_at_every_angle():
-    """The per-channel film table is the CIE-weighted tmm reflectance (independent code)."""
-    material = film_material("per_channel")
+    """The per-channel film table is the channel-weighted tmm reflectance (independent code).
+
+    On a two-layer stack, which Cycles' single-film model cannot express: the per-channel mode
+    integrates the exact film against Cycles' channel sensitivities there. A single film goes
+    through Cycles' own three-order Fourier-space film instead (issue 22), checked below
+    against that function and, to every order, against exact optics in
+    tests/test_film_channels.py.
+    """
+    material = Material(
+        layers=(Layer(1.33, 380.0), Layer(1.6, 120.0)),
+        substrate=1.5,
+        roughness=0.3,
+        colour_mode="per_channel",
+        quality=Quality(sh_order=2, view_samples=8),
+    )
     result = bake.bake(material)
     film = film_colour.film_table(result, samples=9)
     from precompute.film_colour import film_rgb_matrices
 
     u, rg, r, wl, g = film_rgb_matrices(material, None, 9)
-    nk = [1.0, 1.33, 1.5]
+    nk = [1.0, 1.33, 1.6, 1.5]
     for i, cos in enumerate(u):
         theta = float(np.arccos(np.clip(cos, 0.0, 1.0)))
         if theta > np.radians(89.9):
@@ -159,8 +172,8 @@ def test_film_table_matches_tmm_at_every_angle():
         ref = [
             0.5
             * (
-                tmm.coh_tmm("s", nk, [np.inf, 380.0, np.inf], theta, lam)["R"]
-                + tmm.coh_tmm("p", nk, [np.inf, 380.0, np.inf], theta, lam)["R"]
+                tmm.coh_tmm("s", nk, [np.inf, 380.0, 120.0, np.inf], theta, lam)["R"]
+                + tmm.coh_tmm("p", nk, [np.inf, 380.0, 120.0, np.inf], theta, lam)["R"]
             )
             for lam in wl
         ]
@@ -169,6 +182,10 @@ def test_film_table_matches_tmm_at_every_angle():
             cos,
             film.reflectance[0, i],
         )
+    single = film_material("per_channel")
+    film = film_colour.film_table(bake.bake(single), samples=9)
+    cycles = film_channels.fourier_reflectance(single, film_channels.cycles_stack(single), 380.0, u)
+    np.testing.assert_allclose(film.reflectance[0], cycles, atol=1e-12)
 
 
 def test_multiscatter_factor_matches_the_bake():

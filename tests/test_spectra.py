@@ -325,3 +325,34 @@ def test_rgb_basis_rejects_bad_input():
         spectra.rgb_basis(spectra.wavelength_grid(16), "Rec.709")
     with pytest.raises(ValueError, match="wavelengths_nm"):
         spectra.rgb_basis(np.array([[400.0, 500.0]]))
+
+
+# Cycles' film: XYZ → scene linear through Blender's OCIO config (PyOpenColorIO ships with bpy).
+#: OCIO's built-in ACES AP0 → XYZ D65 matrix (UTILITY - ACES-AP0_to_CIE-XYZ-D65_BFD): the one
+#: Cycles' ColorSpaceManager composes with the config's ``aces_interchange`` role.
+AP0_TO_XYZ_D65 = np.array(
+    [[0.938280, -0.004451, 0.016628], [0.337369, 0.729522, -0.066890], [0.001174, -0.003711, 1.091595]]
+)
+
+
+def _ocio_to_scene_linear(ocio, config, source: str, scene_linear: str) -> np.ndarray:
+    """The matrix of OCIO's source → ``scene_linear`` processor, read off the unit vectors."""
+    processor = config.getProcessor(source, scene_linear).getDefaultCPUProcessor()
+    return np.array([processor.applyRGB(list(e)) for e in np.eye(3)], dtype=np.float64).T
+
+
+@pytest.mark.blender
+@pytest.mark.parametrize("space", SPACES)
+def test_scene_linear_matrix_is_blenders_xyz_to_scene_linear(bpy, space):
+    bpy.utils.expose_bundled_modules()
+    import PyOpenColorIO as ocio
+
+    config = ocio.Config.CreateFromFile(str(_blender_colormanagement() / "config.ocio"))
+    assert config.hasRole("aces_interchange")  # what Cycles derives its matrix from first
+    via_aces = _ocio_to_scene_linear(ocio, config, "ACES2065-1", space) @ np.linalg.inv(AP0_TO_XYZ_D65)
+    via_xyz = _ocio_to_scene_linear(ocio, config, "Linear CIE-XYZ D65", space)
+    ours = spectra.scene_linear_matrix(space)
+    # OCIO evaluates in float32 (≈ 6e-8 relative) and the built-in AP0 matrix is printed to 6
+    # decimals (5e-7): 2e-6 of the largest entry bounds both routes; measured ≤ 1.1e-6.
+    for blender in (via_aces, via_xyz):
+        assert np.abs(ours - blender).max() / np.abs(blender).max() < 2e-6

@@ -1,0 +1,75 @@
+"""Spectral quadrature of the bake: wavelength nodes and weights λ → (output RGB k, light RGB c).
+
+:func:`spectral_quadrature` turns a film's spectral reflectance into the bake's 3×3 (spectral
+mode) or per-channel (Cycles-matching mode) colour weights; fluorescent illuminants add one node
+per emission line (the Composite Model). Pure numpy over :mod:`.spectra` and :mod:`.composite`.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from . import composite, spectra
+
+__all__ = ["is_line_spectrum", "spectral_quadrature"]
+
+
+def is_line_spectrum(illuminant: str) -> bool:
+    """Fluorescent lamps (FL1–FL12 / F1–F12) have emission lines: the Composite Model applies."""
+    return illuminant.upper().startswith("F")
+
+
+@functools.lru_cache(maxsize=16)
+def _illuminant_composite(illuminant: str):
+    wl, values = spectra.illuminant_table(illuminant)
+    return composite.fit_composite(wl, values)
+
+
+def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_mode: str):
+    """Wavelength nodes (W′,) and weights G (W′, 3, 3) with M[k, c] = Σ_λ F(λ) G[λ, k, c].
+
+    spectral: G[λ, k, c] = Σ_j M_xyz→rgb[k, j] · X_j(λ) · S(λ) · B_c(λ) — lighting channel c
+    upsampled with the linear basis B (Mallett & Yuksel 2019), times the illuminant S, integrated
+    against the CMFs (X includes dλ and the E normalisation) and taken to the working space.
+    per_channel (Cycles): the film's reflectance in channel k, R_k = Σ_λ F(λ) w_k(λ) S(λ),
+    multiplies light channel k: G[λ, k, c] = δ_kc w_k(λ) S(λ), with w_k Cycles' channel
+    sensitivity (spectra.channel_weights: the CMFs through Blender's XYZ → scene-linear matrix,
+    no chromatic adaptation, each channel normalised to 1 for a flat spectrum). Used for the
+    materials Cycles' own Fourier-space film cannot express (film_channels).
+
+    Line illuminants follow the Composite Model (Sun, Drew & Fracchia 1999): the smooth part is
+    integrated on the grid, and each emission line becomes one more node at its exact wavelength
+    with weight P_j c̄(λ_j) / ∫c̄, so the film is evaluated exactly where the lamp emits.
+    """
+    wl = spectra.wavelength_grid(count)
+    per_channel = colour_mode == "per_channel"
+    if per_channel:
+        m = spectra.scene_linear_matrix(colour_space)
+        totals = spectra.cmf_integrals() @ m.T  # each channel's ∫ s_k dλ
+        grid_w = spectra.channel_weights(wl, colour_space)
+    else:
+        m = spectra.xyz_to_rgb_matrix(colour_space)
+        totals = None
+        grid_w = spectra.xyz_weights(wl) @ m.T
+    basis = spectra.rgb_basis(wl, colour_space)  # (3, W)
+    if is_line_spectrum(illuminant):
+        comp = _illuminant_composite(illuminant)
+        scale = 1.0 / comp.to_xyz()[1]  # Y = 1, as illuminant_spd
+        smooth = comp.evaluate_smooth(wl) * scale
+        lines = np.asarray(comp.spike_wavelengths_nm, dtype=float)
+        powers = np.asarray(comp.spike_powers) * scale
+        if per_channel:
+            line_w = (spectra.cmfs(lines) @ m.T) * powers[:, None] / totals
+        else:
+            line_w = (spectra.cmfs(lines) * powers[:, None] / spectra.cmf_integrals()) @ m.T
+        rgb_w = np.concatenate([grid_w * smooth[:, None], line_w])
+        line_basis = np.stack([np.interp(lines, wl, b) for b in basis])
+        basis = np.concatenate([basis, line_basis], axis=1)
+        wl = np.concatenate([wl, lines])
+    else:
+        rgb_w = grid_w * spectra.illuminant_spd(illuminant, wl)[:, None]
+    if per_channel:
+        return wl, rgb_w[:, :, None] * np.eye(3)[None, :, :]
+    return wl, rgb_w[:, :, None] * basis.T[:, None, :]
