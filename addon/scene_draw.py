@@ -10,7 +10,8 @@ Shared by the viewport draw handler and the headless render, so both draw the sa
   name, image and its pixels) — moving an object only changes the matrix passed at draw time;
 - GPU table textures per material description key (equal materials share one);
 - lighting UBOs per (World key, SH order, roughness, lamps or not);
-- film textures (the lamps' reflectance table) per material description key;
+- film textures (the reflectance table of the World's lamps and the light objects) per material
+  description key;
 - the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
   the current World key.
 
@@ -39,6 +40,7 @@ from ..precompute.environment import Environment, analyse_world
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
 from . import caches, description, panorama, tables, world, world_key
+from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
 from .thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
@@ -61,6 +63,8 @@ class DrawItem:
     film: resources.FilmTexture | None = None
     #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
     fallback: bool = False
+    #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
+    lights: np.ndarray | None = None
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -380,6 +384,7 @@ class _MaterialEntry:
     props: object = None  # the original material's thinfilm_sh settings when enabled, else None
     thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
+    lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -424,7 +429,7 @@ def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, mes
 
 
 def _material_entry(
-    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None
+    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None, lights=False
 ):
     """The material's description, table texture and lighting, or None (no film / not baked yet /
     its bake failed in the viewport).
@@ -435,7 +440,8 @@ def _material_entry(
     until the description changes, and its error is in ``messages`` (and ``errors``) on every
     frame; a headless frame (``allow_bake``) draws it as the fallback, the viewport draws
     nothing for it (its header and material panel say why). A table that could not be saved to
-    the disk cache is drawn, with the reason in ``messages``.
+    the disk cache is drawn, with the reason in ``messages``. ``lights``: the frame has light
+    objects, so the film table is needed even without the World's lamps.
     """
     try:
         desc = description.description(bpy_material)
@@ -481,9 +487,10 @@ def _material_entry(
         lighting_for(lighting, result.sh_order, roughness, lamps),
         roughness,
         policy.sh_weight(roughness),
-        film_texture(key, result) if lamps else None,
+        film_texture(key, result) if lamps or lights else None,
         props,
         thickness_inputs(props) if props is not None and desc.varies else None,
+        lamps=lamps,
     )
 
 
@@ -491,7 +498,7 @@ def _prefiltered_for(lighting: WorldLighting, entry):
     textures = lighting.textures
     if textures is None:
         return None
-    if entry.film is not None or lighting.environment.lamps is None:
+    if entry.lamps or lighting.environment.lamps is None:
         return textures.prefiltered
     return textures.prefiltered_whole()
 
@@ -520,6 +527,12 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
         return items, ["World lighting is being updated"]
     messages.extend(lighting.sh.warnings)
     messages.extend(lighting.sh.errors)
+    found_lights = scene_lights.scene_lights(depsgraph)  # every frame: moving a light bakes nothing
+    if len(found_lights) > resources.MAX_LIGHTS:
+        messages.append(f"{len(found_lights)} lights: the first {resources.MAX_LIGHTS} light the films")
+    linked = any(receivers is not None for _, receivers in found_lights)
+    shared_lights = None if linked else resources.lights_content(scene_lights.lights_for(found_lights, ""))
+    object_lights: dict = {}  # object name → lights content (light linking)
     entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
     used = set()  # this frame's batch keys
@@ -536,7 +549,9 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             pointer = source.as_pointer()
             if pointer not in entries:
                 CACHES.make_room(materials=len(entries) + 1)
-                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages, errors)
+                entries[pointer] = _material_entry(
+                    source, lighting, allow_bake, want_bake, messages, errors, lights=bool(found_lights)
+                )
             entry = entries[pointer]
             if entry is None:
                 continue
@@ -565,6 +580,10 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw"
                 )
                 continue
+            if linked and original.name not in object_lights:
+                object_lights[original.name] = resources.lights_content(
+                    scene_lights.lights_for(found_lights, original.name)
+                )
             items.append(
                 DrawItem(
                     batch,
@@ -577,6 +596,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     sh_weight=entry.sh_weight,
                     film=entry.film,
                     fallback=entry.fallback,
+                    lights=object_lights[original.name] if linked else shared_lights,
                 )
             )
     CACHES.dirty -= seen
