@@ -320,6 +320,16 @@ def lamps_summary(enabled: bool) -> str:
     return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
+def lights_summary(scene) -> str:
+    """One line for the Surface panel: how many light objects light the films, and what is not
+    done yet (no cast shadows; only the film's specular layer)."""
+    count = sum(1 for obj in scene.objects if obj.type == "LIGHT" and obj.visible_get())
+    if count == 0:
+        return "Light objects: none"
+    shown = min(count, resources.MAX_LIGHTS)
+    return f"Light objects: {shown} shade the film (no cast shadows yet)"
+
+
 def table_texture(desc_key: str, result) -> resources.TableTexture:
     found = CACHES.tables.get(desc_key)
     if found is None:

@@ -123,7 +123,9 @@ def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, t
 
 
 def test_lights_that_cannot_reach_the_film_are_left_out(bpy, tf, lit):
-    """Glossy ray visibility off or Specular 0: no lights (and no light loop)."""
+    """Glossy ray visibility off or Specular 0: no lights (and no light loop); the panel says
+    that light objects cast no shadows yet."""
+    assert "no cast shadows" in tf.scene_draw.lights_summary(lit.scene)
     want: list = []
     lit.lamp.visible_glossy = False
     items, _ = draw_frame(bpy, tf, want)
