@@ -92,6 +92,7 @@ class LRU:
         self._lock = threading.RLock()
 
     def get(self, key, default=None):
+        """Value for *key*, marked most recently used; *default* when absent."""
         with self._lock:
             if key not in self._data:
                 return default
@@ -112,6 +113,7 @@ class LRU:
                 self._data.popitem(last=False)
 
     def pop(self, key, default=None):
+        """Remove *key* and return its value, or *default* when absent."""
         with self._lock:
             return self._data.pop(key, default)
 
@@ -138,6 +140,7 @@ class LRU:
             return len(self._data)
 
     def clear(self) -> None:
+        """Drop every entry (the size limit stays)."""
         with self._lock:
             self._data.clear()
 

@@ -20,6 +20,7 @@ import time
 
 import bpy
 import numpy as np
+from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, table_io
 from . import scene_draw, tables, world
@@ -118,6 +119,7 @@ def _view3d_for_depth():
 
 
 def camera_matrices(scene, depsgraph, width: int, height: int):
+    """View and projection matrices of the scene's camera for a *width* × *height* frame."""
     cam = scene.camera
     if cam is None:
         raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
@@ -207,8 +209,6 @@ def render_scene(
 
 
 def _mathutils_matrix(m):
-    from mathutils import Matrix
-
     return Matrix(np.asarray(m).tolist())
 
 
@@ -277,47 +277,64 @@ def _main(argv) -> int:
         return _run(args, bpy.context.scene, cache)
 
 
-def _run(args, scene, cache) -> int:
-    def write_json(path, summary) -> None:
-        table_io.write_bytes(path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
+def _write_json(path, summary) -> None:
+    table_io.write_bytes(path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
 
+
+def _run(args, scene, cache) -> int:
+    """Run the parsed sub-command on ``scene``; returns the exit code."""
     if args.command == "bake":
-        with cli_support.refusing():  # before any bake: a refusal is exit 2
-            json_path = cli_support.output_file("--json", args.json) if args.json else None
-            if args.out_dir:
-                cli_support.output_dir("--out-dir", args.out_dir)
-        summary = bake_scene(scene, args.out_dir, cache=cache)
-        if json_path is not None:
-            json_path.parent.mkdir(parents=True, exist_ok=True)
-            write_json(json_path, summary)
-        for err in summary["errors"].values():
-            print(f"error: {err}", file=sys.stderr)
-        return cli_support.EXIT_PARTIAL if summary["errors"] else cli_support.EXIT_OK
+        return _run_bake(args, scene, cache)
     if args.command == "render":
-        with cli_support.refusing():  # before any work: a refusal is exit 2
-            out = cli_support.output_file("--out", args.out)
-            cli_support.output_file("--out (the .png)", out.with_suffix(".png"))
-            cli_support.output_file("--out (the .exr beside it)", out.with_suffix(".exr"))
-            json_path = cli_support.output_file("--json", args.json) if args.json else None
-            width, height = render_size(scene, args.width, args.height)
-            cli_support.exposure("the scene's exposure (Color Management)", scene.view_settings.exposure)
-            if scene.camera is None:
-                raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
-        result = render_scene(scene, args.out, width, height, background=not args.no_background)
-        if json_path is not None:
-            json_path.parent.mkdir(parents=True, exist_ok=True)
-            write_json(json_path, result)
-        for msg in result["messages"]:
-            print(f"note: {msg}")
-        print(
-            f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
-            f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
-        )
-        failed = [*result["errors"].values(), *result["world_errors"]]
-        for err in failed:
-            print(f"error: {err}", file=sys.stderr)
-        partial = failed or result["nonfinite_pixels"]
-        return cli_support.EXIT_PARTIAL if partial else cli_support.EXIT_OK
+        return _run_render(args, scene)
+    return _run_plan(scene, cache)
+
+
+def _run_bake(args, scene, cache) -> int:
+    """`bake`: every visible thin-film material's table into the cache (and --out-dir)."""
+    with cli_support.refusing():  # before any bake: a refusal is exit 2
+        json_path = cli_support.output_file("--json", args.json) if args.json else None
+        if args.out_dir:
+            cli_support.output_dir("--out-dir", args.out_dir)
+    summary = bake_scene(scene, args.out_dir, cache=cache)
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        _write_json(json_path, summary)
+    for err in summary["errors"].values():
+        print(f"error: {err}", file=sys.stderr)
+    return cli_support.EXIT_PARTIAL if summary["errors"] else cli_support.EXIT_OK
+
+
+def _run_render(args, scene) -> int:
+    """`render`: the scene's frame through the camera, to --out's PNG and EXR."""
+    with cli_support.refusing():  # before any work: a refusal is exit 2
+        out = cli_support.output_file("--out", args.out)
+        cli_support.output_file("--out (the .png)", out.with_suffix(".png"))
+        cli_support.output_file("--out (the .exr beside it)", out.with_suffix(".exr"))
+        json_path = cli_support.output_file("--json", args.json) if args.json else None
+        width, height = render_size(scene, args.width, args.height)
+        cli_support.exposure("the scene's exposure (Color Management)", scene.view_settings.exposure)
+        if scene.camera is None:
+            raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
+    result = render_scene(scene, args.out, width, height, background=not args.no_background)
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        _write_json(json_path, result)
+    for msg in result["messages"]:
+        print(f"note: {msg}")
+    print(
+        f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, "
+        f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
+    )
+    failed = [*result["errors"].values(), *result["world_errors"]]
+    for err in failed:
+        print(f"error: {err}", file=sys.stderr)
+    partial = failed or result["nonfinite_pixels"]
+    return cli_support.EXIT_PARTIAL if partial else cli_support.EXIT_OK
+
+
+def _run_plan(scene, cache) -> int:
+    """`plan`: what each visible material needs and costs; nothing is baked."""
     # Materials of visible objects only; nothing is baked. The World's SH (cached by its key)
     # sets the World order; tables already in memory or in the disk cache cost no bake.
     found, errors = scene_materials(scene)
@@ -359,12 +376,14 @@ _cli_handle = None
 
 
 def register() -> None:
+    """Register the `thinfilm_sh` command-line command (blender -c thinfilm_sh)."""
     global _cli_handle
     if _cli_handle is None and hasattr(bpy.utils, "register_cli_command"):
         _cli_handle = bpy.utils.register_cli_command("thinfilm_sh", _cli)
 
 
 def unregister() -> None:
+    """Unregister the command-line command."""
     global _cli_handle
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)

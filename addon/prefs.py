@@ -12,7 +12,7 @@ Where the table cache lives, first match wins (:func:`cache_location`; docs/cach
 3. the *Cache Directory* preference;
 4. installed as an extension: ``cache`` in the extension's user directory (Blender keeps it
    across upgrades);
-5. otherwise the per-user default of :func:`precompute.table_io.default_cache_dir`
+5. otherwise the per-user default of :func:`precompute.table_cache.default_cache_dir`
    (``$XDG_CACHE_HOME/thinfilm_sh`` or ``~/.cache/thinfilm_sh``, created 0700).
 
 Its size limit: ``THINFILM_SH_CACHE_MAX_BYTES`` if set, else the *Cache Size Limit* preference
@@ -25,7 +25,7 @@ import bpy
 from bpy.props import IntProperty, StringProperty
 from bpy.types import AddonPreferences
 
-from ..precompute import table_io
+from ..precompute import table_cache
 
 __all__ = [
     "CACHE_ENV",
@@ -50,8 +50,8 @@ CACHE_ENV = "THINFILM_SH_CACHE"
 #: Environment variable with the cache's size limit in bytes, e.g. ``500M`` (wins over the preference).
 SIZE_ENV = "THINFILM_SH_CACHE_MAX_BYTES"
 _MIB = 1024**2
-#: The size limit preference's default: table_io.DEFAULT_CACHE_MAX_BYTES (2 GiB) in MiB.
-DEFAULT_CACHE_LIMIT_MIB = table_io.DEFAULT_CACHE_MAX_BYTES // _MIB
+#: The size limit preference's default: table_cache.DEFAULT_CACHE_MAX_BYTES (2 GiB) in MiB.
+DEFAULT_CACHE_LIMIT_MIB = table_cache.DEFAULT_CACHE_MAX_BYTES // _MIB
 
 
 def _extension_cache_dir() -> str:
@@ -66,12 +66,12 @@ def default_cache_dir() -> str:
     """Where baked tables go when the preference is empty (nothing is created here).
 
     ``$THINFILM_SH_CACHE`` if set; installed as an extension, ``cache`` in the extension's user
-    directory; otherwise the per-user default of :func:`precompute.table_io.default_cache_dir`,
+    directory; otherwise the per-user default of :func:`precompute.table_cache.default_cache_dir`,
     never a shared folder such as ``/tmp``.
     """
     if os.environ.get(CACHE_ENV):
-        return str(table_io.default_cache_dir())
-    return _extension_cache_dir() or str(table_io.default_cache_dir())
+        return str(table_cache.default_cache_dir())
+    return _extension_cache_dir() or str(table_cache.default_cache_dir())
 
 
 def preferences(context=None):
@@ -83,10 +83,10 @@ def preferences(context=None):
 
 def cache_location(context=None) -> tuple:
     """(directory, source) of the table cache: the directory to give
-    :class:`~precompute.table_io.TableCache` (None: its own private per-user default) and what
+    :class:`~precompute.table_cache.TableCache` (None: its own private per-user default) and what
     chose it: ``"THINFILM_SH_CACHE"``, ``"preference"``, ``"extension"`` or ``"default"``.
 
-    Raises :class:`~precompute.table_io.CacheDirError` for a preference relative to the .blend
+    Raises :class:`~precompute.table_cache.CacheDirError` for a preference relative to the .blend
     file (``//…``) while the file is not saved, or otherwise not absolute: it would name a folder
     relative to whatever the current directory happens to be.
     """
@@ -96,14 +96,14 @@ def cache_location(context=None) -> tuple:
     chosen = prefs.cache_dir.strip() if prefs is not None else ""
     if chosen:
         if chosen.startswith("//") and not bpy.data.filepath:
-            raise table_io.CacheDirError(
+            raise table_cache.CacheDirError(
                 chosen,
                 f"the Cache Directory preference {chosen!r} is relative to the .blend file, which is "
                 "not saved yet: save the file or choose an absolute folder",
             )
         path = bpy.path.abspath(chosen)
         if not os.path.isabs(path):
-            raise table_io.CacheDirError(
+            raise table_cache.CacheDirError(
                 chosen, f"the Cache Directory preference {chosen!r} is not an absolute folder: choose one"
             )
         return path, "preference"
@@ -117,9 +117,9 @@ def cache_dir(context=None) -> str:
     """The cache directory in use, for display: see :func:`cache_location`."""
     try:
         directory, _source = cache_location(context)
-    except table_io.CacheDirError as exc:
+    except table_cache.CacheDirError as exc:
         return exc.filename
-    return directory if directory is not None else str(table_io.default_cache_dir())
+    return directory if directory is not None else str(table_cache.default_cache_dir())
 
 
 def cache_max_bytes(context=None) -> int | None:
@@ -141,6 +141,8 @@ _SOURCES = {
 
 
 class ThinFilmSHPreferences(AddonPreferences):
+    """The extension's preferences: where the table cache lives and how large it may grow."""
+
     bl_idname = PACKAGE
 
     cache_dir: StringProperty(
@@ -176,7 +178,7 @@ def cache_status(context=None) -> list:
     """(text, icon) lines for the preferences: where the cache is, how full, or why it is unusable."""
     try:
         directory, source = cache_location(context)
-        cache = table_io.TableCache(directory, max_bytes=cache_max_bytes(context))
+        cache = table_cache.TableCache(directory, max_bytes=cache_max_bytes(context))
         used = cache.size_bytes()  # checks the directory (no symbolic link, yours, private)
     except (OSError, ValueError) as exc:
         return [(f"Table cache unusable: {exc}", "ERROR")]

@@ -101,6 +101,8 @@ def _lru(size: int) -> caches.LRU:
 
 @dataclass
 class Caches:
+    """The draw collector's GPU-side caches, each a bounded LRU."""
+
     batches: caches.LRU = field(
         default_factory=lambda: _lru(BATCH_CACHE_SIZE)
     )  # (object, slot, instance) → BatchEntry
@@ -116,6 +118,7 @@ class Caches:
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
 
     def clear(self):
+        """Empty every cache and restore its size limit."""
         for lru, size in self._bounded():
             lru.clear()
             lru.resize(size)
@@ -288,6 +291,7 @@ def lighting_for(
 
 
 def film_texture(desc_key: str, result) -> resources.FilmTexture:
+    """The film colour texture for a baked table, uploaded once per description key."""
     found = CACHES.films.get(desc_key)
     if found is None:
         found = resources.FilmTexture.from_film(film_colour.film_table(result))
@@ -331,6 +335,7 @@ def lights_summary(scene) -> str:
 
 
 def table_texture(desc_key: str, result) -> resources.TableTexture:
+    """The SH table texture for a baked table, uploaded once per description key."""
     found = CACHES.tables.get(desc_key)
     if found is None:
         found = resources.TableTexture.from_result(result)

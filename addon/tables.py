@@ -3,7 +3,7 @@
 - :func:`get_table` / :func:`get_table_with_source` — the table of a
   :class:`~precompute.material.Material`: :data:`MEMORY` (an LRU keyed by
   :func:`.description.description_key`), then the on-disk
-  :class:`~precompute.table_io.TableCache` in the preferences' directory (:func:`table_cache`),
+  :class:`~precompute.table_cache.TableCache` in the preferences' directory (:func:`table_cache`),
   then :func:`precompute.bake.bake`. Equal descriptions share one table. Thread-safe: the bake
   operator calls it from a worker thread.
 - :func:`peek_table` — the table if it is in memory (the draw callback never bakes).
@@ -30,9 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..precompute import bake, table_io
+from ..precompute import bake
 from ..precompute.material import Material
 from ..precompute.shading import policy
+from ..precompute.table_cache import TableCache
 from . import caches, prefs
 from .description import description_key
 
@@ -94,15 +95,15 @@ def cache_dir_override(directory):
         _override = saved
 
 
-def table_cache() -> table_io.TableCache:
+def table_cache() -> TableCache:
     """The disk cache: ``--cache-dir``, else ``THINFILM_SH_CACHE``, else the preference, else the
     default (:func:`.prefs.cache_location`), bounded by :func:`.prefs.cache_max_bytes`.
 
-    Raises :class:`~precompute.table_io.CacheDirError` (an ``OSError``) or ``ValueError`` (a
+    Raises :class:`~precompute.table_cache.CacheDirError` (an ``OSError``) or ``ValueError`` (a
     malformed ``THINFILM_SH_CACHE_MAX_BYTES``) with a message for the user.
     """
     directory = _override if _override is not None else prefs.cache_location()[0]
-    return table_io.TableCache(directory, max_bytes=prefs.cache_max_bytes())
+    return TableCache(directory, max_bytes=prefs.cache_max_bytes())
 
 
 @dataclass(frozen=True)
@@ -216,7 +217,7 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
 def get_table(desc: Material, cache=None, progress=None) -> bake.BakeResult:
     """The baked table of ``desc``: from memory, else the disk cache, else a fresh bake.
 
-    ``cache`` is a :class:`~precompute.table_io.TableCache`, an :class:`UnusableCache` (none:
+    ``cache`` is a :class:`~precompute.table_cache.TableCache`, an :class:`UnusableCache` (none:
     bake, keep in memory, report the reason) or None (:func:`open_cache`, which reads the
     preferences: pass the cache in from the main thread when calling from a worker).
     A corrupt disk entry is moved aside by the cache and re-baked. A disk cache that cannot be
@@ -235,8 +236,8 @@ def clear_memory_cache() -> None:
 
 def clear_caches(cache=None) -> int:
     """Empty the in-memory tables, the remembered failures and the disk cache (only the files
-    the cache wrote, :meth:`~precompute.table_io.TableCache.clear`); returns how many files were
-    removed. Raises ``OSError`` (:class:`~precompute.table_io.CacheDirError`) for an unusable
+    the cache wrote, :meth:`~precompute.table_cache.TableCache.clear`); returns how many files were
+    removed. Raises ``OSError`` (:class:`~precompute.table_cache.CacheDirError`) for an unusable
     directory, after emptying memory."""
     clear_memory_cache()
     FAILURES.clear()

@@ -43,6 +43,8 @@ class _MaterialPanel:
 
 
 class THINFILM_PT_material(_MaterialPanel, Panel):
+    """Material Properties › Thin Film SH: the switch, the preset and any error."""
+
     bl_label = "Thin Film SH"
 
     def draw_header(self, context):
@@ -108,6 +110,8 @@ class _SubPanel(_MaterialPanel):
 
 
 class THINFILM_PT_film(_SubPanel, Panel):
+    """The film layers: index and thickness of each."""
+
     bl_label = "Film"
 
     def draw_settings(self, context, layout, mat, settings):
@@ -139,6 +143,8 @@ class THINFILM_PT_film(_SubPanel, Panel):
 
 
 class THINFILM_PT_thickness(_SubPanel, Panel):
+    """Thickness varying over the surface: range and the attribute or texture driving it."""
+
     bl_label = "Thickness Variation"
     bl_options = {"DEFAULT_CLOSED"}
 
@@ -175,6 +181,8 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
 
 
 class THINFILM_PT_substrate(_SubPanel, Panel):
+    """What lies under the film (dielectric, metal or n + ik) and above it (ambient index)."""
+
     bl_label = "Substrate"
 
     def draw_settings(self, context, layout, mat, settings):
@@ -191,6 +199,8 @@ class THINFILM_PT_substrate(_SubPanel, Panel):
 
 
 class THINFILM_PT_surface(_SubPanel, Panel):
+    """Roughness, diffuse base, World lamps, colour mode and illuminant."""
+
     bl_label = "Surface"
 
     def draw_settings(self, context, layout, mat, settings):
@@ -211,6 +221,8 @@ class THINFILM_PT_surface(_SubPanel, Panel):
 
 
 class THINFILM_PT_quality(_SubPanel, Panel):
+    """Sampling of the baked table (auto or set), the last bake, Bake and Clear Cache."""
+
     bl_label = "Quality"
     bl_options = {"DEFAULT_CLOSED"}
 
@@ -241,6 +253,8 @@ class THINFILM_PT_quality(_SubPanel, Panel):
 
 
 class THINFILM_PT_principled(_MaterialPanel, Panel):
+    """Reading and writing a Principled BSDF's thin film."""
+
     bl_label = "Principled Interop"
     bl_parent_id = "THINFILM_PT_material"
     bl_options = {"DEFAULT_CLOSED"}
@@ -357,6 +371,8 @@ def plan_lines(mp) -> list[str]:
 
 
 class THINFILM_PT_plan(_SubPanel, Panel):
+    """Which effects the material needs and what they cost (the effect plan)."""
+
     bl_label = "Plan"
     bl_options = {"DEFAULT_CLOSED"}
 

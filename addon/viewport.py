@@ -90,6 +90,7 @@ def _schedule() -> None:
 
 
 def draw_callback() -> None:
+    """POST_VIEW draw handler: draw the film of every visible material in this 3D view."""
     global _world_stale
     context = bpy.context
     space = context.space_data
@@ -135,6 +136,7 @@ def _on_depsgraph(scene, depsgraph) -> None:
 
 
 def register() -> None:
+    """Add the viewport draw handler (not in background mode)."""
     global _handle
     if _handle is None and not bpy.app.background:
         _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
@@ -149,6 +151,7 @@ def register() -> None:
 
 
 def unregister() -> None:
+    """Remove the viewport draw handler."""
     global _handle
     if _handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")

@@ -78,6 +78,7 @@ def _file_stat(path: str):
 
 
 def image_path(image) -> str:
+    """Absolute path of an image's file (resolved against its library), or ''."""
     return bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
 
 
@@ -178,6 +179,7 @@ def _describe_tree(tree, seen: set) -> dict | str:
 
 
 def world_uses_nodes(world) -> bool:
+    """True when the World is shaded by its node tree."""
     if world.node_tree is None:
         return False
     if bpy.app.version >= (5, 0, 0):  # use_nodes is deprecated and always on since 5.0

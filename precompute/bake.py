@@ -397,6 +397,7 @@ class BakeResult:
         }
 
     def summary(self) -> dict:
+        """JSON-ready summary of the table: shape, size, sample counts, reasons and timings."""
         return {
             "shape": list(self.data.shape),
             "bytes_float32": int(self.data.size * 4),

@@ -6,6 +6,7 @@ Run ``python -m precompute --help`` (or ``<command> --help``) for an artist-read
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import pathlib
@@ -14,7 +15,7 @@ import time
 
 import numpy as np
 
-from . import bake, cli_support, hdri, image_io, prefilter, render, table_io
+from . import bake, cli_support, effects, hdri, image_io, prefilter, render, table_io
 from .material import AUTO, PRESETS, Layer, Material, Quality, preset
 
 EPILOG = """examples:
@@ -33,6 +34,7 @@ class Progress:
         self.label, self.enabled, self.start = label, enabled, time.perf_counter()
 
     def __call__(self, fraction: float, text: str = "") -> None:
+        """Draw the bar at *fraction* (0–1) with an optional status *text*."""
         if not self.enabled:
             return
         width = 28
@@ -65,6 +67,7 @@ def _quality_value(text: str):
 
 
 def add_material_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the material options (--preset, --film-index, thickness, ...) to a parser."""
     g = p.add_argument_group("material (start from --preset, then override)")
     g.add_argument("--preset", choices=sorted(PRESETS), help="start from a named material")
     g.add_argument("--film-index", type=_index_arg, help="film index: 1.33, 2.4,0.3 (n,k) or a metal name")
@@ -122,6 +125,7 @@ def _layers_arg(text: str) -> list[Layer]:
 
 
 def material_from_args(args) -> Material:
+    """Build the Material from a preset and the command-line overrides (validated)."""
     base = preset(args.preset) if args.preset else Material()
     changes = {}
     layers = list(base.layers)
@@ -159,6 +163,7 @@ def material_from_args(args) -> Material:
 
 
 def cmd_presets(args) -> int:
+    """`presets`: list the built-in materials."""
     for name, m in PRESETS.items():
         stack = " | ".join(f"{layer.index} {layer.thickness_nm:g} nm" for layer in m.layers[:3])
         more = f" … ({len(m.layers)} layers)" if len(m.layers) > 3 else ""
@@ -168,8 +173,7 @@ def cmd_presets(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    from . import effects
-
+    """`plan`: print which effects a material needs and what they cost."""
     with cli_support.refusing():
         material = material_from_args(args)
     print(effects.format_plan(effects.material_plan(material)))
@@ -204,6 +208,7 @@ def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
 
 
 def cmd_bake(args) -> int:
+    """`bake`: bake a material's SH table to an EXR file."""
     with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
         m = material_from_args(args)
         out = cli_support.output_file("--out", args.out)
@@ -236,8 +241,6 @@ def cmd_bake(args) -> int:
 
 def studiolight(name: str) -> pathlib.Path:
     """Path of one of the HDRIs shipped inside the bpy package (found without importing bpy)."""
-    import importlib.util
-
     spec = importlib.util.find_spec("bpy")
     if spec is None or not spec.submodule_search_locations:
         raise FileNotFoundError(
@@ -265,6 +268,7 @@ def _read_hdri(text: str) -> tuple[pathlib.Path, np.ndarray, int]:
 
 
 def cmd_render(args) -> int:
+    """`render`: bake and render a preview sphere to an image."""
     with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
         m = material_from_args(args)
         out = cli_support.output_file("--out", args.out)
@@ -334,6 +338,7 @@ def verify_png(path) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The `python -m precompute` argument parser with its sub-commands."""
     parser = cli_support.ArgumentParser(
         prog="python -m precompute",
         description="Thin Film SH: bake thin-film interference into SH tables, or preview a material.",

@@ -88,6 +88,7 @@ class ArgumentParser(argparse.ArgumentParser):
     """argparse's parser, refusing bad arguments in one line (not the whole usage) with exit 2."""
 
     def error(self, message: str):
+        """Refuse a bad command line with exit code 2 (argparse's own exit is also 2)."""
         self.exit(EXIT_REFUSED, f"{self.prog}: error: {message} (see --help)\n")
 
 

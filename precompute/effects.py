@@ -123,6 +123,7 @@ class ShaderCost:
 
     @property
     def l_max(self) -> int:
+        """Highest SH band the draw evaluates for this material."""
         return int(self.draw.l_max)
 
     @property
@@ -612,6 +613,7 @@ class ScenePlan:
 
     @property
     def empty(self) -> bool:
+        """True when the plan has no material."""
         return not self.materials
 
 
@@ -728,6 +730,7 @@ def scene_plan(
 # Text
 # ----------------------------------------------------------------------------------------------
 def fmt_bytes(count: int) -> str:
+    """A byte count in B, KiB or MiB."""
     if count >= 1 << 20:
         return f"{count / (1 << 20):.2f} MiB"
     if count >= 1 << 10:

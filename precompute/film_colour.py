@@ -56,6 +56,7 @@ class FilmTable:
 
     @property
     def spectral(self) -> bool:
+        """True for a spectral (3×3 per coefficient) table, False for per-channel RGB."""
         return self.reflectance.ndim == 4
 
 

@@ -52,10 +52,12 @@ class Lamps:
 
     @property
     def count(self) -> int:
+        """Number of lamps."""
         return int(self.directions.shape[0])
 
     @staticmethod
     def none() -> Lamps:
+        """An empty lamp set (a World without lamps)."""
         return Lamps(np.zeros((0, 3)), np.zeros((0, 3)), 0, 0.0)
 
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field, replace
 
-from . import _checks, validate
+from . import _checks, spectra, validate
+from .optics import metals
 from .optics.dispersion import CauchyIndex, ConstantIndex, SellmeierIndex, TabulatedIndex
 
 AUTO = "auto"
@@ -57,8 +58,6 @@ def _index_model(name: str, spec):
         elif kind == "metal":
             if not isinstance(value, str):
                 raise ValueError(f"{name}: a metal is named by a string, got {value!r}")
-            from .optics import metals
-
             try:
                 model = metals.get_metal(value)
             except ValueError as exc:
@@ -168,22 +167,8 @@ class Material:
             )
         _index_model("substrate", self.substrate)
         validate.real("roughness", self.roughness, 0.0, 1.0)
-        if self.thickness_range_nm is not None:
-            if not self.layers:
-                raise ValueError("thickness_range_nm needs at least one film layer")
-            rng = self.thickness_range_nm
-            if isinstance(rng, (str, bytes, dict)) or not hasattr(rng, "__len__") or len(rng) != 2:
-                raise ValueError(f"thickness_range_nm must be (min, max) finite numbers, got {rng!r}")
-            lo = validate.real("thickness_range_nm min", rng[0], 0.0, validate.MAX_THICKNESS_NM)
-            hi = validate.real("thickness_range_nm max", rng[1], 0.0, validate.MAX_THICKNESS_NM)
-            if not lo < hi:
-                raise ValueError(f"thickness_range_nm needs 0 ≤ min < max, got {tuple(rng)!r}")
-        if self.base_color is not None:
-            c = self.base_color
-            if isinstance(c, (str, bytes, dict)) or not hasattr(c, "__len__") or len(c) != 3:
-                raise ValueError(f"base_color must be three values in [0, 1], got {c!r}")
-            for channel, v in zip("RGB", c, strict=True):
-                validate.real(f"base_color {channel}", v, 0.0, 1.0)
+        self._validate_range()
+        self._validate_base_color()
         _checks.choice("model", self.model, MODELS)
         _checks.choice("colour_mode", self.colour_mode, COLOUR_MODES)
         _checks.choice("multiscatter", self.multiscatter, MULTISCATTER)
@@ -191,6 +176,39 @@ class Material:
             raise ValueError(
                 "model 'glassner2000' is the paper's single-film approximation: use exactly one layer"
             )
+        self._validate_quality()
+        for name in ("colour_space", "illuminant"):
+            if not isinstance(getattr(self, name), str):
+                raise ValueError(f"{name} must be a name, got {getattr(self, name)!r}")
+        spectra.xyz_to_rgb_matrix(self.colour_space)  # raises for unknown spaces
+        spectra.illuminant_spd(self.illuminant, [560.0])
+
+    def _validate_range(self) -> None:
+        """The thickness range: two finite values 0 ≤ min < max ≤ 100 µm, with a film layer."""
+        if self.thickness_range_nm is None:
+            return
+        if not self.layers:
+            raise ValueError("thickness_range_nm needs at least one film layer")
+        rng = self.thickness_range_nm
+        if isinstance(rng, (str, bytes, dict)) or not hasattr(rng, "__len__") or len(rng) != 2:
+            raise ValueError(f"thickness_range_nm must be (min, max) finite numbers, got {rng!r}")
+        lo = validate.real("thickness_range_nm min", rng[0], 0.0, validate.MAX_THICKNESS_NM)
+        hi = validate.real("thickness_range_nm max", rng[1], 0.0, validate.MAX_THICKNESS_NM)
+        if not lo < hi:
+            raise ValueError(f"thickness_range_nm needs 0 ≤ min < max, got {tuple(rng)!r}")
+
+    def _validate_base_color(self) -> None:
+        """The diffuse base colour: None, or three values in [0, 1]."""
+        if self.base_color is None:
+            return
+        c = self.base_color
+        if isinstance(c, (str, bytes, dict)) or not hasattr(c, "__len__") or len(c) != 3:
+            raise ValueError(f"base_color must be three values in [0, 1], got {c!r}")
+        for channel, v in zip("RGB", c, strict=True):
+            validate.real(f"base_color {channel}", v, 0.0, 1.0)
+
+    def _validate_quality(self) -> None:
+        """Each quality field: "auto" or an int within its bounds."""
         q = self.quality
         for name, lo, hi in (
             ("sh_order", 0, MAX_SH_ORDER),
@@ -201,13 +219,6 @@ class Material:
             v = getattr(q, name)
             if not (isinstance(v, str) and v == AUTO):
                 _checks.positive_int(f"quality.{name}", v, minimum=lo, maximum=hi)
-        for name in ("colour_space", "illuminant"):
-            if not isinstance(getattr(self, name), str):
-                raise ValueError(f"{name} must be a name, got {getattr(self, name)!r}")
-        from . import spectra
-
-        spectra.xyz_to_rgb_matrix(self.colour_space)  # raises for unknown spaces
-        spectra.illuminant_spd(self.illuminant, [560.0])
 
     # ----------------------------------------------------------------------------------------
     def indices(self) -> list:
@@ -219,19 +230,23 @@ class Material:
         )
 
     def thicknesses(self) -> list[float]:
+        """Thickness of each layer in nm, top first."""
         return [float(l.thickness_nm) for l in self.layers]
 
     @property
     def varies(self) -> bool:
+        """True when the top layer's thickness varies over the surface (a range is set)."""
         return self.thickness_range_nm is not None
 
     def to_dict(self) -> dict:
+        """The material as plain JSON types (the cache key and the EXR header use it)."""
         d = asdict(self)
         d["layers"] = [asdict(l) for l in self.layers]
         return json.loads(json.dumps(d))  # tuples → lists, canonical JSON types
 
     @classmethod
     def from_dict(cls, data: dict) -> Material:
+        """Material from `to_dict` output; unknown keys are an error."""
         data = dict(data)
         unknown = set(data) - set(cls.__dataclass_fields__)
         if unknown:
@@ -242,6 +257,7 @@ class Material:
         return cls(**data)  # __post_init__ turns layer rows and a quality dict into their types
 
     def with_(self, **changes) -> Material:
+        """A copy with *changes* applied (dataclasses.replace)."""
         return replace(self, **changes)
 
 

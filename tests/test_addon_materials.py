@@ -323,7 +323,7 @@ def test_write_back_of_a_metal_substrate_and_a_multilayer(
 def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(
     bpy, tables_mod, description_mod, tmp_path
 ):
-    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io").TableCache(tmp_path)
+    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache").TableCache(tmp_path)
     a, b = _enabled(bpy, "A"), _enabled(bpy, "B")
     start = tables_mod.bake_count
     ta = tables_mod.get_table(description_mod.description(a), cache)
@@ -354,7 +354,8 @@ def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(
 
 def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, description_mod, tables_mod, tmp_path):
     table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-    cache = table_io.TableCache(tmp_path)
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
+    cache = table_cache.TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
     baked = tables_mod.get_table(desc, cache)
@@ -387,9 +388,9 @@ def test_a_table_cached_by_an_older_planner_is_not_reused(
 ):
     """After an upgrade that changes automatic choices (e.g. the SH order cap 8 → 12), a cached
     table is stale, not corrupt: the key carries bake.PLANNER_VERSION, so it is baked again."""
-    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
     bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
-    cache = table_io.TableCache(tmp_path)
+    cache = table_cache.TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
     monkeypatch.setattr(bake, "PLANNER_VERSION", bake.PLANNER_VERSION - 1)
@@ -439,7 +440,7 @@ def test_bake_operator_runs_synchronously_in_background_mode(bpy, tables_mod, de
 
 def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, description_mod, tables_mod, tmp_path):
     ops = importlib.import_module(f"{EXTENSION_ID}.addon.ops")
-    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io").TableCache(tmp_path)
+    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache").TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
 
@@ -502,7 +503,7 @@ def test_cache_location_env_preference_default_and_size_limit(bpy, ext, tables_m
     """Issue 24: THINFILM_SH_CACHE wins inside Blender too; an empty preference means the private
     per-user default (never $TMPDIR); the size limit preference reaches the TableCache."""
     prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
-    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
     monkeypatch.delenv("THINFILM_SH_CACHE", raising=False)
     monkeypatch.delenv("THINFILM_SH_CACHE_MAX_BYTES", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
@@ -530,7 +531,7 @@ def test_cache_location_env_preference_default_and_size_limit(bpy, ext, tables_m
     monkeypatch.delenv("THINFILM_SH_CACHE")
 
     settings.cache_dir = "//tables"  # relative to a .blend file that is not saved
-    with pytest.raises(table_io.CacheDirError, match="not saved"):
+    with pytest.raises(table_cache.CacheDirError, match="not saved"):
         tables_mod.table_cache()
     assert any("unusable" in line and "not saved" in line for line, _icon in prefs.cache_status())
 
@@ -543,6 +544,7 @@ def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
     import errno
 
     table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
     ui = importlib.import_module(f"{EXTENSION_ID}.addon.ui")
 
     def full(self, key, *args, **kwargs):
@@ -551,7 +553,7 @@ def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
             path, f"could not write {str(path)!r}: No space left on device", errno.ENOSPC
         )
 
-    monkeypatch.setattr(table_io.TableCache, "store", full)
+    monkeypatch.setattr(table_cache.TableCache, "store", full)
     mat = _enabled(bpy)
     desc = description_mod.description(mat)
     assert bpy.ops.thinfilm.bake(material=mat.name) == {"FINISHED"}

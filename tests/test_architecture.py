@@ -1,4 +1,4 @@
-"""The product's import graph: no cycles, and the core never imports Blender.
+"""The product's shape: no import cycles, the core never imports Blender, no file over 800 lines.
 
 Every .py under precompute/ and addon/ is parsed with ``ast``; every import counts, at the top of
 the module or inside a function (a local import does not make a cycle go away, it only hides
@@ -142,3 +142,18 @@ def test_precompute_never_imports_blender():
 def test_the_cycle_finder_finds_cycles():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) is None
+
+
+MAX_LINES = 800  # issue 15: one concern per file; a longer file is split by concern
+
+
+def test_no_product_file_is_longer_than_800_lines():
+    sizes = {
+        str(p.relative_to(REPO)): len(p.read_text(encoding="utf-8").splitlines())
+        for top in (*PRODUCT, "glsl")
+        for p in sorted((REPO / top).rglob("*"))
+        if p.suffix in (".py", ".glsl")
+    }
+    assert sizes, "no product files found"
+    too_long = {path: n for path, n in sizes.items() if n > MAX_LINES}
+    assert not too_long, f"split these by concern (more than {MAX_LINES} lines): {too_long}"

@@ -23,10 +23,9 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from precompute import cli, cli_support, table_io
+from precompute import cli, cli_support, table_cache, table_io
+from precompute.table_cache import CacheDirError, TableCache
 from precompute.table_io import (
-    CacheDirError,
-    TableCache,
     TableError,
     TableWriteError,
     read_table,
@@ -687,7 +686,7 @@ def test_eviction_keeps_the_new_entry_and_spares_foreign_files(tmp_path):
 
 
 def test_eviction_limit_from_the_environment(monkeypatch, tmp_path):
-    assert TableCache(tmp_path).max_bytes == table_io.DEFAULT_CACHE_MAX_BYTES == 2 * 1024**3
+    assert TableCache(tmp_path).max_bytes == table_cache.DEFAULT_CACHE_MAX_BYTES == 2 * 1024**3
     for text, expected in (("1048576", 2**20), ("500M", 500 * 2**20), ("2GiB", 2 * 2**30), ("0", 0)):
         monkeypatch.setenv("THINFILM_SH_CACHE_MAX_BYTES", text)
         assert TableCache(tmp_path).max_bytes == expected

@@ -23,7 +23,8 @@ import pytest
 from precompute import cli, cli_support, validate
 from precompute.conductors import conductor_from_rgb
 from precompute.material import FALLBACK, Layer, Material, Quality
-from precompute.table_io import TableCache, TableError, read_table, write_table
+from precompute.table_cache import TableCache
+from precompute.table_io import TableError, read_table, write_table
 
 NAN, INF = float("nan"), float("inf")
 #: Far above any refusal (each takes milliseconds) and far below the issue's 293 s bake.

@@ -164,7 +164,7 @@ def test_a_full_cache_disk_still_draws_the_baked_table(bpy, tf, scene, monkeypat
             path, f"could not write {str(path)!r}: No space left on device", errno.ENOSPC
         )
 
-    monkeypatch.setattr(tf.table_io.TableCache, "store", full)
+    monkeypatch.setattr(tf.table_cache.TableCache, "store", full)
     grid(bpy, scene, "Sheet", film(bpy, tf, "Full"), n=2)
     items, messages = collect(bpy, tf)  # the headless path: bakes in place
     assert [item.name for item in items] == ["Sheet/Full"]

@@ -36,6 +36,7 @@ def _columns(m: np.ndarray) -> np.ndarray:
 
 
 def is_orthographic(projection_matrix) -> bool:
+    """True for an orthographic projection matrix (last row 0, 0, 0, 1)."""
     p = _matrix(projection_matrix)
     return bool(p[3, 3] == 1.0 and p[3, 2] == 0.0)
 
@@ -130,6 +131,7 @@ class PreparedDraw:
 
     @property
     def draw_count(self) -> int:
+        """Number of draws over all groups."""
         return sum(len(g.draws) for g in self.groups)
 
     @property

@@ -56,9 +56,11 @@ class Member:
 
     @property
     def vec4s(self) -> int:
+        """Number of vec4 slots the member takes (its array length, or 1)."""
         return 1 if self.count is None else int(self.count)
 
     def glsl(self) -> str:
+        """The member's line in the GLSL struct, with its description as a comment."""
         array = "" if self.count is None else f"[{self.count}]"
         return f"  vec4 {self.name}{array}; /* {self.doc} */"
 
@@ -84,10 +86,12 @@ class Block:
 
     @property
     def vec4s(self) -> int:
+        """Number of vec4 slots in the whole block."""
         return sum(m.vec4s for m in self.members)
 
     @property
     def nbytes(self) -> int:
+        """Size of the block in bytes (16 per vec4, std140)."""
         return 16 * self.vec4s
 
     def offset(self, member: str) -> int:
@@ -100,6 +104,7 @@ class Block:
         raise KeyError(f"{self.struct} has no member {member!r}")
 
     def typedef(self) -> str:
+        """The block's GLSL struct declaration, generated from the members."""
         return "\n".join([f"struct {self.struct} {{", *(m.glsl() for m in self.members), "};"])
 
     def pack(self, **values) -> np.ndarray:
@@ -358,6 +363,7 @@ class Lighting:
 
     @property
     def lamp_count(self) -> int:
+        """Number of World lamps drawn (0 without a lamp set)."""
         return 0 if self.lamps is None else int(self.lamps.count)
 
     @staticmethod
@@ -414,6 +420,7 @@ class EnvironmentTexture:
 
     @classmethod
     def from_image(cls, image) -> EnvironmentTexture:
+        """Upload an (H, W, 3|4) float image as an RGBA32F equirectangular texture."""
         img = np.asarray(image, dtype=np.float32)
         if img.ndim != 3 or img.shape[2] < 3:
             raise ValueError(f"environment image must be (H, W, 3|4), got {img.shape}")
@@ -507,6 +514,7 @@ class FilmTexture:
 
     @classmethod
     def from_film(cls, film) -> FilmTexture:
+        """Upload a film colour table; refuses non-finite values."""
         layers = cls.layer_array(film)
         if not np.all(np.isfinite(layers)):
             raise ValueError("the film table holds non-finite values")
@@ -558,6 +566,7 @@ class UniformCache:
         self.stats = {"allocations": 0, "uploads": 0, "hits": 0}
 
     def next_frame(self) -> None:
+        """Advance the frame counter and recycle buffers unused for *keep_frames* frames."""
         self.frame += 1
         oldest = self.frame - self.keep_frames
         stale = [key for key, entry in self._entries.items() if entry[2] < oldest]
@@ -568,6 +577,7 @@ class UniformCache:
                 spare.append(ubo)
 
     def get(self, key, make) -> gpu.types.GPUUniformBuf:
+        """The uniform buffer for *key*, created with *make* when missing."""
         entry = self._entries.get(key)
         if entry is not None:
             entry[2] = self.frame
@@ -590,5 +600,6 @@ class UniformCache:
         return len(self._entries)
 
     def clear(self) -> None:
+        """Release every buffer, in use or spare."""
         self._entries.clear()
         self._spare.clear()

@@ -254,6 +254,7 @@ class ShaderCache:
         return len(self._shaders)
 
     def clear(self) -> None:
+        """Forget every compiled shader (they are rebuilt on next use)."""
         self._shaders.clear()
 
 

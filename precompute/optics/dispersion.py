@@ -29,11 +29,13 @@ class ConstantIndex:
     k: float = 0.0
 
     def index(self, wavelengths_nm) -> np.ndarray:
+        """The constant complex index n + ik at each wavelength."""
         wl = np.asarray(wavelengths_nm, dtype=float)
         return np.full(wl.shape, complex(self.n, self.k))
 
     @property
     def dispersive(self) -> bool:
+        """False: the index does not depend on wavelength."""
         return False
 
 
@@ -46,11 +48,13 @@ class CauchyIndex:
     C: float = 0.0
 
     def index(self, wavelengths_nm) -> np.ndarray:
+        """Cauchy index A + B/λ² + C/λ⁴ (λ in µm) at each wavelength."""
         lam_um = np.asarray(wavelengths_nm, dtype=float) * 1e-3
         return (self.A + self.B / lam_um**2 + self.C / lam_um**4).astype(complex)
 
     @property
     def dispersive(self) -> bool:
+        """True when B or C is non-zero."""
         return self.B != 0.0 or self.C != 0.0
 
 
@@ -66,6 +70,7 @@ class SellmeierIndex:
             raise ValueError("SellmeierIndex needs equally many B and C coefficients (at least one)")
 
     def index(self, wavelengths_nm) -> np.ndarray:
+        """Sellmeier index at each wavelength; refuses wavelengths where n² ≤ 0."""
         lam2 = (np.asarray(wavelengths_nm, dtype=float) * 1e-3) ** 2
         n2 = 1.0 + sum(b * lam2 / (lam2 - c) for b, c in zip(self.B, self.C, strict=False))
         if np.any(n2 <= 0):
@@ -74,6 +79,7 @@ class SellmeierIndex:
 
     @property
     def dispersive(self) -> bool:
+        """True."""
         return True
 
 
@@ -94,6 +100,7 @@ class TabulatedIndex:
             raise ValueError(f"{self.name}: wavelengths_nm must increase strictly")
 
     def index(self, wavelengths_nm) -> np.ndarray:
+        """Tabulated n + ik interpolated at each wavelength; refuses extrapolation."""
         wl = np.asarray(wavelengths_nm, dtype=float)
         lo, hi = self.wavelengths_nm[0], self.wavelengths_nm[-1]
         if np.any(wl < lo) or np.any(wl > hi):
@@ -102,6 +109,7 @@ class TabulatedIndex:
 
     @property
     def dispersive(self) -> bool:
+        """True."""
         return True
 
 

@@ -76,10 +76,12 @@ class TabulatedMetal:
 
     @property
     def path(self) -> pathlib.Path:
+        """The metal's measured n, k CSV file."""
         return DATA_DIR / f"{self.symbol}.csv"
 
     @property
     def dispersive(self) -> bool:
+        """True: measured metals disperse."""
         return True
 
     def table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
