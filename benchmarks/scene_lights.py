@@ -420,6 +420,8 @@ def write_report(rows, timing, size, samples, path: pathlib.Path, area=None) -> 
             f"Headless frame of the film sphere at {size}×{size} (collect, draw, read back), median of 5, on",
             f"**{common.cpu_model()} with Mesa llvmpipe (software rasterisation)**: figures for",
             "comparing light counts with each other, not a GPU's frame time. Point lights (one sample each).",
+            "The headless frame's other work (Solid drawing for depth, read-back, collecting) dominates",
+            "and varies by hundreds of ms on a shared machine: small differences are noise.",
             "",
             f"The sphere covers {covered} pixels; the last column is (frame − frame without lights) /",
             "(lights × covered pixels).",
