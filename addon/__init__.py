@@ -7,7 +7,11 @@ Everything here is Blender glue. The physics lives in ``precompute/`` (which nev
 import bpy
 from bpy.props import PointerProperty
 
-from . import caches, headless, ops, prefs, props, ui, viewport
+from . import caches, gltf, headless, ops, prefs, props, ui, viewport
+
+#: The glTF add-on looks these names up on enabled add-ons (KHR_materials_iridescence, :mod:`.gltf`).
+glTF2ExportUserExtension = gltf.ExportUserExtension
+glTF2ImportUserExtension = gltf.ImportUserExtension
 
 classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
 
@@ -31,7 +35,15 @@ def register():
         if not cls.is_registered:
             bpy.utils.register_class(cls)
     if not hasattr(bpy.types.Material, MATERIAL_PROPERTY):
-        setattr(bpy.types.Material, MATERIAL_PROPERTY, PointerProperty(type=props.ThinFilmMaterialSettings))
+        setattr(
+            bpy.types.Material,
+            MATERIAL_PROPERTY,
+            PointerProperty(
+                type=props.ThinFilmMaterialSettings,
+                name="Thin Film SH",
+                description="Thin-film interference settings of this material for the viewport preview",
+            ),
+        )
     for module in modules:
         module.register()
 

@@ -24,9 +24,22 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   cache (an unusable folder, a full disk: the table is in memory and drawn); LRU of
   ``tables.FAILURE_MEMORY`` (64); filled by ``tables.get_table_with_source``; SESSION, also
   emptied by Clear Cache.
+- ``material_outputs`` — ``props.OUTPUTS``: what the Bake button found for a material
+  (``last_bake_ms``, ``last_plan``, ``last_error``, read through those properties' getters) by
+  (material ``session_uid``, name); one entry per material baked (three short values); filled
+  by the bake operator; FILE (the file's materials, kept out of the saved file on purpose).
+- ``hidden_viewports`` — ``viewport.HIDDEN_IN``: the 3D viewports (their space's address)
+  whose Thin Film SH overlay is switched off; a set, one entry per viewport switched off; filled
+  by the *Thin Film SH* toggle in the Overlays popover; FILE.
 - ``thickness_images`` — ``thickness._PRINTS``: pixel fingerprints of thickness images with
   unsaved edits, by image name, refreshed at most every ``thickness.IMAGE_RECHECK_S``; LRU of
   16; filled by ``thickness.image_stamp``; FILE.
+- ``linked_thickness`` — ``linked.FIELDS``: a Principled BSDF's linked Thin Film Thickness
+  per face corner (``linked.Field``: nm, how it was obtained) by (object name, its evaluated
+  mesh's vertex and corner counts, a geometry epoch bumped on depsgraph geometry updates,
+  ``linked.tree_key`` of the linked graph); LRU of 64; filled by ``linked.evaluate`` (direct
+  numpy or a Cycles bake, the latter never inside the draw: ``linked.run_pending`` from the
+  viewport's timer); FILE.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.

@@ -11,8 +11,11 @@
 
 from __future__ import annotations
 
+import json
+
 from ..precompute import bake, spectra
 from ..precompute.material import Material
+from .linked import Pending
 from .principled import read_principled
 from .props import description_from_props, file_working_space
 
@@ -27,8 +30,11 @@ def description(bpy_material) -> Material | None:
        Surface, else the first): film index = Thin Film IOR, thickness = Thin Film Thickness,
        substrate = IOR (dielectric) or, for Metallic > 0.5, a Gulbrandsen (n, k) fit of Base
        Color and Specular Tint; roughness = Roughness; per-channel colour like Cycles; ambient 1.
-       Linked sockets use their unlinked values (see :func:`warnings`).
-    3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF.
+       A linked Thin Film Thickness is evaluated over the objects using the material
+       (:mod:`.linked`; None while its Cycles bake is queued inside the draw); other linked
+       sockets use their unlinked values (see :func:`warnings`).
+    3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF; nor is
+       a Principled film whose *Preview Principled Film* switch is off.
 
     Raises ValueError (naming the material and the parameter) for invalid settings: every
     value is checked when the Material is built (precompute.validate), so nothing invalid
@@ -38,7 +44,11 @@ def description(bpy_material) -> Material | None:
     try:
         if props is not None and props.enabled:
             return description_from_props(props)
+        if props is not None and not props.preview_principled:
+            return None  # the artist switched the Principled film's preview off
         return read_principled(bpy_material)[0]
+    except Pending:  # a linked thickness is being baked: drawn when it is done
+        return None
     except ValueError as exc:
         raise ValueError(f"material {bpy_material.name!r}: {exc}") from None
 
@@ -60,12 +70,28 @@ def warnings(bpy_material) -> list[str]:
     else:
         try:
             notes = read_principled(bpy_material)[1]
+        except Pending as exc:
+            notes = [f"{exc}: drawn when the bake is done"]
         except ValueError as exc:
             notes = [f"{exc}: drawn in magenta (the fallback) until it is fixed"]
+    notes.extend(_gltf_notes(bpy_material))
     space = file_working_space()
     if space and space not in spectra.WORKING_SPACES:
-        notes.append(f"working colour space {space!r} is not supported: previewing in Linear Rec.709")
+        notes.append(f"working color space {space!r} is not supported: previewing in Linear Rec.709")
     return notes
+
+
+def _gltf_notes(bpy_material) -> list[str]:
+    """What the preview does not follow of a glTF file's KHR_materials_iridescence (kept by the
+    import hook, :func:`.gltf.repair_import`, as the custom property of that name)."""
+    kept = bpy_material.get("KHR_materials_iridescence") if hasattr(bpy_material, "get") else None
+    try:
+        factor = float(json.loads(kept)["iridescenceFactor"]) if isinstance(kept, str) else 1.0
+    except (ValueError, KeyError, TypeError):
+        return []
+    if factor == 1.0:
+        return []
+    return [f"glTF iridescence factor {factor:g}: previewed (as Cycles renders it) at full strength"]
 
 
 def description_key(desc: Material) -> str:

@@ -23,10 +23,13 @@ import numpy as np
 from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, table_io
-from . import scene_draw, tables, world
-from .description import description, description_key
+from . import prefs, scene_draw, tables, world
+from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
+
+#: The message of a render made while the *Show Thin Film Overlay* preference is off.
+OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
 
 
 def scene_materials(scene):
@@ -140,7 +143,10 @@ def render_scene(
     view, proj = camera_matrices(scene, depsgraph, width, height)
     t0 = time.perf_counter()
     errors: dict[str, str] = {}  # materials drawn as the magenta fallback, and why
-    items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
+    if prefs.overlay_enabled():
+        items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
+    else:  # the artist's off switch holds for renders too: Blender's own drawing only
+        items, messages = [], [OVERLAY_OFF]
     env = None
     lighting = scene_draw.CACHES.world
     if background and lighting is not None and lighting.environment is not None:
@@ -361,6 +367,10 @@ def _run_plan(scene, cache) -> int:
             "world_order": plan.world_order,
             **mp.to_dict(),
         }
+        # What the preview cannot follow, and what drives a linked thickness at what resolution.
+        summary["notes"] = warnings(bpy.data.materials[name]) if name in bpy.data.materials else []
+        for note in summary["notes"]:
+            print(f"note: material {name!r}: {note}")
         print("plan-json " + json.dumps(summary))
     failed = [*errors.values(), *(sh.errors if sh is not None else ())]
     for err in failed:

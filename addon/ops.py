@@ -3,19 +3,39 @@
 Every operator turns a ValueError (bad settings, a missing attribute, ...) into
 ``self.report({'ERROR'}, message)`` and returns CANCELLED: the user sees the message, never a
 traceback.
+
+Every operator has a ``poll()`` that greys its button out, with the reason as the button's
+tooltip (``poll_message_set``), when the context's material cannot be used: no film layer to
+remove, nothing to write back, or a material that is not editable. Linked materials (from a
+library .blend) and library overrides are read-only here: the operators that edit a material
+refuse them (:func:`read_only_reason`), in ``poll`` for the context's material and in
+``execute`` for one named by the ``material`` parameter, so library data is never changed in
+memory (where a save would lose it). Baking a linked material is allowed: it changes nothing in
+the material (its outputs live in memory, :data:`.props.OUTPUTS`). Called from a script
+without a material in the context, ``poll`` lets the ``material`` parameter decide.
 """
 
 import threading
 import time
 
 import bpy
-from bpy.props import EnumProperty, StringProperty
+from bl_operators.presets import AddPresetBase
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy.types import Operator
 
-from . import tables
+from . import prefs, tables, viewport
 from .description import description
 from .principled import write_back_to_principled
 from .props import PRESET_ITEMS, apply_preset, mark_custom
+
+
+def _context_material(context):
+    """The context's material, else the active object's active material, else None."""
+    mat = getattr(context, "material", None)
+    if mat is None:
+        obj = getattr(context, "object", None)
+        mat = obj.active_material if obj is not None else None
+    return mat
 
 
 def _material(op, context):
@@ -23,11 +43,38 @@ def _material(op, context):
     name = getattr(op, "material", "")
     if name:
         return bpy.data.materials.get(name)
+    return _context_material(context)
+
+
+def read_only_reason(mat) -> str | None:
+    """Why ``mat``'s thin film cannot be edited here (linked, a library override, otherwise not
+    editable), or None when it can."""
+    if mat.library is not None:
+        return (
+            f"Material '{mat.name}' is linked from '{mat.library.filepath}' and cannot be edited "
+            "here: make it local first (Object > Relations > Make Local)"
+        )
+    if mat.override_library is not None:
+        return (
+            f"Material '{mat.name}' is a library override: its thin film can only be edited in "
+            "the library file"
+        )
+    if not mat.is_editable:
+        return f"Material '{mat.name}' is not editable"
+    return None
+
+
+def _poll_material(cls, context) -> bool:
+    """``poll`` of the material operators: the context's material (the Properties editor's, or
+    a ``temp_override``'s) passes ``cls.refuse``."""
     mat = getattr(context, "material", None)
     if mat is None:
-        obj = getattr(context, "object", None)
-        mat = obj.active_material if obj is not None else None
-    return mat
+        return True  # a script names the material, or it is the active object's: execute checks it
+    reason = cls.refuse(mat)
+    if reason:
+        cls.poll_message_set(reason)
+        return False
+    return True
 
 
 def _tag_redraw(context) -> None:
@@ -116,6 +163,26 @@ class THINFILM_OT_bake(Operator):
     bl_idname = "thinfilm.bake"
     bl_label = "Bake Thin Film"
     bl_options = {"REGISTER"}
+
+    @staticmethod
+    def refuse(mat) -> str | None:
+        """Why ``mat`` cannot be baked (no thin film), or None. Invalid settings pass: the bake
+        says what is wrong with them."""
+        try:
+            desc = description(mat)
+        except ValueError:
+            return None
+        if desc is None:
+            return (
+                f"Material '{mat.name}' has no thin film: enable Thin Film SH or set the Principled "
+                "BSDF's Thin Film Thickness"
+            )
+        return None
+
+    @classmethod
+    def poll(cls, context):
+        """A material with a thin film (or none in the context: a script names it)."""
+        return _poll_material(cls, context)
 
     material: StringProperty(
         name="Material",
@@ -240,17 +307,34 @@ class THINFILM_OT_bake(Operator):
 
 
 class _MaterialOperator:
+    """An operator that edits a material's thin film: refuses read-only materials."""
+
     material: StringProperty(
         name="Material",
-        description="Material (empty: the context's material)",
+        description="Material to change (empty: the active material)",
         default="",
         options={"SKIP_SAVE"},
     )
 
+    @classmethod
+    def refuse(cls, mat) -> str | None:
+        """Why this operator cannot run on ``mat``, or None (overridden to add reasons)."""
+        return read_only_reason(mat)
+
+    @classmethod
+    def poll(cls, context):
+        """The context's material is editable and this operator has something to do."""
+        return _poll_material(cls, context)
+
     def settings(self, context):
+        """The material's settings, or None after reporting why they cannot be changed."""
         mat = _material(self, context)
         if mat is None:
             self.report({"ERROR"}, "No material")
+            return None
+        reason = self.refuse(mat)
+        if reason:
+            self.report({"ERROR"}, reason)
             return None
         return mat.thinfilm_sh
 
@@ -262,7 +346,9 @@ class THINFILM_OT_apply_preset(_MaterialOperator, Operator):
     bl_label = "Apply Preset"
     bl_options = {"REGISTER", "UNDO"}
 
-    preset: EnumProperty(name="Preset", items=PRESET_ITEMS[:-1])
+    preset: EnumProperty(
+        name="Preset", description="The preset whose settings fill the material", items=PRESET_ITEMS[:-1]
+    )
 
     def execute(self, context):
         settings = self.settings(context)
@@ -303,6 +389,14 @@ class THINFILM_OT_layer_remove(_MaterialOperator, Operator):
     bl_label = "Remove Film Layer"
     bl_options = {"REGISTER", "UNDO"}
 
+    @classmethod
+    def refuse(cls, mat) -> str | None:
+        """Read-only, or no layer to remove."""
+        reason = read_only_reason(mat)
+        if reason is None and not len(mat.thinfilm_sh.layers):
+            return "There is no film layer to remove"
+        return reason
+
     def execute(self, context):
         settings = self.settings(context)
         if settings is None:
@@ -325,7 +419,22 @@ class THINFILM_OT_layer_move(_MaterialOperator, Operator):
     bl_label = "Move Film Layer"
     bl_options = {"REGISTER", "UNDO"}
 
-    direction: EnumProperty(name="Direction", items=[("UP", "Up", ""), ("DOWN", "Down", "")])
+    direction: EnumProperty(
+        name="Direction",
+        description="Which way to move the layer in the stack",
+        items=[
+            ("UP", "Up", "Toward the air side (the top of the list)"),
+            ("DOWN", "Down", "Toward the substrate (the bottom of the list)"),
+        ],
+    )
+
+    @classmethod
+    def refuse(cls, mat) -> str | None:
+        """Read-only, or fewer than two layers."""
+        reason = read_only_reason(mat)
+        if reason is None and len(mat.thinfilm_sh.layers) < 2:
+            return "Moving a film layer needs at least two layers"
+        return reason
 
     def execute(self, context):
         settings = self.settings(context)
@@ -349,11 +458,19 @@ class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
     bl_label = "Write to Principled BSDF"
     bl_options = {"REGISTER", "UNDO"}
 
+    @classmethod
+    def refuse(cls, mat) -> str | None:
+        """Read-only, or the extension's settings off (nothing to write). A material without a
+        Principled BSDF gets one."""
+        reason = read_only_reason(mat)
+        if reason is None and not mat.thinfilm_sh.enabled:
+            return "Thin Film SH is off for this material: there is nothing to write"
+        return reason
+
     def execute(self, context):
-        mat = _material(self, context)
-        if mat is None:
-            self.report({"ERROR"}, "No material")
+        if self.settings(context) is None:
             return {"CANCELLED"}
+        mat = _material(self, context)
         try:
             notes = write_back_to_principled(mat)
         except ValueError as exc:
@@ -373,6 +490,11 @@ class THINFILM_OT_clear_cache(Operator):
     bl_label = "Clear Thin Film Cache"
     bl_options = {"REGISTER"}
 
+    @classmethod
+    def poll(cls, context):
+        """Always available: it changes no Blender data, only the add-on's own cache."""
+        return True
+
     def execute(self, context):
         try:
             cache = tables.table_cache()
@@ -385,7 +507,123 @@ class THINFILM_OT_clear_cache(Operator):
         return {"FINISHED"}
 
 
+#: Where user presets live, under Blender's ``scripts/presets`` folders (user and extension).
+PRESET_SUBDIR = "thinfilm_sh/material"
+#: The settings a user preset stores: the film and the surface, not the viewing or quality choices
+#: (as the built-in presets, :func:`.props.fill_from_material`).
+PRESET_VALUES = [
+    f"settings.{name}"
+    for name in (
+        "layers",
+        "vary_thickness",
+        "thickness_min_nm",
+        "thickness_max_nm",
+        "substrate_mode",
+        "substrate_ior",
+        "substrate_metal",
+        "substrate_n",
+        "substrate_k",
+        "ambient_ior",
+        "roughness",
+        "diffuse_base",
+        "diffuse_color",
+        "model",
+    )
+]
+
+
+class THINFILM_OT_preset_add(AddPresetBase, Operator):
+    """Save this material's film and surface settings as a preset of your own, or remove one"""
+
+    bl_idname = "thinfilm.preset_add"
+    bl_label = "Add Thin Film Preset"
+    preset_menu = "THINFILM_MT_presets"
+    preset_subdir = PRESET_SUBDIR
+    preset_defines = ["settings = bpy.context.material.thinfilm_sh"]
+    preset_values = PRESET_VALUES
+
+    # AddPresetBase's hidden switches, with tooltips.
+    remove_name: BoolProperty(
+        name="Remove by Name",
+        description="Remove the preset with this name instead of adding one",
+        default=False,
+        options={"HIDDEN", "SKIP_SAVE"},
+    )
+    remove_active: BoolProperty(
+        name="Remove Active",
+        description="Remove the preset chosen last in the menu instead of adding one",
+        default=False,
+        options={"HIDDEN", "SKIP_SAVE"},
+    )
+
+    @classmethod
+    def poll(cls, context):
+        """An editable material in the context (presets read and write ``context.material``)."""
+        mat = getattr(context, "material", None)
+        if mat is None:
+            cls.poll_message_set("No material in this context")
+            return False
+        reason = read_only_reason(mat)
+        if reason:
+            cls.poll_message_set(reason)
+            return False
+        return True
+
+
+class THINFILM_OT_toggle_overlay(Operator):
+    """Show or hide thin films in this 3D viewport"""
+
+    bl_idname = "thinfilm.toggle_overlay"
+    bl_label = "Thin Film SH Overlay"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        """A 3D viewport, with the overlay preference on."""
+        space = context.space_data
+        if space is None or space.type != "VIEW_3D":
+            cls.poll_message_set("Only in a 3D viewport")
+            return False
+        if not prefs.overlay_enabled(context):
+            cls.poll_message_set("The Show Thin Film Overlay preference is off")
+            return False
+        return True
+
+    def execute(self, context):
+        """Flip this viewport's switch and redraw it."""
+        space = context.space_data
+        viewport.set_shown_in(space, not viewport.shown_in(space))
+        if context.area is not None:
+            context.area.tag_redraw()
+        return {"FINISHED"}
+
+
+class THINFILM_OT_cancel_bakes(Operator):
+    """Stop the thin-film bakes running in the background for the viewport"""
+
+    bl_idname = "thinfilm.cancel_bakes"
+    bl_label = "Cancel Thin Film Bakes"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        """Only while a viewport bake runs."""
+        if not viewport.activity():
+            cls.poll_message_set("No thin film is baking")
+            return False
+        return True
+
+    def execute(self, context):
+        """Ask the running bakes to stop at their next progress step."""
+        count = viewport.cancel_bakes()
+        self.report({"INFO"}, f"Cancelled {count} thin film bake(s)")
+        return {"FINISHED"}
+
+
 classes = (
+    THINFILM_OT_preset_add,
+    THINFILM_OT_toggle_overlay,
+    THINFILM_OT_cancel_bakes,
     THINFILM_OT_bake,
     THINFILM_OT_apply_preset,
     THINFILM_OT_layer_add,

@@ -22,7 +22,7 @@ Its size limit: ``THINFILM_SH_CACHE_MAX_BYTES`` if set, else the *Cache Size Lim
 import os
 
 import bpy
-from bpy.props import IntProperty, StringProperty
+from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy.types import AddonPreferences
 
 from ..precompute import table_cache
@@ -38,6 +38,7 @@ __all__ = [
     "cache_location",
     "cache_max_bytes",
     "default_cache_dir",
+    "overlay_enabled",
     "preferences",
 ]
 
@@ -140,10 +141,24 @@ _SOURCES = {
 }
 
 
+def overlay_enabled(context=None) -> bool:
+    """The *Show Thin Film Overlay* preference (True while the preferences are not there)."""
+    prefs = preferences(context)
+    return bool(prefs.show_overlay) if prefs is not None else True
+
+
 class ThinFilmSHPreferences(AddonPreferences):
-    """The extension's preferences: where the table cache lives and how large it may grow."""
+    """The extension's preferences: the overlay switch, the table cache's folder and size."""
 
     bl_idname = PACKAGE
+
+    show_overlay: BoolProperty(
+        name="Show Thin Film Overlay",
+        description="Draw thin films over the 3D viewports and in headless renders. Off: nothing "
+        "is drawn or baked in the background (each viewport also has its own switch in its "
+        "Overlays popover)",
+        default=True,
+    )
 
     cache_dir: StringProperty(
         name="Cache Directory",
@@ -166,6 +181,7 @@ class ThinFilmSHPreferences(AddonPreferences):
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
+        layout.prop(self, "show_overlay")
         layout.prop(self, "cache_dir")
         layout.prop(self, "cache_limit_mib")
         col = layout.column(align=True)

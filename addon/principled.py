@@ -17,6 +17,7 @@ import math
 from ..precompute import validate
 from ..precompute.conductors import conductor_from_rgb, metal_rgb, real_index
 from ..precompute.material import Layer, Material
+from . import linked, thickness_nodes
 from .props import description_from_props, f32, working_space
 
 __all__ = [
@@ -28,6 +29,7 @@ __all__ = [
     "SOCKET_SPECULAR_TINT",
     "SOCKET_THICKNESS",
     "SOCKET_TRANSMISSION",
+    "linked_thickness_socket",
     "principled_node",
     "read_principled",
     "write_back_to_principled",
@@ -82,6 +84,15 @@ def principled_node(bpy_material):
     return None
 
 
+def linked_thickness_socket(bpy_material):
+    """The Principled BSDF's Thin Film Thickness socket when a link drives it, else None."""
+    node = principled_node(bpy_material)
+    if node is None or SOCKET_THICKNESS not in node.inputs:
+        return None
+    socket = node.inputs[SOCKET_THICKNESS]
+    return socket if socket.is_linked else None
+
+
 # ----------------------------------------------------------------------------------------------
 # Reading
 # ----------------------------------------------------------------------------------------------
@@ -109,7 +120,11 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
     or, for Metallic > 0.5, a Gulbrandsen (n, k) fit of Base Color and Specular Tint
     (:func:`precompute.conductors.conductor_from_rgb`); roughness = Roughness; per-channel
     colour like Cycles; ambient 1. An opaque dielectric shows its Base Color as a diffuse base.
-    Linked sockets use their unlinked values, with a note. A zero thickness is not previewed:
+    A linked Thin Film Thickness is evaluated over the scene's objects using the material
+    (:func:`.linked.material_range`): its min/max is the table's thickness range, with a note
+    saying how it was obtained (raises :class:`.linked.Pending` while a bake is queued, and
+    ValueError when it cannot be evaluated). Other linked sockets use their unlinked values,
+    with a note. A zero thickness is not previewed:
     it is the bare Principled BSDF, which Blender's own viewport already shows. A NaN or Inf
     input (set from Python) raises ValueError naming the node and the input.
     """
@@ -117,10 +132,16 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
     if node is None or SOCKET_THICKNESS not in node.inputs:
         return None, []
     notes: list[str] = []
-    thickness = f32(_socket_value(node, SOCKET_THICKNESS, notes))
-    if not thickness > 0.0:
-        return None, []
     where = f"Principled BSDF '{node.name}' input"
+    socket = node.inputs[SOCKET_THICKNESS]
+    found = linked.material_range(bpy_material, socket) if socket.is_linked else None
+    if found is None:
+        thickness = f32(_socket_value(node, SOCKET_THICKNESS, notes))
+        thickness_range = None
+    else:
+        thickness, thickness_range = _linked_thickness(found, notes)
+    if not thickness > 0.0:
+        return None, notes if found is not None else []
     validate.real(f"{where} '{SOCKET_THICKNESS}'", thickness, 0.0, validate.MAX_THICKNESS_NM)
     film_ior = f32(_socket_value(node, SOCKET_FILM_IOR, notes))
     validate.real(f"{where} '{SOCKET_FILM_IOR}'", film_ior, 0.0, validate.MAX_INDEX_N, lo_open=True)
@@ -152,9 +173,30 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
         base_color=base_color,
         colour_mode="per_channel",
         colour_space=working_space(),
+        thickness_range_nm=thickness_range,
         **_CYCLES_PARITY,
     )
     return desc, notes
+
+
+#: The linked thickness's range is rounded outward to this step (nm), so that a re-evaluation
+#: giving the same field up to float noise keeps the same table key.
+RANGE_STEP_NM = 0.01
+
+
+def _linked_thickness(found, notes: list[str]) -> tuple[float, tuple | None]:
+    """(mid thickness, range or None) of an evaluated linked thickness, with a note saying what
+    drives it and at what resolution (:func:`.linked.material_range`)."""
+    lo, hi, how = found
+    lo = math.floor(max(0.0, lo) / RANGE_STEP_NM) * RANGE_STEP_NM
+    hi = math.ceil(max(0.0, hi) / RANGE_STEP_NM) * RANGE_STEP_NM
+    if not hi > 0.0:
+        notes.append(f"'{SOCKET_THICKNESS}' is linked and evaluates to 0 nm everywhere ({how}): no film")
+        return 0.0, None
+    notes.append(f"thickness {lo:g}–{hi:g} nm from the link into '{SOCKET_THICKNESS}': {how}")
+    if hi - lo <= RANGE_STEP_NM:
+        return f32(hi), None
+    return f32(0.5 * (lo + hi)), (f32(lo), f32(hi))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -186,11 +228,36 @@ def _set_socket(node, name: str, value, notes: list[str]) -> None:
         notes.append(f"'{name}' is linked in '{node.name}': Cycles uses the link, not the written value")
 
 
+def _write_thickness_graph(bpy_material, node, props, thickness_range, notes: list[str]) -> float:
+    """Link the thickness source, as nodes (:func:`.thickness_nodes.build`), into Thin Film
+    Thickness so Cycles renders the variation; returns the socket's own value (the middle)."""
+    lo, hi = (float(v) for v in thickness_range)
+    middle = 0.5 * (lo + hi)
+    tree = bpy_material.node_tree
+    socket = node.inputs[SOCKET_THICKNESS]
+    if props.thickness_source == "IMAGE" and props.thickness_image is None:
+        notes.append(f"thickness varies {lo:g}–{hi:g} nm from no image: wrote the middle, {middle:g} nm")
+        return middle
+    for link in list(socket.links):
+        tree.links.remove(link)
+    location = (node.location.x - 100.0, node.location.y - 400.0)
+    tree.links.new(thickness_nodes.build(tree, props, lo, hi, location), socket)
+    socket.default_value = middle
+    if props.thickness_source == "NOISE":
+        notes.append(
+            "the preview's value noise is written as Blender's Noise Texture: same scale and range, "
+            "another pattern (choose the Blender Noise source for the same pattern in both)"
+        )
+    return middle
+
+
 def write_back_to_principled(bpy_material) -> list[str]:
     """Write the extension's settings into the material's Principled BSDF; returns warnings.
 
     Creates a Principled BSDF connected to the output if there is none. Thin Film Thickness is
-    the top layer's thickness (the middle of the range when it varies), Thin Film IOR the top
+    the top layer's thickness; when it varies, the source is written as nodes linked into it
+    (:func:`.thickness_nodes.build`: Noise Texture / Image / Attribute → Map Range min–max,
+    replacing an earlier write), so Cycles renders the variation. Thin Film IOR the top
     layer's n at 550 nm; a dielectric substrate sets IOR (Transmission 1 unless the diffuse base
     is on, which sets Base Color), a conductor sets Metallic 1 with Base Color = its normal-
     incidence reflectance and Specular Tint = its F82 tint, both integrated from the spectrum.
@@ -204,16 +271,12 @@ def write_back_to_principled(bpy_material) -> list[str]:
         top = desc.layers[0]
         thickness = float(top.thickness_nm)
         if desc.thickness_range_nm is not None:
-            lo, hi = desc.thickness_range_nm
-            thickness = 0.5 * (lo + hi)
-            notes.append(
-                f"thickness varies {lo:g}–{hi:g} nm: wrote the middle, {thickness:g} nm "
-                "(drive Thin Film Thickness with a texture for the variation)"
-            )
+            thickness = _write_thickness_graph(bpy_material, node, props, desc.thickness_range_nm, notes)
         film = real_index(top.index)
         if film.imag != 0.0 or isinstance(top.index, dict):
             notes.append(f"the film index is written as n = {film.real:.4g} at 550 nm (no k, no dispersion)")
-        _set_socket(node, SOCKET_THICKNESS, thickness, notes)
+        if not node.inputs[SOCKET_THICKNESS].is_linked:
+            _set_socket(node, SOCKET_THICKNESS, thickness, notes)
         _set_socket(node, SOCKET_FILM_IOR, max(1.0, film.real), notes)
         if film.real < 1.0:
             notes.append(f"film n {film.real:.4g} < 1 is clamped to 1 by the Principled BSDF")
@@ -232,7 +295,7 @@ def write_back_to_principled(bpy_material) -> list[str]:
         _set_socket(node, SOCKET_BASE_COLOR, (*base, 1.0), notes)
         _set_socket(node, SOCKET_SPECULAR_TINT, (*tint, 1.0), notes)
         if desc.base_color is not None:
-            notes.append("a metal has no diffuse base in the Principled BSDF: the diffuse colour is dropped")
+            notes.append("a metal has no diffuse base in the Principled BSDF: the diffuse color is dropped")
     else:
         _set_socket(node, SOCKET_METALLIC, 0.0, notes)
         _set_socket(node, SOCKET_IOR, substrate.real, notes)

@@ -35,17 +35,32 @@ from ..precompute import spectra
 from ..precompute.material import AUTO, MAX_SH_ORDER, PRESETS, Layer, Material, Quality
 from ..precompute.optics import metals
 from ..precompute.optics.metals import available_metals
+from . import caches
 
 # ----------------------------------------------------------------------------------------------
 # Enum items (identifiers are stable: they are saved in .blend files)
 # ----------------------------------------------------------------------------------------------
+#: What each built-in preset looks like, for its tooltip (a preset without one gets a generic line).
+PRESET_TOOLTIPS = {
+    "soap_film": "A soap bubble: a thin water film in air, swirling from gold to magenta and blue",
+    "oil_on_water": "A thin oil slick floating on water, in rainbow bands",
+    "anodised_titanium": "Anodized titanium: an oxide layer on the metal, bronze, purple and blue",
+    "heat_tinted_steel": "Heat-tinted steel: the straw, brown and blue oxide colors of tempered steel",
+    "beetle_multilayer": "A beetle's shell: a stack of alternating layers with a strong metallic green",
+    "coated_car_window": "A car window with a thin anti-reflective coating: a faint purple sheen",
+}
+
 PRESET_ITEMS = [
-    (name.upper(), name.replace("_", " ").title(), f"Preset '{name}' of precompute.material.PRESETS")
+    (
+        name.upper(),
+        name.replace("_", " ").title().replace("Anodised", "Anodized"),  # US English in the UI
+        PRESET_TOOLTIPS.get(name, f"The built-in {name.replace('_', ' ')} preset"),
+    )
     for name in PRESETS
 ] + [("CUSTOM", "Custom", "Settings edited by hand")]
 
 METAL_ITEMS = [
-    (name.upper(), name.title(), f"Measured n + ik of {name} (precompute/data/metals)")
+    (name.upper(), name.title(), f"The measured refractive index (n + ik) of {name} in visible light")
     for name in available_metals()
 ]
 
@@ -59,6 +74,12 @@ THICKNESS_SOURCE_ITEMS = [
     ("ATTRIBUTE", "Attribute", "A float mesh attribute in [0, 1] (points, corners or faces)"),
     ("NOISE", "Noise", "Procedural 3-D value noise of object-space positions"),
     ("IMAGE", "Image", "First channel of an image at the mesh's UVs"),
+    (
+        "BLENDER_NOISE",
+        "Blender Noise",
+        "Blender's own Noise Texture of object-space positions (baked with Cycles): written back to "
+        "the Principled BSDF as nodes, so Cycles renders the same variation",
+    ),
 ]
 
 SUBSTRATE_MODE_ITEMS = [
@@ -73,7 +94,7 @@ MODEL_ITEMS = [
 ]
 
 COLOUR_MODE_ITEMS = [
-    ("SPECTRAL", "Spectral", "Spectral rendering: lighting upsampled to spectra, exact colour"),
+    ("SPECTRAL", "Spectral", "Spectral rendering: lighting turned into spectra, exact color"),
     ("PER_CHANNEL", "Per Channel", "RGB channels filtered independently, like Cycles' thin film"),
 ]
 
@@ -278,17 +299,47 @@ def _enabled_update(self, context):
 
 
 # ----------------------------------------------------------------------------------------------
+# Outputs: what the Bake button found, kept in memory (never saved, never animated)
+# ----------------------------------------------------------------------------------------------
+#: Runtime outputs by (material session id, name): ``last_bake_ms``, ``last_plan``,
+#: ``last_error`` read and write here through getters and setters, so Blender stores nothing
+#: in the file, nothing can be keyed, and baking a linked material changes no library data.
+OUTPUTS: dict = caches.register("material_outputs", {}, scope=caches.FILE)
+#: Hidden from the UI's property lists, not animatable, editable on linked data.
+OUTPUT_OPTIONS = {"HIDDEN", "LIBRARY_EDITABLE"}
+
+
+def _output_getter(name: str, default):
+    def get(self):
+        return OUTPUTS.get((self.id_data.session_uid, name), default)
+
+    return get
+
+
+def _output_setter(name: str):
+    def set_(self, value):
+        OUTPUTS[(self.id_data.session_uid, name)] = value
+
+    return set_
+
+
+# ----------------------------------------------------------------------------------------------
 # Property groups
 # ----------------------------------------------------------------------------------------------
 class ThinFilmLayer(PropertyGroup):
     """One film layer: its index and thickness."""
 
     index_mode: EnumProperty(
-        name="Index", items=INDEX_MODE_ITEMS, default="CONSTANT", update=_settings_changed
+        name="Index",
+        description="How the layer's refractive index is given: a constant, Cauchy's dispersion "
+        "formula or a measured metal",
+        items=INDEX_MODE_ITEMS,
+        default="CONSTANT",
+        update=_settings_changed,
     )
     n: FloatProperty(
         name="n",
-        description="Refractive index",
+        description="Refractive index of the layer (water 1.33, glass 1.5, titanium dioxide 2.4)",
         default=1.33,
         min=0.01,
         soft_min=1.0,
@@ -307,7 +358,7 @@ class ThinFilmLayer(PropertyGroup):
     )
     cauchy_a: FloatProperty(
         name="A",
-        description="Cauchy A",
+        description="Cauchy's A: the layer's refractive index at long (red) wavelengths",
         default=1.5,
         min=0.01,
         soft_min=1.0,
@@ -317,7 +368,7 @@ class ThinFilmLayer(PropertyGroup):
     )
     cauchy_b: FloatProperty(
         name="B",
-        description="Cauchy B (µm²)",
+        description="Cauchy's B in µm²: how much the index rises toward blue (dispersion)",
         default=0.004,
         soft_min=0.0,
         soft_max=0.1,
@@ -326,17 +377,23 @@ class ThinFilmLayer(PropertyGroup):
     )
     cauchy_c: FloatProperty(
         name="C",
-        description="Cauchy C (µm⁴)",
+        description="Cauchy's C in µm⁴: a finer dispersion term, usually 0",
         default=0.0,
         soft_min=0.0,
         soft_max=0.01,
         precision=6,
         update=_settings_changed,
     )
-    metal: EnumProperty(name="Metal", items=METAL_ITEMS, update=_settings_changed)
+    metal: EnumProperty(
+        name="Metal",
+        description="The metal whose measured refractive index the layer uses",
+        items=METAL_ITEMS,
+        update=_settings_changed,
+    )
     thickness_nm: FloatProperty(
         name="Thickness",
-        description="Physical thickness of the layer in nanometres",
+        description="Thickness of the layer in nanometers: interference colors appear from about "
+        "100 to 1500 nm; thicker films fade to white",
         default=500.0,
         min=0.0,
         soft_max=2000.0,
@@ -364,19 +421,30 @@ class ThinFilmMaterialSettings(PropertyGroup):
     )
 
     # Film stack, from the ambient side down.
-    layers: CollectionProperty(type=ThinFilmLayer, name="Film Layers")
-    active_layer_index: IntProperty(name="Active Layer", default=0, min=0)
+    layers: CollectionProperty(
+        type=ThinFilmLayer,
+        name="Film Layers",
+        description="The film's layers, from the air side (top) down to the substrate",
+    )
+    active_layer_index: IntProperty(
+        name="Active Film Layer",
+        description="The film layer selected in the list",
+        default=0,
+        min=0,
+        options=set(),  # a list selection: not animatable
+    )
 
     # Top-layer thickness over the surface.
     vary_thickness: BoolProperty(
         name="Vary Thickness",
-        description="Vary the top layer's thickness over the surface between Min and Max",
+        description="Vary the top layer's thickness over the surface between the minimum and "
+        "maximum thickness",
         default=True,
         update=_settings_changed,
     )
     thickness_min_nm: FloatProperty(
-        name="Min",
-        description="Thickness at value 0 (nm)",
+        name="Minimum Thickness",
+        description="The top layer's thickness in nanometers where the thickness source is 0",
         default=0.0,
         min=0.0,
         soft_max=2000.0,
@@ -384,8 +452,8 @@ class ThinFilmMaterialSettings(PropertyGroup):
         update=_settings_changed,
     )
     thickness_max_nm: FloatProperty(
-        name="Max",
-        description="Thickness at value 1 (nm)",
+        name="Maximum Thickness",
+        description="The top layer's thickness in nanometers where the thickness source is 1",
         default=1000.0,
         min=0.0,
         soft_max=2000.0,
@@ -393,36 +461,51 @@ class ThinFilmMaterialSettings(PropertyGroup):
         update=_settings_changed,
     )
     thickness_source: EnumProperty(
-        name="Source",
+        name="Thickness Source",
         items=THICKNESS_SOURCE_ITEMS,
         default="NOISE",
-        description="Where the thickness comes from",
+        description="Where the top layer's thickness over the surface comes from",
     )
     thickness_attribute: StringProperty(
-        name="Attribute", description="Float mesh attribute with values in [0, 1]", default="thickness"
+        name="Thickness Attribute",
+        description="Name of a float mesh attribute from 0 (minimum thickness) to 1 (maximum thickness)",
+        default="thickness",
     )
     noise_scale: FloatProperty(
-        name="Scale",
-        description="Noise frequency in object space (1 / size)",
+        name="Noise Scale",
+        description="How fine the thickness noise is: higher values give smaller swirls",
         default=2.0,
         min=0.0,
         soft_max=50.0,
     )
-    noise_seed: IntProperty(name="Seed", description="Noise pattern", default=0, min=0)
+    noise_seed: IntProperty(
+        name="Noise Seed", description="Another number gives another noise pattern", default=0, min=0
+    )
     thickness_image: PointerProperty(
-        type=bpy.types.Image, name="Image", description="Thickness image (first channel, use Non-Color)"
+        type=bpy.types.Image,
+        name="Thickness Image",
+        description="Image whose first channel gives the thickness (0 minimum, 1 maximum); set its "
+        "color space to Non-Color",
     )
     thickness_uv_map: StringProperty(
-        name="UV Map", description="UV map for the image (empty: the active render UV map)", default=""
+        name="Thickness UV Map",
+        description="UV map that places the thickness image (empty: the active render UV map)",
+        default="",
     )
 
     # Substrate and ambient.
     substrate_mode: EnumProperty(
-        name="Substrate", items=SUBSTRATE_MODE_ITEMS, default="DIELECTRIC", update=_settings_changed
+        name="Substrate",
+        description="What lies under the film: a transparent material, a measured metal or a custom "
+        "complex index",
+        items=SUBSTRATE_MODE_ITEMS,
+        default="DIELECTRIC",
+        update=_settings_changed,
     )
     substrate_ior: FloatProperty(
-        name="IOR",
-        description="Substrate refractive index",
+        name="Substrate IOR",
+        description="Refractive index under the film (1.0: a free film in air such as a bubble, "
+        "1.33 water, 1.5 glass)",
         default=1.0,
         min=0.01,
         soft_min=1.0,
@@ -430,10 +513,15 @@ class ThinFilmMaterialSettings(PropertyGroup):
         precision=4,
         update=_settings_changed,
     )
-    substrate_metal: EnumProperty(name="Metal", items=METAL_ITEMS, update=_settings_changed)
+    substrate_metal: EnumProperty(
+        name="Substrate Metal",
+        description="The metal under the film, with its measured refractive index",
+        items=METAL_ITEMS,
+        update=_settings_changed,
+    )
     substrate_n: FloatProperty(
-        name="n",
-        description="Substrate refractive index",
+        name="Substrate n",
+        description="Refractive index (real part) of the substrate",
         default=1.5,
         min=0.01,
         soft_max=4.0,
@@ -441,8 +529,8 @@ class ThinFilmMaterialSettings(PropertyGroup):
         update=_settings_changed,
     )
     substrate_k: FloatProperty(
-        name="k",
-        description="Substrate extinction coefficient",
+        name="Substrate k",
+        description="Extinction coefficient of the substrate (0: transparent, metals 1 to 10)",
         default=0.0,
         min=0.0,
         soft_max=10.0,
@@ -471,12 +559,13 @@ class ThinFilmMaterialSettings(PropertyGroup):
     )
     diffuse_base: BoolProperty(
         name="Diffuse Base",
-        description="A diffuse colour under the film",
+        description="Add a diffuse color under the film, as paint or pigment under a clear coat",
         default=False,
         update=_settings_changed,
     )
     diffuse_color: FloatVectorProperty(
         name="Diffuse Color",
+        description="Color of the diffuse base under the film",
         subtype="COLOR",
         size=3,
         min=0.0,
@@ -484,19 +573,31 @@ class ThinFilmMaterialSettings(PropertyGroup):
         default=(0.05, 0.05, 0.05),
         update=_settings_changed,
     )
-    model: EnumProperty(name="Model", items=MODEL_ITEMS, default="EXACT", update=_settings_changed)
+    model: EnumProperty(
+        name="Interference Model",
+        description="How the film's interference is computed",
+        items=MODEL_ITEMS,
+        default="EXACT",
+        update=_settings_changed,
+    )
 
     # Viewing.
     world_lamps: BoolProperty(
         name="World Lamps",
         description=(
             "Shade the World's small, very bright lamps (HDRI lamps, suns) per light direction, "
-            "with the film's colour at each lamp's angle, instead of through the prefiltered "
-            "World and SH. Off: cheaper, but glossy films under lamp-lit HDRIs lose colour"
+            "with the film's color at each lamp's angle, instead of through the blurred World "
+            "lighting. Off: cheaper, but glossy films under lamp-lit HDRIs lose color"
         ),
         default=True,
     )
-    colour_mode: EnumProperty(name="Colour", items=COLOUR_MODE_ITEMS, default="SPECTRAL")
+    colour_mode: EnumProperty(
+        name="Color Mode",
+        description="How the film filters the light's color: spectrally (exact) or per RGB channel "
+        "(as Cycles renders a Principled BSDF's thin film)",
+        items=COLOUR_MODE_ITEMS,
+        default="SPECTRAL",
+    )
     illuminant: EnumProperty(
         name="Illuminant",
         items=ILLUMINANT_ITEMS,
@@ -505,29 +606,68 @@ class ThinFilmMaterialSettings(PropertyGroup):
     )
 
     # Quality (0 = auto).
-    sh_order: EnumProperty(name="SH Order", items=SH_ORDER_ITEMS, default="AUTO")
+    sh_order: EnumProperty(
+        name="SH Order",
+        description="Detail of the lighting, in spherical-harmonic bands: higher is sharper and "
+        "slower to bake. Auto picks the smallest that holds the material's reflection",
+        items=SH_ORDER_ITEMS,
+        default="AUTO",
+    )
     view_samples: IntProperty(
-        name="View Angles", description="View-angle samples (0 = auto)", default=0, min=0, max=512
+        name="View Angles",
+        description="How many viewing angles the table holds (0: chosen automatically)",
+        default=0,
+        min=0,
+        max=512,
     )
     thickness_samples: IntProperty(
         name="Thickness Samples",
-        description="Samples across the thickness range (0 = auto)",
+        description="How many thicknesses the table holds across the range (0: chosen automatically)",
         default=0,
         min=0,
         max=512,
     )
     wavelength_count: IntProperty(
         name="Wavelengths",
-        description="Wavelength samples over 360–830 nm (0 = auto)",
+        description="How many wavelengths of visible light (360–830 nm) the bake adds up (0: chosen "
+        "automatically)",
         default=0,
         min=0,
         max=8192,
     )
 
-    # Filled by the bake operator.
-    last_bake_ms: FloatProperty(name="Last Bake (ms)", default=0.0)
-    last_plan: StringProperty(name="Last Plan", default="")
-    last_error: StringProperty(name="Last Error", default="")
+    # Previewing a Principled BSDF's own thin film (when the extension's settings are off).
+    preview_principled: BoolProperty(
+        name="Preview Principled Film",
+        description="Preview the thin film of this material's Principled BSDF in the viewport when "
+        "Thin Film SH is off (Cycles renders it either way)",
+        default=True,
+        options=set(),
+    )
+
+    # Outputs of the Bake button: kept for this session only (OUTPUTS), never saved in the
+    # file nor animated, and writable on linked materials (baking changes no library data).
+    last_bake_ms: FloatProperty(
+        name="Last Bake Time (ms)",
+        description="How long the last bake of this material took, in milliseconds",
+        get=_output_getter("last_bake_ms", 0.0),
+        set=_output_setter("last_bake_ms"),
+        options=OUTPUT_OPTIONS,
+    )
+    last_plan: StringProperty(
+        name="Last Bake Plan",
+        description="What the last bake of this material chose (SH order, angles, wavelengths)",
+        get=_output_getter("last_plan", ""),
+        set=_output_setter("last_plan"),
+        options=OUTPUT_OPTIONS,
+    )
+    last_error: StringProperty(
+        name="Last Bake Error",
+        description="Why the last bake of this material failed (empty when it succeeded)",
+        get=_output_getter("last_error", ""),
+        set=_output_setter("last_error"),
+        options=OUTPUT_OPTIONS,
+    )
 
 
 classes = (ThinFilmLayer, ThinFilmMaterialSettings)

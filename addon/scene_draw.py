@@ -39,10 +39,11 @@ from ..precompute import cli_support, film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, panorama, tables, world, world_key
+from . import caches, description, linked, panorama, tables, world, world_key
 from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
+from .principled import linked_thickness_socket
 from .thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
 log = logging.getLogger(__name__)
@@ -170,11 +171,14 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     for update in depsgraph.updates:
         data = update.id
         if isinstance(data, bpy.types.Object) and update.is_updated_geometry:
-            CACHES.dirty.add(data.original.name if hasattr(data, "original") else data.name)
+            name = data.original.name if hasattr(data, "original") else data.name
+            CACHES.dirty.add(name)
+            linked.mark_geometry(name)
         elif isinstance(data, bpy.types.Mesh) and update.is_updated_geometry:
             for obj in scene.objects:
                 if obj.data is not None and obj.data.name == data.name:
                     CACHES.dirty.add(obj.name)
+                    linked.mark_geometry(obj.name)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -344,11 +348,45 @@ def table_texture(desc_key: str, result) -> resources.TableTexture:
     return found
 
 
-def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) -> BatchEntry:
+def _batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
+    """(per-corner thickness parameter or None, notes, whether a bake is awaited) of a batch:
+    from the extension's source (``props``; BLENDER_NOISE: :func:`.linked.noise_parameters`),
+    or from the link into a Principled BSDF's Thin Film Thickness
+    (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`)."""
+    notes = []
+    if not desc.varies:
+        return None, notes, False
+    try:
+        if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
+            thickness, nan_count = linked.noise_parameters(obj_eval, mesh, props.id_data)
+        elif props is not None and props.enabled:
+            thickness, nan_count = thickness_field(obj_eval, mesh, props)
+        elif linked_source is not None:
+            thickness, nan_count = linked.corner_parameters(
+                obj_eval, mesh, *linked_source, desc.thickness_range_nm
+            )
+        else:
+            return None, notes, False
+    except linked.Pending as exc:  # built again on the next frame, after the timer's bake
+        notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
+        return None, notes, True
+    except ValueError as exc:
+        notes.append(f"{name}: {exc}; using the middle of the thickness range")
+        return None, notes, False
+    if nan_count:
+        notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
+    return thickness, notes, False
+
+
+def _slot_batch(
+    name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None
+) -> BatchEntry:
     """The batch of the triangles of material slot ``slot`` (None if it has none).
 
     ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
-    material is not refreshed when an add-on property changes), or None; ``name``: the object's.
+    material is not refreshed when an add-on property changes), or None; ``name``: the object's;
+    ``linked_source``: (material, Thin Film Thickness socket) of a Principled BSDF whose
+    thickness is linked, or None.
     """
     arrays = mesh_arrays(mesh)
     if arrays is None:
@@ -364,16 +402,7 @@ def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) ->
         triangles = triangles[poly_mat[tri_poly] == slot]
     if triangles.shape[0] == 0:
         return BatchEntry(signature, None)
-    thickness = None
-    notes = []
-    if desc.varies and props is not None and props.enabled:
-        try:
-            thickness, nan_count = thickness_field(obj_eval, mesh, props)
-        except ValueError as exc:
-            notes.append(f"{name}: {exc}; using the middle of the thickness range")
-        else:
-            if nan_count:
-                notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
+    thickness, notes, waiting = _batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
     if desc.varies and thickness is None:
         thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
     if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
@@ -382,6 +411,8 @@ def _slot_batch(name: str, obj_eval, mesh, slot: int, props, desc, signature) ->
         )
     CACHES.stats["batch_builds"] += 1
     batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    if waiting:
+        signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))
 
 
@@ -398,6 +429,7 @@ class _MaterialEntry:
     film: resources.FilmTexture | None = None
     props: object = None  # the original material's thinfilm_sh settings when enabled, else None
     thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
+    linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
 
@@ -441,6 +473,19 @@ def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, mes
         policy.sh_weight(roughness),
         fallback=True,
     )
+
+
+def _thickness_source(bpy_material, props, desc):
+    """(the batches' thickness key, (material, socket) of a linked Principled thickness or None):
+    the extension's source settings, or the linked graph's content (an edit rebuilds batches)."""
+    if not desc.varies:
+        return None, None
+    if props is not None:
+        return thickness_inputs(props), None
+    socket = linked_thickness_socket(bpy_material)
+    if socket is None:
+        return None, None
+    return ("LINKED", linked.tree_key(socket), desc.thickness_range_nm), (bpy_material, socket)
 
 
 def _material_entry(
@@ -495,6 +540,7 @@ def _material_entry(
     lamps = uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
     props = getattr(bpy_material, "thinfilm_sh", None)
     props = props if props is not None and props.enabled else None
+    thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
     return _MaterialEntry(
         desc,
         key,
@@ -504,7 +550,8 @@ def _material_entry(
         policy.sh_weight(roughness),
         film_texture(key, result) if lamps or lights else None,
         props,
-        thickness_inputs(props) if props is not None and desc.varies else None,
+        thickness_key,
+        linked_source,
         lamps=lamps,
     )
 
@@ -583,7 +630,14 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             if cached is None or cached.signature != signature or original.name in CACHES.dirty:
                 CACHES.make_room(batches=len(used | {key}))
                 cached = _slot_batch(
-                    original.name, obj_eval, mesh, slot_index, entry.props, entry.desc, signature
+                    original.name,
+                    obj_eval,
+                    mesh,
+                    slot_index,
+                    entry.props,
+                    entry.desc,
+                    signature,
+                    entry.linked_source,
                 )
                 CACHES.batches[key] = cached
                 seen.add(original.name)

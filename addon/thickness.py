@@ -185,7 +185,7 @@ def thickness_inputs(props):
     source = props.thickness_source
     if source == "ATTRIBUTE":
         return source, props.thickness_attribute
-    if source == "NOISE":
+    if source in {"NOISE", "BLENDER_NOISE"}:
         return source, float(props.noise_scale), int(props.noise_seed)
     if source == "IMAGE":
         return source, props.thickness_uv_map, image_stamp(props.thickness_image)
@@ -251,6 +251,8 @@ def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
         values = per_vertex[_corner_vertices(mesh)]
     elif source == "IMAGE":
         values = _image_values(obj, mesh, props.thickness_image, props.thickness_uv_map)
+    elif source == "BLENDER_NOISE":  # a Cycles bake: .linked.noise_parameters, on the main thread
+        raise ValueError(f"{where}: thickness source BLENDER_NOISE is evaluated by linked.noise_parameters")
     else:
         raise ValueError(f"unknown thickness source {source!r}")
     values = np.asarray(values, dtype=np.float64)

@@ -3,13 +3,35 @@
 import time
 
 import bpy
-from bpy.types import Panel, UIList
+from bpy.types import Menu, Panel, UIList
 
 from ..precompute import effects
 from ..precompute.material import AUTO
-from . import caches, scene_draw, tables
-from .description import description, description_key, warnings
+from . import caches, linked, scene_draw, tables, viewport
+from .description import description as _description_now
+from .description import description_key
+from .description import warnings as _warnings_now
 from .principled import principled_node
+
+
+def _deferred(function, mat):
+    """``function(mat)`` as a panel may call it: a linked thickness that needs a Cycles bake is
+    queued for the viewport's timer (:func:`.linked.deferring`), never baked inside a draw."""
+    with linked.deferring():
+        result = function(mat)
+    if linked.has_pending():
+        viewport.schedule()
+    return result
+
+
+def description(mat):
+    """:func:`.description.description` for panels (bakes deferred, :func:`_deferred`)."""
+    return _deferred(_description_now, mat)
+
+
+def warnings(mat):
+    """:func:`.description.warnings` for panels (bakes deferred, :func:`_deferred`)."""
+    return _deferred(_warnings_now, mat)
 
 
 def _settings(context):
@@ -32,6 +54,15 @@ class THINFILM_UL_layers(UIList):
         row.prop(item, "thickness_nm", text="nm", emboss=False)
 
 
+class THINFILM_MT_presets(Menu):
+    """The user's thin film presets (Blender's preset system: ``scripts/presets/thinfilm_sh/material``)."""
+
+    bl_label = "My Presets"
+    preset_subdir = "thinfilm_sh/material"
+    preset_operator = "script.execute_preset"
+    draw = Menu.draw_preset
+
+
 class _MaterialPanel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
@@ -43,9 +74,12 @@ class _MaterialPanel:
 
 
 class THINFILM_PT_material(_MaterialPanel, Panel):
-    """Material Properties › Thin Film SH: the switch, the preset and any error."""
+    """Material Properties › Thin Film SH: the switch, the preset and presets menu, any error."""
 
     bl_label = "Thin Film SH"
+    #: After Blender's Surface, Volume, Displacement and Settings panels (order 0), before Line
+    #: Art and Viewport Display (10), Animation (999) and Custom Properties (1000).
+    bl_order = 5
 
     def draw_header(self, context):
         self.layout.prop(_settings(context)[1], "enabled", text="")
@@ -58,6 +92,11 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
         layout.active = settings.enabled
         row = layout.row(align=True)
         row.prop(settings, "preset")
+        row = layout.row(align=True)  # the user's own presets, beside the built-in ones
+        row.enabled = mat.is_editable
+        row.menu("THINFILM_MT_presets", text=THINFILM_MT_presets.bl_label)
+        row.operator("thinfilm.preset_add", text="", icon="ADD")
+        row.operator("thinfilm.preset_add", text="", icon="REMOVE").remove_active = True
         errors = material_errors(mat)
         if errors:
             box = layout.box()
@@ -164,7 +203,7 @@ class THINFILM_PT_thickness(_SubPanel, Panel):
                 layout.prop_search(settings, "thickness_attribute", mesh, "attributes", text="Attribute 0–1")
             else:
                 layout.prop(settings, "thickness_attribute", text="Attribute 0–1")
-        elif settings.thickness_source == "NOISE":
+        elif settings.thickness_source in {"NOISE", "BLENDER_NOISE"}:
             layout.prop(settings, "noise_scale")
             layout.prop(settings, "noise_seed")
         else:
@@ -264,6 +303,10 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
         layout = self.layout
         node = principled_node(mat)
         if not settings.enabled:
+            layout.prop(settings, "preview_principled")
+            if not settings.preview_principled:
+                layout.label(text="The Principled film is not previewed: Cycles still renders it")
+        if not settings.enabled and settings.preview_principled:
             try:
                 desc = description(mat)
             except ValueError as exc:
@@ -277,7 +320,7 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
                 layout.label(text="No Principled BSDF")
             else:
                 layout.label(text="Principled Thin Film Thickness is 0: not previewed")
-        else:
+        elif settings.enabled:
             layout.label(text="Cycles renders the Principled BSDF's single film")
         row = layout.row()
         row.enabled = settings.enabled
@@ -411,6 +454,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
 
 
 classes = (
+    THINFILM_MT_presets,
     THINFILM_UL_layers,
     THINFILM_PT_material,
     THINFILM_PT_film,

@@ -2,7 +2,9 @@
 
 Drawing never bakes or renders: a material whose table is missing, or a World that changed, is
 queued and handled by a timer outside the draw callback (a bake runs on a worker thread; the
-World update may render a small Cycles panorama for procedural worlds). Works in Solid and
+World update may render a small Cycles panorama for procedural worlds; a Principled BSDF's
+linked Thin Film Thickness that needs a Cycles bake, :mod:`.linked`, is baked by the timer on
+the main thread, where Blender's bakes must run). Works in Solid and
 Material Preview shading; the viewport's depth buffer masks the objects against the scene.
 
 A bake that fails is remembered with its error by description key (:func:`.tables.failure`)
@@ -10,6 +12,15 @@ and not queued again until the material's description changes (or Clear Cache, o
 successful Bake button): one failing bake per change, not one per redraw. The error is in the
 material panel's error line and, with every other message of the last frame, in the 3D
 viewport's header (:func:`draw_header`).
+
+The overlay can be switched off (:func:`shown_in`): everywhere by the *Show Thin Film Overlay*
+preference, or in one 3D viewport by the *Thin Film SH* toggle in its Overlays popover
+(:data:`HIDDEN_IN`, :func:`draw_overlay_toggle`). Switched off, the draw callback returns
+before collecting anything: nothing is drawn, queued or baked for that viewport.
+
+Background work is visible: while bakes run or the World is analysed, the header says so with
+the bakes' progress (:func:`activity`), and ``viewport.cancel_bakes`` stops them at their next
+progress checkpoint.
 """
 
 from __future__ import annotations
@@ -19,7 +30,7 @@ import threading
 
 import bpy
 
-from . import caches, scene_draw, tables
+from . import caches, linked, prefs, scene_draw, tables
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -33,6 +44,55 @@ _world_stale = False
 _lock = threading.Lock()
 #: The messages of the last frame drawn (scene_draw.collect's), shown in the viewport header.
 _messages: list[str] = []
+#: 3D viewports (``SpaceView3D.as_pointer()``) whose overlay is switched off (see :mod:`.caches`).
+HIDDEN_IN: set = caches.register("hidden_viewports", set(), scope=caches.FILE)
+#: Progress (0–1) of each running viewport bake, by description key.
+_progress: dict[str, float] = {}
+#: Set to stop every running viewport bake at its next progress checkpoint.
+_cancel = threading.Event()
+
+
+class BakesCancelled(Exception):
+    """Raised inside a viewport bake's progress callback once :func:`cancel_bakes` was called."""
+
+
+def shown_in(space) -> bool:
+    """Whether the overlay is drawn in the 3D viewport ``space``: the preference is on and the
+    viewport's own toggle is not off."""
+    return prefs.overlay_enabled() and space.as_pointer() not in HIDDEN_IN
+
+
+def set_shown_in(space, shown: bool) -> None:
+    """Switch the overlay on or off in one 3D viewport."""
+    if shown:
+        HIDDEN_IN.discard(space.as_pointer())
+    else:
+        HIDDEN_IN.add(space.as_pointer())
+
+
+def activity() -> str:
+    """What runs in the background, for the header: "" when nothing does."""
+    parts = []
+    with _lock:
+        running = dict(_progress)
+    if running:
+        done = sum(running.values()) / len(running)
+        parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
+    if _world_stale:
+        parts.append("analyzing the World")
+    return ", ".join(parts)
+
+
+def cancel_bakes() -> int:
+    """Stop the running viewport bakes at their next progress checkpoint (≤ one step of the
+    bake, :mod:`precompute.progress`); returns how many were running. Nothing half-made is
+    cached, and a cancelled bake is not remembered as failed: the next draw queues it again
+    unless the overlay is switched off."""
+    with _lock:
+        count = len(_running)
+    if count:
+        _cancel.set()
+    return count
 
 
 def _tag_redraw() -> None:
@@ -53,14 +113,24 @@ def _want_bake(desc) -> None:
 
 
 def _bake_worker(key: str, desc, cache) -> None:
+    def report(fraction, text):
+        if _cancel.is_set():
+            raise BakesCancelled
+        _progress[key] = float(fraction)
+
     try:
-        tables.get_table(desc, cache)
+        tables.get_table(desc, cache, report)
+    except BakesCancelled:
+        pass
     except Exception as exc:  # reported, never raised into Blender's timer
         text = tables.record_failure(desc, exc)  # before leaving _running: the draw must not re-queue
         log.error("Thin Film SH: bake failed: %s", text)
     finally:
         with _lock:
             _running.discard(key)
+            _progress.pop(key, None)
+            if not _running:
+                _cancel.clear()
 
 
 def _service() -> float | None:
@@ -73,13 +143,17 @@ def _service() -> float | None:
     cache = tables.open_cache() if jobs else None  # here: it reads the preferences
     for key, desc in jobs:
         threading.Thread(target=_bake_worker, args=(key, desc, cache), daemon=True).start()
+    baked = linked.has_pending()
+    if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw
+        for error in linked.run_pending():
+            log.error("Thin Film SH: linked thickness: %s", error)
     if _world_stale and bpy.context.scene is not None:
         _world_stale = False
         try:
             scene_draw.world_lighting(bpy.context.scene, allow_compute=True)
         except Exception as exc:
             log.error("Thin Film SH: World lighting failed: %s", exc)
-    if jobs or _running:
+    if jobs or _running or baked:
         _tag_redraw()
     return 0.1 if (_running or _pending) else None
 
@@ -89,12 +163,20 @@ def _schedule() -> None:
         bpy.app.timers.register(_service, first_interval=0.0)
 
 
+def schedule() -> None:
+    """Start the timer that runs queued work (a panel queued a linked thickness's bake)."""
+    _schedule()
+
+
 def draw_callback() -> None:
-    """POST_VIEW draw handler: draw the film of every visible material in this 3D view."""
+    """POST_VIEW draw handler: draw the film of every visible material in this 3D view, unless
+    the overlay is switched off there (:func:`shown_in`)."""
     global _world_stale
     context = bpy.context
     space = context.space_data
     if space is None or space.type != "VIEW_3D" or space.shading.type not in SHADING_TYPES:
+        return
+    if not shown_in(space):
         return
     rv3d = context.region_data
     depsgraph = context.evaluated_depsgraph_get()
@@ -103,11 +185,14 @@ def draw_callback() -> None:
             _world_stale = True
             _schedule()
             return
-        items, messages = scene_draw.collect(
-            depsgraph, allow_bake=False, allow_world=False, want_bake=_want_bake
-        )
+        with linked.deferring():  # a linked thickness that needs a bake is queued for the timer
+            items, messages = scene_draw.collect(
+                depsgraph, allow_bake=False, allow_world=False, want_bake=_want_bake
+            )
+        if linked.has_pending():
+            messages.append("a linked Thin Film Thickness is being baked with Cycles")
         _messages[:] = messages
-        if _pending:
+        if _pending or linked.has_pending():
             _schedule()
         exposure = float(depsgraph.scene.view_settings.exposure)
         draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
@@ -116,12 +201,35 @@ def draw_callback() -> None:
 
 
 def draw_header(self, context) -> None:
-    """In the 3D viewport's header: the last frame's first message (a failed bake, a table the
-    disk cache could not keep, NaN thickness values, …) and how many more there are."""
+    """In the 3D viewport's header: what runs in the background (bakes with their progress, the
+    World's analysis), then the last frame's first message (a failed bake, a table the disk
+    cache could not keep, NaN thickness values, …) and how many more there are."""
+    busy = activity()
+    if busy:
+        row = self.layout.row(align=True)
+        row.label(text=f"Thin Film SH: {busy}", icon="TIME")
+        row.operator("thinfilm.cancel_bakes", text="", icon="CANCEL")
     if not _messages:
         return
     more = f" (+{len(_messages) - 1} more)" if len(_messages) > 1 else ""
     self.layout.label(text=f"Thin Film SH: {_messages[0]}{more}", icon="ERROR")
+
+
+def draw_overlay_toggle(self, context) -> None:
+    """In the 3D viewport's Overlays popover: this viewport's Thin Film SH switch."""
+    space = context.space_data
+    if space is None or space.type != "VIEW_3D":
+        return
+    layout = self.layout
+    row = layout.row()
+    row.active = prefs.overlay_enabled()
+    shown = space.as_pointer() not in HIDDEN_IN
+    row.operator(
+        "thinfilm.toggle_overlay",
+        text="Thin Film SH",
+        icon="CHECKBOX_HLT" if shown else "CHECKBOX_DEHLT",
+        depress=shown,
+    )
 
 
 @bpy.app.handlers.persistent
@@ -142,6 +250,8 @@ def register() -> None:
         _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
     bpy.types.VIEW3D_HT_header.remove(draw_header)  # once, however often register() runs
     bpy.types.VIEW3D_HT_header.append(draw_header)
+    bpy.types.VIEW3D_PT_overlay.remove(draw_overlay_toggle)
+    bpy.types.VIEW3D_PT_overlay.append(draw_overlay_toggle)
     for handlers, fn in (
         (bpy.app.handlers.load_post, _on_load),
         (bpy.app.handlers.depsgraph_update_post, _on_depsgraph),
@@ -157,6 +267,7 @@ def unregister() -> None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
         _handle = None
     bpy.types.VIEW3D_HT_header.remove(draw_header)
+    bpy.types.VIEW3D_PT_overlay.remove(draw_overlay_toggle)
     _messages.clear()
     for handlers, fn in (
         (bpy.app.handlers.load_post, _on_load),

@@ -82,8 +82,8 @@ class WorldSH:
         RGB radiance coefficients in world space (Blender axes, z up), scene linear in
         ``working_space``. Coefficient 0 is √(4π) × the mean radiance.
     source : str
-        How they were obtained, e.g. "environment texture 'studio.exr'", "background colour",
-        "panorama render (Sky Texture)", "viewport colour".
+        How they were obtained, e.g. "environment texture 'studio.exr'", "background color",
+        "panorama render (Sky Texture)", "viewport color".
     key : str
         :func:`.world_key.world_key` of the inputs (16 hex digits).
     rejected_pixels : int
@@ -130,8 +130,8 @@ def fallback_colour(world) -> tuple[tuple, str]:
     :data:`FALLBACK_RADIANCE` grey (never black: the film stays visible)."""
     colour = tuple(world.color)[:3] if world is not None else None
     if colour is not None and _usable(colour) and min(colour) >= 0.0 and max(colour) > 0.0:
-        return colour, "the World's viewport colour"
-    return (FALLBACK_RADIANCE,) * 3, f"grey {FALLBACK_RADIANCE:g} (Blender's default World colour)"
+        return colour, "the World's viewport color"
+    return (FALLBACK_RADIANCE,) * 3, f"grey {FALLBACK_RADIANCE:g} (Blender's default World color)"
 
 
 def _bad_values(world, limit: int = 3) -> list[str]:
@@ -176,7 +176,7 @@ def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
     """Linear RGB → RGB matrix between two working spaces, or None if it cannot be built here."""
     if source == target:
         return np.eye(3)
-    try:  # colour-science is only needed for non-Rec.709 working spaces
+    try:  # a failed import of the spectral code must not break the World's SH
         from ..precompute import spectra
     except ImportError:
         return None
@@ -336,10 +336,10 @@ def _image_pixels(image, space: str):
     elif name in _LINEAR_SPACES:
         decode, primaries = None, name
     else:
-        raise _Fallback(f"image colour space '{name}'")
+        raise _Fallback(f"image color space '{name}'")
     matrix = _rgb_matrix(primaries, space)
     if matrix is None:
-        raise _Fallback(f"image colour space '{name}' in working space '{space}'")
+        raise _Fallback(f"image color space '{name}' in working space '{space}'")
     if decode is None and primaries == space:
         return rgb, None
 
@@ -416,7 +416,7 @@ def _constant(l_max: int, rgb) -> np.ndarray:
 
 def _viewport_colour(world, l_max: int, reason: str) -> tuple:
     colour = tuple(world.color) if world is not None else (0.0, 0.0, 0.0)
-    source = "viewport colour" if world is not None else "no world (black)"
+    source = "viewport color" if world is not None else "no world (black)"
     return _constant(l_max, colour), source, 0, [reason]
 
 
@@ -433,7 +433,7 @@ def _environment(world, bg, env, l_max: int, space: str):
     image = env.image
     if image is None:
         return _viewport_colour(
-            world, l_max, "Environment Texture has no image: using the World's viewport colour"
+            world, l_max, "Environment Texture has no image: using the World's viewport color"
         )
     if image.source not in {"FILE", "GENERATED"}:
         raise _Fallback(f"image source {image.source}")
@@ -444,7 +444,7 @@ def _environment(world, bg, env, l_max: int, space: str):
             return _viewport_colour(
                 world,
                 l_max,
-                f"Environment image '{label}' not found ({path}): using the World's viewport colour",
+                f"Environment image '{label}' not found ({path}): using the World's viewport color",
             )
     try:
         rgb, convert = _image_pixels(image, space)
@@ -452,7 +452,7 @@ def _environment(world, bg, env, l_max: int, space: str):
         return _viewport_colour(
             world,
             l_max,
-            f"Environment image '{label}' could not be read ({exc}): using the World's viewport colour",
+            f"Environment image '{label}' could not be read ({exc}): using the World's viewport color",
         )
     coeffs, rejected = _project_image(rgb, l_max, convert)
     if parity < 0:
@@ -474,7 +474,7 @@ def _panorama(world, l_max: int, reason: str):
         rgb = render_world_panorama(world)
     except (RuntimeError, OSError) as exc:
         colour, source, _, _ = _viewport_colour(world, l_max, "")
-        return colour, source, 0, [f"Could not render the World ({exc}): using its viewport colour"]
+        return colour, source, 0, [f"Could not render the World ({exc}): using its viewport color"]
     coeffs, rejected = _project_image(rgb, l_max)
     if rejected:
         warnings.append(f"World panorama: {rejected} NaN/Inf pixels left out")
@@ -486,7 +486,7 @@ def _compute(scene, l_max: int, space: str):
     if world is None:
         return _viewport_colour(None, l_max, "Scene has no World: black")
     if not world_uses_nodes(world):
-        return _viewport_colour(world, l_max, "World has no nodes: using its viewport colour")
+        return _viewport_colour(world, l_max, "World has no nodes: using its viewport color")
     tree = world.node_tree
     output = _active_world_output(tree)
     if output is None or output.mute:
@@ -513,7 +513,7 @@ def _compute(scene, l_max: int, space: str):
             if bg.inputs["Strength"].is_linked:
                 raise _Fallback("a linked Strength")
             rgb = np.array(tuple(bg.inputs["Color"].default_value)[:3]) * bg.inputs["Strength"].default_value
-            return _constant(l_max, rgb), "background colour", 0, []
+            return _constant(l_max, rgb), "background color", 0, []
         env, out = colour
         if env.bl_idname != "ShaderNodeTexEnvironment" or out.identifier != "Color":
             raise _Fallback(env.bl_rna.name)

@@ -1,6 +1,6 @@
 """Thin Film SH precompute core.
 
-Pure numpy + colour-science: spectral thin-film optics, microfacet BRDFs, spherical
+Pure numpy (published colour tables shipped as data): spectral thin-film optics, microfacet BRDFs, spherical
 harmonics and table baking. This package never imports ``bpy``; it runs standalone
 (``python -m precompute``) and inside Blender alike.
 

@@ -34,8 +34,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import brdf, composite, constants, sh, spectra, table_io
+from .chunks import (
+    CONTRACT_CHUNK,
+    ELEMENT_CHUNK,
+    chunked_sweep,
+    kernel_blocks,
+    row_blocks,
+    sweep_checkpoints,
+)
 from .material import AUTO, MAX_SH_ORDER, Material
-from .optics import reflectance, reflectance_sweep
+from .optics import reflectance
+from .progress import Phases, checkpoint
 
 #: R(u) is interpolated by piecewise Chebyshev polynomials on intervals graded geometrically
 #: toward u = 0: near grazing both interfaces reflect almost fully and the film becomes a
@@ -54,6 +63,8 @@ U_TEST_MIN = U_EDGES[1]
 N_THETA = 96
 N_PHI = 48
 FORMAT_KIND = "sh_table"
+#: The bake's phases and their shares of the progress bar (≈ their share of a cold bake's time).
+PHASES = {"planning": 0.10, "reflectance": 0.15, "kernel": 0.60, "contracting": 0.15}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -160,7 +171,13 @@ def microfacet_kernel(
     out = []
     for cos_o in view_cosines(view_samples):
         u, ty = transfer_samples(float(cos_o), alpha, l_max, n_theta, n_phi)
-        out.append(ty.T @ u_interpolation_matrix(u_degree, u))
+        checkpoint()  # progress and cancellation points: ≤ KERNEL_CHUNK multiply-adds apart
+        interp = u_interpolation_matrix(u_degree, u)
+        row = np.empty((ty.shape[1], interp.shape[1]))
+        for cols in kernel_blocks(ty.shape[0], ty.shape[1], interp.shape[1]):
+            row[:, cols] = ty.T @ interp[:, cols]
+            checkpoint()
+        out.append(row)
     kernel = np.array(out)
     kernel.setflags(write=False)
     return kernel
@@ -334,7 +351,7 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
         nodes = u_nodes(candidate)
         test = u_nodes(candidate + 1)
         test = test[test >= U_TEST_MIN]
-        both = reflectance_sweep(indices, probe, wavelengths_nm, np.concatenate([nodes, test]), method=method)
+        both = chunked_sweep(indices, probe, wavelengths_nm, np.concatenate([nodes, test]), method)
         at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
         interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
         err = float(np.max(np.abs(interp - exact))) / max(float(exact.max()), 1e-6)
@@ -344,7 +361,7 @@ def choose_u_degree(indices, thickness_sets, wavelengths_nm, method: str):
     return (
         degree,
         err,
-        reflectance_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method=method),
+        chunked_sweep(indices, thickness_sets, wavelengths_nm, u_nodes(degree), method),
     )
 
 
@@ -497,7 +514,11 @@ def apply_multiscatter(data: np.ndarray, material: Material, cos_o: np.ndarray) 
         scale = np.stack([brdf.multiscatter_scale(cos_o, material.roughness, f) for f in f_avg])  # (T, A, 3)
     if scale.ndim == 2:
         scale = np.broadcast_to(scale[None], (data.shape[0],) + scale.shape)
-    return data * scale[:, :, None, :, None]
+    out = np.empty(np.broadcast_shapes(data.shape, scale[:, :, None, :, None].shape))
+    for rows in row_blocks(data.shape[0], data[0].size, ELEMENT_CHUNK):
+        np.multiply(data[rows], scale[rows, :, None, :, None], out=out[rows])
+        checkpoint()
+    return out
 
 
 def base_spectrum(material: Material, wavelengths_nm: np.ndarray) -> np.ndarray:
@@ -569,46 +590,94 @@ def table_key(material: Material) -> str:
     return table_io.content_key({"material": table_material(material).to_dict(), "planner": PLANNER_VERSION})
 
 
+def contract(kernel: np.ndarray, r_nodes: np.ndarray, g: np.ndarray, colour_mode: str) -> np.ndarray:
+    """The table (T, A, K, 3, 3): M[t, a, i] = Σ_k K[a, i, k] clamp(Σ_λ R[t, k, λ] G[λ]).
+
+    In blocks of thickness rows of ≤ :data:`CONTRACT_CHUNK` multiply-adds, a progress
+    :func:`checkpoint` after each; every row is contracted on its own, so the blocks change
+    nothing but the checkpoints.
+    """
+    a, k, u = kernel.shape
+    flat = kernel.reshape(a * k, u)
+    g2 = g.reshape(g.shape[0], -1)
+    t = r_nodes.shape[0]
+    rows = max(1, CONTRACT_CHUNK // (9 * u * (a * k + g2.shape[0])))
+    out = np.empty((t, a, k, 3, 3))
+    for lo in range(0, t, rows):
+        rg = clamp_film_rgb(r_nodes[lo : lo + rows] @ g2, colour_mode)  # (t', U, 9)
+        n = rg.shape[0]
+        rg = rg.transpose(1, 0, 2).reshape(u, -1)  # (U, t'·9)
+        out[lo : lo + n] = (flat @ rg).reshape(a, k, n, 3, 3).transpose(2, 0, 1, 3, 4)
+        checkpoint()
+    return out
+
+
 def bake(material: Material, progress=None) -> BakeResult:
     """Fast factorised bake of ``material`` (see the module docstring). ``progress(fraction, text)``.
 
-    The result's ``material`` is :func:`table_material` of ``material`` (what the table depends
-    on), so equal keys give equal tables and equal header attributes.
+    ``progress`` is called at every step of ≲ 0.1 s (:mod:`.progress`: the fraction moves by
+    ≤ 5 % per call and reaches 1.0 at the end); an exception it raises stops the bake there
+    and propagates (nothing half-made is cached). The result's ``material`` is
+    :func:`table_material` of ``material`` (what the table depends on), so equal keys give
+    equal tables and equal header attributes.
     """
     t0 = time.perf_counter()
-    report = progress or (lambda fraction, text: None)
-    material = table_material(material)
-    p = plan(material)
-    wl, g = spectral_quadrature(
-        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
-    )
-    indices, sets, axis = active_stack(material, p.thickness_samples)
-    method = _method(material)
-    report(0.05, "choosing reflectance nodes")
-    t1 = time.perf_counter()
-    if sets.shape[1] == 0:
-        u_count, u_err = U_DEGREE_LADDER[0], 0.0
-        r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
-    else:
-        u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
-    t2 = time.perf_counter()
-    report(0.3, "microfacet kernel")
-    kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
-    t3 = time.perf_counter()
-    report(0.8, "contracting")
-    rg = clamp_film_rgb(r_nodes @ g.reshape(g.shape[0], -1), material.colour_mode)  # (T, U, 9)
-    rg = rg.transpose(1, 0, 2).reshape(kernel.shape[2], -1)  # (U, T·9)
-    a, k, u = kernel.shape
-    data = (kernel.reshape(a * k, u) @ rg).reshape(a, k, r_nodes.shape[0], 3, 3).transpose(2, 0, 1, 3, 4)
-    data = apply_multiscatter(data, material, view_cosines(p.view_samples))
-    if material.base_color is not None:
-        data = data + _diffuse_term(
-            material, p.sh_order, view_cosines(p.view_samples), r_nodes, u_count, g, wl
+    phases = Phases(progress or (lambda fraction, text: None), PHASES)
+    with phases.reporting():
+        material = table_material(material)
+        auto_order = material.quality.sh_order == AUTO
+        phases.start("planning", "planning", expected=21 if auto_order else 1)
+        p = plan(material)
+        wl, g = spectral_quadrature(
+            p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
         )
-    if material.colour_mode == "per_channel":
-        data = np.einsum("taikk->taik", data)
-    t4 = time.perf_counter()
-    report(1.0, "done")
+        indices, sets, axis = active_stack(material, p.thickness_samples)
+        method = _method(material)
+        guess = U_DEGREE_LADDER[1] * (len(U_EDGES) - 1)
+        phases.start(
+            "reflectance",
+            "choosing reflectance nodes",
+            expected=2 + sweep_checkpoints(sets.shape[0], sets.shape[1], guess, wl.size),
+        )
+        t1 = time.perf_counter()
+        if sets.shape[1] == 0:
+            u_count, u_err = U_DEGREE_LADDER[0], 0.0
+            r_nodes = reflectance(indices, [], wl, u_nodes(u_count))[None]
+        else:
+            u_count, u_err, r_nodes = choose_u_degree(indices, sets, wl, method)
+        t2 = time.perf_counter()
+        blocks = len(
+            kernel_blocks(N_THETA * N_PHI, len(coefficient_indices(p.sh_order)), u_count * (len(U_EDGES) - 1))
+        )
+        phases.start("kernel", "microfacet kernel", expected=(1 + blocks) * p.view_samples)
+        kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
+        t3 = time.perf_counter()
+        a, k, u = kernel.shape
+        t = r_nodes.shape[0]
+        diffuse_blocks = (
+            row_blocks(t, 9 * a * (p.sh_order + 1) * wl.size) if material.base_color is not None else []
+        )
+        phases.start(
+            "contracting",
+            "contracting",
+            expected=len(row_blocks(t, 9 * u * (a * k + g.shape[0])))
+            + (
+                a + 34 + len(row_blocks(t, a * k * 9, ELEMENT_CHUNK))
+                if material.multiscatter != "none"
+                else 0
+            )
+            + len(diffuse_blocks),
+        )
+        data = contract(kernel, r_nodes, g, material.colour_mode)
+        data = apply_multiscatter(data, material, view_cosines(p.view_samples))
+        cos_o = view_cosines(p.view_samples)
+        for rows in diffuse_blocks:
+            data[rows] += _diffuse_term(material, p.sh_order, cos_o, r_nodes[rows], u_count, g, wl)
+            checkpoint()
+        if material.colour_mode == "per_channel":
+            data = np.einsum("taikk->taik", data)
+        t4 = time.perf_counter()
+        phases.done()
     reasons = dict(
         p.reasons,
         u_nodes=f"{u_count} Chebyshev nodes in each of {len(U_EDGES) - 1} graded intervals: "

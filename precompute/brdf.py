@@ -23,6 +23,7 @@ import numpy as np
 
 from . import _checks, constants
 from .optics.fresnel import fresnel_dielectric
+from .progress import checkpoint
 
 
 def alpha_from_roughness(roughness) -> np.ndarray:
@@ -162,6 +163,7 @@ def directional_albedo(
     alpha = float(alpha_from_roughness(roughness))
     cos_o = np.clip(np.atleast_1d(np.asarray(cos_o, dtype=float)), constants.MIN_COS, 1.0)
     h, wgt = ggx_importance_grid(alpha, n_theta, n_phi)
+    checkpoint()
     out = []
     for co in cos_o:
         wo = np.array([np.sqrt(max(0.0, 1.0 - co * co)), 0.0, co])
@@ -172,6 +174,7 @@ def directional_albedo(
         scalar = np.where(ok, g2 * u / (co * h[:, 2]), 0.0) * wgt
         r = film_reflectance(np.clip(u, 0.0, 1.0))
         out.append(scalar @ r)
+        checkpoint()  # one view cosine (a bake's progress and cancellation point)
     return np.array(out)
 
 

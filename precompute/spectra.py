@@ -3,8 +3,9 @@
 Everything here follows ``docs/conventions.md``:
 
 - spectra live on 360–830 nm (the CIE 1931 2° table's range) with the wavelength on the last
-  axis; colour-science objects are only read at the edges (cached tables), the arithmetic is
-  on plain float64 arrays;
+  axis; the published tables are read once from :mod:`.colour_tables` (colour-science's
+  numbers shipped as data, so nothing here imports colour-science), the arithmetic is on
+  plain float64 arrays;
 - tristimulus values use an **equal-energy (E) white**: a flat spectrum of 1 has
   X = Y = Z = 1, as Blender's "Linear CIE-XYZ E";
 - XYZ(E) → working RGB is a Bradford adaptation from E to the space's white followed by the
@@ -37,10 +38,9 @@ from __future__ import annotations
 
 import functools
 
-import colour
 import numpy as np
 
-from . import _checks
+from . import _checks, colour_tables
 from .constants import WAVELENGTH_MAX_NM, WAVELENGTH_MIN_NM
 
 __all__ = [
@@ -198,9 +198,7 @@ def _read_only(arr: np.ndarray) -> np.ndarray:
 @functools.lru_cache(maxsize=1)
 def _cmf_table() -> tuple[np.ndarray, np.ndarray]:
     """CIE 1931 2° x̄ȳz̄ aligned to 360–830 nm at 1 nm: (wavelengths (471,), values (471, 3))."""
-    table = colour.MSDS_CMFS[CMFS_NAME]
-    source_lam = np.asarray(table.wavelengths, dtype=np.float64)
-    source = np.asarray(table.values, dtype=np.float64)
+    source_lam, source = colour_tables.cmfs()  # colour-science's table, shipped as data
     # np.interp rather than SpectralDistribution.align: at the CIE's own 1 nm knots it returns
     # the published values untouched (align's interpolator leaves ±3e-22 where z̄ is 0).
     count = int(round((WAVELENGTH_MAX_NM - WAVELENGTH_MIN_NM) / CMF_TABLE_STEP_NM)) + 1
@@ -357,10 +355,8 @@ def _illuminant_name(name) -> str:
 
 @functools.cache
 def _illuminant_native(name: str) -> tuple[np.ndarray, np.ndarray]:
-    """colour-science's table for ``name`` at its native spacing, scaled to Y = 1 (see below)."""
-    sd = colour.SDS_ILLUMINANTS[name]
-    lam = np.asarray(sd.wavelengths, dtype=np.float64)
-    values = np.asarray(sd.values, dtype=np.float64)
+    """The CIE table for ``name`` at its native spacing, scaled to Y = 1 (see below)."""
+    lam, values = colour_tables.illuminant(name)
     dense = wavelength_grid(DENSE_BIN_COUNT)
     y = spectrum_to_xyz(np.interp(dense, lam, values), dense)[1]
     return _read_only(lam), _read_only(values / y)
@@ -436,8 +432,7 @@ def bradford_matrix(source_white_xyz, target_white_xyz) -> np.ndarray:
     """
     src = _white("source_white_xyz", source_white_xyz)
     dst = _white("target_white_xyz", target_white_xyz)
-    matrix = colour.adaptation.matrix_chromatic_adaptation_VonKries(src, dst, transform="Bradford")
-    return np.asarray(matrix, dtype=np.float64)
+    return colour_tables.bradford_adaptation(src, dst)
 
 
 def _white(name: str, value) -> np.ndarray:
@@ -449,18 +444,17 @@ def _white(name: str, value) -> np.ndarray:
 
 @functools.cache
 def _xyz_to_rgb(space: str) -> np.ndarray:
-    cs = colour.RGB_COLOURSPACES[WORKING_SPACES[space]]
-    white = np.asarray(colour.xy_to_XYZ(cs.whitepoint), dtype=np.float64)
-    adapt = bradford_matrix(np.ones(3), white)
-    return _read_only(np.asarray(cs.matrix_XYZ_to_RGB, dtype=np.float64) @ adapt)
+    whitepoint, xyz_to_rgb = colour_tables.rgb_space(WORKING_SPACES[space])
+    adapt = bradford_matrix(np.ones(3), colour_tables.xy_to_xyz(whitepoint))
+    return _read_only(xyz_to_rgb @ adapt)
 
 
 def xyz_to_rgb_matrix(space: str = DEFAULT_SPACE) -> np.ndarray:
     """3×3 matrix from XYZ(E) to linear ``space`` RGB: M_XYZ→RGB(space) · Bradford(E → white).
 
-    The space's primaries, white and XYZ → RGB matrix come from colour-science
-    (``RGB_COLOURSPACES``); E's white is XYZ (1, 1, 1). A flat spectrum (XYZ = 1, 1, 1) maps
-    to RGB (1, 1, 1) to rounding.
+    The space's primaries, white and XYZ → RGB matrix are colour-science's
+    ``RGB_COLOURSPACES`` (shipped as data, :mod:`.colour_tables`); E's white is XYZ (1, 1, 1).
+    A flat spectrum (XYZ = 1, 1, 1) maps to RGB (1, 1, 1) to rounding.
 
     Blender's config builds "Linear CIE-XYZ E" with a D65 white of XYZ (0.95047, 1, 1.08883)
     while its Rec.709/2020 matrices use xy (0.3127, 0.3290); the two D65s differ by 2e-4 in Z,
@@ -511,9 +505,7 @@ def _mallett_table() -> tuple[np.ndarray, np.ndarray]:
     values keeps white flat. The CMFs beyond 380/780 nm are < 3.3e-3 / 4e-5 of their peaks, so
     the extension barely touches XYZ, and the exact correction in :func:`rgb_basis` absorbs it.
     """
-    msds = colour.recovery.MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019
-    lam = np.asarray(msds.wavelengths, dtype=np.float64)
-    values = np.asarray(msds.values, dtype=np.float64)
+    lam, values = colour_tables.mallett2019()
     lam = np.concatenate(([WAVELENGTH_MIN_NM], lam, [WAVELENGTH_MAX_NM]))
     values = np.concatenate((values[:1], values, values[-1:]))
     return _read_only(lam), _read_only(values)

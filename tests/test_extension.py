@@ -81,6 +81,25 @@ def test_built_package_is_valid_and_holds_only_the_addon(tmp_path):
         or n in ("pyproject.toml", "requirements.txt", "requirements-dev.txt")
     ]
     assert not leaked, f"development files in the package: {leaked}"
+    assert "LICENSE" in names
+    # colour-science is not bundled: no packaged module may import it (the tables ship as data).
+    with zipfile.ZipFile(archive) as zf:
+        importers = [
+            n
+            for n in names
+            if n.endswith(".py")
+            and any(
+                (isinstance(node, ast.Import) and any(a.name.split(".")[0] == "colour" for a in node.names))
+                or (
+                    isinstance(node, ast.ImportFrom)
+                    and (node.module or "").split(".")[0] == "colour"
+                    and not node.level
+                )
+                for node in ast.walk(ast.parse(zf.read(n)))
+            )
+        ]
+    assert not importers, f"packaged modules importing colour-science: {importers}"
+    assert any(n.startswith("precompute/data/colour/") for n in names)
 
 
 def test_root_init_only_forwards_to_addon():

@@ -629,7 +629,7 @@ def test_nan_world_strength_renders_with_the_fallback_lighting(bpy, tf, fresh, t
     argv = ["render", "--out", str(tmp_path / "nan.png"), "--json", str(tmp_path / "r.json")]
     code = tf.headless.main(argv)
     err = capsys.readouterr().err
-    assert code == 1 and "Strength = nan" in err and "viewport colour" in err, err
+    assert code == 1 and "Strength = nan" in err and "viewport color" in err, err
     image = read_exr(tmp_path / "nan.exr")
     assert np.isfinite(image).all()
     np.testing.assert_allclose(image[0, 0], (0.2, 0.1, 0.05), rtol=1e-3)  # background: the fallback

@@ -44,6 +44,7 @@ def tf(bpy, tmp_path_factory):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
         ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+        ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID

@@ -392,7 +392,7 @@ def test_background_colour_gives_exact_constant(bpy, world_mod, scene):
     bg.inputs["Color"].default_value = (*colour, 1.0)
     bg.inputs["Strength"].default_value = 3.0
     result = world_mod.world_sh(scene, L_MAX)
-    assert result.source == "background colour" and result.warnings == ()
+    assert result.source == "background color" and result.warnings == ()
     c = np.array(tuple(bg.inputs["Color"].default_value)[:3]) * 3.0  # float32 as stored
     np.testing.assert_allclose(result.coeffs[0], math.sqrt(4.0 * math.pi) * c, rtol=1e-12)
     assert np.all(result.coeffs[1:] == 0.0)
@@ -425,10 +425,10 @@ def test_world_without_node_tree_uses_viewport_colour(bpy, world_mod, world_key_
     world = bpy.data.worlds.new("Viewport")
     world.color = (0.1, 0.2, 0.3)
     scene.world = world
-    result = world_mod._viewport_colour(world, 2, "World has no nodes: using its viewport colour")
+    result = world_mod._viewport_colour(world, 2, "World has no nodes: using its viewport color")
     coeffs, source, rejected, warnings = result
     np.testing.assert_allclose(coeffs[0], math.sqrt(4.0 * math.pi) * np.array(tuple(world.color)), rtol=1e-12)
-    assert source == "viewport colour" and rejected == 0 and "viewport colour" in warnings[0]
+    assert source == "viewport color" and rejected == 0 and "viewport color" in warnings[0]
     assert world_key_mod.world_uses_nodes(world)  # Blender 5.x
 
 

@@ -1,0 +1,279 @@
+"""A thickness that varies through a texture: the extension's headless frame against Cycles.
+
+Two scenes, each built by script in bpy and rendered twice — by Cycles (CPU, box filter) and by
+the extension's headless ``render`` (:func:`addon.headless.render_scene`, the viewport's shader
+on Mesa) — and compared by mean ΔE2000 over the sphere
+(``precompute.colour_difference.delta_e_2000``, route ``"E"``), in the Cycles-matching
+(per-channel) colour mode a Principled BSDF is previewed in, at the default quality:
+
+- ``noise``: an opaque film sphere (Base Color black, IOR 1.5, film IOR 1.33) whose Thin Film
+  Thickness comes from Noise Texture → Map Range 150–850 nm, the socket's own value 0;
+- ``gltf``: a sphere written as glTF with KHR_materials_iridescence (150–820 nm, IOR 1.45, an
+  ``iridescenceThicknessTexture`` of stripes and rings in G) and imported by Blender's bundled
+  importer (with the extension's import hook enabled).
+
+The camera and the sphere are tests/_cycles_scenes.py's (pinhole on −y, 32°, radius 1).
+
+Run: ``.venv/bin/python -m benchmarks.texture_thickness [--size 128] [--samples 256]``
+→ ``docs/texture-thickness.md`` and ``docs/images/texture-thickness-*.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from precompute import hdri, image_io, render
+from precompute.cli import studiolight
+from precompute.colour_difference import delta_e_2000
+from tests._cycles_scenes import DISTANCE, FOV_DEG, object_mask
+from tests._extension import EXTENSION_ID, linked_extension
+
+from . import common
+
+LIMIT = 2.5  # issue 21's acceptance: mean ΔE2000 over the object
+#: Roughness of both spheres (``--roughness``). 0.15 is the split-sum regime; at 0.3 the product's
+#: SH/split-sum blend is at its weakest even for a constant film (docs/cycles-comparison.md:
+#: courtyard, 800 nm, roughness 0.3 → 2.61), which would measure the blend, not the texture.
+ROUGHNESS = 0.15
+HDRI = "courtyard"
+
+
+def _world_and_camera(bpy, scene, hdri_path, size, samples):
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.seed = 1
+    scene.cycles.max_bounces = 1
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 1.0
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    world = bpy.data.worlds.new("env")
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(hdri_path))
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    cam.data.angle = math.radians(FOV_DEG)
+    cam.location = (0.0, -DISTANCE, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+
+
+def _sphere(bpy):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    return sphere
+
+
+def build_noise(bpy, folder):
+    """The opaque film sphere driven by Noise Texture → Map Range 150–850 nm (socket value 0)."""
+    sphere = _sphere(bpy)
+    mat = bpy.data.materials.new("noise film")
+    tree = mat.node_tree
+    bsdf = tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = ROUGHNESS
+    bsdf.inputs["IOR"].default_value = 1.5
+    bsdf.inputs["Thin Film IOR"].default_value = 1.33
+    bsdf.inputs["Thin Film Thickness"].default_value = 0.0
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    ranged = tree.nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value = 150.0
+    ranged.inputs["To Max"].default_value = 850.0
+    tree.links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    tree.links.new(ranged.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
+    sphere.data.materials.append(mat)
+
+
+def _stripes(size=256) -> np.ndarray:
+    u, v = np.meshgrid((np.arange(size) + 0.5) / size, (np.arange(size) + 0.5) / size)
+    return 0.5 + 0.5 * np.sin(2 * np.pi * (3 * u + 2 * v)) * np.cos(2 * np.pi * 2 * v)
+
+
+def build_gltf(bpy, folder):
+    """Write a glTF sphere with an iridescence thickness texture, then import it with Blender's
+    importer (the extension's hook repairs the maximum it would lose)."""
+    image = bpy.data.images.new("thickness", 256, 256)
+    rgba = np.zeros((256, 256, 4), dtype=np.float32)
+    rgba[..., 1], rgba[..., 3] = _stripes(), 1.0
+    image.pixels.foreach_set(rgba.ravel())
+    image.filepath_raw = str(folder / "thickness.png")
+    image.file_format = "PNG"
+    image.save()
+    sphere = _sphere(bpy)
+    mat = bpy.data.materials.new("gltf film")
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    mat.node_tree.links.new(tex.outputs["Color"], mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+    sphere.data.materials.append(mat)
+    path = folder / "sphere.gltf"
+    bpy.ops.export_scene.gltf(filepath=str(path), export_format="GLTF_SEPARATE", use_selection=True)
+    data = json.loads(path.read_text())
+    material = data["materials"][0]
+    texture = material["pbrMetallicRoughness"].pop("baseColorTexture")
+    material["pbrMetallicRoughness"].update(baseColorFactor=[0, 0, 0, 1], metallicFactor=0.0)
+    material["pbrMetallicRoughness"]["roughnessFactor"] = ROUGHNESS
+    material["extensions"] = {
+        "KHR_materials_iridescence": {
+            "iridescenceFactor": 1.0,
+            "iridescenceIor": 1.45,
+            "iridescenceThicknessMinimum": 150.0,
+            "iridescenceThicknessMaximum": 820.0,
+            "iridescenceThicknessTexture": texture,
+        }
+    }
+    data.setdefault("extensionsUsed", []).append("KHR_materials_iridescence")
+    path.write_text(json.dumps(data))
+    bpy.data.objects.remove(sphere)
+    bpy.data.materials.remove(mat)
+    bpy.ops.import_scene.gltf(filepath=str(path))
+    for obj in bpy.context.scene.objects:
+        if obj.type == "MESH":
+            obj.data.shade_smooth()
+
+
+CASES = {"noise": build_noise, "gltf": build_gltf}
+
+
+def run_case(bpy, package, name, size, samples, folder):
+    """(Cycles image, ours, mask, seconds, messages) of one case."""
+    import addon_utils  # bpy's add-on utilities: the glTF add-on is enabled here
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    package.register()
+    entry = bpy.context.preferences.addons.new()
+    entry.module = EXTENSION_ID
+    addon_utils.enable("io_scene_gltf2", default_set=True)
+    scene = bpy.context.scene
+    _world_and_camera(bpy, scene, studiolight(HDRI), size, samples)
+    CASES[name](bpy, folder)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = str(folder / f"{name}-cycles.exr")
+    t0 = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    t_cycles = time.perf_counter() - t0
+    ref = hdri.read_equirect(scene.render.filepath)
+    headless = sys.modules[f"{EXTENSION_ID}.addon.headless"]
+    t0 = time.perf_counter()
+    result = headless.render_scene(scene, folder / f"{name}-ours.png", size, size, background=True)
+    t_ours = time.perf_counter() - t0
+    ours = hdri.read_equirect(result["exr"])
+    mask = object_mask(render.sphere_view(size, size, DISTANCE, FOV_DEG))
+    return ref, ours, mask, (t_cycles, t_ours), result["messages"]
+
+
+def write_pictures(name, ref, ours, de, mask) -> str:
+    """Cycles | ours | ΔE2000 ×10 side by side, sRGB."""
+    heat = np.zeros_like(ref)
+    heat[..., 0] = np.where(mask, np.clip(de / 10.0, 0.0, 1.0), 0.0)
+    heat[..., 1] = np.where(mask, np.clip(1.0 - de / 10.0, 0.0, 1.0) * 0.3, 0.0)
+    row = np.concatenate([image_io.srgb_encode(ref), image_io.srgb_encode(ours), heat], axis=1)
+    rel = f"images/texture-thickness-{name}.png"
+    image_io.write_png(pathlib.Path(common.ROOT) / "docs" / rel, row)
+    return rel
+
+
+def main(argv=None) -> int:
+    """Run both cases and write docs/texture-thickness.md."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=128)
+    parser.add_argument("--samples", type=int, default=256)
+    parser.add_argument("--roughness", type=float, default=ROUGHNESS)
+    args = parser.parse_args(argv)
+    globals()["ROUGHNESS"] = args.roughness  # read by the scene builders
+    import bpy  # Blender as a module: both renders need it
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp, linked_extension(pathlib.Path(tmp)) as package:
+        for name in CASES:
+            folder = pathlib.Path(tmp) / name
+            folder.mkdir()
+            ref, ours, mask, times, messages = run_case(bpy, package, name, args.size, args.samples, folder)
+            de = np.zeros(mask.shape)
+            de[mask] = delta_e_2000(ours[mask], ref[mask], xyz="E")
+            mean, p95 = float(np.mean(de[mask])), float(np.percentile(de[mask], 95))
+            rows.append((name, mean, p95, times, write_pictures(name, ref, ours, de, mask), messages))
+            print(
+                f"{name}: mean ΔE2000 {mean:.2f}, p95 {p95:.2f}; "
+                f"Cycles {times[0]:.1f} s, ours {times[1]:.1f} s"
+            )
+    lines = [
+        "# Thickness from textures against Cycles",
+        "",
+        "Generated by `.venv/bin/python -m benchmarks.texture_thickness"
+        f" --size {args.size} --samples {args.samples} --roughness {args.roughness:g}` (issue 21).",
+        f"Code: {common.code_version()}.",
+        "",
+        "Two spheres whose film thickness varies through a texture, each rendered by Cycles (CPU,",
+        f"{args.samples} samples, box filter, one bounce) and by the extension's headless frame",
+        "(`addon/headless.render_scene`: the viewport's shader on Mesa llvmpipe, default quality, the",
+        "Cycles-matching per-channel colour mode of a Principled preview), "
+        f"{args.size}×{args.size} pixels, under bpy's",
+        f"`{HDRI}` studio light, roughness {args.roughness:g}. ΔE2000 (route E) over the sphere, its edge",
+        "pixel eroded. The extension evaluates the linked thickness per face corner",
+        "(`addon/linked.py`): the Noise Texture by a Cycles bake of the linked value, the glTF",
+        "import graph (Image → Separate Color G → Mix) directly in numpy.",
+        "",
+        "| Scene | mean ΔE2000 | 95th pct | limit | Cycles | ours (incl. bake) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, mean, p95, times, _, _ in rows:
+        verdict = "✓" if mean <= LIMIT else "✗"
+        lines.append(
+            f"| {name} | {mean:.2f} {verdict} | {p95:.2f} | {LIMIT} | {times[0]:.1f} s | {times[1]:.1f} s |"
+        )
+    lines += [
+        "",
+        "Roughness 0.15 is where the product's constant-film figures are ≤ 1.4 (cycles-comparison.md).",
+        "At roughness 0.3, where even a constant 800 nm film measures 2.61 (the SH/split-sum blend,",
+        "not the texture), a 64×64, 64-sample run of this benchmark at commit 641fe1b measured",
+        "noise 2.72 (p95 6.39) and glTF 1.97 (p95 5.40).",
+        "",
+        "Left to right: Cycles, the extension, ΔE2000 (red = 10).",
+        "",
+    ]
+    for name, *_, pic, messages in rows:
+        lines += [f"**{name}**", "", f"![{name}]({pic})", ""]
+        lines += [f"- {m}" for m in messages if "thickness" in m]
+    lines += [
+        "",
+        "## What Blender's glTF importer loses, and what the extension recovers",
+        "",
+        "Blender 5.2's bundled importer builds Image → Separate Color (G) → Mix(min, max) → *Thin Film",
+        "Thickness* for `iridescenceThicknessTexture`, but reads the draft key `iridescenceThickness`",
+        "instead of the spec's `iridescenceThicknessMaximum` (every such file gets 400 nm), and sets",
+        "neither `iridescenceIor` nor `iridescenceFactor` when a thickness texture is present. With the",
+        "extension enabled, its import hook (`addon/gltf.py`, `glTF2ImportUserExtension`) writes the",
+        "file's values into the nodes the importer left and keeps them in the material's custom",
+        "property `KHR_materials_iridescence`; a file imported without the extension keeps the",
+        "importer's losses (re-import it). The preview does not apply `iridescenceFactor` (Cycles",
+        "does not either); the panel says so when it is not 1. Export writes the extension for every",
+        "film material and warns for what glTF cannot carry (several layers, a metal's n + ik,",
+        "dispersion, an ambient index); a thickness that varies without an image (a Noise Texture, the",
+        "extension's own source) is baked by Cycles into `iridescenceThicknessTexture` at the first",
+        "user's UVs (512², 8-bit), with the evaluated range as min and max.",
+        "",
+        *common.machine_lines(),
+    ]
+    path = common.write_doc("texture-thickness.md", "\n".join(lines))
+    print("wrote", path)
+    return 0 if all(mean <= LIMIT for _, mean, *_ in rows) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
