@@ -10,7 +10,8 @@ Shared by the viewport draw handler and the headless render, so both draw the sa
   name, image and its pixels) — moving an object only changes the matrix passed at draw time;
 - GPU table textures per material description key (equal materials share one);
 - lighting UBOs per (World key, SH order, roughness, lamps or not);
-- film textures (the lamps' reflectance table) per material description key;
+- film textures (the reflectance table of the World's lamps and the light objects) per material
+  description key;
 - the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
   the current World key.
 
@@ -39,6 +40,7 @@ from ..precompute.environment import Environment, analyse_world
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
 from . import caches, description, linked, panorama, tables, world, world_key
+from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
 from .principled import linked_thickness_socket
@@ -62,6 +64,8 @@ class DrawItem:
     film: resources.FilmTexture | None = None
     #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
     fallback: bool = False
+    #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
+    lights: np.ndarray | None = None
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -333,6 +337,16 @@ def lamps_summary(enabled: bool) -> str:
     return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
+def lights_summary(scene) -> str:
+    """One line for the Surface panel: how many light objects light the films, and what is not
+    done yet (no cast shadows; only the film's specular layer)."""
+    count = sum(1 for obj in scene.objects if obj.type == "LIGHT" and obj.visible_get())
+    if count == 0:
+        return "Light objects: none"
+    shown = min(count, resources.MAX_LIGHTS)
+    return f"Light objects: {shown} shade the film (no cast shadows yet)"
+
+
 def table_texture(desc_key: str, result) -> resources.TableTexture:
     """The SH table texture for a baked table, uploaded once per description key."""
     found = CACHES.tables.get(desc_key)
@@ -426,6 +440,7 @@ class _MaterialEntry:
     thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
     linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
+    lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -483,7 +498,7 @@ def _thickness_source(bpy_material, props, desc):
 
 
 def _material_entry(
-    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None
+    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None, lights=False
 ):
     """The material's description, table texture and lighting, or None (no film / not baked yet /
     its bake failed in the viewport).
@@ -494,7 +509,8 @@ def _material_entry(
     until the description changes, and its error is in ``messages`` (and ``errors``) on every
     frame; a headless frame (``allow_bake``) draws it as the fallback, the viewport draws
     nothing for it (its header and material panel say why). A table that could not be saved to
-    the disk cache is drawn, with the reason in ``messages``.
+    the disk cache is drawn, with the reason in ``messages``. ``lights``: the frame has light
+    objects, so the film table is needed even without the World's lamps.
     """
     try:
         desc = description.description(bpy_material)
@@ -541,10 +557,11 @@ def _material_entry(
         lighting_for(lighting, result.sh_order, roughness, lamps),
         roughness,
         policy.sh_weight(roughness),
-        film_texture(key, result) if lamps else None,
+        film_texture(key, result) if lamps or lights else None,
         props,
         thickness_key,
         linked_source,
+        lamps=lamps,
     )
 
 
@@ -559,7 +576,7 @@ def _prefiltered_for(lighting: WorldLighting, entry):
     textures = lighting.textures
     if textures is None or entry.sh_weight >= 1.0:
         return None
-    if entry.film is not None:
+    if entry.lamps:  # the World's lamps shaded per direction: the prefilter without them
         return textures.prefiltered()
     return textures.prefiltered_whole()
 
@@ -588,6 +605,12 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
         return items, ["World lighting is being updated"]
     messages.extend(lighting.sh.warnings)
     messages.extend(lighting.sh.errors)
+    found_lights = scene_lights.scene_lights(depsgraph)  # every frame: moving a light bakes nothing
+    if len(found_lights) > resources.MAX_LIGHTS:
+        messages.append(f"{len(found_lights)} lights: the first {resources.MAX_LIGHTS} light the films")
+    linked = any(receivers is not None for _, receivers in found_lights)
+    shared_lights = None if linked else resources.lights_content(scene_lights.lights_for(found_lights, ""))
+    object_lights: dict = {}  # object name → lights content (light linking)
     entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
     seen = set()
     used = set()  # this frame's batch keys
@@ -604,7 +627,9 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             pointer = source.as_pointer()
             if pointer not in entries:
                 CACHES.make_room(materials=len(entries) + 1)
-                entries[pointer] = _material_entry(source, lighting, allow_bake, want_bake, messages, errors)
+                entries[pointer] = _material_entry(
+                    source, lighting, allow_bake, want_bake, messages, errors, lights=bool(found_lights)
+                )
             entry = entries[pointer]
             if entry is None:
                 continue
@@ -640,6 +665,10 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw"
                 )
                 continue
+            if linked and original.name not in object_lights:
+                object_lights[original.name] = resources.lights_content(
+                    scene_lights.lights_for(found_lights, original.name)
+                )
             items.append(
                 DrawItem(
                     batch,
@@ -652,6 +681,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     sh_weight=entry.sh_weight,
                     film=entry.film,
                     fallback=entry.fallback,
+                    lights=object_lights[original.name] if linked else shared_lights,
                 )
             )
     CACHES.dirty -= seen

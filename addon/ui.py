@@ -254,6 +254,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
         row.active = not settings.diffuse_base
         row.prop(settings, "world_lamps")
         layout.label(text=scene_draw.lamps_summary(settings.world_lamps and not settings.diffuse_base))
+        layout.label(text=scene_draw.lights_summary(context.scene))
         layout.prop(settings, "colour_mode")
         layout.prop(settings, "illuminant")
 

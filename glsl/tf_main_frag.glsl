@@ -6,7 +6,7 @@
  * v = normalize(camera - position) in perspective, the constant direction towards the viewer
  * in orthographic views (tf_view.camera.w = 1); the normal is flipped to face the viewer
  * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF.
- * tf_lamps.glsl (TF_LAMPS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
+ * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
 
@@ -33,6 +33,13 @@ void main()
 #ifdef TF_LAMPS
   rgb += tf_shade_lamps(f, r, n, v, tf_object.material.x); /* shading.lamps.shade */
 #endif
+#endif
+#ifdef TF_LIGHTS
+  { /* Blender's light objects: shading.lights.shade */
+    TFFrame fl = tf_view_aligned_frame(n, v);
+    TFLerp rl = tf_table_lerp(fl.cos_o, fl.sin_o, thickness01);
+    rgb += tf_shade_lights(fl, rl, tf_world_pos, n, v, tf_object.material.x);
+  }
 #endif
 #ifdef TF_DISPLAY_SRGB
   rgb = tf_srgb_oetf(clamp(rgb * tf_view.params.x, 0.0, 1.0));

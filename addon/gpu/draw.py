@@ -119,6 +119,7 @@ class DrawGroup:
     prefiltered: gpu.types.GPUTexture | None
     draws: list  # (GPUBatch, object GPUUniformBuf)
     film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
+    lights: gpu.types.GPUUniformBuf | None = None  # Blender's light objects (variant.lights)
 
 
 @dataclass
@@ -172,6 +173,7 @@ def prepare_draw(
         sh_weight = float(getattr(item, "sh_weight", 1.0))
         table_ubo = getattr(table, "ubo", None)
         film = getattr(item, "film", None)
+        lights = getattr(item, "lights", None)
         variant = choose_variant(
             l_max=table.l_max,
             spectral=table.spectral,
@@ -184,6 +186,7 @@ def prepare_draw(
             film=film is not None,
             film_ubo=film is not None and film.ubo is not None,
             table_ubo=table_ubo is not None,
+            light_count=resources.light_count(lights),
         )
         split = variant.split_sum
         roughness = float(getattr(item, "roughness", 0.0))
@@ -194,14 +197,18 @@ def prepare_draw(
             lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
         )
         table_data = table.ubo if variant.table_ubo else table.texture
-        lamps = variant.lamps
-        film_data = (film.ubo if variant.film_ubo else film.texture) if lamps else None
+        film_data = (film.ubo if variant.film_ubo else film.texture) if variant.film else None
+        lights_ubo = None
+        if variant.lights:
+            content = np.asarray(lights, dtype=np.float32)
+            lights_ubo = uniforms.get(("lights", content.tobytes()), lambda content=content: content)
         key = (
             variant,
             id(item.lighting.ubo),
             id(table_data),
             id(prefiltered.texture) if split else None,
-            id(film_data) if lamps else None,
+            id(film_data) if variant.film else None,
+            id(lights_ubo) if variant.lights else None,
         )
         group = groups.get(key)
         if group is None:
@@ -213,6 +220,7 @@ def prepare_draw(
                 prefiltered.texture if split else None,
                 [],
                 film_data,
+                lights_ubo,
             )
         group.draws.append((batch, object_ubo))
     if not groups:
@@ -257,6 +265,8 @@ def submit(prepared: PreparedDraw) -> None:
                     shader.uniform_block(resources.FILM.name, group.film)
                 else:
                     shader.uniform_sampler(resources.FILM_SAMPLER.name, group.film)
+            if group.lights is not None:
+                shader.uniform_block(resources.LIGHTS.name, group.lights)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(resources.OBJECT.name, object_ubo)
                 batch.draw(shader)
@@ -280,7 +290,8 @@ def draw_items(
     ``.model_matrix`` (4×4), ``.table`` (:class:`.resources.TableTexture`) and ``.lighting``
     (:class:`.resources.Lighting`); optionally ``.prefiltered``
     (:class:`.resources.PrefilterTexture`), ``.film`` (:class:`.resources.FilmTexture`),
-    ``.roughness`` and ``.sh_weight`` (the split sum). :func:`prepare_draw` then :func:`submit`;
+    ``.lights`` (:func:`.resources.lights_content`: Blender's light objects, shaded with the
+    film), ``.roughness`` and ``.sh_weight`` (the split sum). :func:`prepare_draw` then :func:`submit`;
     see there.
     """
     submit(

@@ -25,6 +25,7 @@ import numpy as np
 from ...precompute.material import MAX_SH_ORDER
 from ...precompute.shading import policy
 from ...precompute.shading.codegen import RX_PADDED, x_rotation_scalars
+from ...precompute.shading.lights import LIGHT_VEC4, Lights
 from ...precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, fits_uniform_buffer
 from .context import ensure_gpu_context
 
@@ -213,8 +214,25 @@ FILM = Block(
         ),
     ),
 )
+#: Blender's light objects of the frame (``TF_LIGHTS``, :func:`lights_content`).
+MAX_LIGHTS = policy.MAX_LIGHTS
+LIGHTS = Block(
+    "TFLights",
+    "tf_lights",
+    5,
+    (
+        Member("count", None, "x: K <= TF_MAX_LIGHTS"),
+        Member(
+            "light",
+            LIGHT_VEC4 * MAX_LIGHTS,
+            "light k at [5k..5k+4]: position, kind; direction, radius; energy, cos_half_spot or"
+            " tan_half_spread; axis_u, spot_smooth or normalize_spread; axis_v, ellipse"
+            " (shading.lights.Lights.pack)",
+        ),
+    ),
+)
 #: The GLSL structs of every block, declared by every shader.
-TYPEDEFS = "\n" + "\n".join(b.typedef() for b in (LIGHTING, VIEW, OBJECT, TABLE, FILM)) + "\n"
+TYPEDEFS = "\n" + "\n".join(b.typedef() for b in (LIGHTING, VIEW, OBJECT, TABLE, FILM, LIGHTS)) + "\n"
 #: vec4s of the lighting buffer.
 LIGHTING_VEC4 = LIGHTING.vec4s
 assert TABLE.nbytes == FILM.nbytes == UBO_LIMIT_BYTES  # the tables use all of it (UBO_TEXELS)
@@ -508,6 +526,20 @@ class FilmTexture:
         packed = texel_block(FILM, layers)
         ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
         return cls(texture, u, t, film.reflectance.ndim == 4, ubo)
+
+
+def lights_content(lights: Lights | None) -> np.ndarray | None:
+    """:data:`LIGHTS` content (float32) of the first :data:`MAX_LIGHTS` lights, or None without
+    any (the variant then has no light loop)."""
+    if lights is None or lights.count == 0:
+        return None
+    packed = lights.pack()[: LIGHT_VEC4 * MAX_LIGHTS]
+    return LIGHTS.pack(count=[packed.shape[0] // LIGHT_VEC4], light=packed)
+
+
+def light_count(content) -> int:
+    """The number of lights in :func:`lights_content`'s output (0 for None)."""
+    return 0 if content is None else int(np.asarray(content).reshape(-1)[0])
 
 
 class UniformCache:

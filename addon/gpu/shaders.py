@@ -131,8 +131,10 @@ def declare_shading_resources(info, variant: Variant) -> None:
         info.define(name, value)
     if variant.split_sum:
         _declare(info, resources.PREFILTERED_SAMPLER)
-    if variant.lamps:
+    if variant.film:
         _declare(info, resources.FILM if variant.film_ubo else resources.FILM_SAMPLER)
+    if variant.lights:
+        _declare(info, resources.LIGHTS)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.LIGHTING)
     _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
@@ -160,6 +162,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     roots = []  # joined only where the variant declares their resources
     if variant.lamps:
         roots.append("tf_lamps.glsl")
+    if variant.lights:
+        roots.append("tf_lights.glsl")
     if variant.split_sum:
         roots.append("tf_split_sum.glsl")
     rest = chunk_order([*roots, "tf_main_frag.glsl"], search, done=joined)
@@ -219,11 +223,21 @@ class ShaderCache:
         split_only: bool = False,
         lamps: bool = False,
         film_ubo: bool = False,
+        lights: bool = False,
     ):
         """The mesh shader of a variant given field by field (see :class:`Variant`)."""
         return self.mesh(
             Variant(
-                l_max, spectral, vary_thickness, display, split_sum, table_ubo, split_only, lamps, film_ubo
+                l_max,
+                spectral,
+                vary_thickness,
+                display,
+                split_sum,
+                table_ubo,
+                split_only,
+                lamps,
+                film_ubo,
+                lights,
             )
         )
 

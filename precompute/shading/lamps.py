@@ -43,6 +43,30 @@ def _lerp(count: int, pos):
     return i0, np.minimum(i0 + 1, count - 1), w
 
 
+def thickness_lerp(film, thickness_position, count: int):
+    """(lower row, upper row, weight) along the film table's thickness rows for ``count``
+    points at ``thickness_position`` in [0, 1] (None: the first row), as tf_table_lerp."""
+    t_count = film.reflectance.shape[0]
+    if thickness_position is None or t_count == 1:
+        t0 = np.zeros(count, dtype=int)
+        return t0, t0, np.zeros(count)
+    return _lerp(t_count, np.asarray(thickness_position, dtype=float).reshape(-1) * (t_count - 1))
+
+
+def film_at(film, table, rows, u) -> np.ndarray:
+    """``table`` (the film's reflectance or multiscatter) at cosine ``u`` (N,) and the thickness
+    ``rows`` of :func:`thickness_lerp`, linear in both, like tf_film_at."""
+    u_count = film.reflectance.shape[1]
+    t_i0, t_i1, t_w = rows
+    i0, i1, w = _lerp(u_count, np.asarray(u) * (u_count - 1))
+    shape = (-1,) + (1,) * (table.ndim - 2)
+    w = w.reshape(shape)
+    t_w = np.asarray(t_w).reshape(shape)
+    lo = (1 - w) * table[t_i0, i0] + w * table[t_i0, i1]
+    hi = (1 - w) * table[t_i1, i0] + w * table[t_i1, i1]
+    return (1 - t_w) * lo + t_w * hi
+
+
 def shade(film, lamps, roughness: float, normals, views, thickness_position=None) -> np.ndarray:
     """Σ_k D G₂ F(ωo·h_k) / (4 cos θo) × power_k × multiscatter(cos θo): (N, 3), mirrored by tf_lamps.glsl.
 
@@ -57,22 +81,7 @@ def shade(film, lamps, roughness: float, normals, views, thickness_position=None
     if lamps.count == 0 or n.shape[0] == 0:
         return out
     alpha = float(brdf.alpha_from_roughness(roughness))
-    t_count, u_count = film.reflectance.shape[:2]
-    if thickness_position is None or t_count == 1:
-        t0 = np.zeros(n.shape[0], dtype=int)
-        t1, tw = t0, np.zeros(n.shape[0])
-    else:
-        t0, t1, tw = _lerp(t_count, np.asarray(thickness_position, dtype=float).reshape(-1) * (t_count - 1))
-
-    def at(table, t_i0, t_i1, t_w, u):
-        i0, i1, w = _lerp(u_count, u * (u_count - 1))
-        shape = (-1,) + (1,) * (table.ndim - 2)
-        w = w.reshape(shape)
-        t_w = t_w.reshape(shape)
-        lo = (1 - w) * table[t_i0, i0] + w * table[t_i0, i1]
-        hi = (1 - w) * table[t_i1, i0] + w * table[t_i1, i1]
-        return (1 - t_w) * lo + t_w * hi
-
+    rows = thickness_lerp(film, thickness_position, n.shape[0])
     cos_o = np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
     for d, p in zip(lamps.directions, lamps.power, strict=True):
         cos_i = n @ d
@@ -82,7 +91,7 @@ def shade(film, lamps, roughness: float, normals, views, thickness_position=None
         weight = weight * brdf.G2_smith_height_correlated(np.maximum(cos_i, MIN_COS), cos_o, alpha)
         weight = np.where(cos_i > 0.0, weight / (4.0 * cos_o), 0.0)
         u = np.clip(np.sum(v * h, axis=-1), 0.0, 1.0)
-        f = at(film.reflectance, t0, t1, tw, u)
+        f = film_at(film, film.reflectance, rows, u)
         rgb = f @ p if film.spectral else f * p
         out += weight[:, None] * rgb
-    return out * at(film.multiscatter, t0, t1, tw, cos_o)
+    return out * film_at(film, film.multiscatter, rows, cos_o)

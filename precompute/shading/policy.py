@@ -83,6 +83,24 @@ MAX_LAMPS = 8
 LAMP_LEVEL = 2
 
 # ----------------------------------------------------------------------------------------------
+# Blender's light objects (shading/lights.py)
+# ----------------------------------------------------------------------------------------------
+#: At most this many light objects per frame (the TFLights buffer: 5 vec4s each, 2.6 KiB); the
+#: nearest/brightest are not chosen: the first in the depsgraph's order (docs/scene-lights.md).
+MAX_LIGHTS = 32
+#: Area lights: S × S cells, one sample each (docs/scene-lights.md#area-samples).
+AREA_SAMPLES = 4
+#: Rectangle lights: the cells follow the film's lobe, a Cauchy of this many α around the mirror
+#: ray's hit (docs/scene-lights.md#area-samples), never narrower than AREA_MIN_WIDTH of the light.
+AREA_LOBE_SCALE = 2.0
+AREA_MIN_WIDTH = 1e-3
+#: Nearest distance to a light's centre or sample the shaders divide by: a 10⁵ W point light at
+#: 0.1 mm gives 8·10¹⁴ W/m², far inside float32.
+MIN_LIGHT_DISTANCE = 1e-4
+#: The light kinds as the TFLights buffer stores them (shading/lights.py).
+LIGHT_KINDS = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
+
+# ----------------------------------------------------------------------------------------------
 # Guards
 # ----------------------------------------------------------------------------------------------
 #: Smallest cosine the shaders divide by (grazing views): constants.MIN_COS.
@@ -133,6 +151,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     """(name, value) of every ``#define`` of a shading rule the shaders use (read at call time).
 
     - ``TF_MAX_LAMPS``, ``TF_LAMP_LEVEL``: :data:`MAX_LAMPS`, :data:`LAMP_LEVEL`;
+    - ``TF_MAX_LIGHTS``, ``TF_AREA_SAMPLES``, ``TF_AREA_LOBE_SCALE``, ``TF_AREA_MIN_WIDTH``,
+      ``TF_MIN_LIGHT_DISTANCE``, ``TF_LIGHT_<KIND>``: the light objects' rules (:data:`MAX_LIGHTS`
+      … :data:`LIGHT_KINDS`);
     - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``: the guards;
     - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
     - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
@@ -141,6 +162,12 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
         ("TF_LAMP_LEVEL", str(int(LAMP_LEVEL))),
+        ("TF_MAX_LIGHTS", str(int(MAX_LIGHTS))),
+        ("TF_AREA_SAMPLES", str(int(AREA_SAMPLES))),
+        ("TF_MIN_LIGHT_DISTANCE", glsl_float(MIN_LIGHT_DISTANCE)),
+        ("TF_AREA_LOBE_SCALE", glsl_float(AREA_LOBE_SCALE)),
+        ("TF_AREA_MIN_WIDTH", glsl_float(AREA_MIN_WIDTH)),
+        *((f"TF_LIGHT_{kind}", str(code)) for kind, code in LIGHT_KINDS.items()),
         ("TF_MIN_COS", glsl_float(MIN_COS)),
         ("TF_MIN_ALPHA", glsl_float(MIN_ALPHA)),
         ("TF_GIMBAL_SIN", glsl_float(GIMBAL_SIN)),

@@ -46,6 +46,13 @@ class Variant(NamedTuple):
     lamps: bool = False
     #: The lamps' film table read from the ``TFFilm`` uniform buffer (small tables).
     film_ubo: bool = False
+    #: Blender's light objects shaded per sample (``TF_LIGHTS``, tf_lights.glsl, the film texture).
+    lights: bool = False
+
+    @property
+    def film(self) -> bool:
+        """The film's reflectance table is read (for the World's lamps or the light objects)."""
+        return bool(self.lamps or self.lights)
 
     @property
     def moment(self) -> bool:
@@ -55,7 +62,7 @@ class Variant(NamedTuple):
 
     def normalised(self) -> Variant:
         """The same variant with plain ``int``/``bool`` fields and the flags that need another
-        cleared (split-only without the split sum, a film uniform buffer without lamps)."""
+        cleared (split-only without the split sum, a film uniform buffer without lamps or lights)."""
         return Variant(
             int(self.l_max),
             bool(self.spectral),
@@ -65,7 +72,8 @@ class Variant(NamedTuple):
             bool(self.table_ubo),
             bool(self.split_sum and self.split_only),
             bool(self.lamps),
-            bool(self.lamps and self.film_ubo),
+            bool((self.lamps or self.lights) and self.film_ubo),
+            bool(self.lights),
         )
 
     def switches(self) -> tuple[tuple[str, str], ...]:
@@ -85,8 +93,10 @@ class Variant(NamedTuple):
                 out.append(("TF_MOMENT", "1"))
         if self.lamps:
             out.append(("TF_LAMPS", "1"))
-            if self.film_ubo:
-                out.append(("TF_FILM_UBO", "1"))
+        if self.lights:
+            out.append(("TF_LIGHTS", "1"))
+        if self.film and self.film_ubo:
+            out.append(("TF_FILM_UBO", "1"))
         if self.table_ubo:
             out.append(("TF_TABLE_UBO", "1"))
         return tuple(out)
@@ -110,6 +120,7 @@ def choose_variant(
     film: bool = False,
     film_ubo: bool = False,
     table_ubo: bool = False,
+    light_count: int = 0,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -122,10 +133,12 @@ def choose_variant(
     - ``lamp_count``, ``film``: the World's lamps and the material's film table; the lamp loop
       runs with both; ``film_ubo``: the film table is in a uniform buffer;
     - ``table_ubo``: the table is drawn from its uniform buffer (policy.TABLE_UBO_DEVICES and
-      :func:`fits_uniform_buffer`).
+      :func:`fits_uniform_buffer`);
+    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table.
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
+    lights = bool(film) and int(light_count) > 0
     return Variant(
         l_max=int(l_max),
         spectral=bool(spectral),
@@ -135,5 +148,6 @@ def choose_variant(
         table_ubo=bool(table_ubo),
         split_only=split and float(sh_weight) <= 0.0,
         lamps=lamps,
-        film_ubo=lamps and bool(film_ubo),
+        film_ubo=(lamps or lights) and bool(film_ubo),
+        lights=lights,
     )
