@@ -442,4 +442,6 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     sys.path.insert(0, str(REPO))  # precompute as a top-level package
-    sys.exit(main())
+    exit_code = main()
+    headless_script().release()  # free the extension while Blender is alive (no crash at exit)
+    sys.exit(exit_code)
