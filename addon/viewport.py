@@ -140,6 +140,7 @@ def _service() -> float | None:
         jobs = list(_pending.items())
         _pending.clear()
         _running.update(key for key, _ in jobs)
+        _progress.update((key, 0.0) for key, _ in jobs)  # shown from its start, not its first report
     cache = tables.open_cache() if jobs else None  # here: it reads the preferences
     for key, desc in jobs:
         threading.Thread(target=_bake_worker, args=(key, desc, cache), daemon=True).start()
