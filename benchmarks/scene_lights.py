@@ -36,7 +36,7 @@ from benchmarks import common
 from precompute import hdri, image_io, render
 from precompute.cli import studiolight
 from precompute.colour_difference import delta_e_2000
-from tests._cycles_scenes import DISTANCE, FOV_DEG, object_mask
+from tests._cycles_scenes import DISTANCE, FOV_DEG, cycles_settings, object_mask
 
 DOCS = pathlib.Path(common.ROOT) / "docs"
 LIMIT = 2.0  # issue 18: mean ΔE2000 over the object ≤ 2
@@ -161,15 +161,7 @@ def cycles_frame(scene, samples: int) -> np.ndarray:
     """Cycles' scene-linear RGB of the scene (CPU, box filter, no denoising), top row first."""
     import bpy
 
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.seed = 1
-    scene.cycles.max_bounces = 1
-    scene.cycles.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = 1.0
+    cycles_settings(scene, samples)
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "cycles.exr"
         scene.render.image_settings.file_format = "OPEN_EXR"

@@ -33,7 +33,7 @@ import numpy as np
 from precompute import hdri, image_io, render
 from precompute.cli import studiolight
 from precompute.colour_difference import delta_e_2000
-from tests._cycles_scenes import DISTANCE, FOV_DEG, object_mask
+from tests._cycles_scenes import DISTANCE, FOV_DEG, cycles_settings, object_mask
 from tests._extension import EXTENSION_ID, linked_extension
 
 from . import common
@@ -47,17 +47,7 @@ HDRI = "courtyard"
 
 
 def _world_and_camera(bpy, scene, hdri_path, size, samples):
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.seed = 1
-    scene.cycles.max_bounces = 1
-    scene.cycles.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = 1.0
-    scene.render.resolution_x = scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
+    cycles_settings(scene, samples, size=size)
     world = bpy.data.worlds.new("env")
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(str(hdri_path))

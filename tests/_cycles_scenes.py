@@ -33,26 +33,33 @@ FOV_DEG = 32.0
 DISTANCE = 4.0
 
 
-def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, samples=256, size=SIZE):
-    """Render the sphere with Cycles (CPU) and return the scene-linear RGB image (top row first)."""
-    import bpy  # Blender as a module: only the Cycles side needs it (our renders are pure numpy)
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
+def cycles_settings(scene, samples: int, *, size=None, bounces: int = 1, pixel_filter=("BOX", 1.0)) -> None:
+    """Cycles on the CPU, fixed seed, no adaptive sampling and no denoising, ``bounces`` bounces
+    and the given pixel filter (type, width in px); a ``size`` × ``size`` frame when given."""
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.use_denoising = False
     scene.cycles.seed = 1
-    scene.cycles.max_bounces = 1  # a single sphere: one bounce sees everything but self-reflection
-    scene.render.resolution_x = scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
+    scene.cycles.max_bounces = bounces
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = pixel_filter
     scene.render.film_transparent = False
-    # A 1-pixel box (the pixel's area integral), matched by our supersampling and box average.
-    # Cycles' default Blackman-Harris is narrower in effect and sharpens sub-pixel HDR lamps.
-    scene.cycles.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = 1.0
+    if size is not None:
+        scene.render.resolution_x = scene.render.resolution_y = size
+        scene.render.resolution_percentage = 100
+
+
+def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, samples=256, size=SIZE):
+    """Render the sphere with Cycles (CPU) and return the scene-linear RGB image (top row first)."""
+    import bpy  # Blender as a module: only the Cycles side needs it (our renders are pure numpy)
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    # One bounce: a single sphere sees everything but its self-reflection. A 1-pixel box (the
+    # pixel's area integral), matched by our supersampling and box average; Cycles' default
+    # Blackman-Harris is narrower in effect and sharpens sub-pixel HDR lamps.
+    cycles_settings(scene, samples, size=size)
     world = bpy.data.worlds.new("env")
     nt = world.node_tree
     env = nt.nodes.new("ShaderNodeTexEnvironment")
@@ -116,18 +123,8 @@ def build_sphere_blend(
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.seed = 1
-    scene.cycles.max_bounces = 1  # a single sphere: one bounce sees everything but self-reflection
-    scene.cycles.pixel_filter_type = "BLACKMAN_HARRIS"
-    scene.cycles.filter_width = 1.5
-    scene.render.resolution_x = scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
-    scene.render.film_transparent = False
+    # one bounce: a single sphere sees everything but its self-reflection
+    cycles_settings(scene, samples, size=size, pixel_filter=("BLACKMAN_HARRIS", 1.5))
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("env")
     nt = world.node_tree
@@ -276,18 +273,7 @@ def _furnace_scene(size: int, samples: int):
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.seed = 1
-    scene.cycles.max_bounces = 2
-    scene.cycles.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = FURNACE_FILTER_WIDTH
-    scene.render.resolution_x = scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
-    scene.render.film_transparent = False
+    cycles_settings(scene, samples, size=size, bounces=2, pixel_filter=("BOX", FURNACE_FILTER_WIDTH))
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
     world = bpy.data.worlds.new("furnace")

@@ -16,6 +16,7 @@ import tempfile
 
 import numpy as np
 import pytest
+from _cycles_scenes import cycles_settings
 
 from precompute import bake, film_colour, hdri
 from precompute.material import Layer, Material, Quality
@@ -35,17 +36,7 @@ def cycles_plane(light_kind, light_matrix, settings, *, mirror=False, samples=64
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.seed = 1
-    scene.cycles.max_bounces = 1
-    scene.cycles.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = 1.0
-    scene.render.resolution_x = scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
+    cycles_settings(scene, samples, size=size)
     world = bpy.data.worlds.new("black")
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
     scene.world = world
