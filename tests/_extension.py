@@ -45,3 +45,12 @@ def gpu_layer():
     for name in GPU_MODULES:
         importlib.import_module(f"{EXTENSION_ID}.addon.gpu.{name}")
     return importlib.import_module(f"{EXTENSION_ID}.addon.gpu")
+
+
+def set_cache_preference(bpy, prefs, cache_dir) -> None:
+    """Point the registered extension's Cache Directory preference at ``cache_dir`` (adding the
+    add-on's preferences entry when Blender has none, as in a module-only session)."""
+    addons = bpy.context.preferences.addons
+    if addons.get(EXTENSION_ID) is None:
+        addons.new().module = EXTENSION_ID
+    prefs.preferences().cache_dir = str(cache_dir)

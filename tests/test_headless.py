@@ -28,7 +28,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, REPO, gpu_layer, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID, REPO, gpu_layer, linked_extension, set_cache_preference  # noqa: E402
 
 from precompute.material import MAX_SH_ORDER  # noqa: E402
 
@@ -39,13 +39,6 @@ SIZE = (64, 48)
 # ----------------------------------------------------------------------------------------------
 # Fixtures and helpers
 # ----------------------------------------------------------------------------------------------
-def _set_cache_preference(bpy, prefs, cache_dir) -> None:
-    addons = bpy.context.preferences.addons
-    if addons.get(EXTENSION_ID) is None:
-        addons.new().module = EXTENSION_ID
-    prefs.preferences().cache_dir = str(cache_dir)
-
-
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module; its modules as attributes."""
@@ -59,7 +52,7 @@ def tf(bpy, tmp_path_factory):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.gpu = gpu_layer()
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-            _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
+            set_cache_preference(bpy, ns.prefs, ns.cache_dir)
             ns.gpu.context.ensure_gpu_context()
             yield ns
         finally:
@@ -73,7 +66,7 @@ def fresh(bpy, tf):
     """An empty factory file with the extension registered and its private cache chosen."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     tf.package.register()  # harmless when already registered
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -225,7 +218,7 @@ def project(tf, scene, points, size):
 def cli_blend(bpy, tf, tmp_path_factory):
     """A saved file: two spheres whose materials have equal settings, an HDRI World, a camera."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -242,7 +235,7 @@ def cli_blend(bpy, tf, tmp_path_factory):
 
 def _open(bpy, tf, path):
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     return bpy.context.scene
 
 
@@ -426,7 +419,7 @@ def test_script_batch_renders_every_file_in_a_folder(bpy, tf, cli_blend, tmp_pat
     assert "rendered 1/2 files" in printed.out and "broken.blend" in printed.out
     image = read_exr(tmp_path / "out" / "a.exr")
     assert image.shape == (24, 32, 3) and np.isfinite(image).all()
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -675,7 +668,7 @@ def test_saved_and_reopened_file_renders_identically(bpy, tf, fresh, tmp_path):
     path = tmp_path / "saved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     after, result = render(tf, bpy.context.scene, tmp_path / "after.png", background=True, supersample=1)
     assert result["objects"] == ["Sphere/Bubble"]
     np.testing.assert_allclose(after, before, rtol=0, atol=1e-6)
@@ -713,7 +706,7 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, tf, capfd):
             assert hasattr(bpy.types.Material, "thinfilm_sh")
     finally:
         package.register()
-        _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+        set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     out = capfd.readouterr()
     assert "duplicate command" not in out.out + out.err
 

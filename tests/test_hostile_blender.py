@@ -26,7 +26,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, REPO, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID, REPO, linked_extension, set_cache_preference  # noqa: E402
 
 NAN, INF = float("nan"), float("inf")
 FLT_MAX = 3.4028234663852886e38  # what Blender stores for inf
@@ -37,13 +37,6 @@ SCRIPT = REPO / "scripts" / "thinfilm_headless.py"
 # ----------------------------------------------------------------------------------------------
 # Fixtures and small scenes
 # ----------------------------------------------------------------------------------------------
-def _set_cache_preference(bpy, prefs, cache_dir) -> None:
-    addons = bpy.context.preferences.addons
-    if addons.get(EXTENSION_ID) is None:
-        addons.new().module = EXTENSION_ID
-    prefs.preferences().cache_dir = str(cache_dir)
-
-
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private cache; modules as attributes."""
@@ -57,7 +50,7 @@ def tf(bpy, tmp_path_factory):
             ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness")
             ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.cli_support")
             ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.material")
-            _set_cache_preference(bpy, ns.prefs, ns.cache_dir)
+            set_cache_preference(bpy, ns.prefs, ns.cache_dir)
             importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
             yield ns
         finally:
@@ -71,7 +64,7 @@ def fresh(bpy, tf):
     """An empty factory file with the extension registered and its private cache chosen."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     tf.package.register()
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -713,4 +706,4 @@ def test_script_refuses_a_broken_blend_file(bpy, tf, fresh, tmp_path, capsys, co
     assert script.main([str(broken), "plan"]) == 2
     err = capsys.readouterr().err
     assert "broken.blend" in err and "Traceback" not in err and err.count("\n") == 1, err
-    _set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
