@@ -50,6 +50,7 @@ HIDDEN_IN: set = caches.register("hidden_viewports", set(), scope=caches.FILE)
 _progress: dict[str, float] = {}
 #: Set to stop every running viewport bake at its next progress checkpoint.
 _cancel = threading.Event()
+_finished = threading.Event()  # a worker ended since the timer's last tick: redraw
 
 
 class BakesCancelled(Exception):
@@ -131,6 +132,7 @@ def _bake_worker(key: str, desc, cache) -> None:
             _progress.pop(key, None)
             if not _running:
                 _cancel.clear()
+        _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
 
 
 def _service() -> float | None:
@@ -154,9 +156,11 @@ def _service() -> float | None:
             scene_draw.world_lighting(bpy.context.scene, allow_compute=True)
         except Exception as exc:
             log.error("Thin Film SH: World lighting failed: %s", exc)
-    if jobs or _running or baked:
+    finished = _finished.is_set()
+    _finished.clear()
+    if jobs or _running or baked or finished:
         _tag_redraw()
-    return 0.1 if (_running or _pending) else None
+    return 0.1 if (_running or _pending or _finished.is_set()) else None
 
 
 def _schedule() -> None:

@@ -403,6 +403,26 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     assert vp.description_key(desc) not in tf.tables.FAILURES
 
 
+def test_a_finished_viewport_bake_asks_for_a_redraw(bpy, tf, scene, monkeypatch):
+    """Issue 16: when a worker's bake ends, the timer's next tick tags the 3D views for a redraw
+    (the table is there now), and keeps ticking until it has done so."""
+    vp = tf.viewport
+    redraws = []
+    monkeypatch.setattr(vp, "_tag_redraw", lambda: redraws.append(1))
+    mat = film(bpy)
+    mat.thinfilm_sh.roughness = 0.234  # a table no other test has baked
+    desc = tf.ui.description(mat)
+    vp._want_bake(desc)
+    vp._service()  # starts the worker
+    for t in [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]:
+        t.join(THREAD_TIMEOUT_S)
+    assert not vp._running
+    redraws.clear()
+    assert vp._service() is None  # the last tick: nothing runs any more …
+    assert redraws == [1]  # … and it asked for the redraw that shows the new table
+    assert tf.tables.peek_table(desc) is not None
+
+
 def test_a_cancelled_modal_bake_stops_its_worker_and_caches_nothing(bpy, tf, scene):
     """The Bake button's job (what Esc cancels): stops, no result, no error, nothing cached."""
     mat = film(bpy)
