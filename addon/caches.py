@@ -44,9 +44,9 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
 - ``plans`` — ``ui._PLANS``: the Plan panel's ``effects.MaterialPlan`` by description key; LRU
-  of ``ui._PLAN_MEMO_SIZE`` (64); filled by ``ui.plan_for`` and its timer; SESSION.
+  of ``ui._PLAN_MEMO_SIZE`` (64); filled by ``ui.plan_for``; SESSION.
 - ``plan_orders_seen`` — ``ui._ORDERS_SEEN``: roughness values whose automatic SH order has been
-  planned (planning them again is cheap, so the panel does it at once); a set, one entry per
+  planned (every roughness plans at once now: the order comes from a table); a set, one entry per
   roughness planned (a few floats); filled by ``ui.plan_for``; SESSION.
 - ``scene_draw`` — ``scene_draw.CACHES``: what the draw collects per object and material:
   mesh batches (``scene_draw.BatchEntry``) by (object name, material slot, instance), rebuilt

@@ -1,12 +1,8 @@
 """The Thin Film SH panel in the Properties editor's Material tab, with its sub-panels."""
 
-import time
-
-import bpy
 from bpy.types import Menu, Panel, UIList
 
 from ..precompute import effects
-from ..precompute.material import AUTO
 from . import caches, linked, scene_draw, tables, viewport
 from .description import description as _description_now
 from .description import description_key
@@ -333,12 +329,9 @@ class THINFILM_PT_principled(_MaterialPanel, Panel):
 _PLAN_MEMO_SIZE = 64
 #: MaterialPlans by description key (the most recent _PLAN_MEMO_SIZE; see :mod:`.caches`).
 _PLANS = caches.register("plans", caches.LRU(_PLAN_MEMO_SIZE), scope=caches.SESSION)
-#: Roughness values whose automatic SH order has been resolved: planning them again is cheap.
+#: Roughness values whose automatic SH order has been resolved (kept for the record: since the
+#: order is read from a table, planning any roughness is instant).
 _ORDERS_SEEN: set = caches.register("plan_orders_seen", set(), scope=caches.SESSION)
-#: (key, description, time) of the plan the panel waits for; computed by a timer once the
-#: settings stop changing (dragging the roughness slider asks for a new one at every step).
-_pending = None
-_PLAN_DELAY_S = 0.3
 
 
 def _remember_plan(key, mp):
@@ -346,46 +339,20 @@ def _remember_plan(key, mp):
     _ORDERS_SEEN.add(float(mp.material.roughness))
 
 
-def _plan_timer():
-    global _pending
-    if _pending is None:
-        return None
-    key, desc, asked = _pending
-    if time.monotonic() - asked < _PLAN_DELAY_S:
-        return _PLAN_DELAY_S  # still changing: wait for the settings to settle
-    _pending = None
-    if key not in _PLANS:
-        try:
-            _remember_plan(key, effects.material_plan(desc))
-        except ValueError:
-            return None
-    for window in bpy.context.window_manager.windows:
-        for area in window.screen.areas:
-            if area.type == "PROPERTIES":
-                area.tag_redraw()
-    return None
-
-
 def plan_for(desc, wait: bool = False):
     """The :class:`precompute.effects.MaterialPlan` of ``desc``, memoised by description key.
 
-    Planning bakes nothing, but an automatic SH order for a roughness not seen yet computes a
-    small kernel (≈ 0.5 s): unless ``wait`` is set, that case returns None and a timer plans it
-    once the settings have stopped changing, then redraws the Properties editor.
+    Planning bakes nothing and computes no kernel: the automatic SH order is read from
+    ``precompute.sh_order.ORDER_BREAKPOINTS``, so a new roughness plans at once (≈ 1 ms) on the
+    main thread. ``wait`` is accepted for callers written when a new roughness had to wait for a
+    timer; it changes nothing now. A material that cannot be planned raises ValueError.
     """
-    global _pending
     key = description_key(desc)
     mp = _PLANS.get(key)
-    if mp is not None:
-        return mp
-    if wait or desc.quality.sh_order != AUTO or float(desc.roughness) in _ORDERS_SEEN:
+    if mp is None:
         mp = effects.material_plan(desc)
         _remember_plan(key, mp)
-        return mp
-    _pending = (key, desc, time.monotonic())
-    if not bpy.app.timers.is_registered(_plan_timer):
-        bpy.app.timers.register(_plan_timer, first_interval=_PLAN_DELAY_S)
-    return None
+    return mp
 
 
 def plan_lines(mp) -> list[str]:
@@ -430,9 +397,10 @@ class THINFILM_PT_plan(_SubPanel, Panel):
         if desc is None:
             layout.label(text="No thin film is previewed: nothing is baked or drawn", icon="INFO")
             return
-        mp = plan_for(desc)
-        if mp is None:
-            layout.label(text="Planning…", icon="TIME")
+        try:
+            mp = plan_for(desc)
+        except ValueError as exc:
+            layout.label(text=str(exc), icon="ERROR")
             return
         col = layout.column(align=True)
         flow = col.grid_flow(columns=2, even_columns=True, align=True)

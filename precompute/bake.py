@@ -26,7 +26,6 @@ reflectance at every node's u and every wavelength (no factorisation), for valid
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -38,20 +37,31 @@ from .chunks import (
     CONTRACT_CHUNK,
     ELEMENT_CHUNK,
     chunked_sweep,
-    kernel_blocks,
     row_blocks,
     sweep_checkpoints,
 )
-from .material import AUTO, MAX_SH_ORDER, Material
+from .kernel import (  # noqa: F401  (re-exported: the bake's public names)
+    N_PHI,
+    N_THETA,
+    U_EDGES,
+    chebyshev_nodes,
+    coefficient_indices,
+    diffuse_kernel,
+    half_vector_nodes,
+    lagrange_matrix,
+    microfacet_kernel,
+    transfer_samples,
+    u_interpolation_matrix,
+    u_nodes,
+    view_angles,
+    view_cosines,
+)
+from .material import AUTO, Material
 from .optics import reflectance
 from .progress import Phases, checkpoint
-from .quadrature import spectral_quadrature
+from .quadrature import spectral_quadrature, unit_gauss_legendre
+from .sh_order import TRUNCATION_VIEWS_DEG, auto_sh_order, lobe_truncation_error  # noqa: F401
 
-#: R(u) is interpolated by piecewise Chebyshev polynomials on intervals graded geometrically
-#: toward u = 0: near grazing both interfaces reflect almost fully and the film becomes a
-#: Fabry–Pérot cavity whose resonances are about as narrow as u itself, so equal *relative*
-#: interval widths keep the work per interval constant.
-U_EDGES = (0.0, 0.0125, 0.025, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0)
 #: Nodes per interval tried in turn until the interpolation error meets U_TOLERANCE.
 U_DEGREE_LADDER = (6, 8, 12, 16, 24, 32, 48, 64)
 #: Max |R_interp − R| at test points relative to max R; keeps the factorisation error ≪ 1e-5.
@@ -59,139 +69,9 @@ U_TOLERANCE = 1e-6
 #: Test points skip u < 0.0125 (half-vectors within 0.7° of grazing): the first interval's
 #: resonances are narrower still, and only views within 0.7° of the horizon see them.
 U_TEST_MIN = U_EDGES[1]
-#: Half-vector quadrature per view angle: Gauss–Legendre nodes in s (ξ = 1 − s²) × φ midpoints
-#: over (0, π) (the integrand is even in φ for m ≥ 0). Convergence is measured in the tests.
-N_THETA = 96
-N_PHI = 48
 FORMAT_KIND = "sh_table"
 #: The bake's phases and their shares of the progress bar (≈ their share of a cold bake's time).
 PHASES = {"planning": 0.10, "reflectance": 0.15, "kernel": 0.60, "contracting": 0.15}
-
-
-# ----------------------------------------------------------------------------------------------
-# Small pieces
-# ----------------------------------------------------------------------------------------------
-def coefficient_indices(l_max: int) -> np.ndarray:
-    """Indices l(l+1)+m of the kept coefficients (m ≥ 0), ordered by l then m."""
-    return np.array([l * (l + 1) + m for l in range(l_max + 1) for m in range(l + 1)])
-
-
-def view_angles(count: int) -> np.ndarray:
-    """θo samples uniform in angle from 0 to 90° inclusive (radians)."""
-    return np.linspace(0.0, 0.5 * np.pi, count)
-
-
-def view_cosines(count: int) -> np.ndarray:
-    """cos θo of :func:`view_angles`, clamped to ``MIN_COS`` at grazing."""
-    return np.maximum(np.cos(view_angles(count)), constants.MIN_COS)
-
-
-def chebyshev_nodes(count: int, lo: float = 0.0, hi: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Chebyshev points of the first kind on [lo, hi] and barycentric weights (Berrut & Trefethen 2004)."""
-    k = np.arange(count)
-    angle = (2 * k + 1) * np.pi / (2 * count)
-    return lo + (hi - lo) * 0.5 * (1.0 + np.cos(angle)), (-1.0) ** k * np.sin(angle)
-
-
-def lagrange_matrix(nodes: np.ndarray, weights: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """ℓ_k(x_n) for all n, k by the barycentric formula (Berrut & Trefethen 2004, eq. 4.2)."""
-    diff = x[:, None] - nodes[None, :]
-    exact = diff == 0.0
-    safe = np.where(exact, 1.0, diff)
-    terms = weights[None, :] / safe
-    out = terms / terms.sum(axis=1, keepdims=True)
-    hit = exact.any(axis=1)
-    out[hit] = exact[hit].astype(float)
-    return out
-
-
-def u_nodes(degree: int) -> np.ndarray:
-    """All interpolation nodes: ``degree`` Chebyshev points in each interval of U_EDGES, (U,)."""
-    return np.concatenate(
-        [chebyshev_nodes(degree, a, b)[0] for a, b in zip(U_EDGES[:-1], U_EDGES[1:], strict=False)]
-    )
-
-
-def u_interpolation_matrix(degree: int, u: np.ndarray) -> np.ndarray:
-    """(N, U) piecewise-Chebyshev interpolation weights: R(u_n) ≈ Σ_k W[n, k] R(node_k)."""
-    u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
-    out = np.zeros((u.size, degree * (len(U_EDGES) - 1)))
-    piece = np.clip(np.searchsorted(U_EDGES, u, side="right") - 1, 0, len(U_EDGES) - 2)
-    for j, (a, b) in enumerate(zip(U_EDGES[:-1], U_EDGES[1:], strict=False)):
-        sel = piece == j
-        if np.any(sel):
-            nodes, bw = chebyshev_nodes(degree, a, b)
-            out[np.ix_(sel, np.arange(j * degree, (j + 1) * degree))] = lagrange_matrix(nodes, bw, u[sel])
-    return out
-
-
-def half_vector_nodes(alpha: float, n_theta: int = N_THETA, n_phi: int = N_PHI):
-    """Half-vectors and weights w.r.t. D(h) cosθh dωh, φ over (0, π) with weights doubled."""
-    s, ws = np.polynomial.legendre.leggauss(n_theta)
-    s, ws = 0.5 * (s + 1.0), 0.5 * ws
-    xi = 1.0 - s * s
-    tan2 = alpha * alpha * xi / np.maximum(1.0 - xi, 1e-300)
-    cos_h = 1.0 / np.sqrt(1.0 + tan2)
-    sin_h = np.sqrt(np.maximum(0.0, 1.0 - cos_h * cos_h))
-    phi = np.pi * (np.arange(n_phi) + 0.5) / n_phi
-    h = np.stack(
-        [
-            sin_h[:, None] * np.cos(phi),
-            sin_h[:, None] * np.sin(phi),
-            np.broadcast_to(cos_h[:, None], (n_theta, n_phi)),
-        ],
-        axis=-1,
-    ).reshape(-1, 3)
-    w = np.repeat(2.0 * s * ws, n_phi) / n_phi  # ∫ over φ ∈ (0, 2π) = 2 × ∫ over (0, π), /2π·2π
-    return h, w
-
-
-def transfer_samples(cos_o: float, alpha: float, l_max: int, n_theta: int = N_THETA, n_phi: int = N_PHI):
-    """For one view: u = ωo·h at each node and the Fresnel-free weight × Y_i(ωi), shape (N, K).
-
-    f cosθi dωi = D G₂ R(u) (ωo·h) / cosθo dωh; with nodes weighted by D cosθh dωh the
-    per-node factor is G₂ (ωo·h) / (cosθo cosθh).
-    """
-    h, w = half_vector_nodes(alpha, n_theta, n_phi)
-    wo = np.array([math.sqrt(max(0.0, 1.0 - cos_o * cos_o)), 0.0, cos_o])
-    u = h @ wo
-    wi = 2.0 * u[:, None] * h - wo[None, :]
-    ok = (u > 0.0) & (wi[:, 2] > 0.0)
-    g2 = brdf.G2_smith_height_correlated(np.maximum(wi[:, 2], constants.MIN_COS), cos_o, alpha)
-    scalar = np.where(ok, g2 * u / (cos_o * h[:, 2]), 0.0) * w
-    y = sh.basis(l_max, wi)[:, coefficient_indices(l_max)]
-    return np.clip(u, 0.0, 1.0), scalar[:, None] * y
-
-
-@functools.lru_cache(maxsize=32)
-def microfacet_kernel(
-    roughness: float, l_max: int, view_samples: int, u_degree: int, n_theta: int = N_THETA, n_phi: int = N_PHI
-) -> np.ndarray:
-    """K (A, K_coeffs, U): SH projection of D G₂ ℓ_k(u) cos / (4 cos cos) per view angle. Cached."""
-    alpha = float(brdf.alpha_from_roughness(roughness))
-    out = []
-    for cos_o in view_cosines(view_samples):
-        u, ty = transfer_samples(float(cos_o), alpha, l_max, n_theta, n_phi)
-        checkpoint()  # progress and cancellation points: ≤ KERNEL_CHUNK multiply-adds apart
-        interp = u_interpolation_matrix(u_degree, u)
-        row = np.empty((ty.shape[1], interp.shape[1]))
-        for cols in kernel_blocks(ty.shape[0], ty.shape[1], interp.shape[1]):
-            row[:, cols] = ty.T @ interp[:, cols]
-            checkpoint()
-        out.append(row)
-    kernel = np.array(out)
-    kernel.setflags(write=False)
-    return kernel
-
-
-@functools.lru_cache(maxsize=32)
-def diffuse_kernel(l_max: int, u_degree: int, n_mu: int = 128) -> np.ndarray:
-    """Kd (L+1, U): 2π ∫₀¹ μ Y_l0(μ) ℓ_k(μ) dμ — the zonal projection of the film-filtered cosine."""
-    mu, wmu = np.polynomial.legendre.leggauss(n_mu)
-    mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu
-    dirs = np.stack([np.sqrt(1.0 - mu * mu), np.zeros_like(mu), mu], axis=-1)
-    zonal = sh.basis(l_max, dirs)[:, [l * (l + 1) for l in range(l_max + 1)]]
-    return 2.0 * np.pi * (zonal * (mu * wmu)[:, None]).T @ u_interpolation_matrix(u_degree, mu)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -239,50 +119,6 @@ def auto_view_samples(material: Material) -> tuple[int, str]:
     r = material.roughness
     count = 48 if r < 0.15 else 32 if r < 0.5 else 16
     return count, f"roughness {r:g} → {count} view angles"
-
-
-#: View angles at which the SH truncation is judged: normal incidence, where the lobe is
-#: narrowest around its peak, and 80°, where the horizon cuts the lobe — measured against Cycles,
-#: the rim of a rough sphere is where a low order fails (ΔE 7.6 at l = 5 vs 4.3 at l = 8,
-#: roughness 0.6, studio HDRI), although the normal-view lobe alone would accept l = 5.
-TRUNCATION_VIEWS_DEG = (0.0, 80.0)
-
-
-def lobe_truncation_error(roughness: float, l_max: int) -> float:
-    """Relative L2 error of the R ≡ 1 transfer function truncated at band l_max (worst judged view)."""
-    kernel = microfacet_kernel(float(roughness), 16, 10, U_DEGREE_LADDER[0])  # views every 10°
-    bands = np.array([l for l in range(17) for _ in range(l + 1)])  # band of each kept coefficient
-    worst = 0.0
-    for deg in TRUNCATION_VIEWS_DEG:
-        coeffs = kernel[int(round(deg / 10.0))].sum(axis=1)  # Σ over u nodes ⇔ R ≡ 1
-        energy = coeffs**2
-        kept = energy[bands <= l_max].sum()
-        worst = max(worst, math.sqrt(max(0.0, 1.0 - kept / energy.sum())))
-    return worst
-
-
-def auto_sh_order(material: Material, target: float = 0.10) -> tuple[int, str]:
-    """Smallest l_max in 2…:data:`MAX_SH_ORDER` whose lobe truncation error is ≤ ``target``; the
-    highest if none is.
-
-    The cap is 12: against Cycles (benchmarks/cycles_compare.py cases, combined path, mean
-    ΔE2000) l = 8 / 10 / 12 gave courtyard r 0.5: 2.74 / 2.06 / 1.5, studio r 0.6: 3.72 / 2.93 /
-    2.5, forest r 0.5: 1.26 / 0.97 / 0.9; the error sits at grazing views, where the clipped lobe
-    needs many bands.
-    """
-    top = MAX_SH_ORDER
-    for l_max in range(2, top + 1):
-        err = lobe_truncation_error(material.roughness, l_max)
-        if err <= target:
-            return (
-                l_max,
-                f"roughness {material.roughness:g}: band-{l_max} truncation error {err:.3f} ≤ {target}",
-            )
-    err = lobe_truncation_error(material.roughness, top)
-    return (
-        top,
-        f"roughness {material.roughness:g}: lobe needs more than band {top} (error {err:.3f} at {top})",
-    )
 
 
 def choose_u_degree(
@@ -525,8 +361,7 @@ def _zonal_entries(zonal: np.ndarray, l_max: int) -> np.ndarray:
 
 def cosine_zonal(l_max: int, n_mu: int = 128) -> np.ndarray:
     """(L+1,): 2π ∫₀¹ μ Y_l0(μ) dμ, the zonal SH of the clamped cosine (the Lambertian kernel)."""
-    mu, wmu = np.polynomial.legendre.leggauss(n_mu)
-    mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu
+    mu, wmu = unit_gauss_legendre(n_mu)
     dirs = np.stack([np.sqrt(1.0 - mu * mu), np.zeros_like(mu), mu], axis=-1)
     zonal = sh.basis(l_max, dirs)[:, [l * (l + 1) for l in range(l_max + 1)]]
     return 2.0 * np.pi * (zonal * (mu * wmu)[:, None]).sum(axis=0)
@@ -694,8 +529,7 @@ def bake(material: Material, progress=None) -> BakeResult:
     with phases.reporting():
         material = table_material(material)
         per_channel = material.colour_mode == "per_channel"
-        auto_order = material.quality.sh_order == AUTO
-        phases.start("planning", "planning", expected=21 if auto_order else 1)
+        phases.start("planning", "planning", expected=1)
         p = plan(material)
         wl, g = spectral_quadrature(
             p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
@@ -711,10 +545,7 @@ def bake(material: Material, progress=None) -> BakeResult:
         t1 = time.perf_counter()
         u_count, u_err, rg, r_nodes = _film_nodes(material, indices, sets, wl, g, method)
         t2 = time.perf_counter()
-        blocks = len(
-            kernel_blocks(N_THETA * N_PHI, len(coefficient_indices(p.sh_order)), u_count * (len(U_EDGES) - 1))
-        )
-        phases.start("kernel", "microfacet kernel", expected=(1 + blocks) * p.view_samples)
+        phases.start("kernel", "microfacet kernel", expected=2 * p.view_samples)
         kernel = microfacet_kernel(float(material.roughness), p.sh_order, p.view_samples, u_count)
         t3 = time.perf_counter()
         a, k, u = kernel.shape

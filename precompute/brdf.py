@@ -24,6 +24,7 @@ import numpy as np
 from . import _checks, constants
 from .optics.fresnel import fresnel_dielectric
 from .progress import checkpoint
+from .quadrature import unit_gauss_legendre
 
 
 def alpha_from_roughness(roughness) -> np.ndarray:
@@ -132,8 +133,7 @@ def ggx_importance_grid(alpha: float, n_theta: int = 256, n_phi: int = 128):
     1/√(1 − ξ) at grazing half-vectors, so ξ = 1 − s² is substituted (dξ = 2s ds, smooth) and s
     takes Gauss–Legendre nodes; φ takes midpoints. Weights sum to 1.
     """
-    s, ws = np.polynomial.legendre.leggauss(n_theta)
-    s, ws = 0.5 * (s + 1.0), 0.5 * ws
+    s, ws = unit_gauss_legendre(n_theta)
     xi = 1.0 - s * s
     w_theta = 2.0 * s * ws
     phi = 2.0 * np.pi * (np.arange(n_phi) + 0.5) / n_phi
@@ -194,15 +194,13 @@ def ggx_E(roughness: float, cos_key: tuple) -> np.ndarray:
 @functools.lru_cache(maxsize=64)
 def ggx_E_avg(roughness: float) -> float:
     """Hemispherical average E_avg = 2 ∫₀¹ E(μ) μ dμ (Kulla & Conty 2017, eq. 4)."""
-    mu, w = np.polynomial.legendre.leggauss(32)
-    mu, w = 0.5 * (mu + 1.0), 0.5 * w
+    mu, w = unit_gauss_legendre(32)
     return float(2.0 * np.sum(ggx_E(roughness, tuple(mu)) * mu * w))
 
 
 def fresnel_average_dielectric(eta: float) -> float:
     """Hemispherical average of the unpolarised dielectric Fresnel, F_avg = 2 ∫₀¹ F(μ) μ dμ."""
-    mu, w = np.polynomial.legendre.leggauss(64)
-    mu, w = 0.5 * (mu + 1.0), 0.5 * w
+    mu, w = unit_gauss_legendre(64)
     return float(2.0 * np.sum(fresnel_dielectric(mu, eta) * mu * w))
 
 

@@ -1,5 +1,10 @@
-"""Spectral quadrature of the bake: wavelength nodes and weights λ → (output RGB k, light RGB c).
+"""The bake's quadratures: Gauss–Legendre nodes, and wavelength nodes and weights λ → (output
+RGB k, light RGB c).
 
+:func:`gauss_legendre` and :func:`unit_gauss_legendre` are the Gauss–Legendre rules every
+integral of the bake uses (half-vector elevations, view cosines, the GGX albedo), computed once
+per order and shared read-only: numpy's ``leggauss`` solves an eigenproblem per call (≈ 25 ms
+at 96 nodes, ≈ 0.3 s at 256), which was 37 % of a cold bake when each view rebuilt it.
 :func:`spectral_quadrature` turns a film's spectral reflectance into the bake's 3×3 (spectral
 mode) or per-channel (Cycles-matching mode) colour weights; fluorescent illuminants add one node
 per emission line (the Composite Model). Pure numpy over :mod:`.spectra` and :mod:`.composite`.
@@ -13,7 +18,33 @@ import numpy as np
 
 from . import composite, spectra
 
-__all__ = ["is_line_spectrum", "spectral_quadrature"]
+__all__ = ["gauss_legendre", "is_line_spectrum", "spectral_quadrature", "unit_gauss_legendre"]
+
+
+@functools.cache
+def gauss_legendre(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes x_j and weights w_j on (−1, 1), ``order`` of each, read-only.
+
+    Σ_j w_j f(x_j) = ∫₋₁¹ f(x) dx exactly for polynomials of degree < 2·order (numpy's
+    ``leggauss``, Golub–Welsch). Cached by order: the arrays are shared, so they are returned
+    with writing switched off.
+    """
+    if int(order) != order or order < 1:
+        raise ValueError(f"Gauss–Legendre order must be a positive integer, got {order!r}")
+    x, w = np.polynomial.legendre.leggauss(int(order))
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
+@functools.cache
+def unit_gauss_legendre(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`gauss_legendre` mapped to (0, 1): nodes (x + 1)/2, weights w/2 (they sum to 1), read-only."""
+    x, w = gauss_legendre(order)
+    s, ws = 0.5 * (x + 1.0), 0.5 * w
+    s.setflags(write=False)
+    ws.setflags(write=False)
+    return s, ws
 
 
 def is_line_spectrum(illuminant: str) -> bool:

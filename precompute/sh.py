@@ -54,6 +54,7 @@ __all__ = [
     "apply_window",
     "basis",
     "basis_from_angles",
+    "basis_nonnegative_m",
     "clamped_cosine_zh",
     "convolve_zonal",
     "evaluate",
@@ -266,6 +267,42 @@ def basis_from_angles(l_max: int, cos_theta, phi) -> np.ndarray:
     sin_theta = np.sqrt(np.maximum(0.0, 1.0 - cos_theta * cos_theta))
     d = np.stack([sin_theta * np.cos(phi), sin_theta * np.sin(phi), cos_theta], axis=-1)
     return basis(l_max, d)
+
+
+def basis_nonnegative_m(l_max: int, directions, weights=None) -> np.ndarray:
+    """The m ≥ 0 rows of :func:`basis`, one row per function: shape ((L+1)(L+2)/2, N).
+
+    Row l(l+1)/2 + m holds w_n Y_l^m(ω_n) at the N ``directions`` (N, 3) (l then m, as the bake
+    keeps them; ``weights`` w (N,) default 1), equal to ``basis(l_max, directions)[:, [l(l+1)+m
+    …]].T * w``. The same recurrences, but each written as a contiguous row (the bake's kernel
+    multiplies rows against its nodes), so no strided column writes and no m < 0 half; the
+    recurrence in l is linear in its seed, so w multiplies the seeds only.
+    """
+    l_max = _check_l_max(l_max)
+    d = _unit_directions(directions).reshape(-1, 3)
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    out = np.empty(((l_max + 1) * (l_max + 2) // 2, z.size))
+    # w Re (x + i y)^m and w Im (x + i y)^m
+    cos_m = np.ones_like(z) if weights is None else np.array(weights, dtype=float).reshape(-1)
+    sin_m = np.zeros_like(z)
+    diag = 1.0 / math.sqrt(_FOUR_PI)
+    for m in range(l_max + 1):
+        if m > 0:
+            diag *= math.sqrt((2 * m + 1) / (2 * m))
+            cos_m, sin_m = x * cos_m - y * sin_m, x * sin_m + y * cos_m
+        row = cos_m * (diag if m == 0 else math.sqrt(2.0) * diag)  # N_m^m (√2 cos mφ) sin^m θ
+        out[m * (m + 1) // 2 + m] = row
+        prev2, prev1 = None, row
+        for l in range(m + 1, l_max + 1):
+            if l == m + 1:
+                cur = math.sqrt(2 * m + 3) * z * prev1
+            else:
+                a = math.sqrt((4 * l * l - 1) / (l * l - m * m))
+                b = math.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
+                cur = a * (z * prev1 - b * prev2)
+            out[l * (l + 1) // 2 + m] = cur
+            prev2, prev1 = prev1, cur
+    return out
 
 
 def evaluate(coeffs, directions) -> np.ndarray:
