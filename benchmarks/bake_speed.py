@@ -2,7 +2,8 @@
 
 Usage (from the repository root)::
 
-    .venv/bin/python -m benchmarks.bake_speed          # → docs/bake-speed.md
+    .venv/bin/python -m benchmarks.bake_speed              # → docs/bake-speed.md
+    .venv/bin/python -m benchmarks.bake_speed --cold-only  # only its cold before/after section
 
 Issue acceptance: "Re-baking a changed film with a warm kernel cache, default quality, 2-D
 table over θo × thickness: ≤ 150 ms median on 2 cores; the brute-force baker at equal error is
@@ -410,11 +411,190 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
     return "\n".join(lines)
 
 
+# ----------------------------------------------------------------------------------------------
+# Cold bakes, before and after (issue 16): the same cases, two versions of precompute/, one run
+# ----------------------------------------------------------------------------------------------
+#: Cold cases: every preset at its own roughness, and two films at roughness 0.05 / 0.3 / 0.6.
+COLD_CASES = (
+    *((name, None) for name in ("soap_film", "oil_on_water", "anodised_titanium", "heat_tinted_steel")),
+    ("beetle_multilayer", None),
+    ("coated_car_window", None),
+    *(("soap_film", r) for r in (0.05, 0.3, 0.6)),
+    *(("heat_tinted_steel", r) for r in (0.05, 0.3, 0.6)),
+)
+COLD_ROUNDS = 3
+COLD_TARGET_S = 1.0
+#: The commit whose precompute/ is "before": the main branch when issue 16's cold-bake work began.
+COLD_BEFORE_REV = "dcb75cb"
+
+#: Run in a child process whose working directory holds the precompute/ to time: one cold bake
+#: of every case (every roughness- or material-dependent cache cleared before each; what a
+#: running Blender keeps for the whole session — imports, colour tables, Gauss–Legendre nodes,
+#: the GGX albedo table — stays), printed as JSON.
+_COLD_CHILD = r"""
+import json, sys, time
+from precompute import bake, brdf
+from precompute.material import FALLBACK, preset
+cases = json.loads(sys.argv[1])
+def clear():
+    for f in (bake.microfacet_kernel, bake.diffuse_kernel, brdf.ggx_E, brdf.ggx_E_avg):
+        f.cache_clear()
+    try:
+        from precompute import sh_order
+        sh_order._band_energies.cache_clear()
+    except ImportError:
+        pass
+t0 = time.perf_counter()
+bake.bake(preset("soap_film").with_(roughness=0.77))  # process warm-up: imports, tables, nodes
+first = time.perf_counter() - t0
+out = {"first": first, "cases": []}
+for name, r in cases:
+    m = preset(name) if r is None else preset(name).with_(roughness=r)
+    clear()
+    w, c = time.perf_counter(), time.process_time()
+    res = bake.bake(m)
+    out["cases"].append({"wall": time.perf_counter() - w, "cpu": time.process_time() - c,
+                         "order": res.sh_order, "shape": list(res.data.shape),
+                         "timings": res.timings_s})
+print(json.dumps(out))
+"""
+
+
+def _checkout_before(rev: str, where: str) -> None:
+    """precompute/ of ``rev`` into ``where`` (git archive), for the "before" child."""
+    archive = subprocess.run(
+        ["git", "archive", rev, "precompute"], cwd=common.ROOT, capture_output=True, check=True
+    ).stdout
+    subprocess.run(["tar", "-x", "-C", where], input=archive, check=True)
+
+
+def _cold_child(cwd: str, env: dict) -> dict:
+    cases = json.dumps([list(c) for c in COLD_CASES])
+    proc = subprocess.run(
+        [sys.executable, "-c", _COLD_CHILD, cases],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def measure_cold(rev: str = COLD_BEFORE_REV, single_blas: bool = False) -> dict:
+    """Cold bakes of :data:`COLD_CASES` with ``rev``'s precompute/ and with this one, alternating
+    child processes round by round (so load changes hit both alike); medians of the rounds."""
+    import tempfile
+
+    env = dict(os.environ)
+    if single_blas:
+        env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    runs = {"before": [], "after": []}
+    loads = [common.load_average()]
+    with tempfile.TemporaryDirectory() as before_dir:
+        _checkout_before(rev, before_dir)
+        for _ in range(COLD_ROUNDS):
+            runs["before"].append(_cold_child(before_dir, env))
+            runs["after"].append(_cold_child(common.ROOT, env))
+            loads.append(common.load_average())
+    out = {"rev": rev, "loads": loads, "single_blas": single_blas, "cases": []}
+    for i, (name, r) in enumerate(COLD_CASES):
+        row = {"name": name, "roughness": r}
+        for side in ("before", "after"):
+            cases = [run["cases"][i] for run in runs[side]]
+            c0 = cases[0]
+            row[side] = {
+                "wall": statistics.median(c["wall"] for c in cases),
+                "cpu": statistics.median(c["cpu"] for c in cases),
+                "walls": [c["wall"] for c in cases],
+                "order": cases[0]["order"],
+                "shape": cases[0]["shape"],
+                "timings": {k: statistics.median(c["timings"][k] for c in cases) for k in c0["timings"]},
+            }
+        out["cases"].append(row)
+    out["first"] = {side: statistics.median(run["first"] for run in runs[side]) for side in runs}
+    return out
+
+
+def cold_report(cold: dict) -> list[str]:
+    """The cold section of docs/bake-speed.md."""
+    lines = [
+        COLD_BEGIN,
+        "## Cold bakes before and after (issue 16)",
+        "",
+        f"Generated by `.venv/bin/python -m benchmarks.bake_speed --cold-only` (or the full run). A cold"
+        f" bake is a new roughness, preset or reopened file in a running Blender: every cache that"
+        f" depends on the material or roughness is cleared (microfacet and diffuse kernels, GGX albedo,"
+        f" the SH order's lobe), what a session keeps stays (imports, colour tables, Gauss–Legendre"
+        f" nodes, the GGX albedo table). *Before* is `precompute/` of commit `{cold['rev']}` (main when"
+        f" the work began), *after* is this checkout's; each is timed in its own child process,"
+        f" {COLD_ROUNDS} rounds alternating before/after, median per case (wall and process CPU time)."
+        + (" One BLAS thread." if cold["single_blas"] else " BLAS threads: default."),
+        "",
+        f"- Load average (1, 5, 15 min) before each round and at the end: {' → '.join(cold['loads'])}"
+        " (2 usable cores, shared with other work: the load inflates wall times, CPU times much less).",
+        "- Process warm-up (the first bake in a fresh process, cold everything): before"
+        f" {common.fmt_seconds(cold['first']['before'])},"
+        f" after {common.fmt_seconds(cold['first']['after'])}.",
+        "",
+        "| case | SH order | table | before wall | after wall | ≤ 1 s? | before CPU | after CPU |"
+        " speed-up (CPU) | after: plan+film / kernel / contract+MS |",
+        "|---|---:|---|---:|---:|:---:|---:|---:|---:|---|",
+    ]
+    for row in cold["cases"]:
+        b, a = row["before"], row["after"]
+        label = row["name"] + ("" if row["roughness"] is None else f" @ r {row['roughness']:g}")
+        t = a["timings"]
+        plan_film = t["total"] - t["kernel"] - t["contract"]
+        lines.append(
+            f"| {label} | {b['order']} → {a['order']} | {'×'.join(map(str, a['shape']))} |"
+            f" {common.fmt_seconds(b['wall'])} | **{common.fmt_seconds(a['wall'])}** |"
+            f" {'yes' if a['wall'] <= COLD_TARGET_S else '**no**'} | {common.fmt_seconds(b['cpu'])} |"
+            f" {common.fmt_seconds(a['cpu'])} | {b['cpu'] / a['cpu']:.1f}× |"
+            f" {common.fmt_seconds(plan_film)} / {common.fmt_seconds(t['kernel'])} /"
+            f" {common.fmt_seconds(t['contract'])} |"
+        )
+    met = sum(r["after"]["wall"] <= COLD_TARGET_S for r in cold["cases"])
+    lines += [
+        "",
+        f"{met} of {len(cold['cases'])} cold cases are ≤ 1 s wall in this run.",
+        COLD_END,
+    ]
+    return lines
+
+
+COLD_BEGIN = "<!-- cold-bakes:begin -->"
+COLD_END = "<!-- cold-bakes:end -->"
+
+
+def write_cold_section(cold: dict) -> str:
+    """Replace (or append) the cold section of docs/bake-speed.md, keeping the rest as it is."""
+    path = os.path.join(common.ROOT, "docs", "bake-speed.md")
+    with open(path, encoding="utf-8") as handle:
+        text = handle.read()
+    section = "\n".join(cold_report(cold))
+    if COLD_BEGIN in text and COLD_END in text:
+        head, rest = text.split(COLD_BEGIN, 1)
+        text = head + section + rest.split(COLD_END, 1)[1]
+    else:
+        text = text.rstrip("\n") + "\n\n" + section + "\n"
+    return common.write_doc("bake-speed.md", text)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--child-json", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--cold-only", action="store_true", help="only the cold bakes before/after (its section of the doc)"
+    )
+    parser.add_argument("--before", default=COLD_BEFORE_REV, help="the commit timed as 'before'")
     args = parser.parse_args(argv)
     start = time.perf_counter()
+    if args.cold_only:
+        cold = measure_cold(args.before)
+        print("\n".join(cold_report(cold)))
+        print(f"wrote {write_cold_section(cold)} in {time.perf_counter() - start:.1f} s")
+        return
     bake.plan(preset("soap_film"))  # load CMFs etc. outside any timing
     if args.child_json:
         rows = [measure_preset(name) for name in PRESETS]
@@ -423,7 +603,8 @@ def main(argv=None) -> None:
     rows = [measure_preset(name) for name in PRESETS]
     breakdown = warm_breakdown()
     single = measure_single_thread_blas()
-    text = report(rows, breakdown, single, time.perf_counter() - start)
+    cold = measure_cold(args.before)
+    text = report(rows, breakdown, single, time.perf_counter() - start) + "\n" + "\n".join(cold_report(cold))
     path = common.write_doc("bake-speed.md", text)
     print(text)
     print(f"wrote {path} in {time.perf_counter() - start:.1f} s")

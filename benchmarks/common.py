@@ -214,12 +214,20 @@ def fmt_bytes(count: int) -> str:
 # Bake caches (benchmarks clear them to time cold bakes; nothing in precompute/ is modified)
 # ----------------------------------------------------------------------------------------------
 def clear_bake_caches() -> None:
-    """Forget the microfacet/diffuse kernels (and the u-degree hint, in bakers that keep one)."""
+    """Forget what a new material or roughness must compute: the microfacet/diffuse kernels, the
+    GGX albedo, the SH order's lobe (and the u-degree hint, in bakers that keep one)."""
     from precompute import bake
 
     bake.microfacet_kernel.cache_clear()
     bake.diffuse_kernel.cache_clear()
+    bake.brdf.ggx_E.cache_clear()
+    bake.brdf.ggx_E_avg.cache_clear()
     getattr(bake, "_DEGREE_HINT", {}).clear()
+    try:
+        from precompute import sh_order
+    except ImportError:  # a baker from before the order table
+        return
+    sh_order._band_energies.cache_clear()
 
 
 # ----------------------------------------------------------------------------------------------

@@ -185,10 +185,49 @@ def _ones(cos):
     return np.ones((np.size(cos), 1))
 
 
+#: The GGX albedo's rule: Gauss–Legendre elevations × azimuth midpoints (:func:`ggx_importance_grid`).
+E_THETA = 256
+E_PHI = 128
+#: View cosines integrated together between two progress checkpoints (≈ 2 M nodes).
+E_BATCH = 16
+
+
+def ggx_albedo(cos_o, alpha: float) -> np.ndarray:
+    """Single-scattering GGX albedo E(μo) with F ≡ 1, shape (len(cos_o),): :func:`directional_albedo`
+    with R ≡ 1 on its E_THETA × E_PHI rule, evaluated on the rule's grid.
+
+    The same nodes, weights and estimator G₂ (ωo·h) / (cosθo cosθh), but as (views, θh, φh)
+    arrays built from 1-D factors: u = sinθh cosφh sinθo + cosθh cosθo, cosθi = 2u cosθh − cosθo,
+    and only φh ∈ (0, π) with doubled weights — ωo lies in the xz-plane, so the integrand is even
+    in φh and the midpoints come in mirror pairs. Equal to the general path to rounding
+    (tests/test_brdf.py), ≈ 15× less work.
+    """
+    co = np.clip(np.atleast_1d(np.asarray(cos_o, dtype=float)), constants.MIN_COS, 1.0)
+    s, ws = unit_gauss_legendre(E_THETA)
+    xi = 1.0 - s * s
+    tan2 = alpha * alpha * xi / np.maximum(1.0 - xi, 1e-300)
+    cos_h = 1.0 / np.sqrt(1.0 + tan2)
+    sin_h = np.sqrt(np.maximum(0.0, 1.0 - cos_h * cos_h))
+    cos_phi = np.cos(2.0 * np.pi * (np.arange(E_PHI // 2) + 0.5) / E_PHI)
+    weight = (2.0 * s * ws)[:, None] * np.full(E_PHI // 2, 2.0 / E_PHI)  # (θh, φh), pairs folded
+    sin_cos = (sin_h[:, None] * cos_phi)[None]  # sinθh cosφh
+    cos_h3 = cos_h[None, :, None]
+    out = np.empty(co.size)
+    for lo in range(0, co.size, E_BATCH):
+        c = co[lo : lo + E_BATCH, None, None]
+        u = sin_cos * np.sqrt(np.maximum(0.0, 1.0 - c * c)) + cos_h3 * c
+        cos_i = 2.0 * u * cos_h3 - c
+        g2 = G2_smith_height_correlated(np.maximum(cos_i, constants.MIN_COS), c, alpha)
+        f = np.where((u > 0.0) & (cos_i > 0.0), g2 * u / (c * cos_h3), 0.0)
+        out[lo : lo + E_BATCH] = np.einsum("vtp,tp->v", f, weight)
+        checkpoint()  # a bake's progress and cancellation point
+    return out
+
+
 @functools.lru_cache(maxsize=64)
 def ggx_E(roughness: float, cos_key: tuple) -> np.ndarray:
     """Single-scattering GGX albedo E(μo) with F ≡ 1 at the given view cosines (cached)."""
-    return directional_albedo(np.array(cos_key), roughness, _ones, 256, 128)[:, 0]
+    return ggx_albedo(np.array(cos_key), float(alpha_from_roughness(roughness)))
 
 
 @functools.lru_cache(maxsize=64)

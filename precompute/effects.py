@@ -41,8 +41,8 @@ scene's materials; the World's own content order (:func:`world_content_order`) i
 it. :func:`format_plan` prints either plan for people.
 
 Nothing here bakes: :func:`material_plan` resolves :func:`precompute.bake.plan` (whose
-automatic SH order computes one small kernel per new roughness, ≈ 0.5 s, then cached) and
-evaluates each medium's index at three wavelengths.
+automatic SH order is read from a table, :data:`precompute.sh_order.ORDER_BREAKPOINTS`) and
+evaluates each medium's index at three wavelengths: ≈ 1 ms, fit for the main thread.
 """
 
 from __future__ import annotations
@@ -84,14 +84,14 @@ _PROBE_NM = np.array([360.0, 550.0, 830.0])
 #: the 2-core machine of docs/effect-plan.md; CPU time is what an idle core would take (wall
 #: time on a shared, loaded machine is longer).
 TIME_MODEL = {
-    "fixed": 3.9e-3,  # per bake: plan lookup, spectral quadrature, small arrays
-    "reflectance": 1.0e-7,  # per thickness row × u point × wavelength × interface
-    "kernel_views": 0.0,  # cold microfacet kernel: per view angle (fit: 0, absorbed below)
-    "kernel_coeffs": 3.8e-4,  # … per view angle × full-basis coefficient (L+1)²
-    "kernel_nodes": 2.9e-4,  # … per view angle × u node
-    "multiscatter": 4.2e-3,  # cold GGX albedo tables: per view angle (+ 32 for the average)
-    "contract": 5e-10,  # per multiply-add (fit ≈ 0: a floor at numpy's BLAS speed here)
-    "sh_order": 0.61,  # the automatic SH order's kernel (order 16, 10 views), per new roughness
+    "fixed": 3.97e-3,  # per bake: plan lookup, spectral quadrature, small arrays
+    "reflectance": 2.47e-7,  # per thickness row × u point × wavelength × interface
+    "kernel_views": 1.15e-3,  # cold microfacet kernel: per view angle
+    "kernel_coeffs": 2.88e-5,  # … per view angle × full-basis coefficient (L+1)²
+    "kernel_nodes": 0.0,  # … per view angle × u node (fit: 0, block-sparse since issue 16)
+    "multiscatter": 1.72e-3,  # cold GGX albedo: per view angle (+ 32 for the average)
+    "contract": 5.45e-10,  # per multiply-add (a floor at numpy's BLAS speed here)
+    "sh_order": 6.4e-5,  # the automatic SH order: a table lookup (was an l = 16 kernel, 0.61 s)
 }
 
 
@@ -222,7 +222,8 @@ def bake_features(
     - kernel_views, kernel_coeffs, kernel_nodes (cold kernel only): A, A · (L+1)² and A · U;
     - multiscatter (cold only, when multiple scattering is on): A + 32 GGX albedo views;
     - contract: T·U·W·9 + A·K·U·T·9 (+ T·A·(L+1)·W·9 with a diffuse base);
-    - sh_order: 1 when the SH order is automatic and its kernel is new for this roughness.
+    - sh_order: 1 when the SH order is automatic and not yet planned for this roughness (a table
+      lookup since issue 16: the feature is kept so older calibrations still read).
     """
     t, a, l_max = p.thickness_samples, p.view_samples, p.sh_order
     k = (l_max + 1) * (l_max + 2) // 2

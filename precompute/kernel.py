@@ -33,6 +33,12 @@ from . import brdf, constants, sh
 from .progress import checkpoint
 from .quadrature import unit_gauss_legendre
 
+#: Multiply-adds of one matrix product of :func:`view_kernel`: OpenBLAS runs a product of fewer
+#: than 4 × 65536 multiply-adds on one thread (``GEMM_MULTITHREAD_THRESHOLD``). The kernel's
+#: products are many and small; threaded, on a shared two-core machine, they cost 3× the CPU
+#: time and more wall time than on one thread (docs/bake-speed.md), so they are cut below it.
+SMALL_PRODUCT = 240_000
+
 __all__ = [
     "N_PHI",
     "N_THETA",
@@ -183,7 +189,11 @@ def view_kernel(cos_o: float, alpha: float, l_max: int, degree: int, h: np.ndarr
         if hi > lo:
             nodes, bw = chebyshev_nodes(degree, a, b)
             weights = lagrange_matrix(nodes, bw, u[live[lo:hi]])
-            out[:, j * degree : (j + 1) * degree] = rows[:, lo:hi] @ weights
+            cols = slice(j * degree, (j + 1) * degree)
+            step = max(1, SMALL_PRODUCT // (rows.shape[0] * degree))
+            for start in range(lo, hi, step):  # products small enough for one BLAS thread
+                stop = min(hi, start + step)
+                out[:, cols] += rows[:, start:stop] @ weights[start - lo : stop - lo]
     return out
 
 

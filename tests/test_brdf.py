@@ -113,3 +113,11 @@ def test_multiscatter_scale_restores_the_white_furnace():
         assert np.allclose(e * brdf.multiscatter_scale(cos, r, 1.0), 1.0, atol=1e-12)
     assert brdf.fresnel_average_dielectric(1.0) == pytest.approx(0.0, abs=1e-15)
     assert 0.09 < brdf.fresnel_average_dielectric(1.5) < 0.095  # 0.0918 (Kulla & Conty fit: 0.092)
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.05, 0.3, 0.6, 1.0])
+def test_ggx_albedo_on_its_grid_equals_the_general_directional_albedo(roughness):
+    """ggx_E's fast path (1-D factors, folded azimuth pairs) is the general integral with R ≡ 1."""
+    cos = np.concatenate([[1e-4, 1e-3, 0.03], np.linspace(0.1, 1.0, 19)])
+    general = brdf.directional_albedo(cos, roughness, lambda u: np.ones((np.size(u), 1)), 256, 128)[:, 0]
+    np.testing.assert_allclose(brdf.ggx_E(roughness, tuple(cos)), general, rtol=0, atol=1e-13)
