@@ -2,8 +2,9 @@
 
 Each slow loop of :mod:`.bake` is cut into blocks whose size is a named constant here, not the
 material's, so the time between two checkpoints, which is how long a cancel waits, is bounded by
-design: a block of a reflectance sweep (:func:`chunked_sweep`), of a view angle's kernel product
-(:func:`kernel_blocks`), of thickness rows (:func:`row_blocks`). A bigger table makes more
+design: a block of a reflectance sweep (:func:`chunked_sweep`), one view angle of the kernel
+(bounded by :data:`KERNEL_CHUNK`, :func:`precompute.kernel.view_kernel`), a block of thickness
+rows (:func:`row_blocks`). A bigger table makes more
 steps, never longer ones. benchmarks/bake_progress.py measures the gaps (docs/bake-progress.md).
 """
 
@@ -22,7 +23,6 @@ __all__ = [
     "KERNEL_CHUNK",
     "SWEEP_CHUNK",
     "chunked_sweep",
-    "kernel_blocks",
     "row_blocks",
     "sweep_checkpoints",
 ]
@@ -39,13 +39,6 @@ CONTRACT_CHUNK = 50_000_000
 KERNEL_CHUNK = 32_000_000
 #: Array elements an elementwise pass (the multiple-scattering scale) handles between two.
 ELEMENT_CHUNK = 2_000_000
-
-
-def kernel_blocks(nodes: int, coefficients: int, u_count: int, budget: int = KERNEL_CHUNK) -> list[slice]:
-    """Column blocks of the u nodes for one view angle's kernel product, each ≤ ``budget``
-    multiply-adds (at least one column): a :func:`checkpoint` follows each."""
-    cols = max(1, budget // max(1, nodes * coefficients))
-    return [slice(lo, lo + cols) for lo in range(0, u_count, cols)]
 
 
 def chunked_sweep(indices, thickness_sets, wavelengths_nm, cos_theta, method: str) -> np.ndarray:

@@ -45,3 +45,13 @@ def test_gauss_legendre_is_cached_read_only_and_exact():
     assert np.sum(w * x**47) == pytest.approx(1.0 / 48.0, rel=1e-13)
     with pytest.raises(ValueError, match="positive integer"):
         quadrature.gauss_legendre(0)
+
+
+def test_one_view_of_the_kernel_fits_between_two_checkpoints():
+    """A view's block-sparse product at the largest order and node count stays within the budget
+    of work between two progress checkpoints (a cancel waits for at most that)."""
+    from precompute import chunks
+    from precompute.material import MAX_SH_ORDER
+
+    k = len(kernel.coefficient_indices(MAX_SH_ORDER))
+    assert kernel.N_THETA * kernel.N_PHI * k * max(bake.U_DEGREE_LADDER) <= chunks.KERNEL_CHUNK
