@@ -544,6 +544,8 @@ def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
     found = textures.get(kind, compute)
     if found is None:  # asked of a worker (.world_job); the SH path meanwhile
         CACHES.prefilters_wanted.add((lighting.content_key, kind))
+    else:
+        CACHES.prefilters_wanted.discard((lighting.content_key, kind))
     return found
 
 

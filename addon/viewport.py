@@ -1,8 +1,10 @@
 """The 3D viewport: a POST_VIEW draw handler that draws thin-film objects over the scene.
 
 Drawing never bakes or renders: a material whose table is missing, or a World that changed, is
-queued and handled by a timer outside the draw callback (a bake runs on a worker thread; the
-World update may render a small Cycles panorama for procedural worlds; a Principled BSDF's
+queued and handled by a timer outside the draw callback (a bake runs on a worker thread; a new
+World is read by the timer — its image's pixels, or a small Cycles panorama for procedural
+worlds — and analysed on a worker, :mod:`.world_job`, while the old lighting is drawn; a
+Strength or Mapping rotation edit needs neither; a Principled BSDF's
 linked Thin Film Thickness that needs a Cycles bake, :mod:`.linked`, is baked by the timer on
 the main thread, where Blender's bakes must run). Works in Solid and
 Material Preview shading; the viewport's depth buffer masks the objects against the scene.

@@ -37,6 +37,7 @@ The panorama render is :mod:`.panorama`; the maths is in ``precompute``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -363,6 +364,29 @@ def _environment_rotation(bg):
     return rotation, parity, names
 
 
+#: A rotation this close to one about z (mathutils' float32 Euler, the normalisation) is taken
+#: as that rotation exactly: its SH rotation is then the cos/sin fast path (sh.rotation_z).
+_Z_SNAP = 1e-6
+
+
+def _snapped(p: np.ndarray) -> np.ndarray:
+    """``p``, or the exact rotation about z it is within :data:`_Z_SNAP` of."""
+    off = max(abs(p[0, 2]), abs(p[1, 2]), abs(p[2, 0]), abs(p[2, 1]), abs(p[2, 2] - 1.0))
+    if off > _Z_SNAP:
+        return p
+    angle = math.atan2(p[1, 0], p[0, 0])
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@functools.lru_cache(maxsize=8)
+def _sh_rotation(l_max: int, rotation: tuple) -> np.ndarray:
+    """The SH rotation of the World's Pᵀ (cached: the SH and the SH without lamps share it)."""
+    out = sh.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
+    out.setflags(write=False)
+    return out
+
+
 def _parameters(world) -> tuple[WorldParams, list]:
     """The World's cheap parameters and the (node, input) pairs they are read from."""
     bg = _background(world)
@@ -373,7 +397,7 @@ def _parameters(world) -> tuple[WorldParams, list]:
     found = _environment_rotation(bg)
     if found is not None:
         p, parity, names = found
-        rotation = tuple(float(v) for v in np.asarray(p).reshape(-1))
+        rotation = tuple(float(v) for v in _snapped(np.asarray(p)).reshape(-1))
         without += [(name, ident) for name in names for ident in ("Rotation", "Scale")]
     strength = None
     socket = bg.inputs["Strength"]
@@ -409,7 +433,7 @@ def apply_params(coeffs, params: WorldParams, scale: float | None, turned: bool)
         c = c * np.where(bands % 2 == 1, -1.0, 1.0)[:, None]
     p = np.asarray(params.rotation, dtype=np.float64).reshape(3, 3)
     if turned and not np.allclose(p, np.eye(3), rtol=0.0, atol=1e-15):
-        c = sh.rotation(l_max, p.T) @ c
+        c = _sh_rotation(l_max, tuple(params.rotation)) @ c
     return c * scale if scale is not None else c
 
 
