@@ -79,7 +79,7 @@ class Analysed:
     ``content``: :class:`.world.WorldContent` (SH in the content's frame); ``environment``: the
     content's panorama with its lamps (:class:`precompute.environment.Environment`), None when
     it could not be analysed; ``arrays``: the prefilters computed so far, by kind (:data:`LIFTED`,
-    :data:`WHOLE`), each (levels, moments) float32 (J, 256, 512, 3), ready to upload.
+    :data:`WHOLE`), each the texture's content (2J, 256, 512, 4) float32, ready to upload.
     """
 
     content_key: str
@@ -95,17 +95,19 @@ class Analysed:
         env = self.environment
         return WHOLE if env is None or env.lamps is None else kind
 
-    def compute(self, kind: str) -> tuple[np.ndarray, np.ndarray | None]:
-        """The ``kind`` prefilter, computed (seconds: call it on a worker) and kept."""
+    def compute(self, kind: str) -> np.ndarray:
+        """The ``kind`` prefilter, computed (seconds: call it on a worker), packed for the texture
+        (:meth:`.gpu.resources.PrefilterTexture.pack`) and kept."""
         kind = self.kind(kind)
         with self.lock:  # one computation per kind, whichever thread asks first
             found = self.arrays.get(kind)
             if found is None:
                 env = self.environment
                 pre = env.prefiltered if kind == LIFTED else env.prefiltered_whole
-                levels = pre.resampled(PREFILTER_WIDTH).astype(np.float32)
-                moments = pre.resampled_moments(PREFILTER_WIDTH)
-                found = (levels, None if moments is None else moments.astype(np.float32))
+                # packed for the texture here (numpy): the main thread only uploads it
+                found = resources.PrefilterTexture.pack(
+                    pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
+                )
                 self.arrays[kind] = found
         return found
 
@@ -174,7 +176,7 @@ class PrefilterTextures:
             if not compute:
                 return None
             arrays = self.analysed.compute(kind)
-        found = resources.PrefilterTexture.from_levels(*arrays)
+        found = resources.PrefilterTexture.from_packed(arrays)
         self._uploaded[kind] = found
         return found
 

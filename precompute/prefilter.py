@@ -21,7 +21,9 @@ References
 
 from __future__ import annotations
 
+import concurrent.futures
 import math
+import os
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -38,6 +40,8 @@ SAMPLES = (12, 6)
 #: Mip-level bias of filtered importance sampling: 0, not Křivánek & Colbert's 1, so small HDR
 #: lamps are not blurred (docs/tuning.md#lod-bias).
 LOD_BIAS = 0.0
+#: Threads that filter levels at once (bounded by the cores): the levels are independent.
+LEVEL_THREADS = 4
 #: Rec.709 luminance weights (Blender's scene-linear RGB): the weight of each direction in the
 #: light-weighted mean direction of shading.split_sum.dominant_cosine.
 LUMINANCE = (0.2126, 0.7152, 0.0722)
@@ -253,16 +257,27 @@ def prefilter(
             raise ValueError("level lamp weights must be 0 or 1")
         if np.any(weights == 1.0):
             chains[1.0] = chain_of(img[..., :3] - img[..., 3:6])
-    out = []
-    for j, r in enumerate(levels):
+
+    def one(j: int) -> np.ndarray:
+        r = levels[j]
         chain = chains[0.0 if weights is None else float(weights[j])]
         if r <= 0.0:
-            out.append(chain[0])
-            continue
+            return chain[0]
         alpha = max(float(r) ** 2, constants.MIN_ALPHA)
         w_out = min(level_width(r, width), chain[0].shape[1])
         level_n = level_samples(alpha, chain[0].shape[1], samples) if adaptive else samples
-        out.append(_level(chain, alpha, w_out, level_n, lod_bias))
+        return _level(chain, alpha, w_out, level_n, lod_bias)
+
+    # the levels are independent and numpy's gathers and products release the GIL: one thread
+    # per core (at most LEVEL_THREADS), the widest levels first
+    order = sorted(range(len(levels)), key=lambda j: -min(level_width(levels[j], width), width))
+    threads = max(1, min(LEVEL_THREADS, os.cpu_count() or 1))
+    if threads > 1:
+        with concurrent.futures.ThreadPoolExecutor(threads) as pool:
+            done = dict(zip(order, pool.map(one, order), strict=True))
+    else:
+        done = {j: one(j) for j in order}
+    out = [done[j] for j in range(len(levels))]
     return Prefiltered(
         tuple(level[..., :3] for level in out),
         np.asarray(levels, dtype=float),

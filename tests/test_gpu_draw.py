@@ -905,6 +905,8 @@ def test_turned_and_scaled_prefilter_lookup_matches_numpy_per_pixel(gd, weight, 
     turned = used.transformed(q, scale)
     expected = (1.0 - weight) * split_sum.shade_split_sum(result, turned, n, views) + weight * sh_half
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
-    assert inside.sum() > 300 and err < 1e-4, err  # as the unturned split sum
+    # as the unturned split sum, plus the turn in float32 before the lookup's atan/acos (whose
+    # llvmpipe error, ≈ 1e-4 of the peak, lands on other texels once turned): 2e-4 of the peak
+    assert inside.sum() > 300 and err < 2e-4, err
     unturned = (1.0 - weight) * split_sum.shade_split_sum(result, used, n, views) + weight * sh_half
     assert np.max(np.abs(unturned - expected)) / np.max(expected) > 1e-2  # the turn shows

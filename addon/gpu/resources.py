@@ -475,13 +475,19 @@ class PrefilterTexture:
         (prefilter.Prefiltered.resampled_moments), stored as layers J … 2J − 1; None stores
         zeros, and the shader then reads the film's albedo at the view angle.
         """
+        return cls.from_packed(cls.pack(levels, moments))
+
+    @staticmethod
+    def pack(levels, moments=None) -> np.ndarray:
+        """The texture's content (2J, H, W, 4) float32 (:meth:`from_levels`' layout), checked:
+        numpy only, so a worker thread can make it and the main thread only uploads it."""
         data = np.asarray(levels, dtype=np.float32)
         if data.ndim != 4 or data.shape[0] < 2 or data.shape[3] < 3:
             raise ValueError(f"prefiltered levels must be (J ≥ 2, H, W, 3), got {data.shape}")
         if not np.all(np.isfinite(data)):
             raise ValueError("prefiltered levels contain NaN or Inf")
-        j, h, w = data.shape[:3]
-        rgba = np.zeros((2 * j, h, w, 4), dtype=np.float32)
+        j = data.shape[0]
+        rgba = np.zeros((2 * j,) + data.shape[1:3] + (4,), dtype=np.float32)
         rgba[:j, ..., :3] = data[..., :3]
         if moments is not None:
             mom = np.asarray(moments, dtype=np.float32)
@@ -490,6 +496,15 @@ class PrefilterTexture:
             if not np.all(np.isfinite(mom)):
                 raise ValueError("prefiltered moments contain NaN or Inf")
             rgba[j:, ..., :3] = mom[..., :3]
+        return rgba
+
+    @classmethod
+    def from_packed(cls, rgba) -> PrefilterTexture:
+        """Upload :meth:`pack`'s (2J, H, W, 4) float32 array (the main thread's only share)."""
+        rgba = np.asarray(rgba, dtype=np.float32)
+        if rgba.ndim != 4 or rgba.shape[0] < 4 or rgba.shape[0] % 2 or rgba.shape[3] != 4:
+            raise ValueError(f"packed prefilter must be (2J ≥ 4, H, W, 4), got {rgba.shape}")
+        j, h, w = rgba.shape[0] // 2, rgba.shape[1], rgba.shape[2]
         ensure_gpu_context()
         texture = gpu.types.GPUTexture((w, h, 2 * j), format="RGBA32F", data=float_buffer(rgba))
         texture.filter_mode(True)
