@@ -69,7 +69,14 @@ def _start(label: tuple, target, *args) -> None:
 
 def _analyse(content_key: str, read, fallback, kinds, generation: int) -> None:
     STATS["analyse"] += 1
-    found = world_analysis.analyse_content(content_key, read, fallback, kinds)
+    try:
+        found = world_analysis.analyse_content(content_key, read, fallback, kinds)
+    except Exception as exc:  # kept as the fallback colour, so the timer does not retry it forever
+        log.error("Thin Film SH: World analysis failed: %s", exc)
+        coeffs = world._constant(0, fallback)
+        why = f"The World could not be analysed ({exc}): lit by its fallback colour"
+        plain = world.WorldRead("fallback", coeffs=coeffs, warnings=(why,))
+        found = world_analysis.Analysed(content_key, world.analyse_read(plain, 0), None)
     if scene_draw.CACHES.generation == generation:  # not for a file loaded since
         scene_draw.CACHES.contents[content_key] = found
 
