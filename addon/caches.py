@@ -53,10 +53,15 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   when the geometry or the thickness's inputs change; GPU table textures and film textures by
   description key; lighting uniform buffers by (World key, l_max, roughness, lamps); the
   World's lighting (``scene_draw.WorldLighting``: its SH, the analysed panorama, the prefilters
-  on the GPU) for the current World key only; LRUs of ``scene_draw.BATCH_CACHE_SIZE`` (256),
-  ``TABLE_CACHE_SIZE`` and ``FILM_CACHE_SIZE`` (32, as ``tables.LRU_SIZE``) and
-  ``LIGHTING_CACHE_SIZE`` (64) entries, or what the last frame used if more (so a long session
-  of edits cannot grow them, and a large frame does not rebuild every frame); lightings are
+  on the GPU) for the current World key only; the analysed World contents
+  (``world_analysis.Analysed``: SH, panorama, lamps, prefilter arrays) by
+  ``world.world_parts``' content key, an LRU of ``scene_draw.CONTENT_CACHE_SIZE`` (3), filled
+  by ``world_job``'s worker (the LRU is thread-safe; a result for a file loaded since is
+  dropped by ``Caches.generation``) and by ``scene_draw.world_lighting`` in headless renders;
+  LRUs of ``scene_draw.BATCH_CACHE_SIZE`` (256), ``TABLE_CACHE_SIZE`` and ``FILM_CACHE_SIZE``
+  (32, as ``tables.LRU_SIZE``) and ``LIGHTING_CACHE_SIZE`` (64) entries, or what the last
+  frame used if more (so a long session of edits cannot grow them, and a large frame does not
+  rebuild every frame); lightings are
   also pruned to the current World on each World change; filled by ``scene_draw.collect`` and
   ``scene_draw.world_lighting``; FILE.
 - ``shaders`` — ``gpu.shaders.SHADERS``: compiled GPU shaders by variant; one per variant used

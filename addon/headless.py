@@ -209,7 +209,7 @@ def render_scene(
     env = None
     lighting = scene_draw.CACHES.world
     if background and lighting is not None and lighting.environment is not None:
-        env = lighting.environment.panorama  # the panorama the split sum was prefiltered from
+        env = lighting.background()  # the panorama the split sum was prefiltered from, turned and scaled
     space, region = _view3d_for_depth()
 
     film_objects = {item.name.split("/")[0] for item in items}

@@ -35,16 +35,16 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..precompute import cli_support, film_colour, prefilter
-from ..precompute.environment import Environment, analyse_world
+from ..precompute import cli_support, film_colour
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, linked, panorama, tables, world, world_key
+from . import caches, description, linked, tables, world, world_analysis
 from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
 from .principled import linked_thickness_socket
 from .thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
+from .world_analysis import WorldLighting
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +76,9 @@ TABLE_CACHE_SIZE = tables.LRU_SIZE
 FILM_CACHE_SIZE = tables.LRU_SIZE
 #: Lighting uniform buffers kept (a roughness slider's drag makes one per step).
 LIGHTING_CACHE_SIZE = 64
+#: Analysed World contents kept (each holds a 512-wide panorama and up to two prefilters,
+#: ≈ 60 MB): the current World and two recent ones.
+CONTENT_CACHE_SIZE = 3
 
 
 @dataclass
@@ -115,6 +118,13 @@ class Caches:
         default_factory=lambda: _lru(LIGHTING_CACHE_SIZE)
     )  # (world key, l_max, roughness, lamps) → Lighting
     world: WorldLighting | None = None  # the current World's lighting
+    #: Analysed World contents (world_analysis.Analysed) by content key: a Strength or rotation
+    #: edit, or a swap back to a recent HDRI, recomputes nothing.
+    contents: caches.LRU = field(default_factory=lambda: _lru(CONTENT_CACHE_SIZE))
+    world_wanted: bool = False  # the draw met a World content not analysed yet (.world_job)
+    prefilters_wanted: set = field(default_factory=set)  # (content key, kind) the draw asked for
+    prefilters_used: set = field(default_factory=set)  # kinds the frames' glossy films read
+    generation: int = 0  # bumped by clear(): a worker's result for an older file is dropped
     dirty: set = field(default_factory=set)  # object names whose geometry changed
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
 
@@ -124,6 +134,11 @@ class Caches:
             lru.clear()
             lru.resize(size)
         self.world = None
+        self.contents.clear()
+        self.world_wanted = False
+        self.prefilters_wanted.clear()
+        self.prefilters_used.clear()
+        self.generation += 1
         self.dirty.clear()
 
     def _bounded(self):
@@ -183,122 +198,65 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 
 # ----------------------------------------------------------------------------------------------
 #: Panorama size for the split sum's prefilter and the headless background.
-PANORAMA_WIDTH = 512
-PREFILTER_WIDTH = prefilter.LEVEL_WIDTH  # 512: level 0 is the panorama itself
+PANORAMA_WIDTH = world_analysis.PANORAMA_WIDTH
+PREFILTER_WIDTH = world_analysis.PREFILTER_WIDTH  # 512: level 0 is the panorama itself
 
 
-def _prefilter_texture(pre) -> resources.PrefilterTexture:
-    return resources.PrefilterTexture.from_levels(
-        pre.resampled(PREFILTER_WIDTH), pre.resampled_moments(PREFILTER_WIDTH)
+def _lighting_key(content_key: str, params: world.WorldParams) -> str:
+    """The drawn lighting's key: the World's content key and its parameters."""
+    return (
+        f"{content_key}|{params.strength!r}|{params.parity}|{','.join(f'{v:.17g}' for v in params.rotation)}"
     )
 
 
-class PrefilterTextures:
-    """An :class:`~precompute.environment.Environment`'s prefilters on the GPU, each computed and
-    uploaded the first time a drawn material reads it (:func:`_prefiltered_for`).
+def world_lighting(scene, *, allow_compute: bool = True) -> WorldLighting | None:
+    """The :class:`WorldLighting` of the scene's World: the content analysed once per content key,
+    the parameters (Strength, Mapping rotation) applied per edit without recomputation.
 
-    :meth:`prefiltered`: the split-sum levels with the World's lamps lifted out from
-    lamps.LAMP_LEVEL on, for glossy materials that shade the lamps per light;
-    :meth:`prefiltered_whole`: the whole World in every level, for the glossy materials the lamps
-    do not apply to (a diffuse base under the film, "World Lamps" off). Without lamps they are one
-    texture.
+    With ``allow_compute`` False (the draw callback) a World whose content is not analysed yet
+    is asked for (:attr:`Caches.world_wanted`, served by ``.world_job`` on a worker) and the
+    lighting drawn so far is returned meanwhile: the old World until the new one is ready (None
+    before the first). With ``allow_compute`` (headless renders) it is analysed here.
     """
-
-    def __init__(self, analysed: Environment):
-        self.environment = analysed
-        self._lifted: resources.PrefilterTexture | None = None
-        self._whole: resources.PrefilterTexture | None = None
-
-    def prefiltered(self) -> resources.PrefilterTexture:
-        """The prefilter with the lamps lifted out (the whole World when it has none)."""
-        if self.environment.lamps is None:
-            return self.prefiltered_whole()
-        if self._lifted is None:
-            self._lifted = _prefilter_texture(self.environment.prefiltered)
-        return self._lifted
-
-    def prefiltered_whole(self) -> resources.PrefilterTexture:
-        """The prefilter with the lamps in every level."""
-        if self._whole is None:
-            self._whole = _prefilter_texture(self.environment.prefiltered_whole)
-        return self._whole
-
-
-@dataclass(frozen=True)
-class WorldLighting:
-    """The scene's World as the draw lights with it (:func:`world_lighting`).
-
-    ``key``: :func:`.world_key.world_key` of the World; ``sh``: its SH radiance
-    (:class:`.world.WorldSH`); ``environment``: its panorama analysed
-    (:func:`precompute.environment.analyse_world`: lamps, prefiltered levels, the lamps' SH),
-    or None when not asked for, without a World, or when the panorama render failed (glossy
-    films then fall back to the SH path); ``textures``: the environment's prefilters on the GPU
-    (None when ``environment`` is); ``image_tried``: whether the environment was asked for (so a
-    World without one, or whose panorama failed, is not rendered again on every frame).
-    """
-
-    key: str
-    sh: world.WorldSH
-    environment: Environment | None = None
-    textures: PrefilterTextures | None = None
-    image_tried: bool = False
-
-
-def world_lighting(scene, *, allow_compute: bool = True, need_image: bool = True) -> WorldLighting | None:
-    """The :class:`WorldLighting` of the scene's World, recomputed only when its key changes.
-
-    The environment (and so the split sum for glossy films) needs a small Cycles panorama render
-    of the World; without a World, or if that render fails, glossy films fall back to the SH path.
-    With ``allow_compute`` False (the draw callback) a World whose lighting is not cached gives
-    None.
-    """
-    key = world_key.world_key(scene)
-    cached = CACHES.world
-    if cached is not None and cached.key == key and (cached.image_tried or not need_image):
-        return cached
-    if not allow_compute:
-        return None
-    result = (
-        cached.sh
-        if cached is not None and cached.key == key
-        else world.world_sh(scene)  # every band a table may use (MAX_SH_ORDER)
-    )
-    analysed = textures = None
-    if need_image and scene.world is not None:
-        try:
-            image = (
-                _constant_panorama(result.coeffs)  # the World failed: its fallback colour all round
-                if result.errors
-                else panorama.render_world_panorama(scene.world, width=PANORAMA_WIDTH)
-            )
-            found = analyse_world(image, result.coeffs, l_max=resources.MAX_L, width=PREFILTER_WIDTH)
-            analysed, textures = found, PrefilterTextures(found)
-        except (RuntimeError, ValueError) as exc:
-            log.warning("Thin Film SH: no split sum for glossy films (World panorama failed: %s)", exc)
-    CACHES.world = WorldLighting(key, result, analysed, textures, image_tried=need_image)
+    content_key, params = world.world_parts(scene)
+    key = _lighting_key(content_key, params)
+    current = CACHES.world
+    if current is not None and current.key == key:
+        return current
+    analysed = CACHES.contents.get(content_key)
+    if analysed is None:
+        if not allow_compute:
+            CACHES.world_wanted = True
+            return current
+        read = world.read_world(scene, params=params)
+        fallback = world.fallback_colour(scene.world)[0]
+        analysed = world_analysis.analyse_content(content_key, read, fallback)
+        CACHES.contents[content_key] = analysed
+    CACHES.world = world_analysis.lighting_from(scene, analysed, params, key, current)
     for stale in [k for k, _ in CACHES.lightings.items() if k[0] != key]:
         CACHES.lightings.pop(stale)
     return CACHES.world
-
-
-def _constant_panorama(coeffs) -> np.ndarray:
-    """A panorama of the constant radiance whose SH band 0 is ``coeffs[0]`` (= √(4π)·c)."""
-    rgb = np.asarray(coeffs[0], dtype=np.float32) / np.float32(np.sqrt(4.0 * np.pi))
-    return np.ascontiguousarray(np.broadcast_to(rgb, (PANORAMA_WIDTH // 2, PANORAMA_WIDTH, 3)))
 
 
 def lighting_for(
     lighting: WorldLighting, l_max: int, roughness: float, lamps: bool = False
 ) -> resources.Lighting:
     """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
-    the lamps themselves."""
+    the lamps themselves. The World's rotation and strength are in it for the prefilter lookup."""
     env = lighting.environment
     lamps = bool(lamps and env is not None and env.lamps is not None)
     key = (lighting.key, int(l_max), round(float(roughness), 6), lamps)
     found = CACHES.lightings.get(key)
     if found is None:
-        coeffs = env.sh_without_lamps if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
-        found = resources.Lighting.from_sh(coeffs, l_max, roughness, env.lamps if lamps else None)
+        coeffs = lighting.sh_without_lamps() if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
+        found = resources.Lighting.from_sh(
+            coeffs,
+            l_max,
+            roughness,
+            lighting.lamps() if lamps else None,
+            lighting.matrix,
+            1.0 if lighting.scale is None else lighting.scale,
+        )
         CACHES.lightings[key] = found
     return found
 
@@ -565,8 +523,12 @@ def _material_entry(
     )
 
 
-def _prefiltered_for(lighting: WorldLighting, entry):
+def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
     """The prefilter the entry's draw reads, computed on first use; None when it reads none.
+
+    With ``compute`` False (the draw callback) a prefilter not computed yet is asked of a worker
+    (:attr:`Caches.prefilters_wanted`) and None is returned: the film draws from the SH until it
+    is ready.
 
     Only the split sum reads a prefilter, and only below an SH weight of 1
     (variant.choose_variant): rough films draw from the SH alone and get none, so a scene of
@@ -576,9 +538,15 @@ def _prefiltered_for(lighting: WorldLighting, entry):
     textures = lighting.textures
     if textures is None or entry.sh_weight >= 1.0:
         return None
-    if entry.lamps:  # the World's lamps shaded per direction: the prefilter without them
-        return textures.prefiltered()
-    return textures.prefiltered_whole()
+    # the World's lamps shaded per direction: the prefilter without them
+    kind = world_analysis.LIFTED if entry.lamps else world_analysis.WHOLE
+    CACHES.prefilters_used.add(kind)
+    found = textures.get(kind, compute)
+    if found is None:  # asked of a worker (.world_job); the SH path meanwhile
+        CACHES.prefilters_wanted.add((lighting.content_key, kind))
+    else:
+        CACHES.prefilters_wanted.discard((lighting.content_key, kind))
+    return found
 
 
 def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None, errors=None):
@@ -676,7 +644,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     entry.table,
                     entry.lighting,
                     f"{original.name}/{bpy_material.name}",
-                    prefiltered=_prefiltered_for(lighting, entry),
+                    prefiltered=_prefiltered_for(lighting, entry, allow_world),
                     roughness=entry.roughness,
                     sh_weight=entry.sh_weight,
                     film=entry.film,

@@ -1,8 +1,10 @@
 """The 3D viewport: a POST_VIEW draw handler that draws thin-film objects over the scene.
 
 Drawing never bakes or renders: a material whose table is missing, or a World that changed, is
-queued and handled by a timer outside the draw callback (a bake runs on a worker thread; the
-World update may render a small Cycles panorama for procedural worlds; a Principled BSDF's
+queued and handled by a timer outside the draw callback (a bake runs on a worker thread; a new
+World is read by the timer — its image's pixels, or a small Cycles panorama for procedural
+worlds — and analysed on a worker, :mod:`.world_job`, while the old lighting is drawn; a
+Strength or Mapping rotation edit needs neither; a Principled BSDF's
 linked Thin Film Thickness that needs a Cycles bake, :mod:`.linked`, is baked by the timer on
 the main thread, where Blender's bakes must run). Works in Solid and
 Material Preview shading; the viewport's depth buffer masks the objects against the scene.
@@ -30,7 +32,7 @@ import threading
 
 import bpy
 
-from . import caches, linked, prefs, scene_draw, tables
+from . import caches, linked, prefs, scene_draw, tables, world_job
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -79,7 +81,7 @@ def activity() -> str:
     if running:
         done = sum(running.values()) / len(running)
         parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
-    if _world_stale:
+    if _world_stale or world_job.busy():
         parts.append("analyzing the World")
     return ", ".join(parts)
 
@@ -150,17 +152,17 @@ def _service() -> float | None:
     if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw
         for error in linked.run_pending():
             log.error("Thin Film SH: linked thickness: %s", error)
-    if _world_stale and bpy.context.scene is not None:
-        _world_stale = False
-        try:
-            scene_draw.world_lighting(bpy.context.scene, allow_compute=True)
-        except Exception as exc:
-            log.error("Thin Film SH: World lighting failed: %s", exc)
+    _world_stale = False
+    try:  # the World: read here (bpy), analysed on a worker; a finished worker redraws
+        world_done = world_job.service(bpy.context.scene)
+    except Exception as exc:
+        world_done = False
+        log.error("Thin Film SH: World lighting failed: %s", exc)
     finished = _finished.is_set()
     _finished.clear()
-    if jobs or _running or baked or finished:
+    if jobs or _running or baked or finished or world_done:
         _tag_redraw()
-    return 0.1 if (_running or _pending or _finished.is_set()) else None
+    return 0.1 if (_running or _pending or _finished.is_set() or world_job.busy()) else None
 
 
 def _schedule() -> None:
@@ -186,9 +188,11 @@ def draw_callback() -> None:
     rv3d = context.region_data
     depsgraph = context.evaluated_depsgraph_get()
     try:
-        if scene_draw.world_lighting(depsgraph.scene, allow_compute=False) is None:
-            _world_stale = True
+        lighting = scene_draw.world_lighting(depsgraph.scene, allow_compute=False)
+        if world_job.busy():  # a new World (or prefilter) to analyse: the old one is drawn meanwhile
             _schedule()
+        if lighting is None:
+            _world_stale = True
             return
         with linked.deferring():  # a linked thickness that needs a bake is queued for the timer
             items, messages = scene_draw.collect(

@@ -37,17 +37,26 @@ The panorama render is :mod:`.panorama`; the maths is in ``precompute``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
+from dataclasses import dataclass
 
 import numpy as np
-from mathutils import Euler
 
 from ..precompute import hdri, sh
 from ..precompute.material import MAX_SH_ORDER
 from . import caches
 from .panorama import render_world_panorama
 from .world_key import DEFAULT_WORKING_SPACE, image_path, working_space, world_key, world_uses_nodes
+from .world_nodes import (
+    Fallback,
+    active_world_output,
+    linked_from,
+    lookup_matrix,
+    rotation_from_lookup,
+    uses_light_path,
+)
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
@@ -55,7 +64,16 @@ __all__ = [
     "MAX_COEFFICIENT",
     "MAX_PROJECTION_WIDTH",
     "SH_CACHE",
+    "WorldContent",
+    "WorldParams",
+    "WorldRead",
     "WorldSH",
+    "analyse_read",
+    "apply_params",
+    "content_scale",
+    "finish",
+    "read_world",
+    "world_parts",
     "fallback_colour",
     "world_sh",
 ]
@@ -68,8 +86,6 @@ MAX_PROJECTION_WIDTH = 1024
 DEFAULT_CACHE_SIZE = 16
 
 _LINEAR_SPACES = ("Linear Rec.709", "Linear Rec.2020", "ACEScg")
-#: Relative tolerance for "this Mapping is a rotation times a uniform scale".
-_SIMILARITY_TOL = 1e-6
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -187,129 +203,12 @@ def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
 
 
 # ----------------------------------------------------------------------------------------------
-# Reading the node tree
-# ----------------------------------------------------------------------------------------------
-
-
-class _Fallback(Exception):
-    """The tree is not one of the shapes read directly: render a panorama instead."""
-
-
-def _active_world_output(tree):
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"]
-    for preferred in (
-        lambda n: n.is_active_output and n.target in {"ALL", "CYCLES"},
-        lambda n: n.is_active_output,
-        lambda n: True,
-    ):
-        found = [n for n in outputs if preferred(n)]
-        if found:
-            return found[0]
-    return None
-
-
-def _linked_from(socket):
-    """(node, output socket) feeding ``socket`` through reroutes, or None when unlinked."""
-    seen = 0
-    while socket.is_linked:
-        links = [link for link in socket.links]
-        if len(links) != 1:
-            raise _Fallback("multiple links")
-        link = links[0]
-        if link.is_muted or not link.is_valid:
-            raise _Fallback("a muted or invalid link")
-        node = link.from_node
-        if node.bl_idname == "NodeReroute":
-            if node.mute:
-                raise _Fallback("a muted reroute")
-            socket = node.inputs[0]
-            seen += 1
-            if seen > 1000:
-                raise _Fallback("a reroute loop")
-            continue
-        return node, link.from_socket
-    return None
-
-
-def _mapping_matrix(node) -> np.ndarray:
-    """3×3 matrix A with (Mapping output) ∝ A · input for direction lookups; raises _Fallback."""
-    for ident in ("Location", "Rotation", "Scale"):
-        sock = node.inputs.get(ident)
-        if sock is not None and sock.enabled and sock.is_linked:
-            raise _Fallback(f"Mapping with a linked {ident}")
-    kind = node.vector_type
-    rot = Euler(tuple(node.inputs["Rotation"].default_value), "XYZ").to_matrix()
-    r = np.array([list(row) for row in rot], dtype=np.float64)
-    scale = np.array(tuple(node.inputs["Scale"].default_value), dtype=np.float64)
-    location = node.inputs.get("Location")
-    if kind in {"POINT", "TEXTURE"} and location is not None:
-        if np.any(np.array(tuple(location.default_value)) != 0.0):
-            raise _Fallback("Mapping with a location offset")
-    if kind in {"POINT", "VECTOR"}:
-        return r @ np.diag(scale)
-    if np.any(scale == 0.0):
-        raise _Fallback("Mapping with a zero scale")
-    if kind == "TEXTURE":
-        return np.diag(1.0 / scale) @ r.T
-    if kind == "NORMAL":
-        return r @ np.diag(1.0 / scale)
-    raise _Fallback(f"Mapping of type {kind}")
-
-
-def _texture_matrix(node) -> np.ndarray:
-    """The Environment Texture's own (legacy) texture_mapping must be the identity."""
-    tm = node.texture_mapping
-    identity = (
-        tuple(tm.translation) == (0.0, 0.0, 0.0)
-        and tuple(tm.rotation) == (0.0, 0.0, 0.0)
-        and tuple(tm.scale) == (1.0, 1.0, 1.0)
-        and not tm.use_min
-        and not tm.use_max
-        and (tm.mapping_x, tm.mapping_y, tm.mapping_z) == ("X", "Y", "Z")
-    )
-    if not identity:
-        raise _Fallback("Environment Texture with a texture mapping")
-    return np.eye(3)
-
-
-def _lookup_matrix(env_node) -> np.ndarray:
-    """A with lookup direction d' ∝ A d for the Environment Texture's Vector input."""
-    a = _texture_matrix(env_node)
-    source = _linked_from(env_node.inputs["Vector"])
-    while source is not None:
-        node, out = source
-        if node.mute:
-            raise _Fallback(f"muted node '{node.name}'")
-        if node.bl_idname == "ShaderNodeMapping":
-            a = a @ _mapping_matrix(node)
-            source = _linked_from(node.inputs["Vector"])
-            if source is None:
-                raise _Fallback("Mapping with an unlinked Vector")
-            continue
-        if node.bl_idname == "ShaderNodeTexCoord" and out.identifier == "Generated":
-            return a
-        raise _Fallback(f"texture coordinates from '{node.name}'")
-    return a
-
-
-def _rotation_from_lookup(a: np.ndarray) -> tuple[np.ndarray, int]:
-    """Split A = s·Q (s > 0) into a proper rotation P and a parity ±1 with Q = parity·P."""
-    gram = a @ a.T
-    k = np.trace(gram) / 3.0
-    if not k > 0.0 or np.max(np.abs(gram - k * np.eye(3))) > _SIMILARITY_TOL * k:
-        raise _Fallback("Mapping with a non-uniform scale")
-    q = a / math.sqrt(k)
-    parity = 1 if np.linalg.det(q) > 0.0 else -1
-    return parity * q, parity
-
-
-# ----------------------------------------------------------------------------------------------
 # Pixels
 # ----------------------------------------------------------------------------------------------
 
 
 def _image_pixels(image, space: str):
-    """The image's pixels and how to make them scene linear; raises _Fallback or OSError.
+    """The image's pixels and how to make them scene linear; raises Fallback or OSError.
 
     Returns ``(rgb, convert)``: ``rgb`` a float32 (H, W, 3) view, top row first, onto the
     buffer read from Blender (no copy), and ``convert`` None or a function that turns a block
@@ -336,10 +235,10 @@ def _image_pixels(image, space: str):
     elif name in _LINEAR_SPACES:
         decode, primaries = None, name
     else:
-        raise _Fallback(f"image color space '{name}'")
+        raise Fallback(f"image color space '{name}'")
     matrix = _rgb_matrix(primaries, space)
     if matrix is None:
-        raise _Fallback(f"image color space '{name}' in working space '{space}'")
+        raise Fallback(f"image color space '{name}' in working space '{space}'")
     if decode is None and primaries == space:
         return rgb, None
 
@@ -363,8 +262,10 @@ def _downsample_factor(height: int, width: int) -> int:
 _BLOCK_PIXELS = 1 << 22
 
 
-def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarray, int]:
+def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarray, int, np.ndarray]:
     """Project a top-first equirect (after ``convert``), downsampled to ≤ MAX_PROJECTION_WIDTH.
+
+    Returns the coefficients, the rejected pixel count and the downsampled image (float64).
 
     The image is processed in strips of whole columns: :func:`hdri.downsample` weighs rows by
     their solid angle, and a column strip keeps every row, so each strip's result is exactly
@@ -386,26 +287,198 @@ def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarra
             block = np.where(good[..., None], block, 0.0)
         small[:, c0 // factor : c1 // factor] = hdri.downsample(block, factor)
     coeffs, info = sh.project_equirect(small, l_max, return_info=True)
-    return coeffs, rejected + int(info["rejected_pixels"])
-
-
-def _uses_light_path(tree, seen=None) -> bool:
-    seen = seen or set()
-    if tree.name_full in seen:
-        return False
-    seen.add(tree.name_full)
-    for node in tree.nodes:
-        if node.bl_idname == "ShaderNodeLightPath":
-            return True
-        group = getattr(node, "node_tree", None)
-        if group is not None and _uses_light_path(group, seen):
-            return True
-    return False
+    return coeffs, rejected + int(info["rejected_pixels"]), small
 
 
 # ----------------------------------------------------------------------------------------------
-# The cases
+# The World's cheap parameters
 # ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WorldParams:
+    """A World's cheap parameters (:func:`world_parts`): applied to its content without recomputing it.
+
+    Attributes
+    ----------
+    strength : float or None
+        The Background's Strength when it is a parameter (unlinked, finite, the Background fed
+        straight to the World Output); None when it is part of the content.
+    rotation : tuple of 9 floats
+        Proper rotation P, row-major, with parity: image direction ∝ parity · P · world direction
+        (the Mapping in front of an Environment Texture, :func:`_rotation_from_lookup`); the
+        identity when the World has no such Mapping or is read another way.
+    parity : int
+        ±1: −1 for a uniform negative scale (a point reflection).
+    """
+
+    strength: float | None = None
+    rotation: tuple = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    parity: int = 1
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Q = parity · P (3×3): the image direction of a world direction (the prefilter's lookup)."""
+        return self.parity * np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
+
+    @property
+    def turned(self) -> bool:
+        """Whether Q is not the identity."""
+        return bool(self.parity < 0 or not np.allclose(self.matrix, np.eye(3), rtol=0.0, atol=1e-15))
+
+
+def _background(world):
+    """The Background node fed straight to the active World Output, or None."""
+    if world is None or not world_uses_nodes(world):
+        return None
+    output = active_world_output(world.node_tree)
+    if output is None or output.mute:
+        return None
+    try:
+        surface = linked_from(output.inputs["Surface"])
+    except Fallback:
+        return None
+    if surface is None or surface[0].bl_idname != "ShaderNodeBackground" or surface[0].mute:
+        return None
+    return surface[0]
+
+
+def _environment_rotation(bg):
+    """(P, parity, Mapping names) when the World is read from its Environment Texture's pixels
+    (case 2 of the module docstring), else None."""
+    if bg.inputs["Strength"].is_linked:
+        return None
+    try:
+        colour = linked_from(bg.inputs["Color"])
+        if colour is None:
+            return None
+        env, out = colour
+        if env.bl_idname != "ShaderNodeTexEnvironment" or out.identifier != "Color" or env.mute:
+            return None
+        if env.projection != "EQUIRECTANGULAR":
+            return None
+        names: list = []
+        rotation, parity = rotation_from_lookup(lookup_matrix(env, names))
+    except Fallback:
+        return None
+    return rotation, parity, names
+
+
+#: A rotation this close to one about z (mathutils' float32 Euler, the normalisation) is taken
+#: as that rotation exactly: its SH rotation is then the cos/sin fast path (sh.rotation_z).
+_Z_SNAP = 1e-6
+
+
+def _snapped(p: np.ndarray) -> np.ndarray:
+    """``p``, or the exact rotation about z it is within :data:`_Z_SNAP` of."""
+    off = max(abs(p[0, 2]), abs(p[1, 2]), abs(p[2, 0]), abs(p[2, 1]), abs(p[2, 2] - 1.0))
+    if off > _Z_SNAP:
+        return p
+    angle = math.atan2(p[1, 0], p[0, 0])
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@functools.lru_cache(maxsize=8)
+def _sh_rotation(l_max: int, rotation: tuple) -> np.ndarray:
+    """The SH rotation of the World's Pᵀ (cached: the SH and the SH without lamps share it)."""
+    out = sh.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
+    out.setflags(write=False)
+    return out
+
+
+def _parameters(world) -> tuple[WorldParams, list]:
+    """The World's cheap parameters and the (node, input) pairs they are read from."""
+    bg = _background(world)
+    if bg is None:
+        return WorldParams(), []
+    without = []
+    rotation, parity = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), 1
+    found = _environment_rotation(bg)
+    if found is not None:
+        p, parity, names = found
+        rotation = tuple(float(v) for v in _snapped(np.asarray(p)).reshape(-1))
+        without += [(name, ident) for name in names for ident in ("Rotation", "Scale")]
+    strength = None
+    socket = bg.inputs["Strength"]
+    if not socket.is_linked:
+        value = float(socket.default_value)
+        read_apart = found is not None or not bg.inputs["Color"].is_linked
+        # a panorama render holds its strength: it scales only when that is not 0
+        if math.isfinite(value) and abs(value) <= MAX_COEFFICIENT and (read_apart or value != 0.0):
+            strength = value
+            without.append((bg.name, "Strength"))
+    return WorldParams(strength, rotation, parity), without
+
+
+def world_parts(scene, l_max: int = MAX_SH_ORDER) -> tuple[str, WorldParams]:
+    """(content key, parameters) of ``scene``'s World; cheap (reads no pixels).
+
+    The *content key* is :func:`.world_key.world_key` without the parameters
+    (:class:`WorldParams`: the Background's Strength, the rotation of a Mapping in front of an
+    Environment Texture), so a change of those alone keeps the content key, and the World's SH,
+    lamps and prefilter are turned and scaled (:func:`apply_params`) instead of recomputed.
+    """
+    params, without = _parameters(scene.world)
+    return world_key(scene, l_max, without=without), params
+
+
+def apply_params(coeffs, params: WorldParams, scale: float | None, turned: bool) -> np.ndarray:
+    """Content SH → the World's: turned by the parameters' rotation (when ``turned``: the content
+    is the image as read) and multiplied by ``scale`` (None: 1). Exact: SH rotations are."""
+    c = np.asarray(coeffs, dtype=np.float64)
+    l_max = sh.l_max_from_size(c.shape[0])
+    if turned and params.parity < 0:
+        bands = np.repeat(np.arange(l_max + 1), 2 * np.arange(l_max + 1) + 1)
+        c = c * np.where(bands % 2 == 1, -1.0, 1.0)[:, None]
+    p = np.asarray(params.rotation, dtype=np.float64).reshape(3, 3)
+    if turned and not np.allclose(p, np.eye(3), rtol=0.0, atol=1e-15):
+        c = _sh_rotation(l_max, tuple(params.rotation)) @ c
+    return c * scale if scale is not None else c
+
+
+# ----------------------------------------------------------------------------------------------
+# The cases: what is read on the main thread (WorldRead), then analysed anywhere (WorldContent)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class WorldRead:
+    """What :func:`read_world` reads of a World with bpy (main thread), for :func:`analyse_read`.
+
+    Either ``coeffs`` (a constant World's content SH) or ``rgb`` (an equirect, top row first,
+    as read: an Environment Texture's pixels in the image's frame, or a Cycles panorama) with
+    ``convert`` (None or a function to scene linear). ``factor`` multiplies the result (a
+    Strength that is not a parameter); ``base``: the Strength the content holds when the World's
+    Strength parameter scales it (None: it does not); ``turned``: the content is in the image's
+    frame, turned by the parameters' rotation.
+    """
+
+    source: str
+    coeffs: np.ndarray | None = None
+    rgb: np.ndarray | None = None
+    convert: object = None
+    warnings: tuple = ()
+    rejected: int = 0
+    factor: float = 1.0
+    base: float | None = None
+    turned: bool = False
+    panorama: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class WorldContent:
+    """A World's content analysed (:func:`analyse_read`, pure numpy: any thread).
+
+    ``coeffs``: content SH (l_max); ``image``: the equirect the SH came from (≤
+    MAX_PROJECTION_WIDTH wide, float64; None for a constant); the rest as :class:`WorldRead`.
+    """
+
+    coeffs: np.ndarray
+    image: np.ndarray | None
+    read: WorldRead
+    rejected: int
+    warnings: tuple
 
 
 def _constant(l_max: int, rgb) -> np.ndarray:
@@ -414,29 +487,30 @@ def _constant(l_max: int, rgb) -> np.ndarray:
     return coeffs
 
 
-def _viewport_colour(world, l_max: int, reason: str) -> tuple:
+def _viewport_colour(world, l_max: int, reason: str) -> WorldRead:
     colour = tuple(world.color) if world is not None else (0.0, 0.0, 0.0)
     source = "viewport color" if world is not None else "no world (black)"
-    return _constant(l_max, colour), source, 0, [reason]
+    return WorldRead(source, coeffs=_constant(l_max, colour), warnings=(reason,))
 
 
-def _environment(world, bg, env, l_max: int, space: str):
-    """Case 2; raises _Fallback for shapes it does not read directly."""
+def _environment(world, bg, env, l_max: int, space: str, params: WorldParams) -> WorldRead:
+    """Case 2; raises Fallback for shapes it does not read directly. The pixels as read: the
+    rotation and (a parameter) Strength are applied to the result (:func:`apply_params`)."""
     if env.mute:
-        raise _Fallback("muted Environment Texture")
+        raise Fallback("muted Environment Texture")
     if env.projection != "EQUIRECTANGULAR":
-        raise _Fallback(f"Environment Texture with {env.projection} projection")
+        raise Fallback(f"Environment Texture with {env.projection} projection")
     if bg.inputs["Strength"].is_linked:
-        raise _Fallback("a linked Strength")
+        raise Fallback("a linked Strength")
     strength = float(bg.inputs["Strength"].default_value)
-    rotation, parity = _rotation_from_lookup(_lookup_matrix(env))
+    rotation_from_lookup(lookup_matrix(env))  # raises Fallback where the rotation is not one
     image = env.image
     if image is None:
         return _viewport_colour(
             world, l_max, "Environment Texture has no image: using the World's viewport color"
         )
     if image.source not in {"FILE", "GENERATED"}:
-        raise _Fallback(f"image source {image.source}")
+        raise Fallback(f"image source {image.source}")
     label = os.path.basename(image.filepath) if image.filepath else image.name
     if image.source == "FILE" and image.packed_file is None:
         path = image_path(image)
@@ -454,72 +528,146 @@ def _environment(world, bg, env, l_max: int, space: str):
             l_max,
             f"Environment image '{label}' could not be read ({exc}): using the World's viewport color",
         )
-    coeffs, rejected = _project_image(rgb, l_max, convert)
-    if parity < 0:
-        bands = np.repeat(np.arange(l_max + 1), 2 * np.arange(l_max + 1) + 1)
-        coeffs = coeffs * np.where(bands % 2 == 1, -1.0, 1.0)[:, None]
-    if not np.allclose(rotation, np.eye(3), rtol=0.0, atol=1e-15):
-        coeffs = sh.rotation(l_max, rotation.T) @ coeffs
-    warnings = []
-    if rejected:
-        warnings.append(f"Environment image '{label}': {rejected} NaN/Inf pixels left out")
-    return coeffs * strength, f"environment texture '{label}'", rejected, warnings
+    param = params.strength is not None
+    return WorldRead(
+        f"environment texture '{label}'",
+        rgb=rgb,
+        convert=convert,
+        factor=1.0 if param else strength,
+        base=1.0 if param else None,
+        turned=True,
+    )
 
 
-def _panorama(world, l_max: int, reason: str):
+def _panorama(world, params: WorldParams, reason: str, l_max: int) -> WorldRead:
     warnings = []
-    if _uses_light_path(world.node_tree):
+    if uses_light_path(world.node_tree):
         warnings.append("World uses a Light Path node: its SH is what the camera sees")
     try:
         rgb = render_world_panorama(world)
     except (RuntimeError, OSError) as exc:
-        colour, source, _, _ = _viewport_colour(world, l_max, "")
-        return colour, source, 0, [f"Could not render the World ({exc}): using its viewport color"]
-    coeffs, rejected = _project_image(rgb, l_max)
-    if rejected:
-        warnings.append(f"World panorama: {rejected} NaN/Inf pixels left out")
-    return coeffs, f"panorama render ({reason})", rejected, warnings
-
-
-def _compute(scene, l_max: int, space: str):
-    world = scene.world
-    if world is None:
-        return _viewport_colour(None, l_max, "Scene has no World: black")
-    if not world_uses_nodes(world):
-        return _viewport_colour(world, l_max, "World has no nodes: using its viewport color")
-    tree = world.node_tree
-    output = _active_world_output(tree)
-    if output is None or output.mute:
-        return (
-            _constant(l_max, (0.0, 0.0, 0.0)),
-            "no world output (black)",
-            0,
-            ["World has no active World Output: black"],
+        read = _viewport_colour(world, l_max, "")
+        return WorldRead(
+            read.source,
+            coeffs=read.coeffs,
+            warnings=(f"Could not render the World ({exc}): using its viewport color",),
         )
+    return WorldRead(
+        f"panorama render ({reason})", rgb=rgb, warnings=tuple(warnings), base=params.strength, panorama=True
+    )
+
+
+def _black(source: str, warning: str, l_max: int) -> WorldRead:
+    return WorldRead(source, coeffs=_constant(l_max, (0.0, 0.0, 0.0)), warnings=(warning,))
+
+
+def _nodes(world, l_max: int, space: str, params: WorldParams) -> WorldRead:
+    tree = world.node_tree
+    output = active_world_output(tree)
+    if output is None or output.mute:
+        return _black("no world output (black)", "World has no active World Output: black", l_max)
     try:
-        surface = _linked_from(output.inputs["Surface"])
+        surface = linked_from(output.inputs["Surface"])
         if surface is None:
-            return (
-                _constant(l_max, (0.0, 0.0, 0.0)),
+            return _black(
                 "nothing connected (black)",
-                0,
-                ["Nothing is connected to the World Output's Surface: black"],
+                "Nothing is connected to the World Output's Surface: black",
+                l_max,
             )
         bg, _ = surface
         if bg.bl_idname != "ShaderNodeBackground" or bg.mute:
-            raise _Fallback(bg.bl_rna.name)
-        colour = _linked_from(bg.inputs["Color"])
+            raise Fallback(bg.bl_rna.name)
+        colour = linked_from(bg.inputs["Color"])
         if colour is None:
             if bg.inputs["Strength"].is_linked:
-                raise _Fallback("a linked Strength")
-            rgb = np.array(tuple(bg.inputs["Color"].default_value)[:3]) * bg.inputs["Strength"].default_value
-            return _constant(l_max, rgb), "background color", 0, []
+                raise Fallback("a linked Strength")
+            rgb = np.array(tuple(bg.inputs["Color"].default_value)[:3])
+            if params.strength is not None:
+                return WorldRead("background color", coeffs=_constant(l_max, rgb), base=1.0)
+            strength = bg.inputs["Strength"].default_value
+            return WorldRead("background color", coeffs=_constant(l_max, rgb * strength))
         env, out = colour
         if env.bl_idname != "ShaderNodeTexEnvironment" or out.identifier != "Color":
-            raise _Fallback(env.bl_rna.name)
-        return _environment(world, bg, env, l_max, space)
-    except _Fallback as why:
-        return _panorama(world, l_max, str(why))
+            raise Fallback(env.bl_rna.name)
+        return _environment(world, bg, env, l_max, space, params)
+    except Fallback as why:
+        return _panorama(world, params, str(why), l_max)
+
+
+def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = None) -> WorldRead:
+    """Read ``scene``'s World with bpy (main thread; :func:`analyse_read` does the rest anywhere).
+
+    An Environment Texture World reads its image's pixels (no copy of Blender's buffer:
+    ≈ 0.1–0.3 s for a 4k HDRI); a procedural World renders a small Cycles panorama
+    (:func:`.panorama.render_world_panorama`, ≈ 1–3 s: the one slow step that must stay on the
+    main thread); anything else is a constant.
+    """
+    l_max = sh._check_l_max(l_max)
+    params = _parameters(scene.world)[0] if params is None else params
+    world = scene.world
+    with np.errstate(all="ignore"):
+        if world is None:
+            return _viewport_colour(None, l_max, "Scene has no World: black")
+        if not world_uses_nodes(world):
+            return _viewport_colour(world, l_max, "World has no nodes: using its viewport color")
+        return _nodes(world, l_max, working_space(), params)
+
+
+def analyse_read(read: WorldRead, l_max: int = MAX_SH_ORDER) -> WorldContent:
+    """The content SH of a :class:`WorldRead`: pure numpy, any thread (the image's projection,
+    ≈ 0.2–1 s for a 4k HDRI)."""
+    warnings = list(read.warnings)
+    if read.rgb is None:
+        return WorldContent(
+            np.asarray(read.coeffs, dtype=np.float64), None, read, read.rejected, tuple(warnings)
+        )
+    with np.errstate(all="ignore"):
+        coeffs, rejected, small = _project_image(read.rgb, l_max, read.convert)
+        if read.factor != 1.0:
+            coeffs, small = coeffs * read.factor, small * read.factor
+    if rejected:
+        what = "World panorama" if read.panorama else f"Environment image '{read.source.split(chr(39))[1]}'"
+        warnings.append(f"{what}: {rejected} NaN/Inf pixels left out")
+    return WorldContent(coeffs, small, read, rejected, tuple(warnings))
+
+
+def content_scale(content: WorldContent, params: WorldParams) -> float | None:
+    """The factor the parameters' Strength puts on ``content`` (None: 1, it does not apply)."""
+    base = content.read.base
+    if base is None or params.strength is None:
+        return None
+    return params.strength / base
+
+
+def finish(scene, content: WorldContent, params: WorldParams, key: str, l_max: int) -> WorldSH:
+    """The :class:`WorldSH` of ``content`` under ``params`` (main thread: cheap, a rotation and a
+    scale; never NaN lighting: the documented fallback, naming the bad values)."""
+    with np.errstate(all="ignore"):
+        coeffs = apply_params(content.coeffs, params, content_scale(content, params), content.read.turned)
+        coeffs = np.array(coeffs, dtype=np.float64)
+    source = content.read.source
+    errors = ()
+    if not _usable(coeffs):
+        world = scene.world
+        bad = _bad_values(world) or [
+            f"its lighting from {source} is not finite or beyond {MAX_COEFFICIENT:g}"
+        ]
+        colour, what = fallback_colour(world)
+        coeffs = _constant(l_max, colour)
+        name = f"World '{world.name}'" if world is not None else "The World"
+        errors = (f"{name} cannot be evaluated ({'; '.join(bad)}): lit by {what} instead",)
+        source = f"fallback ({what})"
+    coeffs.setflags(write=False)
+    return WorldSH(
+        coeffs=coeffs,
+        source=source,
+        key=key,
+        rejected_pixels=int(content.rejected),
+        warnings=tuple(w for w in content.warnings if w),
+        l_max=l_max,
+        working_space=working_space(),
+        errors=errors,
+    )
 
 
 def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
@@ -546,7 +694,9 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     NaN or Inf Strength or Color set from Python) or too bright for float32 gives the fallback
     lighting of :func:`fallback_colour` and an entry in ``errors`` naming the values. The
     panorama route runs the render operator, so call this from an operator, timer or handler,
-    not from a draw callback (use :func:`.world_key.world_key` there to detect changes).
+    not from a draw callback (use :func:`.world_key.world_key` there to detect changes). The
+    viewport does the same in three steps, the slow one on a worker (:mod:`.world_job`):
+    :func:`read_world`, :func:`analyse_read`, :func:`finish`.
     """
     l_max = sh._check_l_max(l_max)
     cache = SH_CACHE if cache is None else cache
@@ -554,31 +704,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     hit = cache.get(key)
     if hit is not None:
         return hit
-    space = working_space()
-    with np.errstate(all="ignore"):  # a NaN or huge Strength is caught below, not warned about
-        coeffs, source, rejected, warnings = _compute(scene, l_max, space)
-        coeffs = np.array(coeffs, dtype=np.float64)
-    errors = ()
-    if not _usable(coeffs):  # never NaN lighting: the documented fallback, and why
-        world = scene.world
-        bad = _bad_values(world) or [
-            f"its lighting from {source} is not finite or beyond {MAX_COEFFICIENT:g}"
-        ]
-        colour, what = fallback_colour(world)
-        coeffs = _constant(l_max, colour)
-        name = f"World '{world.name}'" if world is not None else "The World"
-        errors = (f"{name} cannot be evaluated ({'; '.join(bad)}): lit by {what} instead",)
-        source = f"fallback ({what})"
-    coeffs.setflags(write=False)
-    result = WorldSH(
-        coeffs=coeffs,
-        source=source,
-        key=key,
-        rejected_pixels=int(rejected),
-        warnings=tuple(w for w in warnings if w),
-        l_max=l_max,
-        working_space=space,
-        errors=errors,
-    )
+    params = _parameters(scene.world)[0]
+    result = finish(scene, analyse_read(read_world(scene, l_max, params), l_max), params, key, l_max)
     cache[key] = result
     return result

@@ -187,27 +187,39 @@ def world_uses_nodes(world) -> bool:
     return bool(world.use_nodes)
 
 
-def _describe_world(world) -> dict | None:
+def _describe_world(world, without=frozenset()) -> dict | None:
     if world is None:
         return None
     desc = {"color": _plain(world.color), "use_nodes": world_uses_nodes(world)}
     if desc["use_nodes"]:
         desc["tree"] = _describe_tree(world.node_tree, set())
+        nodes = desc["tree"].get("nodes", {}) if isinstance(desc["tree"], dict) else {}
+        for node_name, ident in without:  # the cheap parameters: read apart (world.world_parts)
+            for entry in nodes.get(node_name, {}).get("inputs", ()):
+                if entry[0] == ident:
+                    entry[1] = "parameter"
     return desc
 
 
-def world_key(scene, l_max: int = 8) -> str:
+def world_key(scene, l_max: int = 8, *, without=()) -> str:
     """Content hash of everything :func:`.world.world_sh` depends on; cheap (reads no pixels).
 
     Covers the World's node tree (every node setting, socket value and link, node groups and
     referenced objects), images (path, size and mtime of the file, or packed size; generated
     settings), the World's viewport colour, ``l_max`` and the working space. Edits to an
     image's pixels inside Blender are seen only through ``is_dirty`` (once).
+
+    ``without``: (node name, input identifier) pairs of the World's top-level tree whose values
+    are left out (and named instead): the World's *content* key, for values applied without
+    recomputation (:func:`.world.world_parts`: a Background Strength, a Mapping rotation).
     """
+    without = frozenset(without)
     description = {
         "version": KEY_VERSION,
         "l_max": int(l_max),
         "working_space": working_space(),
-        "world": _describe_world(scene.world),
+        "world": _describe_world(scene.world, without),
     }
+    if without:
+        description["parameters"] = sorted(without)
     return table_io.content_key(description)

@@ -18,8 +18,15 @@
 
 const float TF_SQRT_4PI = 3.5449077018110318;
 
-vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment, out float lamp_weight)
+vec3 tf_prefiltered_lookup(vec3 d_world, float roughness, out vec3 moment, out float lamp_weight)
 {
+  /* the World's turn and strength (tf_lighting.world; shading.split_sum._blend): the levels hold
+   * the image as read, looked up at Q d and scaled; a moment m turns back by Q^T */
+  vec3 q0 = tf_lighting.world[0].xyz;
+  vec3 q1 = tf_lighting.world[1].xyz;
+  vec3 q2 = tf_lighting.world[2].xyz;
+  float strength = tf_lighting.world[0].w;
+  vec3 d = vec3(dot(q0, d_world), dot(q1, d_world), dot(q2, d_world));
   int depth = textureSize(tf_prefiltered, 0).z;
   int levels = depth / 2;
   float u = 0.5 - atan(d.y, d.x) / (2.0 * TF_PI);
@@ -47,11 +54,12 @@ vec3 tf_prefiltered_lookup(vec3 d, float roughness, out vec3 moment, out float l
   lamp_weight = 0.0;
 #endif
 #ifdef TF_MOMENT
-  moment = texture(tf_prefiltered, vec3(u, t, z + 0.5)).rgb; /* + J slices */
+  vec3 m = texture(tf_prefiltered, vec3(u, t, z + 0.5)).rgb; /* + J slices */
+  moment = strength * (m.x * q0 + m.y * q1 + m.z * q2);
 #else
   moment = vec3(0.0); /* not read: policy.uses_moment */
 #endif
-  return texture(tf_prefiltered, vec3(u, t, z)).rgb;
+  return strength * texture(tf_prefiltered, vec3(u, t, z)).rgb;
 }
 
 vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness, out float lamp_weight)

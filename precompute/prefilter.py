@@ -21,8 +21,10 @@ References
 
 from __future__ import annotations
 
+import concurrent.futures
 import math
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,6 +40,8 @@ SAMPLES = (12, 6)
 #: Mip-level bias of filtered importance sampling: 0, not Křivánek & Colbert's 1, so small HDR
 #: lamps are not blurred (docs/tuning.md#lod-bias).
 LOD_BIAS = 0.0
+#: Threads that filter levels at once (bounded by the cores): the levels are independent.
+LEVEL_THREADS = 4
 #: Rec.709 luminance weights (Blender's scene-linear RGB): the weight of each direction in the
 #: light-weighted mean direction of shading.split_sum.dominant_cosine.
 LUMINANCE = (0.2126, 0.7152, 0.0722)
@@ -60,6 +64,24 @@ class Prefiltered:
     #: level j = rest + (1 − w_j) × lamps, and the analytic lamps are added with the same level
     #: blend of these weights (shading.split_sum.lamp_weight_at). None: no lamps were lifted out.
     lamp_weights: np.ndarray | None = None
+    #: The World's turn and strength applied at lookup time, without recomputation (a Mapping
+    #: rotation, a Background Strength): the level images are of the *content* (the image as
+    #: read); the World's radiance in direction d is ``scale`` × level(Q d), Q = ``rotation``
+    #: (3×3 orthogonal: image direction = Q · world direction; None: the identity), and a
+    #: moment m read there points along Qᵀ m in the World (shading.split_sum mirrors
+    #: tf_prefiltered_lookup).
+    rotation: np.ndarray | None = None
+    scale: float = 1.0
+
+    def transformed(self, rotation=None, scale: float = 1.0) -> Prefiltered:
+        """The same levels seen through the World's ``rotation`` (Q, 3×3) and ``scale``: no
+        recomputation, only what the lookup applies (:attr:`rotation`, :attr:`scale`)."""
+        q = None if rotation is None else np.asarray(rotation, dtype=np.float64).reshape(3, 3)
+        if q is not None and not np.allclose(q @ q.T, np.eye(3), atol=1e-9):
+            raise ValueError("rotation must be an orthogonal 3×3 matrix")
+        if not np.isfinite(scale):
+            raise ValueError(f"scale must be finite, got {scale!r}")
+        return replace(self, rotation=q, scale=float(scale))
 
     def resampled(self, width: int) -> np.ndarray:
         """All levels bilinearly resampled to (J, width/2, width, 3) — e.g. for one GPU texture."""
@@ -82,12 +104,35 @@ def level_width(roughness: float, max_width: int = LEVEL_WIDTH) -> int:
     return int(min(max_width, max(32, 2 ** math.ceil(math.log2(wanted)))))
 
 
-def mip_chain(image: np.ndarray, min_width: int = 8) -> list[np.ndarray]:
-    """Solid-angle-exact 2× reductions of an equirect image down to ``min_width``."""
-    chain = [np.asarray(image, dtype=np.float64)]
+def mip_chain(image: np.ndarray, min_width: int = 8, dtype=np.float64) -> list[np.ndarray]:
+    """Solid-angle-exact 2× reductions of an equirect image down to ``min_width`` (each level
+    reduced in float64, stored as ``dtype``)."""
+    top = np.asarray(image, dtype=np.float64)
+    chain = [top]
     while chain[-1].shape[1] > min_width and chain[-1].shape[0] % 2 == 0 and chain[-1].shape[1] % 2 == 0:
         chain.append(hdri.downsample(chain[-1], 2))
-    return chain
+    return [np.ascontiguousarray(level, dtype=dtype) for level in chain]
+
+
+def level_samples(alpha: float, width: int, samples=SAMPLES) -> tuple[int, int]:
+    """GGX samples (θ × φ strata) for a level of ``alpha`` filtered at ``width`` texels across.
+
+    A lobe whose reflected width (≈ 2α) is under :data:`SHARP_TEXELS` of a texel is the image
+    itself but for its far tail, which only an HDR lamp makes visible: :data:`SHARP_SAMPLES`
+    reach it as well as ``samples`` do (filtered importance sampling reads the tail's samples
+    from coarse mip levels); every other level keeps ``samples`` (docs/world-latency.md).
+    """
+    if 2.0 * alpha < SHARP_TEXELS * 2.0 * np.pi / width:
+        return SHARP_SAMPLES
+    return tuple(samples)
+
+
+#: A level whose reflected lobe (2α) is narrower than this share of a level-0 texel gets
+#: :data:`SHARP_SAMPLES` (policy.ROUGHNESS_LEVELS' level 1 at 512 texels: 2α ≈ 0.04 texel).
+SHARP_TEXELS = 0.1
+#: GGX samples of such a sharp level: as close to a 512-sample reference as :data:`SAMPLES`
+#: (docs/world-latency.md), a quarter of the work.
+SHARP_SAMPLES = (8, 3)
 
 
 def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_batch: int = 8) -> np.ndarray:
@@ -113,6 +158,7 @@ def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_b
     lo = np.floor(lod).astype(int)
     frac = lod - lo
     weight = w * n_dot_l / np.sum(w * n_dot_l)
+    dtype = chain[0].dtype
     cp, sp = math.cos(phi0), math.sin(phi0)
     z = np.stack([sin_t * cp, sin_t * sp, cos_t], axis=-1)
     x = np.stack([cos_t * cp, cos_t * sp, -sin_t], axis=-1)
@@ -122,7 +168,7 @@ def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_b
     u = 0.5 - np.arctan2(lw[..., 1], lw[..., 0]) / (2.0 * np.pi)
     v = np.arccos(np.clip(lw[..., 2], -1.0, 1.0)) / np.pi
     shift = np.arange(w_out) / w_out
-    out = np.zeros((h_out, w_out, chain[0].shape[-1]))
+    out = np.zeros((h_out, w_out, chain[0].shape[-1]), dtype=dtype)
     for m, mip in enumerate(chain):
         # trilinear: a sample with lod in [m, m + 1) reads level m with 1 − frac, m + 1 with frac
         cm = np.where(lo == m, weight * (1.0 - frac), 0.0) + np.where(lo == m - 1, weight * frac, 0.0)
@@ -131,18 +177,28 @@ def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_b
             continue
         hm, wm = mip.shape[:2]
         yy = v[:, ks] * hm - 0.5
-        y0 = np.clip(np.floor(yy).astype(int), 0, hm - 1)
-        fy = np.clip(yy - y0, 0.0, 1.0)
-        y1 = np.minimum(y0 + 1, hm - 1)
+        y0 = np.clip(np.floor(yy).astype(np.intp), 0, hm - 1)
+        fy = np.clip(yy - y0, 0.0, 1.0).astype(dtype)
+        ck = cm[ks].astype(dtype)
+        # each texel with its right, lower and lower-right neighbours (wrapping in u, clamped in
+        # v): one gather of 4 C floats reads a sample's four bilinear taps
+        below = np.concatenate([mip[1:], mip[-1:]], axis=0)
+        quad = np.stack([mip, np.roll(mip, -1, axis=1), below, np.roll(below, -1, axis=1)], axis=2)
+        flat = quad.reshape(hm * wm, -1)
         for b in range(0, h_out, rows_per_batch):
             sl = slice(b, b + rows_per_batch)
-            rows = (1.0 - fy[sl])[..., None, None] * mip[y0[sl]] + fy[sl][..., None, None] * mip[y1[sl]]
             xx = (u[sl][:, ks, None] + shift) * wm - 0.5  # (batch, samples, w_out)
-            x0 = np.floor(xx).astype(int)
-            fx = (xx - x0)[..., None]
-            a = np.take_along_axis(rows, (x0 % wm)[..., None], axis=2)
-            c = np.take_along_axis(rows, ((x0 + 1) % wm)[..., None], axis=2)
-            out[sl] += np.einsum("k,bkjc->bjc", cm[ks], (1.0 - fx) * a + fx * c)
+            x0 = np.floor(xx).astype(np.intp)
+            fx = (xx - x0).astype(dtype)
+            x0 %= wm
+            wy1 = fy[sl][..., None] * ck[:, None]
+            wy0 = ck[:, None] - wy1
+            # gathered in (row, column, sample) order: per texel a (1 × 4K) @ (4K × C) product
+            weights = np.stack([wy0 * (1 - fx), wy0 * fx, wy1 * (1 - fx), wy1 * fx], axis=-1)
+            weights = weights.transpose(0, 2, 1, 3).reshape(-1, 1, 4 * len(ks))
+            index = (y0[sl][..., None] * wm + x0).transpose(0, 2, 1)
+            taps = flat.take(index.reshape(-1), axis=0).reshape(weights.shape[0], 4 * len(ks), -1)
+            out[sl] += np.matmul(weights, taps).reshape(out[sl].shape)
     return out
 
 
@@ -153,6 +209,9 @@ def prefilter(
     samples=SAMPLES,
     lod_bias: float = LOD_BIAS,
     lamp_mask: np.ndarray | None = None,
+    *,
+    dtype=np.float32,
+    adaptive: bool = True,
 ) -> Prefiltered:
     """GGX-prefiltered radiance for each roughness level (n = v = r assumption of the split sum).
 
@@ -163,6 +222,11 @@ def prefilter(
     rest + (1 − w_j) lamps, with w_j = shading.lamps.level_lamp_weights (0 or 1,
     ``Prefiltered.lamp_weights``): the whole World below policy.LAMP_LEVEL, the World without its
     lamps from there on.
+
+    ``dtype``: the mip chain's and the levels' float type (float32: half the data moved, the
+    levels within 3e-7 of the peak of float64's); ``adaptive``: fewer GGX samples for a level
+    sharper than :data:`SHARP_TEXELS` (:func:`level_samples`). ``dtype=np.float64,
+    adaptive=False`` filters as before issue 16 (docs/world-latency.md compares the two).
     """
     img = np.asarray(image, dtype=np.float64)[..., :3]
     bad = ~np.isfinite(img).all(axis=-1)
@@ -182,7 +246,7 @@ def prefilter(
 
     def chain_of(rgb):
         luminance = np.maximum(rgb @ np.asarray(LUMINANCE), 0.0)
-        return mip_chain(np.concatenate([rgb, luminance[..., None] * directions], axis=-1))
+        return mip_chain(np.concatenate([rgb, luminance[..., None] * directions], axis=-1), dtype=dtype)
 
     # Each level filters one image: the whole World, or (from policy.LAMP_LEVEL on, weight 1)
     # the World without its lamps: no level needs both.
@@ -193,14 +257,27 @@ def prefilter(
             raise ValueError("level lamp weights must be 0 or 1")
         if np.any(weights == 1.0):
             chains[1.0] = chain_of(img[..., :3] - img[..., 3:6])
-    out = []
-    for j, r in enumerate(levels):
+
+    def one(j: int) -> np.ndarray:
+        r = levels[j]
         chain = chains[0.0 if weights is None else float(weights[j])]
         if r <= 0.0:
-            out.append(chain[0])
-            continue
+            return chain[0]
         alpha = max(float(r) ** 2, constants.MIN_ALPHA)
-        out.append(_level(chain, alpha, min(level_width(r, width), chain[0].shape[1]), samples, lod_bias))
+        w_out = min(level_width(r, width), chain[0].shape[1])
+        level_n = level_samples(alpha, chain[0].shape[1], samples) if adaptive else samples
+        return _level(chain, alpha, w_out, level_n, lod_bias)
+
+    # the levels are independent and numpy's gathers and products release the GIL: one thread
+    # per core (at most LEVEL_THREADS), the widest levels first
+    order = sorted(range(len(levels)), key=lambda j: -min(level_width(levels[j], width), width))
+    threads = max(1, min(LEVEL_THREADS, os.cpu_count() or 1))
+    if threads > 1:
+        with concurrent.futures.ThreadPoolExecutor(threads) as pool:
+            done = dict(zip(order, pool.map(one, order), strict=True))
+    else:
+        done = {j: one(j) for j in order}
+    out = [done[j] for j in range(len(levels))]
     return Prefiltered(
         tuple(level[..., :3] for level in out),
         np.asarray(levels, dtype=float),

@@ -98,7 +98,7 @@ def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, t
 
     monkeypatch.setattr(tf.panorama, "render_world_panorama", forbidden)
     monkeypatch.setattr(tf.world, "world_sh", forbidden)
-    monkeypatch.setattr(tf.scene_draw, "analyse_world", forbidden)
+    monkeypatch.setattr(tf.scene_draw.world_analysis, "analyse_world", forbidden)
     monkeypatch.setattr(tf.tables, "get_table", forbidden)
     want: list = []
     frames, contents = [], []

@@ -426,7 +426,7 @@ def test_world_without_node_tree_uses_viewport_colour(bpy, world_mod, world_key_
     world.color = (0.1, 0.2, 0.3)
     scene.world = world
     result = world_mod._viewport_colour(world, 2, "World has no nodes: using its viewport color")
-    coeffs, source, rejected, warnings = result
+    coeffs, source, rejected, warnings = result.coeffs, result.source, result.rejected, result.warnings
     np.testing.assert_allclose(coeffs[0], math.sqrt(4.0 * math.pi) * np.array(tuple(world.color)), rtol=1e-12)
     assert source == "viewport color" and rejected == 0 and "viewport color" in warnings[0]
     assert world_key_mod.world_uses_nodes(world)  # Blender 5.x

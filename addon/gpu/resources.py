@@ -160,6 +160,12 @@ LIGHTING = Block(
             f"Rx(+90) band blocks, l = 0..{MAX_L}, row-major, band l at scalar offset l(2l-1)(2l+1)/3"
             " (codegen.x_rotation_scalars); Rx(-90) = their transpose",
         ),
+        Member(
+            "world",
+            3,
+            "the World's turn and strength for the prefilter lookup: rows of Q in .xyz (image"
+            " direction = Q world direction), [0].w = the prefilter's scale; identity and 1 by default",
+        ),
     ),
 )
 #: The view (:func:`.draw.view_uniforms`).
@@ -367,9 +373,10 @@ class Lighting:
         return 0 if self.lamps is None else int(self.lamps.count)
 
     @staticmethod
-    def pack(coefficients, lamps=None) -> np.ndarray:
-        """:data:`LIGHTING` content, flat float32, for windowed coefficients (≤ SH_SLOTS, 3) and up
-        to MAX_LAMPS lamps."""
+    def pack(coefficients, lamps=None, rotation=None, scale: float = 1.0) -> np.ndarray:
+        """:data:`LIGHTING` content, flat float32, for windowed coefficients (≤ SH_SLOTS, 3), up
+        to MAX_LAMPS lamps, and the World's turn Q (3×3, None: identity) and strength ``scale``
+        the prefilter lookup applies (``prefilter.Prefiltered.transformed``)."""
         c = np.asarray(coefficients, dtype=np.float64)
         sh_rows = np.zeros((c.shape[0], 4), dtype=np.float64)
         sh_rows[:, :3] = c[:, :3]
@@ -382,14 +389,23 @@ class Lighting:
             lamp_rows[0, 0] = lamps.count
             lamp_rows[1 : 1 + 2 * lamps.count : 2, :3] = lamps.directions
             lamp_rows[2 : 2 + 2 * lamps.count : 2, :3] = lamps.power
-        return LIGHTING.pack(sh=sh_rows, lamps=lamp_rows, rx=x_rotation_scalars()).reshape(-1)
+        turn = np.zeros((3, 4), dtype=np.float64)
+        turn[:, :3] = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64).reshape(3, 3)
+        turn[0, 3] = float(scale)
+        if not np.all(np.isfinite(turn)):
+            raise ValueError("the World's rotation and strength must be finite")
+        return LIGHTING.pack(sh=sh_rows, lamps=lamp_rows, rx=x_rotation_scalars(), world=turn).reshape(-1)
 
     @classmethod
-    def from_sh(cls, world_coeffs, l_max: int, roughness: float, lamps=None) -> Lighting:
+    def from_sh(
+        cls, world_coeffs, l_max: int, roughness: float, lamps=None, rotation=None, scale: float = 1.0
+    ) -> Lighting:
         """World SH (≥ 1, 3) → windowed by policy.lighting_window for ``l_max``/``roughness``.
 
         Missing coefficients (fewer than (l_max+1)²) are zero; extra ones are dropped.
         ``lamps``: the World's lamps, when ``world_coeffs`` are those of the World without them.
+        ``rotation``, ``scale``: the World's turn and strength for the prefilter lookup (the SH
+        and lamps given are already in the World's frame and strength).
         """
         l_max = int(l_max)
         if not 0 <= l_max <= MAX_L:
@@ -403,7 +419,7 @@ class Lighting:
         full[:n] = c[:n, :3]
         windowed = full * np.asarray(policy.lighting_window(l_max, float(roughness)))[:k, None]
         ensure_gpu_context()
-        ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps)))
+        ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps, rotation, scale)))
         return cls(
             ubo, windowed, l_max, float(roughness), lamps if lamps is not None and lamps.count else None
         )
@@ -459,13 +475,19 @@ class PrefilterTexture:
         (prefilter.Prefiltered.resampled_moments), stored as layers J … 2J − 1; None stores
         zeros, and the shader then reads the film's albedo at the view angle.
         """
+        return cls.from_packed(cls.pack(levels, moments))
+
+    @staticmethod
+    def pack(levels, moments=None) -> np.ndarray:
+        """The texture's content (2J, H, W, 4) float32 (:meth:`from_levels`' layout), checked:
+        numpy only, so a worker thread can make it and the main thread only uploads it."""
         data = np.asarray(levels, dtype=np.float32)
         if data.ndim != 4 or data.shape[0] < 2 or data.shape[3] < 3:
             raise ValueError(f"prefiltered levels must be (J ≥ 2, H, W, 3), got {data.shape}")
         if not np.all(np.isfinite(data)):
             raise ValueError("prefiltered levels contain NaN or Inf")
-        j, h, w = data.shape[:3]
-        rgba = np.zeros((2 * j, h, w, 4), dtype=np.float32)
+        j = data.shape[0]
+        rgba = np.zeros((2 * j,) + data.shape[1:3] + (4,), dtype=np.float32)
         rgba[:j, ..., :3] = data[..., :3]
         if moments is not None:
             mom = np.asarray(moments, dtype=np.float32)
@@ -474,6 +496,15 @@ class PrefilterTexture:
             if not np.all(np.isfinite(mom)):
                 raise ValueError("prefiltered moments contain NaN or Inf")
             rgba[j:, ..., :3] = mom[..., :3]
+        return rgba
+
+    @classmethod
+    def from_packed(cls, rgba) -> PrefilterTexture:
+        """Upload :meth:`pack`'s (2J, H, W, 4) float32 array (the main thread's only share)."""
+        rgba = np.asarray(rgba, dtype=np.float32)
+        if rgba.ndim != 4 or rgba.shape[0] < 4 or rgba.shape[0] % 2 or rgba.shape[3] != 4:
+            raise ValueError(f"packed prefilter must be (2J ≥ 4, H, W, 4), got {rgba.shape}")
+        j, h, w = rgba.shape[0] // 2, rgba.shape[1], rgba.shape[2]
         ensure_gpu_context()
         texture = gpu.types.GPUTexture((w, h, 2 * j), format="RGBA32F", data=float_buffer(rgba))
         texture.filter_mode(True)

@@ -46,8 +46,17 @@ def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _blend(pre, directions: np.ndarray, roughness, stacks) -> list[np.ndarray]:
-    """Each of ``stacks`` (per-level images) at ``directions``, α²-matched level blend shared."""
+    """Each of ``stacks`` (per-level images) at ``directions``, α²-matched level blend shared.
+
+    The World's turn and strength (``pre.rotation`` Q, ``pre.scale``) apply here, as in
+    tf_prefiltered_lookup: the levels are read at Q d and scaled; :func:`_to_world` turns a
+    moment read this way back into the World's frame.
+    """
+    directions = np.asarray(directions, dtype=float)
     r = np.broadcast_to(np.asarray(roughness, dtype=float), directions.shape[:-1])
+    q = getattr(pre, "rotation", None)
+    if q is not None:
+        directions = directions @ np.asarray(q, dtype=float).T
     lo, frac = level_blend(r, pre.roughness)
     frac = frac[..., None]
     outs = [np.zeros(directions.shape[:-1] + (3,)) for _ in stacks]
@@ -57,7 +66,14 @@ def _blend(pre, directions: np.ndarray, roughness, stacks) -> list[np.ndarray]:
             a = equirect_lookup(levels[level], directions[sel])
             b = equirect_lookup(levels[level + 1], directions[sel])
             out[sel] = (1 - frac[sel]) * a + frac[sel] * b
-    return outs
+    scale = float(getattr(pre, "scale", 1.0))
+    return [out * scale if scale != 1.0 else out for out in outs]
+
+
+def _to_world(pre, moment: np.ndarray) -> np.ndarray:
+    """A moment read by :func:`_blend` (the content's frame) in the World's frame: Qᵀ m."""
+    q = getattr(pre, "rotation", None)
+    return moment if q is None else moment @ np.asarray(q, dtype=float)
 
 
 def lamp_weight_at(pre, roughness) -> np.ndarray:
@@ -79,7 +95,8 @@ def lookup(pre, directions: np.ndarray, roughness, moments: bool = False) -> np.
     ``pre``: a :class:`precompute.prefilter.Prefiltered`. ``moments=True`` reads the luminance ×
     direction moments instead (same blend).
     """
-    return _blend(pre, directions, roughness, [pre.moments if moments else pre.levels])[0]
+    found = _blend(pre, directions, roughness, [pre.moments if moments else pre.levels])[0]
+    return _to_world(pre, found) if moments else found
 
 
 def _cosine_from_moment(moment, views, cos_o) -> np.ndarray:
@@ -119,6 +136,7 @@ def shade_split_sum(result, pre, normals, views, thickness_nm=None) -> np.ndarra
         radiance, cos_p = lookup(pre, refl, r_eff), cos_o
     else:  # dominant_cosine, sharing the level blend with the radiance
         radiance, moment = _blend(pre, refl, r_eff, [pre.levels, pre.moments])
+        moment = _to_world(pre, moment)
         cos_p = _cosine_from_moment(moment, v, cos_o)
     m = table_lookup(result.data, cos_p, thickness_position(result, thickness_nm))
     m0 = np.take(m, 0, axis=-3 if result.data.ndim == 5 else -2)  # coefficient l = 0: (…, 3, 3) or (…, 3)
