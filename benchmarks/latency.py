@@ -185,6 +185,8 @@ class Loop:
     def _patch(self) -> None:
         vp, res = self.vp, self.ext.gpu.resources
         vp._tag_redraw = self._tag
+        if hasattr(vp, "_tag_header"):  # the header alone (progress): the 3D view is not redrawn
+            vp._tag_header = lambda: None
         vp.draw_items = self._draw_items
         for cls, name in (
             (res.TableTexture, "from_result"),
