@@ -15,6 +15,10 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   LRU of ``tables.LRU_SIZE`` (32); filled by ``tables.get_table_with_source`` (disk cache or a
   bake; also from the bake operator's worker thread: the LRU is thread-safe); SESSION, also
   emptied by the Clear Cache operator (``tables.clear_caches``) with the disk cache.
+- ``film_tables`` — ``tables.FILMS``: the film table (``film_colour.FilmTable``: the reflectance
+  the World's lamps and the light objects are shaded with) of a baked table, by description
+  key; LRU of ``tables.LRU_SIZE`` (32); filled by ``tables.get_film`` on the viewport bake's
+  worker (and inline by a headless frame); SESSION, also emptied by Clear Cache.
 - ``bake_failures`` — ``tables.FAILURES``: the error text of failed bakes by description key;
   LRU of ``tables.FAILURE_MEMORY`` (64); filled by ``viewport``'s bake worker, ``scene_draw``'s
   headless bakes and the Bake operator (``tables.record_failure``), emptied of a key when its
@@ -51,7 +55,9 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
 - ``scene_draw`` — ``scene_draw.CACHES``: what the draw collects per object and material:
   mesh batches (``scene_draw.BatchEntry``) by (object name, material slot, instance), rebuilt
   when the geometry or the thickness's inputs change; GPU table textures and film textures by
-  description key; lighting uniform buffers by (World key, l_max, roughness, lamps); the
+  description key; the entry each material (by ``session_uid``) was last drawn with, drawn
+  again while its new table bakes (``scene_draw.Caches.previous``, LRU of ``TABLE_CACHE_SIZE``);
+  lighting uniform buffers by (World key, l_max, roughness, lamps); the
   World's lighting (``scene_draw.WorldLighting``: its SH, the analysed panorama, the prefilters
   on the GPU) for the current World key only; the analysed World contents
   (``world_analysis.Analysed``: SH, panorama, lamps, prefilter arrays) by

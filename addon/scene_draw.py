@@ -11,7 +11,11 @@ Shared by the viewport draw handler and the headless render, so both draw the sa
 - GPU table textures per material description key (equal materials share one);
 - lighting UBOs per (World key, SH order, roughness, lamps or not);
 - film textures (the reflectance table of the World's lamps and the light objects) per material
-  description key;
+  description key, uploaded from the film table the bake's worker computed
+  (:func:`.tables.get_film`): never computed in a draw;
+- per material (its ``session_uid``) the entry it was last drawn with (:attr:`Caches.previous`):
+  while the material's new table bakes, the draw shows that one instead of nothing — a frame is
+  always drawn with the best data available;
 - the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
   the current World key.
 
@@ -29,13 +33,14 @@ are registered in :mod:`.caches` here too.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
 
-from ..precompute import cli_support, film_colour
+from ..precompute import cli_support
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
 from . import caches, description, linked, tables, world, world_analysis
@@ -117,6 +122,9 @@ class Caches:
     lightings: caches.LRU = field(
         default_factory=lambda: _lru(LIGHTING_CACHE_SIZE)
     )  # (world key, l_max, roughness, lamps) → Lighting
+    previous: caches.LRU = field(
+        default_factory=lambda: _lru(TABLE_CACHE_SIZE)
+    )  # material session_uid → the _MaterialEntry it was last drawn with
     world: WorldLighting | None = None  # the current World's lighting
     #: Analysed World contents (world_analysis.Analysed) by content key: a Strength or rotation
     #: edit, or a swap back to a recent HDRI, recomputes nothing.
@@ -147,6 +155,7 @@ class Caches:
             (self.tables, TABLE_CACHE_SIZE),
             (self.films, FILM_CACHE_SIZE),
             (self.lightings, LIGHTING_CACHE_SIZE),
+            (self.previous, TABLE_CACHE_SIZE),
         )
 
     def make_room(self, batches: int = 0, materials: int = 0) -> None:
@@ -157,6 +166,7 @@ class Caches:
             (self.tables, materials),
             (self.films, materials),
             (self.lightings, materials),
+            (self.previous, materials),
         ):
             if lru.maxsize < needed:
                 lru.resize(needed)
@@ -168,6 +178,7 @@ class Caches:
         self.tables.resize(max(TABLE_CACHE_SIZE, materials))
         self.films.resize(max(FILM_CACHE_SIZE, materials))
         self.lightings.resize(max(LIGHTING_CACHE_SIZE, materials))
+        self.previous.resize(max(TABLE_CACHE_SIZE, materials))
 
 
 CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
@@ -261,12 +272,32 @@ def lighting_for(
     return found
 
 
-def film_texture(desc_key: str, result) -> resources.FilmTexture:
-    """The film colour texture for a baked table, uploaded once per description key."""
+def film_texture(desc_key: str, film=None) -> resources.FilmTexture | None:
+    """The film colour texture of a description key, uploaded once: from ``film`` (a
+    :class:`precompute.film_colour.FilmTable`) or the one the bake's worker computed
+    (:func:`.tables.peek_film`); None while neither exists (it is never computed here)."""
     found = CACHES.films.get(desc_key)
     if found is None:
-        found = resources.FilmTexture.from_film(film_colour.film_table(result))
+        film = film if film is not None else tables.peek_film(desc_key)
+        if film is None:
+            return None
+        found = resources.FilmTexture.from_film(film)
         CACHES.films[desc_key] = found
+    return found
+
+
+def _film_for(desc, key: str, result, allow_bake: bool, want_bake, owner):
+    """The film texture of the table ``result``: uploaded from the film table in memory, computed
+    here only for a headless frame (``allow_bake``); in the viewport asked of the bake's worker
+    (``want_bake(desc, owner=…, film=True)``) and meanwhile the material's previous film, or None."""
+    found = film_texture(key)
+    if found is None and allow_bake:
+        found = film_texture(key, tables.get_film(desc, result))
+    if found is None:
+        if want_bake is not None:
+            want_bake(desc, owner=owner, film=True)
+        last = CACHES.previous.get(owner)
+        found = last.film if last is not None else None
     return found
 
 
@@ -399,6 +430,7 @@ class _MaterialEntry:
     linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
+    sh_order: int = 0  # the table's SH order (the lighting's l_max)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -439,6 +471,7 @@ def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, mes
         roughness,
         policy.sh_weight(roughness),
         fallback=True,
+        sh_order=result.sh_order,
     )
 
 
@@ -455,11 +488,17 @@ def _thickness_source(bpy_material, props, desc):
     return ("LINKED", linked.tree_key(socket), desc.thickness_range_nm), (bpy_material, socket)
 
 
+def material_identity(bpy_material):
+    """What the draw keys a material's previous entry and its viewport bake by: its
+    ``session_uid`` (stable across renames and edits, unlike the description key)."""
+    return getattr(bpy_material, "session_uid", None) or bpy_material.as_pointer()
+
+
 def _material_entry(
     bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None, lights=False
 ):
-    """The material's description, table texture and lighting, or None (no film / not baked yet /
-    its bake failed in the viewport).
+    """The material's description, table texture and lighting, or None (no film / not baked yet
+    and never drawn before / its bake failed in the viewport).
 
     Invalid settings are reported in ``messages`` (and ``errors``, by material name) and the
     material is drawn as the fallback (matte magenta). A bake that failed is remembered by
@@ -469,6 +508,10 @@ def _material_entry(
     nothing for it (its header and material panel say why). A table that could not be saved to
     the disk cache is drawn, with the reason in ``messages``. ``lights``: the frame has light
     objects, so the film table is needed even without the World's lamps.
+
+    In the viewport a table not in memory is asked of ``want_bake(desc, owner=…, film=…)``
+    (``owner``: :func:`material_identity`, so a newer value replaces the older request) and the
+    entry the material was last drawn with is drawn meanwhile (:func:`_previous_entry`).
     """
     try:
         desc = description.description(bpy_material)
@@ -477,6 +520,7 @@ def _material_entry(
     if desc is None:
         return None
     name = bpy_material.name
+    owner = material_identity(bpy_material)
     key = description.description_key(desc)  # ≈ 1 ms: once per material per frame
     result = tables.MEMORY.get(key)  # tables.peek_table, by the key at hand
     if result is None:
@@ -497,14 +541,34 @@ def _material_entry(
             return None
         if result is None:
             if want_bake is not None:
-                want_bake(desc)
-            return None
+                want_bake(desc, owner=owner, film=_needs_film(bpy_material, desc, lighting, lights))
+            return _previous_entry(owner, lighting)
     problem = tables.CACHE_ERRORS.get(key)  # tables.cache_error
     if problem is not None:
         messages.append(f"material {name!r}: {problem}")
-    roughness = float(desc.roughness)
+    entry = _fresh_entry(bpy_material, desc, key, result, lighting, lights, allow_bake, want_bake)
+    CACHES.previous[owner] = entry
+    return entry
+
+
+def _needs_film(bpy_material, desc, lighting: WorldLighting, lights: bool) -> bool:
+    """Whether the material's draw reads its film table: the World's lamps shaded per direction
+    for it, or light objects in the frame."""
     env = lighting.environment
-    lamps = uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
+    return bool(lights or (uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None))
+
+
+def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_bake, want_bake):
+    """The entry of a material whose table ``result`` is in memory. Without its film table yet
+    (being computed on the bake's worker) it draws the previous film, else folds the World's
+    lamps back into the SH and prefilter (their light is kept, only not per direction)."""
+    roughness = float(desc.roughness)
+    owner = material_identity(bpy_material)
+    film = None
+    if _needs_film(bpy_material, desc, lighting, lights):
+        film = _film_for(desc, key, result, allow_bake, want_bake, owner)
+    env = lighting.environment
+    lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
     props = getattr(bpy_material, "thinfilm_sh", None)
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
@@ -515,11 +579,25 @@ def _material_entry(
         lighting_for(lighting, result.sh_order, roughness, lamps),
         roughness,
         policy.sh_weight(roughness),
-        film_texture(key, result) if lamps or lights else None,
+        film,
         props,
         thickness_key,
         linked_source,
         lamps=lamps,
+        sh_order=result.sh_order,
+    )
+
+
+def _previous_entry(owner, lighting: WorldLighting):
+    """The entry the material ``owner`` was last drawn with, lit by the current World, or None
+    (never drawn yet): what the viewport draws while the material's new table bakes."""
+    last = CACHES.previous.get(owner)
+    if last is None:
+        return None
+    env = lighting.environment
+    lamps = last.lamps and env is not None and env.lamps is not None
+    return dataclasses.replace(
+        last, lighting=lighting_for(lighting, last.sh_order, last.roughness, lamps), lamps=lamps
     )
 
 
@@ -553,7 +631,8 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     """Draw items for every visible mesh object with a thin-film material, and messages.
 
     With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
-    skipped and passed to ``want_bake(desc)`` so the caller can bake them outside drawing.
+    passed to ``want_bake(desc, owner=…, film=…)`` so the caller can bake them outside drawing,
+    and drawn meanwhile with the table they were last drawn with (skipped if there is none).
 
     A material that cannot be evaluated is drawn as :data:`precompute.material.FALLBACK` (matte
     magenta, its items' ``fallback`` set), with a message naming it and the parameter; with an

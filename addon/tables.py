@@ -7,6 +7,9 @@
   then :func:`precompute.bake.bake`. Equal descriptions share one table. Thread-safe: the bake
   operator calls it from a worker thread.
 - :func:`peek_table` — the table if it is in memory (the draw callback never bakes).
+- :func:`get_film` / :func:`peek_film` — the film table (the World lamps' and light objects'
+  reflectance, :func:`precompute.film_colour.film_table`) of a baked table, computed once per
+  description key beside it in :data:`FILMS`: on the viewport bake's worker, never in a draw.
 - :func:`table_cache` — the disk cache: ``--cache-dir`` (:func:`cache_dir_override`), else
   :func:`.prefs.cache_location` (``THINFILM_SH_CACHE``, the preference, the default), with the
   size limit of :func:`.prefs.cache_max_bytes`.
@@ -30,8 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..precompute import bake
+from ..precompute import bake, film_colour
 from ..precompute.material import Material
+from ..precompute.progress import reporting
 from ..precompute.shading import policy
 from ..precompute.table_cache import TableCache
 from . import caches, prefs
@@ -40,6 +44,7 @@ from .description import description_key
 __all__ = [
     "CACHE_ERRORS",
     "FAILURES",
+    "FILMS",
     "FAILURE_MEMORY",
     "LRU_SIZE",
     "MEMORY",
@@ -51,10 +56,12 @@ __all__ = [
     "clear_memory_cache",
     "failure",
     "format_plan",
+    "get_film",
     "get_table",
     "get_table_with_source",
     "open_cache",
     "parse_plan",
+    "peek_film",
     "peek_table",
     "record_failure",
     "shading_path",
@@ -67,6 +74,12 @@ log = logging.getLogger(__name__)
 LRU_SIZE = 32
 #: Baked tables by description key (see :mod:`.caches`).
 MEMORY = caches.register("tables", caches.LRU(LRU_SIZE), scope=caches.SESSION)
+
+#: Film tables (:class:`precompute.film_colour.FilmTable`) by description key, one per table kept.
+FILMS = caches.register("film_tables", caches.LRU(LRU_SIZE), scope=caches.SESSION)
+#: Film tables computed since the module was loaded, by the name of the thread that computed
+#: each (the tests check that none was computed by the draw's thread).
+film_threads: list[str] = []
 
 #: Failures remembered (distinct failing descriptions; each entry is one error line).
 FAILURE_MEMORY = 64
@@ -142,6 +155,36 @@ def cache_error(desc: Material) -> str | None:
 def peek_table(desc: Material):
     """The table of ``desc`` if it is in memory (never touches the disk, never bakes), else None."""
     return MEMORY.get(description_key(desc))
+
+
+def peek_film(desc_key: str):
+    """The film table of the description key ``desc_key`` if it was computed, else None."""
+    return FILMS.get(desc_key)
+
+
+def get_film(desc: Material, result: bake.BakeResult, progress=None):
+    """The film table of ``desc`` (its baked table ``result``): from :data:`FILMS`, else
+    computed (:func:`precompute.film_colour.film_table`, ≈ 0.1–0.5 s warm) and kept.
+
+    ``progress(fraction, text)`` is called at the computation's checkpoints (fraction 1: the
+    table is done) and may raise to cancel it; nothing is kept then. Thread-safe: the viewport
+    calls it on the bake's worker.
+    """
+    key = description_key(desc)
+    found = FILMS.get(key)
+    if found is not None:
+        return found
+
+    def hook():
+        if progress is not None:
+            progress(1.0, "film table")
+
+    with reporting(hook):
+        found = film_colour.film_table(result)
+    with _count_lock:
+        film_threads.append(threading.current_thread().name)
+    FILMS[key] = found
+    return found
 
 
 def _attributes(result) -> dict:
@@ -230,8 +273,9 @@ def get_table(desc: Material, cache=None, progress=None) -> bake.BakeResult:
 
 
 def clear_memory_cache() -> None:
-    """Empty the in-memory tables (:data:`MEMORY`)."""
+    """Empty the in-memory tables (:data:`MEMORY`) and their film tables (:data:`FILMS`)."""
     MEMORY.clear()
+    FILMS.clear()
 
 
 def clear_caches(cache=None) -> int:

@@ -23,12 +23,22 @@ before collecting anything: nothing is drawn, queued or baked for that viewport.
 Background work is visible: while bakes run or the World is analysed, the header says so with
 the bakes' progress (:func:`activity`), and ``viewport.cancel_bakes`` stops them at their next
 progress checkpoint.
+
+A frame is always drawn with the best data available: while a material's new table bakes, the
+draw shows the table it was last drawn with (``scene_draw.Caches.previous``), and when any
+background work ends (a bake, a linked thickness's bake, the World's update) the timer asks for
+a redraw. The queue holds one bake per material (:func:`scene_draw.material_identity`), the
+newest value winning: dragging a slider over ten values leaves one bake, and a running bake
+whose description no material wants any more is cancelled at its next progress checkpoint
+(:class:`_Job`'s own cancel, not :func:`cancel_bakes`'). A bake's worker also computes the film
+table (:func:`.tables.get_film`) when the draw needs it: nothing of the kind runs in a draw.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from dataclasses import dataclass, field
 
 import bpy
 
@@ -40,18 +50,29 @@ log = logging.getLogger(__name__)
 
 SHADING_TYPES = {"SOLID", "MATERIAL"}
 _handle = None
-_pending: dict[str, object] = {}  # description key → Material waiting for a bake
-_running: set[str] = set()
+
+
+@dataclass
+class _Job:
+    """One viewport bake: the description ``desc`` (its key ``key``), whether the film table is
+    wanted too, its own cancel (set when no material wants ``key`` any more) and progress."""
+
+    key: str
+    desc: object
+    film: bool = False
+    cancel: threading.Event = field(default_factory=threading.Event)
+    progress: float = 0.0
+
+
+_pending: dict[object, _Job] = {}  # material identity → the newest bake it wants
+_running: dict[str, _Job] = {}  # description key → its running bake
+_wanted: dict[object, str] = {}  # material identity → the description key it wants now
 _world_stale = False
 _lock = threading.Lock()
 #: The messages of the last frame drawn (scene_draw.collect's), shown in the viewport header.
 _messages: list[str] = []
 #: 3D viewports (``SpaceView3D.as_pointer()``) whose overlay is switched off (see :mod:`.caches`).
 HIDDEN_IN: set = caches.register("hidden_viewports", set(), scope=caches.FILE)
-#: Progress (0–1) of each running viewport bake, by description key.
-_progress: dict[str, float] = {}
-#: Set to stop every running viewport bake at its next progress checkpoint.
-_cancel = threading.Event()
 _finished = threading.Event()  # a worker ended since the timer's last tick: redraw
 
 
@@ -77,7 +98,7 @@ def activity() -> str:
     """What runs in the background, for the header: "" when nothing does."""
     parts = []
     with _lock:
-        running = dict(_progress)
+        running = {key: job.progress for key, job in _running.items() if not job.cancel.is_set()}
     if running:
         done = sum(running.values()) / len(running)
         parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
@@ -88,66 +109,113 @@ def activity() -> str:
 
 def cancel_bakes() -> int:
     """Stop the running viewport bakes at their next progress checkpoint (≤ one step of the
-    bake, :mod:`precompute.progress`); returns how many were running. Nothing half-made is
-    cached, and a cancelled bake is not remembered as failed: the next draw queues it again
-    unless the overlay is switched off."""
+    bake, :mod:`precompute.progress`) and drop the queued ones; returns how many were running.
+    Nothing half-made is cached, and a cancelled bake is not remembered as failed: the next
+    draw queues it again unless the overlay is switched off."""
     with _lock:
-        count = len(_running)
-    if count:
-        _cancel.set()
-    return count
+        jobs = list(_running.values())
+        _pending.clear()
+    for job in jobs:
+        job.cancel.set()
+    return len(jobs)
 
 
 def _tag_redraw() -> None:
+    """Redraw the 3D views: background work ended, so the frame changes."""
     for window in getattr(bpy.context.window_manager, "windows", []):
         for area in window.screen.areas:
             if area.type == "VIEW_3D":
                 area.tag_redraw()
 
 
-def _want_bake(desc) -> None:
-    """Queue a bake of ``desc`` unless one is queued or running, or its last bake failed."""
+def _tag_header() -> None:
+    """Redraw only the 3D views' headers (the bakes' progress): the frame itself does not change
+    until a bake ends, and redrawing it ten times a second takes the CPU the bake needs (two
+    llvmpipe cores: the soap bubble's thickness and IOR edits showed in 12–13 s with the view
+    redrawn, in about 4 s with the header alone; benchmarks/latency.py, load average ≈ 12)."""
+    for window in getattr(bpy.context.window_manager, "windows", []):
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                for region in area.regions:
+                    if region.type == "HEADER":
+                        region.tag_redraw()
+
+
+def _want_bake(desc, owner=None, film: bool = False) -> None:
+    """Queue a bake of ``desc`` for the material ``owner`` (None: the description itself), with
+    its film table if ``film``, unless its last bake failed. One bake per owner: a newer
+    description replaces the queued one, and a running bake that no owner wants any more is
+    cancelled at its next progress checkpoint."""
     key = description_key(desc)
     if key in tables.FAILURES:
         return  # backs off until the description (so its key) changes
+    owner = key if owner is None else owner
     with _lock:
-        if key not in _running:
-            _pending[key] = desc
+        _wanted[owner] = key
+        running = _running.get(key)
+        if running is not None and (running.film or not film):
+            _pending.pop(owner, None)  # the running bake makes what this owner wants
+        else:
+            queued = _pending.get(owner)
+            film = film or (queued is not None and queued.key == key and queued.film)
+            _pending[owner] = _Job(key, desc, film)
+        wanted = set(_wanted.values())
+        for job in _running.values():
+            if job.key not in wanted:
+                job.cancel.set()  # superseded: stops at its next checkpoint, caches nothing
 
 
-def _bake_worker(key: str, desc, cache) -> None:
+def _bake_worker(job: _Job, cache) -> None:
     def report(fraction, text):
-        if _cancel.is_set():
+        if job.cancel.is_set():
             raise BakesCancelled
-        _progress[key] = float(fraction)
+        job.progress = float(fraction)
 
     try:
-        tables.get_table(desc, cache, report)
+        report(0.0, "")  # superseded before it started: stops here
+        result = tables.get_table(job.desc, cache, report)
+        if job.film:
+            tables.get_film(job.desc, result, report)
     except BakesCancelled:
         pass
     except Exception as exc:  # reported, never raised into Blender's timer
-        text = tables.record_failure(desc, exc)  # before leaving _running: the draw must not re-queue
+        text = tables.record_failure(job.desc, exc)  # before leaving _running: the draw must not re-queue
         log.error("Thin Film SH: bake failed: %s", text)
     finally:
         with _lock:
-            _running.discard(key)
-            _progress.pop(key, None)
-            if not _running:
-                _cancel.clear()
+            if _running.get(job.key) is job:
+                del _running[job.key]
+            for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
+                del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
         _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
+
+
+def _start_jobs() -> list[_Job]:
+    """Move the queued bakes that can start now to :data:`_running`; a description already
+    being baked waits (unless that bake makes what it wants: then it is dropped)."""
+    jobs = []
+    with _lock:
+        for owner, job in list(_pending.items()):
+            running = _running.get(job.key)
+            if running is not None:
+                if running.film or not job.film:
+                    del _pending[owner]
+                continue
+            del _pending[owner]
+            if _wanted.get(owner) != job.key:
+                continue  # superseded since it was queued
+            _running[job.key] = job
+            jobs.append(job)
+    return jobs
 
 
 def _service() -> float | None:
     """Timer: start queued bakes on threads, refresh the World, ask for a redraw when done."""
     global _world_stale
-    with _lock:
-        jobs = list(_pending.items())
-        _pending.clear()
-        _running.update(key for key, _ in jobs)
-        _progress.update((key, 0.0) for key, _ in jobs)  # shown from its start, not its first report
+    jobs = _start_jobs()
     cache = tables.open_cache() if jobs else None  # here: it reads the preferences
-    for key, desc in jobs:
-        threading.Thread(target=_bake_worker, args=(key, desc, cache), daemon=True).start()
+    for job in jobs:
+        threading.Thread(target=_bake_worker, args=(job, cache), daemon=True).start()
     baked = linked.has_pending()
     if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw
         for error in linked.run_pending():
@@ -160,8 +228,10 @@ def _service() -> float | None:
         log.error("Thin Film SH: World lighting failed: %s", exc)
     finished = _finished.is_set()
     _finished.clear()
-    if jobs or _running or baked or finished or world_done:
+    if baked or finished or world_done:
         _tag_redraw()
+    elif jobs or _running:
+        _tag_header()  # progress only
     return 0.1 if (_running or _pending or _finished.is_set() or world_job.busy()) else None
 
 

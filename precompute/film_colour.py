@@ -15,7 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import bake, brdf, constants, film_channels
+from .chunks import chunked_sweep
 from .optics import reflectance
+from .progress import checkpoint
 
 #: Samples of the film table in u = cos θ (uniform 0…1 inclusive).
 FILM_SAMPLES = 128
@@ -98,41 +100,100 @@ class FilmTable:
 
 
 def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
-    """The film reflectance of a :class:`bake.BakeResult` 's material at its thickness rows."""
+    """The film reflectance of a :class:`bake.BakeResult` 's material at its thickness rows.
+
+    Vectorised over the rows: one reflectance sweep for every thickness (:func:`_film_rows`)
+    and one albedo integral's geometry shared by every row's multiple-scattering factor
+    (:func:`_multiscatter`). Equal to the per-row :func:`film_rgb_matrices` and
+    :func:`brdf.directional_albedo` to float rounding (tests/test_live.py). The viewport
+    computes it on the bake's worker (:func:`addon.tables.get_film`), never in a draw.
+    """
     material = result.material
     thicknesses = np.atleast_1d(np.asarray(result.thicknesses_nm, dtype=float))
     u = np.linspace(0.0, 1.0, int(samples))
-    rows = []
-    for t in thicknesses:
-        _, rg, _, _, _ = film_rgb_matrices(material, float(t) if material.thicknesses() else None, samples)
-        rows.append(rg)
-    rg = np.stack(rows)  # (T, U, 3, 3)
+    rg = _film_rows(material, thicknesses, u)  # (T, U, 3, 3)
     spectral = np.asarray(result.data).ndim == 5
     reflectance = rg if spectral else np.einsum("tukk->tuk", rg)
-    ms = np.stack([_multiscatter(material, u, rg_t) for rg_t in rg])
-    return FilmTable(reflectance, np.ascontiguousarray(ms), thicknesses)
+    ms = _multiscatter(material, u, rg)
+    return FilmTable(np.ascontiguousarray(reflectance), np.ascontiguousarray(ms), thicknesses)
+
+
+def _film_rows(material, thicknesses: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """RG(u) (T, U, 3, 3) of :func:`film_rgb_matrices` at each top-layer thickness (nm) of
+    ``thicknesses``, every row in one sweep; a material without layers has one row, repeated."""
+    p = bake.plan(material)
+    wl, g = bake.spectral_quadrature(
+        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
+    )
+    base = material.thicknesses()
+    sets = np.array([[float(t), *base[1:]] for t in thicknesses]) if base else np.zeros((1, 0))
+    method = "glassner2000" if material.model == "glassner2000" else "exact"
+    if material.colour_mode == "per_channel":
+        rg = bake.channel_film(material, material.indices(), sets, wl, g, u, method)[..., None] * np.eye(3)
+    else:
+        r = _sweep(material.indices(), sets, wl, u, method)
+        rg = bake.clamp_film_rgb(np.einsum("tuw,wkc->tukc", r, g), material.colour_mode)
+    return rg if base else np.broadcast_to(rg, (thicknesses.size,) + rg.shape[1:])
+
+
+def _sweep(indices, sets: np.ndarray, wl: np.ndarray, u: np.ndarray, method: str) -> np.ndarray:
+    """R (T, U, W) of every thickness set in one sweep; a set with a layer of thickness exactly 0
+    goes through :func:`reflectance`, which removes that layer ("exact": the bare interface,
+    finite at grazing incidence where the Airy form of an air film in air is 0/0)."""
+    if sets.shape[1] == 0:
+        return reflectance(indices, [], wl, u, method=method)[None]
+    with np.errstate(invalid="ignore", divide="ignore"):  # the 0 nm rows, replaced below
+        r = chunked_sweep(indices, sets, wl, u, method)
+    if method == "exact":
+        for row in np.flatnonzero((sets == 0.0).any(axis=1)):
+            r[row] = reflectance(indices, list(sets[row]), wl, u, method=method)
+    return r
+
+
+def _albedo_weights(roughness: float, mu: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(M, U) weights W with Σ_j W[m, j] R(u_j) = :func:`brdf.directional_albedo` at view cosine
+    ``mu[m]`` of a reflectance R tabulated on the uniform grid ``u`` and read with linear
+    interpolation (as ``np.interp``): the integral's geometry, shared by every row."""
+    alpha = float(brdf.alpha_from_roughness(roughness))
+    cos_o = np.clip(mu, constants.MIN_COS, 1.0)
+    h, wgt = brdf.ggx_importance_grid(alpha, 128, 64)
+    last = u.size - 1
+    out = np.empty((cos_o.size, u.size))
+    for m, co in enumerate(cos_o):
+        wo = np.array([np.sqrt(max(0.0, 1.0 - co * co)), 0.0, co])
+        cos_h = h @ wo
+        wi = brdf.reflect(wo[None, :], h)
+        ok = (cos_h > 0) & (wi[:, 2] > 0)
+        g2 = brdf.G2_smith_height_correlated(np.maximum(wi[:, 2], constants.MIN_COS), co, alpha)
+        scalar = np.where(ok, g2 * cos_h / (co * h[:, 2]), 0.0) * wgt
+        x = np.clip(cos_h, 0.0, 1.0) * last  # position on the uniform u grid
+        left = np.minimum(np.floor(x).astype(np.int64), last - 1)
+        frac = x - left
+        out[m] = np.bincount(left, scalar * (1.0 - frac), u.size)
+        out[m] += np.bincount(left + 1, scalar * frac, u.size)
+        checkpoint()  # one view cosine (a bake's progress and cancellation point)
+    return out
 
 
 def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
-    """(U, 3): the factor :func:`bake.apply_multiscatter` applies at view cosine u.
+    """(T, U, 3): the factor :func:`bake.apply_multiscatter` applies at view cosine u, per row.
 
-    "cycles": the film-free substrate's F_avg (bake.cycles_fresnel_average), as the bake.
-    "film": F_avg per channel from the film's single-scattering white-light albedo over E (the
-    bake takes the same ratio on its own view samples, so the two agree to the quadrature: a few
-    1e-3 of the factor).
+    "cycles": the film-free substrate's F_avg (bake.cycles_fresnel_average), as the bake, the
+    same for every row. "film": F_avg per row and channel from the film's single-scattering
+    white-light albedo over E (the bake takes the same ratio on its own view samples, so the two
+    agree to the quadrature: a few 1e-3 of the factor).
     """
+    rows = rg.shape[0]
     if material.multiscatter == "none" or material.roughness <= 0.0:
-        return np.ones((u.size, 3))
+        return np.ones((rows, u.size, 3))
     if material.multiscatter == "cycles":  # the bake's own factor, per output row of a unit table
-        return bake.apply_multiscatter(np.ones((1, u.size, 1, 3, 1)), material, u)[0, :, 0, :, 0]
-    white = rg.sum(axis=-1)  # (U, 3): the film's reflectance of white light per output channel
+        one = bake.apply_multiscatter(np.ones((1, u.size, 1, 3, 1)), material, u)[0, :, 0, :, 0]
+        return np.broadcast_to(one, (rows, u.size, 3))
+    white = rg.sum(axis=-1)  # (T, U, 3): the film's reflectance of white light per output channel
     mu, wmu = np.polynomial.legendre.leggauss(32)
     mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu
-
-    def film_reflectance(x):
-        return np.stack([np.interp(x, u, white[:, c]) for c in range(3)], axis=-1)
-
-    e_film = brdf.directional_albedo(mu, material.roughness, film_reflectance, 128, 64)  # (32, 3)
+    e_film = np.einsum("mj,tjc->tmc", _albedo_weights(float(material.roughness), mu, u), white)
     e = brdf.ggx_E(float(material.roughness), tuple(np.clip(mu, constants.MIN_COS, 1.0).tolist()))
-    f_avg = np.clip(np.sum(e_film / e[:, None] * (2.0 * mu * wmu)[:, None], axis=0), 0.0, 1.0)
-    return np.stack([brdf.multiscatter_scale(u, material.roughness, f) for f in f_avg], axis=-1)
+    ratio = e_film / e[None, :, None] * (2.0 * mu * wmu)[None, :, None]
+    f_avg = np.clip(np.sum(ratio, axis=1), 0.0, 1.0)  # (T, 3)
+    return np.moveaxis(brdf.multiscatter_scale(u, material.roughness, f_avg), 0, 1)
