@@ -113,7 +113,7 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "prefs", "tables", "viewport", "description"):
+        for name in ("scene_draw", "prefs", "tables", "viewport", "description", "world_job"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
         ns.film_colour = importlib.import_module(f"{EXTENSION_ID}.precompute.film_colour")
@@ -257,9 +257,20 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     redraws.clear()
     assert vp._service() is None and redraws == [1]
 
-    vp._world_stale = True  # what the draw sets when the World's lighting is missing
+    img = bpy.data.images.new("Sky", 32, 16, float_buffer=True, alpha=False)
+    img.pixels.foreach_set(np.full(32 * 16 * 4, 0.5, dtype=np.float32))
+    world = bpy.data.worlds.new("Sky")  # an image World: read here, analysed on a worker
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+    bpy.context.view_layer.update()
+    tf.scene_draw.world_lighting(scene, allow_compute=False)  # the old lighting, and an ask
+    assert tf.world_job.busy()
+    vp._service()  # reads it here, analyses it on a worker
+    wait_for(lambda: not tf.world_job.busy(), "the World's analysis")
     redraws.clear()
-    assert vp._service() is None and redraws == [1]
+    assert vp._service() is None and redraws == [1]  # the job ended: the tick after redraws
     assert vp.activity() == ""
 
 
