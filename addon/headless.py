@@ -2,8 +2,9 @@
 
 ``render_scene`` draws the scene camera's view into a float off-screen buffer: the rest of the
 scene first (Blender's own Solid drawing, for depth and for the objects we don't shade), then
-the World as background, then every thin-film object, depth-tested. Writes a scene-linear EXR
-and a PNG (sRGB "Standard" view with the scene's exposure).
+the World as background, then every thin-film object, depth-tested. Writes a scene-linear RGBA
+EXR in the file's working space (with its chromaticities) and an RGBA PNG through Blender's own
+colour management of the scene (:func:`.display.save_png`: display, view, look, exposure, gamma).
 
 The frame is anti-aliased as Cycles' is: drawn :data:`SUPERSAMPLE` times larger (over a window
 widened by the filter's support, so border pixels see beyond the frame) and filtered down with
@@ -30,10 +31,11 @@ import numpy as np
 from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
-from . import prefs, scene_draw, tables, world
+from . import display, prefs, scene_draw, tables, world
 from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
+from .world_key import working_space
 
 #: The message of a render made while the *Show Thin Film Overlay* preference is off.
 OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
@@ -247,20 +249,20 @@ def render_scene(
                 bpy.context.view_layer.update()
 
     rgba = render_offscreen(items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from)
-    rgb = rgba[..., :3].astype(np.float64)
-    bad = ~np.isfinite(rgb)
+    rgba = rgba.astype(np.float64)
+    bad = ~np.isfinite(rgba)
     nonfinite = int(bad.any(axis=-1).sum())
     if bad.any():
         messages.append(f"{nonfinite} non-finite samples set to 0")
-        rgb = np.where(bad, 0.0, rgb)
+        rgba = np.where(bad, 0.0, rgba)
     if factor > 1:
-        rgb = pixel_filter.downsample(rgb, kind, filter_width, factor, pad)
+        rgba = pixel_filter.downsample(rgba, kind, filter_width, factor, pad)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    image_io.write_exr(out.with_suffix(".exr"), rgb)
-    image_io.write_png(
-        out.with_suffix(".png"), image_io.srgb_encode(rgb, float(scene.view_settings.exposure))
-    )
+    space = working_space()
+    display.ocio()  # exposes Blender's bundled modules: OpenImageIO writes the EXR inside Blender
+    image_io.write_exr(out.with_suffix(".exr"), rgba, image_io.CHROMATICITIES.get(space))
+    display.save_png(out.with_suffix(".png"), rgba, scene)
     return {
         "png": str(out.with_suffix(".png")),
         "exr": str(out.with_suffix(".exr")),
@@ -272,6 +274,8 @@ def render_scene(
         "errors": errors,
         "world_errors": list(lighting.sh.errors) if lighting is not None else [],
         "nonfinite_pixels": nonfinite,
+        "working_space": space,
+        "view_transform": scene.view_settings.view_transform,
         "messages": messages,
         "seconds": time.perf_counter() - t0,
     }

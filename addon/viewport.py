@@ -30,7 +30,7 @@ import threading
 
 import bpy
 
-from . import caches, linked, prefs, scene_draw, tables
+from . import caches, display, linked, prefs, scene_draw, tables
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -158,9 +158,10 @@ def _service() -> float | None:
             log.error("Thin Film SH: World lighting failed: %s", exc)
     finished = _finished.is_set()
     _finished.clear()
+    finished = display.take_finished() or finished  # the scene's display LUT is ready
     if jobs or _running or baked or finished:
         _tag_redraw()
-    return 0.1 if (_running or _pending or _finished.is_set()) else None
+    return 0.1 if (_running or _pending or _finished.is_set() or display.baking()) else None
 
 
 def _schedule() -> None:
@@ -199,8 +200,18 @@ def draw_callback() -> None:
         _messages[:] = messages
         if _pending or linked.has_pending():
             _schedule()
-        exposure = float(depsgraph.scene.view_settings.exposure)
-        draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
+        settings = display.settings_of(depsgraph.scene)
+        lut = display.viewport_lut(settings)  # None (Standard sRGB) until its bake is done
+        if lut is None and display.baking():
+            _schedule()
+        draw_items(
+            items,
+            rv3d.view_matrix,
+            rv3d.window_matrix,
+            display_srgb=True,
+            exposure=settings.exposure,
+            display_lut=lut,
+        )
     except Exception as exc:  # a draw callback must never raise
         log.error("Thin Film SH: viewport draw failed: %s", exc)
 

@@ -170,8 +170,9 @@ def read_exr(path) -> np.ndarray:
 
     with OpenEXR.File(str(path)) as f:
         channels = f.channels()
-        if "RGB" in channels:
-            return np.array(channels["RGB"].pixels, dtype=np.float64)
+        for key in ("RGBA", "RGB"):  # the headless EXR is RGBA
+            if key in channels:
+                return np.array(channels[key].pixels, dtype=np.float64)[..., :3]
         return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
