@@ -41,16 +41,41 @@ from .world_key import working_space
 OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
 
 
+def rendered(inst) -> bool:
+    """Whether a depsgraph instance is rendered: neither it nor its instancer is ``hide_render``."""
+    if inst.object.original.hide_render:
+        return False
+    parent = inst.parent if inst.is_instance else None
+    return parent is None or not parent.original.hide_render
+
+
+def _rendered_objects(scene):
+    """The evaluated mesh objects ``scene``'s view layer renders, instances included (collection
+    instances from excluded collections, Geometry Nodes, particles: ``depsgraph.object_instances``)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()  # the context's scene and view layer
+    for inst in depsgraph.object_instances:
+        if inst.object.type == "MESH" and rendered(inst):
+            yield inst.object
+
+
+def _hidden_in_render(item) -> bool:
+    """Whether a draw item's object is ``hide_render`` (the viewport's depsgraph still lists it)."""
+    obj = bpy.data.objects.get(item.name.split("/")[0])
+    return obj is not None and obj.hide_render
+
+
 def scene_materials(scene):
-    """{material name: description} of the visible meshes' film materials (enabled or Principled), errors."""
+    """{material name: description} of the rendered meshes' film materials (enabled or
+    Principled), instances included; errors."""
     found = {}
     errors = {}
-    for obj in scene.objects:
-        if obj.type != "MESH" or not obj.visible_get():
-            continue
+    for obj in _rendered_objects(scene):
         for slot in obj.material_slots:
             mat = slot.material
-            if mat is None or mat.name in found or mat.name in errors:
+            if mat is None:
+                continue
+            mat = getattr(mat, "original", mat)
+            if mat.name in found or mat.name in errors:
                 continue
             try:
                 desc = description(mat)
@@ -206,6 +231,7 @@ def render_scene(
     errors: dict[str, str] = {}  # materials drawn as the magenta fallback, and why
     if prefs.overlay_enabled():
         items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
+        items = [item for item in items if not _hidden_in_render(item)]
     else:  # the artist's off switch holds for renders too: Blender's own drawing only
         items, messages = [], [OVERLAY_OFF]
     env = None
@@ -219,14 +245,17 @@ def render_scene(
     def depth_from(offscreen):
         """Blender's Solid drawing of everything else, for depth and for the other objects.
 
-        Thin-film objects are hidden during it: drawn twice, Blender's and our vertex transforms
-        round differently and the depth test would let the grey Solid surface speckle through.
+        Thin-film objects and ``hide_render`` objects are hidden during it (film objects: drawn
+        twice, Blender's and our vertex transforms round differently and the depth test would let
+        the grey Solid surface speckle through). Instances of excluded collections are not in the
+        view layer and cannot be hidden: they stay in this pass.
         """
         if space is None:
             return
         shading = space.shading
         saved = (shading.type, shading.light, shading.color_type)
-        hidden = [o for o in scene.objects if o.name in film_objects and not o.hide_get()]
+        layer_objects = bpy.context.view_layer.objects  # instances from excluded collections are not
+        hidden = [o for o in layer_objects if (o.name in film_objects or o.hide_render) and not o.hide_get()]
         try:
             for o in hidden:
                 o.hide_set(True)

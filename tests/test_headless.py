@@ -263,7 +263,7 @@ def test_cli_render_writes_png_and_exr(bpy, tf, cli_blend, tmp_path, capsys):
     from PIL import Image
 
     with Image.open(out) as png:
-        assert png.size == (64, 48) and png.mode == "RGB"
+        assert png.size == (64, 48) and png.mode == "RGBA"  # with alpha (issue 19)
     image = read_exr(out.with_suffix(".exr"))
     assert image.shape == (48, 64, 3)
     assert np.isfinite(image).all()
@@ -841,3 +841,31 @@ def test_headless_frame_applies_the_scenes_pixel_filter(bpy, tf, fresh, tmp_path
     for _ in range(2):
         core[1:-1, 1:-1] &= core[:-2, 1:-1] & core[2:, 1:-1] & core[1:-1, :-2] & core[1:-1, 2:]
     assert np.abs(default - box)[core].max() < 0.05 * box[core].max()
+
+
+def test_instances_from_an_excluded_collection_render_bake_and_plan(bpy, tf, fresh, tmp_path):
+    """Issue 19: film objects instanced from an excluded collection are rendered (no "cannot be
+    hidden" traceback), baked and planned; a ``hide_render`` film object is not drawn."""
+    scene = fresh
+    source = bpy.data.collections.new("Source")
+    scene.collection.children.link(source)
+    ball = sphere(bpy, scene, "Ball", radius=0.8, material=film(bpy, "InstFilm"))
+    for collection in list(ball.users_collection):
+        collection.objects.unlink(ball)
+    source.objects.link(ball)
+    bpy.context.view_layer.layer_collection.children["Source"].exclude = True
+    for x in (-1.2, 1.2):
+        empty = bpy.data.objects.new(f"Instancer{x:+}", None)
+        empty.instance_type, empty.instance_collection, empty.location = "COLLECTION", source, (x, 0.0, 0.0)
+        scene.collection.objects.link(empty)
+    hidden = sphere(
+        bpy, scene, "Hidden", location=(0.0, 0.0, 2.0), radius=0.3, material=film(bpy, "HiddenFilm")
+    )
+    hidden.hide_render = True
+    camera(bpy, scene, distance=6.0)
+    found, errors = tf.headless.scene_materials(scene)
+    assert set(found) == {"InstFilm"} and not errors, (set(found), errors)
+    image, result = render(tf, scene, tmp_path / "inst.png", supersample=1)
+    assert result["objects"] == ["Ball/InstFilm", "Ball/InstFilm"], result["objects"]
+    left, right = image[:, : SIZE[0] // 2].max(), image[:, SIZE[0] // 2 :].max()
+    assert left > 0.01 and right > 0.01, (left, right)  # both instances drawn
