@@ -9,9 +9,9 @@ builds the same chain with Blender's bundled PyOpenColorIO
 (``bpy.utils.expose_bundled_modules()``) and Blender's own ``config.ocio``.
 
 - The viewport overlay: :func:`baked_lut` bakes that processor without exposure into a
-  :data:`~precompute.shading.policy.DISPLAY_LUT_SIZE`³ cube over a log shaper
-  (precompute/display_lut.py, sampled per pixel by glsl/tf_display.glsl); exposure is applied
-  to the scene-linear value first, in the shader.
+  :data:`~precompute.shading.policy.DISPLAY_LUT_SIZE`³ cube over a log shaper, with a 3 × 3
+  input matrix (precompute/display_lut.py, sampled per pixel by glsl/tf_display.glsl);
+  exposure is applied to the scene-linear value first, in the shader.
 - The headless PNG: :func:`save_png` hands the scene-linear frame to Blender
   (``Image.save_render(scene=…)``), which applies every view setting, curve mapping included.
 
@@ -167,19 +167,62 @@ def encode(rgb, settings: DisplaySettings) -> np.ndarray:
     return np.clip(flat.reshape(rgb.shape).astype(np.float64), 0.0, 1.0)
 
 
-def baked_lut(settings: DisplaySettings) -> np.ndarray | None:
-    """The (N, N, N, 3) display LUT of ``settings`` without exposure (cached), values in [0, 1];
-    None where PyOpenColorIO is missing. ``ValueError`` as :func:`processor`."""
+#: The input spaces a LUT may be baked over (besides the working space itself): the linear
+#: gamuts of Blender's displays. :func:`baked_lut` keeps the one that follows OCIO best.
+LUT_INPUT_SPACES = ("Linear Rec.709", "Linear DCI-P3 D65", "Linear Rec.2020")
+
+
+def _probe() -> np.ndarray:
+    """Scene-linear colours the LUT candidates are scored on (fixed: the choice is repeatable)."""
+    rng = np.random.default_rng(19)
+    return (np.exp2(rng.uniform(-8.0, 4.0, (4096, 1))) * rng.uniform(0.0, 1.0, (4096, 3))).astype(np.float32)
+
+
+def _matrix(source: str, target: str) -> np.ndarray:
+    """The 3 × 3 matrix M (x ↦ M x) of OCIO's conversion between two linear spaces."""
+    basis = np.eye(3, dtype=np.float32)
+    config().getProcessor(source, target).getDefaultCPUProcessor().applyRGB(basis)
+    return basis.astype(np.float64).T  # row i of ``basis`` is M e_i
+
+
+def _bake(cpu, matrix) -> np.ndarray:
+    lattice = display_lut.lattice(policy.DISPLAY_LUT_SIZE)
+    points = lattice.reshape(-1, 3) @ np.linalg.inv(matrix).T  # the lattice, back in the working space
+    flat = np.ascontiguousarray(points, dtype=np.float32)
+    cpu.applyRGB(flat)
+    return np.clip(flat.reshape(lattice.shape), 0.0, 1.0)
+
+
+def baked_lut(settings: DisplaySettings):
+    """(table (N, N, N, 3) in [0, 1], input matrix (3, 3)) of ``settings`` without exposure
+    (cached); None where PyOpenColorIO is missing. ``ValueError`` as :func:`processor`.
+
+    The table is baked over the working space and over each of :data:`LUT_INPUT_SPACES` (the
+    matrix takes the working space there) and the one closest to OCIO on a fixed probe of
+    colours is kept (99th percentile of |Δ|): a view that clips to the display's gamut is
+    exact on the cube's faces of that gamut; AgX, which maps wide gamuts, keeps the working
+    space (docs/tuning.md#display-lut).
+    """
     if ocio() is None:
         return None
     key = settings.without_exposure()
-    table = LUTS.get(key)
-    if table is None:
-        lattice = display_lut.lattice(policy.DISPLAY_LUT_SIZE).astype(np.float32)
-        flat = np.ascontiguousarray(lattice.reshape(-1, 3))
-        processor(key, exposure=False).applyRGB(flat)
-        table = LUTS[key] = np.clip(flat.reshape(lattice.shape), 0.0, 1.0)
-    return table
+    found = LUTS.get(key)
+    if found is None:
+        cpu = processor(key, exposure=False)
+        probe = _probe()
+        expected = np.ascontiguousarray(probe.copy())
+        cpu.applyRGB(expected)
+        expected = np.clip(expected, 0.0, 1.0)
+        best = None
+        spaces = [key.working_space, *(s for s in LUT_INPUT_SPACES if s != key.working_space)]
+        for space in spaces:
+            matrix = np.eye(3) if space == key.working_space else _matrix(key.working_space, space)
+            table = _bake(cpu, matrix)
+            error = float(np.percentile(np.abs(display_lut.apply(table, probe, 0.0, matrix) - expected), 99))
+            if best is None or error < best[0]:
+                best = (error, table, matrix)
+        found = LUTS[key] = (best[1], best[2])
+    return found
 
 
 def _set_image_settings(settings, values: dict) -> dict:
@@ -245,10 +288,10 @@ def viewport_lut(settings: DisplaySettings) -> DisplayLUTTexture | None:
     if texture is not None:
         return texture
     if key in LUTS:
-        table = LUTS[key]
-        if table is None:
+        found = LUTS[key]
+        if found is None:
             return None
-        texture = TEXTURES[key] = DisplayLUTTexture.from_table(table)
+        texture = TEXTURES[key] = DisplayLUTTexture.from_table(*found)
         return texture
     if ocio() is None:
         return None

@@ -5,8 +5,9 @@
  *
  * numpy counterpart: precompute.display_lut.apply (shaper, then the eight corners of the cell
  * fetched and interpolated: no hardware filtering, so both agree to float32 rounding).
- * The LUT texture (tf_display_lut, RGBA32F): width N * N (x = r + N * g), height N (y = b),
- * N = TF_DISPLAY_LUT_SIZE. Compiled only for TF_DISPLAY_LUT variants.
+ * The LUT texture (tf_display_lut, RGBA32F): width N * N (x = r + N * g), height N + 1 (y = b;
+ * row N: the input matrix's rows in texels 0..2), N = TF_DISPLAY_LUT_SIZE. Compiled only for
+ * TF_DISPLAY_LUT variants.
  */
 
 #ifdef TF_DISPLAY_LUT
@@ -25,7 +26,11 @@ vec3 tf_display_at(ivec3 i)
 /* Display-referred RGB of a scene-linear colour (exposure already applied). */
 vec3 tf_display_lut_apply(vec3 rgb)
 {
-  vec3 s = tf_display_shaper(rgb) * float(TF_DISPLAY_LUT_SIZE - 1);
+  vec3 m0 = texelFetch(tf_display_lut, ivec2(0, TF_DISPLAY_LUT_SIZE), 0).rgb;
+  vec3 m1 = texelFetch(tf_display_lut, ivec2(1, TF_DISPLAY_LUT_SIZE), 0).rgb;
+  vec3 m2 = texelFetch(tf_display_lut, ivec2(2, TF_DISPLAY_LUT_SIZE), 0).rgb;
+  vec3 x = vec3(dot(m0, rgb), dot(m1, rgb), dot(m2, rgb)); /* into the LUT's input space */
+  vec3 s = tf_display_shaper(x) * float(TF_DISPLAY_LUT_SIZE - 1);
   ivec3 i = min(ivec3(floor(s)), ivec3(TF_DISPLAY_LUT_SIZE - 2));
   vec3 f = s - vec3(i);
   vec3 c00 = mix(tf_display_at(i), tf_display_at(i + ivec3(1, 0, 0)), f.x);

@@ -4,7 +4,11 @@ The scene's colour management (display device, view transform, look, gamma; OCIO
 addon/display.py) is baked on the CPU into a cube of ``N``³ display-referred RGB values over a
 logarithmic *shaper* of the scene-linear input, and sampled per pixel with trilinear
 interpolation. Exposure stays outside the table: the caller scales the scene-linear input by
-2^exposure first, as Blender does.
+2^exposure first, as Blender does. A 3 × 3 matrix then takes the working space into the table's
+input space: the display's own linear gamut for views that clip to it (Standard, Filmic, PBR
+Neutral: the clip then falls on the cube's faces instead of inside its cells), the working
+space itself for views that map wide gamuts (AgX); addon/display.py picks the one that follows
+OCIO best.
 
 Shaper (each channel, x scene-linear in the working space after exposure, clamped to ≥ 0):
 
@@ -49,23 +53,30 @@ def lattice(size: int, floor: float | None = None, top: float | None = None) -> 
     return np.stack([r, g, b], axis=-1)
 
 
-def texture_layout(table: np.ndarray) -> np.ndarray:
+def texture_layout(table: np.ndarray, matrix=None) -> np.ndarray:
     """A (N, N, N, 3) table indexed [b, g, r] as the RGBA texture the shader reads: width N · N
-    (texel x = r + N · g), height N (y = b), alpha 1."""
+    (texel x = r + N · g), height N + 1 (y = b; the last row's first three texels hold the rows
+    of the input ``matrix``, identity when None), alpha 1."""
     table = np.asarray(table, dtype=np.float32)
     n = table.shape[0]
     if table.shape != (n, n, n, 3):
         raise ValueError(f"display LUT must be (N, N, N, 3), got {table.shape}")
-    rgba = np.ones((n, n, n, 4), dtype=np.float32)
-    rgba[..., :3] = table
-    return rgba.reshape(n, n * n, 4)
+    rgba = np.ones((n + 1, n * n, 4), dtype=np.float32)
+    rgba[:n, :, :3] = table.reshape(n, n * n, 3)
+    rgba[n] = 0.0
+    rgba[n, :3, :3] = np.eye(3) if matrix is None else np.asarray(matrix, dtype=np.float32)
+    return rgba
 
 
-def apply(table: np.ndarray, rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
-    """Display-referred RGB of scene-linear ``rgb`` (…, 3): × 2^exposure, shaper, trilinear lookup."""
+def apply(table: np.ndarray, rgb: np.ndarray, exposure: float = 0.0, matrix=None) -> np.ndarray:
+    """Display-referred RGB of scene-linear ``rgb`` (…, 3): × 2^exposure, into the LUT's input
+    space (``matrix`` M: x ↦ M x; None: identity), shaper, trilinear lookup."""
     table = np.asarray(table, dtype=np.float64)
     n = table.shape[0]
-    s = shaper(np.asarray(rgb, dtype=np.float64) * 2.0 ** float(exposure)) * (n - 1)
+    x = np.asarray(rgb, dtype=np.float64) * 2.0 ** float(exposure)
+    if matrix is not None:
+        x = x @ np.asarray(matrix, dtype=np.float64).T
+    s = shaper(x) * (n - 1)
     i0 = np.minimum(np.floor(s).astype(np.int64), n - 2)
     f = s - i0
     r0, g0, b0 = i0[..., 0], i0[..., 1], i0[..., 2]

@@ -40,6 +40,20 @@ USAGE = """usage: thinfilm_headless.py FILE.blend {bake,render,plan} [args]
 Run 'thinfilm_headless.py FILE.blend COMMAND --help' for a command's options."""
 
 
+def options_parser():
+    """The commands' argparse parser (addon/cli_args.py) without importing Blender or opening a
+    file: the package and its ``addon`` subpackage are stood in for by bare modules, so their
+    ``__init__`` (which imports bpy) does not run. Only for ``--help``: the process ends after."""
+    import types
+
+    for name, path in ((EXTENSION_ID, REPO), (f"{EXTENSION_ID}.addon", REPO / "addon")):
+        if name not in sys.modules:
+            module = types.ModuleType(name)
+            module.__path__ = [str(path)]
+            sys.modules[name] = module
+    return importlib.import_module(f"{EXTENSION_ID}.addon.cli_args").parser()
+
+
 def register_extension():
     """Import this repository as the package ``thinfilm_sh`` and register it; returns the package."""
     module = sys.modules.get(EXTENSION_ID)
@@ -81,7 +95,7 @@ def release() -> None:
     -11 after a complete render, seen once the linked-thickness caches existed).
     """
     module = sys.modules.get(EXTENSION_ID)
-    if module is not None:
+    if module is not None and hasattr(module, "unregister"):  # not the bare stand-in of --help
         module.unregister()
     gc.collect()
 
@@ -141,6 +155,11 @@ def main(argv=None) -> int:
             args.all_scenes, args.out_dir, args.width, args.height, not args.no_background, args.cache_dir
         )
     blend, rest = argv[0], argv[1:]
+    if "-h" in rest or "--help" in rest:  # answered before Blender is imported or the file opened
+        try:
+            options_parser().parse_args(rest)
+        except SystemExit as done:
+            return int(done.code or 0)
     if not blend.endswith(".blend") or not rest:
         print(USAGE, file=sys.stderr)
         return 2

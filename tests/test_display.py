@@ -154,13 +154,14 @@ def test_ocio_processor_and_lut_follow_blenders_view(bpy, tf, tmp_path, space):
             ocio = tf.display.encode(rgba[..., :3], settings)
             diff = np.abs(np.rint(ocio * 255) - theirs)
             assert diff.max() <= 1, (space, view, look, exposure, diff.max())
-            lut = display_lut.apply(tf.display.baked_lut(settings), rgba[..., :3], exposure)
+            table, matrix = tf.display.baked_lut(settings)
+            lut = display_lut.apply(table, rgba[..., :3], exposure, matrix)
             lut_errors[(view, look, exposure)] = float(np.percentile(np.abs(lut - ocio), 99) * 255)
     print(f"\n{space}: LUT vs OCIO, p99 |Δ| in 1/255: {lut_errors}")
     for (view, _, _), p99 in lut_errors.items():
         # False Colour is banded by design (trilinear blurs its steps); PBR Neutral's shoulder
         # has a kink at the largest channel (measured p99 ≤ 5.4/255; AgX ≤ 0.7, Standard 0.2)
         bound = {"False Color": 255.0, "Khronos PBR Neutral": 8.0}.get(view, 1.5)
-        if space != "Linear Rec.709":  # out-of-gamut clipping inside the cube (measured p99 ≤ 14)
-            bound = max(bound, 16.0)
+        if space != "Linear Rec.709" and view == "AgX":  # wide gamuts mapped inside the cube
+            bound = 3.0
         assert p99 < bound, str({k: round(v, 2) for k, v in lut_errors.items()})

@@ -528,7 +528,8 @@ def test_display_lut_output_matches_numpy_per_pixel(gd, sphere_scene, exposure):
     lattice = display_lut.lattice(policy.DISPLAY_LUT_SIZE)
     mix = np.array([[0.8, 0.15, 0.05], [0.1, 0.7, 0.2], [0.05, 0.25, 0.7]])
     table = np.tanh(lattice @ mix.T) ** (1 / 2.2)  # a tone curve with cross-talk, in [0, 1)
-    lut = gd.resources.DisplayLUTTexture.from_table(table)
+    matrix = np.array([[1.2, -0.15, -0.05], [-0.1, 1.1, 0.0], [0.0, -0.05, 1.05]])  # into the LUT's space
+    lut = gd.resources.DisplayLUTTexture.from_table(table, matrix)
     s = sphere_scene
     item = Item(s["batch"], s["table"], s["lighting"])
     linear = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
@@ -542,9 +543,9 @@ def test_display_lut_output_matches_numpy_per_pixel(gd, sphere_scene, exposure):
     finally:
         offscreen.free()
     drawn = linear[..., 3] > 0.5
-    expected = display_lut.apply(table, linear[..., :3], exposure)
+    expected = display_lut.apply(table, linear[..., :3], exposure, matrix)
     err = np.abs(display[..., :3][drawn] - expected[drawn])
-    spread = np.ptp(display_lut.shaper(linear[..., :3][drawn] * 2.0**exposure))
+    spread = np.ptp(display_lut.shaper(linear[..., :3][drawn] * 2.0**exposure @ matrix.T))
     assert spread > 0.1, spread  # the pixels span many cells of the LUT
     assert np.max(err) < 2e-4, np.max(err)
 

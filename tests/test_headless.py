@@ -255,7 +255,9 @@ def test_cli_command_is_registered_with_blender(bpy, tf, capfd):
 def test_cli_render_writes_png_and_exr(bpy, tf, cli_blend, tmp_path, capsys):
     _open(bpy, tf, cli_blend)
     out = tmp_path / "render.png"
-    code = tf.headless._cli(["render", "--out", str(out), "--width", "64", "--height", "48"])
+    code = tf.headless._cli(
+        ["render", "--out", str(out), "--width", "64", "--height", "48", "--engine", "SOLID"]
+    )
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert out.is_file() and out.with_suffix(".exr").is_file()
@@ -869,3 +871,40 @@ def test_instances_from_an_excluded_collection_render_bake_and_plan(bpy, tf, fre
     assert result["objects"] == ["Ball/InstFilm", "Ball/InstFilm"], result["objects"]
     left, right = image[:, : SIZE[0] // 2].max(), image[:, SIZE[0] // 2 :].max()
     assert left > 0.01 and right > 0.01, (left, right)  # both instances drawn
+
+
+def test_cli_frames_write_one_file_per_frame_computing_the_world_once(
+    bpy, tf, fresh, tmp_path, capsys, monkeypatch
+):
+    """Issue 19: ``--frames 1-3`` writes three frames; the World (unchanged across them) is
+    analysed once; ``--scene``/``--camera`` pick what is rendered, and a wrong name is exit 2."""
+    scene = fresh
+    sphere(bpy, scene, "Ball", material=film(bpy, "FramesFilm"))
+    camera(bpy, scene, distance=6.0)
+    scene.world = bpy.data.worlds.new("Frames World")
+    scene.world.color = (0.31, 0.27, 0.19)  # a World no other test analysed
+    analysed = []
+    original = tf.scene_draw.analyse_world
+    monkeypatch.setattr(
+        tf.scene_draw, "analyse_world", lambda *a, **k: analysed.append(1) or original(*a, **k)
+    )
+    out = tmp_path / "shot_###.png"
+    argv = ["render", "--out", str(out), "--frames", "1-3", "--engine", "SOLID", "--supersample", "1"]
+    code = tf.headless._cli([*argv, "--json", str(tmp_path / "frames.json"), "--resolution", "32x24"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    for frame in (1, 2, 3):
+        assert (tmp_path / f"shot_{frame:03d}.png").is_file() and (
+            tmp_path / f"shot_{frame:03d}.exr"
+        ).is_file()
+        assert f"frame {frame} ({frame}/3)" in printed
+    assert len(analysed) == 1, f"the World was analysed {len(analysed)} times for 3 frames"
+    summary = json.loads((tmp_path / "frames.json").read_text())
+    assert [f["frame"] for f in summary["frames"]] == [1, 2, 3]
+    assert all(f["size"] == [32, 24] for f in summary["frames"])
+    code = tf.headless._cli(["render", "--out", str(tmp_path / "x.png"), "--scene", "Nope"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--scene" in err and repr(scene.name) in err, err
+    code = tf.headless._cli(["render", "--out", str(tmp_path / "x.png"), "--camera", "Nope"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--camera" in err, err

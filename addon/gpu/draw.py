@@ -378,8 +378,10 @@ def render_offscreen(
     background=None,
     depth_from=None,
     shaders=None,
-) -> np.ndarray:
-    """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first.
+    with_depth: bool = False,
+):
+    """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first
+    (with ``with_depth``: and the depth buffer, (H, W) window depth in [0, 1], 1 where nothing).
 
     Order: clear (colour 0, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
     scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
@@ -401,6 +403,11 @@ def render_offscreen(
                 if background is not None:
                     draw_background(background, view_matrix, projection_matrix, shaders=shaders)
                 draw_items(items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders)
-            return read_framebuffer(fb, width, height)
+            rgba = read_framebuffer(fb, width, height)
+            if not with_depth:
+                return rgba
+            depth = fb.read_depth(0, 0, width, height)
+            depth.dimensions = width * height
+            return rgba, np.asarray(depth, dtype=np.float32).reshape(height, width)[::-1].copy()
     finally:
         offscreen.free()

@@ -610,16 +610,16 @@ class UniformCache:
 
 @dataclass
 class DisplayLUTTexture:
-    """The display LUT (precompute/display_lut.py) as an RGBA32F texture of N · N × N texels,
-    read with texelFetch (:data:`DISPLAY_LUT_SAMPLER`)."""
+    """The display LUT (precompute/display_lut.py) as an RGBA32F texture of N · N × (N + 1)
+    texels (the last row: the input matrix), read with texelFetch (:data:`DISPLAY_LUT_SAMPLER`)."""
 
     texture: gpu.types.GPUTexture
     size: int
 
     @classmethod
-    def from_table(cls, table) -> DisplayLUTTexture:
-        """Upload an (N, N, N, 3) LUT indexed [b, g, r]."""
-        rgba = display_lut.texture_layout(table)
-        n = rgba.shape[0]
-        texture = gpu.types.GPUTexture((n * n, n), format="RGBA32F", data=float_buffer(rgba))
+    def from_table(cls, table, matrix=None) -> DisplayLUTTexture:
+        """Upload an (N, N, N, 3) LUT indexed [b, g, r] and its input matrix (None: identity)."""
+        rgba = display_lut.texture_layout(table, matrix)
+        n = rgba.shape[0] - 1
+        texture = gpu.types.GPUTexture((n * n, n + 1), format="RGBA32F", data=float_buffer(rgba))
         return cls(texture, n)
