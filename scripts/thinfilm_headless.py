@@ -11,7 +11,7 @@ Blender as a module (``pip install bpy``; the repository's .venv):
 and, for a folder of files, a batch render of every .blend in it (sorted by name):
 
     .venv/bin/python scripts/thinfilm_headless.py --all-scenes sample_scenes/out --out-dir out/renders \\
-        [--width W --height H] [--cache-dir DIR]
+        [--width W --height H] [--cache-dir DIR] [--engine EEVEE|WORKBENCH|CYCLES|SOLID]
 
 It opens the file, registers the extension from this repository (imported as ``thinfilm_sh``
 through a symlink in a temporary folder, as Blender imports an installed extension), runs
@@ -100,7 +100,7 @@ def release() -> None:
     gc.collect()
 
 
-def render_all(folder, out_dir, width=None, height=None, background=True, cache_dir=None) -> int:
+def render_all(folder, out_dir, width=None, height=None, background=True, cache_dir=None, engine=None) -> int:
     """Render every .blend in ``folder`` to ``out_dir/<stem>.png`` (+ .exr); 0 if all succeeded."""
     files = sorted(pathlib.Path(folder).glob("*.blend"))
     if not files:
@@ -119,6 +119,8 @@ def render_all(folder, out_dir, width=None, height=None, background=True, cache_
             argv.append("--no-background")
         if cache_dir:
             argv += ["--cache-dir", str(cache_dir)]
+        if engine:
+            argv += ["--engine", engine]
         print(f"== {blend.name}")
         try:
             open_blend(blend)
@@ -150,9 +152,18 @@ def main(argv=None) -> int:
         parser.add_argument("--height", type=int)
         parser.add_argument("--no-background", action="store_true")
         parser.add_argument("--cache-dir", help="the table cache's folder (see docs/cache.md)")
+        parser.add_argument(
+            "--engine", choices=("EEVEE", "WORKBENCH", "CYCLES", "SOLID"), help="as render --engine"
+        )
         args = parser.parse_args(argv)
         return render_all(
-            args.all_scenes, args.out_dir, args.width, args.height, not args.no_background, args.cache_dir
+            args.all_scenes,
+            args.out_dir,
+            args.width,
+            args.height,
+            not args.no_background,
+            args.cache_dir,
+            args.engine,
         )
     blend, rest = argv[0], argv[1:]
     if "-h" in rest or "--help" in rest:  # answered before Blender is imported or the file opened

@@ -368,6 +368,8 @@ def test_script_renders_a_file_in_a_subprocess(cli_blend, tmp_path):
         "--height",
         "36",
         "--no-background",
+        "--engine",
+        "SOLID",  # EEVEE's first render compiles its shaders for minutes on llvmpipe
     ]
     cache = tmp_path / "env cache"  # THINFILM_SH_CACHE is honoured inside Blender too (issue 24)
     env = {**os.environ, "THINFILM_SH_CACHE": str(cache)}
