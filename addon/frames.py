@@ -89,6 +89,7 @@ def run_render(args, scene, render_scene) -> int:
     frames = args.frames or [args.frame if args.frame is not None else None]
     many = args.frames is not None and len(frames) > 1
     with cli_support.refusing():  # before any work: a refusal is exit 2
+        cli_support.output_file("--out", args.out)  # as given: "dir/" and "" are refused
         paths = [frame_path(args.out, f, many) for f in frames]
         if len(set(paths)) != len(paths):
             raise cli_support.UsageError("--out: every frame would write the same file; put '#' in the name")
