@@ -78,6 +78,12 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   spare buffers per size); filled by ``gpu.draw.prepare_draw``; SESSION (registered by
   ``scene_draw``).
 
+- ``display_luts`` — ``display.LUTS``: the viewport's display LUT (N³ RGB, the scene's view,
+  look, display and gamma baked through OCIO) by ``display.DisplaySettings`` without exposure;
+  LRU of 8; filled by ``display.baked_lut`` (on a background thread for the viewport); SESSION.
+- ``display_lut_textures`` — ``display.TEXTURES``: those LUTs on the GPU, same key; LRU of 4;
+  filled by ``display.viewport_lut`` in the draw; FILE.
+
 Not registered, because they never go stale: ``functools.cache`` memos of values computed from
 the code alone (the parsed GLSL chunks of ``gpu.shaders``, ``banded_source``,
 ``x_rotation_scalars``, the full-screen triangle of ``gpu.draw``) and the bounded

@@ -2,8 +2,9 @@
 
 ``render_scene`` draws the scene camera's view into a float off-screen buffer: the rest of the
 scene first (Blender's own Solid drawing, for depth and for the objects we don't shade), then
-the World as background, then every thin-film object, depth-tested. Writes a scene-linear EXR
-and a PNG (sRGB "Standard" view with the scene's exposure).
+the World as background, then every thin-film object, depth-tested. Writes a scene-linear RGBA
+EXR in the file's working space (with its chromaticities) and an RGBA PNG through Blender's own
+colour management of the scene (:func:`.display.save_png`: display, view, look, exposure, gamma).
 
 The frame is anti-aliased as Cycles' is: drawn :data:`SUPERSAMPLE` times larger (over a window
 widened by the filter's support, so border pixels see beyond the frame) and filtered down with
@@ -30,25 +31,52 @@ import numpy as np
 from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
-from . import prefs, scene_draw, tables, world
+from . import cli_args, display, frames, prefs, scene_draw, tables, world
+from .background import composite, render_background, view_depth
 from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
+from .world_key import working_space
 
 #: The message of a render made while the *Show Thin Film Overlay* preference is off.
 OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
 
 
+def rendered(inst) -> bool:
+    """Whether a depsgraph instance is rendered: neither it nor its instancer is ``hide_render``."""
+    if inst.object.original.hide_render:
+        return False
+    parent = inst.parent if inst.is_instance else None
+    return parent is None or not parent.original.hide_render
+
+
+def _rendered_objects(scene):
+    """The evaluated mesh objects ``scene``'s view layer renders, instances included (collection
+    instances from excluded collections, Geometry Nodes, particles: ``depsgraph.object_instances``)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()  # the context's scene and view layer
+    for inst in depsgraph.object_instances:
+        if inst.object.type == "MESH" and rendered(inst):
+            yield inst.object
+
+
+def _hidden_in_render(item) -> bool:
+    """Whether a draw item's object is ``hide_render`` (the viewport's depsgraph still lists it)."""
+    obj = bpy.data.objects.get(item.name.split("/")[0])
+    return obj is not None and obj.hide_render
+
+
 def scene_materials(scene):
-    """{material name: description} of the visible meshes' film materials (enabled or Principled), errors."""
+    """{material name: description} of the rendered meshes' film materials (enabled or
+    Principled), instances included; errors."""
     found = {}
     errors = {}
-    for obj in scene.objects:
-        if obj.type != "MESH" or not obj.visible_get():
-            continue
+    for obj in _rendered_objects(scene):
         for slot in obj.material_slots:
             mat = slot.material
-            if mat is None or mat.name in found or mat.name in errors:
+            if mat is None:
+                continue
+            mat = getattr(mat, "original", mat)
+            if mat.name in found or mat.name in errors:
                 continue
             try:
                 desc = description(mat)
@@ -141,7 +169,7 @@ def camera_matrices(scene, depsgraph, width: int, height: int):
 #: Samples per pixel along each axis of the headless frame (4 × 4 per pixel), filtered with the
 #: scene's pixel filter. Against Cycles (issue 22's spheres under studio HDRIs) 4× lowered the
 #: mean ΔE2000 from 1.36 to 1.20 (edges, lamp highlights and reflected detail alias without).
-SUPERSAMPLE = 4
+SUPERSAMPLE = cli_args.SUPERSAMPLE
 
 
 def pixel_filter_settings(scene) -> tuple[str, float]:
@@ -177,12 +205,19 @@ def render_scene(
     height: int | None = None,
     background: bool = True,
     supersample: int | None = None,
+    engine: str | None = None,
 ) -> dict:
     """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it.
 
     ``supersample``: samples per pixel along each axis (default :data:`SUPERSAMPLE`; lowered when
     the enlarged buffer would exceed the GPU's texture size), filtered with the scene's Cycles
     pixel filter; 1 draws one sample per pixel, unfiltered.
+
+    ``engine`` ("EEVEE", "WORKBENCH", "CYCLES"): the rest of the scene is that engine's render
+    (:func:`.background.render_background`, the films invisible to its camera) and the films
+    are drawn over it, depth-tested per sample (:func:`.background.composite`); ``background``
+    False makes its film transparent. None: Blender's Solid drawing and the World's panorama
+    behind the films (the preview's look, what the tests' reference images hold).
     """
     ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
@@ -204,6 +239,7 @@ def render_scene(
     errors: dict[str, str] = {}  # materials drawn as the magenta fallback, and why
     if prefs.overlay_enabled():
         items, messages = scene_draw.collect(depsgraph, allow_bake=True, allow_world=True, errors=errors)
+        items = [item for item in items if not _hidden_in_render(item)]
     else:  # the artist's off switch holds for renders too: Blender's own drawing only
         items, messages = [], [OVERLAY_OFF]
     env = None
@@ -217,14 +253,17 @@ def render_scene(
     def depth_from(offscreen):
         """Blender's Solid drawing of everything else, for depth and for the other objects.
 
-        Thin-film objects are hidden during it: drawn twice, Blender's and our vertex transforms
-        round differently and the depth test would let the grey Solid surface speckle through.
+        Thin-film objects and ``hide_render`` objects are hidden during it (film objects: drawn
+        twice, Blender's and our vertex transforms round differently and the depth test would let
+        the grey Solid surface speckle through). Instances of excluded collections are not in the
+        view layer and cannot be hidden: they stay in this pass.
         """
         if space is None:
             return
         shading = space.shading
         saved = (shading.type, shading.light, shading.color_type)
-        hidden = [o for o in scene.objects if o.name in film_objects and not o.hide_get()]
+        layer_objects = bpy.context.view_layer.objects  # instances from excluded collections are not
+        hidden = [o for o in layer_objects if (o.name in film_objects or o.hide_render) and not o.hide_get()]
         try:
             for o in hidden:
                 o.hide_set(True)
@@ -246,53 +285,56 @@ def render_scene(
             if hidden:
                 bpy.context.view_layer.update()
 
-    rgba = render_offscreen(items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from)
-    rgb = rgba[..., :3].astype(np.float64)
-    bad = ~np.isfinite(rgb)
-    nonfinite = int(bad.any(axis=-1).sum())
-    if bad.any():
-        messages.append(f"{nonfinite} non-finite samples set to 0")
-        rgb = np.where(bad, 0.0, rgb)
-    if factor > 1:
-        rgb = pixel_filter.downsample(rgb, kind, filter_width, factor, pad)
+    if engine is None:
+        rgba = render_offscreen(items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from)
+        rgba, nonfinite = _finite(rgba.astype(np.float64), messages)
+        if factor > 1:
+            rgba = pixel_filter.downsample(rgba, kind, filter_width, factor, pad)
+    else:
+        behind = render_background(
+            scene, width, height, engine=engine, hidden=film_objects, transparent=not background
+        )
+        ensure_gpu_context()
+        films, depth = render_offscreen(items, view, proj, frame_w, frame_h, with_depth=True)
+        films, nonfinite = _finite(films.astype(np.float64), messages)
+        rgba = composite(behind, films, view_depth(depth, proj), kind, filter_width, factor, pad)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    image_io.write_exr(out.with_suffix(".exr"), rgb)
-    image_io.write_png(
-        out.with_suffix(".png"), image_io.srgb_encode(rgb, float(scene.view_settings.exposure))
-    )
+    space = working_space()
+    display.ocio()  # exposes Blender's bundled modules: OpenImageIO writes the EXR inside Blender
+    image_io.write_exr(out.with_suffix(".exr"), rgba, image_io.CHROMATICITIES.get(space))
+    display.save_png(out.with_suffix(".png"), rgba, scene)
     return {
         "png": str(out.with_suffix(".png")),
         "exr": str(out.with_suffix(".exr")),
         "size": [width, height],
         "supersample": factor,
         "pixel_filter": [kind, filter_width] if factor > 1 else None,
+        "engine": engine or "SOLID",
         "objects": [item.name for item in items if not item.fallback],
         "fallback_objects": [item.name for item in items if item.fallback],
         "errors": errors,
         "world_errors": list(lighting.sh.errors) if lighting is not None else [],
         "nonfinite_pixels": nonfinite,
+        "working_space": space,
+        "view_transform": scene.view_settings.view_transform,
         "messages": messages,
         "seconds": time.perf_counter() - t0,
     }
 
 
+def _finite(rgba, messages) -> tuple[np.ndarray, int]:
+    """``rgba`` with non-finite samples set to 0 (counted in ``messages``), and their count."""
+    bad = ~np.isfinite(rgba)
+    count = int(bad.any(axis=-1).sum())
+    if count:
+        messages.append(f"{count} non-finite samples set to 0")
+        rgba = np.where(bad, 0.0, rgba)
+    return rgba, count
+
+
 def _mathutils_matrix(m):
     return Matrix(np.asarray(m).tolist())
-
-
-def render_size(scene, width=None, height=None) -> tuple[int, int]:
-    """The render's size: ``width``/``height``, else the scene's resolution × percentage;
-    ``UsageError`` naming where a size outside 1–16384 pixels came from."""
-    scale = scene.render.resolution_percentage / 100.0
-    sizes = []
-    for given, option, axis in ((width, "--width", "x"), (height, "--height", "y")):
-        if given:
-            sizes.append(cli_support.image_size(option, given))
-        else:
-            value = round(getattr(scene.render, f"resolution_{axis}") * scale)
-            sizes.append(cli_support.image_size(f"the scene's resolution {axis} × percentage", value))
-    return sizes[0], sizes[1]
 
 
 def main(argv) -> int:
@@ -307,39 +349,10 @@ def main(argv) -> int:
 
 
 def _main(argv) -> int:
-    parser = cli_support.ArgumentParser(
-        prog="thinfilm_sh", description="Thin Film SH: headless bake and render of the open .blend file."
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("bake", help="bake every thin-film material the scene shows (uses the cache)")
-    b.add_argument("--out-dir", help="also write each table as an EXR here (one file per material)")
-    b.add_argument("--json", help="write a JSON summary here (errors and a manifest of the files)")
-    r = sub.add_parser("render", help="render the scene camera's view with the thin-film shader to PNG + EXR")
-    r.add_argument("--out", required=True, help="output .png (an .exr is written beside it)")
-    r.add_argument("--width", type=cli_support.image_size_arg("--width"))
-    r.add_argument("--height", type=cli_support.image_size_arg("--height"))
-    r.add_argument("--no-background", action="store_true", help="leave the World out of the background")
-    r.add_argument(
-        "--supersample",
-        type=cli_support.supersample_arg("--supersample"),
-        default=SUPERSAMPLE,
-        help=f"samples per pixel along each axis, filtered with the scene's Cycles pixel filter "
-        f"(default {SUPERSAMPLE}; 1: one sample per pixel, no filter)",
-    )
-    r.add_argument("--json", help="write a JSON summary here (objects, fallbacks, errors, messages)")
-    p = sub.add_parser(
-        "plan",
-        help="print what each visible material needs simulated (effects, table size, orders, estimated "
-        "bake time and shader cost) and why; bakes nothing",
-    )
-    for command in (b, r, p):
-        command.add_argument(
-            "--cache-dir",
-            help="the table cache's folder (default: $THINFILM_SH_CACHE, else the add-on's preference, "
-            "else a private per-user folder); tables go in its thinfilm_sh_tables subfolder",
-        )
-    args = parser.parse_args(argv)
-    with tables.cache_dir_override(args.cache_dir):
+    args = cli_args.parser().parse_args(argv)
+    with cli_support.refusing():  # a scene, view layer, camera or frame that is not there: exit 2
+        scene, layer = _chosen_scene(args)
+    with tables.cache_dir_override(args.cache_dir), bpy.context.temp_override(scene=scene, view_layer=layer):
         cache = tables.open_cache()
         if not isinstance(cache, tables.UnusableCache):
             try:
@@ -350,7 +363,29 @@ def _main(argv) -> int:
             if args.command == "bake":  # filling the cache is what it is for: refused before work
                 raise cli_support.UsageError(cache.reason)
             print(f"note: {cache.reason}; tables are baked but not kept on disk")
-        return _run(args, bpy.context.scene, cache)
+        if args.frame is not None:
+            scene.frame_set(args.frame)
+        return _run(args, scene, cache)
+
+
+def _chosen_scene(args):
+    """(scene, view layer) named by ``--scene`` / ``--view-layer`` (the context's by default);
+    ``UsageError`` naming what exists when one is not there."""
+    scene = bpy.context.scene
+    if args.scene is not None:
+        scene = bpy.data.scenes.get(args.scene)
+        if scene is None:
+            names = ", ".join(repr(s.name) for s in bpy.data.scenes)
+            raise cli_support.UsageError(f"--scene: no scene {args.scene!r} in this file (it has {names})")
+    layer = bpy.context.view_layer if scene == bpy.context.scene else scene.view_layers[0]
+    if args.view_layer is not None:
+        layer = scene.view_layers.get(args.view_layer)
+        if layer is None:
+            names = ", ".join(repr(v.name) for v in scene.view_layers)
+            raise cli_support.UsageError(
+                f"--view-layer: no view layer {args.view_layer!r} in scene {scene.name!r} (it has {names})"
+            )
+    return scene, layer
 
 
 def _write_json(path, summary) -> None:
@@ -362,7 +397,7 @@ def _run(args, scene, cache) -> int:
     if args.command == "bake":
         return _run_bake(args, scene, cache)
     if args.command == "render":
-        return _run_render(args, scene)
+        return frames.run_render(args, scene, render_scene)
     return _run_plan(scene, cache)
 
 
@@ -372,49 +407,15 @@ def _run_bake(args, scene, cache) -> int:
         json_path = cli_support.output_file("--json", args.json) if args.json else None
         if args.out_dir:
             cli_support.output_dir("--out-dir", args.out_dir)
-    summary = bake_scene(scene, args.out_dir, cache=cache)
+    summary = bake_scene(
+        scene, args.out_dir, progress=(lambda _line: None) if args.quiet else print, cache=cache
+    )
     if json_path is not None:
         json_path.parent.mkdir(parents=True, exist_ok=True)
         _write_json(json_path, summary)
     for err in summary["errors"].values():
         print(f"error: {err}", file=sys.stderr)
     return cli_support.EXIT_PARTIAL if summary["errors"] else cli_support.EXIT_OK
-
-
-def _run_render(args, scene) -> int:
-    """`render`: the scene's frame through the camera, to --out's PNG and EXR."""
-    with cli_support.refusing():  # before any work: a refusal is exit 2
-        out = cli_support.output_file("--out", args.out)
-        cli_support.output_file("--out (the .png)", out.with_suffix(".png"))
-        cli_support.output_file("--out (the .exr beside it)", out.with_suffix(".exr"))
-        json_path = cli_support.output_file("--json", args.json) if args.json else None
-        width, height = render_size(scene, args.width, args.height)
-        cli_support.exposure("the scene's exposure (Color Management)", scene.view_settings.exposure)
-        if scene.camera is None:
-            raise ValueError(f"scene '{scene.name}' has no camera: set one to render")
-    result = render_scene(
-        scene, args.out, width, height, background=not args.no_background, supersample=args.supersample
-    )
-    if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        _write_json(json_path, result)
-    for msg in result["messages"]:
-        print(f"note: {msg}")
-    aa = (
-        f"{result['supersample']}×{result['supersample']} samples per pixel, "
-        f"{result['pixel_filter'][0].replace('_', '-').title()} {result['pixel_filter'][1]:g} px"
-        if result["pixel_filter"]
-        else "1 sample per pixel"
-    )
-    print(
-        f"wrote {result['png']} and {result['exr']} ({result['size'][0]}×{result['size'][1]}, {aa}, "
-        f"{len(result['objects'])} thin-film objects, {result['seconds']:.1f} s)"
-    )
-    failed = [*result["errors"].values(), *result["world_errors"]]
-    for err in failed:
-        print(f"error: {err}", file=sys.stderr)
-    partial = failed or result["nonfinite_pixels"]
-    return cli_support.EXIT_PARTIAL if partial else cli_support.EXIT_OK
 
 
 def _run_plan(scene, cache) -> int:

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import caches, linked, prefs, scene_draw, tables, world_job
+from . import caches, display, linked, prefs, scene_draw, tables, world_job
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -228,11 +228,13 @@ def _service() -> float | None:
         log.error("Thin Film SH: World lighting failed: %s", exc)
     finished = _finished.is_set()
     _finished.clear()
+    finished = display.take_finished() or finished  # the scene's display LUT is ready
     if baked or finished or world_done:
         _tag_redraw()
     elif jobs or _running:
         _tag_header()  # progress only
-    return 0.1 if (_running or _pending or _finished.is_set() or world_job.busy()) else None
+    busy = _running or _pending or _finished.is_set() or world_job.busy() or display.baking()
+    return 0.1 if busy else None
 
 
 def _schedule() -> None:
@@ -273,8 +275,18 @@ def draw_callback() -> None:
         _messages[:] = messages
         if _pending or linked.has_pending():
             _schedule()
-        exposure = float(depsgraph.scene.view_settings.exposure)
-        draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
+        settings = display.settings_of(depsgraph.scene)
+        lut = display.viewport_lut(settings)  # None (Standard sRGB) until its bake is done
+        if lut is None and display.baking():
+            _schedule()
+        draw_items(
+            items,
+            rv3d.view_matrix,
+            rv3d.window_matrix,
+            display_srgb=True,
+            exposure=settings.exposure,
+            display_lut=lut,
+        )
     except Exception as exc:  # a draw callback must never raise
         log.error("Thin Film SH: viewport draw failed: %s", exc)
 

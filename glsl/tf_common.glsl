@@ -7,6 +7,7 @@
  *   TF_SPECTRAL        3x3 colour matrix per coefficient (else one RGB triple, per channel)
  *   TF_VARY_THICKNESS  thickness from the per-vertex attribute `thickness` in [0, 1]
  *   TF_DISPLAY_SRGB    output display-encoded (exposure, clamp, sRGB OETF), else scene-linear
+ *   TF_DISPLAY_LUT     with TF_DISPLAY_SRGB: the scene's view through the display LUT (tf_display.glsl)
  * Set at the top of the joined library by addon/gpu/shaders.py shading_library:
  *   TF_X90_GENERATED   the X(+-90) products come as generated straight-line code
  * Shading rules, never typed here (precompute/shading/policy.py glsl_defines, declared with

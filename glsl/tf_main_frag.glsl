@@ -1,11 +1,13 @@
 #include "tf_shade.glsl"
+#include "tf_display.glsl"
 
 /* tf_main_frag.glsl: shade a mesh fragment.
  *
  * numpy counterpart: shading.sh_sum.shade_sh (via tf_shade) with image_io.srgb_encode for display.
  * v = normalize(camera - position) in perspective, the constant direction towards the viewer
  * in orthographic views (tf_view.camera.w = 1); the normal is flipped to face the viewer
- * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF.
+ * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF (with
+ * TF_DISPLAY_LUT: 2^exposure, the scene's view through tf_display.glsl).
  * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
@@ -41,7 +43,9 @@ void main()
     rgb += tf_shade_lights(fl, rl, tf_world_pos, n, v, tf_object.material.x);
   }
 #endif
-#ifdef TF_DISPLAY_SRGB
+#ifdef TF_DISPLAY_LUT
+  rgb = tf_display_lut_apply(rgb * tf_view.params.x); /* the scene's view: display_lut.apply */
+#elif defined(TF_DISPLAY_SRGB)
   rgb = tf_srgb_oetf(clamp(rgb * tf_view.params.x, 0.0, 1.0));
 #endif
   tf_frag_color = vec4(rgb, 1.0);

@@ -54,10 +54,42 @@ def write_png(path, rgb_display: np.ndarray) -> None:
         fh.write(png)
 
 
-def write_exr(path, rgb_linear: np.ndarray) -> None:
-    """Scene-linear float32 RGB OpenEXR."""
-    import OpenEXR  # optional: only needed to write EXR files (absent inside Blender)
+#: OpenEXR ``chromaticities`` (red, green, blue, white xy) of Blender's working spaces: ITU-R
+#: BT.709 and BT.2020 with the D65 white; ACEScg (AP1) with the ACES white (Academy S-2014-004).
+CHROMATICITIES = {
+    "Linear Rec.709": (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290),
+    "Linear Rec.2020": (0.708, 0.292, 0.170, 0.797, 0.131, 0.046, 0.3127, 0.3290),
+    "ACEScg": (0.713, 0.293, 0.165, 0.830, 0.128, 0.044, 0.32168, 0.33767),
+}
 
-    rgb = np.ascontiguousarray(np.asarray(rgb_linear, dtype=np.float32))
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    OpenEXR.File(header, {"RGB": rgb}).write(str(path))
+
+def write_exr(path, linear: np.ndarray, chromaticities=None) -> None:
+    """Scene-linear float32 OpenEXR of an (H, W, 3) RGB or (H, W, 4) RGBA image (ZIP).
+
+    ``chromaticities``: the 8 floats of the header attribute (:data:`CHROMATICITIES`), or None.
+    Written with the ``OpenEXR`` package where it is installed, else with OpenImageIO (what
+    Blender bundles: ``bpy.utils.expose_bundled_modules()`` must have run).
+    """
+    img = np.ascontiguousarray(np.asarray(linear, dtype=np.float32))
+    if img.ndim != 3 or img.shape[2] not in (3, 4):
+        raise ValueError(f"EXR image must be (H, W, 3|4), got {img.shape}")
+    try:
+        import OpenEXR  # the venv's package; absent inside Blender
+    except ImportError:
+        OpenEXR = None
+    if OpenEXR is not None:
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        if chromaticities is not None:
+            header["chromaticities"] = tuple(float(c) for c in chromaticities)
+        OpenEXR.File(header, {"RGBA" if img.shape[2] == 4 else "RGB": img}).write(str(path))
+        return
+    import OpenImageIO as oiio
+
+    h, w, c = img.shape
+    spec = oiio.ImageSpec(w, h, c, "float")
+    spec.attribute("compression", "zip")
+    if chromaticities is not None:
+        spec.attribute("chromaticities", oiio.TypeDesc("float[8]"), tuple(float(v) for v in chromaticities))
+    out = oiio.ImageOutput.create(str(path))
+    if out is None or not out.open(str(path), spec) or not out.write_image(img) or not out.close():
+        raise OSError(f"{path}: EXR not written ({oiio.geterror()})")

@@ -11,7 +11,7 @@ Blender as a module (``pip install bpy``; the repository's .venv):
 and, for a folder of files, a batch render of every .blend in it (sorted by name):
 
     .venv/bin/python scripts/thinfilm_headless.py --all-scenes sample_scenes/out --out-dir out/renders \\
-        [--width W --height H] [--cache-dir DIR]
+        [--width W --height H] [--cache-dir DIR] [--engine EEVEE|WORKBENCH|CYCLES|SOLID]
 
 It opens the file, registers the extension from this repository (imported as ``thinfilm_sh``
 through a symlink in a temporary folder, as Blender imports an installed extension), runs
@@ -38,6 +38,20 @@ USAGE = """usage: thinfilm_headless.py FILE.blend {bake,render,plan} [args]
        thinfilm_headless.py --all-scenes DIR --out-dir OUT [--width W] [--height H]
 
 Run 'thinfilm_headless.py FILE.blend COMMAND --help' for a command's options."""
+
+
+def options_parser():
+    """The commands' argparse parser (addon/cli_args.py) without importing Blender or opening a
+    file: the package and its ``addon`` subpackage are stood in for by bare modules, so their
+    ``__init__`` (which imports bpy) does not run. Only for ``--help``: the process ends after."""
+    import types
+
+    for name, path in ((EXTENSION_ID, REPO), (f"{EXTENSION_ID}.addon", REPO / "addon")):
+        if name not in sys.modules:
+            module = types.ModuleType(name)
+            module.__path__ = [str(path)]
+            sys.modules[name] = module
+    return importlib.import_module(f"{EXTENSION_ID}.addon.cli_args").parser()
 
 
 def register_extension():
@@ -81,12 +95,12 @@ def release() -> None:
     -11 after a complete render, seen once the linked-thickness caches existed).
     """
     module = sys.modules.get(EXTENSION_ID)
-    if module is not None:
+    if module is not None and hasattr(module, "unregister"):  # not the bare stand-in of --help
         module.unregister()
     gc.collect()
 
 
-def render_all(folder, out_dir, width=None, height=None, background=True, cache_dir=None) -> int:
+def render_all(folder, out_dir, width=None, height=None, background=True, cache_dir=None, engine=None) -> int:
     """Render every .blend in ``folder`` to ``out_dir/<stem>.png`` (+ .exr); 0 if all succeeded."""
     files = sorted(pathlib.Path(folder).glob("*.blend"))
     if not files:
@@ -105,6 +119,8 @@ def render_all(folder, out_dir, width=None, height=None, background=True, cache_
             argv.append("--no-background")
         if cache_dir:
             argv += ["--cache-dir", str(cache_dir)]
+        if engine:
+            argv += ["--engine", engine]
         print(f"== {blend.name}")
         try:
             open_blend(blend)
@@ -136,11 +152,25 @@ def main(argv=None) -> int:
         parser.add_argument("--height", type=int)
         parser.add_argument("--no-background", action="store_true")
         parser.add_argument("--cache-dir", help="the table cache's folder (see docs/cache.md)")
+        parser.add_argument(
+            "--engine", choices=("EEVEE", "WORKBENCH", "CYCLES", "SOLID"), help="as render --engine"
+        )
         args = parser.parse_args(argv)
         return render_all(
-            args.all_scenes, args.out_dir, args.width, args.height, not args.no_background, args.cache_dir
+            args.all_scenes,
+            args.out_dir,
+            args.width,
+            args.height,
+            not args.no_background,
+            args.cache_dir,
+            args.engine,
         )
     blend, rest = argv[0], argv[1:]
+    if "-h" in rest or "--help" in rest:  # answered before Blender is imported or the file opened
+        try:
+            options_parser().parse_args(rest)
+        except SystemExit as done:
+            return int(done.code or 0)
     if not blend.endswith(".blend") or not rest:
         print(USAGE, file=sys.stderr)
         return 2

@@ -516,6 +516,40 @@ def test_display_output_is_srgb_encoded_with_exposure(gd, sphere_scene):
     assert np.max(np.abs(display[..., :3][drawn] - expected[drawn])) < 1e-4
 
 
+@pytest.mark.parametrize("exposure", [0.7, 4.0])
+def test_display_lut_output_matches_numpy_per_pixel(gd, sphere_scene, exposure):
+    """TF_DISPLAY_LUT (tf_display.glsl) against precompute.display_lut.apply, pixel by pixel,
+    with a LUT that mixes the channels (every corner of a cell matters)."""
+    import gpu
+
+    from precompute import display_lut
+    from precompute.shading import policy
+
+    lattice = display_lut.lattice(policy.DISPLAY_LUT_SIZE)
+    mix = np.array([[0.8, 0.15, 0.05], [0.1, 0.7, 0.2], [0.05, 0.25, 0.7]])
+    table = np.tanh(lattice @ mix.T) ** (1 / 2.2)  # a tone curve with cross-talk, in [0, 1)
+    matrix = np.array([[1.2, -0.15, -0.05], [-0.1, 1.1, 0.0], [0.0, -0.05, 1.05]])  # into the LUT's space
+    lut = gd.resources.DisplayLUTTexture.from_table(table, matrix)
+    s = sphere_scene
+    item = Item(s["batch"], s["table"], s["lighting"])
+    linear = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    offscreen = gpu.types.GPUOffScreen(SIZE, SIZE, format="RGBA32F")
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            gd.draw.draw_items([item], VIEW, PROJ, display_srgb=True, exposure=exposure, display_lut=lut)
+            display = gd.draw.read_framebuffer(fb, SIZE, SIZE)
+    finally:
+        offscreen.free()
+    drawn = linear[..., 3] > 0.5
+    expected = display_lut.apply(table, linear[..., :3], exposure, matrix)
+    err = np.abs(display[..., :3][drawn] - expected[drawn])
+    spread = np.ptp(display_lut.shaper(linear[..., :3][drawn] * 2.0**exposure @ matrix.T))
+    assert spread > 0.1, spread  # the pixels span many cells of the LUT
+    assert np.max(err) < 2e-4, np.max(err)
+
+
 def test_depth_from_hook_masks_the_sphere(gd, sphere_scene):
     import gpu
     from gpu_extras.batch import batch_for_shader

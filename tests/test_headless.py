@@ -170,8 +170,9 @@ def read_exr(path) -> np.ndarray:
 
     with OpenEXR.File(str(path)) as f:
         channels = f.channels()
-        if "RGB" in channels:
-            return np.array(channels["RGB"].pixels, dtype=np.float64)
+        for key in ("RGBA", "RGB"):  # the headless EXR is RGBA
+            if key in channels:
+                return np.array(channels[key].pixels, dtype=np.float64)[..., :3]
         return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
@@ -254,7 +255,9 @@ def test_cli_command_is_registered_with_blender(bpy, tf, capfd):
 def test_cli_render_writes_png_and_exr(bpy, tf, cli_blend, tmp_path, capsys):
     _open(bpy, tf, cli_blend)
     out = tmp_path / "render.png"
-    code = tf.headless._cli(["render", "--out", str(out), "--width", "64", "--height", "48"])
+    code = tf.headless._cli(
+        ["render", "--out", str(out), "--width", "64", "--height", "48", "--engine", "SOLID"]
+    )
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert out.is_file() and out.with_suffix(".exr").is_file()
@@ -262,7 +265,7 @@ def test_cli_render_writes_png_and_exr(bpy, tf, cli_blend, tmp_path, capsys):
     from PIL import Image
 
     with Image.open(out) as png:
-        assert png.size == (64, 48) and png.mode == "RGB"
+        assert png.size == (64, 48) and png.mode == "RGBA"  # with alpha (issue 19)
     image = read_exr(out.with_suffix(".exr"))
     assert image.shape == (48, 64, 3)
     assert np.isfinite(image).all()
@@ -365,6 +368,8 @@ def test_script_renders_a_file_in_a_subprocess(cli_blend, tmp_path):
         "--height",
         "36",
         "--no-background",
+        "--engine",
+        "SOLID",  # EEVEE's first render compiles its shaders for minutes on llvmpipe
     ]
     cache = tmp_path / "env cache"  # THINFILM_SH_CACHE is honoured inside Blender too (issue 24)
     env = {**os.environ, "THINFILM_SH_CACHE": str(cache)}
@@ -840,3 +845,68 @@ def test_headless_frame_applies_the_scenes_pixel_filter(bpy, tf, fresh, tmp_path
     for _ in range(2):
         core[1:-1, 1:-1] &= core[:-2, 1:-1] & core[2:, 1:-1] & core[1:-1, :-2] & core[1:-1, 2:]
     assert np.abs(default - box)[core].max() < 0.05 * box[core].max()
+
+
+def test_instances_from_an_excluded_collection_render_bake_and_plan(bpy, tf, fresh, tmp_path):
+    """Issue 19: film objects instanced from an excluded collection are rendered (no "cannot be
+    hidden" traceback), baked and planned; a ``hide_render`` film object is not drawn."""
+    scene = fresh
+    source = bpy.data.collections.new("Source")
+    scene.collection.children.link(source)
+    ball = sphere(bpy, scene, "Ball", radius=0.8, material=film(bpy, "InstFilm"))
+    for collection in list(ball.users_collection):
+        collection.objects.unlink(ball)
+    source.objects.link(ball)
+    bpy.context.view_layer.layer_collection.children["Source"].exclude = True
+    for x in (-1.2, 1.2):
+        empty = bpy.data.objects.new(f"Instancer{x:+}", None)
+        empty.instance_type, empty.instance_collection, empty.location = "COLLECTION", source, (x, 0.0, 0.0)
+        scene.collection.objects.link(empty)
+    hidden = sphere(
+        bpy, scene, "Hidden", location=(0.0, 0.0, 2.0), radius=0.3, material=film(bpy, "HiddenFilm")
+    )
+    hidden.hide_render = True
+    camera(bpy, scene, distance=6.0)
+    found, errors = tf.headless.scene_materials(scene)
+    assert set(found) == {"InstFilm"} and not errors, (set(found), errors)
+    image, result = render(tf, scene, tmp_path / "inst.png", supersample=1)
+    assert result["objects"] == ["Ball/InstFilm", "Ball/InstFilm"], result["objects"]
+    left, right = image[:, : SIZE[0] // 2].max(), image[:, SIZE[0] // 2 :].max()
+    assert left > 0.01 and right > 0.01, (left, right)  # both instances drawn
+
+
+def test_cli_frames_write_one_file_per_frame_computing_the_world_once(
+    bpy, tf, fresh, tmp_path, capsys, monkeypatch
+):
+    """Issue 19: ``--frames 1-3`` writes three frames; the World (unchanged across them) is
+    analysed once; ``--scene``/``--camera`` pick what is rendered, and a wrong name is exit 2."""
+    scene = fresh
+    sphere(bpy, scene, "Ball", material=film(bpy, "FramesFilm"))
+    camera(bpy, scene, distance=6.0)
+    scene.world = bpy.data.worlds.new("Frames World")
+    scene.world.color = (0.31, 0.27, 0.19)  # a World no other test analysed
+    analysed = []
+    original = tf.scene_draw.analyse_world
+    monkeypatch.setattr(
+        tf.scene_draw, "analyse_world", lambda *a, **k: analysed.append(1) or original(*a, **k)
+    )
+    out = tmp_path / "shot_###.png"
+    argv = ["render", "--out", str(out), "--frames", "1-3", "--engine", "SOLID", "--supersample", "1"]
+    code = tf.headless._cli([*argv, "--json", str(tmp_path / "frames.json"), "--resolution", "32x24"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    for frame in (1, 2, 3):
+        assert (tmp_path / f"shot_{frame:03d}.png").is_file() and (
+            tmp_path / f"shot_{frame:03d}.exr"
+        ).is_file()
+        assert f"frame {frame} ({frame}/3)" in printed
+    assert len(analysed) == 1, f"the World was analysed {len(analysed)} times for 3 frames"
+    summary = json.loads((tmp_path / "frames.json").read_text())
+    assert [f["frame"] for f in summary["frames"]] == [1, 2, 3]
+    assert all(f["size"] == [32, 24] for f in summary["frames"])
+    code = tf.headless._cli(["render", "--out", str(tmp_path / "x.png"), "--scene", "Nope"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--scene" in err and repr(scene.name) in err, err
+    code = tf.headless._cli(["render", "--out", str(tmp_path / "x.png"), "--camera", "Nope"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--camera" in err, err

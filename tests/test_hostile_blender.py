@@ -153,8 +153,9 @@ def read_exr(path) -> np.ndarray:
 
     with OpenEXR.File(str(path)) as f:
         channels = f.channels()
-        if "RGB" in channels:
-            return np.array(channels["RGB"].pixels, dtype=np.float64)
+        for key in ("RGBA", "RGB"):  # the headless EXR is RGBA
+            if key in channels:
+                return np.array(channels[key].pixels, dtype=np.float64)[..., :3]
         return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
@@ -591,7 +592,7 @@ def test_one_invalid_material_renders_the_other_unchanged(bpy, tf, fresh, tmp_pa
     summary_path = tmp_path / "render.json"
     # One sample per pixel: the anti-aliasing filter would blend the magenta edge into the World,
     # and the colour test below is for the fallback's own pixels.
-    one = ["--supersample", "1"]
+    one = ["--supersample", "1", "--engine", "SOLID"]  # the preview's drawing: the fallbacks' own pixels
     code = tf.headless.main(
         ["render", "--out", str(tmp_path / "both.png"), "--json", str(summary_path), *one]
     )
@@ -627,7 +628,15 @@ def test_nan_world_strength_renders_with_the_fallback_lighting(bpy, tf, fresh, t
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = NAN
     sphere(bpy, scene, material=film(bpy, "Film", roughness=0.5))
     camera(bpy, scene)
-    argv = ["render", "--out", str(tmp_path / "nan.png"), "--json", str(tmp_path / "r.json")]
+    argv = [
+        "render",
+        "--out",
+        str(tmp_path / "nan.png"),
+        "--json",
+        str(tmp_path / "r.json"),
+        "--engine",
+        "SOLID",
+    ]
     code = tf.headless.main(argv)
     err = capsys.readouterr().err
     assert code == 1 and "Strength = nan" in err and "viewport color" in err, err

@@ -128,6 +128,8 @@ class PreparedDraw:
 
     view: gpu.types.GPUUniformBuf | None
     groups: list
+    #: The display LUT's texture (``TF_DISPLAY_LUT`` variants), or None.
+    display_lut: gpu.types.GPUTexture | None = None
 
     @property
     def draw_count(self) -> int:
@@ -151,6 +153,7 @@ def prepare_draw(
     exposure: float = 0.0,
     shaders=None,
     uniforms=None,
+    display_lut=None,
 ) -> PreparedDraw:
     """The CPU half of :func:`draw_items`: variants, uniform buffers and the order of the draws.
 
@@ -158,6 +161,8 @@ def prepare_draw(
     binds each shader and resource once per group; the order within a group is kept. Uniform
     buffers come from ``uniforms`` (:class:`UniformCache`), keyed by the matrices and material
     parameters they hold: an unchanged view or object reuses its buffer. Nothing is drawn.
+    ``display_lut`` (a :class:`.resources.DisplayLUTTexture`, with ``display_srgb``): the
+    scene's view transform instead of the Standard sRGB encoding.
     """
     ensure_gpu_context()
     shaders = SHADERS if shaders is None else shaders
@@ -187,6 +192,7 @@ def prepare_draw(
             film_ubo=film is not None and film.ubo is not None,
             table_ubo=table_ubo is not None,
             light_count=resources.light_count(lights),
+            display_lut=display_lut is not None,
         )
         split = variant.split_sum
         roughness = float(getattr(item, "roughness", 0.0))
@@ -229,7 +235,8 @@ def prepare_draw(
     for group in groups.values():
         first.setdefault(group.variant, len(first))
     ordered = sorted(groups.values(), key=lambda g: first[g.variant])
-    return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered)
+    lut = display_lut.texture if (display_lut is not None and display_srgb) else None
+    return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered, lut)
 
 
 def submit(prepared: PreparedDraw) -> None:
@@ -253,6 +260,8 @@ def submit(prepared: PreparedDraw) -> None:
                 shader = group.shader
                 shader.bind()
                 shader.uniform_block(resources.VIEW.name, prepared.view)
+                if group.variant.display_lut:
+                    shader.uniform_sampler(resources.DISPLAY_LUT_SAMPLER.name, prepared.display_lut)
             shader.uniform_block(resources.LIGHTING.name, group.lighting)
             if group.variant.table_ubo:
                 shader.uniform_block(resources.TABLE.name, group.table)
@@ -283,6 +292,7 @@ def draw_items(
     exposure: float = 0.0,
     shaders=None,
     uniforms=None,
+    display_lut=None,
 ):
     """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
 
@@ -291,7 +301,8 @@ def draw_items(
     (:class:`.resources.Lighting`); optionally ``.prefiltered``
     (:class:`.resources.PrefilterTexture`), ``.film`` (:class:`.resources.FilmTexture`),
     ``.lights`` (:func:`.resources.lights_content`: Blender's light objects, shaded with the
-    film), ``.roughness`` and ``.sh_weight`` (the split sum). :func:`prepare_draw` then :func:`submit`;
+    film), ``.roughness`` and ``.sh_weight`` (the split sum). ``display_lut``: the scene's view
+    transform (:class:`.resources.DisplayLUTTexture`). :func:`prepare_draw` then :func:`submit`;
     see there.
     """
     submit(
@@ -303,6 +314,7 @@ def draw_items(
             exposure=exposure,
             shaders=shaders,
             uniforms=uniforms,
+            display_lut=display_lut,
         )
     )
 
@@ -366,8 +378,10 @@ def render_offscreen(
     background=None,
     depth_from=None,
     shaders=None,
-) -> np.ndarray:
-    """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first.
+    with_depth: bool = False,
+):
+    """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first
+    (with ``with_depth``: and the depth buffer, (H, W) window depth in [0, 1], 1 where nothing).
 
     Order: clear (colour 0, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
     scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
@@ -389,6 +403,11 @@ def render_offscreen(
                 if background is not None:
                     draw_background(background, view_matrix, projection_matrix, shaders=shaders)
                 draw_items(items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders)
-            return read_framebuffer(fb, width, height)
+            rgba = read_framebuffer(fb, width, height)
+            if not with_depth:
+                return rgba
+            depth = fb.read_depth(0, 0, width, height)
+            depth.dimensions = width * height
+            return rgba, np.asarray(depth, dtype=np.float32).reshape(height, width)[::-1].copy()
     finally:
         offscreen.free()

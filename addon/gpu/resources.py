@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
+from ...precompute import display_lut
 from ...precompute.material import MAX_SH_ORDER
 from ...precompute.shading import policy
 from ...precompute.shading.codegen import RX_PADDED, x_rotation_scalars
@@ -248,6 +249,8 @@ PREFILTERED_SAMPLER = Sampler(3, "FLOAT_3D", "tf_prefiltered")
 FILM_SAMPLER = Sampler(4, "FLOAT_2D_ARRAY", "tf_film")
 #: The background shader's only texture.
 ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")
+#: The display LUT (tf_display.glsl, :class:`DisplayLUTTexture`) of ``TF_DISPLAY_LUT`` variants.
+DISPLAY_LUT_SAMPLER = Sampler(7, "FLOAT_2D", "tf_display_lut")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -634,3 +637,20 @@ class UniformCache:
         """Release every buffer, in use or spare."""
         self._entries.clear()
         self._spare.clear()
+
+
+@dataclass
+class DisplayLUTTexture:
+    """The display LUT (precompute/display_lut.py) as an RGBA32F texture of N · N × (N + 1)
+    texels (the last row: the input matrix), read with texelFetch (:data:`DISPLAY_LUT_SAMPLER`)."""
+
+    texture: gpu.types.GPUTexture
+    size: int
+
+    @classmethod
+    def from_table(cls, table, matrix=None) -> DisplayLUTTexture:
+        """Upload an (N, N, N, 3) LUT indexed [b, g, r] and its input matrix (None: identity)."""
+        rgba = display_lut.texture_layout(table, matrix)
+        n = rgba.shape[0] - 1
+        texture = gpu.types.GPUTexture((n * n, n + 1), format="RGBA32F", data=float_buffer(rgba))
+        return cls(texture, n)

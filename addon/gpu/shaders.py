@@ -135,6 +135,8 @@ def declare_shading_resources(info, variant: Variant) -> None:
         _declare(info, resources.FILM if variant.film_ubo else resources.FILM_SAMPLER)
     if variant.lights:
         _declare(info, resources.LIGHTS)
+    if variant.display_lut:
+        _declare(info, resources.DISPLAY_LUT_SAMPLER)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.LIGHTING)
     _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
@@ -224,6 +226,7 @@ class ShaderCache:
         lamps: bool = False,
         film_ubo: bool = False,
         lights: bool = False,
+        display_lut: bool = False,
     ):
         """The mesh shader of a variant given field by field (see :class:`Variant`)."""
         return self.mesh(
@@ -238,6 +241,7 @@ class ShaderCache:
                 lamps,
                 film_ubo,
                 lights,
+                display_lut,
             )
         )
 

@@ -124,6 +124,19 @@ TABLE_UBO_DEVICES = ("SOFTWARE",)
 
 
 # ----------------------------------------------------------------------------------------------
+# Display
+# ----------------------------------------------------------------------------------------------
+#: Lattice points per axis of the viewport's display LUT (precompute/display_lut.py): the
+#: trilinear error against OCIO (docs/tuning.md#display-lut).
+DISPLAY_LUT_SIZE = 65
+#: The LUT shaper's offset a in log2(x + a): resolves the sRGB toe (docs/tuning.md#display-lut).
+DISPLAY_LUT_FLOOR = 2.0**-12
+#: The largest scene-linear value the LUT resolves (after exposure); brighter clamps: above
+#: Filmic's and AgX's white (docs/tuning.md#display-lut).
+DISPLAY_LUT_MAX = 2.0**7.2
+
+
+# ----------------------------------------------------------------------------------------------
 # GLSL
 # ----------------------------------------------------------------------------------------------
 def glsl_float(value: float) -> str:
@@ -157,7 +170,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``: the guards;
     - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
     - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
-      k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse.
+      k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
+    - ``TF_DISPLAY_LUT_SIZE``, ``TF_DISPLAY_LUT_FLOOR``, ``TF_DISPLAY_LUT_MAX``: the display LUT
+      (:data:`DISPLAY_LUT_SIZE` … :data:`DISPLAY_LUT_MAX`).
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -175,4 +190,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_GRAZING(x)", glsl_power("x", GRAZING_EXPONENT)),
         ("TF_LADDER_ROUGHNESS(x)", glsl_power("x", LEVEL_EXPONENT)),
         ("TF_LADDER_POSITION(r)", glsl_power("r", 1.0 / LEVEL_EXPONENT)),
+        ("TF_DISPLAY_LUT_SIZE", str(int(DISPLAY_LUT_SIZE))),
+        ("TF_DISPLAY_LUT_FLOOR", glsl_float(DISPLAY_LUT_FLOOR)),
+        ("TF_DISPLAY_LUT_MAX", glsl_float(DISPLAY_LUT_MAX)),
     )

@@ -48,6 +48,9 @@ class Variant(NamedTuple):
     film_ubo: bool = False
     #: Blender's light objects shaded per sample (``TF_LIGHTS``, tf_lights.glsl, the film texture).
     lights: bool = False
+    #: With ``display``: the scene's view transform through the baked display LUT
+    #: (``TF_DISPLAY_LUT``, tf_display.glsl) instead of the Standard sRGB encoding.
+    display_lut: bool = False
 
     @property
     def film(self) -> bool:
@@ -74,6 +77,7 @@ class Variant(NamedTuple):
             bool(self.lamps),
             bool((self.lamps or self.lights) and self.film_ubo),
             bool(self.lights),
+            bool(self.display and self.display_lut),
         )
 
     def switches(self) -> tuple[tuple[str, str], ...]:
@@ -85,6 +89,8 @@ class Variant(NamedTuple):
             out.append(("TF_VARY_THICKNESS", "1"))
         if self.display:
             out.append(("TF_DISPLAY_SRGB", "1"))
+            if self.display_lut:
+                out.append(("TF_DISPLAY_LUT", "1"))
         if self.split_sum:
             out.append(("TF_SPLIT_SUM", "1"))
             if self.split_only:
@@ -121,6 +127,7 @@ def choose_variant(
     film_ubo: bool = False,
     table_ubo: bool = False,
     light_count: int = 0,
+    display_lut: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -134,7 +141,8 @@ def choose_variant(
       runs with both; ``film_ubo``: the film table is in a uniform buffer;
     - ``table_ubo``: the table is drawn from its uniform buffer (policy.TABLE_UBO_DEVICES and
       :func:`fits_uniform_buffer`);
-    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table.
+    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table;
+    - ``display_lut``: a display LUT is bound (the scene's view transform, with ``display``).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -150,4 +158,5 @@ def choose_variant(
         lamps=lamps,
         film_ubo=(lamps or lights) and bool(film_ubo),
         lights=lights,
+        display_lut=bool(display) and bool(display_lut),
     )

@@ -1,0 +1,174 @@
+"""The rest of the scene, rendered by Blender: the background pass of the headless frame.
+
+:func:`render_background` renders the scene through its camera with EEVEE (or Workbench or
+Cycles) while the thin-film objects are invisible to the camera (``visible_camera`` off: they
+still cast shadows and show in reflections), and returns its scene-linear RGBA and its depth
+(view-space distance along the camera axis, the render's Z pass). The headless frame then draws
+the films over it, depth-tested against that depth (:func:`composite`): outside the films the
+frame is Blender's own render, pixel for pixel.
+
+Every setting the pass changes (engine, resolution, output format, the Z pass, the films'
+camera visibility) is restored afterwards, also when the render fails.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import pathlib
+import tempfile
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from ..precompute import pixel_filter
+
+#: ``--engine`` → Blender's render engine identifier.
+ENGINES = {"EEVEE": "BLENDER_EEVEE", "WORKBENCH": "BLENDER_WORKBENCH", "CYCLES": "CYCLES"}
+#: The Z pass where nothing was hit (Blender writes 1e10).
+FAR = 1e9
+
+
+@dataclass
+class Background:
+    """A background pass: scene-linear RGBA (H, W, 4, premultiplied, top row first) in the
+    working space, and depth (H, W): distance along the camera axis, ``inf`` where nothing is."""
+
+    rgba: np.ndarray
+    depth: np.ndarray
+    engine: str
+    seconds: float = 0.0
+
+
+@contextlib.contextmanager
+def _changed(pairs):
+    """Set ``(owner, attribute, value)`` triples; restore them in reverse order on exit."""
+    saved = []
+    try:
+        for owner, name, value in pairs:
+            saved.append((owner, name, getattr(owner, name)))
+            setattr(owner, name, value)
+        yield
+    finally:
+        for owner, name, value in reversed(saved):
+            try:
+                setattr(owner, name, value)
+            except (TypeError, ValueError, AttributeError):  # an enum the other setting refuses
+                pass
+
+
+def _read_layers(path) -> tuple[np.ndarray, np.ndarray]:
+    """(RGBA, Z) of a multilayer EXR Blender wrote (OpenEXR where installed, else OpenImageIO)."""
+    try:
+        import OpenEXR
+    except ImportError:
+        OpenEXR = None
+    channels = {}
+    if OpenEXR is not None:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            for part in f.parts:
+                for name, channel in part.channels.items():
+                    channels[name] = np.array(channel.pixels, dtype=np.float64)
+    else:
+        import OpenImageIO as oiio
+
+        image = oiio.ImageInput.open(str(path))
+        if image is None:
+            raise OSError(f"{path}: {oiio.geterror()}")
+        try:
+            sub = 0
+            while image.seek_subimage(sub, 0):
+                pixels = image.read_image("float")
+                for i, name in enumerate(image.spec().channelnames):
+                    channels[name] = np.array(pixels[..., i], dtype=np.float64)
+                sub += 1
+        finally:
+            image.close()
+
+    def find(suffix):
+        for name, pixels in channels.items():
+            if name.endswith(suffix):
+                return pixels
+        raise OSError(f"{path}: no {suffix} channel in the background pass ({sorted(channels)})")
+
+    rgba = np.stack([find(f"Combined.{c}") for c in "RGBA"], axis=-1)
+    return rgba, find("Depth.Z")
+
+
+def render_background(
+    scene, width: int, height: int, *, engine: str = "EEVEE", hidden=(), transparent: bool = False
+) -> Background:
+    """Render ``scene`` through its camera with ``engine`` (:data:`ENGINES`) at ``width`` ×
+    ``height``, the objects named in ``hidden`` invisible to the camera; see the module.
+
+    ``transparent``: the World is left out of the picture (film transparent; it still lights).
+    """
+    import time
+
+    if engine not in ENGINES:
+        raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    render = scene.render
+    settings = render.image_settings
+    layer = bpy.context.view_layer
+    objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="thinfilm_sh_bg_") as folder:
+        path = pathlib.Path(folder) / "background.exr"
+        changes = [
+            (render, "engine", ENGINES[engine]),
+            (render, "resolution_x", int(width)),
+            (render, "resolution_y", int(height)),
+            (render, "resolution_percentage", 100),
+            (render, "use_border", False),
+            (render, "film_transparent", bool(transparent) or render.film_transparent),
+            (render, "filepath", str(path)),
+            (render, "use_file_extension", False),
+            (settings, "media_type", "MULTI_LAYER_IMAGE"),
+            (settings, "file_format", "OPEN_EXR_MULTILAYER"),
+            (settings, "color_depth", "32"),
+            (layer, "use_pass_z", True),
+            *((obj, "visible_camera", False) for obj in objects),
+        ]
+        with _changed(changes):
+            bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
+        rgba, z = _read_layers(path)
+    depth = np.where(z >= FAR, np.inf, z)
+    return Background(rgba, depth, engine, time.perf_counter() - t0)
+
+
+def view_depth(ndc_depth, projection) -> np.ndarray:
+    """Distance along the camera axis of a depth buffer's values (window depth in [0, 1]);
+    ``inf`` where the buffer is still cleared (1)."""
+    p = np.asarray(projection, dtype=np.float64)
+    d = np.asarray(ndc_depth, dtype=np.float64)
+    ndc = 2.0 * d - 1.0
+    if p[3, 3] == 1.0 and p[3, 2] == 0.0:  # orthographic: ndc = P22 z + P23, distance = −z
+        dist = -(ndc - p[2, 3]) / p[2, 2]
+    else:  # perspective: ndc = (P22 z + P23) / (−z)
+        dist = p[2, 3] / (ndc + p[2, 2])
+    return np.where(d >= 1.0, np.inf, dist)
+
+
+def composite(background: Background, films, film_depth, kind: str, width: float, factor: int, pad: int):
+    """The final frame (H, W, 4): the films over the background, depth-tested per sample.
+
+    ``films`` (H', W', 4) and ``film_depth`` (H', W', distance along the camera axis) are the
+    films' pass at ``factor`` samples per pixel over the window widened by ``pad`` pixels; a
+    sample shows its film where the film is nearer than the background's depth (the nearest
+    background pixel's). Film colour and coverage are filtered down with the pixel filter
+    (``kind``, ``width``) and laid over the background: C = C_film + (1 − α_film) C_background.
+    Where no film sample shows, the frame is the background exactly.
+    """
+    h, w = background.depth.shape
+    rows = np.clip((np.arange(films.shape[0]) // factor) - pad, 0, h - 1)
+    cols = np.clip((np.arange(films.shape[1]) // factor) - pad, 0, w - 1)
+    behind = background.depth[np.ix_(rows, cols)]
+    shown = (films[..., 3] > 0.0) & (film_depth < behind)
+    layer = np.concatenate([films[..., :3] * shown[..., None], shown[..., None].astype(np.float64)], axis=-1)
+    if factor > 1:
+        layer = pixel_filter.downsample(layer, kind, width, factor, pad)
+    alpha = np.clip(layer[..., 3:4], 0.0, 1.0)
+    out = np.empty_like(background.rgba)
+    out[..., :3] = layer[..., :3] + (1.0 - alpha) * background.rgba[..., :3]
+    out[..., 3:] = alpha + (1.0 - alpha) * background.rgba[..., 3:]
+    return out

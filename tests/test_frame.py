@@ -1,0 +1,114 @@
+"""The headless render as a final frame (issue 19): the rest of the scene by EEVEE, the films
+over it, depth-tested.
+
+A film sphere, a non-film Principled cube in front of part of it, a floor, a point light and a
+coloured World: outside the film sphere (its projected bounding box, widened by the pixel
+filters' reach) the headless frame equals EEVEE's own render of the same scene with the same
+samples to ≤ 1/255 mean; the cube in front hides the film (depth test); the film is drawn.
+"""
+
+from __future__ import annotations
+
+import importlib
+import types
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+from _extension import EXTENSION_ID, linked_extension, set_cache_preference  # noqa: E402
+
+SIZE = (64, 48)
+SAMPLES = 4
+
+
+@pytest.fixture(scope="module")
+def tf(bpy, tmp_path_factory):
+    root = tmp_path_factory.mktemp("extension")
+    with linked_extension(root) as package:
+        try:
+            package.register()
+            ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
+            for name in ("headless", "prefs", "background"):
+                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            set_cache_preference(bpy, ns.prefs, ns.cache_dir)
+            yield ns
+        finally:
+            entry = bpy.context.preferences.addons.get(EXTENSION_ID)
+            if entry is not None:
+                bpy.context.preferences.addons.remove(entry)
+
+
+def _scene(bpy, tf):
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    tf.package.register()
+    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = SIZE
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    scene.eevee.taa_render_samples = SAMPLES
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-0.7, 0.0, 0.0), segments=32, ring_count=16)
+    ball = bpy.context.object
+    mat = bpy.data.materials.new("Film")
+    mat.thinfilm_sh.preset = "SOAP_FILM"
+    mat.thinfilm_sh.enabled = True
+    ball.data.materials.append(mat)
+    bpy.ops.mesh.primitive_cube_add(size=0.4, location=(-0.3, -1.5, -0.25))
+    bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0.0, 0.0, -0.8))
+    bpy.ops.object.light_add(type="POINT", location=(1.5, -2.5, 2.5))
+    bpy.context.object.data.energy = 300.0
+    bpy.ops.object.camera_add(location=(0.0, -6.0, 0.6), rotation=(np.radians(84.0), 0.0, 0.0))
+    scene.camera = bpy.context.object
+    scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.15, 0.2, 0.3)
+    return scene, ball
+
+
+def _box(bpy, scene, obj, margin: int) -> tuple[slice, slice]:
+    """The rows and columns (top row first) of ``obj``'s projected bounding box, widened."""
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+
+    corners = [world_to_camera_view(scene, scene.camera, obj.matrix_world @ Vector(c)) for c in obj.bound_box]
+    xs = [c.x * SIZE[0] for c in corners]
+    ys = [(1.0 - c.y) * SIZE[1] for c in corners]
+    rows = slice(max(int(min(ys)) - margin, 0), int(max(ys)) + margin + 1)
+    cols = slice(max(int(min(xs)) - margin, 0), int(max(xs)) + margin + 1)
+    return rows, cols
+
+
+def _png(path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGBA"), dtype=np.float64) / 255.0
+
+
+def test_outside_the_films_the_frame_is_eevees_render(bpy, tf, tmp_path):
+    scene, ball = _scene(bpy, tf)
+    result = tf.headless.render_scene(
+        scene, str(tmp_path / "frame.png"), *SIZE, supersample=2, engine="EEVEE"
+    )
+    assert result["engine"] == "EEVEE" and result["objects"] == ["Sphere/Film"], result
+    ours = _png(result["png"])
+    # EEVEE's own render of the whole scene, the film sphere included (as Blender renders it)
+    scene.render.engine = "BLENDER_EEVEE"
+    scene.render.filepath = str(tmp_path / "eevee.png")
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGBA"
+    bpy.ops.render.render(write_still=True)
+    theirs = _png(tmp_path / "eevee.png")
+    outside = np.ones(ours.shape[:2], dtype=bool)
+    outside[_box(bpy, scene, ball, margin=3)] = False
+    diff = np.abs(ours - theirs)[outside]
+    mean, worst = float(diff.mean() * 255), float(diff.max() * 255)
+    print(f"\noutside the film ({outside.sum()} px): mean |Δ| {mean:.3f}/255, max {worst:.1f}/255")
+    assert outside.sum() > 0.5 * outside.size, outside.sum()
+    assert mean <= 1.0, (mean, worst)
+    # the film is drawn where it is in front, and the cube hides it where the cube is in front
+    rows, cols = _box(bpy, scene, ball, margin=0)
+    inside = np.abs(ours - theirs)[rows, cols].max(axis=-1)
+    assert inside.max() > 0.05  # the extension's film differs from EEVEE's Principled look
+    assert np.all(ours[..., 3] > 0.99)  # the World behind everything: opaque
