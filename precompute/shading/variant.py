@@ -20,6 +20,12 @@ UBO_LIMIT_BYTES = 16384
 UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
 
 
+#: A transparent film's passes (``TF_TRANSMIT``): first multiply what is behind by T, then add R·L.
+TRANSMIT_MULTIPLY = 1
+TRANSMIT_ADD = 2
+TRANSMIT_PASSES = (TRANSMIT_MULTIPLY, TRANSMIT_ADD)
+
+
 def fits_uniform_buffer(layers: int, rows: int, columns: int) -> bool:
     """Whether a table of ``layers`` × ``rows`` × ``columns`` RGBA texels fits :data:`UBO_TEXELS`."""
     return int(layers) * int(rows) * int(columns) <= UBO_TEXELS
@@ -48,11 +54,15 @@ class Variant(NamedTuple):
     film_ubo: bool = False
     #: Blender's light objects shaded per sample (``TF_LIGHTS``, tf_lights.glsl, the film texture).
     lights: bool = False
+    #: A transparent film's blend pass (``TF_TRANSMIT``, tf_transmit.glsl, the film texture):
+    #: 0 opaque, :data:`TRANSMIT_MULTIPLY` (writes T) or :data:`TRANSMIT_ADD` (writes R·L).
+    transmit: int = 0
 
     @property
     def film(self) -> bool:
-        """The film's reflectance table is read (for the World's lamps or the light objects)."""
-        return bool(self.lamps or self.lights)
+        """The film's reflectance table is read (for the World's lamps, the light objects or a
+        transparent film's transmittance)."""
+        return bool(self.lamps or self.lights or self.transmit)
 
     @property
     def moment(self) -> bool:
@@ -72,8 +82,9 @@ class Variant(NamedTuple):
             bool(self.table_ubo),
             bool(self.split_sum and self.split_only),
             bool(self.lamps),
-            bool((self.lamps or self.lights) and self.film_ubo),
+            bool((self.lamps or self.lights or self.transmit) and self.film_ubo),
             bool(self.lights),
+            int(self.transmit) if int(self.transmit) in TRANSMIT_PASSES else 0,
         )
 
     def switches(self) -> tuple[tuple[str, str], ...]:
@@ -95,6 +106,8 @@ class Variant(NamedTuple):
             out.append(("TF_LAMPS", "1"))
         if self.lights:
             out.append(("TF_LIGHTS", "1"))
+        if self.transmit:
+            out.append(("TF_TRANSMIT", str(int(self.transmit))))
         if self.film and self.film_ubo:
             out.append(("TF_FILM_UBO", "1"))
         if self.table_ubo:
@@ -121,6 +134,7 @@ def choose_variant(
     film_ubo: bool = False,
     table_ubo: bool = False,
     light_count: int = 0,
+    transmit: int = 0,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -134,7 +148,9 @@ def choose_variant(
       runs with both; ``film_ubo``: the film table is in a uniform buffer;
     - ``table_ubo``: the table is drawn from its uniform buffer (policy.TABLE_UBO_DEVICES and
       :func:`fits_uniform_buffer`);
-    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table.
+    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table;
+    - ``transmit``: the blend pass of a transparent film (:data:`TRANSMIT_PASSES`, 0 opaque); it
+      reads the film table, which the item must then carry.
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -148,6 +164,7 @@ def choose_variant(
         table_ubo=bool(table_ubo),
         split_only=split and float(sh_weight) <= 0.0,
         lamps=lamps,
-        film_ubo=(lamps or lights) and bool(film_ubo),
+        film_ubo=(lamps or lights or bool(transmit)) and bool(film_ubo),
         lights=lights,
+        transmit=int(transmit) if bool(film) else 0,
     )
