@@ -247,7 +247,7 @@ def render_scene(
                 bpy.context.view_layer.update()
 
     rgba = render_offscreen(items, view, proj, frame_w, frame_h, background=env, depth_from=depth_from)
-    rgb = rgba[..., :3].astype(np.float64)
+    rgb = rgba.astype(np.float64)
     bad = ~np.isfinite(rgb)
     nonfinite = int(bad.any(axis=-1).sum())
     if bad.any():
@@ -257,7 +257,10 @@ def render_scene(
         rgb = pixel_filter.downsample(rgb, kind, filter_width, factor, pad)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    image_io.write_exr(out.with_suffix(".exr"), rgb)
+    # Alpha: coverage, 1 − (1 − alpha behind)·mean T over a transparent film (gpu.draw.WALL_PASSES).
+    alpha = np.clip(rgb[..., 3:4], 0.0, 1.0)
+    rgb = rgb[..., :3]
+    image_io.write_exr(out.with_suffix(".exr"), rgb if background else np.concatenate([rgb, alpha], -1))
     image_io.write_png(
         out.with_suffix(".png"), image_io.srgb_encode(rgb, float(scene.view_settings.exposure))
     )

@@ -39,7 +39,7 @@ from ..precompute import cli_support, film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, linked, panorama, tables, world, world_key
+from . import caches, description, linked, panorama, tables, transparency, world, world_key
 from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
@@ -66,6 +66,8 @@ class DrawItem:
     fallback: bool = False
     #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
     lights: np.ndarray | None = None
+    #: A transparent film's wall, (mode, η) of precompute.shading.transmit (:func:`.transparency.wall`).
+    wall: tuple | None = None
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -441,6 +443,7 @@ class _MaterialEntry:
     linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
+    wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -550,6 +553,7 @@ def _material_entry(
     props = getattr(bpy_material, "thinfilm_sh", None)
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
+    wall = transparency.wall(bpy_material, desc)
     return _MaterialEntry(
         desc,
         key,
@@ -557,11 +561,12 @@ def _material_entry(
         lighting_for(lighting, result.sh_order, roughness, lamps),
         roughness,
         policy.sh_weight(roughness),
-        film_texture(key, result) if lamps or lights else None,
+        film_texture(key, result) if lamps or lights or wall else None,
         props,
         thickness_key,
         linked_source,
         lamps=lamps,
+        wall=wall,
     )
 
 
@@ -682,6 +687,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     film=entry.film,
                     fallback=entry.fallback,
                     lights=object_lights[original.name] if linked else shared_lights,
+                    wall=entry.wall,
                 )
             )
     CACHES.dirty -= seen

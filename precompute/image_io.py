@@ -55,9 +55,9 @@ def write_png(path, rgb_display: np.ndarray) -> None:
 
 
 def write_exr(path, rgb_linear: np.ndarray) -> None:
-    """Scene-linear float32 RGB OpenEXR."""
+    """Scene-linear float32 RGB OpenEXR; (H, W, 4) writes RGBA (premultiplied alpha)."""
     import OpenEXR  # optional: only needed to write EXR files (absent inside Blender)
 
     rgb = np.ascontiguousarray(np.asarray(rgb_linear, dtype=np.float32))
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    OpenEXR.File(header, {"RGB": rgb}).write(str(path))
+    OpenEXR.File(header, {"RGBA" if rgb.shape[-1] == 4 else "RGB": rgb}).write(str(path))
