@@ -15,12 +15,9 @@
 from __future__ import annotations
 
 from ..precompute.shading import transmit
-from .principled import SOCKET_METALLIC, SOCKET_TRANSMISSION, principled_node
+from .principled import SOCKET_METALLIC, SOCKET_THIN_WALL, SOCKET_TRANSMISSION, principled_node
 
-__all__ = ["SOCKET_THIN_WALL", "wall"]
-
-#: The Principled BSDF's thin-wall switch (Blender 5.2, a boolean input).
-SOCKET_THIN_WALL = "Thin Wall"
+__all__ = ["wall"]
 
 
 def _real_index(value) -> float | None:
