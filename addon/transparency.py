@@ -6,8 +6,8 @@
   *Opaque* never.
 - A Principled BSDF with *Transmission Weight* ≥ 0.5 (previewed as 1, like the reflection) and
   *Thin Wall* on: Cycles' thin wall (the film on both faces, the slab series of
-  ``bsdf_thin_glass_fresnel``); without *Thin Wall* (solid glass, water) as a sheet of its IOR,
-  seen straight through (no refraction yet: docs/transparent-films.md).
+  ``bsdf_thin_glass_fresnel``); without *Thin Wall* (solid glass, water) solid glass of its IOR:
+  the World seen through the ray's exit from a sphere of that glass (docs/transparent-films.md).
 
 :func:`wall` gives the draw item's ``wall`` = (mode, η), or None for an opaque film.
 """
@@ -52,7 +52,7 @@ def _principled_wall(bpy_material, desc) -> tuple | None:
         return None
     if bool(_input(node, SOCKET_THIN_WALL, False)):
         return (transmit.WALL_CYCLES, 1.0)
-    return (transmit.WALL_SHEET, substrate / float(desc.ambient))
+    return (transmit.WALL_SOLID, substrate / float(desc.ambient))
 
 
 def wall(bpy_material, desc) -> tuple | None:

@@ -34,6 +34,12 @@ void main()
           tf_object.material.w, wall_t, wall_s);
   float wall_mean = dot(wall_t, vec3(1.0 / 3.0));
 #if TF_TRANSMIT == 1 /* the multiply pass: what is behind times T; alpha times mean(T) */
+#ifdef TF_SPLIT_SUM
+  if (tf_object.material.z > 1.5) { /* solid glass: the World along the exit ray replaces it */
+    wall_t = vec3(0.0);
+    wall_mean = 0.0;
+  }
+#endif
 #ifdef TF_DISPLAY_SRGB
   wall_t = tf_srgb_oetf(clamp(wall_t, 0.0, 1.0)); /* encode(T x) ~ encode(T) encode(x) */
 #endif
@@ -60,6 +66,15 @@ void main()
 #endif
 #if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 /* the add pass: R L; alpha plus 1 - mean(T) */
   rgb *= wall_s;
+#ifdef TF_SPLIT_SUM
+  if (tf_object.material.z > 1.5) { /* solid glass: T times the World along the exit ray */
+    vec3 unused_moment;
+    float unused_weight;
+    rgb += wall_t * tf_prefiltered_lookup(tf_solid_exit(n, v, tf_object.material.w), 0.0,
+                                          unused_moment, unused_weight);
+    wall_mean = 0.0;
+  }
+#endif
   float alpha = 1.0 - wall_mean;
 #else
   float alpha = 1.0;

@@ -8,7 +8,9 @@
  * macro view angle. Wall mode (tf_object.material.z) and the sheet's relative index eta
  * (tf_object.material.w): shading.transmit.WALL_SHEET (0):
  *   Rb = Fresnel(u, eta), T = (1 - r)(1 - Rb) / (1 - r Rb), S = 1 + (1 - r)^2 Rb / ((1 - r Rb) r);
- * WALL_CYCLES (1, Cycles' thin wall): T = (1 - r) / (1 + r), S = 2 / (1 + r).
+ * WALL_CYCLES (1, Cycles' thin wall): T = (1 - r) / (1 + r), S = 2 / (1 + r);
+ * WALL_SOLID (2, solid glass of index eta): T = (1 - r)^2, S = 1, and what is behind is replaced by
+ * the World seen along tf_solid_exit (with TF_SPLIT_SUM: the prefiltered World's sharpest level).
  * S is capped at TF_WALL_SCALE_MAX (policy.WALL_SCALE_MAX).
  */
 
@@ -43,6 +45,11 @@ void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 
 {
   float u = clamp(cos_v, 0.0, 1.0);
   vec3 refl = clamp(tf_film_white(u, r), vec3(0.0), vec3(1.0));
+  if (mode > 1.5) { /* WALL_SOLID: in through the film, out through it again (reciprocity) */
+    t = (vec3(1.0) - refl) * (vec3(1.0) - refl);
+    s = vec3(1.0);
+    return;
+  }
   if (mode > 0.5) {
     t = (vec3(1.0) - refl) / (vec3(1.0) + refl);
     s = vec3(2.0) / (vec3(1.0) + refl);
@@ -54,4 +61,15 @@ void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 
   t = one_minus * (1.0 - rb) / denominator;
   vec3 extra = one_minus * one_minus * rb / denominator;
   s = min(vec3(1.0) + extra / max(refl, vec3(1e-6)), vec3(TF_WALL_SCALE_MAX));
+}
+
+/* The direction a ray leaves a glass sphere of index eta it entered at normal n from the viewer
+ * (v): turned towards -n by 2 (theta_i - theta_t) (shading.transmit.solid_exit). */
+vec3 tf_solid_exit(vec3 n, vec3 v, float eta)
+{
+  float ci = clamp(dot(n, v), 0.0, 1.0);
+  float si = sqrt(max(1.0 - ci * ci, 0.0));
+  float deviation = 2.0 * (asin(min(si, 1.0)) - asin(min(si / max(eta, 1e-6), 1.0)));
+  vec3 w = tf_safe_normalize(ci * v - n, vec3(0.0));
+  return tf_safe_normalize(-cos(deviation) * v + sin(deviation) * w, -v);
 }

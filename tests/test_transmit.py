@@ -137,3 +137,30 @@ def test_bubble_never_darkens_the_background_below_one_minus_r_max(colour_mode):
     lowest = np.min(luminance - (1 - r_max))
     print(f"{colour_mode}: lowest channel T − (1 − R_max) = {dip:.3f}; luminance {lowest:.3f}")
     assert t.min() < 1.0 - 0.5 * r_max.min()  # the bound is approached: the film does reflect
+
+
+def _refract(d, n, eta):
+    """Snell's law in vector form: d unit, n unit against d, eta = n_in / n_out."""
+    c = -np.sum(d * n, axis=-1, keepdims=True)
+    k = 1.0 - eta**2 * (1.0 - c**2)
+    return eta * d + (eta * c - np.sqrt(k)) * n
+
+
+def test_solid_exit_is_the_ray_traced_through_a_glass_sphere():
+    """Trace rays into a unit sphere of glass (Snell in, chord, Snell out) and compare."""
+    rng = np.random.default_rng(7)
+    eta = 1.5
+    d = np.tile([0.0, 1.0, 0.0], (200, 1))
+    offsets = rng.uniform(-0.95, 0.95, size=(200, 2))
+    keep = np.hypot(offsets[:, 0], offsets[:, 1]) < 0.95
+    d, offsets = d[keep], offsets[keep]
+    hit = np.stack([offsets[:, 0], -np.sqrt(1.0 - (offsets**2).sum(-1)), offsets[:, 1]], -1)
+    n = hit.copy()  # outward normal, facing the viewer at -y
+    inside = _refract(d, n, 1.0 / eta)
+    inside /= np.linalg.norm(inside, axis=-1, keepdims=True)
+    chord = -2.0 * np.sum(hit * inside, axis=-1, keepdims=True)
+    out_n = hit + chord * inside
+    out = _refract(inside, -out_n, eta)
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    assert np.allclose(transmit.solid_exit(n, -d, eta), out, atol=1e-9)
+    assert np.allclose(transmit.solid_exit(n, -d, 1.0), d, atol=1e-12)  # η = 1: straight through

@@ -129,3 +129,40 @@ def test_closed_bubble_shows_both_walls(gd, bpy):  # noqa: F811
     # the background shows through: far more of it than behind the opaque film
     assert np.all(image[inner][:, :3] >= 0.8 * np.array(BEHIND))
     assert np.mean(image[inner][:, :3]) > np.mean(opaque[inner][:, :3]) + 0.2
+
+
+def test_solid_glass_shows_the_world_along_the_exit_ray(gd):  # noqa: F811
+    """WALL_SOLID with the split sum: what is behind is replaced by T × the prefiltered World at
+    roughness 0 along transmit.solid_exit, plus the film's reflection (split only, weight 0)."""
+    import dataclasses
+
+    from precompute import prefilter
+    from precompute.shading import policy, split_sum
+
+    result = baked(5, "spectral", False)
+    table = gd.resources.TableTexture.from_result(result)
+    world, img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    full = prefilter.prefilter(img, width=64)
+    levels, moments = full.resampled(64), full.resampled_moments(64)
+    pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
+    film = film_colour.film_table(result)
+    item = tilted_quad_item(gd, table, lighting)
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
+    item.roughness, item.sh_weight = result.material.roughness, 0.0
+    item.film = gd.resources.FilmTexture.from_film(film)
+    item.wall = (transmit.WALL_SOLID, 1.5)
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
+    inside, n, views = quad_pixels(item.model_matrix)
+    t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
+    exit_dirs = transmit.solid_exit(n, views, 1.5)
+    seen = split_sum.lookup(pre, exit_dirs, np.zeros(len(n)))
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen
+    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    print(f"solid glass: {err:.1e} of the peak")
+    assert inside.sum() > 300 and err < 1e-3, err
+    assert np.allclose(image[inside][:, 3], 1.0, atol=1e-6)  # opaque: the glass replaces what is behind
+    # the exit ray is bent: a straight view through would see other parts of the World
+    straight = split_sum.lookup(pre, -views, np.zeros(len(n)))
+    assert np.max(np.abs(seen - straight)) > 0.02
+    assert dataclasses.is_dataclass(pre)

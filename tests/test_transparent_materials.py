@@ -72,8 +72,8 @@ def _principled(bpy, transmission: float, thin_wall: bool, ior: float = 1.0):
 
 def test_principled_thin_wall_is_cycles_slab_series(bpy, ext):
     assert _wall(ext, _principled(bpy, 1.0, True)) == (transmit.WALL_CYCLES, 1.0)
-    mode, eta = _wall(ext, _principled(bpy, 1.0, False, 1.5))  # solid glass: a sheet of its IOR
-    assert mode == transmit.WALL_SHEET and eta == pytest.approx(1.5)
+    mode, eta = _wall(ext, _principled(bpy, 1.0, False, 1.5))  # solid glass of its IOR
+    assert mode == transmit.WALL_SOLID and eta == pytest.approx(1.5)
     assert _wall(ext, _principled(bpy, 0.2, True)) is None  # previewed as Transmission 0
 
 

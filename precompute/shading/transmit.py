@@ -24,6 +24,13 @@ Two walls (``mode``):
   Snell-related angles): T = (1 − r) / (1 + r), R = 2r / (1 + r). A Principled soap bubble
   (IOR 1, the film on air) thus reflects as two films, where one real soap film reflects r.
 
+- :data:`WALL_SOLID` — solid glass of index η (a Principled BSDF with *Transmission* and no *Thin
+  Wall*): the light enters through the film and leaves through it again (the film on every
+  interface, as Cycles), T = (1 − r)², S = 1, internal reflections left out; what is behind is
+  replaced by the World seen along :func:`solid_exit` (the ray through a sphere of that glass),
+  read from the prefiltered World's sharpest level where the draw has one (the split sum), else
+  seen straight through.
+
 The reflection is the film's shaded reflection (the baked table: r per microfacet) times the
 scale S = R / r per channel, capped at :data:`.policy.WALL_SCALE_MAX` where r → 0; exact for a
 smooth film, where the half vector is the normal. In the spectral mode T and S are per channel
@@ -41,8 +48,10 @@ from .policy import MIN_COS, WALL_SCALE_MAX
 WALL_SHEET = 0
 #: Cycles' Thin Wall: the film on both faces, the slab series of ``bsdf_thin_glass_fresnel``.
 WALL_CYCLES = 1
+#: Solid glass of index η (Principled Transmission without Thin Wall): in and out through the film.
+WALL_SOLID = 2
 #: The walls by name (the draw items' ``wall``).
-WALLS = {"sheet": WALL_SHEET, "cycles": WALL_CYCLES}
+WALLS = {"sheet": WALL_SHEET, "cycles": WALL_CYCLES, "solid": WALL_SOLID}
 
 
 def fresnel_dielectric(cos_i, eta) -> np.ndarray:
@@ -62,6 +71,8 @@ def wall(r, cos_v, mode: int, eta: float = 1.0) -> tuple[np.ndarray, np.ndarray]
     reflectance ``r`` (…, 3) at the view cosine ``cos_v`` (…), for ``mode`` (:data:`WALL_SHEET`
     with relative index ``eta``, or :data:`WALL_CYCLES`). See the module's docstring."""
     r = np.clip(np.asarray(r, dtype=np.float64), 0.0, 1.0)
+    if int(mode) == WALL_SOLID:
+        return (1.0 - r) ** 2, np.ones_like(r)
     if int(mode) == WALL_CYCLES:
         return (1.0 - r) / (1.0 + r), 2.0 / (1.0 + r)
     rb = fresnel_dielectric(np.clip(np.asarray(cos_v, dtype=np.float64), MIN_COS, 1.0), eta)[..., None]
@@ -89,6 +100,22 @@ def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=
     cos_v = np.clip(np.abs(np.sum(n * v, axis=-1)), 0.0, 1.0)
     rows = thickness_lerp(film, thickness_position, n.shape[0])
     return wall(white_reflectance(film, rows, cos_v), cos_v, mode, eta)
+
+
+def solid_exit(normals, views, eta: float) -> np.ndarray:
+    """The direction (N, 3) a ray leaves a glass sphere of index η through which it entered at the
+    unit normal ``normals`` from the viewer (unit ``views``): the incident direction −v turned
+    towards −n by the sphere's deviation 2(θᵢ − θₜ) (no internal reflection), as tf_solid_exit."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    ci = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
+    si = np.sqrt(np.maximum(1.0 - ci * ci, 0.0))
+    deviation = 2.0 * (np.arcsin(np.minimum(si, 1.0)) - np.arcsin(np.minimum(si / max(eta, 1e-6), 1.0)))
+    w = ci[:, None] * v - n
+    norm = np.linalg.norm(w, axis=-1, keepdims=True)
+    w = np.where(norm > 1e-15, w / np.maximum(norm, 1e-300), 0.0)
+    out = -np.cos(deviation)[:, None] * v + np.sin(deviation)[:, None] * w
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
 def composite(behind, reflected, t) -> np.ndarray:
