@@ -258,9 +258,9 @@ def render_scene(
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     # Alpha: coverage, 1 − (1 − alpha behind)·mean T over a transparent film (gpu.draw.WALL_PASSES).
-    alpha = np.clip(rgb[..., 3:4], 0.0, 1.0)
+    alpha = np.clip(rgb[..., 3], 0.0, 1.0)
     rgb = rgb[..., :3]
-    image_io.write_exr(out.with_suffix(".exr"), rgb if background else np.concatenate([rgb, alpha], -1))
+    image_io.write_exr(out.with_suffix(".exr"), rgb, None if background else alpha)
     image_io.write_png(
         out.with_suffix(".png"), image_io.srgb_encode(rgb, float(scene.view_settings.exposure))
     )

@@ -54,10 +54,14 @@ def write_png(path, rgb_display: np.ndarray) -> None:
         fh.write(png)
 
 
-def write_exr(path, rgb_linear: np.ndarray) -> None:
-    """Scene-linear float32 RGB OpenEXR; (H, W, 4) writes RGBA (premultiplied alpha)."""
+def write_exr(path, rgb_linear: np.ndarray, alpha: np.ndarray | None = None) -> None:
+    """Scene-linear float32 RGB OpenEXR; with ``alpha`` (H, W) also an "A" channel (the colour
+    premultiplied by it: a transparent film's coverage)."""
     import OpenEXR  # optional: only needed to write EXR files (absent inside Blender)
 
     rgb = np.ascontiguousarray(np.asarray(rgb_linear, dtype=np.float32))
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    OpenEXR.File(header, {"RGBA" if rgb.shape[-1] == 4 else "RGB": rgb}).write(str(path))
+    channels = {"RGB": rgb}
+    if alpha is not None:
+        channels["A"] = np.ascontiguousarray(np.asarray(alpha, dtype=np.float32).reshape(rgb.shape[:2]))
+    OpenEXR.File(header, channels).write(str(path))

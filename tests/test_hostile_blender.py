@@ -155,6 +155,8 @@ def read_exr(path) -> np.ndarray:
         channels = f.channels()
         if "RGB" in channels:
             return np.array(channels["RGB"].pixels, dtype=np.float64)
+        if "RGBA" in channels:  # a render without the World: its alpha beside the colour
+            return np.array(channels["RGBA"].pixels, dtype=np.float64)[..., :3]
         return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
