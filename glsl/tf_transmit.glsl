@@ -56,11 +56,11 @@ void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 
     return;
   }
   float rb = tf_fresnel_dielectric(max(u, TF_MIN_COS), eta);
-  vec3 denominator = max(vec3(1.0) - refl * rb, vec3(1e-6));
+  vec3 denominator = max(vec3(1.0) - refl * rb, vec3(TF_WALL_GUARD));
   vec3 one_minus = vec3(1.0) - refl;
   t = one_minus * (1.0 - rb) / denominator;
   vec3 extra = one_minus * one_minus * rb / denominator;
-  s = min(vec3(1.0) + extra / max(refl, vec3(1e-6)), vec3(TF_WALL_SCALE_MAX));
+  s = min(vec3(1.0) + extra / max(refl, vec3(TF_WALL_GUARD)), vec3(TF_WALL_SCALE_MAX));
 }
 
 /* The direction a ray leaves a glass sphere of index eta it entered at normal n from the viewer
@@ -69,7 +69,7 @@ vec3 tf_solid_exit(vec3 n, vec3 v, float eta)
 {
   float ci = clamp(dot(n, v), 0.0, 1.0);
   float si = sqrt(max(1.0 - ci * ci, 0.0));
-  float deviation = 2.0 * (asin(min(si, 1.0)) - asin(min(si / max(eta, 1e-6), 1.0)));
+  float deviation = 2.0 * (asin(min(si, 1.0)) - asin(min(si / max(eta, TF_WALL_GUARD), 1.0)));
   vec3 w = tf_safe_normalize(ci * v - n, vec3(0.0));
   return tf_safe_normalize(-cos(deviation) * v + sin(deviation) * w, -v);
 }

@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from .lamps import film_at, thickness_lerp
-from .policy import MIN_COS, WALL_SCALE_MAX
+from .policy import MIN_COS, WALL_GUARD, WALL_SCALE_MAX
 
 #: The extension's physical wall: the film on the front of a sheet of relative index η.
 WALL_SHEET = 0
@@ -76,10 +76,10 @@ def wall(r, cos_v, mode: int, eta: float = 1.0) -> tuple[np.ndarray, np.ndarray]
     if int(mode) == WALL_CYCLES:
         return (1.0 - r) / (1.0 + r), 2.0 / (1.0 + r)
     rb = fresnel_dielectric(np.clip(np.asarray(cos_v, dtype=np.float64), MIN_COS, 1.0), eta)[..., None]
-    denominator = np.maximum(1.0 - r * rb, 1e-6)
+    denominator = np.maximum(1.0 - r * rb, WALL_GUARD)
     t = (1.0 - r) * (1.0 - rb) / denominator
     extra = (1.0 - r) ** 2 * rb / denominator
-    s = np.minimum(1.0 + extra / np.maximum(r, 1e-6), WALL_SCALE_MAX)
+    s = np.minimum(1.0 + extra / np.maximum(r, WALL_GUARD), WALL_SCALE_MAX)
     return t, s
 
 
@@ -110,7 +110,7 @@ def solid_exit(normals, views, eta: float) -> np.ndarray:
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
     ci = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
     si = np.sqrt(np.maximum(1.0 - ci * ci, 0.0))
-    deviation = 2.0 * (np.arcsin(np.minimum(si, 1.0)) - np.arcsin(np.minimum(si / max(eta, 1e-6), 1.0)))
+    deviation = 2.0 * (np.arcsin(np.minimum(si, 1.0)) - np.arcsin(np.minimum(si / max(eta, WALL_GUARD), 1.0)))
     w = ci[:, None] * v - n
     norm = np.linalg.norm(w, axis=-1, keepdims=True)
     w = np.where(norm > 1e-15, w / np.maximum(norm, 1e-300), 0.0)
