@@ -160,7 +160,7 @@ def write_picture(rows, path) -> None:
     image_io.write_png(path, np.concatenate(lines, axis=0))
 
 
-def report(rows, size: int, samples: int) -> str:
+def report(rows, size: int, samples: int, picture: str = "transparent_films.png") -> str:
     """The markdown report."""
     lines = [
         "# Transparent films against Cycles",
@@ -180,7 +180,7 @@ def report(rows, size: int, samples: int) -> str:
             f"| {r['name']} | {r['mean']:.2f} | {r['p95']:.2f} | {LIMITS[r['name']]:.0f} | "
             f"{r['cycles_s']:.0f} | {r['ours_s']:.1f} |"
         )
-    lines += ["", "![ours | Cycles | ΔE/10](images/transparent_films.png)", ""]
+    lines += ["", f"![ours | Cycles | ΔE/10](images/{picture})", ""]
     return "\n".join(lines)
 
 
@@ -191,6 +191,7 @@ def main(argv=None) -> int:
     parser.add_argument("--samples", type=int, default=SAMPLES)
     parser.add_argument("--scenes", nargs="+", default=list(LIMITS))
     parser.add_argument("--out", default="transparent-films-cycles.md")
+    parser.add_argument("--picture", default="transparent_films.png", help="under docs/images/")
     args = parser.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -198,8 +199,8 @@ def main(argv=None) -> int:
             row = compare(name, pathlib.Path(tmp), args.size, args.samples)
             print(f"{name}: mean ΔE2000 {row['mean']:.2f}, p95 {row['p95']:.2f}", flush=True)
             rows.append(row)
-    write_picture(rows, pathlib.Path(common.ROOT) / "docs" / "images" / "transparent_films.png")
-    print(common.write_doc(args.out, report(rows, args.size, args.samples)))
+    write_picture(rows, pathlib.Path(common.ROOT) / "docs" / "images" / args.picture)
+    print(common.write_doc(args.out, report(rows, args.size, args.samples, args.picture)))
     return 0
 
 
