@@ -584,13 +584,13 @@ class ThinFilmMaterialSettings(PropertyGroup):
     # Viewing.
     transparency: EnumProperty(
         name="Transparency",
-        description="What lies behind the film: hidden, or seen through it (addon/transparency.py)",
+        description="What lies behind the film: hidden by it, or seen through it, tinted by its color",
         items=(
             (
                 "AUTO",
                 "Automatic",
-                "See through a film on air (a soap bubble: substrate = ambient, no diffuse base); "
-                "other films are opaque",
+                "See through a film on air (a soap bubble: the substrate is the surrounding medium, "
+                "no diffuse base); other films are opaque",
             ),
             ("OPAQUE", "Opaque", "The film hides what lies behind it"),
             (
