@@ -14,6 +14,7 @@ camera visibility) is restored afterwards, also when the render fails.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import pathlib
 import tempfile
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ import bpy
 import numpy as np
 
 from ..precompute import pixel_filter
+from .gpu.draw import is_wall, render_offscreen
 
 #: ``--engine`` → Blender's render engine identifier.
 ENGINES = {"EEVEE": "BLENDER_EEVEE", "WORKBENCH": "BLENDER_WORKBENCH", "CYCLES": "CYCLES"}
@@ -149,26 +151,52 @@ def view_depth(ndc_depth, projection) -> np.ndarray:
     return np.where(d >= 1.0, np.inf, dist)
 
 
-def composite(background: Background, films, film_depth, kind: str, width: float, factor: int, pad: int):
+def composite(
+    background: Background, films, film_depth, kind: str, width: float, factor: int, pad: int, transmit=None
+):
     """The final frame (H, W, 4): the films over the background, depth-tested per sample.
 
     ``films`` (H', W', 4) and ``film_depth`` (H', W', distance along the camera axis) are the
     films' pass at ``factor`` samples per pixel over the window widened by ``pad`` pixels; a
     sample shows its film where the film is nearer than the background's depth (the nearest
-    background pixel's). Film colour and coverage are filtered down with the pixel filter
-    (``kind``, ``width``) and laid over the background: C = C_film + (1 − α_film) C_background.
-    Where no film sample shows, the frame is the background exactly.
+    background pixel's). ``transmit`` (H', W', 3) or None: what each sample lets through of what
+    is behind (:func:`film_layers`: T of transparent films, 0 under an opaque film, 1 where no
+    film is); None: 0 wherever a film shows. Film colour and transmittance are filtered down with
+    the pixel filter (``kind``, ``width``) and laid over the background:
+    C = C_film + T C_background, α = 1 − (1 − α_background) mean T. Where no film sample shows,
+    the frame is the background exactly.
     """
     h, w = background.depth.shape
     rows = np.clip((np.arange(films.shape[0]) // factor) - pad, 0, h - 1)
     cols = np.clip((np.arange(films.shape[1]) // factor) - pad, 0, w - 1)
     behind = background.depth[np.ix_(rows, cols)]
-    shown = (films[..., 3] > 0.0) & (film_depth < behind)
-    layer = np.concatenate([films[..., :3] * shown[..., None], shown[..., None].astype(np.float64)], axis=-1)
+    shown = ((films[..., 3] > 0.0) & (film_depth < behind))[..., None]
+    through = np.where(shown, 0.0 if transmit is None else transmit, 1.0) * np.ones(3)
+    layer = np.concatenate([films[..., :3] * shown, through], axis=-1)
     if factor > 1:
         layer = pixel_filter.downsample(layer, kind, width, factor, pad)
-    alpha = np.clip(layer[..., 3:4], 0.0, 1.0)
+    through = np.clip(layer[..., 3:6], 0.0, 1.0)
     out = np.empty_like(background.rgba)
-    out[..., :3] = layer[..., :3] + (1.0 - alpha) * background.rgba[..., :3]
-    out[..., 3:] = alpha + (1.0 - alpha) * background.rgba[..., 3:]
+    out[..., :3] = layer[..., :3] + through * background.rgba[..., :3]
+    out[..., 3:] = 1.0 - through.mean(axis=-1, keepdims=True) * (1.0 - background.rgba[..., 3:])
     return out
+
+
+def film_layers(items, view, proj, width: int, height: int):
+    """The films' pass for :func:`composite`: (colour over black (H, W, 4), transmittance (H, W, 3)
+    or None, window depth (H, W)).
+
+    Opaque films only: one render, no transmittance. With transparent films (walls,
+    :func:`.gpu.draw.is_wall`) the frame behind them is linear in what they composite over
+    (multiply by T, then add R·L, back walls then front): so rendered once over black and once
+    over white, T = white − black per channel, exactly; their depth (they write none) comes from
+    a third render of the walls drawn as opaque surfaces.
+    """
+    black, depth = render_offscreen(items, view, proj, width, height, with_depth=True)
+    if not any(is_wall(item) for item in items):
+        return black, None, depth
+    white = render_offscreen(items, view, proj, width, height, clear=(1.0, 1.0, 1.0, 1.0))
+    solid = [dataclasses.replace(item, wall=None) if is_wall(item) else item for item in items]
+    _, wall_depth = render_offscreen(solid, view, proj, width, height, with_depth=True)
+    transmit = np.clip(white[..., :3].astype(np.float64) - black[..., :3], 0.0, 1.0)
+    return black, transmit, np.minimum(depth, wall_depth)

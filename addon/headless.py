@@ -32,7 +32,7 @@ from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
 from . import cli_args, display, frames, prefs, scene_draw, tables, world
-from .background import composite, render_background, view_depth
+from .background import composite, film_layers, render_background, view_depth
 from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
@@ -295,9 +295,9 @@ def render_scene(
             scene, width, height, engine=engine, hidden=film_objects, transparent=not background
         )
         ensure_gpu_context()
-        films, depth = render_offscreen(items, view, proj, frame_w, frame_h, with_depth=True)
+        films, transmit, depth = film_layers(items, view, proj, frame_w, frame_h)
         films, nonfinite = _finite(films.astype(np.float64), messages)
-        rgba = composite(behind, films, view_depth(depth, proj), kind, filter_width, factor, pad)
+        rgba = composite(behind, films, view_depth(depth, proj), kind, filter_width, factor, pad, transmit)
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     space = working_space()

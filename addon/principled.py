@@ -28,6 +28,7 @@ __all__ = [
     "SOCKET_ROUGHNESS",
     "SOCKET_SPECULAR_TINT",
     "SOCKET_THICKNESS",
+    "SOCKET_THIN_WALL",
     "SOCKET_TRANSMISSION",
     "diffuse_base",
     "linked_thickness_socket",
@@ -45,6 +46,8 @@ SOCKET_METALLIC = "Metallic"
 SOCKET_BASE_COLOR = "Base Color"
 SOCKET_SPECULAR_TINT = "Specular Tint"
 SOCKET_TRANSMISSION = "Transmission Weight"
+#: The thin-wall switch (Blender 5.2, a boolean input): a sheet with the film on both faces.
+SOCKET_THIN_WALL = "Thin Wall"
 
 #: Extra Material fields for a Principled preview: Cycles' film-free multiscatter compensation,
 #: where precompute offers that choice.
@@ -271,6 +274,17 @@ def _write_thickness_graph(bpy_material, node, props, thickness_range, notes: li
     return middle
 
 
+def _write_thin_wall(node, props, desc, substrate: float) -> None:
+    """Thin Wall on where the preview sees through the film as a wall (addon/transparency.py):
+    a film on air (*Automatic*) or a *Thin Sheet*; off otherwise."""
+    if SOCKET_THIN_WALL not in node.inputs:
+        return
+    choice = getattr(props, "transparency", "AUTO")
+    free = abs(substrate - float(desc.ambient)) < 1e-6
+    wall = desc.base_color is None and (choice == "SHEET" or (choice == "AUTO" and free))
+    node.inputs[SOCKET_THIN_WALL].default_value = bool(wall)
+
+
 def write_back_to_principled(bpy_material) -> list[str]:
     """Write the extension's settings into the material's Principled BSDF; returns warnings.
 
@@ -279,7 +293,8 @@ def write_back_to_principled(bpy_material) -> list[str]:
     (:func:`.thickness_nodes.build`: Noise Texture / Image / Attribute → Map Range min–max,
     replacing an earlier write), so Cycles renders the variation. Thin Film IOR the top
     layer's n at 550 nm; a dielectric substrate sets IOR (Transmission 1 unless the diffuse base
-    is on, which sets Base Color), a conductor sets Metallic 1 with Base Color = its normal-
+    is on, which sets Base Color; Thin Wall where the preview draws a wall: a film on air, a
+    *Thin Sheet*), a conductor sets Metallic 1 with Base Color = its normal-
     incidence reflectance and Specular Tint = its F82 tint, both integrated from the spectrum.
     Cycles has one film: a multilayer writes only its top layer (with a warning).
     """
@@ -325,6 +340,7 @@ def write_back_to_principled(bpy_material) -> list[str]:
             _set_socket(node, SOCKET_TRANSMISSION, 0.0, notes)
         else:
             _set_socket(node, SOCKET_TRANSMISSION, 1.0, notes)
+        _write_thin_wall(node, props, desc, substrate.real)
     _set_socket(node, SOCKET_ROUGHNESS, float(desc.roughness), notes)
     if desc.ambient != 1.0:
         notes.append(f"ambient index {desc.ambient:g} has no Principled equivalent (Cycles assumes 1)")

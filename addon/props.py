@@ -582,6 +582,26 @@ class ThinFilmMaterialSettings(PropertyGroup):
     )
 
     # Viewing.
+    transparency: EnumProperty(
+        name="Transparency",
+        description="What lies behind the film: hidden by it, or seen through it, tinted by its color",
+        items=(
+            (
+                "AUTO",
+                "Automatic",
+                "See through a film on air (a soap bubble: the substrate is the surrounding medium, "
+                "no diffuse base); other films are opaque",
+            ),
+            ("OPAQUE", "Opaque", "The film hides what lies behind it"),
+            (
+                "SHEET",
+                "Thin Sheet",
+                "A thin transparent sheet of the substrate (a window): the film on its front face, "
+                "what lies behind seen through it, tinted by the film's transmittance",
+            ),
+        ),
+        default="AUTO",
+    )
     world_lamps: BoolProperty(
         name="World Lamps",
         description=(

@@ -43,7 +43,7 @@ import numpy as np
 from ..precompute import cli_support
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, linked, tables, world, world_analysis
+from . import caches, description, linked, tables, transparency, world, world_analysis
 from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
@@ -71,6 +71,8 @@ class DrawItem:
     fallback: bool = False
     #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
     lights: np.ndarray | None = None
+    #: A transparent film's wall, (mode, η) of precompute.shading.transmit (:func:`.transparency.wall`).
+    wall: tuple | None = None
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -431,6 +433,7 @@ class _MaterialEntry:
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
     sh_order: int = 0  # the table's SH order (the lighting's l_max)
+    wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -564,8 +567,9 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     lamps back into the SH and prefilter (their light is kept, only not per direction)."""
     roughness = float(desc.roughness)
     owner = material_identity(bpy_material)
+    wall = transparency.wall(bpy_material, desc)
     film = None
-    if _needs_film(bpy_material, desc, lighting, lights):
+    if wall is not None or _needs_film(bpy_material, desc, lighting, lights):
         film = _film_for(desc, key, result, allow_bake, want_bake, owner)
     env = lighting.environment
     lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
@@ -585,6 +589,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         linked_source,
         lamps=lamps,
         sh_order=result.sh_order,
+        wall=wall,
     )
 
 
@@ -729,6 +734,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     film=entry.film,
                     fallback=entry.fallback,
                     lights=object_lights[original.name] if linked else shared_lights,
+                    wall=entry.wall,
                 )
             )
     CACHES.dirty -= seen

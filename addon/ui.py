@@ -253,6 +253,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
         layout.label(text=scene_draw.lights_summary(context.scene))
         layout.prop(settings, "colour_mode")
         layout.prop(settings, "illuminant")
+        layout.prop(settings, "transparency")
 
 
 class THINFILM_PT_quality(_SubPanel, Panel):

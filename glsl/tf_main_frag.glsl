@@ -8,6 +8,9 @@
  * in orthographic views (tf_view.camera.w = 1); the normal is flipped to face the viewer
  * (two-sided). Output: scene-linear RGB, or with TF_DISPLAY_SRGB: 2^exposure, clamp, OETF (with
  * TF_DISPLAY_LUT: 2^exposure, the scene's view through tf_display.glsl).
+ * A transparent film (TF_TRANSMIT, tf_transmit.glsl) is drawn in two blend passes: pass 1 writes
+ * (T, mean T) for a multiply blend, pass 2 (S R L, 1 - mean T) for an additive one
+ * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
  * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
@@ -26,6 +29,26 @@ void main()
 #else
   float thickness01 = 0.0;
 #endif
+#ifdef TF_TRANSMIT /* a transparent film's wall (tf_transmit.glsl, shading.transmit.shade) */
+  TFFrame fw = tf_view_aligned_frame(n, v);
+  vec3 wall_t, wall_s;
+  tf_wall(fw.cos_o, tf_table_lerp(fw.cos_o, fw.sin_o, thickness01), tf_object.material.z,
+          tf_object.material.w, wall_t, wall_s);
+  float wall_mean = dot(wall_t, vec3(1.0 / 3.0));
+#if TF_TRANSMIT == 1 /* the multiply pass: what is behind times T; alpha times mean(T) */
+#ifdef TF_SPLIT_SUM
+  if (tf_object.material.z > 1.5) { /* solid glass: the World along the exit ray replaces it */
+    wall_t = vec3(0.0);
+    wall_mean = 0.0;
+  }
+#endif
+#ifdef TF_DISPLAY_SRGB
+  wall_t = tf_srgb_oetf(clamp(wall_t, 0.0, 1.0)); /* encode(T x) ~ encode(T) encode(x) */
+#endif
+  tf_frag_color = vec4(wall_t, wall_mean);
+  return;
+#endif
+#endif
 #ifdef TF_SPLIT_SUM
   vec3 rgb = tf_shade_combined(n, v, thickness01, tf_object.material.x, tf_object.material.y);
 #else
@@ -43,10 +66,25 @@ void main()
     rgb += tf_shade_lights(fl, rl, tf_world_pos, n, v, tf_object.material.x);
   }
 #endif
+#if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 /* the add pass: R L; alpha plus 1 - mean(T) */
+  rgb *= wall_s;
+#ifdef TF_SPLIT_SUM
+  if (tf_object.material.z > 1.5) { /* solid glass: T times the World along the exit ray */
+    vec3 unused_moment;
+    float unused_weight;
+    rgb += wall_t * tf_prefiltered_lookup(tf_solid_exit(n, v, tf_object.material.w), 0.0,
+                                          unused_moment, unused_weight);
+    wall_mean = 0.0;
+  }
+#endif
+  float alpha = 1.0 - wall_mean;
+#else
+  float alpha = 1.0;
+#endif
 #ifdef TF_DISPLAY_LUT
   rgb = tf_display_lut_apply(rgb * tf_view.params.x); /* the scene's view: display_lut.apply */
 #elif defined(TF_DISPLAY_SRGB)
   rgb = tf_srgb_oetf(clamp(rgb * tf_view.params.x, 0.0, 1.0));
 #endif
-  tf_frag_color = vec4(rgb, 1.0);
+  tf_frag_color = vec4(rgb, alpha);
 }

@@ -268,7 +268,12 @@ def coated_car_window(scene):
     obj.location = (0.0, 0.0, 0.75)
     mesh.materials.append(
         film_material(
-            "Coated Glass", "COATED_CAR_WINDOW", thickness_source="NOISE", noise_scale=0.6, noise_seed=1
+            "Coated Glass",
+            "COATED_CAR_WINDOW",
+            thickness_source="NOISE",
+            noise_scale=0.6,
+            noise_seed=1,
+            transparency="SHEET",  # a window: the ground seen through it
         )
     )
     ground(scene, z=0.0)

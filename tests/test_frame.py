@@ -112,3 +112,28 @@ def test_outside_the_films_the_frame_is_eevees_render(bpy, tf, tmp_path):
     inside = np.abs(ours - theirs)[rows, cols].max(axis=-1)
     assert inside.max() > 0.05  # the extension's film differs from EEVEE's Principled look
     assert np.all(ours[..., 3] > 0.99)  # the World behind everything: opaque
+
+
+def _exr(path) -> np.ndarray:
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        return np.array(f.channels()["RGBA"].pixels, dtype=np.float64)
+
+
+def test_a_transparent_film_shows_the_eevee_frame_behind_it(bpy, tf, tmp_path):
+    """The soap film is a wall (issue 17): over the EEVEE pass its pixels are what is behind times
+    T plus the reflection, so they stay near that background (a soap film transmits ≥ 80 % per
+    wall at these angles), where the same film drawn opaque replaces it."""
+    scene, ball = _scene(bpy, tf)
+    behind = tf.background.render_background(scene, *SIZE, engine="EEVEE", hidden={ball.name})
+    seen = tf.headless.render_scene(scene, str(tmp_path / "wall.png"), *SIZE, supersample=1, engine="EEVEE")
+    ball.active_material.thinfilm_sh.transparency = "OPAQUE"
+    solid = tf.headless.render_scene(scene, str(tmp_path / "solid.png"), *SIZE, supersample=1, engine="EEVEE")
+    rows, cols = _box(bpy, scene, ball, margin=0)
+    centre = (slice(rows.start + 4, rows.stop - 4), slice(cols.start + 4, cols.stop - 4))
+    bg = behind.rgba[centre][..., :3]
+    wall = _exr(seen["exr"])[centre][..., :3]
+    opaque = _exr(solid["exr"])[centre][..., :3]
+    assert np.all(wall >= 0.6 * bg - 1e-3), float((wall - 0.6 * bg).min())  # both walls' T ≥ 0.64
+    assert np.abs(wall - bg).mean() < 0.5 * np.abs(opaque - bg).mean()

@@ -148,12 +148,23 @@ def hdri_world(bpy, scene, path, name="HDRI"):
     return world
 
 
-def film(bpy, name, thickness_nm=None, roughness=None, preset="SOAP_FILM", vary=False, substrate=None):
-    """A material previewed by the extension (``preset`` first, then the overrides)."""
+def film(
+    bpy,
+    name,
+    thickness_nm=None,
+    roughness=None,
+    preset="SOAP_FILM",
+    vary=False,
+    substrate=None,
+    transparency="OPAQUE",
+):
+    """A material previewed by the extension (``preset`` first, then the overrides); opaque unless
+    ``transparency`` says otherwise (these tests check the film's reflection)."""
     mat = bpy.data.materials.new(name)
     s = mat.thinfilm_sh
     s.preset = preset
     s.enabled = True
+    s.transparency = transparency
     s.vary_thickness = vary
     if thickness_nm is not None:
         s.layers[0].thickness_nm = thickness_nm

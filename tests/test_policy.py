@@ -42,6 +42,8 @@ def macro_name(name: str) -> str:
 def every_variant():
     for l_max, flags in itertools.product((0, 2, 5, 12), itertools.product((False, True), repeat=10)):
         yield Variant(l_max, *flags).normalised()
+    for transmit in (1, 2):  # a transparent film's blend passes (TF_TRANSMIT)
+        yield Variant(5, True, True, False, transmit=transmit).normalised()
 
 
 def float_literals(text: str) -> list[float]:

@@ -9,13 +9,14 @@ made by addon/scene_draw.py (or tests): a :class:`.mesh.MeshBatch`, a model matr
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 
 import gpu
 import numpy as np
 
-from ...precompute.shading.variant import Variant, choose_variant
+from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant
 from . import resources
 from .context import ensure_gpu_context
 from .mesh import MeshBatch
@@ -57,9 +58,12 @@ def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.n
     ).reshape(-1)
 
 
-def object_uniforms(model_matrix, roughness: float = 0.0, sh_weight: float = 1.0) -> np.ndarray:
+def object_uniforms(
+    model_matrix, roughness: float = 0.0, sh_weight: float = 1.0, wall: tuple = (0.0, 1.0)
+) -> np.ndarray:
     """:data:`.resources.OBJECT` content, flat float32: model matrix, normal matrix (inverse
-    transpose of its 3×3), material parameters."""
+    transpose of its 3×3), material parameters (roughness, SH weight and a transparent film's
+    ``wall``: its mode and relative index, precompute.shading.transmit)."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:
@@ -69,7 +73,9 @@ def object_uniforms(model_matrix, roughness: float = 0.0, sh_weight: float = 1.0
     normal = np.eye(4)
     normal[:3, :3] = normal3
     return resources.OBJECT.pack(
-        model=_columns(model), normal=_columns(normal), material=[float(roughness), float(sh_weight)]
+        model=_columns(model),
+        normal=_columns(normal),
+        material=[float(roughness), float(sh_weight), float(wall[0]), float(wall[1])],
     ).reshape(-1)
 
 
@@ -120,6 +126,10 @@ class DrawGroup:
     draws: list  # (GPUBatch, object GPUUniformBuf)
     film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
     lights: gpu.types.GPUUniformBuf | None = None  # Blender's light objects (variant.lights)
+    #: A transparent film's pass: face culling ("NONE", or "FRONT" to draw the back faces) and
+    #: blend ("NONE" for opaque films; "MULTIPLY" then "ADDITIVE_PREMULT"); no depth writes.
+    cull: str = "NONE"
+    blend: str = "NONE"
 
 
 @dataclass
@@ -144,6 +154,95 @@ class PreparedDraw:
         )
 
 
+def _add_item(
+    groups: dict, item, batch, has_thickness, display_srgb, shaders, uniforms, transmit=0, display_lut=None
+):
+    """Add one item's draw to ``groups`` (keyed by what its group binds); ``transmit``: the blend
+    pass of a transparent film (variant.TRANSMIT_PASSES), 0 for an opaque one; ``display_lut``:
+    the bound display LUT, if any."""
+    table = item.table
+    prefiltered = getattr(item, "prefiltered", None)
+    sh_weight = float(getattr(item, "sh_weight", 1.0))
+    table_ubo = getattr(table, "ubo", None)
+    film = getattr(item, "film", None)
+    lights = getattr(item, "lights", None)
+    variant = choose_variant(
+        l_max=table.l_max,
+        spectral=table.spectral,
+        thickness_rows=table.thickness_count,
+        has_thickness=has_thickness,
+        display=display_srgb,
+        prefiltered=prefiltered is not None,
+        sh_weight=sh_weight,
+        lamp_count=getattr(item.lighting, "lamp_count", 0),
+        film=film is not None,
+        film_ubo=film is not None and film.ubo is not None,
+        table_ubo=table_ubo is not None,
+        light_count=resources.light_count(lights),
+        display_lut=display_lut is not None,
+        transmit=transmit,
+    )
+    split = variant.split_sum
+    roughness = float(getattr(item, "roughness", 0.0))
+    weight = sh_weight if split else 1.0
+    wall = tuple(float(x) for x in item.wall) if variant.transmit else (0.0, 1.0)
+    model = _matrix(item.model_matrix)
+    object_ubo = uniforms.get(
+        ("object", model.tobytes(), roughness, weight, wall),
+        lambda: object_uniforms(model, roughness, weight, wall),
+    )
+    table_data = table.ubo if variant.table_ubo else table.texture
+    film_data = (film.ubo if variant.film_ubo else film.texture) if variant.film else None
+    lights_ubo = None
+    if variant.lights:
+        content = np.asarray(lights, dtype=np.float32)
+        lights_ubo = uniforms.get(("lights", content.tobytes()), lambda: content)
+    key = (
+        variant,
+        id(item.lighting.ubo),
+        id(table_data),
+        id(prefiltered.texture) if split else None,
+        id(film_data) if variant.film else None,
+        id(lights_ubo) if variant.lights else None,
+    )
+    group = groups.get(key)
+    if group is None:
+        group = groups[key] = DrawGroup(
+            variant,
+            shaders.mesh(variant),
+            item.lighting.ubo,
+            table_data,
+            prefiltered.texture if split else None,
+            [],
+            film_data,
+            lights_ubo,
+        )
+    group.draws.append((batch, object_ubo))
+
+
+def _ordered(groups: dict) -> list:
+    """Groups with equal variants next to each other, else in the order of their first item."""
+    first = {}  # variant → rank of its first item
+    for group in groups.values():
+        first.setdefault(group.variant, len(first))
+    return sorted(groups.values(), key=lambda g: first[g.variant])
+
+
+def is_wall(item) -> bool:
+    """Whether a draw item is a transparent film (its ``wall``: (mode, η) of
+    precompute.shading.transmit) with the film table that its transmittance is read from."""
+    return getattr(item, "wall", None) is not None and getattr(item, "film", None) is not None
+
+
+#: A transparent film's passes, in order: back faces (the far wall of a closed bubble), then front
+#: faces; for each, multiply what is behind by T, then add R·L.
+WALL_PASSES = tuple(
+    (cull, transmit, blend)
+    for cull in ("FRONT", "BACK")
+    for transmit, blend in ((TRANSMIT_MULTIPLY, "MULTIPLY"), (TRANSMIT_ADD, "ADDITIVE_PREMULT"))
+)
+
+
 def prepare_draw(
     items,
     view_matrix,
@@ -160,7 +259,8 @@ def prepare_draw(
     Items are grouped by (variant, lighting, table, prefiltered World) so that :func:`submit`
     binds each shader and resource once per group; the order within a group is kept. Uniform
     buffers come from ``uniforms`` (:class:`UniformCache`), keyed by the matrices and material
-    parameters they hold: an unchanged view or object reuses its buffer. Nothing is drawn.
+    parameters they hold: an unchanged view or object reuses its buffer. Transparent films
+    (:func:`is_wall`) come after the opaque ones, in the :data:`WALL_PASSES`. Nothing is drawn.
     ``display_lut`` (a :class:`.resources.DisplayLUTTexture`, with ``display_srgb``): the
     scene's view transform instead of the Standard sRGB encoding.
     """
@@ -169,72 +269,23 @@ def prepare_draw(
     uniforms = UNIFORMS if uniforms is None else uniforms
     uniforms.next_frame()
     groups: dict = {}
+    walls: dict = {TRANSMIT_MULTIPLY: {}, TRANSMIT_ADD: {}}
     for item in items:
         batch, has_thickness = _batch_of(item)
         if batch is None:
             continue
-        table = item.table
-        prefiltered = getattr(item, "prefiltered", None)
-        sh_weight = float(getattr(item, "sh_weight", 1.0))
-        table_ubo = getattr(table, "ubo", None)
-        film = getattr(item, "film", None)
-        lights = getattr(item, "lights", None)
-        variant = choose_variant(
-            l_max=table.l_max,
-            spectral=table.spectral,
-            thickness_rows=table.thickness_count,
-            has_thickness=has_thickness,
-            display=display_srgb,
-            prefiltered=prefiltered is not None,
-            sh_weight=sh_weight,
-            lamp_count=getattr(item.lighting, "lamp_count", 0),
-            film=film is not None,
-            film_ubo=film is not None and film.ubo is not None,
-            table_ubo=table_ubo is not None,
-            light_count=resources.light_count(lights),
-            display_lut=display_lut is not None,
-        )
-        split = variant.split_sum
-        roughness = float(getattr(item, "roughness", 0.0))
-        weight = sh_weight if split else 1.0
-        model = _matrix(item.model_matrix)
-        object_ubo = uniforms.get(
-            ("object", model.tobytes(), roughness, weight),
-            lambda model=model, roughness=roughness, weight=weight: object_uniforms(model, roughness, weight),
-        )
-        table_data = table.ubo if variant.table_ubo else table.texture
-        film_data = (film.ubo if variant.film_ubo else film.texture) if variant.film else None
-        lights_ubo = None
-        if variant.lights:
-            content = np.asarray(lights, dtype=np.float32)
-            lights_ubo = uniforms.get(("lights", content.tobytes()), lambda content=content: content)
-        key = (
-            variant,
-            id(item.lighting.ubo),
-            id(table_data),
-            id(prefiltered.texture) if split else None,
-            id(film_data) if variant.film else None,
-            id(lights_ubo) if variant.lights else None,
-        )
-        group = groups.get(key)
-        if group is None:
-            group = groups[key] = DrawGroup(
-                variant,
-                shaders.mesh(variant),
-                item.lighting.ubo,
-                table_data,
-                prefiltered.texture if split else None,
-                [],
-                film_data,
-                lights_ubo,
-            )
-        group.draws.append((batch, object_ubo))
-    if not groups:
+        if is_wall(item):
+            for transmit, found in walls.items():
+                _add_item(
+                    found, item, batch, has_thickness, display_srgb, shaders, uniforms, transmit, display_lut
+                )
+        else:
+            _add_item(groups, item, batch, has_thickness, display_srgb, shaders, uniforms, 0, display_lut)
+    if not groups and not walls[TRANSMIT_MULTIPLY]:
         return PreparedDraw(None, [])
-    first = {}  # variant → rank of its first item: equal variants next to each other, else item order
-    for group in groups.values():
-        first.setdefault(group.variant, len(first))
-    ordered = sorted(groups.values(), key=lambda g: first[g.variant])
+    ordered = _ordered(groups)
+    for cull, transmit, blend in WALL_PASSES:
+        ordered += [dataclasses.replace(g, cull=cull, blend=blend) for g in _ordered(walls[transmit])]
     lut = display_lut.texture if (display_lut is not None and display_srgb) else None
     return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered, lut)
 
@@ -242,9 +293,10 @@ def prepare_draw(
 def submit(prepared: PreparedDraw) -> None:
     """The GPU half of :func:`draw_items`: state, binds and draw calls; the GPU state is restored.
 
-    Depth test LESS_EQUAL with depth writes, no blending, no face culling. Face culling cannot be
-    read back from ``gpu.state`` and is left off (Blender's default); depth test, depth mask and
-    blend are restored.
+    Depth test LESS_EQUAL with depth writes, no blending, no face culling; a transparent film's
+    passes (:data:`WALL_PASSES`) blend and cull as their group says, without depth writes. Face
+    culling cannot be read back from ``gpu.state`` and is left off (Blender's default); depth test,
+    depth mask and blend are restored.
     """
     if not prepared.groups:
         return
@@ -255,7 +307,13 @@ def submit(prepared: PreparedDraw) -> None:
         gpu.state.face_culling_set("NONE")
         gpu.state.blend_set("NONE")
         shader = None
+        state = ("NONE", "NONE")
         for group in prepared.groups:
+            if (group.cull, group.blend) != state:
+                state = (group.cull, group.blend)
+                gpu.state.face_culling_set(group.cull)
+                gpu.state.blend_set(group.blend)
+                gpu.state.depth_mask_set(group.blend == "NONE")
             if group.shader is not shader:
                 shader = group.shader
                 shader.bind()
@@ -280,6 +338,7 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.uniform_block(resources.OBJECT.name, object_ubo)
                 batch.draw(shader)
     finally:
+        gpu.state.face_culling_set("NONE")
         saved.restore()
 
 
@@ -301,9 +360,10 @@ def draw_items(
     (:class:`.resources.Lighting`); optionally ``.prefiltered``
     (:class:`.resources.PrefilterTexture`), ``.film`` (:class:`.resources.FilmTexture`),
     ``.lights`` (:func:`.resources.lights_content`: Blender's light objects, shaded with the
-    film), ``.roughness`` and ``.sh_weight`` (the split sum). ``display_lut``: the scene's view
-    transform (:class:`.resources.DisplayLUTTexture`). :func:`prepare_draw` then :func:`submit`;
-    see there.
+    film), ``.roughness`` and ``.sh_weight`` (the split sum), ``.wall`` (a transparent film: (mode, η)
+    of precompute.shading.transmit, drawn with its ``.film`` in blend passes over what the
+    framebuffer holds). ``display_lut``: the scene's view transform
+    (:class:`.resources.DisplayLUTTexture`). :func:`prepare_draw` then :func:`submit`; see there.
     """
     submit(
         prepare_draw(
@@ -379,11 +439,12 @@ def render_offscreen(
     depth_from=None,
     shaders=None,
     with_depth: bool = False,
+    clear=(0.0, 0.0, 0.0, 0.0),
 ):
     """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first
     (with ``with_depth``: and the depth buffer, (H, W) window depth in [0, 1], 1 where nothing).
 
-    Order: clear (colour 0, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
+    Order: clear (colour ``clear``, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
     scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
     bound) → the ``background`` equirect image where depth is still 1 → the items, depth-tested.
     Alpha is 1 where anything was drawn and 0 elsewhere (without a background).
@@ -396,7 +457,7 @@ def render_offscreen(
     try:
         with offscreen.bind():
             fb = gpu.state.active_framebuffer_get()
-            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            fb.clear(color=tuple(float(c) for c in clear), depth=1.0)
             with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
                 if depth_from is not None:
                     depth_from(offscreen)

@@ -190,7 +190,7 @@ OBJECT = Block(
     (
         Member("model", 4, "model matrix, columns"),
         Member("normal", 4, "normal matrix (inverse transpose of the model's 3x3), columns"),
-        Member("material", None, "x: roughness, y: SH weight of the split-sum blend"),
+        Member("material", None, "x: roughness, y: SH weight of the split-sum blend, z, w: wall mode, eta"),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).

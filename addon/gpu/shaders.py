@@ -168,6 +168,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         roots.append("tf_lights.glsl")
     if variant.split_sum:
         roots.append("tf_split_sum.glsl")
+    if variant.transmit:
+        roots.append("tf_transmit.glsl")
     rest = chunk_order([*roots, "tf_main_frag.glsl"], search, done=joined)
     info.fragment_source(library + "\n" + join_chunks(rest, search))
     return info, iface
@@ -227,6 +229,7 @@ class ShaderCache:
         film_ubo: bool = False,
         lights: bool = False,
         display_lut: bool = False,
+        transmit: int = 0,
     ):
         """The mesh shader of a variant given field by field (see :class:`Variant`)."""
         return self.mesh(
@@ -242,6 +245,7 @@ class ShaderCache:
                 film_ubo,
                 lights,
                 display_lut,
+                transmit,
             )
         )
 

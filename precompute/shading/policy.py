@@ -101,6 +101,15 @@ MIN_LIGHT_DISTANCE = 1e-4
 LIGHT_KINDS = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
 
 # ----------------------------------------------------------------------------------------------
+# Transparent films (shading/transmit.py)
+# ----------------------------------------------------------------------------------------------
+#: Cap of a sheet's reflection scale R / r where the film barely reflects (an AR coating over a
+#: reflecting back face: S ≈ 9 at r = 0.5 %); the cap only guards r → 0 (docs/transparent-films.md).
+WALL_SCALE_MAX = 16.0
+#: Smallest reflectance and denominator a wall's formulas divide by (r → 0, r·R_b → 1).
+WALL_GUARD = 1e-6
+
+# ----------------------------------------------------------------------------------------------
 # Guards
 # ----------------------------------------------------------------------------------------------
 #: Smallest cosine the shaders divide by (grazing views): constants.MIN_COS.
@@ -167,6 +176,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_MAX_LIGHTS``, ``TF_AREA_SAMPLES``, ``TF_AREA_LOBE_SCALE``, ``TF_AREA_MIN_WIDTH``,
       ``TF_MIN_LIGHT_DISTANCE``, ``TF_LIGHT_<KIND>``: the light objects' rules (:data:`MAX_LIGHTS`
       … :data:`LIGHT_KINDS`);
+    - ``TF_WALL_SCALE_MAX``, ``TF_WALL_GUARD``: :data:`WALL_SCALE_MAX`, :data:`WALL_GUARD`;
     - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``: the guards;
     - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
     - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
@@ -183,6 +193,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_AREA_LOBE_SCALE", glsl_float(AREA_LOBE_SCALE)),
         ("TF_AREA_MIN_WIDTH", glsl_float(AREA_MIN_WIDTH)),
         *((f"TF_LIGHT_{kind}", str(code)) for kind, code in LIGHT_KINDS.items()),
+        ("TF_WALL_SCALE_MAX", glsl_float(WALL_SCALE_MAX)),
+        ("TF_WALL_GUARD", glsl_float(WALL_GUARD)),
         ("TF_MIN_COS", glsl_float(MIN_COS)),
         ("TF_MIN_ALPHA", glsl_float(MIN_ALPHA)),
         ("TF_GIMBAL_SIN", glsl_float(GIMBAL_SIN)),

@@ -20,6 +20,12 @@ UBO_LIMIT_BYTES = 16384
 UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
 
 
+#: A transparent film's passes (``TF_TRANSMIT``): first multiply what is behind by T, then add R·L.
+TRANSMIT_MULTIPLY = 1
+TRANSMIT_ADD = 2
+TRANSMIT_PASSES = (TRANSMIT_MULTIPLY, TRANSMIT_ADD)
+
+
 def fits_uniform_buffer(layers: int, rows: int, columns: int) -> bool:
     """Whether a table of ``layers`` × ``rows`` × ``columns`` RGBA texels fits :data:`UBO_TEXELS`."""
     return int(layers) * int(rows) * int(columns) <= UBO_TEXELS
@@ -51,11 +57,15 @@ class Variant(NamedTuple):
     #: With ``display``: the scene's view transform through the baked display LUT
     #: (``TF_DISPLAY_LUT``, tf_display.glsl) instead of the Standard sRGB encoding.
     display_lut: bool = False
+    #: A transparent film's blend pass (``TF_TRANSMIT``, tf_transmit.glsl, the film texture):
+    #: 0 opaque, :data:`TRANSMIT_MULTIPLY` (writes T) or :data:`TRANSMIT_ADD` (writes R·L).
+    transmit: int = 0
 
     @property
     def film(self) -> bool:
-        """The film's reflectance table is read (for the World's lamps or the light objects)."""
-        return bool(self.lamps or self.lights)
+        """The film's reflectance table is read (for the World's lamps, the light objects or a
+        transparent film's transmittance)."""
+        return bool(self.lamps or self.lights or self.transmit)
 
     @property
     def moment(self) -> bool:
@@ -75,10 +85,17 @@ class Variant(NamedTuple):
             bool(self.table_ubo),
             bool(self.split_sum and self.split_only),
             bool(self.lamps),
-            bool((self.lamps or self.lights) and self.film_ubo),
+            bool((self.lamps or self.lights or self.transmit) and self.film_ubo),
             bool(self.lights),
             bool(self.display and self.display_lut),
+            int(self.transmit) if int(self.transmit) in TRANSMIT_PASSES else 0,
         )
+
+    def _display_switches(self) -> list[tuple[str, str]]:
+        """The display encoding's ``#define``s: Standard sRGB, and the scene's view LUT."""
+        if not self.display:
+            return []
+        return [("TF_DISPLAY_SRGB", "1")] + ([("TF_DISPLAY_LUT", "1")] if self.display_lut else [])
 
     def switches(self) -> tuple[tuple[str, str], ...]:
         """The variant's own ``#define``s (name, value), in the order the shader declares them."""
@@ -87,10 +104,7 @@ class Variant(NamedTuple):
             out.append(("TF_SPECTRAL", "1"))
         if self.vary_thickness:
             out.append(("TF_VARY_THICKNESS", "1"))
-        if self.display:
-            out.append(("TF_DISPLAY_SRGB", "1"))
-            if self.display_lut:
-                out.append(("TF_DISPLAY_LUT", "1"))
+        out += self._display_switches()
         if self.split_sum:
             out.append(("TF_SPLIT_SUM", "1"))
             if self.split_only:
@@ -101,6 +115,8 @@ class Variant(NamedTuple):
             out.append(("TF_LAMPS", "1"))
         if self.lights:
             out.append(("TF_LIGHTS", "1"))
+        if self.transmit:
+            out.append(("TF_TRANSMIT", str(int(self.transmit))))
         if self.film and self.film_ubo:
             out.append(("TF_FILM_UBO", "1"))
         if self.table_ubo:
@@ -128,6 +144,7 @@ def choose_variant(
     table_ubo: bool = False,
     light_count: int = 0,
     display_lut: bool = False,
+    transmit: int = 0,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -143,6 +160,8 @@ def choose_variant(
       :func:`fits_uniform_buffer`);
     - ``light_count``: Blender's light objects in the frame; their loop runs with the film table;
     - ``display_lut``: a display LUT is bound (the scene's view transform, with ``display``).
+    - ``transmit``: the blend pass of a transparent film (:data:`TRANSMIT_PASSES`, 0 opaque); it
+      reads the film table, which the item must then carry.
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -156,7 +175,8 @@ def choose_variant(
         table_ubo=bool(table_ubo),
         split_only=split and float(sh_weight) <= 0.0,
         lamps=lamps,
-        film_ubo=(lamps or lights) and bool(film_ubo),
+        film_ubo=(lamps or lights or bool(transmit)) and bool(film_ubo),
         lights=lights,
         display_lut=bool(display) and bool(display_lut),
+        transmit=int(transmit) if bool(film) else 0,
     )

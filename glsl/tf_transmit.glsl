@@ -1,0 +1,75 @@
+#include "tf_lamps.glsl"
+
+/* tf_transmit.glsl: a transparent film's wall, its transmittance T and reflection scale S.
+ *
+ * numpy counterpart: shading.transmit (wall, white_reflectance, shade). From the film's
+ * reflectance r per channel at the view cosine (texture tf_film, layer 0, or the row sums of
+ * layers 0..2 with TF_SPECTRAL; read by tf_film_at of tf_lamps.glsl), evaluated once at the
+ * macro view angle. Wall mode (tf_object.material.z) and the sheet's relative index eta
+ * (tf_object.material.w): shading.transmit.WALL_SHEET (0):
+ *   Rb = Fresnel(u, eta), T = (1 - r)(1 - Rb) / (1 - r Rb), S = 1 + (1 - r)^2 Rb / ((1 - r Rb) r);
+ * WALL_CYCLES (1, Cycles' thin wall): T = (1 - r) / (1 + r), S = 2 / (1 + r);
+ * WALL_SOLID (2, solid glass of index eta): T = (1 - r)^2, S = 1, and what is behind is replaced by
+ * the World seen along tf_solid_exit (with TF_SPLIT_SUM: the prefiltered World's sharpest level).
+ * S is capped at TF_WALL_SCALE_MAX (policy.WALL_SCALE_MAX).
+ */
+
+/* Unpolarised Fresnel reflectance at cos_i of an interface of relative index eta (1 under TIR). */
+float tf_fresnel_dielectric(float cos_i, float eta)
+{
+  float c = clamp(cos_i, 0.0, 1.0);
+  float g2 = eta * eta - 1.0 + c * c;
+  if (g2 <= 0.0) {
+    return 1.0;
+  }
+  float g = sqrt(g2);
+  float a = (g - c) / max(g + c, 1e-30);
+  float b = (c * (g + c) - 1.0) / max(c * (g - c) + 1.0, 1e-30);
+  return clamp(0.5 * a * a * (1.0 + b * b), 0.0, 1.0);
+}
+
+/* The film's reflectance of white light per channel at cosine u (shading.transmit.white_reflectance). */
+vec3 tf_film_white(float u, TFLerp r)
+{
+#ifdef TF_SPECTRAL
+  return vec3(dot(tf_film_at(u, r, 0), vec3(1.0)),
+              dot(tf_film_at(u, r, 1), vec3(1.0)),
+              dot(tf_film_at(u, r, 2), vec3(1.0)));
+#else
+  return tf_film_at(u, r, 0);
+#endif
+}
+
+/* T and S of the wall at view cosine cos_v (shading.transmit.wall). */
+void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 s)
+{
+  float u = clamp(cos_v, 0.0, 1.0);
+  vec3 refl = clamp(tf_film_white(u, r), vec3(0.0), vec3(1.0));
+  if (mode > 1.5) { /* WALL_SOLID: in through the film, out through it again (reciprocity) */
+    t = (vec3(1.0) - refl) * (vec3(1.0) - refl);
+    s = vec3(1.0);
+    return;
+  }
+  if (mode > 0.5) {
+    t = (vec3(1.0) - refl) / (vec3(1.0) + refl);
+    s = vec3(2.0) / (vec3(1.0) + refl);
+    return;
+  }
+  float rb = tf_fresnel_dielectric(max(u, TF_MIN_COS), eta);
+  vec3 denominator = max(vec3(1.0) - refl * rb, vec3(TF_WALL_GUARD));
+  vec3 one_minus = vec3(1.0) - refl;
+  t = one_minus * (1.0 - rb) / denominator;
+  vec3 extra = one_minus * one_minus * rb / denominator;
+  s = min(vec3(1.0) + extra / max(refl, vec3(TF_WALL_GUARD)), vec3(TF_WALL_SCALE_MAX));
+}
+
+/* The direction a ray leaves a glass sphere of index eta it entered at normal n from the viewer
+ * (v): turned towards -n by 2 (theta_i - theta_t) (shading.transmit.solid_exit). */
+vec3 tf_solid_exit(vec3 n, vec3 v, float eta)
+{
+  float ci = clamp(dot(n, v), 0.0, 1.0);
+  float si = sqrt(max(1.0 - ci * ci, 0.0));
+  float deviation = 2.0 * (asin(min(si, 1.0)) - asin(min(si / max(eta, TF_WALL_GUARD), 1.0)));
+  vec3 w = tf_safe_normalize(ci * v - n, vec3(0.0));
+  return tf_safe_normalize(-cos(deviation) * v + sin(deviation) * w, -v);
+}

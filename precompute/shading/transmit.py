@@ -1,0 +1,128 @@
+"""A transparent film's wall: its transmittance and reflection scale (numpy twin of glsl/tf_transmit.glsl).
+
+A film drawn as a *wall* (a soap bubble, a thin sheet of coated glass, a Principled BSDF with
+*Thin Wall* and *Transmission Weight*) lets what lies behind it through, multiplied per channel
+by the wall's transmittance T, and reflects R·L. The draw composites with two blend passes over
+what is already in the frame: multiply by T, then add R·L (addon/gpu/draw.py). Both factors come
+from the film's reflectance r(u) per channel at the view cosine u = n·v
+(:class:`precompute.film_colour.FilmTable`: Cycles' per-channel film in the per-channel mode,
+the row sums of the 3×3 matrices, white light E, in the spectral mode), evaluated once at the
+macro view angle, as Cycles' thin wall does. The film is lossless (no absorption in a layer
+and a real substrate): what it does not reflect it transmits, r + t = 1 per channel.
+
+Two walls (``mode``):
+
+- :data:`WALL_SHEET` — the extension's own (physical) wall: the film on the front face of a
+  sheet of relative index η (the substrate over the ambient), the back face bare; the sheet's
+  internal reflections summed incoherently. The back face reflects R_b = Fresnel(u, η) (the
+  reflectance from inside at the refracted angle equals the one from outside at u, reciprocity):
+  T = (1 − r)(1 − R_b) / (1 − r R_b), R = r + (1 − r)² R_b / (1 − r R_b). A free-standing film
+  (a soap bubble: η = 1) has R_b = 0: T = 1 − r, R = r.
+- :data:`WALL_CYCLES` — Cycles' *Thin Wall* (``bsdf_thin_glass_fresnel``, Blender 5.2): the film
+  on both faces of an infinitely thin sheet, the series t' = t₁t₂ / (1 − r₂²), r' = r₁ + t' r₂ with
+  r₂ = r₁ = r, t₂ = t₁ = 1 − r (a lossless stack reflects the same from both sides at
+  Snell-related angles): T = (1 − r) / (1 + r), R = 2r / (1 + r). A Principled soap bubble
+  (IOR 1, the film on air) thus reflects as two films, where one real soap film reflects r.
+
+- :data:`WALL_SOLID` — solid glass of index η (a Principled BSDF with *Transmission* and no *Thin
+  Wall*): the light enters through the film and leaves through it again (the film on every
+  interface, as Cycles), T = (1 − r)², S = 1, internal reflections left out; what is behind is
+  replaced by the World seen along :func:`solid_exit` (the ray through a sphere of that glass),
+  read from the prefiltered World's sharpest level where the draw has one (the split sum), else
+  seen straight through.
+
+The reflection is the film's shaded reflection (the baked table: r per microfacet) times the
+scale S = R / r per channel, capped at :data:`.policy.WALL_SCALE_MAX` where r → 0; exact for a
+smooth film, where the half vector is the normal. In the spectral mode T and S are per channel
+of white light (a diagonal approximation of the 3×3 transmission).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .lamps import film_at, thickness_lerp
+from .policy import MIN_COS, WALL_GUARD, WALL_SCALE_MAX
+
+#: The extension's physical wall: the film on the front of a sheet of relative index η.
+WALL_SHEET = 0
+#: Cycles' Thin Wall: the film on both faces, the slab series of ``bsdf_thin_glass_fresnel``.
+WALL_CYCLES = 1
+#: Solid glass of index η (Principled Transmission without Thin Wall): in and out through the film.
+WALL_SOLID = 2
+#: The walls by name (the draw items' ``wall``).
+WALLS = {"sheet": WALL_SHEET, "cycles": WALL_CYCLES, "solid": WALL_SOLID}
+
+
+def fresnel_dielectric(cos_i, eta) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a dielectric interface of relative index η at cos θᵢ
+    (1 under total internal reflection), as tf_fresnel_dielectric."""
+    c = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
+    eta = float(eta)
+    g2 = eta * eta - 1.0 + c * c
+    g = np.sqrt(np.maximum(g2, 0.0))
+    a = (g - c) / np.maximum(g + c, 1e-30)
+    b = (c * (g + c) - 1.0) / np.maximum(c * (g - c) + 1.0, 1e-30)
+    return np.where(g2 > 0.0, np.clip(0.5 * a * a * (1.0 + b * b), 0.0, 1.0), 1.0)
+
+
+def wall(r, cos_v, mode: int, eta: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """(T, S): the wall's transmittance and reflection scale per channel from the film's
+    reflectance ``r`` (…, 3) at the view cosine ``cos_v`` (…), for ``mode`` (:data:`WALL_SHEET`
+    with relative index ``eta``, or :data:`WALL_CYCLES`). See the module's docstring."""
+    r = np.clip(np.asarray(r, dtype=np.float64), 0.0, 1.0)
+    if int(mode) == WALL_SOLID:
+        return (1.0 - r) ** 2, np.ones_like(r)
+    if int(mode) == WALL_CYCLES:
+        return (1.0 - r) / (1.0 + r), 2.0 / (1.0 + r)
+    rb = fresnel_dielectric(np.clip(np.asarray(cos_v, dtype=np.float64), MIN_COS, 1.0), eta)[..., None]
+    denominator = np.maximum(1.0 - r * rb, WALL_GUARD)
+    t = (1.0 - r) * (1.0 - rb) / denominator
+    extra = (1.0 - r) ** 2 * rb / denominator
+    s = np.minimum(1.0 + extra / np.maximum(r, WALL_GUARD), WALL_SCALE_MAX)
+    return t, s
+
+
+def white_reflectance(film, rows, u) -> np.ndarray:
+    """The film's reflectance of white light per channel (N, 3) at cosines ``u`` (N,) and the
+    thickness ``rows`` of :func:`.lamps.thickness_lerp` (the spectral rows summed), as
+    tf_film_white."""
+    f = film_at(film, film.reflectance, rows, u)
+    return f.sum(axis=-1) if film.spectral else f
+
+
+def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=None):
+    """(T, S), each (N, 3), of a wall at unit ``normals`` and view directions ``views`` (the
+    normal faces the viewer, as in the shader); ``film``: a
+    :class:`precompute.film_colour.FilmTable`. Mirrored by tf_wall (glsl/tf_transmit.glsl)."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    cos_v = np.clip(np.abs(np.sum(n * v, axis=-1)), 0.0, 1.0)
+    rows = thickness_lerp(film, thickness_position, n.shape[0])
+    return wall(white_reflectance(film, rows, cos_v), cos_v, mode, eta)
+
+
+def solid_exit(normals, views, eta: float) -> np.ndarray:
+    """The direction (N, 3) a ray leaves a glass sphere of index η through which it entered at the
+    unit normal ``normals`` from the viewer (unit ``views``): the incident direction −v turned
+    towards −n by the sphere's deviation 2(θᵢ − θₜ) (no internal reflection), as tf_solid_exit."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    ci = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
+    si = np.sqrt(np.maximum(1.0 - ci * ci, 0.0))
+    deviation = 2.0 * (np.arcsin(np.minimum(si, 1.0)) - np.arcsin(np.minimum(si / max(eta, WALL_GUARD), 1.0)))
+    w = ci[:, None] * v - n
+    norm = np.linalg.norm(w, axis=-1, keepdims=True)
+    w = np.where(norm > 1e-15, w / np.maximum(norm, 1e-300), 0.0)
+    out = -np.cos(deviation)[:, None] * v + np.sin(deviation)[:, None] * w
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+def composite(behind, reflected, t) -> np.ndarray:
+    """What the two blend passes leave in the frame: ``behind`` × T + ``reflected`` (…, 3)."""
+    return np.asarray(behind, dtype=np.float64) * t + np.asarray(reflected, dtype=np.float64)
+
+
+def coverage(t) -> np.ndarray:
+    """The alpha a wall writes over an empty background: 1 − mean(T) (…,)."""
+    return 1.0 - np.mean(np.asarray(t, dtype=np.float64), axis=-1)
