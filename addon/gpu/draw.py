@@ -120,6 +120,7 @@ class DrawGroup:
     draws: list  # (GPUBatch, object GPUUniformBuf)
     film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
     lights: gpu.types.GPUUniformBuf | None = None  # Blender's light objects (variant.lights)
+    grid: gpu.types.GPUTexture | None = None  # the outgoing-radiance grid (variant.grid)
 
 
 @dataclass
@@ -174,6 +175,7 @@ def prepare_draw(
         table_ubo = getattr(table, "ubo", None)
         film = getattr(item, "film", None)
         lights = getattr(item, "lights", None)
+        grid = getattr(item, "grid", None)
         variant = choose_variant(
             l_max=table.l_max,
             spectral=table.spectral,
@@ -187,6 +189,7 @@ def prepare_draw(
             film_ubo=film is not None and film.ubo is not None,
             table_ubo=table_ubo is not None,
             light_count=resources.light_count(lights),
+            grid=grid is not None,
         )
         split = variant.split_sum
         roughness = float(getattr(item, "roughness", 0.0))
@@ -209,6 +212,7 @@ def prepare_draw(
             id(prefiltered.texture) if split else None,
             id(film_data) if variant.film else None,
             id(lights_ubo) if variant.lights else None,
+            id(grid.texture) if variant.grid else None,
         )
         group = groups.get(key)
         if group is None:
@@ -221,6 +225,7 @@ def prepare_draw(
                 [],
                 film_data,
                 lights_ubo,
+                grid.texture if variant.grid else None,
             )
         group.draws.append((batch, object_ubo))
     if not groups:
@@ -267,6 +272,8 @@ def submit(prepared: PreparedDraw) -> None:
                     shader.uniform_sampler(resources.FILM_SAMPLER.name, group.film)
             if group.lights is not None:
                 shader.uniform_block(resources.LIGHTS.name, group.lights)
+            if group.grid is not None:
+                shader.uniform_sampler(resources.RADIANCE_GRID_SAMPLER.name, group.grid)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(resources.OBJECT.name, object_ubo)
                 batch.draw(shader)
@@ -291,7 +298,9 @@ def draw_items(
     (:class:`.resources.Lighting`); optionally ``.prefiltered``
     (:class:`.resources.PrefilterTexture`), ``.film`` (:class:`.resources.FilmTexture`),
     ``.lights`` (:func:`.resources.lights_content`: Blender's light objects, shaded with the
-    film), ``.roughness`` and ``.sh_weight`` (the split sum). :func:`prepare_draw` then :func:`submit`;
+    film), ``.grid`` (:class:`.resources.RadianceGridTexture`: the SH half of a constant-thickness
+    film, variant.choose_variant), ``.roughness`` and ``.sh_weight`` (the split sum).
+    :func:`prepare_draw` then :func:`submit`;
     see there.
     """
     submit(

@@ -88,11 +88,13 @@ def join_chunks(names, search=(GLSL_DIR,)) -> str:
     return "\n".join(f"/* ---- {n} ---- */\n{_parse(_find(n, tuple(search), None))[1]}" for n in names)
 
 
-def _library(l_max: int, reference_rotation: Path | None) -> tuple[str, list[str], tuple[Path, ...]]:
+def _library(
+    l_max: int, reference_rotation: Path | None, grid: bool = False
+) -> tuple[str, list[str], tuple[Path, ...]]:
     """(source, chunks joined, search folders) of :func:`shading_library`."""
     if reference_rotation is None:
         chunks = chunk_order([LIBRARY_ROOT])
-        generated = banded_source(l_max) if l_max > 2 else ""
+        generated = banded_source(l_max) if l_max > 2 and not grid else ""
         source = "\n".join([define_block([X90_GENERATED]), join_chunks(chunks), generated])
         return source, chunks, (GLSL_DIR,)
     path = Path(reference_rotation)
@@ -101,7 +103,7 @@ def _library(l_max: int, reference_rotation: Path | None) -> tuple[str, list[str
     return join_chunks(chunks, search), chunks, search
 
 
-def shading_library(l_max: int, *, reference_rotation: Path | None = None) -> str:
+def shading_library(l_max: int, *, reference_rotation: Path | None = None, grid: bool = False) -> str:
     """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
 
     By default the product's library (``TF_X90_GENERATED``): for l_max ≤ 2 the rotation straight
@@ -109,8 +111,10 @@ def shading_library(l_max: int, *, reference_rotation: Path | None = None) -> st
     generated band by band (codegen.banded_source). ``reference_rotation``: a chunk defining
     ``tf_local_coefficients`` (the generic z-y-z loops, tests/glsl/tf_sh_rotate_loops.glsl; never
     shipped), which ``tf_shade_at`` then calls at every order instead (same results, slower).
+    ``grid``: the ``TF_RADIANCE_GRID`` library, whose SH sum is read from the outgoing-radiance
+    grid: the generated code is left out (it is what makes high orders slow to compile).
     """
-    return _library(l_max, reference_rotation)[0]
+    return _library(l_max, reference_rotation, grid)[0]
 
 
 def _declare(info, resource) -> None:
@@ -135,6 +139,8 @@ def declare_shading_resources(info, variant: Variant) -> None:
         _declare(info, resources.FILM if variant.film_ubo else resources.FILM_SAMPLER)
     if variant.lights:
         _declare(info, resources.LIGHTS)
+    if variant.grid:
+        _declare(info, resources.RADIANCE_GRID_SAMPLER)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.LIGHTING)
     _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
@@ -158,7 +164,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
-    library, joined, search = _library(variant.l_max, reference_rotation)
+    library, joined, search = _library(variant.l_max, reference_rotation, variant.grid)
     roots = []  # joined only where the variant declares their resources
     if variant.lamps:
         roots.append("tf_lamps.glsl")
@@ -224,6 +230,7 @@ class ShaderCache:
         lamps: bool = False,
         film_ubo: bool = False,
         lights: bool = False,
+        grid: bool = False,
     ):
         """The mesh shader of a variant given field by field (see :class:`Variant`)."""
         return self.mesh(
@@ -238,6 +245,7 @@ class ShaderCache:
                 lamps,
                 film_ubo,
                 lights,
+                grid,
             )
         )
 

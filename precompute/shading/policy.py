@@ -52,6 +52,25 @@ def uses_moment(l_max: int, split_only: bool) -> bool:
 
 
 # ----------------------------------------------------------------------------------------------
+# Outgoing-radiance grid (shading/radiance_grid.py, tf_radiance_grid.glsl)
+# ----------------------------------------------------------------------------------------------
+#: Cells of the outgoing-radiance grid: mirror direction (W azimuth × H polar, equirect), view angle
+#: θo (T nodes over 0…90°) and view azimuth ψ about the mirror direction (Ψ, periodic); 590 k cells,
+#: 4.5 MiB in RGBA16F: l = 12 to mean ΔE2000 < 1 of the per-pixel SH (docs/tuning.md#radiance-grid).
+GRID_SHAPE = (64, 32, 12, 24)
+#: From this SH order on a constant-thickness film's SH half is read from the grid: below it the
+#: per-pixel sum costs about what the grid's four fetches do (docs/tuning.md#radiance-grid).
+GRID_MIN_L = 3
+
+
+def uses_grid(l_max: int, vary_thickness: bool, sh_weight: float) -> bool:
+    """Whether a film's SH half is read from the outgoing-radiance grid (see :data:`GRID_MIN_L`):
+    an SH half (``sh_weight`` > 0) at an order from GRID_MIN_L on, and one thickness (a varying
+    thickness keeps the per-pixel SH: one grid per thickness row would not fit)."""
+    return int(l_max) >= GRID_MIN_L and not vary_thickness and float(sh_weight) > 0.0
+
+
+# ----------------------------------------------------------------------------------------------
 # Prefiltered levels
 # ----------------------------------------------------------------------------------------------
 #: Prefiltered levels of the split sum: no roughness far from one (docs/tuning.md#level-ladder).
@@ -157,7 +176,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``: the guards;
     - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
     - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
-      k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse.
+      k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
+    - ``TF_GRID_VIEWS``, ``TF_GRID_AZIMUTHS``: the θo nodes and view azimuths of :data:`GRID_SHAPE`.
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -175,4 +195,6 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_GRAZING(x)", glsl_power("x", GRAZING_EXPONENT)),
         ("TF_LADDER_ROUGHNESS(x)", glsl_power("x", LEVEL_EXPONENT)),
         ("TF_LADDER_POSITION(r)", glsl_power("r", 1.0 / LEVEL_EXPONENT)),
+        ("TF_GRID_VIEWS", str(int(GRID_SHAPE[2]))),
+        ("TF_GRID_AZIMUTHS", str(int(GRID_SHAPE[3]))),
     )

@@ -48,6 +48,9 @@ class Variant(NamedTuple):
     film_ubo: bool = False
     #: Blender's light objects shaded per sample (``TF_LIGHTS``, tf_lights.glsl, the film texture).
     lights: bool = False
+    #: The SH half read from the outgoing-radiance grid (``TF_RADIANCE_GRID``,
+    #: tf_radiance_grid.glsl; policy.uses_grid): no SH code is compiled.
+    grid: bool = False
 
     @property
     def film(self) -> bool:
@@ -74,6 +77,7 @@ class Variant(NamedTuple):
             bool(self.lamps),
             bool((self.lamps or self.lights) and self.film_ubo),
             bool(self.lights),
+            bool(self.grid and not self.split_only),
         )
 
     def switches(self) -> tuple[tuple[str, str], ...]:
@@ -99,6 +103,8 @@ class Variant(NamedTuple):
             out.append(("TF_FILM_UBO", "1"))
         if self.table_ubo:
             out.append(("TF_TABLE_UBO", "1"))
+        if self.grid:
+            out.append(("TF_RADIANCE_GRID", "1"))
         return tuple(out)
 
     def defines(self) -> tuple[tuple[str, str], ...]:
@@ -121,6 +127,7 @@ def choose_variant(
     film_ubo: bool = False,
     table_ubo: bool = False,
     light_count: int = 0,
+    grid: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -134,15 +141,19 @@ def choose_variant(
       runs with both; ``film_ubo``: the film table is in a uniform buffer;
     - ``table_ubo``: the table is drawn from its uniform buffer (policy.TABLE_UBO_DEVICES and
       :func:`fits_uniform_buffer`);
-    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table.
+    - ``light_count``: Blender's light objects in the frame; their loop runs with the film table;
+    - ``grid``: the item has an outgoing-radiance grid; its SH half is read from it where
+      policy.uses_grid says so (constant thickness, l_max ≥ GRID_MIN_L, an SH half drawn).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
     lights = bool(film) and int(light_count) > 0
+    vary = bool(has_thickness) and int(thickness_rows) > 1
+    weight = float(sh_weight) if split else 1.0
     return Variant(
         l_max=int(l_max),
         spectral=bool(spectral),
-        vary_thickness=bool(has_thickness) and int(thickness_rows) > 1,
+        vary_thickness=vary,
         display=bool(display),
         split_sum=split,
         table_ubo=bool(table_ubo),
@@ -150,4 +161,5 @@ def choose_variant(
         lamps=lamps,
         film_ubo=(lamps or lights) and bool(film_ubo),
         lights=lights,
+        grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
     )
