@@ -39,7 +39,7 @@ from ..precompute import cli_support, film_colour, prefilter
 from ..precompute.environment import Environment, analyse_world
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, linked, panorama, tables, world, world_key
+from . import caches, description, linked, panorama, radiance_grids, tables, world, world_key
 from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
@@ -66,6 +66,8 @@ class DrawItem:
     fallback: bool = False
     #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
     lights: np.ndarray | None = None
+    #: The film's outgoing-radiance grid (:mod:`.radiance_grids`), or None (per-pixel SH).
+    grid: resources.RadianceGridTexture | None = None
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -441,6 +443,7 @@ class _MaterialEntry:
     linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
     fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
+    grid: resources.RadianceGridTexture | None = None  # its SH half tabulated (policy.uses_grid)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -550,11 +553,12 @@ def _material_entry(
     props = getattr(bpy_material, "thinfilm_sh", None)
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
+    buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
     return _MaterialEntry(
         desc,
         key,
         table_texture(key, result),
-        lighting_for(lighting, result.sh_order, roughness, lamps),
+        buffer,
         roughness,
         policy.sh_weight(roughness),
         film_texture(key, result) if lamps or lights else None,
@@ -562,7 +566,20 @@ def _material_entry(
         thickness_key,
         linked_source,
         lamps=lamps,
+        grid=_grid_for(key, desc, result, lighting, buffer, lamps, wait=allow_bake),
     )
+
+
+def _grid_for(desc_key: str, desc, result, lighting: WorldLighting, buffer, lamps: bool, *, wait: bool):
+    """The film's outgoing-radiance grid where policy.uses_grid reads one (a constant thickness,
+    an SH half at l_max ≥ GRID_MIN_L), else None; None too while the worker builds it
+    (:func:`.radiance_grids.grid_for`; ``wait``: built here, for headless frames)."""
+    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
+    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
+    if not policy.uses_grid(result.sh_order, vary, weight):
+        return None
+    key = f"{desc_key}|{lighting.key}|{result.sh_order}|{round(float(desc.roughness), 6)}|{bool(lamps)}"
+    return radiance_grids.grid_for(key, result, buffer.coefficients, wait=wait)
 
 
 def _prefiltered_for(lighting: WorldLighting, entry):
@@ -682,6 +699,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     film=entry.film,
                     fallback=entry.fallback,
                     lights=object_lights[original.name] if linked else shared_lights,
+                    grid=entry.grid,
                 )
             )
     CACHES.dirty -= seen

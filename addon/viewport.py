@@ -30,7 +30,7 @@ import threading
 
 import bpy
 
-from . import caches, linked, prefs, scene_draw, tables
+from . import caches, linked, prefs, radiance_grids, scene_draw, tables
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -81,6 +81,9 @@ def activity() -> str:
         parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
     if _world_stale:
         parts.append("analyzing the World")
+    grids = radiance_grids.activity()
+    if grids:
+        parts.append(grids)
     return ", ".join(parts)
 
 

@@ -583,6 +583,94 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
     return rows
 
 
+#: Roughness of the glossy, medium and rough films of :func:`automatic_orders` (issue 16).
+AUTOMATIC_ROUGHNESS = {"glossy": 0.05, "medium": 0.3, "rough": 0.6}
+
+
+def automatic_orders(scene: Scene, quick: bool, log=print) -> list[dict]:
+    """Glossy, medium and rough films at their automatic SH order, per covered pixel.
+
+    The product's draw (a constant-thickness film's SH half from its outgoing-radiance grid,
+    policy.uses_grid) against the same items drawn with the per-pixel SH (``grid`` removed), on
+    the order sweep's scene. Each film is collected once (the bake, the World and the grid are
+    made there) and swapped in after the per-frame ``collect``, as :func:`split_sum` does.
+    """
+    import bpy
+
+    objects, triangles = (1, 10_000) if quick else SWEEP_SCENE
+    res = "720p" if quick else "1080p"
+    w, h = RESOLUTIONS[res]
+    scene.set_objects(objects, triangles)
+    stored, facts = {}, {}
+    frame = None
+    try:
+        for case, rough in AUTOMATIC_ROUGHNESS.items():
+            mat = bpy.data.materials.get(f"Film auto {case}")
+            if mat is None:
+                mat = bpy.data.materials.new(f"Film auto {case}")
+                scene.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
+                mat.thinfilm_sh.sh_order = "AUTO"
+                mat.thinfilm_sh.enabled = True
+            scene.materials[("auto", case)] = mat
+            for obj in scene.objects:
+                obj.data.materials.clear()
+                obj.data.materials.append(mat)
+            bpy.context.view_layer.update()
+            items, messages = scene.ext.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+            if len(items) != objects:
+                raise RuntimeError(f"expected {objects} draw items, got {len(items)}: {messages}")
+            if frame is None:
+                frame = Frame(scene, w, h)
+            stored[case] = items
+            stored[case + "_per_pixel"] = [replace(it, grid=None) for it in items]
+            facts[case] = {
+                "roughness": rough,
+                "l_max": int(items[0].table.l_max),
+                "sh_weight": float(items[0].sh_weight),
+                "grid": items[0].grid is not None,
+            }
+        draws = {"workbench": frame.workbench}
+        for name, items in stored.items():
+            draws[name] = _swapped(frame, items)
+        coverage = {}
+        for case in AUTOMATIC_ROUGHNESS:  # the same tori: one coverage, measured per film anyway
+            coverage[case] = _coverage(frame, stored[case])
+        times = interleaved(draws, repeats_for(w, h, triangles, quick) + (0 if quick else 2))
+    finally:
+        if frame is not None:
+            frame.free()
+    cell = {name: median_ms(t) for name, t in times.items()}
+    rows = []
+    pixels = w * h
+    glossy = cell["glossy"] / (coverage["glossy"] * pixels)
+    for case in AUTOMATIC_ROUGHNESS:
+        row = dict(facts[case], case=case, res=res, objects=objects, triangles=scene.triangles)
+        row.update(ms=cell[case], ms_per_pixel=cell[case + "_per_pixel"], coverage=coverage[case])
+        row["ns_per_covered_pixel"] = 1e6 * cell[case] / (coverage[case] * pixels)
+        row["ratio_to_glossy"] = row["ns_per_covered_pixel"] / (1e6 * glossy)
+        row["workbench"] = cell["workbench"]
+        rows.append(row)
+        log(
+            f"  {case} (r = {row['roughness']}, l_max {row['l_max']}, SH weight {row['sh_weight']:.2f},"
+            f" grid {row['grid']}): {row['ms']:.1f} ms ({row['ratio_to_glossy']:.2f}× glossy per covered"
+            f" pixel); per-pixel SH {row['ms_per_pixel']:.1f} ms; coverage {100 * row['coverage']:.1f} %"
+        )
+    return rows
+
+
+def _coverage(frame: Frame, items: list) -> float:
+    """Fraction of the frame ``items`` cover."""
+    import gpu
+
+    gd = frame.scene.ext.gpu
+    with frame.offscreen.bind():
+        fb = gpu.state.active_framebuffer_get()
+        fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+        gd.draw.draw_items(items, frame.view, frame.proj, display_srgb=True)
+        rgba = gd.draw.read_framebuffer(fb, frame.width, frame.height)
+    return float(np.mean(rgba[..., 3] > 0.5))
+
+
 def _swapped(frame: Frame, items: list):
     """A frame of ours that draws ``items`` instead of what ``collect`` returned (after calling it)."""
     return lambda: frame.ours(items_hook=lambda _collected: items)
@@ -1252,7 +1340,7 @@ def _optimisation_section() -> list[str]:
 # ----------------------------------------------------------------------------------------------
 # The run
 # ----------------------------------------------------------------------------------------------
-PARTS = ("grid", "sweep", "split_sum", "python", "rebuild")
+PARTS = ("grid", "sweep", "split_sum", "python", "rebuild", "automatic")
 
 
 def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, log=print) -> dict:
@@ -1285,6 +1373,9 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, 
         if "rebuild" in parts:
             log("batch rebuild after an edit …")
             res["rebuild"] = rebuild_time(scene, quick, log)
+        if "automatic" in parts:
+            log("glossy, medium and rough films at their automatic order …")
+            res["automatic"] = automatic_orders(scene, quick, log)
     finally:
         if tree is not None:
             ext.remove_baseline(tree)
