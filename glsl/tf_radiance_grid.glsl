@@ -6,7 +6,8 @@
  * Texture `tf_radiance_grid` (addon/gpu/resources.py RadianceGridTexture): a 2-D array, W x H
  * equirect cells of the mirror direction r (as the prefilter: u = 0.5 - phi/2pi, t = theta/pi;
  * LINEAR, REPEAT in u, EXTEND in t), layer j * TF_GRID_AZIMUTHS + k = view angle node j
- * (theta_o = pi/2 j / (TF_GRID_VIEWS - 1)) and view azimuth k (psi = 2 pi k / TF_GRID_AZIMUTHS)
+ * (theta_o = pi/2 j / (T - 1), T = layers / TF_GRID_AZIMUTHS: the table's view angles) and
+ * view azimuth k (psi = 2 pi k / TF_GRID_AZIMUTHS)
  * about r, measured from a1 = d r / d theta_r towards a2 = d r / d phi_r (unit). theta_o and psi
  * are interpolated here (four fetches), the mirror direction by the texture's filter. The cost
  * does not depend on TF_L_MAX: shading.radiance_grid.build holds the SH sum at every node.
@@ -32,9 +33,10 @@ vec3 tf_shade_grid(TFFrame f)
   float along = r.z * dot(e1.xy, p) - e1.z * rho; /* e1 . a1 */
   float across = e1.y * p.x - e1.x * p.y;         /* e1 . a2 */
 
-  float views = float(TF_GRID_VIEWS - 1);
+  int view_count = textureSize(tf_radiance_grid, 0).z / TF_GRID_AZIMUTHS;
+  float views = float(view_count - 1);
   float jp = clamp(atan(cs.y, cs.x) / TF_HALF_PI * views, 0.0, views);
-  int j0 = min(int(floor(jp)), TF_GRID_VIEWS - 2);
+  int j0 = min(int(floor(jp)), view_count - 2);
   float wj = jp - float(j0);
   float kp = atan(across, along) / (2.0 * TF_PI) * float(TF_GRID_AZIMUTHS);
   kp = (kp < 0.0) ? kp + float(TF_GRID_AZIMUTHS) : kp;

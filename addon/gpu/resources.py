@@ -533,7 +533,7 @@ class FilmTexture:
 class RadianceGridTexture:
     """A constant-thickness film's outgoing-radiance grid (precompute.shading.radiance_grid.build).
 
-    ``texture`` (:data:`RADIANCE_GRID_SAMPLER`, RGBA16F: 4.5 MiB for policy.GRID_SHAPE): a 2-D
+    ``texture`` (:data:`RADIANCE_GRID_SAMPLER`, RGBA16F: 4.5–9 MiB, policy.grid_shape): a 2-D
     array of W × H mirror-direction cells, equirect, top row first; layer j·Ψ + k = θo node j and
     view azimuth k. LINEAR, REPEAT in u, EXTEND in t: the shader interpolates the mirror direction
     by the filter and θo and ψ by hand (tf_radiance_grid.glsl).
@@ -543,14 +543,14 @@ class RadianceGridTexture:
     shape: tuple
 
     @classmethod
-    def from_grid(cls, grid, shape=policy.GRID_SHAPE) -> RadianceGridTexture:
-        """Upload a (T·Ψ, H, W, 3) grid; refuses another shape and non-finite values."""
+    def from_grid(cls, grid) -> RadianceGridTexture:
+        """Upload a (T·Ψ, H, W, 3) grid, Ψ = policy.GRID_AZIMUTHS; refuses another shape and
+        non-finite values."""
         data = np.asarray(grid, dtype=np.float32)
-        w, h, t, p = (int(x) for x in shape)
-        if data.shape != (t * p, h, w, 3):
-            raise ValueError(
-                f"radiance grid must be {(t * p, h, w, 3)} for shape {tuple(shape)}, got {data.shape}"
-            )
+        p = policy.GRID_AZIMUTHS
+        if data.ndim != 4 or data.shape[3] != 3 or data.shape[0] % p or data.shape[0] < 2 * p:
+            raise ValueError(f"radiance grid must be (T·{p}, H, W, 3) with T ≥ 2, got {data.shape}")
+        t, h, w = data.shape[0] // p, data.shape[1], data.shape[2]
         if not np.all(np.isfinite(data)):
             raise ValueError("the radiance grid holds non-finite values")
         rgba = np.zeros(data.shape[:3] + (4,), dtype=np.float32)

@@ -54,10 +54,20 @@ def uses_moment(l_max: int, split_only: bool) -> bool:
 # ----------------------------------------------------------------------------------------------
 # Outgoing-radiance grid (shading/radiance_grid.py, tf_radiance_grid.glsl)
 # ----------------------------------------------------------------------------------------------
-#: Cells of the outgoing-radiance grid: mirror direction (W azimuth × H polar, equirect), view angle
-#: θo (T nodes over 0…90°) and view azimuth ψ about the mirror direction (Ψ, periodic); 590 k cells,
-#: 4.5 MiB in RGBA16F: l = 12 to mean ΔE2000 < 1 of the per-pixel SH (docs/tuning.md#radiance-grid).
-GRID_SHAPE = (64, 32, 12, 24)
+#: Mirror-direction cells of the outgoing-radiance grid (W azimuth × H polar, equirect) and its
+#: view azimuths ψ about the mirror direction (periodic); its view angles θo are the table's own
+#: (grid_shape): 48 × 24 × 32 × A cells, 4.5 MiB (A = 16) to 9 MiB (A = 32) in RGBA16F, mean
+#: ΔE2000 0.06–0.17 from the per-pixel l = 12 SH (docs/tuning.md#radiance-grid).
+GRID_MIRROR = (48, 24)
+GRID_AZIMUTHS = 32
+
+
+def grid_shape(view_samples: int) -> tuple[int, int, int, int]:
+    """(W, H, T, Ψ) of the grid of a table with ``view_samples`` view angles: T = that count, so
+    the grid's θo nodes are the table's and its θo interpolation is the table's own."""
+    return (GRID_MIRROR[0], GRID_MIRROR[1], int(view_samples), GRID_AZIMUTHS)
+
+
 #: From this SH order on a constant-thickness film's SH half is read from the grid: below it the
 #: per-pixel sum costs about what the grid's four fetches do (docs/tuning.md#radiance-grid).
 GRID_MIN_L = 3
@@ -177,7 +187,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
     - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
       k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
-    - ``TF_GRID_VIEWS``, ``TF_GRID_AZIMUTHS``: the θo nodes and view azimuths of :data:`GRID_SHAPE`.
+    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`.
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -195,6 +205,5 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_GRAZING(x)", glsl_power("x", GRAZING_EXPONENT)),
         ("TF_LADDER_ROUGHNESS(x)", glsl_power("x", LEVEL_EXPONENT)),
         ("TF_LADDER_POSITION(r)", glsl_power("r", 1.0 / LEVEL_EXPONENT)),
-        ("TF_GRID_VIEWS", str(int(GRID_SHAPE[2]))),
-        ("TF_GRID_AZIMUTHS", str(int(GRID_SHAPE[3]))),
+        ("TF_GRID_AZIMUTHS", str(int(GRID_AZIMUTHS))),
     )

@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from .. import bake
-from .policy import GRID_SHAPE
+from .policy import GRID_AZIMUTHS, grid_shape
 from .sh_rotation import local_coefficients
 from .table import lookup as table_lookup
 
@@ -46,7 +46,7 @@ def _check_shape(shape) -> tuple[int, int, int, int]:
     return w, h, t, p
 
 
-def mirror_frames(shape=GRID_SHAPE) -> np.ndarray:
+def mirror_frames(shape) -> np.ndarray:
     """Rows (e1, e2, r) of G = Rz(φ_r) Ry(θ_r) Rz(ψ) per (h, i, k) cell: shape (H, W, Ψ, 3, 3)."""
     w, h, _t, p = _check_shape(shape)
     phi = 2.0 * np.pi * (0.5 - (np.arange(w) + 0.5) / w)
@@ -66,7 +66,7 @@ def view_angles(count: int) -> np.ndarray:
     return 0.5 * np.pi * np.arange(int(count)) / (int(count) - 1)
 
 
-def cell_geometry(shape=GRID_SHAPE) -> tuple[np.ndarray, np.ndarray]:
+def cell_geometry(shape) -> tuple[np.ndarray, np.ndarray]:
     """(normals, views) of every node, shape (T, Ψ, H, W, 3) each (the layout of :func:`build`)."""
     frames = mirror_frames(shape)  # (H, W, Ψ, 3, 3)
     e1, r = frames[..., 0, :], frames[..., 2, :]
@@ -104,18 +104,19 @@ def folded_table(result: bake.BakeResult, count: int) -> np.ndarray:
     return out
 
 
-def build(result: bake.BakeResult, world_coeffs, shape=GRID_SHAPE) -> np.ndarray:
+def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
     """The grid of a constant-thickness table under windowed World SH (≥ K, 3): (T·Ψ, H, W, 3)
     float32, layer j·Ψ + k holding θo node j and view azimuth k (the texture's layout), each node
-    :func:`.sh_sum.shade_sh` at its :func:`cell_geometry` (clamped at 0)."""
-    w, h, t, p = _check_shape(shape)
+    :func:`.sh_sum.shade_sh` at its :func:`cell_geometry` (clamped at 0). ``shape`` (W, H, T, Ψ):
+    default policy.grid_shape of the table's view angles."""
+    w, h, t, p = _check_shape(grid_shape(result.data.shape[1]) if shape is None else shape)
     l_max = result.sh_order
     k = (l_max + 1) ** 2
     coeffs = np.asarray(world_coeffs, dtype=float)
     if coeffs.ndim != 2 or coeffs.shape[0] < k or coeffs.shape[1] < 3:
         raise ValueError(f"world_coeffs must be (≥ {k}, 3) for l_max {l_max}, got {coeffs.shape}")
     folded = folded_table(result, t).transpose(0, 3, 1, 2).reshape(k * 3, t * 3)  # (q c, j o)
-    frames = mirror_frames(shape).reshape(-1, 3, 3)  # (H·W·Ψ) cells, Ψ fastest
+    frames = mirror_frames((w, h, t, p)).reshape(-1, 3, 3)  # (H·W·Ψ) cells, Ψ fastest
     out = np.empty((frames.shape[0], t, 3))
     for start in range(0, frames.shape[0], BLOCK):
         block = frames[start : start + BLOCK]
@@ -125,7 +126,7 @@ def build(result: bake.BakeResult, world_coeffs, shape=GRID_SHAPE) -> np.ndarray
     return np.ascontiguousarray(grid.reshape(t * p, h, w, 3), dtype=np.float32)
 
 
-def coordinates(normals, views, shape=GRID_SHAPE) -> tuple[np.ndarray, ...]:
+def coordinates(normals, views, shape) -> tuple[np.ndarray, ...]:
     """(u, t, θo position, ψ position) of each pixel, as tf_radiance_grid.glsl computes them.
 
     From the view-aligned frame (x, n) and (cos θo, sin θo) normalised, cos θo ≥ 0: r = cos θo n −
@@ -178,14 +179,18 @@ def _bilinear(grid: np.ndarray, layers, u, t) -> np.ndarray:
     return a * (1 - wy) + b * wy
 
 
-def lookup(grid: np.ndarray, normals, views, shape=GRID_SHAPE) -> np.ndarray:
-    """The SH half per pixel from a :func:`build` grid (T·Ψ, H, W, 3): (…, 3).
+def lookup(grid: np.ndarray, normals, views, azimuths: int = GRID_AZIMUTHS) -> np.ndarray:
+    """The SH half per pixel from a :func:`build` grid (T·Ψ, H, W, 3) of ``azimuths`` = Ψ: (…, 3).
 
     Four layers (θo nodes j0, j0 + 1 × azimuths k0, k0 + 1 mod Ψ), each bilinear in the mirror
-    direction; θo and ψ interpolated linearly (tf_radiance_grid.glsl).
+    direction; θo and ψ interpolated linearly (tf_radiance_grid.glsl, which reads T as the
+    texture's layers ÷ Ψ).
     """
-    _w, _h, views_count, azimuths = _check_shape(shape)
     g = np.asarray(grid, dtype=float)
+    if g.ndim != 4 or g.shape[0] % int(azimuths):
+        raise ValueError(f"a grid is (T·{azimuths}, H, W, 3), got {g.shape}")
+    shape = (g.shape[2], g.shape[1], g.shape[0] // int(azimuths), int(azimuths))
+    _w, _h, views_count, azimuths = _check_shape(shape)
     u, t, theta_pos, psi_pos = coordinates(normals, views, shape)
     flat = [np.ravel(a) for a in (u, t, theta_pos, psi_pos)]
     u, t, theta_pos, psi_pos = flat
