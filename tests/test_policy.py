@@ -40,7 +40,7 @@ def macro_name(name: str) -> str:
 
 
 def every_variant():
-    for l_max, flags in itertools.product((0, 2, 5, 12), itertools.product((False, True), repeat=9)):
+    for l_max, flags in itertools.product((0, 2, 5, 12), itertools.product((False, True), repeat=10)):
         yield Variant(l_max, *flags).normalised()
 
 
