@@ -30,7 +30,7 @@ import threading
 
 import bpy
 
-from . import caches, linked, prefs, radiance_grids, scene_draw, tables
+from . import caches, linked, prefs, radiance_grids, scene_draw, shader_warmup, tables
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -81,9 +81,9 @@ def activity() -> str:
         parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
     if _world_stale:
         parts.append("analyzing the World")
-    grids = radiance_grids.activity()
-    if grids:
-        parts.append(grids)
+    for extra in (radiance_grids.activity(), shader_warmup.activity()):
+        if extra:
+            parts.append(extra)
     return ", ".join(parts)
 
 
@@ -203,7 +203,15 @@ def draw_callback() -> None:
         if _pending or linked.has_pending():
             _schedule()
         exposure = float(depsgraph.scene.view_settings.exposure)
-        draw_items(items, rv3d.view_matrix, rv3d.window_matrix, display_srgb=True, exposure=exposure)
+        draw_items(
+            items,
+            rv3d.view_matrix,
+            rv3d.window_matrix,
+            display_srgb=True,
+            exposure=exposure,
+            compile_now=False,
+        )
+        shader_warmup.schedule()  # the variants this frame drew by their stand-in
     except Exception as exc:  # a draw callback must never raise
         log.error("Thin Film SH: viewport draw failed: %s", exc)
 
@@ -285,3 +293,4 @@ def unregister() -> None:
             handlers.remove(fn)
     if bpy.app.timers.is_registered(_service):
         bpy.app.timers.unregister(_service)
+    shader_warmup.unregister()

@@ -291,3 +291,55 @@ def test_grid_variant_draws_the_grid_through_the_draw_path(gd):  # noqa: F811
     per_pixel = sh_sum.shade_sh(result, lighting.coefficients, n, views)
     de = delta_e_2000(image[inside][:, :3], per_pixel)
     assert de.mean() < 0.8, de.mean()
+
+
+# ----------------------------------------------------------------------------------------------
+# Shaders compiled ahead: the stand-in while a variant is not compiled
+# ----------------------------------------------------------------------------------------------
+@pytest.mark.blender
+def test_an_uncompiled_variant_is_drawn_by_its_stand_in_until_compiled(gd):  # noqa: F811
+    """prepare_draw(compile_now=False) never compiles the item's variant: it asks for it and draws
+    the stand-in (order ≤ policy.STAND_IN_L, the same table and lighting), which is the SH sum
+    truncated there; compile_next (the idle step) compiles it and the next frame uses it."""
+    import dataclasses
+
+    from precompute.shading.variant import stand_in
+
+    result = baked(5, "spectral", False)
+    table = gd.resources.TableTexture.from_result(result)
+    world, _img = world_sh(5)
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    item = tilted_quad_item(gd, table, lighting)
+    cache = gd.shaders.ShaderCache()
+    (group,) = gd.draw.prepare_draw(
+        [item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False
+    ).groups
+    wanted = cache.wanted()
+    assert len(wanted) == 1 and wanted[0].l_max == 5 and not cache.compiled(wanted[0])
+    assert group.variant == stand_in(wanted[0]) and group.variant.l_max == policy.STAND_IN_L
+    assert cache.compile_count == 1  # the stand-in only
+    import gpu
+
+    out = gpu.types.GPUOffScreen(SIZE, SIZE, format="RGBA32F")
+    try:
+        with out.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            gd.draw.draw_items([item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False)
+            image = gd.draw.read_framebuffer(fb, SIZE, SIZE)
+    finally:
+        out.free()
+    inside, n, views = quad_pixels(item.model_matrix)
+    k2 = (policy.STAND_IN_L + 1) * (policy.STAND_IN_L + 2) // 2
+    truncated = dataclasses.replace(result, data=result.data[:, :, :k2], sh_order=policy.STAND_IN_L)
+    expected = sh_sum.shade_sh(truncated, lighting.coefficients, n, views)
+    full = sh_sum.shade_sh(result, lighting.coefficients, n, views)
+    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    assert inside.sum() > 300 and err < 1e-4, err
+    assert np.max(np.abs(full - expected)) / np.max(expected) > 1e-3  # the truncation shows
+    assert cache.compile_next() == wanted[0] and cache.compiled(wanted[0]) and not cache.wanted()
+    assert cache.compile_next() is None
+    (group,) = gd.draw.prepare_draw(
+        [item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False
+    ).groups
+    assert group.variant == wanted[0] and cache.compile_seconds

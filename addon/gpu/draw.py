@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
-from ...precompute.shading.variant import Variant, choose_variant
+from ...precompute.shading.variant import Variant, choose_variant, stand_in
 from . import resources
 from .context import ensure_gpu_context
 from .mesh import MeshBatch
@@ -152,8 +152,13 @@ def prepare_draw(
     exposure: float = 0.0,
     shaders=None,
     uniforms=None,
+    compile_now: bool = True,
 ) -> PreparedDraw:
     """The CPU half of :func:`draw_items`: variants, uniform buffers and the order of the draws.
+
+    ``compile_now`` False (the viewport): a variant that is not compiled yet is not compiled
+    here; it is asked for (``ShaderCache.want``, compiled later one per idle step) and the item
+    is drawn with its stand-in meanwhile (variant.stand_in: order ≤ policy.STAND_IN_L, no grid).
 
     Items are grouped by (variant, lighting, table, prefiltered World) so that :func:`submit`
     binds each shader and resource once per group; the order within a group is kept. Uniform
@@ -191,6 +196,9 @@ def prepare_draw(
             light_count=resources.light_count(lights),
             grid=grid is not None,
         )
+        if not compile_now and not shaders.compiled(variant):
+            shaders.want(variant)
+            variant = stand_in(variant)
         split = variant.split_sum
         roughness = float(getattr(item, "roughness", 0.0))
         weight = sh_weight if split else 1.0
@@ -290,6 +298,7 @@ def draw_items(
     exposure: float = 0.0,
     shaders=None,
     uniforms=None,
+    compile_now: bool = True,
 ):
     """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
 
@@ -300,6 +309,7 @@ def draw_items(
     ``.lights`` (:func:`.resources.lights_content`: Blender's light objects, shaded with the
     film), ``.grid`` (:class:`.resources.RadianceGridTexture`: the SH half of a constant-thickness
     film, variant.choose_variant), ``.roughness`` and ``.sh_weight`` (the split sum).
+    ``compile_now`` False: uncompiled variants are drawn by their stand-in (:func:`prepare_draw`).
     :func:`prepare_draw` then :func:`submit`;
     see there.
     """
@@ -312,6 +322,7 @@ def draw_items(
             exposure=exposure,
             shaders=shaders,
             uniforms=uniforms,
+            compile_now=compile_now,
         )
     )
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import re
+import time
 from pathlib import Path
 
 import gpu
@@ -205,15 +206,44 @@ class ShaderCache:
 
     def __init__(self, *, reference_rotation: Path | None = None):
         self._shaders: dict = {}
+        self._wanted: dict = {}  # variants asked for ahead, in order (a dict as an ordered set)
         self.compile_count = 0
         self.reference_rotation = reference_rotation
+        #: Seconds each compilation took, by key (docs/performance.md: first compile per variant).
+        self.compile_seconds: dict = {}
+
+    def compiled(self, variant: Variant) -> bool:
+        """Whether the mesh shader of ``variant`` is compiled."""
+        return variant.normalised() in self._shaders
+
+    def want(self, variant: Variant) -> None:
+        """Ask for ``variant`` to be compiled later (:meth:`compile_next`), not now."""
+        variant = variant.normalised()
+        if variant not in self._shaders:
+            self._wanted[variant] = None
+
+    def wanted(self) -> list:
+        """The variants asked for and not compiled yet, oldest first."""
+        return [v for v in self._wanted if v not in self._shaders]
+
+    def compile_next(self) -> Variant | None:
+        """Compile the oldest variant asked for (one per call: an idle step's work); None if none."""
+        while self._wanted:
+            variant = next(iter(self._wanted))
+            del self._wanted[variant]
+            if variant not in self._shaders:
+                self.mesh(variant)
+                return variant
+        return None
 
     def _compile(self, key, make_info):
         shader = self._shaders.get(key)
         if shader is None:
             ensure_gpu_context()
             info, _iface = make_info()  # the interface must outlive the create-info until compiled
+            start = time.perf_counter()
             shader = gpu.shader.create_from_info(info)
+            self.compile_seconds[key] = time.perf_counter() - start
             self.compile_count += 1
             self._shaders[key] = shader
         return shader
@@ -262,8 +292,9 @@ class ShaderCache:
         return len(self._shaders)
 
     def clear(self) -> None:
-        """Forget every compiled shader (they are rebuilt on next use)."""
+        """Forget every compiled shader (they are rebuilt on next use) and every wish."""
         self._shaders.clear()
+        self._wanted.clear()
 
 
 #: The shared cache used when none is passed.

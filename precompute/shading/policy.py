@@ -80,6 +80,13 @@ def uses_grid(l_max: int, vary_thickness: bool, sh_weight: float) -> bool:
     return int(l_max) >= GRID_MIN_L and not vary_thickness and float(sh_weight) > 0.0
 
 
+#: While a variant compiles (ahead, one per idle step) the viewport draws its film with the
+#: variant of this order at most and no grid: bands above it are left out of the sum (the
+#: table's and the lighting's layouts do not depend on the order), and up to l = 2 the
+#: rotation is a few dot products that compile in a fraction of the l = 12 code's time.
+STAND_IN_L = 2
+
+
 # ----------------------------------------------------------------------------------------------
 # Prefiltered levels
 # ----------------------------------------------------------------------------------------------

@@ -163,3 +163,10 @@ def choose_variant(
         lights=lights,
         grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
     )
+
+
+def stand_in(variant: Variant) -> Variant:
+    """The variant drawn in place of ``variant`` while that one is not compiled yet: the same
+    switches at order ≤ policy.STAND_IN_L and without the grid (its SH sum truncated there)."""
+    v = variant.normalised()
+    return v._replace(l_max=min(v.l_max, policy.STAND_IN_L), grid=False).normalised()
