@@ -971,6 +971,7 @@ def report(res: dict) -> str:
     lines += _split_sum_section(res)
     lines += _python_section(res)
     lines += _rebuild_section(res)
+    lines += automatic_section(res.get("automatic"))
     lines += _optimisation_section()
     return re.sub(r"\n{3,}", "\n\n", "\n".join(lines))
 
@@ -1323,6 +1324,34 @@ def _rebuild_section(res: dict) -> list[str]:
             f" | {r['builds']} in {r['repeats']} edits |"
         )
     return out + [""]
+
+
+def automatic_section(rows) -> list[str]:
+    """The glossy, medium and rough films at their automatic order (:func:`automatic_orders`)."""
+    if not rows:
+        return []
+    r0 = rows[0]
+    out = [
+        "## Rough films at their automatic order (outgoing-radiance grid)",
+        "",
+        f"{r0['objects']} tori, {_tri(r0['triangles'])} triangles, {r0['res']}; films of roughness"
+        " 0.05 / 0.3 / 0.6 at their automatic SH order, lit by the World with its lamps. *grid*: as"
+        " the product draws them (the SH half of a constant-thickness film from its outgoing-radiance"
+        " grid, precompute/shading/radiance_grid.py); *per-pixel SH*: the same items with the grid"
+        " removed (the SH sum per pixel, as before). Per covered pixel = frame ms ÷ covered pixels;"
+        " acceptance (issue 16): medium and rough ≤ 2× glossy.",
+        "",
+        "| film | roughness | l_max | SH weight | grid ms | per-pixel SH ms | ns per covered pixel"
+        " | × glossy | covered |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        out.append(
+            f"| {r['case']} | {r['roughness']} | {r['l_max']} | {r['sh_weight']:.2f} | {r['ms']:.1f}"
+            f" | {r['ms_per_pixel']:.1f} | {r['ns_per_covered_pixel']:.0f} | {r['ratio_to_glossy']:.2f}"
+            f" | {100 * r['coverage']:.1f} % |"
+        )
+    return out + [f"Workbench, same frames: {r0['workbench']:.1f} ms.", ""]
 
 
 def _optimisation_section() -> list[str]:
