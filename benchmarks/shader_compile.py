@@ -8,8 +8,9 @@ Usage (from the repository root)::
 Each sample scene (``sample_scenes/make_scenes.py``, built into a temporary folder) is opened with
 the extension registered, collected as a headless frame does (tables baked, World analysed, the
 films' outgoing-radiance grids built) and every variant that ``gpu.draw.prepare_draw`` picks for
-its items is compiled cold in a fresh ``gpu.shaders.ShaderCache`` (Mesa keeps no shader cache
-between the variants: each compile is timed from ``GPUShaderCreateInfo`` to the linked program).
+its items is compiled cold in a fresh ``gpu.shaders.ShaderCache``, with Mesa's on-disk shader cache
+off (``MESA_SHADER_CACHE_DISABLE``): each compile is timed from ``GPUShaderCreateInfo`` to the
+linked program.
 Besides what the product draws: the stand-in of each variant (``variant.stand_in``, what the
 viewport draws while the variant compiles at idle) and, unless ``--no-per-pixel``, the per-pixel
 SH variant a grid variant replaces (what the viewport compiled before).
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import sys
 import tempfile
 import time
@@ -26,6 +28,10 @@ from pathlib import Path
 
 from . import common
 from . import viewport as vp
+
+# Cold compiles: Mesa's on-disk shader cache would hand back a variant compiled by an earlier run
+# (set before bpy creates its GL context).
+os.environ.setdefault("MESA_SHADER_CACHE_DISABLE", "true")
 
 
 def _make_scenes_module():

@@ -121,3 +121,25 @@ def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # n
     wait_idle(rg)
     assert len(order) <= rg.QUEUE_SIZE + 1, order
     assert order[1] == round(steps[-1], 3), order  # after the one running, the newest
+
+
+def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa: F811
+    import importlib
+
+    from precompute.shading.variant import Variant
+
+    warmup = importlib.import_module(f"{tf.package.__name__}.addon.shader_warmup")
+    shaders = importlib.import_module(f"{tf.package.__name__}.addon.gpu.shaders").SHADERS
+    first, second = Variant(0, False, False, True), Variant(1, False, False, True)
+    for v in (first, second):
+        if shaders.compiled(v):
+            shaders._shaders.pop(v)
+        shaders.want(v)
+    assert "compiling shaders (2 left)" in warmup.activity()
+    assert "compiling shaders" in tf.viewport.activity()
+    warmup.schedule()
+    assert bpy.app.timers.is_registered(warmup.step)
+    assert warmup.step() == 0.05 and shaders.compiled(first) and not shaders.compiled(second)
+    assert warmup.step() is None and shaders.compiled(second) and warmup.activity() == ""
+    warmup.unregister()
+    assert not bpy.app.timers.is_registered(warmup.step)
