@@ -10,7 +10,7 @@ roughness drag builds the value it stops on, not every step. When one finishes a
 the 3D viewports for a redraw. ``wait=True`` (headless frames) builds it in the caller.
 
 :data:`GRIDS` (registered in :mod:`.caches` as ``radiance_grids``, FILE scope) holds the
-uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5 MiB of GPU memory each).
+uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU memory each).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from .gpu import resources
 
 log = logging.getLogger(__name__)
 
-#: Uploaded grids kept (4.5 MiB each on the GPU).
-GRID_CACHE_SIZE = 16
+#: Uploaded grids kept (4.5–9 MiB each on the GPU).
+GRID_CACHE_SIZE = 8
 #: Requests waiting for the worker; older ones are dropped (the newest is built first).
 QUEUE_SIZE = 4
 

@@ -587,7 +587,7 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
 AUTOMATIC_ROUGHNESS = {"glossy": 0.05, "medium": 0.3, "rough": 0.6}
 
 
-def automatic_orders(scene: Scene, quick: bool, log=print) -> list[dict]:
+def automatic_orders(scene: Scene, quick: bool, log=print, per_pixel: bool = True) -> list[dict]:
     """Glossy, medium and rough films at their automatic SH order, per covered pixel.
 
     The product's draw (a constant-thickness film's SH half from its outgoing-radiance grid,
@@ -622,7 +622,8 @@ def automatic_orders(scene: Scene, quick: bool, log=print) -> list[dict]:
             if frame is None:
                 frame = Frame(scene, w, h)
             stored[case] = items
-            stored[case + "_per_pixel"] = [replace(it, grid=None) for it in items]
+            if per_pixel:  # the l = 12 frames dominate the run's time (seconds each on llvmpipe)
+                stored[case + "_per_pixel"] = [replace(it, grid=None) for it in items]
             facts[case] = {
                 "roughness": rough,
                 "l_max": int(items[0].table.l_max),
@@ -645,7 +646,9 @@ def automatic_orders(scene: Scene, quick: bool, log=print) -> list[dict]:
     glossy = cell["glossy"] / (coverage["glossy"] * pixels)
     for case in AUTOMATIC_ROUGHNESS:
         row = dict(facts[case], case=case, res=res, objects=objects, triangles=scene.triangles)
-        row.update(ms=cell[case], ms_per_pixel=cell[case + "_per_pixel"], coverage=coverage[case])
+        row.update(
+            ms=cell[case], ms_per_pixel=cell.get(case + "_per_pixel", float("nan")), coverage=coverage[case]
+        )
         row["ns_per_covered_pixel"] = 1e6 * cell[case] / (coverage[case] * pixels)
         row["ratio_to_glossy"] = row["ns_per_covered_pixel"] / (1e6 * glossy)
         row["workbench"] = cell["workbench"]
@@ -1372,7 +1375,9 @@ def _optimisation_section() -> list[str]:
 PARTS = ("grid", "sweep", "split_sum", "python", "rebuild", "automatic")
 
 
-def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, log=print) -> dict:
+def run(
+    quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, log=print, per_pixel: bool = True
+) -> dict:
     started = time.perf_counter()
     ext = Extension()  # imports bpy first: gpu and mathutils come with it
     import gpu
@@ -1404,7 +1409,7 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, 
             res["rebuild"] = rebuild_time(scene, quick, log)
         if "automatic" in parts:
             log("glossy, medium and rough films at their automatic order …")
-            res["automatic"] = automatic_orders(scene, quick, log)
+            res["automatic"] = automatic_orders(scene, quick, log, per_pixel=per_pixel)
     finally:
         if tree is not None:
             ext.remove_baseline(tree)
@@ -1424,6 +1429,11 @@ def main(argv=None) -> int:
         "--orders", nargs="+", type=int, metavar="L", help="l_max of the order sweep (prints, writes nothing)"
     )
     parser.add_argument(
+        "--no-per-pixel",
+        action="store_true",
+        help="part 'automatic' without the per-pixel SH frames (prints, writes nothing)",
+    )
+    parser.add_argument(
         "--report-only",
         action="store_true",
         help=f"rewrite docs/performance.md from the last full run's {RESULTS_JSON} (no measuring)",
@@ -1435,13 +1445,19 @@ def main(argv=None) -> int:
             res = json.load(handle)
     else:
         code_state = _code_state()  # before measuring: what was measured
-        res = run(args.quick, args.baseline, parts=args.only or PARTS, orders=args.orders)
+        res = run(
+            args.quick,
+            args.baseline,
+            parts=args.only or PARTS,
+            orders=args.orders,
+            per_pixel=not args.no_per_pixel,
+        )
         res["machine"] = common.machine_lines()
         res["code_state"] = code_state
         res["command"] = " ".join(
             ["python -m benchmarks.viewport", *(argv if argv is not None else sys.argv[1:])]
         )
-        if args.quick or args.only or args.orders:
+        if args.quick or args.only or args.orders or args.no_per_pixel:
             print(f"run done in {res['minutes']:.1f} min; nothing written")
             return 0
         os.makedirs(os.path.dirname(path), exist_ok=True)
