@@ -125,6 +125,7 @@ def report(res: dict) -> str:
         "*stand-in*: what the viewport draws while that variant compiles at idle",
         "(`variant.stand_in`, addon/shader_warmup.py); *per-pixel SH (before)*: the variant a",
         "radiance-grid variant replaces, which the viewport compiled in its draw callback before.",
+        "A variant several scenes draw is compiled once: its rows repeat that figure.",
         "",
         "| Scene | Item | Kind | l_max | grid | split | lamps | vary | s |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -135,7 +136,7 @@ def report(res: dict) -> str:
             f"| {row['scene']} | {row['item']} | {row['kind']} | {v['l_max']} | {v['grid']} |"
             f" {v['split_sum']} | {v['lamps']} | {v['vary_thickness']} | {row['seconds']:.1f} |"
         )
-    lines += ["", "Machine:", "", *(f"- {m}" for m in res["machine"]), ""]
+    lines += ["", "Machine:", "", *res["machine"], ""]
     return "\n".join(lines)
 
 
