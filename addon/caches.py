@@ -70,6 +70,12 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   rebuild every frame); lightings are
   also pruned to the current World on each World change; filled by ``scene_draw.collect`` and
   ``scene_draw.world_lighting``; FILE.
+- ``radiance_grids`` — ``radiance_grids.GRIDS``: constant-thickness films' outgoing-radiance
+  grids on the GPU (``gpu.resources.RadianceGridTexture``, 4.5–9 MiB each) by (description key,
+  World key, l_max, roughness, lamps), with the worker's queue (at most
+  ``radiance_grids.QUEUE_SIZE``, newest first) and its built grids awaiting upload; LRU of
+  ``radiance_grids.GRID_CACHE_SIZE`` (8); filled by ``scene_draw.collect`` through
+  ``radiance_grids.grid_for`` (built on a worker thread; headless frames build in place); FILE.
 - ``shaders`` — ``gpu.shaders.SHADERS``: compiled GPU shaders by variant; one per variant used
   (a few dozen at most); filled by ``gpu.draw.draw_items``; SESSION (registered by
   ``scene_draw``: the GPU layer keeps no registry).

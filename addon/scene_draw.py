@@ -43,7 +43,7 @@ import numpy as np
 from ..precompute import cli_support
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, linked, tables, transparency, world, world_analysis
+from . import caches, description, linked, radiance_grids, tables, transparency, world, world_analysis
 from . import lights as scene_lights
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
@@ -73,6 +73,8 @@ class DrawItem:
     lights: np.ndarray | None = None
     #: A transparent film's wall, (mode, η) of precompute.shading.transmit (:func:`.transparency.wall`).
     wall: tuple | None = None
+    #: The film's outgoing-radiance grid (:mod:`.radiance_grids`), or None (per-pixel SH).
+    grid: resources.RadianceGridTexture | None = None
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -434,6 +436,7 @@ class _MaterialEntry:
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
     sh_order: int = 0  # the table's SH order (the lighting's l_max)
     wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
+    grid: resources.RadianceGridTexture | None = None  # its SH half tabulated (policy.uses_grid)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -576,11 +579,12 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     props = getattr(bpy_material, "thinfilm_sh", None)
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
+    buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
     return _MaterialEntry(
         desc,
         key,
         table_texture(key, result),
-        lighting_for(lighting, result.sh_order, roughness, lamps),
+        buffer,
         roughness,
         policy.sh_weight(roughness),
         film,
@@ -590,6 +594,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         lamps=lamps,
         sh_order=result.sh_order,
         wall=wall,
+        grid=_grid_for(key, desc, result, lighting, buffer, lamps, wait=allow_bake),
     )
 
 
@@ -601,9 +606,21 @@ def _previous_entry(owner, lighting: WorldLighting):
         return None
     env = lighting.environment
     lamps = last.lamps and env is not None and env.lamps is not None
-    return dataclasses.replace(
-        last, lighting=lighting_for(lighting, last.sh_order, last.roughness, lamps), lamps=lamps
-    )
+    buffer = lighting_for(lighting, last.sh_order, last.roughness, lamps)
+    grid = last.grid if buffer is last.lighting else None  # a grid holds the lighting it was built with
+    return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid)
+
+
+def _grid_for(desc_key: str, desc, result, lighting: WorldLighting, buffer, lamps: bool, *, wait: bool):
+    """The film's outgoing-radiance grid where policy.uses_grid reads one (a constant thickness,
+    an SH half at l_max ≥ GRID_MIN_L), else None; None too while the worker builds it
+    (:func:`.radiance_grids.grid_for`; ``wait``: built here, for headless frames)."""
+    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
+    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
+    if not policy.uses_grid(result.sh_order, vary, weight):
+        return None
+    key = f"{desc_key}|{lighting.key}|{result.sh_order}|{round(float(desc.roughness), 6)}|{bool(lamps)}"
+    return radiance_grids.grid_for(key, result, buffer.coefficients, wait=wait)
 
 
 def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
@@ -735,6 +752,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     fallback=entry.fallback,
                     lights=object_lights[original.name] if linked else shared_lights,
                     wall=entry.wall,
+                    grid=entry.grid,
                 )
             )
     CACHES.dirty -= seen

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import caches, display, linked, prefs, scene_draw, tables, world_job
+from . import caches, display, linked, prefs, radiance_grids, scene_draw, shader_warmup, tables, world_job
 from .description import description_key
 from .gpu.draw import draw_items
 
@@ -104,6 +104,9 @@ def activity() -> str:
         parts.append(f"baking {len(running)} film{'s' if len(running) > 1 else ''} ({100 * done:.0f} %)")
     if _world_stale or world_job.busy():
         parts.append("analyzing the World")
+    for extra in (radiance_grids.activity(), shader_warmup.activity()):
+        if extra:
+            parts.append(extra)
     return ", ".join(parts)
 
 
@@ -286,7 +289,9 @@ def draw_callback() -> None:
             display_srgb=True,
             exposure=settings.exposure,
             display_lut=lut,
+            compile_now=False,
         )
+        shader_warmup.schedule()  # the variants this frame drew by their stand-in
     except Exception as exc:  # a draw callback must never raise
         log.error("Thin Film SH: viewport draw failed: %s", exc)
 
@@ -368,3 +373,4 @@ def unregister() -> None:
             handlers.remove(fn)
     if bpy.app.timers.is_registered(_service):
         bpy.app.timers.unregister(_service)
+    shader_warmup.unregister()

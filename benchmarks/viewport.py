@@ -583,6 +583,97 @@ def split_sum(scene: Scene, quick: bool, log=print) -> list[dict]:
     return rows
 
 
+#: Roughness of the glossy, medium and rough films of :func:`automatic_orders` (issue 16).
+AUTOMATIC_ROUGHNESS = {"glossy": 0.05, "medium": 0.3, "rough": 0.6}
+
+
+def automatic_orders(scene: Scene, quick: bool, log=print, per_pixel: bool = True) -> list[dict]:
+    """Glossy, medium and rough films at their automatic SH order, per covered pixel.
+
+    The product's draw (a constant-thickness film's SH half from its outgoing-radiance grid,
+    policy.uses_grid) against the same items drawn with the per-pixel SH (``grid`` removed), on
+    the order sweep's scene. Each film is collected once (the bake, the World and the grid are
+    made there) and swapped in after the per-frame ``collect``, as :func:`split_sum` does.
+    """
+    import bpy
+
+    objects, triangles = (1, 10_000) if quick else SWEEP_SCENE
+    res = "720p" if quick else "1080p"
+    w, h = RESOLUTIONS[res]
+    scene.set_objects(objects, triangles)
+    stored, facts = {}, {}
+    frame = None
+    try:
+        for case, rough in AUTOMATIC_ROUGHNESS.items():
+            mat = bpy.data.materials.get(f"Film auto {case}")
+            if mat is None:
+                mat = bpy.data.materials.new(f"Film auto {case}")
+                scene.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
+                mat.thinfilm_sh.sh_order = "AUTO"
+                mat.thinfilm_sh.enabled = True
+            scene.materials[("auto", case)] = mat
+            for obj in scene.objects:
+                obj.data.materials.clear()
+                obj.data.materials.append(mat)
+            bpy.context.view_layer.update()
+            items, messages = scene.ext.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+            if len(items) != objects:
+                raise RuntimeError(f"expected {objects} draw items, got {len(items)}: {messages}")
+            if frame is None:
+                frame = Frame(scene, w, h)
+            stored[case] = items
+            if per_pixel:  # the l = 12 frames dominate the run's time (seconds each on llvmpipe)
+                stored[case + "_per_pixel"] = [replace(it, grid=None) for it in items]
+            facts[case] = {
+                "roughness": rough,
+                "l_max": int(items[0].table.l_max),
+                "sh_weight": float(items[0].sh_weight),
+                "grid": items[0].grid is not None,
+            }
+        draws = {"workbench": frame.workbench}
+        for name, items in stored.items():
+            draws[name] = _swapped(frame, items)
+        coverage = {}
+        for case in AUTOMATIC_ROUGHNESS:  # the same tori: one coverage, measured per film anyway
+            coverage[case] = _coverage(frame, stored[case])
+        times = interleaved(draws, repeats_for(w, h, triangles, quick) + (0 if quick else 2))
+    finally:
+        if frame is not None:
+            frame.free()
+    cell = {name: median_ms(t) for name, t in times.items()}
+    rows = []
+    pixels = w * h
+    glossy = cell["glossy"] / (coverage["glossy"] * pixels)
+    for case in AUTOMATIC_ROUGHNESS:
+        row = dict(facts[case], case=case, res=res, objects=objects, triangles=scene.triangles)
+        row.update(
+            ms=cell[case], ms_per_pixel=cell.get(case + "_per_pixel", float("nan")), coverage=coverage[case]
+        )
+        row["ns_per_covered_pixel"] = 1e6 * cell[case] / (coverage[case] * pixels)
+        row["ratio_to_glossy"] = row["ns_per_covered_pixel"] / (1e6 * glossy)
+        row["workbench"] = cell["workbench"]
+        rows.append(row)
+        log(
+            f"  {case} (r = {row['roughness']}, l_max {row['l_max']}, SH weight {row['sh_weight']:.2f},"
+            f" grid {row['grid']}): {row['ms']:.1f} ms ({row['ratio_to_glossy']:.2f}× glossy per covered"
+            f" pixel); per-pixel SH {row['ms_per_pixel']:.1f} ms; coverage {100 * row['coverage']:.1f} %"
+        )
+    return rows
+
+
+def _coverage(frame: Frame, items: list) -> float:
+    """Fraction of the frame ``items`` cover."""
+    import gpu
+
+    gd = frame.scene.ext.gpu
+    with frame.offscreen.bind():
+        fb = gpu.state.active_framebuffer_get()
+        fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+        gd.draw.draw_items(items, frame.view, frame.proj, display_srgb=True)
+        rgba = gd.draw.read_framebuffer(fb, frame.width, frame.height)
+    return float(np.mean(rgba[..., 3] > 0.5))
+
+
 def _swapped(frame: Frame, items: list):
     """A frame of ours that draws ``items`` instead of what ``collect`` returned (after calling it)."""
     return lambda: frame.ours(items_hook=lambda _collected: items)
@@ -883,6 +974,7 @@ def report(res: dict) -> str:
     lines += _split_sum_section(res)
     lines += _python_section(res)
     lines += _rebuild_section(res)
+    lines += automatic_section(res.get("automatic"))
     lines += _optimisation_section()
     return re.sub(r"\n{3,}", "\n\n", "\n".join(lines))
 
@@ -1237,6 +1329,34 @@ def _rebuild_section(res: dict) -> list[str]:
     return out + [""]
 
 
+def automatic_section(rows) -> list[str]:
+    """The glossy, medium and rough films at their automatic order (:func:`automatic_orders`)."""
+    if not rows:
+        return []
+    r0 = rows[0]
+    out = [
+        "## Rough films at their automatic order (outgoing-radiance grid)",
+        "",
+        f"{r0['objects']} tori, {_tri(r0['triangles'])} triangles, {r0['res']}; films of roughness"
+        " 0.05 / 0.3 / 0.6 at their automatic SH order, lit by the World with its lamps. *grid*: as"
+        " the product draws them (the SH half of a constant-thickness film from its outgoing-radiance"
+        " grid, precompute/shading/radiance_grid.py); *per-pixel SH*: the same items with the grid"
+        " removed (the SH sum per pixel, as before). Per covered pixel = frame ms ÷ covered pixels;"
+        " acceptance (issue 16): medium and rough ≤ 2× glossy.",
+        "",
+        "| film | roughness | l_max | SH weight | grid ms | per-pixel SH ms | ns per covered pixel"
+        " | × glossy | covered |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        out.append(
+            f"| {r['case']} | {r['roughness']} | {r['l_max']} | {r['sh_weight']:.2f} | {r['ms']:.1f}"
+            f" | {r['ms_per_pixel']:.1f} | {r['ns_per_covered_pixel']:.0f} | {r['ratio_to_glossy']:.2f}"
+            f" | {100 * r['coverage']:.1f} % |"
+        )
+    return out + [f"Workbench, same frames: {r0['workbench']:.1f} ms.", ""]
+
+
 def _optimisation_section() -> list[str]:
     """A link to the optimisations' before/after figures: docs/performance-history.md (each from its
     own ``--baseline`` run, not from this one)."""
@@ -1252,10 +1372,12 @@ def _optimisation_section() -> list[str]:
 # ----------------------------------------------------------------------------------------------
 # The run
 # ----------------------------------------------------------------------------------------------
-PARTS = ("grid", "sweep", "split_sum", "python", "rebuild")
+PARTS = ("grid", "sweep", "split_sum", "python", "rebuild", "automatic")
 
 
-def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, log=print) -> dict:
+def run(
+    quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, log=print, per_pixel: bool = True
+) -> dict:
     started = time.perf_counter()
     ext = Extension()  # imports bpy first: gpu and mathutils come with it
     import gpu
@@ -1285,6 +1407,9 @@ def run(quick: bool, baseline_rev: str | None = None, parts=PARTS, orders=None, 
         if "rebuild" in parts:
             log("batch rebuild after an edit …")
             res["rebuild"] = rebuild_time(scene, quick, log)
+        if "automatic" in parts:
+            log("glossy, medium and rough films at their automatic order …")
+            res["automatic"] = automatic_orders(scene, quick, log, per_pixel=per_pixel)
     finally:
         if tree is not None:
             ext.remove_baseline(tree)
@@ -1304,6 +1429,11 @@ def main(argv=None) -> int:
         "--orders", nargs="+", type=int, metavar="L", help="l_max of the order sweep (prints, writes nothing)"
     )
     parser.add_argument(
+        "--no-per-pixel",
+        action="store_true",
+        help="part 'automatic' without the per-pixel SH frames (prints, writes nothing)",
+    )
+    parser.add_argument(
         "--report-only",
         action="store_true",
         help=f"rewrite docs/performance.md from the last full run's {RESULTS_JSON} (no measuring)",
@@ -1315,13 +1445,19 @@ def main(argv=None) -> int:
             res = json.load(handle)
     else:
         code_state = _code_state()  # before measuring: what was measured
-        res = run(args.quick, args.baseline, parts=args.only or PARTS, orders=args.orders)
+        res = run(
+            args.quick,
+            args.baseline,
+            parts=args.only or PARTS,
+            orders=args.orders,
+            per_pixel=not args.no_per_pixel,
+        )
         res["machine"] = common.machine_lines()
         res["code_state"] = code_state
         res["command"] = " ".join(
             ["python -m benchmarks.viewport", *(argv if argv is not None else sys.argv[1:])]
         )
-        if args.quick or args.only or args.orders:
+        if args.quick or args.only or args.orders or args.no_per_pixel:
             print(f"run done in {res['minutes']:.1f} min; nothing written")
             return 0
         os.makedirs(os.path.dirname(path), exist_ok=True)

@@ -1,6 +1,7 @@
 #include "tf_frame.glsl"
 #include "tf_sh_rotate.glsl"
 #include "tf_table.glsl"
+#include "tf_radiance_grid.glsl"
 
 /* tf_shade.glsl: one pixel of thin-film SH shading.
  *
@@ -15,6 +16,8 @@
  *
  * n, v: unit normal and unit direction towards the viewer (world space); thickness01: the
  * position on the table's thickness axis in [0, 1] (ignored without TF_VARY_THICKNESS).
+ * With TF_RADIANCE_GRID (constant thickness, policy.uses_grid) the sum is read from the
+ * outgoing-radiance grid instead (tf_radiance_grid.glsl) and no SH code is compiled.
  */
 
 /* sum += M_k L for kept coefficient k (table layers 3k..3k+2, or layer k) and the local
@@ -36,7 +39,7 @@ void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
   tf_accumulate_value(sum, r, k, tf_c[i]);
 }
 
-#if TF_L_MAX > 2 && defined(TF_X90_GENERATED)
+#if TF_L_MAX > 2 && defined(TF_X90_GENERATED) && !defined(TF_RADIANCE_GRID)
 /* Rotation and sum band by band in local variables, generated after this file
  * (codegen.banded_source): only one band's coefficients are live at a time. */
 vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c);
@@ -46,7 +49,9 @@ vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c);
  * tf_shade_combined, so the combined path does not build them twice). */
 vec3 tf_shade_at(TFFrame f, TFLerp r)
 {
-#if TF_L_MAX > 2 && defined(TF_X90_GENERATED)
+#if defined(TF_RADIANCE_GRID)
+  return tf_shade_grid(f); /* shading.radiance_grid.lookup: the same sum, tabulated */
+#elif TF_L_MAX > 2 && defined(TF_X90_GENERATED)
   vec2 a, b, c;
   tf_zyz_from_frame(f, a, b, c);
   return max(tf_banded_sum(r, a, b, c), vec3(0.0));

@@ -642,7 +642,14 @@ def test_chunks_are_joined_by_their_includes(gd, tmp_path):
     """Each chunk names what it needs; the closure comes once each, after what it includes, and
     the product never joins the reference rotation of tests/glsl/."""
     shaders = gd.shaders
-    library = ["tf_common.glsl", "tf_frame.glsl", "tf_sh_rotate.glsl", "tf_table.glsl", "tf_shade.glsl"]
+    library = [
+        "tf_common.glsl",
+        "tf_frame.glsl",
+        "tf_sh_rotate.glsl",
+        "tf_table.glsl",
+        "tf_radiance_grid.glsl",  # empty without TF_RADIANCE_GRID
+        "tf_shade.glsl",
+    ]
     assert shaders.chunk_order(["tf_shade.glsl"]) == library
     assert shaders.chunk_order(["tf_lamps.glsl", "tf_main_frag.glsl"], done=library) == [
         "tf_lamps.glsl",

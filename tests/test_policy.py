@@ -40,8 +40,11 @@ def macro_name(name: str) -> str:
 
 
 def every_variant():
-    for l_max, flags in itertools.product((0, 2, 5, 12), itertools.product((False, True), repeat=10)):
-        yield Variant(l_max, *flags).normalised()
+    switches = [f for f in Variant._fields if f not in ("l_max", "transmit")]  # the on/off ones
+    for l_max, flags in itertools.product(
+        (0, 2, 5, 12), itertools.product((False, True), repeat=len(switches))
+    ):
+        yield Variant(l_max, **dict(zip(switches, flags, strict=True))).normalised()
     for transmit in (1, 2):  # a transparent film's blend passes (TF_TRANSMIT)
         yield Variant(5, True, True, False, transmit=transmit).normalised()
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
-from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant
+from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
 from . import resources
 from .context import ensure_gpu_context
 from .mesh import MeshBatch
@@ -126,6 +126,7 @@ class DrawGroup:
     draws: list  # (GPUBatch, object GPUUniformBuf)
     film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
     lights: gpu.types.GPUUniformBuf | None = None  # Blender's light objects (variant.lights)
+    grid: gpu.types.GPUTexture | None = None  # the outgoing-radiance grid (variant.grid)
     #: A transparent film's pass: face culling ("NONE", or "FRONT" to draw the back faces) and
     #: blend ("NONE" for opaque films; "MULTIPLY" then "ADDITIVE_PREMULT"); no depth writes.
     cull: str = "NONE"
@@ -154,18 +155,19 @@ class PreparedDraw:
         )
 
 
-def _add_item(
-    groups: dict, item, batch, has_thickness, display_srgb, shaders, uniforms, transmit=0, display_lut=None
-):
-    """Add one item's draw to ``groups`` (keyed by what its group binds); ``transmit``: the blend
-    pass of a transparent film (variant.TRANSMIT_PASSES), 0 for an opaque one; ``display_lut``:
-    the bound display LUT, if any."""
+def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
+    """Add one item's draw to ``groups`` (keyed by what its group binds). ``options``:
+    (display_srgb, shaders, uniforms, display_lut, compile_now) of :func:`prepare_draw`;
+    ``transmit``: the blend pass of a transparent film (variant.TRANSMIT_PASSES), 0 for an opaque
+    one."""
+    display_srgb, shaders, uniforms, display_lut, compile_now = options
     table = item.table
     prefiltered = getattr(item, "prefiltered", None)
     sh_weight = float(getattr(item, "sh_weight", 1.0))
     table_ubo = getattr(table, "ubo", None)
     film = getattr(item, "film", None)
     lights = getattr(item, "lights", None)
+    grid = getattr(item, "grid", None)
     variant = choose_variant(
         l_max=table.l_max,
         spectral=table.spectral,
@@ -181,7 +183,11 @@ def _add_item(
         light_count=resources.light_count(lights),
         display_lut=display_lut is not None,
         transmit=transmit,
+        grid=grid is not None,
     )
+    if not compile_now and not shaders.compiled(variant):
+        shaders.want(variant)
+        variant = stand_in(variant)
     split = variant.split_sum
     roughness = float(getattr(item, "roughness", 0.0))
     weight = sh_weight if split else 1.0
@@ -204,6 +210,7 @@ def _add_item(
         id(prefiltered.texture) if split else None,
         id(film_data) if variant.film else None,
         id(lights_ubo) if variant.lights else None,
+        id(grid.texture) if variant.grid else None,
     )
     group = groups.get(key)
     if group is None:
@@ -216,6 +223,7 @@ def _add_item(
             [],
             film_data,
             lights_ubo,
+            grid=grid.texture if variant.grid else None,
         )
     group.draws.append((batch, object_ubo))
 
@@ -253,8 +261,13 @@ def prepare_draw(
     shaders=None,
     uniforms=None,
     display_lut=None,
+    compile_now: bool = True,
 ) -> PreparedDraw:
     """The CPU half of :func:`draw_items`: variants, uniform buffers and the order of the draws.
+
+    ``compile_now`` False (the viewport): a variant that is not compiled yet is not compiled
+    here; it is asked for (``ShaderCache.want``, compiled later one per idle step) and the item
+    is drawn with its stand-in meanwhile (variant.stand_in: order ≤ policy.STAND_IN_L, no grid).
 
     Items are grouped by (variant, lighting, table, prefiltered World) so that :func:`submit`
     binds each shader and resource once per group; the order within a group is kept. Uniform
@@ -274,13 +287,12 @@ def prepare_draw(
         batch, has_thickness = _batch_of(item)
         if batch is None:
             continue
+        options = (display_srgb, shaders, uniforms, display_lut, compile_now)
         if is_wall(item):
             for transmit, found in walls.items():
-                _add_item(
-                    found, item, batch, has_thickness, display_srgb, shaders, uniforms, transmit, display_lut
-                )
+                _add_item(found, item, batch, has_thickness, options, transmit)
         else:
-            _add_item(groups, item, batch, has_thickness, display_srgb, shaders, uniforms, 0, display_lut)
+            _add_item(groups, item, batch, has_thickness, options)
     if not groups and not walls[TRANSMIT_MULTIPLY]:
         return PreparedDraw(None, [])
     ordered = _ordered(groups)
@@ -288,6 +300,26 @@ def prepare_draw(
         ordered += [dataclasses.replace(g, cull=cull, blend=blend) for g in _ordered(walls[transmit])]
     lut = display_lut.texture if (display_lut is not None and display_srgb) else None
     return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered, lut)
+
+
+def _bind_group(shader, group: DrawGroup) -> None:
+    """Bind what a group's draws read: lighting, table, prefilter, film, lights, grid."""
+    shader.uniform_block(resources.LIGHTING.name, group.lighting)
+    if group.variant.table_ubo:
+        shader.uniform_block(resources.TABLE.name, group.table)
+    else:
+        shader.uniform_sampler(resources.TABLE_SAMPLER.name, group.table)
+    if group.prefiltered is not None:
+        shader.uniform_sampler(resources.PREFILTERED_SAMPLER.name, group.prefiltered)
+    if group.film is not None:
+        if group.variant.film_ubo:
+            shader.uniform_block(resources.FILM.name, group.film)
+        else:
+            shader.uniform_sampler(resources.FILM_SAMPLER.name, group.film)
+    if group.lights is not None:
+        shader.uniform_block(resources.LIGHTS.name, group.lights)
+    if group.grid is not None:
+        shader.uniform_sampler(resources.RADIANCE_GRID_SAMPLER.name, group.grid)
 
 
 def submit(prepared: PreparedDraw) -> None:
@@ -320,20 +352,7 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.uniform_block(resources.VIEW.name, prepared.view)
                 if group.variant.display_lut:
                     shader.uniform_sampler(resources.DISPLAY_LUT_SAMPLER.name, prepared.display_lut)
-            shader.uniform_block(resources.LIGHTING.name, group.lighting)
-            if group.variant.table_ubo:
-                shader.uniform_block(resources.TABLE.name, group.table)
-            else:
-                shader.uniform_sampler(resources.TABLE_SAMPLER.name, group.table)
-            if group.prefiltered is not None:
-                shader.uniform_sampler(resources.PREFILTERED_SAMPLER.name, group.prefiltered)
-            if group.film is not None:
-                if group.variant.film_ubo:
-                    shader.uniform_block(resources.FILM.name, group.film)
-                else:
-                    shader.uniform_sampler(resources.FILM_SAMPLER.name, group.film)
-            if group.lights is not None:
-                shader.uniform_block(resources.LIGHTS.name, group.lights)
+            _bind_group(shader, group)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(resources.OBJECT.name, object_ubo)
                 batch.draw(shader)
@@ -352,6 +371,7 @@ def draw_items(
     shaders=None,
     uniforms=None,
     display_lut=None,
+    compile_now: bool = True,
 ):
     """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
 
@@ -360,10 +380,12 @@ def draw_items(
     (:class:`.resources.Lighting`); optionally ``.prefiltered``
     (:class:`.resources.PrefilterTexture`), ``.film`` (:class:`.resources.FilmTexture`),
     ``.lights`` (:func:`.resources.lights_content`: Blender's light objects, shaded with the
-    film), ``.roughness`` and ``.sh_weight`` (the split sum), ``.wall`` (a transparent film: (mode, η)
-    of precompute.shading.transmit, drawn with its ``.film`` in blend passes over what the
-    framebuffer holds). ``display_lut``: the scene's view transform
-    (:class:`.resources.DisplayLUTTexture`). :func:`prepare_draw` then :func:`submit`; see there.
+    film), ``.grid`` (:class:`.resources.RadianceGridTexture`: the SH half of a constant-thickness
+    film, variant.choose_variant), ``.roughness`` and ``.sh_weight`` (the split sum), ``.wall`` (a
+    transparent film: (mode, η) of precompute.shading.transmit, drawn with its ``.film`` in blend
+    passes over what the framebuffer holds). ``display_lut``: the scene's view transform
+    (:class:`.resources.DisplayLUTTexture`). ``compile_now`` False: uncompiled variants are drawn
+    by their stand-in (:func:`prepare_draw`). :func:`prepare_draw` then :func:`submit`; see there.
     """
     submit(
         prepare_draw(
@@ -375,6 +397,7 @@ def draw_items(
             shaders=shaders,
             uniforms=uniforms,
             display_lut=display_lut,
+            compile_now=compile_now,
         )
     )
 

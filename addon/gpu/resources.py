@@ -247,6 +247,7 @@ assert TABLE.nbytes == FILM.nbytes == UBO_LIMIT_BYTES  # the tables use all of i
 TABLE_SAMPLER = Sampler(0, "FLOAT_2D_ARRAY", "tf_table")
 PREFILTERED_SAMPLER = Sampler(3, "FLOAT_3D", "tf_prefiltered")
 FILM_SAMPLER = Sampler(4, "FLOAT_2D_ARRAY", "tf_film")
+RADIANCE_GRID_SAMPLER = Sampler(6, "FLOAT_2D_ARRAY", "tf_radiance_grid")
 #: The background shader's only texture.
 ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")
 #: The display LUT (tf_display.glsl, :class:`DisplayLUTTexture`) of ``TF_DISPLAY_LUT`` variants.
@@ -560,6 +561,40 @@ class FilmTexture:
         packed = texel_block(FILM, layers)
         ubo = gpu.types.GPUUniformBuf(float_buffer(packed)) if packed is not None else None
         return cls(texture, u, t, film.reflectance.ndim == 4, ubo)
+
+
+@dataclass
+class RadianceGridTexture:
+    """A constant-thickness film's outgoing-radiance grid (precompute.shading.radiance_grid.build).
+
+    ``texture`` (:data:`RADIANCE_GRID_SAMPLER`, RGBA16F: 4.5–9 MiB, policy.grid_shape): a 2-D
+    array of W × H mirror-direction cells, equirect, top row first; layer j·Ψ + k = θo node j and
+    view azimuth k. LINEAR, REPEAT in u, EXTEND in t: the shader interpolates the mirror direction
+    by the filter and θo and ψ by hand (tf_radiance_grid.glsl).
+    """
+
+    texture: gpu.types.GPUTexture
+    shape: tuple
+
+    @classmethod
+    def from_grid(cls, grid) -> RadianceGridTexture:
+        """Upload a (T·Ψ, H, W, 3) grid, Ψ = policy.GRID_AZIMUTHS; refuses another shape and
+        non-finite values."""
+        data = np.asarray(grid, dtype=np.float32)
+        p = policy.GRID_AZIMUTHS
+        if data.ndim != 4 or data.shape[3] != 3 or data.shape[0] % p or data.shape[0] < 2 * p:
+            raise ValueError(f"radiance grid must be (T·{p}, H, W, 3) with T ≥ 2, got {data.shape}")
+        t, h, w = data.shape[0] // p, data.shape[1], data.shape[2]
+        if not np.all(np.isfinite(data)):
+            raise ValueError("the radiance grid holds non-finite values")
+        rgba = np.zeros(data.shape[:3] + (4,), dtype=np.float32)
+        rgba[..., :3] = data
+        ensure_gpu_context()
+        texture = gpu.types.GPUTexture((w, h), layers=t * p, format="RGBA16F", data=float_buffer(rgba))
+        texture.filter_mode(True)
+        texture.extend_mode("EXTEND")
+        texture.extend_mode_x("REPEAT")
+        return cls(texture, (w, h, t, p))
 
 
 def lights_content(lights: Lights | None) -> np.ndarray | None:

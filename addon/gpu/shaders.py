@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import re
+import time
 from pathlib import Path
 
 import gpu
@@ -88,11 +89,13 @@ def join_chunks(names, search=(GLSL_DIR,)) -> str:
     return "\n".join(f"/* ---- {n} ---- */\n{_parse(_find(n, tuple(search), None))[1]}" for n in names)
 
 
-def _library(l_max: int, reference_rotation: Path | None) -> tuple[str, list[str], tuple[Path, ...]]:
+def _library(
+    l_max: int, reference_rotation: Path | None, grid: bool = False
+) -> tuple[str, list[str], tuple[Path, ...]]:
     """(source, chunks joined, search folders) of :func:`shading_library`."""
     if reference_rotation is None:
         chunks = chunk_order([LIBRARY_ROOT])
-        generated = banded_source(l_max) if l_max > 2 else ""
+        generated = banded_source(l_max) if l_max > 2 and not grid else ""
         source = "\n".join([define_block([X90_GENERATED]), join_chunks(chunks), generated])
         return source, chunks, (GLSL_DIR,)
     path = Path(reference_rotation)
@@ -101,7 +104,7 @@ def _library(l_max: int, reference_rotation: Path | None) -> tuple[str, list[str
     return join_chunks(chunks, search), chunks, search
 
 
-def shading_library(l_max: int, *, reference_rotation: Path | None = None) -> str:
+def shading_library(l_max: int, *, reference_rotation: Path | None = None, grid: bool = False) -> str:
     """The per-pixel shading functions (``tf_shade`` and what it needs) as one GLSL source.
 
     By default the product's library (``TF_X90_GENERATED``): for l_max ≤ 2 the rotation straight
@@ -109,8 +112,10 @@ def shading_library(l_max: int, *, reference_rotation: Path | None = None) -> st
     generated band by band (codegen.banded_source). ``reference_rotation``: a chunk defining
     ``tf_local_coefficients`` (the generic z-y-z loops, tests/glsl/tf_sh_rotate_loops.glsl; never
     shipped), which ``tf_shade_at`` then calls at every order instead (same results, slower).
+    ``grid``: the ``TF_RADIANCE_GRID`` library, whose SH sum is read from the outgoing-radiance
+    grid: the generated code is left out (it is what makes high orders slow to compile).
     """
-    return _library(l_max, reference_rotation)[0]
+    return _library(l_max, reference_rotation, grid)[0]
 
 
 def _declare(info, resource) -> None:
@@ -137,6 +142,8 @@ def declare_shading_resources(info, variant: Variant) -> None:
         _declare(info, resources.LIGHTS)
     if variant.display_lut:
         _declare(info, resources.DISPLAY_LUT_SAMPLER)
+    if variant.grid:
+        _declare(info, resources.RADIANCE_GRID_SAMPLER)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.LIGHTING)
     _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
@@ -160,7 +167,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
-    library, joined, search = _library(variant.l_max, reference_rotation)
+    library, joined, search = _library(variant.l_max, reference_rotation, variant.grid)
     roots = []  # joined only where the variant declares their resources
     if variant.lamps:
         roots.append("tf_lamps.glsl")
@@ -203,15 +210,44 @@ class ShaderCache:
 
     def __init__(self, *, reference_rotation: Path | None = None):
         self._shaders: dict = {}
+        self._wanted: dict = {}  # variants asked for ahead, in order (a dict as an ordered set)
         self.compile_count = 0
         self.reference_rotation = reference_rotation
+        #: Seconds each compilation took, by key (docs/performance.md: first compile per variant).
+        self.compile_seconds: dict = {}
+
+    def compiled(self, variant: Variant) -> bool:
+        """Whether the mesh shader of ``variant`` is compiled."""
+        return variant.normalised() in self._shaders
+
+    def want(self, variant: Variant) -> None:
+        """Ask for ``variant`` to be compiled later (:meth:`compile_next`), not now."""
+        variant = variant.normalised()
+        if variant not in self._shaders:
+            self._wanted[variant] = None
+
+    def wanted(self) -> list:
+        """The variants asked for and not compiled yet, oldest first."""
+        return [v for v in self._wanted if v not in self._shaders]
+
+    def compile_next(self) -> Variant | None:
+        """Compile the oldest variant asked for (one per call: an idle step's work); None if none."""
+        while self._wanted:
+            variant = next(iter(self._wanted))
+            del self._wanted[variant]
+            if variant not in self._shaders:
+                self.mesh(variant)
+                return variant
+        return None
 
     def _compile(self, key, make_info):
         shader = self._shaders.get(key)
         if shader is None:
             ensure_gpu_context()
             info, _iface = make_info()  # the interface must outlive the create-info until compiled
+            start = time.perf_counter()
             shader = gpu.shader.create_from_info(info)
+            self.compile_seconds[key] = time.perf_counter() - start
             self.compile_count += 1
             self._shaders[key] = shader
         return shader
@@ -230,6 +266,7 @@ class ShaderCache:
         lights: bool = False,
         display_lut: bool = False,
         transmit: int = 0,
+        grid: bool = False,
     ):
         """The mesh shader of a variant given field by field (see :class:`Variant`)."""
         return self.mesh(
@@ -246,6 +283,7 @@ class ShaderCache:
                 lights,
                 display_lut,
                 transmit,
+                grid,
             )
         )
 
@@ -262,8 +300,9 @@ class ShaderCache:
         return len(self._shaders)
 
     def clear(self) -> None:
-        """Forget every compiled shader (they are rebuilt on next use)."""
+        """Forget every compiled shader (they are rebuilt on next use) and every wish."""
         self._shaders.clear()
+        self._wanted.clear()
 
 
 #: The shared cache used when none is passed.

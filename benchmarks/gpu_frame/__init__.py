@@ -47,7 +47,11 @@ nothing but numpy and moderngl:
   the scene camera. ``prepare`` runs on llvmpipe, where small tables are read from the uniform
   buffer; cases "<film>-tex" are the same films with the table read from its texture, as a
   hardware GPU draws them (``policy.TABLE_UBO_DEVICES``), and "sh-loops" (l = 8, 12) the SH
-  film with the generic rotation loops instead of the generated X(±90°) code.
+  film with the generic rotation loops instead of the generated X(±90°) code; ``automatic``
+  (issue 16), 1 torus with 1.00 M triangles, films of roughness 0.05 / 0.3 / 0.6
+  (``viewport.AUTOMATIC_ROUGHNESS``) at their automatic order with the World's lamps, as the
+  product draws them (medium and rough: the SH half from the outgoing-radiance grid, an RGBA16F
+  2-D array, LINEAR, REPEAT in u) and, cases "<film>-perpixel", with the per-pixel SH sum.
 
 ``measure`` draws each case as ``gpu.draw.submit`` does: into an RGBA8 framebuffer with a 24-bit
 depth buffer, cleared to 0 and depth 1, depth test LEQUAL with writes, no blending, no culling,

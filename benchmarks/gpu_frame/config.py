@@ -16,7 +16,13 @@ CHECK_SIZE = (480, 270)
 SCENES = {
     "sweep": {"layout": (10, 100_000), "l_max": (2, 5, 8, 12), "cases": ("sh", "combined", "split")},
     "grid": {"layout": (1, 1_000_000), "l_max": (4, 2), "cases": ("sh",)},
+    # issue 16: glossy / medium / rough films (viewport.AUTOMATIC_ROUGHNESS) at their automatic
+    # order, as the product draws them (medium and rough: SH half from the outgoing-radiance grid)
+    # and, case "<film>-perpixel", with the per-pixel SH instead; lamps on only.
+    "automatic": {"layout": (1, 1_000_000), "l_max": ("auto",), "cases": ("glossy", "medium", "rough")},
 }
+#: Scenes drawn with the World's lamps on only.
+LAMPS_ON_ONLY = ("automatic",)
 LAMPS = (True, False)
 #: Scenes and orders whose films are also drawn with the table read from its texture (case
 #: "<case>-tex"): what a hardware GPU draws (policy.TABLE_UBO_DEVICES), since ``prepare`` runs on

@@ -158,7 +158,10 @@ class Harness:
             return self._textures[key]
         a = self.data.array(key)
         mgl = self.mgl
-        if res["dim"] == "2d_array":
+        if res["dim"] == "2d_array" and res.get("format") == "RGBA16F":  # the radiance grid
+            layers, h, w = a.shape[:3]
+            tex = self.ctx.texture_array((w, h, layers), 4, a.astype(np.float16).tobytes(), dtype="f2")
+        elif res["dim"] == "2d_array":
             layers, h, w = a.shape[:3]
             tex = self.ctx.texture_array((w, h, layers), 4, a.tobytes(), dtype="f4")
         elif res["dim"] == "3d":
@@ -167,7 +170,7 @@ class Harness:
         else:
             h, w = a.shape[:2]
             tex = self.ctx.texture((w, h), 4, a.tobytes(), dtype="f4")
-        if role == "prefiltered":  # gpu.resources.PrefilterTexture: filter_mode(True), EXTEND, REPEAT in x
+        if role in ("prefiltered", "grid"):  # PrefilterTexture, RadianceGridTexture: LINEAR, REPEAT in x
             tex.filter = (mgl.LINEAR, mgl.LINEAR)
             tex.repeat_x = True
             tex.repeat_y = False
@@ -217,7 +220,12 @@ class Harness:
 
     def _group_resources(self, g: dict) -> list:
         binds = [("ubo", 0, self.buffer(g["lighting"]["array"]))]
-        for role, ubo_slot, tex_slot in (("table", 3, 0), ("film", 4, 4), ("prefiltered", None, 3)):
+        for role, ubo_slot, tex_slot in (
+            ("table", 3, 0),
+            ("film", 4, 4),
+            ("prefiltered", None, 3),
+            ("grid", None, 6),  # gpu.resources.RADIANCE_GRID_SAMPLER
+        ):
             res = g.get(role)
             if res is None:
                 continue

@@ -11,6 +11,7 @@ import numpy as np
 from .. import viewport as vp
 from .config import (
     LAMPS,
+    LAMPS_ON_ONLY,
     LOOP_CASES_L,
     REFERENCE_ROTATION,
     SCENES,
@@ -264,7 +265,7 @@ class Writer:
         if rec["kind"] == "ubo":
             return {"kind": "ubo", "array": self.store.add(rec["data"])}
         size, layers = rec["size"], rec["layers"]
-        if rec["format"] != "RGBA32F" or rec["data"] is None:
+        if rec["format"] not in ("RGBA32F", "RGBA16F") or rec["data"] is None:
             raise RuntimeError(f"{role}: texture {rec['format']} without data is not supported")
         if layers:
             shape, dim = (layers, size[1], size[0], 4), "2d_array"
@@ -272,7 +273,10 @@ class Writer:
             shape, dim = (size[2], size[1], size[0], 4), "3d"
         else:
             shape, dim = (size[1], size[0], 4), "2d"
-        return {"kind": "texture", "dim": dim, "array": self.store.add(rec["data"].reshape(shape))}
+        out = {"kind": "texture", "dim": dim, "array": self.store.add(rec["data"].reshape(shape))}
+        if rec["format"] == "RGBA16F":  # the radiance grid: uploaded as half floats (harness.texture)
+            out["format"] = "RGBA16F"
+        return out
 
     def mesh(self, batch) -> str:
         if id(batch) in self._mesh_keys:
@@ -337,16 +341,75 @@ class Writer:
                     if group.prefiltered is None
                     else self.upload(group.prefiltered, "prefiltered"),
                     "film": None if group.film is None else self.upload(group.film, "film"),
+                    "grid": None if getattr(group, "grid", None) is None else self.upload(group.grid, "grid"),
                     "draws": [[self.mesh(batch), self.store.add(ubo.data)] for batch, ubo in group.draws],
                 }
             )
         return {**meta, "view": self.store.add(prepared.view.data), "groups": groups}
 
 
+def _automatic_frames(scene, size, scene_name: str, spec: dict):
+    """The ``automatic`` scene: glossy, medium and rough films at their automatic order (lamps on),
+    as the product draws them and (medium, rough) with the per-pixel SH (case "<film>-perpixel")."""
+    import bpy
+
+    objects, triangles = spec["layout"]
+    scene.set_objects(objects, triangles)
+    frame = None
+    try:
+        for case in spec["cases"]:
+            rough = vp.AUTOMATIC_ROUGHNESS[case]
+            mat = bpy.data.materials.get(f"Film auto {case}")
+            if mat is None:
+                mat = bpy.data.materials.new(f"Film auto {case}")
+                scene.ext.props.fill_from_material(mat.thinfilm_sh, vp.FILM.with_(roughness=rough))
+                mat.thinfilm_sh.sh_order = "AUTO"
+                mat.thinfilm_sh.enabled = True
+            for obj in scene.objects:
+                obj.data.materials.clear()
+                obj.data.materials.append(mat)
+            bpy.context.view_layer.update()
+            scene.ext.scene_draw.collect(bpy.context.evaluated_depsgraph_get())  # bake, World, grid
+            if frame is None:
+                frame = vp.Frame(scene, *size)
+            items = frame.items()
+            l_max = int(items[0].table.l_max)
+            meta = {
+                "id": case_id(scene_name, l_max, case, True),
+                "scene": scene_name,
+                "l_max": l_max,
+                "case": case,
+                "lamps": True,
+                "roughness": rough,
+                "objects": objects,
+                "triangles": scene.triangles,
+                "sh_weight": float(items[0].sh_weight),
+                "split_used": items[0].prefiltered is not None and items[0].sh_weight < 1.0,
+                "lamp_count": int(items[0].lighting.lamp_count),
+                "radiance_grid": items[0].grid is not None,
+            }
+            tex = _textures_only(items) or items  # as a hardware GPU reads the table
+            yield meta, tex, frame.base_view, frame.proj
+            if items[0].grid is not None:
+                per_pixel = [replace(it, grid=None) for it in tex]
+                yield (
+                    dict(meta, id=case_id(scene_name, l_max, case + "-perpixel", True), radiance_grid=False),
+                    per_pixel,
+                    frame.base_view,
+                    frame.proj,
+                )
+    finally:
+        if frame is not None:
+            frame.free()
+
+
 def _frames(scene, size):
     """The scene's cases: (meta, items, view, projection), as benchmarks/viewport.py draws them."""
     rough = vp.roughness_cases()
     for scene_name, spec in SCENES.items():
+        if scene_name in LAMPS_ON_ONLY:
+            yield from _automatic_frames(scene, size, scene_name, spec)
+            continue
         objects, triangles = spec["layout"]
         for l_max in spec["l_max"]:
             frame = None

@@ -23,6 +23,8 @@ tf_split_sum.glsl                       split_sum.py: ``level_blend``, ``lookup`
 ``tf_shade_combined``
 tf_lamps.glsl ``tf_shade_lamps``,       lamps.py: ``shade``, ``lamp_weight``,
 ``tf_film_at``                          ``level_lamp_weights``
+tf_radiance_grid.glsl                   radiance_grid.py: ``coordinates``, ``lookup``
+``tf_shade_grid``                       (the grid: ``build``, ``cell_geometry``)
 ``#define``s of the shading rules       policy.py: ``glsl_defines`` (and every rule's value)
 (``TF_MAX_LAMPS``, ``TF_MIN_COS``, …)
 variant ``#define``s (``TF_L_MAX``,     variant.py: ``Variant.defines``, ``choose_variant``

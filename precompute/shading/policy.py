@@ -52,6 +52,42 @@ def uses_moment(l_max: int, split_only: bool) -> bool:
 
 
 # ----------------------------------------------------------------------------------------------
+# Outgoing-radiance grid (shading/radiance_grid.py, tf_radiance_grid.glsl)
+# ----------------------------------------------------------------------------------------------
+#: Mirror-direction cells of the outgoing-radiance grid (W azimuth × H polar, equirect) and its
+#: view azimuths ψ about the mirror direction (periodic); its view angles θo are the table's own
+#: (grid_shape): 48 × 24 × 32 × A cells, 4.5 MiB (A = 16) to 9 MiB (A = 32) in RGBA16F, mean
+#: ΔE2000 0.06–0.17 from the per-pixel l = 12 SH (docs/tuning.md#radiance-grid).
+GRID_MIRROR = (48, 24)
+GRID_AZIMUTHS = 32
+
+
+def grid_shape(view_samples: int) -> tuple[int, int, int, int]:
+    """(W, H, T, Ψ) of the grid of a table with ``view_samples`` view angles: T = that count, so
+    the grid's θo nodes are the table's and its θo interpolation is the table's own."""
+    return (GRID_MIRROR[0], GRID_MIRROR[1], int(view_samples), GRID_AZIMUTHS)
+
+
+#: From this SH order on a constant-thickness film's SH half is read from the grid: below it the
+#: per-pixel sum costs about what the grid's four fetches do (docs/tuning.md#radiance-grid).
+GRID_MIN_L = 3
+
+
+def uses_grid(l_max: int, vary_thickness: bool, sh_weight: float) -> bool:
+    """Whether a film's SH half is read from the outgoing-radiance grid (see :data:`GRID_MIN_L`):
+    an SH half (``sh_weight`` > 0) at an order from GRID_MIN_L on, and one thickness (a varying
+    thickness keeps the per-pixel SH: one grid per thickness row would not fit)."""
+    return int(l_max) >= GRID_MIN_L and not vary_thickness and float(sh_weight) > 0.0
+
+
+#: While a variant compiles (ahead, one per idle step) the viewport draws its film with the
+#: variant of this order at most and no grid: bands above it are left out of the sum (the
+#: table's and the lighting's layouts do not depend on the order), and up to l = 2 the
+#: rotation is a few dot products that compile in a fraction of the l = 12 code's time.
+STAND_IN_L = 2
+
+
+# ----------------------------------------------------------------------------------------------
 # Prefiltered levels
 # ----------------------------------------------------------------------------------------------
 #: Prefiltered levels of the split sum: no roughness far from one (docs/tuning.md#level-ladder).
@@ -183,6 +219,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
     - ``TF_DISPLAY_LUT_SIZE``, ``TF_DISPLAY_LUT_FLOOR``, ``TF_DISPLAY_LUT_MAX``: the display LUT
       (:data:`DISPLAY_LUT_SIZE` … :data:`DISPLAY_LUT_MAX`).
+    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`.
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -205,4 +242,5 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_DISPLAY_LUT_SIZE", str(int(DISPLAY_LUT_SIZE))),
         ("TF_DISPLAY_LUT_FLOOR", glsl_float(DISPLAY_LUT_FLOOR)),
         ("TF_DISPLAY_LUT_MAX", glsl_float(DISPLAY_LUT_MAX)),
+        ("TF_GRID_AZIMUTHS", str(int(GRID_AZIMUTHS))),
     )

@@ -60,6 +60,9 @@ class Variant(NamedTuple):
     #: A transparent film's blend pass (``TF_TRANSMIT``, tf_transmit.glsl, the film texture):
     #: 0 opaque, :data:`TRANSMIT_MULTIPLY` (writes T) or :data:`TRANSMIT_ADD` (writes R·L).
     transmit: int = 0
+    #: The SH half read from the outgoing-radiance grid (``TF_RADIANCE_GRID``,
+    #: tf_radiance_grid.glsl; policy.uses_grid): no SH code is compiled.
+    grid: bool = False
 
     @property
     def film(self) -> bool:
@@ -89,6 +92,7 @@ class Variant(NamedTuple):
             bool(self.lights),
             bool(self.display and self.display_lut),
             int(self.transmit) if int(self.transmit) in TRANSMIT_PASSES else 0,
+            bool(self.grid and not self.split_only),
         )
 
     def _display_switches(self) -> list[tuple[str, str]]:
@@ -121,6 +125,8 @@ class Variant(NamedTuple):
             out.append(("TF_FILM_UBO", "1"))
         if self.table_ubo:
             out.append(("TF_TABLE_UBO", "1"))
+        if self.grid:
+            out.append(("TF_RADIANCE_GRID", "1"))
         return tuple(out)
 
     def defines(self) -> tuple[tuple[str, str], ...]:
@@ -145,6 +151,7 @@ def choose_variant(
     light_count: int = 0,
     display_lut: bool = False,
     transmit: int = 0,
+    grid: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -162,14 +169,18 @@ def choose_variant(
     - ``display_lut``: a display LUT is bound (the scene's view transform, with ``display``).
     - ``transmit``: the blend pass of a transparent film (:data:`TRANSMIT_PASSES`, 0 opaque); it
       reads the film table, which the item must then carry.
+    - ``grid``: the item has an outgoing-radiance grid; its SH half is read from it where
+      policy.uses_grid says so (constant thickness, l_max ≥ GRID_MIN_L, an SH half drawn).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
     lights = bool(film) and int(light_count) > 0
+    vary = bool(has_thickness) and int(thickness_rows) > 1
+    weight = float(sh_weight) if split else 1.0
     return Variant(
         l_max=int(l_max),
         spectral=bool(spectral),
-        vary_thickness=bool(has_thickness) and int(thickness_rows) > 1,
+        vary_thickness=vary,
         display=bool(display),
         split_sum=split,
         table_ubo=bool(table_ubo),
@@ -179,4 +190,12 @@ def choose_variant(
         lights=lights,
         display_lut=bool(display) and bool(display_lut),
         transmit=int(transmit) if bool(film) else 0,
+        grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
     )
+
+
+def stand_in(variant: Variant) -> Variant:
+    """The variant drawn in place of ``variant`` while that one is not compiled yet: the same
+    switches at order ≤ policy.STAND_IN_L and without the grid (its SH sum truncated there)."""
+    v = variant.normalised()
+    return v._replace(l_max=min(v.l_max, policy.STAND_IN_L), grid=False).normalised()

@@ -1,0 +1,143 @@
+"""Outgoing-radiance grids of constant-thickness films: built on a worker, uploaded when ready.
+
+A film whose SH half policy.uses_grid reads from a grid (precompute.shading.radiance_grid)
+gets one per (description key, lighting key): the table and the windowed World SH it is built
+from. :func:`grid_for` returns the uploaded grid, or None while it is being built, and the
+draw then reads the per-pixel SH as before (the same picture to mean ΔE2000 < 0.6). Building
+takes 1–4 s of numpy at l = 12 on a worker thread (never the main thread or the draw
+callback); the newest request is built first and at most :data:`QUEUE_SIZE` wait, so a
+roughness drag builds the value it stops on, not every step. When one finishes a timer asks
+the 3D viewports for a redraw. ``wait=True`` (headless frames) builds it in the caller.
+
+:data:`GRIDS` (registered in :mod:`.caches` as ``radiance_grids``, FILE scope) holds the
+uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU memory each).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import bpy
+import numpy as np
+
+from ..precompute.shading import radiance_grid
+from . import caches
+from .gpu import resources
+
+log = logging.getLogger(__name__)
+
+#: Uploaded grids kept (4.5–9 MiB each on the GPU).
+GRID_CACHE_SIZE = 8
+#: Requests waiting for the worker; older ones are dropped (the newest is built first).
+QUEUE_SIZE = 4
+
+
+class _Grids:
+    """The uploaded grids (an LRU) and the worker's queue and results."""
+
+    def __init__(self):
+        self.textures = caches.LRU(GRID_CACHE_SIZE)
+        self.lock = threading.Lock()
+        self.queue: dict = {}  # key → (table, coefficients), oldest first
+        self.built: dict = {}  # key → grid array, waiting for its upload
+        self.running: str | None = None
+        self.finished = threading.Event()
+        self.worker: threading.Thread | None = None
+
+    def clear(self) -> None:
+        """Forget the uploaded grids, the queue and the built-but-not-uploaded ones."""
+        with self.lock:
+            self.textures.clear()
+            self.queue.clear()
+            self.built.clear()
+
+
+GRIDS = caches.register("radiance_grids", _Grids(), scope=caches.FILE)
+
+
+def busy() -> bool:
+    """Whether grids are being built or wait for the worker."""
+    with GRIDS.lock:
+        return bool(GRIDS.queue) or GRIDS.running is not None
+
+
+def activity() -> str:
+    """A few words for the viewport header while grids are built, else ""."""
+    with GRIDS.lock:
+        count = len(GRIDS.queue) + (GRIDS.running is not None)
+    return f"tabulating {count} rough film{'s' if count > 1 else ''}" if count else ""
+
+
+def _work() -> None:
+    while True:
+        with GRIDS.lock:
+            if not GRIDS.queue:
+                GRIDS.worker = None
+                return
+            key = next(reversed(GRIDS.queue))  # the newest request first
+            result, coeffs = GRIDS.queue.pop(key)
+            GRIDS.running = key
+        try:
+            grid = radiance_grid.build(result, coeffs)
+        except Exception as exc:  # the per-pixel SH keeps drawing the film
+            log.error("Thin Film SH: radiance grid failed: %s", exc)
+            grid = None
+        with GRIDS.lock:
+            GRIDS.running = None
+            if grid is not None:
+                GRIDS.built[key] = grid
+                while len(GRIDS.built) > QUEUE_SIZE:  # never fetched: a drag's intermediate value
+                    GRIDS.built.pop(next(iter(GRIDS.built)))
+        GRIDS.finished.set()
+
+
+def _tag_redraw() -> None:
+    for window in getattr(bpy.context.window_manager, "windows", []):
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
+
+def _poll() -> float | None:
+    """Timer: ask for a redraw when a grid is built; stops when nothing is left to build."""
+    if GRIDS.finished.is_set():
+        GRIDS.finished.clear()
+        _tag_redraw()
+    return 0.1 if busy() or GRIDS.finished.is_set() else None
+
+
+def _request(key: str, result, coeffs) -> None:
+    with GRIDS.lock:
+        if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built:
+            return
+        GRIDS.queue[key] = (result, np.array(coeffs, dtype=np.float64))
+        while len(GRIDS.queue) > QUEUE_SIZE:
+            GRIDS.queue.pop(next(iter(GRIDS.queue)))
+        if GRIDS.worker is None:
+            GRIDS.worker = threading.Thread(target=_work, name="tf-radiance-grid", daemon=True)
+            GRIDS.worker.start()
+    if not bpy.app.timers.is_registered(_poll):
+        bpy.app.timers.register(_poll, first_interval=0.1)
+
+
+def grid_for(key: str, result, coeffs, *, wait: bool = False) -> resources.RadianceGridTexture | None:
+    """The uploaded grid of ``result`` (a constant-thickness table) under ``coeffs`` (the
+    lighting buffer's windowed SH), or None while the worker builds it (``wait``: build it here).
+
+    ``key`` names both (description key and lighting key). Only the upload (4.5 MiB) runs on the
+    calling thread; a failed build leaves the film on the per-pixel SH.
+    """
+    found = GRIDS.textures.get(key)
+    if found is not None:
+        return found
+    with GRIDS.lock:
+        grid = GRIDS.built.pop(key, None)
+    if grid is None and wait:
+        grid = radiance_grid.build(result, coeffs)
+    if grid is None:
+        _request(key, result, coeffs)
+        return None
+    found = resources.RadianceGridTexture.from_grid(grid)
+    GRIDS.textures[key] = found
+    return found

@@ -1,0 +1,53 @@
+#include "tf_frame.glsl"
+
+/* tf_radiance_grid.glsl: the SH half read from the outgoing-radiance grid (TF_RADIANCE_GRID).
+ *
+ * numpy counterpart: shading.radiance_grid.coordinates and shading.radiance_grid.lookup.
+ * Texture `tf_radiance_grid` (addon/gpu/resources.py RadianceGridTexture): a 2-D array, W x H
+ * equirect cells of the mirror direction r (as the prefilter: u = 0.5 - phi/2pi, t = theta/pi;
+ * LINEAR, REPEAT in u, EXTEND in t), layer j * TF_GRID_AZIMUTHS + k = view angle node j
+ * (theta_o = pi/2 j / (T - 1), T = layers / TF_GRID_AZIMUTHS: the table's view angles) and
+ * view azimuth k (psi = 2 pi k / TF_GRID_AZIMUTHS)
+ * about r, measured from a1 = d r / d theta_r towards a2 = d r / d phi_r (unit). theta_o and psi
+ * are interpolated here (four fetches), the mirror direction by the texture's filter. The cost
+ * does not depend on TF_L_MAX: shading.radiance_grid.build holds the SH sum at every node.
+ * Without TF_RADIANCE_GRID this chunk is empty.
+ */
+
+#ifdef TF_RADIANCE_GRID
+vec3 tf_grid_fetch(vec2 uv, int layer)
+{
+  return texture(tf_radiance_grid, vec3(uv, float(layer))).rgb;
+}
+
+vec3 tf_shade_grid(TFFrame f)
+{
+  /* (cos, sin) theta_o, cos >= 0; r = reflect(-v, n) and e1 = d r / d(2 theta_o) in the frame's
+   * xz plane (v = cos n + sin x) */
+  vec2 cs = tf_safe_normalize2(vec2(max(f.cos_o, 0.0), f.sin_o), vec2(1.0, 0.0));
+  vec3 r = cs.x * f.z - cs.y * f.x;
+  vec3 e1 = cs.x * f.x + cs.y * f.z;
+  float rho = length(r.xy);
+  vec2 p = tf_safe_normalize2(r.xy, vec2(1.0, 0.0));
+  vec2 uv = vec2(0.5 - atan(r.y, r.x) / (2.0 * TF_PI), acos(clamp(r.z, -1.0, 1.0)) / TF_PI);
+  float along = r.z * dot(e1.xy, p) - e1.z * rho; /* e1 . a1 */
+  float across = e1.y * p.x - e1.x * p.y;         /* e1 . a2 */
+
+  int view_count = textureSize(tf_radiance_grid, 0).z / TF_GRID_AZIMUTHS;
+  float views = float(view_count - 1);
+  float jp = clamp(atan(cs.y, cs.x) / TF_HALF_PI * views, 0.0, views);
+  int j0 = min(int(floor(jp)), view_count - 2);
+  float wj = jp - float(j0);
+  float kp = atan(across, along) / (2.0 * TF_PI) * float(TF_GRID_AZIMUTHS);
+  kp = (kp < 0.0) ? kp + float(TF_GRID_AZIMUTHS) : kp;
+  int k0 = min(int(floor(kp)), TF_GRID_AZIMUTHS - 1);
+  float wk = kp - float(k0);
+  int k1 = (k0 + 1 == TF_GRID_AZIMUTHS) ? 0 : k0 + 1;
+
+  int l0 = j0 * TF_GRID_AZIMUTHS;
+  int l1 = l0 + TF_GRID_AZIMUTHS;
+  vec3 lo = mix(tf_grid_fetch(uv, l0 + k0), tf_grid_fetch(uv, l0 + k1), wk);
+  vec3 hi = mix(tf_grid_fetch(uv, l1 + k0), tf_grid_fetch(uv, l1 + k1), wk);
+  return mix(lo, hi, wj);
+}
+#endif

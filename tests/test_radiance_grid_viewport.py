@@ -1,0 +1,145 @@
+"""The outgoing-radiance grid in the add-on (addon/radiance_grids.py through scene_draw.collect).
+
+- the viewport's collect never builds a grid: it asks the worker and draws the per-pixel SH
+  meanwhile; once built, the next frame reads the grid (and a timer asks for that redraw);
+- a headless frame (allow_bake) builds it in place, so it draws what the viewport will;
+- only constant-thickness films at l_max ≥ policy.GRID_MIN_L get one;
+- a drag queues at most QUEUE_SIZE grids, newest first.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+from test_viewport_state import collect, film, scene, tf  # noqa: F401
+from test_viewport_state import grid as quad_grid
+
+pytestmark = pytest.mark.blender
+
+THREAD_TIMEOUT_S = 120.0
+
+
+def rough_film(bpy, tf, name, roughness=0.6, vary=False, order="3"):  # noqa: F811
+    mat = film(bpy, tf, name, roughness=roughness, vary=vary)
+    mat.thinfilm_sh.sh_order = order
+    return mat
+
+
+def grids_module(tf):  # noqa: F811
+    import importlib
+
+    return importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+
+
+def wait_idle(module):
+    deadline = time.monotonic() + THREAD_TIMEOUT_S
+    while module.busy() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert not module.busy(), "the radiance grid worker did not finish"
+
+
+def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, monkeypatch):  # noqa: F811
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    built_on = []
+    real_build = rg.radiance_grid.build
+
+    def build(*args, **kwargs):
+        built_on.append(threading.current_thread())
+        return real_build(*args, **kwargs)
+
+    monkeypatch.setattr(rg.radiance_grid, "build", build)
+    quad_grid(bpy, scene, "Quad", rough_film(bpy, tf, "Rough"))
+    collect(bpy, tf)  # bakes the table (allow_bake) and builds its grid in place
+    assert built_on == [threading.main_thread()]
+    rg.GRIDS.clear()
+    built_on.clear()
+    # the viewport: no build on this thread, the per-pixel SH meanwhile
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert item.grid is None and rg.busy() and "tabulating" in rg.activity()
+    assert bpy.app.timers.is_registered(rg._poll)
+    wait_idle(rg)
+    assert built_on and all(t is not threading.main_thread() for t in built_on)
+    assert rg.GRIDS.finished.is_set()  # the timer's cue for a redraw
+    rg._poll()
+    assert not rg.GRIDS.finished.is_set()
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert item.grid is not None
+    prepared = tf.package.addon.gpu.draw.prepare_draw([item], _eye(), _eye(), display_srgb=True)
+    assert prepared.groups[0].variant.grid
+    # the same frame again: the uploaded grid is reused, nothing is built
+    built_on.clear()
+    (again,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert again.grid is item.grid and not built_on and not rg.busy()
+
+
+def _eye():
+    import numpy as np
+
+    return np.eye(4)
+
+
+@pytest.mark.parametrize("vary, order", [(True, "3"), (False, "2")])
+def test_no_grid_for_varying_thickness_or_low_orders(bpy, tf, scene, vary, order):  # noqa: F811
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    quad_grid(bpy, scene, "Quad", rough_film(bpy, tf, "Film", vary=vary, order=order))
+    (item,), _ = collect(bpy, tf)
+    assert item.grid is None and not rg.busy()
+
+
+def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # noqa: F811
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    gate = threading.Event()
+    order = []
+    real_build = rg.radiance_grid.build
+
+    def slow_build(result, coeffs, *args, **kwargs):
+        gate.wait(THREAD_TIMEOUT_S)
+        order.append(round(float(result.material.roughness), 3))
+        return real_build(result, coeffs, *args, **kwargs)
+
+    mat = rough_film(bpy, tf, "Dragged", roughness=0.5)
+    quad_grid(bpy, scene, "Quad", mat)
+    steps = [0.5 + 0.02 * k for k in range(8)]
+    for r in steps:  # bake every step first (not what is measured here)
+        mat.thinfilm_sh.roughness = r
+        collect(bpy, tf)
+    monkeypatch.setattr(rg.radiance_grid, "build", slow_build)
+    rg.GRIDS.clear()
+    for r in steps:  # the drag: one frame per step, the worker held on the first grid
+        mat.thinfilm_sh.roughness = r
+        items, messages = collect(bpy, tf, allow_bake=False, allow_world=False)
+        assert len(items) == 1 and items[0].grid is None, messages
+    with rg.GRIDS.lock:
+        queued = len(rg.GRIDS.queue)
+    assert queued == rg.QUEUE_SIZE, (queued, rg.GRIDS.running)
+    gate.set()
+    wait_idle(rg)
+    assert len(order) <= rg.QUEUE_SIZE + 1, order
+    assert order[1] == round(steps[-1], 3), order  # after the one running, the newest
+
+
+def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa: F811
+    import importlib
+
+    from precompute.shading.variant import Variant
+
+    warmup = importlib.import_module(f"{tf.package.__name__}.addon.shader_warmup")
+    shaders = importlib.import_module(f"{tf.package.__name__}.addon.gpu.shaders").SHADERS
+    first, second = Variant(0, False, False, True), Variant(1, False, False, True)
+    for v in (first, second):
+        if shaders.compiled(v):
+            shaders._shaders.pop(v)
+        shaders.want(v)
+    assert "compiling shaders (2 left)" in warmup.activity()
+    assert "compiling shaders" in tf.viewport.activity()
+    warmup.schedule()
+    assert bpy.app.timers.is_registered(warmup.step)
+    assert warmup.step() == 0.05 and shaders.compiled(first) and not shaders.compiled(second)
+    assert warmup.step() is None and shaders.compiled(second) and warmup.activity() == ""
+    warmup.unregister()
+    assert not bpy.app.timers.is_registered(warmup.step)
