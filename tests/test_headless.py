@@ -897,10 +897,9 @@ def test_cli_frames_write_one_file_per_frame_computing_the_world_once(
     scene.world = bpy.data.worlds.new("Frames World")
     scene.world.color = (0.31, 0.27, 0.19)  # a World no other test analysed
     analysed = []
-    original = tf.scene_draw.analyse_world
-    monkeypatch.setattr(
-        tf.scene_draw, "analyse_world", lambda *a, **k: analysed.append(1) or original(*a, **k)
-    )
+    analysis = importlib.import_module(f"{EXTENSION_ID}.addon.world_analysis")
+    original = analysis.analyse_world
+    monkeypatch.setattr(analysis, "analyse_world", lambda *a, **k: analysed.append(1) or original(*a, **k))
     out = tmp_path / "shot_###.png"
     argv = ["render", "--out", str(out), "--frames", "1-3", "--engine", "SOLID", "--supersample", "1"]
     code = tf.headless._cli([*argv, "--json", str(tmp_path / "frames.json"), "--resolution", "32x24"])
