@@ -35,7 +35,7 @@ from benchmarks import common
 from precompute import hdri, lamps, prefilter
 from precompute.cli import studiolight
 
-BEFORE = "dcb75cb"
+BEFORE = "f46d98a"
 
 
 def film_sphere(bpy, scene):
@@ -192,9 +192,8 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
     return rows
 
 
-def prefilter_before_after(rev: str) -> dict:
-    """The prefilter of bpy's studio HDRI at 512 × 256 with its lamps lifted: ``rev``'s code and
-    this one, timed once each, and the levels' largest difference relative to their peak."""
+def prefilter_at(rev: str):
+    """``rev``'s precompute/prefilter.py as a module (imported beside this one)."""
     source = subprocess.run(
         ["git", "show", f"{rev}:precompute/prefilter.py"],
         cwd=common.ROOT,
@@ -213,15 +212,32 @@ def prefilter_before_after(rev: str) -> dict:
     before = importlib.util.module_from_spec(spec)
     sys.modules["prefilter_before"] = before
     spec.loader.exec_module(before)
+    return before
+
+
+def studio_512():
+    """bpy's studio HDRI at 512 × 256 and its lamps' mask."""
     img = hdri.read_equirect(studiolight("studio"))
     while img.shape[1] > 512:
         img = hdri.downsample(img, 2)
     _, mask = lamps.extract(img)
-    t_new, new = common.time_once(lambda: prefilter.prefilter(img, lamp_mask=mask))
-    t_old, old = common.time_once(lambda: before.prefilter(img, lamp_mask=mask))
+    return img, mask
+
+
+def prefilter_before_after(rev: str) -> dict:
+    """The prefilter of bpy's studio HDRI at 512 × 256 with its lamps lifted: ``rev``'s code and
+    this one, timed once each, and the levels' largest difference relative to their peak."""
+    before = prefilter_at(rev)
+    img, mask = studio_512()
+
+    def packed(module):  # what the worker computes: the levels and moments at the texture's width
+        pre = module.prefilter(img, lamp_mask=mask)
+        return pre.resampled(512), pre.resampled_moments(512)
+
+    t_new, (new, _) = common.time_once(lambda: packed(prefilter))
+    t_old, (old, _) = common.time_once(lambda: packed(before))
     diffs = [
-        float(np.max(np.abs(np.asarray(a, float) - b)) / np.max(b))
-        for a, b in zip(new.levels, old.levels, strict=True)
+        float(np.max(np.abs(np.asarray(a, float) - b)) / np.max(b)) for a, b in zip(new, old, strict=True)
     ]
     return {"before_s": t_old, "after_s": t_new, "diffs": diffs, "rev": rev}
 
