@@ -268,7 +268,7 @@ def report(rows, pre) -> str:
         "lamps plus a new lighting buffer, the prefilter texture is shared (looked up through the",
         "rotation, scaled by a uniform): tens of ms, nothing recomputed. A new HDRI is read on the",
         "main thread (its pixels: a few hundred ms for a 4k image under load) and analysed on a worker",
-        "(SH projection, lamps, the prefilter the film reads: *Ready*, dominated by the prefilter);",
+        "(SH projection, lamps, the prefilter the film reads: *Ready*);",
         "the old lighting is drawn meanwhile, and the draw that shows the new one uploads the",
         "prefilter texture (packed on the worker). A procedural World renders a 256 × 128 Cycles",
         "panorama (32 samples) on the main thread: the timer's block on a sky edit. A draw block of",
@@ -278,19 +278,20 @@ def report(rows, pre) -> str:
         "",
         "## The prefilter",
         "",
-        f"bpy's studio HDRI at 512 × 256, lamps lifted (9 levels and their moments), one run each: "
-        f"before ({pre['rev']}: float64, take_along_axis gathers) **{pre['before_s']:.1f} s**, "
-        f"after (float32, one flat gather of the four bilinear taps per sample, a batched product, "
-        f"level 1 with 8 × 3 samples) **{pre['after_s']:.1f} s**.",
+        f"bpy's studio HDRI at 512 × 256, lamps lifted (9 levels and their moments, resampled to "
+        f"the texture's 512 × 256 as the worker packs them), one run each: before ({pre['rev']}: "
+        f"levels at texels ≤ α/2, 12 × 6 samples but level 1's 8 × 3, resampled by direction "
+        f"lookups) **{pre['before_s']:.1f} s**, after (texels ≤ 1.25 α: level 3 at 256, level 4 at "
+        f"128, …; level 1 with 6 × 3 samples, level 2, a lobe under a texel, with 8 × 6; "
+        f"resampled per axis) **{pre['after_s']:.1f} s**.",
         "",
         "Largest difference per level, relative to the level's peak: "
         + ", ".join(f"{j}: {d:.1e}" for j, d in enumerate(pre["diffs"]))
-        + ". Levels 2–8 differ by float32 rounding only (≤ 3e-7: the same samples and weights). "
-        "Level 1 (GGX α = 2.4e-4, a reflected lobe of 0.04 texel) takes 8 × 3 samples instead of "
-        "12 × 6: a lobe that narrow is the image but for its far tail, which only the HDR lamps make "
-        "visible (level 1 keeps the lamps, policy.LAMP_LEVEL = 2); against a 32 × 16-sample reference "
-        "both stay within 1e-3 mean (8 × 3: 1.0e-3, 12 × 6: 0.9e-3), while copying the image would "
-        "be off by 1.5e-2 (the lamps' tails), so the level is filtered, not skipped.",
+        + ". Neither is the truth: `benchmarks/prefilter_accuracy.py` compares both with a "
+        "32 × 16-sample reference filtered at 512 texels (docs/prefilter-accuracy.md): per level "
+        "the new one is as close as the old (levels 3–6 closer: the coarser level averages the "
+        "sampling noise; level 2's mean error 8.5e-3 instead of 7.7e-3). A procedural World's "
+        "256-wide panorama is filtered at 256 texels (it holds no finer detail).",
         "",
         "## Machine",
         "",
