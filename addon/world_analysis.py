@@ -49,6 +49,8 @@ __all__ = [
 PANORAMA_WIDTH = 512
 #: Width of the prefilter texture: level 0 is the panorama itself.
 PREFILTER_WIDTH = prefilter.LEVEL_WIDTH
+#: The narrowest width the prefilter's sharpest levels are filtered at (a tiny source image).
+_POW2_MIN = 64
 #: The prefilter with the lamps lifted out (lamp-shaded glossy films).
 LIFTED = "lifted"
 #: The prefilter of the whole World (glossy films the lamps do not apply to).
@@ -123,14 +125,18 @@ def analyse_content(content_key: str, read: world.WorldRead, fallback_rgb, kinds
     usable = bool(
         np.all(np.isfinite(content.coeffs)) and np.all(np.abs(content.coeffs) <= world.MAX_COEFFICIENT)
     )
+    width = PREFILTER_WIDTH
     if not usable:
         image = _constant_panorama(world._constant(0, fallback_rgb))
     elif content.image is None:
         image = _constant_panorama(content.coeffs)
     else:
         image = _equirect(content.image, PANORAMA_WIDTH)
+        # a smaller source (a procedural World's 256-wide Cycles panorama) has no detail for
+        # sharper levels to keep: they are filtered at its width and resampled for the texture
+        width = min(width, max(_POW2_MIN, 1 << (int(content.image.shape[1]).bit_length() - 1)))
     coeffs = content.coeffs if usable else world._constant(MAX_SH_ORDER, fallback_rgb)
-    env = analyse_world(image, coeffs, l_max=resources.MAX_L, width=PREFILTER_WIDTH)
+    env = analyse_world(image, coeffs, l_max=resources.MAX_L, width=width)
     found = Analysed(content_key, content, env)
     for kind in kinds:
         found.compute(kind)

@@ -37,6 +37,10 @@ from .shading.policy import ROUGHNESS_LEVELS
 LEVEL_WIDTH = 512
 #: GGX samples per output texel (θ × φ strata); enough once each reads a matched mip level.
 SAMPLES = (12, 6)
+#: A level's texels are at most this × α wide (:func:`level_width`): against a 32 × 16-sample
+#: reference at 512 texels, a level this coarse (bilinearly resampled) is as close as one at
+#: twice the width, 1.6 × α is not (docs/world-latency.md).
+TEXEL_ALPHA = 1.25
 #: Mip-level bias of filtered importance sampling: 0, not Křivánek & Colbert's 1, so small HDR
 #: lamps are not blurred (docs/tuning.md#lod-bias).
 LOD_BIAS = 0.0
@@ -93,14 +97,39 @@ class Prefiltered:
 
 
 def _resample(stack, width: int) -> np.ndarray:
-    dirs = hdri.equirect_directions(width // 2, width)
-    return np.stack([hdri.equirect_lookup(level, dirs) for level in stack])
+    return np.stack([resample_equirect(level, width) for level in stack])
+
+
+def _taps(n_out: int, n_in: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lower tap and its weight of each of ``n_out`` texel centres on an ``n_in``-texel axis."""
+    x = (np.arange(n_out) + 0.5) * (n_in / n_out) - 0.5
+    x0 = np.floor(x).astype(np.intp)
+    return x0, x - x0
+
+
+def resample_equirect(level: np.ndarray, width: int) -> np.ndarray:
+    """``level`` (h, w, C) bilinearly resampled to (width/2, width, C): :func:`hdri.equirect_lookup`
+    at the texel centres, done per axis (the grids are aligned: a texel centre's θ depends only on
+    its row, its φ only on its column), wrapping in u and clamping rows at the poles."""
+    h, w = level.shape[:2]
+    if (h, w) == (width // 2, width):
+        return np.array(level)
+    y0, fy = _taps(width // 2, h)
+    fy = np.where(y0 < 0, 0.0, np.clip(fy, 0.0, 1.0))
+    y0 = np.clip(y0, 0, h - 1)
+    y1 = np.minimum(y0 + 1, h - 1)
+    fy = fy.astype(level.dtype)[:, None, None]
+    rows = (1 - fy) * level[y0] + fy * level[y1]
+    x0, fx = _taps(width, w)
+    fx = fx.astype(level.dtype)[None, :, None]
+    return (1 - fx) * rows[:, x0 % w] + fx * rows[:, (x0 + 1) % w]
 
 
 def level_width(roughness: float, max_width: int = LEVEL_WIDTH) -> int:
-    """Texels across for a level: a power of two with texels ≈ α/2 wide, in [32, max_width]."""
+    """Texels across for a level: the narrowest power of two whose texels are at most
+    :data:`TEXEL_ALPHA` × α wide, in [32, max_width]."""
     alpha = max(float(roughness) ** 2, constants.MIN_ALPHA)
-    wanted = 2.0 * np.pi / (0.5 * alpha)
+    wanted = 2.0 * np.pi / (TEXEL_ALPHA * alpha)
     return int(min(max_width, max(32, 2 ** math.ceil(math.log2(wanted)))))
 
 
@@ -120,10 +149,14 @@ def level_samples(alpha: float, width: int, samples=SAMPLES) -> tuple[int, int]:
     A lobe whose reflected width (≈ 2α) is under :data:`SHARP_TEXELS` of a texel is the image
     itself but for its far tail, which only an HDR lamp makes visible: :data:`SHARP_SAMPLES`
     reach it as well as ``samples`` do (filtered importance sampling reads the tail's samples
-    from coarse mip levels); every other level keeps ``samples`` (docs/world-latency.md).
+    from coarse mip levels); a lobe under one texel takes :data:`SUBTEXEL_SAMPLES`; every
+    other level keeps ``samples`` (docs/world-latency.md).
     """
-    if 2.0 * alpha < SHARP_TEXELS * 2.0 * np.pi / width:
+    texel = 2.0 * np.pi / width
+    if 2.0 * alpha < SHARP_TEXELS * texel:
         return SHARP_SAMPLES
+    if 2.0 * alpha < texel:
+        return SUBTEXEL_SAMPLES
     return tuple(samples)
 
 
@@ -132,7 +165,10 @@ def level_samples(alpha: float, width: int, samples=SAMPLES) -> tuple[int, int]:
 SHARP_TEXELS = 0.1
 #: GGX samples of such a sharp level: as close to a 512-sample reference as :data:`SAMPLES`
 #: (docs/world-latency.md), a quarter of the work.
-SHARP_SAMPLES = (8, 3)
+SHARP_SAMPLES = (6, 3)
+#: GGX samples of a level whose lobe is under one texel (level 2 at 512 texels: 2α ≈ 0.6
+#: texel): the φ strata of :data:`SAMPLES` (the ones its error depends on), fewer θ strata.
+SUBTEXEL_SAMPLES = (8, 6)
 
 
 def _level(chain, alpha: float, w_out: int, samples, lod_bias: float, rows_per_batch: int = 8) -> np.ndarray:

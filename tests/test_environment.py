@@ -82,3 +82,33 @@ def test_prefilters_equal_the_prefilter_with_and_without_the_mask():
     assert env.prefiltered_whole.lamp_weights is None
     for ours, ref in zip(env.prefiltered_whole.levels, whole.levels, strict=True):
         np.testing.assert_array_equal(ours, ref)
+
+
+def test_per_axis_resampling_is_the_bilinear_lookup_at_the_texel_centres():
+    rng = np.random.default_rng(3)
+    for h, w in ((16, 32), (64, 128), (128, 256)):
+        level = rng.random((h, w, 6)).astype(np.float32)
+        ours = prefilter.resample_equirect(level, 256)
+        lookup = hdri.equirect_lookup(level, hdri.equirect_directions(128, 256))
+        assert ours.shape == (128, 256, 6)
+        np.testing.assert_allclose(ours, lookup, atol=1e-5)
+
+
+def test_each_level_is_the_narrowest_width_whose_texels_fit_its_lobe():
+    for r in (0.0, 0.05, 0.14, 0.25, 0.4, 0.6, 1.0):
+        alpha = max(r * r, prefilter.constants.MIN_ALPHA)
+        width = prefilter.level_width(r)
+        assert width & (width - 1) == 0 and 32 <= width <= prefilter.LEVEL_WIDTH
+        if width < prefilter.LEVEL_WIDTH:
+            assert 2 * np.pi / width <= prefilter.TEXEL_ALPHA * alpha
+        if width > 32:
+            assert 2 * np.pi / (width // 2) > prefilter.TEXEL_ALPHA * alpha
+
+
+def test_a_lobe_under_a_texel_takes_fewer_samples_than_a_wider_one():
+    texel = 2 * np.pi / 512
+    sharp = prefilter.level_samples(0.01 * texel, 512)
+    subtexel = prefilter.level_samples(0.3 * texel, 512)
+    wide = prefilter.level_samples(3 * texel, 512)
+    assert np.prod(sharp) < np.prod(subtexel) < np.prod(wide) == np.prod(prefilter.SAMPLES)
+    assert subtexel[1] == prefilter.SAMPLES[1]  # the φ strata the error depends on are kept
