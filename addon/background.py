@@ -152,7 +152,15 @@ def view_depth(ndc_depth, projection) -> np.ndarray:
 
 
 def composite(
-    background: Background, films, film_depth, kind: str, width: float, factor: int, pad: int, transmit=None
+    background: Background,
+    films,
+    film_depth,
+    kind: str,
+    width: float,
+    factor: int,
+    pad: int,
+    transmit=None,
+    hole_depth=None,
 ):
     """The final frame (H, W, 4): the films over the background, depth-tested per sample.
 
@@ -164,21 +172,29 @@ def composite(
     film is); None: 0 wherever a film shows. Film colour and transmittance are filtered down with
     the pixel filter (``kind``, ``width``) and laid over the background:
     C = C_film + T C_background, α = 1 − (1 − α_background) mean T. Where no film sample shows,
-    the frame is the background exactly.
+    the frame is the background exactly. ``hole_depth`` (H', W') or None: the depth of holdout
+    films; where one is the nearest surface the sample is transparent black (C = 0, α = 0), as
+    Blender renders a holdout.
     """
     h, w = background.depth.shape
     rows = np.clip((np.arange(films.shape[0]) // factor) - pad, 0, h - 1)
     cols = np.clip((np.arange(films.shape[1]) // factor) - pad, 0, w - 1)
     behind = background.depth[np.ix_(rows, cols)]
-    shown = ((films[..., 3] > 0.0) & (film_depth < behind))[..., None]
-    through = np.where(shown, 0.0 if transmit is None else transmit, 1.0) * np.ones(3)
-    layer = np.concatenate([films[..., :3] * shown, through], axis=-1)
+    hole = np.zeros(film_depth.shape + (1,), dtype=bool)
+    if hole_depth is not None:
+        hole = ((hole_depth < behind) & (hole_depth < film_depth))[..., None]
+    shown = ((films[..., 3] > 0.0) & (film_depth < behind))[..., None] & ~hole
+    through = np.where(shown | hole, 0.0 if transmit is None else transmit, 1.0) * np.ones(3)
+    through = np.where(hole, 0.0, through)
+    layer = np.concatenate([films[..., :3] * shown, through, hole], axis=-1)
     if factor > 1:
         layer = pixel_filter.downsample(layer, kind, width, factor, pad)
     through = np.clip(layer[..., 3:6], 0.0, 1.0)
+    holes = np.clip(layer[..., 6:7], 0.0, 1.0)
     out = np.empty_like(background.rgba)
     out[..., :3] = layer[..., :3] + through * background.rgba[..., :3]
-    out[..., 3:] = 1.0 - through.mean(axis=-1, keepdims=True) * (1.0 - background.rgba[..., 3:])
+    alpha = 1.0 - through.mean(axis=-1, keepdims=True) * (1.0 - background.rgba[..., 3:]) - holes
+    out[..., 3:] = np.clip(alpha, 0.0, 1.0)
     return out
 
 

@@ -21,6 +21,7 @@ status 2, never a traceback; a table that could not be saved to the cache is sti
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pathlib
 import sys
@@ -63,6 +64,38 @@ def _hidden_in_render(item) -> bool:
     """Whether a draw item's object is ``hide_render`` (the viewport's depsgraph still lists it)."""
     obj = bpy.data.objects.get(item.name.split("/")[0])
     return obj is not None and obj.hide_render
+
+
+def holdout_objects(view_layer) -> set:
+    """Names of the objects ``view_layer`` renders as holdouts: the object's own *Holdout*
+    (``is_holdout``) or a holdout collection of the view layer (``LayerCollection.holdout``)."""
+    names = {o.name for o in view_layer.objects if o.is_holdout}
+    stack = [view_layer.layer_collection]
+    while stack:
+        layer = stack.pop()
+        if layer.holdout and not layer.exclude:
+            names.update(o.name for o in layer.collection.all_objects)
+        stack.extend(layer.children)
+    return names
+
+
+def _films_over(behind, items, view, proj, size, sampling, messages):
+    """The final frame over the background pass ``behind``: the films' layers (opaque, walls)
+    depth-tested and filtered over it, holdout films cutting transparent holes (:func:`holdout_objects`);
+    (RGBA, non-finite samples zeroed). ``size``: the films' pass (w, h); ``sampling``: (filter
+    kind, width, supersampling factor, pad)."""
+    ensure_gpu_context()
+    holdouts = holdout_objects(bpy.context.view_layer)
+    hole_items = [  # drawn as opaque surfaces: only their depth is used
+        dataclasses.replace(item, wall=None) for item in items if item.name.split("/")[0] in holdouts
+    ]
+    items = [item for item in items if item.name.split("/")[0] not in holdouts]
+    films, transmit, depth = film_layers(items, view, proj, *size)
+    films, nonfinite = _finite(films.astype(np.float64), messages)
+    holes = None
+    if hole_items:  # holdout films cut a transparent hole where they are in front
+        holes = view_depth(render_offscreen(hole_items, view, proj, *size, with_depth=True)[1], proj)
+    return composite(behind, films, view_depth(depth, proj), *sampling, transmit, holes), nonfinite
 
 
 def scene_materials(scene):
@@ -294,10 +327,9 @@ def render_scene(
         behind = render_background(
             scene, width, height, engine=engine, hidden=film_objects, transparent=not background
         )
-        ensure_gpu_context()
-        films, transmit, depth = film_layers(items, view, proj, frame_w, frame_h)
-        films, nonfinite = _finite(films.astype(np.float64), messages)
-        rgba = composite(behind, films, view_depth(depth, proj), kind, filter_width, factor, pad, transmit)
+        rgba, nonfinite = _films_over(
+            behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages
+        )
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     space = working_space()

@@ -137,3 +137,23 @@ def test_a_transparent_film_shows_the_eevee_frame_behind_it(bpy, tf, tmp_path):
     opaque = _exr(solid["exr"])[centre][..., :3]
     assert np.all(wall >= 0.6 * bg - 1e-3), float((wall - 0.6 * bg).min())  # both walls' T ≥ 0.64
     assert np.abs(wall - bg).mean() < 0.5 * np.abs(opaque - bg).mean()
+
+
+def test_a_holdout_film_cuts_a_transparent_hole(bpy, tf, tmp_path):
+    """A film object set to *Holdout* renders as Blender renders a holdout: transparent black
+    where it is in front (C = 0, α = 0), the rest of the frame unchanged."""
+    scene, ball = _scene(bpy, tf)
+    kept = tf.headless.render_scene(scene, str(tmp_path / "kept.png"), *SIZE, supersample=1, engine="EEVEE")
+    ball.is_holdout = True
+    cut = tf.headless.render_scene(scene, str(tmp_path / "cut.png"), *SIZE, supersample=1, engine="EEVEE")
+    rows, cols = _box(bpy, scene, ball, margin=0)
+    centre = (slice(rows.start + 4, rows.stop - 4), slice(cols.start + 4, cols.stop - 4))
+    hole, before = _exr(cut["exr"]), _exr(kept["exr"])
+    cut_out = np.all(hole[centre] == 0.0, axis=-1)
+    assert cut_out.mean() > 0.5, cut_out.mean()  # the sphere's disc, less the cube in front of it
+    same = np.all(np.abs(hole[centre] - before[centre]) < 1e-6, axis=-1)
+    assert np.all(cut_out | same)  # elsewhere (the cube in front) as before
+    assert before[centre][..., 3].min() > 0.99  # drawn there without the holdout
+    outside = np.ones(hole.shape[:2], dtype=bool)
+    outside[_box(bpy, scene, ball, margin=3)] = False
+    assert np.abs(hole - before)[outside].max() < 1e-6
