@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from . import bake, cli_support, effects, hdri, image_io, prefilter, render, table_io
+from . import cli_support
 from .material import AUTO, PRESETS, Layer, Material, Quality, preset
 
 EPILOG = """examples:
@@ -174,6 +174,8 @@ def cmd_presets(args) -> int:
 
 def cmd_plan(args) -> int:
     """`plan`: print which effects a material needs and what they cost."""
+    from . import effects  # lazy: `--help` and argument errors load no bake or render code
+
     with cli_support.refusing():
         material = material_from_args(args)
     print(effects.format_plan(effects.material_plan(material)))
@@ -209,6 +211,8 @@ def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
 
 def cmd_bake(args) -> int:
     """`bake`: bake a material's SH table to an EXR file."""
+    from . import bake, table_io  # lazy: `--help` and argument errors load no bake or render code
+
     with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
         m = material_from_args(args)
         out = cli_support.output_file("--out", args.out)
@@ -257,6 +261,8 @@ def studiolight(name: str) -> pathlib.Path:
 
 def _read_hdri(text: str) -> tuple[pathlib.Path, np.ndarray, int]:
     """(path, image, NaN/Inf pixels set to 0) of ``--hdri``: a file, or a studio light of bpy."""
+    from . import hdri  # lazy: `--help` and argument errors load no bake or render code
+
     path = pathlib.Path(text)
     if not path.exists():
         path = studiolight(text)
@@ -269,6 +275,9 @@ def _read_hdri(text: str) -> tuple[pathlib.Path, np.ndarray, int]:
 
 def cmd_render(args) -> int:
     """`render`: bake and render a preview sphere to an image."""
+    # lazy: `--help` and argument errors load no bake or render code
+    from . import bake, image_io, prefilter, render, table_io
+
     with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
         m = material_from_args(args)
         out = cli_support.output_file("--out", args.out)

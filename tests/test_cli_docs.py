@@ -85,6 +85,8 @@ def test_precompute_help_imports_no_heavy_package():
     assert "precompute" in modules, out.stderr
     heavy = {"colour", "matplotlib", "scipy"} & modules
     assert not heavy, heavy
+    loaded = set(out.stdout.split("'"))  # the bake and the renderer load with a command, not for help
+    assert not {"precompute.bake", "precompute.render", "precompute.prefilter"} & loaded
 
 
 @pytest.fixture(scope="module")
