@@ -385,6 +385,11 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     """A queued viewport bake shows in the header's activity; Cancel stops its worker, which
     caches nothing and is not remembered as a failure."""
     vp = tf.viewport
+    vp.cancel_bakes()  # an earlier test's draw may have left its bake running: start from none
+    for t in [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]:
+        t.join(THREAD_TIMEOUT_S)
+    vp._service()
+    assert not vp._running
     mat = film(bpy)
     mat.thinfilm_sh.sh_order = "AUTO"  # a default-quality bake: seconds, so it is still running
     mat.thinfilm_sh.view_samples = 0

@@ -173,6 +173,7 @@ def film(bpy, scene, thickness: float = 500.0):
     s = mat.thinfilm_sh
     s.preset = "SOAP_FILM"
     s.enabled = True
+    s.transparency = "OPAQUE"  # the pixel checks read the film's own colour and coverage
     s.vary_thickness = False
     s.roughness = 0.4
     s.sh_order = "2"

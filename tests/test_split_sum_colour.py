@@ -134,11 +134,12 @@ def test_moments_are_the_prefilter_of_luminance_times_direction():
     pre = prefilter.prefilter(img, width=64)
     y = img @ np.asarray(prefilter.LUMINANCE)
     expected = y[..., None] * hdri.equirect_directions(32, 64)
-    assert np.allclose(pre.moments[0], expected, rtol=1e-12, atol=1e-12)
+    # the prefilter computes in float32 (docs/world-latency.md): its rounding, 2^-23 relative
+    assert np.allclose(pre.moments[0], expected, rtol=1e-6, atol=1e-6)
     # Rough levels: |moment| ≤ prefiltered luminance (a mean of unit vectors), direction finite.
     for level, moment in zip(pre.levels[1:], pre.moments[1:], strict=True):
-        lum = level @ np.asarray(prefilter.LUMINANCE)
-        assert np.all(np.linalg.norm(moment, axis=-1) <= lum * (1 + 1e-9) + 1e-12)
+        lum = level.astype(np.float64) @ np.asarray(prefilter.LUMINANCE)
+        assert np.all(np.linalg.norm(moment.astype(np.float64), axis=-1) <= lum * (1 + 1e-5) + 1e-6)
 
 
 @pytest.mark.parametrize("sh_order, roughness", [(5, 0.3), (6, 0.3), (5, 0.1)])
