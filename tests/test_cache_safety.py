@@ -23,7 +23,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from precompute import cli, cli_support, table_cache, table_io
+from precompute import bake, cli, cli_support, table_cache, table_io
 from precompute.table_cache import CacheDirError, TableCache
 from precompute.table_io import (
     TableError,
@@ -293,7 +293,7 @@ class FakeBake:
 
 @pytest.fixture
 def fake_bake(monkeypatch):
-    monkeypatch.setattr(cli.bake, "bake", lambda material, progress=None: FakeBake())
+    monkeypatch.setattr(bake, "bake", lambda material, progress=None: FakeBake())
 
 
 @pytest.fixture
@@ -301,7 +301,7 @@ def no_bake(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the destination should have been refused before baking")
 
-    monkeypatch.setattr(cli.bake, "bake", refuse)
+    monkeypatch.setattr(bake, "bake", refuse)
 
 
 BAKE = ["bake", "--preset", "soap_film", "--quiet"]

@@ -20,7 +20,7 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from precompute import cli, cli_support, validate
+from precompute import bake, cli, cli_support, validate
 from precompute.conductors import conductor_from_rgb
 from precompute.material import FALLBACK, Layer, Material, Quality
 from precompute.table_cache import TableCache
@@ -206,7 +206,7 @@ class Guard:
 @pytest.fixture
 def no_bake(monkeypatch):
     guard = Guard()
-    monkeypatch.setattr(cli.bake, "bake", guard)
+    monkeypatch.setattr(bake, "bake", guard)
     return guard
 
 
@@ -387,7 +387,7 @@ def test_an_internal_error_is_one_line_and_a_log(tmp_path, capsys, monkeypatch):
     def bug(*args, **kwargs):
         raise ZeroDivisionError("simulated bug")
 
-    monkeypatch.setattr(cli.bake, "bake", bug)
+    monkeypatch.setattr(bake, "bake", bug)
     code, err = _run(["bake", *SMALL, "--out", str(tmp_path / "t.exr")], capsys)
     assert code == cli_support.EXIT_INTERNAL and err.count("\n") == 1 and "internal error" in err, err
     log = Path(err.rsplit("details in ", 1)[1].rstrip(")\n"))
@@ -402,7 +402,7 @@ def test_interrupt_is_exit_130(tmp_path, capsys, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli.bake, "bake", interrupted)
+    monkeypatch.setattr(bake, "bake", interrupted)
     code, err = _run(["bake", *SMALL, "--out", str(tmp_path / "t.exr")], capsys)
     assert code == cli_support.EXIT_INTERRUPTED and "interrupted" in err
 
