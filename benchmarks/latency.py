@@ -15,9 +15,10 @@ cache is a private, empty folder, so the first open is cold. The event loop (:cl
 - a tagged view is redrawn: Blender's depsgraph update (not ours, not timed), then the real
   ``viewport.draw_callback`` with its ``draw_items`` drawing the items off-screen (RGBA32F, the
   scene camera's view, 96×72);
-- a registered ``bpy.app.timers`` callback (``viewport._service``) runs when due and is
-  rescheduled by its return value, as Blender's timer loop does; ``viewport._tag_redraw`` tags
-  the view;
+- each registered ``bpy.app.timers`` callback of the add-on (``viewport._service``, the shader
+  compile step ``shader_warmup.step``, the radiance grids' ``radiance_grids._poll``) runs when
+  due and is rescheduled by its return value, as Blender's timer loop does; their
+  ``_tag_redraw`` tags the view;
 - when nothing is tagged or due, the loop waits (background threads may run); it ends when no
   timer is registered, nothing is tagged and no viewport bake thread runs.
 
@@ -173,8 +174,14 @@ class Loop:
 
         self.ext, self.bpy, self.scene = ext, bpy, scene
         self.vp = ext.viewport
+        package = self.vp.__name__.rpartition(".")[0]
+        self.grids = importlib.import_module(f"{package}.radiance_grids")
+        self.warmup = warmup = importlib.import_module(f"{package}.shader_warmup")
+        #: Every timer the add-on registers: the viewport's service, the shader compile step,
+        #: the radiance grids' poll; each fires when due, as Blender's event loop runs them.
+        self.timers = (self.vp._service, warmup.step, self.grids._poll)
         self.tagged = False
-        self.due: float | None = None
+        self.dues: dict = {}  # timer → perf_counter when due
         self.trace: Trace | None = None
         self._inside = 0.0  # uploads and draw time inside the current block
         self.view, self.proj = camera_matrices(scene)
@@ -185,6 +192,8 @@ class Loop:
     def _patch(self) -> None:
         vp, res = self.vp, self.ext.gpu.resources
         vp._tag_redraw = self._tag
+        for module in (self.grids, self.warmup):  # their timers tag the 3D views too
+            module._tag_redraw = self._tag
         if hasattr(vp, "_tag_header"):  # the header alone (progress): the 3D view is not redrawn
             vp._tag_header = lambda: None
         vp.draw_items = self._draw_items
@@ -243,40 +252,48 @@ class Loop:
             self.trace.frames.append((time.perf_counter() - self.trace.start, image, drawn))
         return image
 
+    @property
+    def due(self) -> float | None:
+        """When the next timer is due (perf_counter), or None when none is registered."""
+        return min(self.dues.values()) if self.dues else None
+
     def tick(self) -> None:
-        """The timer callback, rescheduled (or dropped) by what it returns."""
+        """The timer callback that is due first, rescheduled (or dropped) by what it returns."""
+        fn = min(self.dues, key=self.dues.get)
         self._inside = 0.0
         start = time.perf_counter()
-        interval = self.vp._service()
+        interval = fn()
         ours = time.perf_counter() - start - self._inside
         if self.trace is not None:
             self.trace.blocks.append(("timer", ours))
         if interval is None:
-            self.due = None
-            if self.bpy.app.timers.is_registered(self.vp._service):
-                self.bpy.app.timers.unregister(self.vp._service)
+            self.dues.pop(fn, None)
+            if self.bpy.app.timers.is_registered(fn):
+                self.bpy.app.timers.unregister(fn)
         else:
-            self.due = time.perf_counter() + interval
+            self.dues[fn] = time.perf_counter() + interval
 
     def _timer_check(self) -> None:
-        """A timer registered since the last check (bpy.app.timers never fire in module mode)."""
-        if self.due is None and self.bpy.app.timers.is_registered(self.vp._service):
-            self.due = time.perf_counter()
+        """Timers registered since the last check (bpy.app.timers never fire in module mode)."""
+        for fn in self.timers:
+            if fn not in self.dues and self.bpy.app.timers.is_registered(fn):
+                self.dues[fn] = time.perf_counter()
 
     def busy(self) -> bool:
-        return bool(self.vp._running)
+        return bool(self.vp._running) or self.grids.busy()
 
     def run(self, until: float) -> bool:
         """Process events until idle or ``until`` (perf_counter); True when idle."""
         while time.perf_counter() < until:
             self._timer_check()
             now = time.perf_counter()
+            due = self.due
             if self.tagged:
                 self.redraw()
-            elif self.due is not None and now >= self.due:
+            elif due is not None and now >= due:
                 self.tick()
-            elif self.due is not None:
-                time.sleep(min(self.due - now, 0.005))
+            elif due is not None:
+                time.sleep(min(due - now, 0.005))
             elif self.busy():
                 time.sleep(0.005)  # only background threads: Blender sleeps, nobody redraws
             else:
@@ -292,6 +309,7 @@ class Loop:
             image = self.redraw(record=False)
             while self.busy() or self.due is not None:
                 if self.due is not None:
+                    time.sleep(max(0.0, min(self.due - time.perf_counter(), 0.05)))
                     self.tick()
                 else:
                     time.sleep(0.01)
