@@ -276,7 +276,7 @@ def draw_callback() -> None:
         if linked.has_pending():
             messages.append("a linked Thin Film Thickness is being baked with Cycles")
         _messages[:] = messages
-        if _pending or linked.has_pending():
+        if _pending or linked.has_pending() or world_job.busy():  # collect may ask for a prefilter
             _schedule()
         settings = display.settings_of(depsgraph.scene)
         lut = display.viewport_lut(settings)  # None (Standard sRGB) until its bake is done

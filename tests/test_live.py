@@ -371,3 +371,45 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
     assert ("bake", False) in calls and ("film", False) in calls, calls
     assert not any(on_main for _, on_main in calls), calls
     assert (drawn[-1][..., 3] > 0.5).any(), "the film was never drawn"
+
+
+@pytest.mark.blender
+def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypatch):
+    """A glossy film's draw asks a worker for the World's prefilter from inside ``collect``; the
+    draw callback must start the timer that serves the ask, or the frame with the prefilter waits
+    for an unrelated redraw (the stalled first open of benchmarks/latency.py)."""
+    vp = tf.viewport
+    monkeypatch.setattr(vp, "draw_items", lambda *a, **k: None)
+    mat = film(bpy, scene)
+    mat.thinfilm_sh.roughness = 0.1  # the split sum alone: it reads the prefiltered World
+    mat.thinfilm_sh.world_lamps = False  # no film table to queue: only the prefilter is asked for
+    img = bpy.data.images.new("Sky", 32, 16, float_buffer=True, alpha=False)
+    img.pixels.foreach_set(np.linspace(0.1, 2.0, 32 * 16 * 4, dtype=np.float32))
+    world = bpy.data.worlds.new("Sky")
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+    bpy.context.view_layer.update()
+    tf.scene_draw.world_lighting(scene, allow_compute=True)  # the World analysed, no prefilter yet
+    items, _ = tf.scene_draw.collect(
+        bpy.context.evaluated_depsgraph_get(), allow_bake=True, allow_world=False
+    )
+    assert items and items[0].prefiltered is None  # the table is baked; the prefilter not computed
+    tf.world_job.wait()  # an earlier test's World work, if any, ends first
+    tf.scene_draw.CACHES.prefilters_wanted.clear()  # as if no draw had asked yet
+    tf.scene_draw.CACHES.world_wanted = False
+    display = importlib.import_module(f"{EXTENSION_ID}.addon.display")
+    settings = display.settings_of(scene)  # the view's LUT baked first: its bake starts the timer too
+    wait_for(lambda: display.viewport_lut(settings) is not None and not display.baking(), "the LUT")
+    display.take_finished()
+    if bpy.app.timers.is_registered(vp._service):
+        bpy.app.timers.unregister(vp._service)
+    assert not tf.world_job.busy()
+    window = bpy.context.window_manager.windows[0]
+    area = next(a for a in window.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    with bpy.context.temp_override(window=window, area=area, region=region):
+        vp.draw_callback()
+    assert tf.world_job.busy() and not vp._pending  # the draw asked for the prefilter alone …
+    assert bpy.app.timers.is_registered(vp._service)  # … and started the timer that serves it
