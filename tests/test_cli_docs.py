@@ -7,13 +7,11 @@ The schema is the ```json cli-schema``` block of docs/cli.md: per output, the ``
 
 from __future__ import annotations
 
-import importlib
 import json
 import re
-import types
 
 import pytest
-from _extension import EXTENSION_ID, REPO, linked_extension, set_cache_preference
+from _extension import REPO, registered_extension, set_cache_preference
 
 DOC = REPO / "docs" / "cli.md"
 
@@ -91,19 +89,17 @@ def test_precompute_help_imports_no_heavy_package():
 
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
-    root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        try:
-            package.register()
-            ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-            for name in ("headless", "prefs", "cli_args"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-            set_cache_preference(bpy, ns.prefs, ns.cache_dir)
-            yield ns
-        finally:
-            entry = bpy.context.preferences.addons.get(EXTENSION_ID)
-            if entry is not None:
-                bpy.context.preferences.addons.remove(entry)
+    """The extension, registered once for the module, with a private table cache."""
+    with registered_extension(
+        bpy,
+        tmp_path_factory.mktemp("extension"),
+        (
+            "addon.headless",
+            "addon.prefs",
+            "addon.cli_args",
+        ),
+    ) as ns:
+        yield ns
 
 
 @pytest.mark.blender

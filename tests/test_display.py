@@ -13,15 +13,12 @@ Run with ``-s`` for the figures.
 
 from __future__ import annotations
 
-import importlib
-import types
-
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension, set_cache_preference  # noqa: E402
+from _extension import registered_extension, set_cache_preference  # noqa: E402
 
 from precompute import display_lut, image_io  # noqa: E402
 
@@ -41,20 +38,17 @@ SIZE = (48, 32)
 
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
-    """The extension, registered once for the module."""
-    root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        try:
-            package.register()
-            ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-            for name in ("headless", "display", "prefs"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-            set_cache_preference(bpy, ns.prefs, ns.cache_dir)
-            yield ns
-        finally:
-            entry = bpy.context.preferences.addons.get(EXTENSION_ID)
-            if entry is not None:
-                bpy.context.preferences.addons.remove(entry)
+    """The extension, registered once for the module, with a private table cache."""
+    with registered_extension(
+        bpy,
+        tmp_path_factory.mktemp("extension"),
+        (
+            "addon.headless",
+            "addon.display",
+            "addon.prefs",
+        ),
+    ) as ns:
+        yield ns
 
 
 def _scene(bpy, tf, space: str):

@@ -9,15 +9,12 @@ samples to ≤ 1/255 mean; the cube in front hides the film (depth test); the fi
 
 from __future__ import annotations
 
-import importlib
-import types
-
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension, set_cache_preference  # noqa: E402
+from _extension import registered_extension, set_cache_preference  # noqa: E402
 
 SIZE = (64, 48)
 SAMPLES = 4
@@ -25,19 +22,17 @@ SAMPLES = 4
 
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
-    root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        try:
-            package.register()
-            ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-            for name in ("headless", "prefs", "background"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-            set_cache_preference(bpy, ns.prefs, ns.cache_dir)
-            yield ns
-        finally:
-            entry = bpy.context.preferences.addons.get(EXTENSION_ID)
-            if entry is not None:
-                bpy.context.preferences.addons.remove(entry)
+    """The extension, registered once for the module, with a private table cache."""
+    with registered_extension(
+        bpy,
+        tmp_path_factory.mktemp("extension"),
+        (
+            "addon.headless",
+            "addon.prefs",
+            "addon.background",
+        ),
+    ) as ns:
+        yield ns
 
 
 def _scene(bpy, tf):

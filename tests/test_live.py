@@ -23,7 +23,7 @@ import types
 
 import numpy as np
 import pytest
-from _extension import EXTENSION_ID, linked_extension
+from _extension import EXTENSION_ID, registered_extension
 
 #: Longest wait for a viewport bake thread (a tiny table bakes in well under a second).
 THREAD_TIMEOUT_S = 60.0
@@ -109,25 +109,14 @@ def test_the_vectorised_film_table_equals_the_per_row_one(precompute, preset, ch
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
+    modules = [
+        f"addon.{m}" for m in ("scene_draw", "prefs", "tables", "viewport", "description", "world_job")
+    ]
+    modules += ["precompute.bake", "precompute.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "prefs", "tables", "viewport", "description", "world_job"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
-        ns.film_colour = importlib.import_module(f"{EXTENSION_ID}.precompute.film_colour")
-        ns.draw = importlib.import_module(f"{EXTENSION_ID}.addon.gpu.draw")
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
+    with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
+        ns.cache_dir = str(ns.cache_dir)
+        yield ns
 
 
 @pytest.fixture

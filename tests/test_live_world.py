@@ -15,14 +15,13 @@ World step ``world_job.service``, ``viewport._service``) with the real bpy and r
 
 from __future__ import annotations
 
-import importlib
 import math
 import threading
 import types
 
 import numpy as np
 import pytest
-from _extension import EXTENSION_ID, linked_extension
+from _extension import registered_extension
 
 pytestmark = pytest.mark.blender
 
@@ -36,33 +35,12 @@ WIDTH, HEIGHT = 256, 128
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
+    names = ("scene_draw", "prefs", "tables", "panorama", "world", "world_job", "world_analysis", "viewport")
+    modules = [f"addon.{m}" for m in names] + ["precompute.prefilter", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in (
-            "scene_draw",
-            "prefs",
-            "tables",
-            "panorama",
-            "world",
-            "world_job",
-            "world_analysis",
-            "viewport",
-        ):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        ns.prefilter = importlib.import_module(f"{EXTENSION_ID}.precompute.prefilter")
-        ns.draw = importlib.import_module(f"{EXTENSION_ID}.addon.gpu.draw")
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
+    with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
+        ns.cache_dir = str(ns.cache_dir)
+        yield ns
 
 
 def hdri_pixels(shift: int = 0) -> np.ndarray:
