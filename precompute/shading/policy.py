@@ -40,6 +40,18 @@ def lighting_window(l_max: int, roughness: float) -> np.ndarray:
     return sh.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
 
 
+def windowed_lighting(coeffs, l_max: int, roughness: float) -> np.ndarray:
+    """World SH (K, ≥ 3) → ((l_max + 1)², 3) float64 windowed by :func:`lighting_window`: what
+    the shader's SH sum (and a radiance grid) reads. Missing coefficients are 0, extra ones
+    dropped."""
+    c = np.asarray(coeffs, dtype=np.float64)
+    k = (int(l_max) + 1) ** 2
+    full = np.zeros((k, 3))
+    n = min(k, c.shape[0])
+    full[:n] = c[:n, :3]
+    return full * np.asarray(lighting_window(int(l_max), float(roughness)))[:k, None]
+
+
 #: From this l_max on a combined film reads its albedo at the dominant direction: below, the second
 #: fetch costs more than it gains (docs/tuning.md#moment).
 MOMENT_MIN_L = 6

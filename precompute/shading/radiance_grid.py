@@ -179,13 +179,29 @@ def _bilinear(grid: np.ndarray, layers, u, t) -> np.ndarray:
     return a * (1 - wy) + b * wy
 
 
-def lookup(grid: np.ndarray, normals, views, azimuths: int = GRID_AZIMUTHS) -> np.ndarray:
+def lookup(
+    grid: np.ndarray, normals, views, azimuths: int = GRID_AZIMUTHS, rotation=None, scale: float = 1.0
+) -> np.ndarray:
     """The SH half per pixel from a :func:`build` grid (T·Ψ, H, W, 3) of ``azimuths`` = Ψ: (…, 3).
 
     Four layers (θo nodes j0, j0 + 1 × azimuths k0, k0 + 1 mod Ψ), each bilinear in the mirror
     direction; θo and ψ interpolated linearly (tf_radiance_grid.glsl, which reads T as the
     texture's layers ÷ Ψ).
+
+    ``rotation`` Q (3×3 orthogonal, None: identity) and ``scale`` s: the grid was built from the
+    World's *content* SH and the World is that content turned and scaled, L(d) = s · L_c(Q d)
+    (the lighting buffer's ``world`` block, as the prefilter lookup). A BRDF depends only on
+    the angles between n, v and the light, so the World's outgoing radiance is s times the
+    content's at (Q n, Q v): a World strength or rotation edit rebuilds no grid.
     """
+    if rotation is not None:
+        q = np.asarray(rotation, dtype=float).reshape(3, 3)
+        normals = np.asarray(normals, dtype=float) @ q.T
+        views = np.asarray(views, dtype=float) @ q.T
+    return float(scale) * _lookup(grid, normals, views, azimuths)
+
+
+def _lookup(grid: np.ndarray, normals, views, azimuths: int) -> np.ndarray:
     g = np.asarray(grid, dtype=float)
     if g.ndim != 4 or g.shape[0] % int(azimuths):
         raise ValueError(f"a grid is (T·{azimuths}, H, W, 3), got {g.shape}")
