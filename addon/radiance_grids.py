@@ -6,7 +6,7 @@ the World's *content* it is built from (:meth:`.world_analysis.WorldLighting.gri
 World's Strength and Mapping rotation are applied at the lookup (the lighting buffer's ``world``
 block), so editing them rebuilds no grid. :func:`grid_for` returns the uploaded grid, or None
 while it is being built, and the draw then reads the per-pixel SH as before (the same picture
-to mean ΔE2000 < 0.6). Building takes 1–4 s of numpy at l = 12 on a worker thread (never the
+to mean ΔE2000 < 0.6). Building takes 0.3–0.8 s of numpy at l = 12 on a worker thread (never the
 main thread or the draw callback); the newest request is built first and at most :data:`QUEUE_SIZE` wait, so a
 roughness drag builds the value it stops on, not every step. When one finishes a timer asks
 the 3D viewports for a redraw. ``wait=True`` (headless frames) builds it in the caller.
