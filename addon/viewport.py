@@ -174,9 +174,11 @@ def _bake_worker(job: _Job, cache) -> None:
             raise BakesCancelled
         job.progress = float(fraction)
 
+    baked = None
     try:
         report(0.0, "")  # superseded before it started: stops here
-        result = tables.get_table(job.desc, cache, report)
+        result, source = tables.get_table_with_source(job.desc, cache, report, store=False)
+        baked = result if source == "bake" else None
         if job.film:
             tables.get_film(job.desc, result, report)
     except BakesCancelled:
@@ -191,6 +193,10 @@ def _bake_worker(job: _Job, cache) -> None:
             for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
                 del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
         _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
+    if baked is not None:  # after the frame's cue: the disk copy only serves the next session
+        tables.store_table(job.desc, baked, cache)
+        if tables.CACHE_ERRORS.get(job.key) is not None:
+            _finished.set()  # a redraw shows why the table was not saved
 
 
 def _start_jobs() -> list[_Job]:

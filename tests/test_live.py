@@ -234,6 +234,36 @@ def wait_for(predicate, what: str):
 
 
 @pytest.mark.blender
+def test_a_baked_table_is_drawn_before_it_is_written_to_disk(bpy, tf, scene, monkeypatch):
+    """The worker cues the redraw once the table (and its film) is in memory; the disk copy,
+    which only serves a later session (0.4–2 s for the soap preset's 61 rows), is written after
+    that, and still written."""
+    vp = tf.viewport
+    held = threading.Event()
+    stored = []
+    cache = tf.tables.open_cache()
+    real = type(cache).store
+
+    def held_store(self, key, *args, **kwargs):
+        assert held.wait(THREAD_TIMEOUT_S), "the disk write was never released"
+        path = real(self, key, *args, **kwargs)
+        stored.append(path)
+        return path
+
+    monkeypatch.setattr(type(cache), "store", held_store)
+    film(bpy, scene)
+    frame(bpy, tf)  # queues the bake
+    vp._service()
+    wait_for(lambda: not vp._running, "the bake")
+    assert vp._finished.is_set() and not stored  # the redraw's cue came while the write is held
+    image, items = frame(bpy, tf)
+    assert len(items) == 1 and image[..., 3].max() > 0 and not vp._pending  # drawn, not re-queued
+    held.set()
+    wait_for(lambda: stored, "the disk write")
+    assert stored[0].exists()
+
+
+@pytest.mark.blender
 def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, scene, monkeypatch):
     """The timer tags the 3D views after a bake's worker ended and after it updated the World,
     even when nothing else runs any more (no stalled edit waiting for an unrelated redraw)."""
