@@ -162,9 +162,11 @@ def peek_film(desc_key: str):
     return FILMS.get(desc_key)
 
 
-def get_film(desc: Material, result: bake.BakeResult, progress=None):
+def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     """The film table of ``desc`` (its baked table ``result``): from :data:`FILMS`, else
-    computed (:func:`precompute.film_colour.film_table`, ≈ 0.1–0.5 s warm) and kept.
+    computed (:func:`precompute.film_colour.film_table`, ≈ 0.1–0.5 s warm) and kept. Without
+    ``result`` it is computed from ``desc`` alone (:func:`~precompute.film_colour.film_table_of`:
+    the viewport's worker runs it beside the bake).
 
     ``progress(fraction, text)`` is called at the computation's checkpoints (fraction 1: the
     table is done) and may raise to cancel it; nothing is kept then. Thread-safe: the viewport
@@ -180,7 +182,7 @@ def get_film(desc: Material, result: bake.BakeResult, progress=None):
             progress(1.0, "film table")
 
     with reporting(hook):
-        found = film_colour.film_table(result)
+        found = film_colour.film_table(result) if result is not None else film_colour.film_table_of(desc)
     with _count_lock:
         film_threads.append(threading.current_thread().name)
     FILMS[key] = found

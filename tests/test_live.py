@@ -103,6 +103,20 @@ def test_the_vectorised_film_table_equals_the_per_row_one(precompute, preset, ch
         assert np.ptp(table.multiscatter[:, -1, :], axis=0).max() > 0.0
 
 
+@pytest.mark.parametrize("preset, mode", [("soap_film", "spectral"), ("heat_tinted_steel", "per_channel")])
+def test_the_film_table_computed_beside_the_bake_is_the_bakes(precompute, preset, mode):
+    """film_table_of(material), which the viewport computes while the bake runs, equals
+    film_table(bake(material)): the same thickness rows, layout and values."""
+    quality = precompute.material.Quality(sh_order=2, view_samples=4, wavelength_count=32)
+    material = dataclasses.replace(precompute.material.preset(preset), colour_mode=mode, quality=quality)
+    beside = precompute.film_colour.film_table_of(material, samples=32)
+    after = precompute.film_colour.film_table(precompute.bake.bake(material), samples=32)
+    assert beside.thicknesses_nm.size > 1 and beside.spectral == (mode == "spectral")
+    np.testing.assert_array_equal(beside.thicknesses_nm, after.thicknesses_nm)
+    np.testing.assert_allclose(beside.reflectance, after.reflectance, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(beside.multiscatter, after.multiscatter, rtol=0, atol=1e-12)
+
+
 # ----------------------------------------------------------------------------------------------
 # The viewport, through the add-on
 # ----------------------------------------------------------------------------------------------
@@ -357,7 +371,7 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
     material to its settled frame: every bake and film table ran on a worker thread."""
     vp = tf.viewport
     calls = []
-    real_bake, real_film = tf.bake.bake, tf.film_colour.film_table
+    real_bake, real_film = tf.bake.bake, tf.film_colour._film_table  # film_table and film_table_of
 
     def bake(*args, **kwargs):
         calls.append(("bake", threading.current_thread() is threading.main_thread()))
@@ -368,7 +382,7 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
         return real_film(*args, **kwargs)
 
     monkeypatch.setattr(tf.bake, "bake", bake)
-    monkeypatch.setattr(tf.film_colour, "film_table", film_table)
+    monkeypatch.setattr(tf.film_colour, "_film_table", film_table)
     drawn = []
     monkeypatch.setattr(
         vp,
