@@ -10,6 +10,8 @@ constant, so a change here changes both sides and the pictures stay bit-identica
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .. import constants, sh
@@ -27,6 +29,21 @@ def sh_weight(roughness: float) -> float:
     lo, hi = SH_BLEND
     t = min(max((float(roughness) - lo) / (hi - lo), 0.0), 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+def drawn_material(material):
+    """``material`` as the preview bakes it: a film drawn by the split sum alone (``sh_weight``
+    0, roughness ≤ SH_BLEND[0]) without a diffuse base reads only its table's l = 0 entry (the
+    film's albedo, tf_split_sum.glsl), so an automatic SH order becomes 0. Entry 0 does not
+    depend on the order (equal to 3e-16 for the soap preset), and the bake, the upload and the
+    shader shrink: 0.45 s against 2.15 s, 1 coefficient instead of 91 at the automatic l = 12.
+    Without a prefilter (a World not analysed yet) such a film's SH path sees the World's l = 0
+    only, until the prefilter is ready. An order set by hand is kept.
+    """
+    quality = material.quality
+    if quality.sh_order != "auto" or sh_weight(material.roughness) > 0.0 or material.base_color is not None:
+        return material
+    return material.with_(quality=dataclasses.replace(quality, sh_order=0))
 
 
 #: Lanczos width (l_max + 1)(1 + this · r): glossy lobes need a narrow window against ringing, rough
