@@ -15,6 +15,7 @@ import json
 
 from ..precompute import bake, spectra
 from ..precompute.material import Material
+from ..precompute.shading import policy
 from .linked import Pending
 from .principled import read_principled
 from .props import description_from_props, file_working_space
@@ -37,6 +38,9 @@ def description(bpy_material) -> Material | None:
     3. Otherwise None. A zero thickness is not previewed: it is the bare Principled BSDF; nor is
        a Principled film whose *Preview Principled Film* switch is off.
 
+    A film drawn by the split sum alone gets the automatic SH order 0
+    (:func:`precompute.shading.policy.drawn_material`).
+
     Raises ValueError (naming the material and the parameter) for invalid settings: every
     value is checked when the Material is built (precompute.validate), so nothing invalid
     reaches a bake. The draw shows such a material as the magenta fallback.
@@ -44,10 +48,11 @@ def description(bpy_material) -> Material | None:
     props = getattr(bpy_material, "thinfilm_sh", None)
     try:
         if props is not None and props.enabled:
-            return description_from_props(props)
+            return policy.drawn_material(description_from_props(props))
         if props is not None and not props.preview_principled:
             return None  # the artist switched the Principled film's preview off
-        return read_principled(bpy_material)[0]
+        found = read_principled(bpy_material)[0]
+        return None if found is None else policy.drawn_material(found)
     except Pending:  # a linked thickness is being baked: drawn when it is done
         return None
     except ValueError as exc:

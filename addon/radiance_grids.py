@@ -1,11 +1,13 @@
 """Outgoing-radiance grids of constant-thickness films: built on a worker, uploaded when ready.
 
 A film whose SH half policy.uses_grid reads from a grid (precompute.shading.radiance_grid)
-gets one per (description key, lighting key): the table and the windowed World SH it is built
-from. :func:`grid_for` returns the uploaded grid, or None while it is being built, and the
-draw then reads the per-pixel SH as before (the same picture to mean ΔE2000 < 0.6). Building
-takes 1–4 s of numpy at l = 12 on a worker thread (never the main thread or the draw
-callback); the newest request is built first and at most :data:`QUEUE_SIZE` wait, so a
+gets one per (description key, World content key, roughness): the table and the windowed SH of
+the World's *content* it is built from (:meth:`.world_analysis.WorldLighting.grid_source`). The
+World's Strength and Mapping rotation are applied at the lookup (the lighting buffer's ``world``
+block), so editing them rebuilds no grid. :func:`grid_for` returns the uploaded grid, or None
+while it is being built, and the draw then reads the per-pixel SH as before (the same picture
+to mean ΔE2000 < 0.6). Building takes 0.3–0.8 s of numpy at l = 12 on a worker thread (never the
+main thread or the draw callback); the newest request is built first and at most :data:`QUEUE_SIZE` wait, so a
 roughness drag builds the value it stops on, not every step. When one finishes a timer asks
 the 3D viewports for a redraw. ``wait=True`` (headless frames) builds it in the caller.
 
@@ -21,7 +23,7 @@ import threading
 import bpy
 import numpy as np
 
-from ..precompute.shading import radiance_grid
+from ..precompute.shading import policy, radiance_grid
 from . import caches
 from .gpu import resources
 
@@ -141,3 +143,21 @@ def grid_for(key: str, result, coeffs, *, wait: bool = False) -> resources.Radia
     found = resources.RadianceGridTexture.from_grid(grid)
     GRIDS.textures[key] = found
     return found
+
+
+def film_grid(desc_key: str, desc, result, lighting, lamps: bool, *, wait: bool):
+    """The film's grid where policy.uses_grid reads one (a constant thickness, an SH half at
+    l_max ≥ GRID_MIN_L), else None; None too while the worker builds it (:func:`grid_for`;
+    ``wait``: built here, for headless frames).
+
+    ``lighting``: the scene's ``WorldLighting``; ``lamps``: the film is shaded with the World's
+    lamps (its grid then holds the content without them).
+    """
+    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
+    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
+    if not policy.uses_grid(result.sh_order, vary, weight):
+        return None
+    source, coeffs = lighting.grid_source(lamps)
+    l_max, roughness = int(result.sh_order), float(desc.roughness)
+    key = f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}"
+    return grid_for(key, result, policy.windowed_lighting(coeffs, l_max, roughness), wait=wait)

@@ -437,6 +437,7 @@ class _MaterialEntry:
     sh_order: int = 0  # the table's SH order (the lighting's l_max)
     wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
     grid: resources.RadianceGridTexture | None = None  # its SH half tabulated (policy.uses_grid)
+    grid_source: str = ""  # the World content's key the grid was built from (WorldLighting.grid_source)
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -594,7 +595,8 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         lamps=lamps,
         sh_order=result.sh_order,
         wall=wall,
-        grid=_grid_for(key, desc, result, lighting, buffer, lamps, wait=allow_bake),
+        grid=radiance_grids.film_grid(key, desc, result, lighting, lamps, wait=allow_bake),
+        grid_source=lighting.grid_source(lamps)[0],
     )
 
 
@@ -607,20 +609,9 @@ def _previous_entry(owner, lighting: WorldLighting):
     env = lighting.environment
     lamps = last.lamps and env is not None and env.lamps is not None
     buffer = lighting_for(lighting, last.sh_order, last.roughness, lamps)
-    grid = last.grid if buffer is last.lighting else None  # a grid holds the lighting it was built with
+    # a grid holds the World's content it was built from (its strength and turn are the buffer's)
+    grid = last.grid if lighting.grid_source(lamps)[0] == last.grid_source else None
     return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid)
-
-
-def _grid_for(desc_key: str, desc, result, lighting: WorldLighting, buffer, lamps: bool, *, wait: bool):
-    """The film's outgoing-radiance grid where policy.uses_grid reads one (a constant thickness,
-    an SH half at l_max ≥ GRID_MIN_L), else None; None too while the worker builds it
-    (:func:`.radiance_grids.grid_for`; ``wait``: built here, for headless frames)."""
-    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
-    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
-    if not policy.uses_grid(result.sh_order, vary, weight):
-        return None
-    key = f"{desc_key}|{lighting.key}|{result.sh_order}|{round(float(desc.roughness), 6)}|{bool(lamps)}"
-    return radiance_grids.grid_for(key, result, buffer.coefficients, wait=wait)
 
 
 def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):

@@ -162,9 +162,11 @@ def peek_film(desc_key: str):
     return FILMS.get(desc_key)
 
 
-def get_film(desc: Material, result: bake.BakeResult, progress=None):
+def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     """The film table of ``desc`` (its baked table ``result``): from :data:`FILMS`, else
-    computed (:func:`precompute.film_colour.film_table`, ≈ 0.1–0.5 s warm) and kept.
+    computed (:func:`precompute.film_colour.film_table`, ≈ 0.1–0.5 s warm) and kept. Without
+    ``result`` it is computed from ``desc`` alone (:func:`~precompute.film_colour.film_table_of`:
+    the viewport's worker runs it beside the bake).
 
     ``progress(fraction, text)`` is called at the computation's checkpoints (fraction 1: the
     table is done) and may raise to cancel it; nothing is kept then. Thread-safe: the viewport
@@ -180,7 +182,7 @@ def get_film(desc: Material, result: bake.BakeResult, progress=None):
             progress(1.0, "film table")
 
     with reporting(hook):
-        found = film_colour.film_table(result)
+        found = film_colour.film_table(result) if result is not None else film_colour.film_table_of(desc)
     with _count_lock:
         film_threads.append(threading.current_thread().name)
     FILMS[key] = found
@@ -211,8 +213,14 @@ def _from_table(table) -> bake.BakeResult:
     )
 
 
-def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[bake.BakeResult, str]:
-    """Like :func:`get_table`, also saying where the table came from: memory, disk or bake."""
+def get_table_with_source(
+    desc: Material, cache=None, progress=None, store: bool = True
+) -> tuple[bake.BakeResult, str]:
+    """Like :func:`get_table`, also saying where the table came from: memory, disk or bake.
+
+    ``store`` False: a baked table is kept in memory only; the caller writes it to the disk
+    cache later with :func:`store_table` (the viewport's worker first lets the frame show it:
+    writing the soap preset's 61-row table takes 0.4–2 s)."""
     global bake_count
     key = description_key(desc)
     hit = MEMORY.get(key)
@@ -244,6 +252,24 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
         bake_count += 1
     MEMORY[key] = result  # kept (and drawn) whatever happens to the disk copy
     FAILURES.pop(key)
+    if store:
+        _store(key, result, cache, problem)
+    elif problem is not None:
+        _store(key, result, None, problem)  # the disk cache is unusable: say so now
+    return result, "bake"
+
+
+def store_table(desc: Material, result: bake.BakeResult, cache=None) -> None:
+    """Write a table baked with ``store=False`` (:func:`get_table_with_source`) to the disk
+    cache; a failure is reported by :func:`cache_error`, never raised. Thread-safe."""
+    if cache is None:
+        cache = open_cache()
+    if isinstance(cache, UnusableCache):
+        return  # reported when it was baked
+    _store(description_key(desc), result, cache, None)
+
+
+def _store(key: str, result: bake.BakeResult, cache, problem: str | None) -> None:
     if cache is not None:
         try:
             cache.store(key, result.data, _attributes(result), kind=bake.FORMAT_KIND)
@@ -254,7 +280,6 @@ def get_table_with_source(desc: Material, cache=None, progress=None) -> tuple[ba
     else:
         CACHE_ERRORS[key] = problem
         log.warning("thinfilm_sh: %s", problem)
-    return result, "bake"
 
 
 def get_table(desc: Material, cache=None, progress=None) -> bake.BakeResult:

@@ -174,10 +174,15 @@ def _bake_worker(job: _Job, cache) -> None:
             raise BakesCancelled
         job.progress = float(fraction)
 
+    baked = None
+    film = _FilmBeside(job) if job.film and tables.peek_film(job.key) is None else None
     try:
         report(0.0, "")  # superseded before it started: stops here
-        result = tables.get_table(job.desc, cache, report)
-        if job.film:
+        result, source = tables.get_table_with_source(job.desc, cache, report, store=False)
+        baked = result if source == "bake" else None
+        if film is not None:
+            film.join()
+        elif job.film:
             tables.get_film(job.desc, result, report)
     except BakesCancelled:
         pass
@@ -191,6 +196,38 @@ def _bake_worker(job: _Job, cache) -> None:
             for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
                 del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
         _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
+    if baked is not None:  # after the frame's cue: the disk copy only serves the next session
+        tables.store_table(job.desc, baked, cache)
+        if tables.CACHE_ERRORS.get(job.key) is not None:
+            _finished.set()  # a redraw shows why the table was not saved
+
+
+class _FilmBeside:
+    """A bake's film table computed on a second thread while the bake runs (it needs the
+    material alone, :func:`precompute.film_colour.film_table_of`): on two cores the edit's frame
+    waits for the longer of the two, not their sum. :meth:`join` re-raises its error."""
+
+    def __init__(self, job: _Job):
+        self.job = job
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="tf-film-table", daemon=True)
+        self.thread.start()
+
+    def _check(self, fraction, text) -> None:
+        if self.job.cancel.is_set():
+            raise BakesCancelled
+
+    def _run(self) -> None:
+        try:
+            tables.get_film(self.job.desc, None, self._check)
+        except BaseException as exc:  # handed to the bake's worker by join()
+            self.error = exc
+
+    def join(self) -> None:
+        """Wait for the film table; raise what computing it raised."""
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
 
 
 def _start_jobs() -> list[_Job]:

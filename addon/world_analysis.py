@@ -216,6 +216,9 @@ class WorldLighting:
     params: world.WorldParams = field(default_factory=world.WorldParams)
     scale: float | None = None
     turned: bool = False
+    #: The content's SH (its frame and strength; None for the fallback colour): what the
+    #: radiance grids are built from (:meth:`grid_source`).
+    content_sh: np.ndarray | None = None
 
     @property
     def matrix(self) -> np.ndarray | None:
@@ -231,6 +234,20 @@ class WorldLighting:
         """The World's SH without its lamps, in its frame and strength."""
         env = self.environment
         return world.apply_params(env.sh_without_lamps, self.params, self.scale, self.turned)
+
+    def grid_source(self, lamps: bool) -> tuple[str, np.ndarray]:
+        """(key, SH) a radiance grid is built from: the content's SH, without its lamps when
+        ``lamps``, keyed by the content alone, so that a Strength or rotation edit (the lighting
+        buffer's ``world`` block turns and scales the grid lookup) rebuilds no grid; the World's
+        own SH where there is no content (the fallback colour, neither turned nor scaled)."""
+        env = self.environment
+        lamps = bool(lamps and env is not None)
+        if self.content_sh is None:
+            own = self.sh_without_lamps() if lamps else self.sh.coeffs
+            return self.key, np.asarray(own, dtype=np.float64)
+        if lamps:
+            return f"{self.content_key}|lamps", np.asarray(env.sh_without_lamps, dtype=np.float64)
+        return self.content_key, np.asarray(self.content_sh, dtype=np.float64)
 
     def background(self) -> np.ndarray | None:
         """The World's panorama (top row first) in its frame and strength, for a headless
@@ -263,5 +280,14 @@ def lighting_from(
         return WorldLighting(key, sh, env, textures, True, analysed.content_key, params, None, False)
     scale = world.content_scale(analysed.content, params)
     return WorldLighting(
-        key, sh, env, textures, True, analysed.content_key, params, scale, analysed.content.read.turned
+        key,
+        sh,
+        env,
+        textures,
+        True,
+        analysed.content_key,
+        params,
+        scale,
+        analysed.content.read.turned,
+        np.asarray(analysed.content.coeffs, dtype=np.float64),
     )

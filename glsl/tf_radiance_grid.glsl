@@ -11,6 +11,8 @@
  * about r, measured from a1 = d r / d theta_r towards a2 = d r / d phi_r (unit). theta_o and psi
  * are interpolated here (four fetches), the mirror direction by the texture's filter. The cost
  * does not depend on TF_L_MAX: shading.radiance_grid.build holds the SH sum at every node.
+ * The grid holds the World's content (tf_lighting.world: its turn Q and strength, as the
+ * prefilter lookup reads them): r and e1 are turned by Q and the sum scaled by the strength.
  * Without TF_RADIANCE_GRID this chunk is empty.
  */
 
@@ -27,6 +29,11 @@ vec3 tf_shade_grid(TFFrame f)
   vec2 cs = tf_safe_normalize2(vec2(max(f.cos_o, 0.0), f.sin_o), vec2(1.0, 0.0));
   vec3 r = cs.x * f.z - cs.y * f.x;
   vec3 e1 = cs.x * f.x + cs.y * f.z;
+  vec3 q0 = tf_lighting.world[0].xyz; /* rows of Q: into the content's frame */
+  vec3 q1 = tf_lighting.world[1].xyz;
+  vec3 q2 = tf_lighting.world[2].xyz;
+  r = vec3(dot(q0, r), dot(q1, r), dot(q2, r));
+  e1 = vec3(dot(q0, e1), dot(q1, e1), dot(q2, e1));
   float rho = length(r.xy);
   vec2 p = tf_safe_normalize2(r.xy, vec2(1.0, 0.0));
   vec2 uv = vec2(0.5 - atan(r.y, r.x) / (2.0 * TF_PI), acos(clamp(r.z, -1.0, 1.0)) / TF_PI);
@@ -48,6 +55,6 @@ vec3 tf_shade_grid(TFFrame f)
   int l1 = l0 + TF_GRID_AZIMUTHS;
   vec3 lo = mix(tf_grid_fetch(uv, l0 + k0), tf_grid_fetch(uv, l0 + k1), wk);
   vec3 hi = mix(tf_grid_fetch(uv, l1 + k0), tf_grid_fetch(uv, l1 + k1), wk);
-  return mix(lo, hi, wj);
+  return tf_lighting.world[0].w * mix(lo, hi, wj);
 }
 #endif

@@ -108,11 +108,23 @@ def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
     :func:`brdf.directional_albedo` to float rounding (tests/test_live.py). The viewport
     computes it on the bake's worker (:func:`addon.tables.get_film`), never in a draw.
     """
-    material = result.material
-    thicknesses = np.atleast_1d(np.asarray(result.thicknesses_nm, dtype=float))
+    return _film_table(result.material, result.thicknesses_nm, np.asarray(result.data).ndim == 5, samples)
+
+
+def film_table_of(material, samples: int = FILM_SAMPLES) -> FilmTable:
+    """The :func:`film_table` that :func:`bake.bake` of ``material`` will have, computed without
+    the bake: its thickness rows are the bake's plan's (:func:`bake.active_stack`), so the
+    viewport computes it on a second thread beside the bake (equal to the result's to float
+    rounding: tests/test_live.py)."""
+    m = bake.table_material(material)
+    _indices, _sets, axis = bake.active_stack(m, bake.plan(m).thickness_samples)
+    return _film_table(m, axis, m.colour_mode != "per_channel", samples)
+
+
+def _film_table(material, thicknesses_nm, spectral: bool, samples: int) -> FilmTable:
+    thicknesses = np.atleast_1d(np.asarray(thicknesses_nm, dtype=float))
     u = np.linspace(0.0, 1.0, int(samples))
     rg = _film_rows(material, thicknesses, u)  # (T, U, 3, 3)
-    spectral = np.asarray(result.data).ndim == 5
     reflectance = rg if spectral else np.einsum("tukk->tuk", rg)
     ms = _multiscatter(material, u, rg)
     return FilmTable(np.ascontiguousarray(reflectance), np.ascontiguousarray(ms), thicknesses)

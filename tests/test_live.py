@@ -103,6 +103,20 @@ def test_the_vectorised_film_table_equals_the_per_row_one(precompute, preset, ch
         assert np.ptp(table.multiscatter[:, -1, :], axis=0).max() > 0.0
 
 
+@pytest.mark.parametrize("preset, mode", [("soap_film", "spectral"), ("heat_tinted_steel", "per_channel")])
+def test_the_film_table_computed_beside_the_bake_is_the_bakes(precompute, preset, mode):
+    """film_table_of(material), which the viewport computes while the bake runs, equals
+    film_table(bake(material)): the same thickness rows, layout and values."""
+    quality = precompute.material.Quality(sh_order=2, view_samples=4, wavelength_count=32)
+    material = dataclasses.replace(precompute.material.preset(preset), colour_mode=mode, quality=quality)
+    beside = precompute.film_colour.film_table_of(material, samples=32)
+    after = precompute.film_colour.film_table(precompute.bake.bake(material), samples=32)
+    assert beside.thicknesses_nm.size > 1 and beside.spectral == (mode == "spectral")
+    np.testing.assert_array_equal(beside.thicknesses_nm, after.thicknesses_nm)
+    np.testing.assert_allclose(beside.reflectance, after.reflectance, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(beside.multiscatter, after.multiscatter, rtol=0, atol=1e-12)
+
+
 # ----------------------------------------------------------------------------------------------
 # The viewport, through the add-on
 # ----------------------------------------------------------------------------------------------
@@ -234,6 +248,36 @@ def wait_for(predicate, what: str):
 
 
 @pytest.mark.blender
+def test_a_baked_table_is_drawn_before_it_is_written_to_disk(bpy, tf, scene, monkeypatch):
+    """The worker cues the redraw once the table (and its film) is in memory; the disk copy,
+    which only serves a later session (0.4–2 s for the soap preset's 61 rows), is written after
+    that, and still written."""
+    vp = tf.viewport
+    held = threading.Event()
+    stored = []
+    cache = tf.tables.open_cache()
+    real = type(cache).store
+
+    def held_store(self, key, *args, **kwargs):
+        assert held.wait(THREAD_TIMEOUT_S), "the disk write was never released"
+        path = real(self, key, *args, **kwargs)
+        stored.append(path)
+        return path
+
+    monkeypatch.setattr(type(cache), "store", held_store)
+    film(bpy, scene)
+    frame(bpy, tf)  # queues the bake
+    vp._service()
+    wait_for(lambda: not vp._running, "the bake")
+    assert vp._finished.is_set() and not stored  # the redraw's cue came while the write is held
+    image, items = frame(bpy, tf)
+    assert len(items) == 1 and image[..., 3].max() > 0 and not vp._pending  # drawn, not re-queued
+    held.set()
+    wait_for(lambda: stored, "the disk write")
+    assert stored[0].exists()
+
+
+@pytest.mark.blender
 def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, scene, monkeypatch):
     """The timer tags the 3D views after a bake's worker ended and after it updated the World,
     even when nothing else runs any more (no stalled edit waiting for an unrelated redraw)."""
@@ -327,7 +371,7 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
     material to its settled frame: every bake and film table ran on a worker thread."""
     vp = tf.viewport
     calls = []
-    real_bake, real_film = tf.bake.bake, tf.film_colour.film_table
+    real_bake, real_film = tf.bake.bake, tf.film_colour._film_table  # film_table and film_table_of
 
     def bake(*args, **kwargs):
         calls.append(("bake", threading.current_thread() is threading.main_thread()))
@@ -338,7 +382,7 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
         return real_film(*args, **kwargs)
 
     monkeypatch.setattr(tf.bake, "bake", bake)
-    monkeypatch.setattr(tf.film_colour, "film_table", film_table)
+    monkeypatch.setattr(tf.film_colour, "_film_table", film_table)
     drawn = []
     monkeypatch.setattr(
         vp,

@@ -256,3 +256,55 @@ def test_no_prefilter_inside_the_draw_callback(bpy, tf, live):
     items, _ = frame(bpy, tf)
     assert items[0].prefiltered is not None and len(live.calls) == count + 1
     assert live.calls[-1] == (live.calls[-1][0], False) and live.calls[-1][0] != threading.main_thread().name
+
+
+def rough_items(bpy, tf, live):
+    """The sphere's film made rough (its SH half read from a radiance grid, policy.uses_grid),
+    its table baked and its grid built here (allow_bake), then one viewport frame."""
+    mat = live.sphere.data.materials[0]
+    mat.thinfilm_sh.roughness = 0.6
+    mat.thinfilm_sh.sh_order = "3"
+    mat.thinfilm_sh.vary_thickness = False  # one grid per constant thickness
+    mat.thinfilm_sh.transparency = "OPAQUE"
+    items, messages = collect(bpy, tf, allow_bake=True)
+    assert len(items) == 1 and items[0].grid is not None, messages
+    items, _ = frame(bpy, tf)
+    assert items[0].grid is not None
+    return items
+
+
+def forbid_grids(tf, monkeypatch):
+    grids = tf.package.addon.radiance_grids
+
+    def forbidden(*_a, **_k):
+        raise AssertionError("a World parameter edit rebuilt a radiance grid")
+
+    monkeypatch.setattr(grids.radiance_grid, "build", forbidden)
+    return grids
+
+
+def test_strength_and_rotation_keep_a_rough_films_grid(bpy, tf, live, monkeypatch):
+    """A rough film reads its SH half from a grid of the World's content: Strength × 2 doubles
+    its pixels and a 90° Mapping rotation turns them, with no grid built, queued or World work."""
+    items = rough_items(bpy, tf, live)
+    before = pixels(tf, items)
+    grids = forbid_grids(tf, monkeypatch)
+    forbid_world_work(tf, monkeypatch)
+    live.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 2.0
+    doubled, _ = frame(bpy, tf)
+    assert doubled[0].grid is items[0].grid and not grids.busy()
+    after = pixels(tf, doubled)
+    covered = before[..., 3] > 0
+    assert covered.sum() > 50
+    np.testing.assert_allclose(after[covered, :3], 2.0 * before[covered, :3], rtol=1e-4, atol=1e-6)
+    live.world.node_tree.nodes["Mapping"].inputs["Rotation"].default_value = (0.0, 0.0, math.pi / 2.0)
+    turned, _ = frame(bpy, tf)
+    assert turned[0].grid is items[0].grid and not grids.busy()
+    got = pixels(tf, turned)
+    # the per-pixel SH of the turned World (its coefficients rotated exactly) as the reference:
+    # the grid's interpolation against it is ≈ 1 % of the peak (mean ΔE2000 0.1, tuning.md)
+    turned[0].grid = None
+    per_pixel = pixels(tf, turned)
+    peak = float(np.max(per_pixel[covered, :3]))
+    assert np.mean(np.abs(got[covered, :3] - per_pixel[covered, :3])) < 0.02 * peak
+    assert np.mean(np.abs(after[covered, :3] - got[covered, :3])) > 0.05 * peak  # it did turn

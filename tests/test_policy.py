@@ -279,3 +279,28 @@ def test_operation_counts_move_reads_between_textures_and_buffers():
     one = codegen.operation_counts(Variant(2, False, False, False, lamps=True), lamp_count=1)
     two = codegen.operation_counts(Variant(2, False, False, False, lamps=True), lamp_count=2)
     assert two.multiply_adds - one.multiply_adds == codegen.LAMP_MADS + 3 + 3 * 2
+
+
+def test_a_split_only_film_is_baked_at_order_0_with_the_same_albedo():
+    """drawn_material: a glossy film without a diffuse base (drawn by the split sum alone, which
+    reads entry 0) gets the automatic order 0, and its entry 0 is the l = 12 table's to float
+    rounding; a blended or rough film, a diffuse base and an order set by hand are kept."""
+    import dataclasses
+
+    from precompute import bake
+    from precompute.material import Quality, preset
+
+    quality = Quality(view_samples=8, thickness_samples=6, wavelength_count=32)
+    glossy = dataclasses.replace(preset("soap_film"), quality=quality)
+    assert policy.sh_weight(glossy.roughness) == 0.0
+    drawn = policy.drawn_material(glossy)
+    assert drawn.quality.sh_order == 0 and drawn.layers == glossy.layers
+    full, zero = bake.bake(glossy), bake.bake(drawn)
+    assert full.sh_order == 12 and zero.sh_order == 0 and zero.data.shape[2] == 1
+    np.testing.assert_allclose(zero.data[:, :, 0], full.data[:, :, 0], rtol=0, atol=1e-12)
+    assert np.abs(full.data[:, :, 1:]).max() > 1e-3  # the entries left out are not zero
+    blended = glossy.with_(roughness=policy.SH_BLEND[0] + 0.01)
+    hand = glossy.with_(quality=dataclasses.replace(quality, sh_order=4))
+    diffuse = glossy.with_(base_color=(0.5, 0.5, 0.5))
+    for kept in (blended, hand, diffuse):
+        assert policy.drawn_material(kept) is kept

@@ -146,6 +146,40 @@ def test_grid_stays_close_to_the_per_pixel_sh_in_colour(roughness):
     assert worse.mean() > 0.3, worse.mean()
 
 
+def turn(angle: float, axis) -> np.ndarray:
+    """A rotation matrix (Rodrigues) of ``angle`` about ``axis``."""
+    k = unit(np.asarray(axis, dtype=float))
+    cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
+
+
+def test_a_turned_and_scaled_world_reads_the_content_grid():
+    """The grid of the World's content, looked up at (Q n, Q v) and scaled by s, is the World
+    L(d) = s · L_c(Q d) (the lighting buffer's turn and strength): at the content grid's nodes
+    exactly the per-pixel SH of the turned World's own coefficients (sh.rotate), so a Strength
+    or rotation edit needs no new grid."""
+    from precompute import sh
+
+    result = rough_table(0.3)
+    content = windowed_world(result)
+    q, s = turn(1.1, [0.3, -0.5, 0.8]), 2.5
+    world = s * sh.rotate(content, q.T)  # coefficients of d ↦ s L_c(Q d)
+    grid = grid_of(result)  # built from the content
+    shape = policy.grid_shape(result.data.shape[1])
+    n, v = radiance_grid.cell_geometry(shape)  # nodes, in the content's frame
+    sel = (slice(1, None, 3), slice(None, None, 5), slice(None, None, 3), slice(None, None, 7))
+    n_w, v_w = n[sel] @ q, v[sel] @ q  # the same nodes in the World's frame: Q n_w = n
+    expected = sh_sum.shade_sh(result, world, n_w, v_w)
+    got = radiance_grid.lookup(grid, n_w, v_w, rotation=q, scale=s)
+    peak = np.abs(expected).max()
+    assert peak > 0.05
+    # float32 storage and the node coordinates recomputed after the turn: measured 3e-8 of the
+    # peak; a transposed Q (the inverse turn) errs by 0.54, a missing scale by 0.6
+    assert np.abs(got - expected).max() / peak < 1e-5
+    wrong = radiance_grid.lookup(grid, n_w, v_w, rotation=q.T, scale=s)
+    assert np.abs(wrong - expected).max() / peak > 1e-2
+
+
 def test_build_refuses_bad_input():
     result = rough_table(0.3)
     with pytest.raises(ValueError, match="world_coeffs"):
@@ -192,8 +226,9 @@ void main()
 """
 
 
-def grid_on_gpu(gd, gpu, texture, variant, normals, views, width: int) -> np.ndarray:  # noqa: F811
-    """tf_shade_grid per pixel, inputs from two RGBA32F textures: RGB (N, 3)."""
+def grid_on_gpu(gd, gpu, texture, variant, normals, views, width: int, turn_=None, scale=1.0):  # noqa: F811
+    """tf_shade_grid per pixel, inputs from two RGBA32F textures: RGB (N, 3); ``turn_`` and
+    ``scale``: the lighting buffer's World turn Q and strength."""
     count = normals.shape[0]
     height = count // width
     info = gpu.types.GPUShaderCreateInfo()
@@ -215,6 +250,7 @@ def grid_on_gpu(gd, gpu, texture, variant, normals, views, width: int) -> np.nda
         return gpu.types.GPUTexture((width, height), format="RGBA32F", data=gd.resources.float_buffer(data))
 
     tex_n, tex_v = tex(normals), tex(views)
+    lighting = gd.resources.Lighting.from_sh(np.zeros((1, 3)), 0, 0.3, rotation=turn_, scale=scale)
     offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
     try:
         with offscreen.bind():
@@ -222,6 +258,7 @@ def grid_on_gpu(gd, gpu, texture, variant, normals, views, width: int) -> np.nda
             fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
             shader.bind()
             shader.uniform_sampler("tf_radiance_grid", texture.texture)
+            shader.uniform_block("tf_lighting", lighting.ubo)
             shader.uniform_sampler("tf_test_normal", tex_n)
             shader.uniform_sampler("tf_test_view", tex_v)
             gd.draw._fullscreen_triangle().draw(shader)
@@ -237,9 +274,12 @@ def half(grid) -> np.ndarray:
 
 
 @pytest.mark.blender
-@pytest.mark.parametrize("colour_mode", ["spectral", "per_channel"])
-def test_glsl_grid_lookup_matches_numpy_per_pixel(gd, colour_mode):  # noqa: F811
-    """tf_shade_grid against radiance_grid.lookup of the half-float grid, per pixel."""
+@pytest.mark.parametrize(
+    "colour_mode, turned", [("spectral", False), ("per_channel", False), ("spectral", True)]
+)
+def test_glsl_grid_lookup_matches_numpy_per_pixel(gd, colour_mode, turned):  # noqa: F811
+    """tf_shade_grid against radiance_grid.lookup of the half-float grid, per pixel (``turned``:
+    under a World turn and strength from the lighting buffer)."""
     import gpu
 
     result = rough_table(0.3, colour_mode)
@@ -258,8 +298,11 @@ def test_glsl_grid_lookup_matches_numpy_per_pixel(gd, colour_mode):  # noqa: F81
         unit([0, 1, 1.5]),
         unit([1, 1.0, 0.0]),
     ]
-    got = grid_on_gpu(gd, gpu, texture, variant, n, v, width)
-    expected = radiance_grid.lookup(half(grid), n, v)
+    q, s = (turn(2.0, [-0.4, 0.7, 0.2]), 1.7) if turned else (None, 1.0)
+    got = grid_on_gpu(gd, gpu, texture, variant, n, v, width, q, s)
+    expected = radiance_grid.lookup(half(grid), n, v, rotation=q, scale=s)
+    if turned:  # it did turn and scale
+        assert np.abs(expected - radiance_grid.lookup(half(grid), n, v)).max() > 0.05 * np.abs(expected).max()
     scale = np.abs(expected).max()
     assert scale > 0.05 and np.all(np.isfinite(got))
     err = np.max(np.abs(got - expected), axis=-1) / scale

@@ -164,8 +164,9 @@ LIGHTING = Block(
         Member(
             "world",
             3,
-            "the World's turn and strength for the prefilter lookup: rows of Q in .xyz (image"
-            " direction = Q world direction), [0].w = the prefilter's scale; identity and 1 by default",
+            "the World's turn and strength for the prefilter and radiance-grid lookups: rows of Q"
+            " in .xyz (image direction = Q world direction), [0].w = their scale; identity and 1 by"
+            " default",
         ),
     ),
 )
@@ -417,11 +418,7 @@ class Lighting:
         c = np.asarray(world_coeffs, dtype=np.float64)
         if c.ndim != 2 or c.shape[1] < 3 or not np.all(np.isfinite(c)):
             raise ValueError(f"world_coeffs must be finite, shape (K, 3), got {c.shape}")
-        k = (l_max + 1) ** 2
-        full = np.zeros((k, 3))
-        n = min(k, c.shape[0])
-        full[:n] = c[:n, :3]
-        windowed = full * np.asarray(policy.lighting_window(l_max, float(roughness)))[:k, None]
+        windowed = policy.windowed_lighting(c, l_max, roughness)
         ensure_gpu_context()
         ubo = gpu.types.GPUUniformBuf(float_buffer(cls.pack(windowed, lamps, rotation, scale)))
         return cls(
