@@ -153,11 +153,17 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, *, wait: bool)
     ``lighting``: the scene's ``WorldLighting``; ``lamps``: the film is shaded with the World's
     lamps (its grid then holds the content without them).
     """
-    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
-    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
-    if not policy.uses_grid(result.sh_order, vary, weight):
+    if not applies(desc, result, lighting):
         return None
     source, coeffs = lighting.grid_source(lamps)
     l_max, roughness = int(result.sh_order), float(desc.roughness)
     key = f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}"
     return grid_for(key, result, policy.windowed_lighting(coeffs, l_max, roughness), wait=wait)
+
+
+def applies(desc, result, lighting) -> bool:
+    """Whether the film draws its SH half from a grid (policy.uses_grid): a constant thickness,
+    an SH half at l_max ≥ GRID_MIN_L."""
+    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
+    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
+    return policy.uses_grid(result.sh_order, vary, weight)

@@ -75,6 +75,9 @@ class DrawItem:
     wall: tuple | None = None
     #: The film's outgoing-radiance grid (:mod:`.radiance_grids`), or None (per-pixel SH).
     grid: resources.RadianceGridTexture | None = None
+    #: Its grid is being built: the per-pixel variant is drawn only if compiled (else the
+    #: stand-in, and it is not asked for: 77–83 s of llvmpipe compile for a frame or two).
+    grid_pending: bool = False
 
 
 #: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
@@ -438,6 +441,7 @@ class _MaterialEntry:
     wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
     grid: resources.RadianceGridTexture | None = None  # its SH half tabulated (policy.uses_grid)
     grid_source: str = ""  # the World content's key the grid was built from (WorldLighting.grid_source)
+    grid_wanted: bool = False  # radiance_grids.applies: drawn from a grid once built
 
 
 def _table_of(desc, allow_bake: bool, want_bake):
@@ -597,6 +601,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         wall=wall,
         grid=radiance_grids.film_grid(key, desc, result, lighting, lamps, wait=allow_bake),
         grid_source=lighting.grid_source(lamps)[0],
+        grid_wanted=radiance_grids.applies(desc, result, lighting),
     )
 
 
@@ -744,6 +749,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
                     lights=object_lights[original.name] if linked else shared_lights,
                     wall=entry.wall,
                     grid=entry.grid,
+                    grid_pending=entry.grid_wanted and entry.grid is None,
                 )
             )
     CACHES.dirty -= seen

@@ -386,3 +386,31 @@ def test_an_uncompiled_variant_is_drawn_by_its_stand_in_until_compiled(gd):  # n
         [item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False
     ).groups
     assert group.variant == wanted[0] and cache.compile_seconds
+
+
+@pytest.mark.blender
+def test_a_film_waiting_for_its_grid_does_not_ask_for_its_per_pixel_variant(gd):  # noqa: F811
+    """While its grid is built (under a second) a film is drawn by the stand-in, and its per-pixel
+    variant is not queued for the idle compile (77–83 s of llvmpipe for a per-pixel l = 12
+    variant, needed for a frame or two); once compiled it would be used."""
+    result = baked(5, "spectral", False)
+    table = gd.resources.TableTexture.from_result(result)
+    world, _img = world_sh(5)
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    item = tilted_quad_item(gd, table, lighting)
+    item.grid_pending = True
+    cache = gd.shaders.ShaderCache()
+    (group,) = gd.draw.prepare_draw(
+        [item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False
+    ).groups
+    assert not cache.wanted() and group.variant.l_max == policy.STAND_IN_L
+    item.grid_pending = False  # no grid coming (a failed build): the variant is asked for
+    gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False)
+    (wanted,) = cache.wanted()
+    assert wanted.l_max == 5
+    cache.compile_next()
+    item.grid_pending = True  # compiled already: the per-pixel variant is drawn, not the stand-in
+    (group,) = gd.draw.prepare_draw(
+        [item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False
+    ).groups
+    assert group.variant == wanted

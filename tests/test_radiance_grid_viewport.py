@@ -58,7 +58,7 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     built_on.clear()
     # the viewport: no build on this thread, the per-pixel SH meanwhile
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
-    assert item.grid is None and rg.busy() and "tabulating" in rg.activity()
+    assert item.grid is None and item.grid_pending and rg.busy() and "tabulating" in rg.activity()
     assert bpy.app.timers.is_registered(rg._poll)
     wait_idle(rg)
     assert built_on and all(t is not threading.main_thread() for t in built_on)
@@ -66,7 +66,7 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     rg._poll()
     assert not rg.GRIDS.finished.is_set()
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
-    assert item.grid is not None
+    assert item.grid is not None and not item.grid_pending
     prepared = tf.package.addon.gpu.draw.prepare_draw([item], _eye(), _eye(), display_srgb=True)
     assert prepared.groups[0].variant.grid
     # the same frame again: the uploaded grid is reused, nothing is built
@@ -87,7 +87,7 @@ def test_no_grid_for_varying_thickness_or_low_orders(bpy, tf, scene, vary, order
     rg.GRIDS.clear()
     quad_grid(bpy, scene, "Quad", rough_film(bpy, tf, "Film", vary=vary, order=order))
     (item,), _ = collect(bpy, tf)
-    assert item.grid is None and not rg.busy()
+    assert item.grid is None and not item.grid_pending and not rg.busy()
 
 
 def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # noqa: F811

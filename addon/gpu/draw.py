@@ -186,7 +186,8 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
         grid=grid is not None,
     )
     if not compile_now and not shaders.compiled(variant):
-        shaders.want(variant)
+        if not getattr(item, "grid_pending", False):  # a grid variant replaces it soon: not wanted
+            shaders.want(variant)
         variant = stand_in(variant)
     split = variant.split_sum
     roughness = float(getattr(item, "roughness", 0.0))
