@@ -23,7 +23,9 @@ import bpy
 import numpy as np
 
 from ..precompute import pixel_filter
+from ..precompute.shading.transmit import WALL_SOLID
 from .gpu.draw import is_wall, render_offscreen
+from .gpu.resources import BehindTexture
 
 #: ``--engine`` → Blender's render engine identifier.
 ENGINES = {"EEVEE": "BLENDER_EEVEE", "WORKBENCH": "BLENDER_WORKBENCH", "CYCLES": "CYCLES"}
@@ -198,7 +200,7 @@ def composite(
     return out
 
 
-def film_layers(items, view, proj, width: int, height: int):
+def film_layers(items, view, proj, width: int, height: int, behind=None):
     """The films' pass for :func:`composite`: (colour over black (H, W, 4), transmittance (H, W, 3)
     or None, window depth (H, W)).
 
@@ -206,13 +208,25 @@ def film_layers(items, view, proj, width: int, height: int):
     :func:`.gpu.draw.is_wall`) the frame behind them is linear in what they composite over
     (multiply by T, then add R·L, back walls then front): so rendered once over black and once
     over white, T = white − black per channel, exactly; their depth (they write none) comes from
-    a third render of the walls drawn as opaque surfaces.
+    a third render of the walls drawn as opaque surfaces. ``behind`` (a
+    :class:`.gpu.resources.BehindTexture` of the background pass, or None): what solid glass
+    refracts (its T is 0: the refracted scene is part of its colour).
     """
-    black, depth = render_offscreen(items, view, proj, width, height, with_depth=True)
+    black, depth = render_offscreen(items, view, proj, width, height, with_depth=True, behind=behind)
     if not any(is_wall(item) for item in items):
         return black, None, depth
-    white = render_offscreen(items, view, proj, width, height, clear=(1.0, 1.0, 1.0, 1.0))
+    white = render_offscreen(items, view, proj, width, height, clear=(1.0, 1.0, 1.0, 1.0), behind=behind)
     solid = [dataclasses.replace(item, wall=None) if is_wall(item) else item for item in items]
     _, wall_depth = render_offscreen(solid, view, proj, width, height, with_depth=True)
     transmit = np.clip(white[..., :3].astype(np.float64) - black[..., :3], 0.0, 1.0)
     return black, transmit, np.minimum(depth, wall_depth)
+
+
+def behind_texture(background: Background, items, pad: int) -> BehindTexture | None:
+    """The background pass as the texture solid glass refracts (its colour and depth, placed in
+    the films' window widened by ``pad`` pixels), or None when no item is solid glass."""
+    if not any(is_wall(item) and int(item.wall[0]) == WALL_SOLID for item in items):
+        return None
+    h, w = background.depth.shape
+    screen = BehindTexture.screen(w, h, pad)
+    return BehindTexture.from_image(background.rgba[..., :3], background.depth, screen)

@@ -11,9 +11,34 @@
  * A transparent film (TF_TRANSMIT, tf_transmit.glsl) is drawn in two blend passes: pass 1 writes
  * (T, mean T) for a multiply blend, pass 2 (S R L, 1 - mean T) for an additive one
  * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
- * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
+ * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl).
+ * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_refract.glsl (TF_REFRACT) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
+
+#ifdef TF_REFRACT
+/* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray hits
+ * it, else the World along the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else
+ * the scene straight behind the pixel. */
+vec3 tf_refracted(vec3 n, vec3 v)
+{
+  vec3 exit_point, dir, colour;
+  tf_solid_exit_ray(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, exit_point, dir);
+  if (tf_refract_march(exit_point, dir, colour)) {
+    return colour;
+  }
+#ifdef TF_SPLIT_SUM
+  vec3 unused_moment;
+  float unused_weight;
+  return tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+#else
+  ivec2 texel;
+  float unused_depth;
+  tf_refract_sample(tf_world_pos, texel, unused_depth);
+  return texelFetch(tf_behind, texel, 0).rgb;
+#endif
+}
+#endif
 
 void main()
 {
@@ -36,8 +61,8 @@ void main()
           tf_object.material.w, wall_t, wall_s);
   float wall_mean = dot(wall_t, vec3(1.0 / 3.0));
 #if TF_TRANSMIT == 1 /* the multiply pass: what is behind times T; alpha times mean(T) */
-#ifdef TF_SPLIT_SUM
-  if (tf_object.material.z > 1.5) { /* solid glass: the World along the exit ray replaces it */
+#if defined(TF_SPLIT_SUM) || defined(TF_REFRACT)
+  if (tf_object.material.z > 1.5) { /* solid glass: what the exit ray sees replaces it */
     wall_t = vec3(0.0);
     wall_mean = 0.0;
   }
@@ -68,7 +93,12 @@ void main()
 #endif
 #if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 /* the add pass: R L; alpha plus 1 - mean(T) */
   rgb *= wall_s;
-#ifdef TF_SPLIT_SUM
+#ifdef TF_REFRACT
+  if (tf_object.material.z > 1.5) { /* solid glass: T times the scene behind along the exit ray */
+    rgb += wall_t * tf_refracted(n, v);
+    wall_mean = 0.0;
+  }
+#elif defined(TF_SPLIT_SUM)
   if (tf_object.material.z > 1.5) { /* solid glass: T times the World along the exit ray */
     vec3 unused_moment;
     float unused_weight;

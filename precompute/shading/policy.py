@@ -144,6 +144,20 @@ LIGHT_KINDS = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
 WALL_SCALE_MAX = 16.0
 #: Smallest reflectance and denominator a wall's formulas divide by (r → 0, r·R_b → 1).
 WALL_GUARD = 1e-6
+#: Solid glass's screen-space refraction (shading/refract.py, glsl/tf_refract.glsl): the exit ray
+#: is marched over the scene behind in REFRACT_STEPS samples at distances growing geometrically
+#: from REFRACT_FIRST × the exit point's depth by REFRACT_GROWTH per step (1.16⁴⁷ ≈ 1070: the
+#: last sample lies ≈ 10 depths away), and a crossing of the depth behind is refined by
+#: REFRACT_REFINE bisections (the hit to 1/256 of a step). A crossing further behind the surface
+#: than REFRACT_THICKNESS × its depth passed behind an occluder: no hit
+#: (docs/transparent-films.md#solid-glass-refraction).
+REFRACT_STEPS = 48
+REFRACT_FIRST = 0.01
+REFRACT_GROWTH = 1.16
+REFRACT_REFINE = 8
+REFRACT_THICKNESS = 0.25
+#: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
+REFRACT_FAR = 1e30
 
 # ----------------------------------------------------------------------------------------------
 # Guards
@@ -219,7 +233,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
     - ``TF_DISPLAY_LUT_SIZE``, ``TF_DISPLAY_LUT_FLOOR``, ``TF_DISPLAY_LUT_MAX``: the display LUT
       (:data:`DISPLAY_LUT_SIZE` … :data:`DISPLAY_LUT_MAX`).
-    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`.
+    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`;
+    - ``TF_REFRACT_STEPS``, ``TF_REFRACT_FIRST``, ``TF_REFRACT_GROWTH``, ``TF_REFRACT_REFINE``,
+      ``TF_REFRACT_THICKNESS``: solid glass's screen-space march (:data:`REFRACT_STEPS` …).
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -243,4 +259,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_DISPLAY_LUT_FLOOR", glsl_float(DISPLAY_LUT_FLOOR)),
         ("TF_DISPLAY_LUT_MAX", glsl_float(DISPLAY_LUT_MAX)),
         ("TF_GRID_AZIMUTHS", str(int(GRID_AZIMUTHS))),
+        ("TF_REFRACT_STEPS", str(int(REFRACT_STEPS))),
+        ("TF_REFRACT_FIRST", glsl_float(REFRACT_FIRST)),
+        ("TF_REFRACT_GROWTH", glsl_float(REFRACT_GROWTH)),
+        ("TF_REFRACT_REFINE", str(int(REFRACT_REFINE))),
+        ("TF_REFRACT_THICKNESS", glsl_float(REFRACT_THICKNESS)),
     )
