@@ -162,3 +162,17 @@ def test_a_widened_window_maps_to_the_picture_inside_it():
     for j in (0, height - 1):
         y = (pad + j + 0.5) / (height + 2 * pad)
         assert (y * sy + oy) * height == pytest.approx(j + 0.5)
+
+
+def test_an_overscanned_picture_maps_the_frame_to_its_middle():
+    """With the background pass rendered ``margin`` pixels wider on each side, the widened
+    window's pixel (pad + i) is the picture's pixel (margin + i) (resources.BehindTexture.screen)."""
+    width, height, pad, margin = 40, 30, 3, 10
+    iw, ih = width + 2 * margin, height + 2 * margin
+    sx, sy = (width + 2.0 * pad) / iw, (height + 2.0 * pad) / ih
+    ox, oy = (margin - pad) / iw, (margin - pad) / ih
+    for i in (0, 17, width - 1):
+        x = (pad + i + 0.5) / (width + 2 * pad)
+        assert (x * sx + ox) * iw == pytest.approx(margin + i + 0.5)
+    y = (pad + 0.5) / (height + 2 * pad)
+    assert (y * sy + oy) * ih == pytest.approx(margin + 0.5)

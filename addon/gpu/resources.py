@@ -717,12 +717,14 @@ class BehindTexture:
     height: int
 
     @staticmethod
-    def screen(width: int, height: int, pad: int) -> tuple[float, ...]:
-        """The window → uv map (sx, sy, ox, oy) of an image of ``width`` × ``height`` pixels under
-        a drawn window widened by ``pad`` pixels on each side (the headless frame's filter margin;
-        its supersampling does not change the map)."""
-        sx, sy = (width + 2.0 * pad) / width, (height + 2.0 * pad) / height
-        return (sx, sy, -pad / width, -pad / height)
+    def screen(width: int, height: int, pad: int, margin: int = 0) -> tuple[float, ...]:
+        """The window → uv map (sx, sy, ox, oy) of a frame of ``width`` × ``height`` pixels drawn
+        widened by ``pad`` pixels on each side (the headless frame's filter margin; its
+        supersampling does not change the map), for an image of that frame widened by ``margin``
+        pixels on each side (the background pass's overscan)."""
+        iw, ih = width + 2.0 * margin, height + 2.0 * margin
+        sx, sy = (width + 2.0 * pad) / iw, (height + 2.0 * pad) / ih
+        return (sx, sy, (margin - pad) / iw, (margin - pad) / ih)
 
     @classmethod
     def from_image(cls, rgb, depth, screen=(1.0, 1.0, 0.0, 0.0)) -> BehindTexture:

@@ -156,6 +156,10 @@ REFRACT_FIRST = 0.01
 REFRACT_GROWTH = 1.16
 REFRACT_REFINE = 8
 REFRACT_THICKNESS = 0.25
+#: The headless frame's background pass is rendered REFRACT_OVERSCAN × the frame's longer side
+#: wider on each side when it has solid glass: rays bent out of the frame (a ball's top half sees
+#: the ground in front of the camera) still find the scene there (docs/transparent-films.md).
+REFRACT_OVERSCAN = 0.25
 #: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
 REFRACT_FAR = 1e30
 
