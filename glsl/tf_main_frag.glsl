@@ -16,6 +16,19 @@
  * for the variants that have them (addon/gpu/shaders.py).
  */
 
+#if defined(TF_TRANSMIT) && defined(TF_SPLIT_SUM)
+/* Solid glass's one reflection inside: T r times the World along tf_solid_internal, T = (1 - r)^2
+ * (shading.transmit.solid_internal). */
+vec3 tf_solid_glint(vec3 n, vec3 v, vec3 wall_t)
+{
+  vec3 unused_moment;
+  float unused_weight;
+  vec3 r = vec3(1.0) - sqrt(max(wall_t, vec3(0.0)));
+  return wall_t * r *
+         tf_prefiltered_lookup(tf_solid_internal(n, v, tf_object.material.w), 0.0, unused_moment, unused_weight);
+}
+#endif
+
 #ifdef TF_REFRACT
 /* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray hits
  * it, else the World along the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else
@@ -96,6 +109,9 @@ void main()
 #ifdef TF_REFRACT
   if (tf_object.material.z > 1.5) { /* solid glass: T times the scene behind along the exit ray */
     rgb += wall_t * tf_refracted(n, v);
+#ifdef TF_SPLIT_SUM
+    rgb += tf_solid_glint(n, v, wall_t);
+#endif
     wall_mean = 0.0;
   }
 #elif defined(TF_SPLIT_SUM)
@@ -104,6 +120,7 @@ void main()
     float unused_weight;
     rgb += wall_t * tf_prefiltered_lookup(tf_solid_exit(n, v, tf_object.material.w), 0.0,
                                           unused_moment, unused_weight);
+    rgb += tf_solid_glint(n, v, wall_t);
     wall_mean = 0.0;
   }
 #endif

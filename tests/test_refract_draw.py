@@ -90,7 +90,12 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):  # noqa: F811
         exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
     )
     seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
-    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen
+    glint = (
+        t
+        * (1.0 - np.sqrt(t))
+        * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
+    )
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
     err = np.abs(image[inside][:, :3] - expected).max(axis=-1) / np.max(expected)
     print(
         f"refracted glass: {inside.sum()} px, {hit.mean():.0%} hit the scene behind; error median "
@@ -104,3 +109,19 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):  # noqa: F811
     # the refracted picture is not the picture straight behind
     straight = colour[np.nonzero(inside)]
     assert np.median(np.abs(seen[hit] - straight[hit])) > 0.02
+
+
+def test_the_scene_behind_is_placed_in_the_widened_window_and_checked(gd):  # noqa: F811
+    """BehindTexture.screen maps the headless frame's widened window (filter pad) to the
+    overscanned background pass (margin): its pixel pad + i is the picture's pixel margin + i; a
+    colour and depth of different sizes are refused, naming both shapes."""
+    width, height, pad, margin = 40, 30, 3, 10
+    sx, sy, ox, oy = gd.resources.BehindTexture.screen(width, height, pad, margin)
+    for i in (0, 17, width - 1):
+        x = (pad + i + 0.5) / (width + 2 * pad)
+        assert (x * sx + ox) * (width + 2 * margin) == pytest.approx(margin + i + 0.5)
+    y = (pad + height - 0.5) / (height + 2 * pad)
+    assert (y * sy + oy) * (height + 2 * margin) == pytest.approx(margin + height - 0.5)
+    assert gd.resources.BehindTexture.screen(width, height, 0) == (1.0, 1.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match=r"colour \(H, W, 3\) and depth \(H, W\).*\(8, 8, 3\).*\(8, 9\)"):
+        gd.resources.BehindTexture.from_image(np.zeros((8, 8, 3)), np.zeros((8, 9)))
