@@ -53,6 +53,25 @@ vec3 tf_refracted(vec3 n, vec3 v)
 }
 #endif
 
+#if defined(TF_REFRACT) && defined(TF_SPLIT_SUM)
+/* Smooth solid glass reflects the scene behind where its mirror ray meets it, in place of the
+ * World: w r (scene - World) along reflect(-v, n), r = 1 - sqrt(T), w falling from 1 at roughness
+ * 0 to 0 at TF_REFRACT_MIRROR_ROUGHNESS (shading.refract.mirror_weight). */
+vec3 tf_scene_mirror(vec3 n, vec3 v, vec3 wall_t)
+{
+  float w = clamp(1.0 - tf_object.material.x / TF_REFRACT_MIRROR_ROUGHNESS, 0.0, 1.0);
+  vec3 mirror = reflect(-v, n);
+  vec3 scene;
+  if (w <= 0.0 || !tf_refract_march(tf_world_pos, mirror, scene)) {
+    return vec3(0.0);
+  }
+  vec3 unused_moment;
+  float unused_weight;
+  vec3 world = tf_prefiltered_lookup(mirror, 0.0, unused_moment, unused_weight);
+  return w * (vec3(1.0) - sqrt(max(wall_t, vec3(0.0)))) * (scene - world);
+}
+#endif
+
 void main()
 {
   vec3 toward_viewer = tf_view.view_dir.xyz;
@@ -111,6 +130,7 @@ void main()
     rgb += wall_t * tf_refracted(n, v);
 #ifdef TF_SPLIT_SUM
     rgb += tf_solid_glint(n, v, wall_t);
+    rgb = max(rgb + tf_scene_mirror(n, v, wall_t), vec3(0.0));
 #endif
     wall_mean = 0.0;
   }

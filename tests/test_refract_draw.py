@@ -25,12 +25,13 @@ QUAD_Y = -0.6
 
 def behind_scene():
     """(colour (H, W, 3), depth (H, W)) of the scene behind, top row first: a wall at y = 3 with a
-    smooth pattern, nothing in the top eighth of the picture."""
+    smooth pattern, nothing in the top eighth of the picture, a near ledge in its bottom third."""
     u = (np.arange(SIZE) + 0.5) / SIZE
     uu, vv = np.meshgrid(u, u[::-1])
     colour = np.stack([0.2 + 0.6 * uu, 0.3 + 0.5 * vv, 0.5 + 0.3 * np.sin(6 * uu) * np.cos(5 * vv)], -1)
     depth = np.full((SIZE, SIZE), 3.0 + DISTANCE)
     depth[: SIZE // 8] = np.inf
+    depth[-SIZE // 3 :] = 2.5  # a near ledge: the glass's mirror rays meet it
     return colour, depth
 
 
@@ -61,9 +62,9 @@ def quad_hits(model):
 
 
 def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):  # noqa: F811
-    result = baked(5, "spectral", False)
+    result = baked(8, "spectral", False)  # roughness 0.15: the scene's mirror weighs 0.25
     world, img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    lighting = gd.resources.Lighting.from_sh(world, 8, result.material.roughness)
     full = prefilter.prefilter(img, width=64)
     levels, moments = full.resampled(64), full.resampled_moments(64)
     pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
@@ -96,12 +97,23 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):  # noqa: F811
         * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
     )
     expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
+    # the scene mirrored in place of the World where the mirror ray meets it
+    mirror = -views + 2.0 * np.sum(n * views, -1, keepdims=True) * n
+    m_hit, m_rows, m_cols = refract.march(
+        points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    )
+    world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
+    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m)
+    weight = refract.mirror_weight(item.roughness)
+    expected = np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0)
     err = np.abs(image[inside][:, :3] - expected).max(axis=-1) / np.max(expected)
     print(
         f"refracted glass: {inside.sum()} px, {hit.mean():.0%} hit the scene behind; error median "
         f"{np.median(err):.1e}, 99th percentile {np.percentile(err, 99):.1e}, max {err.max():.1e} of the peak"
     )
+    print(f"mirror rays meeting the scene: {m_hit.mean():.0%}, weight {weight}")
     assert inside.sum() > 300 and 0.3 < hit.mean() < 0.98  # both the scene and the World are seen
+    assert m_hit.mean() > 0.05 and weight > 0.0  # the mirror of the scene is exercised
     # float32 on the GPU may pick the neighbouring texel at a texel's edge: one texel of the
     # pattern is ≤ 0.6 / SIZE ≈ 0.01 of the peak
     assert np.median(err) < 1e-4 and np.percentile(err, 99) < 2e-2 and err.max() < 5e-2

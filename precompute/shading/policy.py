@@ -156,6 +156,10 @@ REFRACT_FIRST = 0.01
 REFRACT_GROWTH = 1.16
 REFRACT_REFINE = 8
 REFRACT_THICKNESS = 0.25
+#: Smooth solid glass reflects the scene behind where its mirror ray meets it (the same march),
+#: in place of the World: fully at roughness 0, fading out linearly to none at this roughness,
+#: where the split sum's blurred World stands (docs/transparent-films.md#solid-glass-refraction).
+REFRACT_MIRROR_ROUGHNESS = 0.2
 #: The headless frame's background pass is rendered REFRACT_OVERSCAN × the frame's longer side
 #: wider on each side when it has solid glass: rays bent out of the frame (a ball's top half sees
 #: the ground in front of the camera) still find the scene there (docs/transparent-films.md).
@@ -239,7 +243,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       (:data:`DISPLAY_LUT_SIZE` … :data:`DISPLAY_LUT_MAX`).
     - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`;
     - ``TF_REFRACT_STEPS``, ``TF_REFRACT_FIRST``, ``TF_REFRACT_GROWTH``, ``TF_REFRACT_REFINE``,
-      ``TF_REFRACT_THICKNESS``: solid glass's screen-space march (:data:`REFRACT_STEPS` …).
+      ``TF_REFRACT_THICKNESS``, ``TF_REFRACT_MIRROR_ROUGHNESS``: solid glass's screen-space march
+      (:data:`REFRACT_STEPS` …) and its mirror of the scene.
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -268,4 +273,5 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_REFRACT_GROWTH", glsl_float(REFRACT_GROWTH)),
         ("TF_REFRACT_REFINE", str(int(REFRACT_REFINE))),
         ("TF_REFRACT_THICKNESS", glsl_float(REFRACT_THICKNESS)),
+        ("TF_REFRACT_MIRROR_ROUGHNESS", glsl_float(REFRACT_MIRROR_ROUGHNESS)),
     )

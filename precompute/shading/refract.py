@@ -25,6 +25,11 @@ Two steps, both per pixel:
    an occluder and marches on). A ray that leaves the image or the march sees nothing: the caller
    falls back to the World along w (the prefiltered World's sharpest level).
 
+Smooth solid glass also reflects the scene behind where its mirror ray reflect(−v, n) meets it
+(the same march from the shaded point): its film reflection gains
+w · r (scene − World along the mirror ray), the World's part replaced by the scene's, with
+w = :func:`mirror_weight` of its roughness and r the film's reflectance per channel.
+
 A glass of index 1 thus sees the image unshifted (the ray goes straight on and hits the texel
 behind the pixel), and a ball of glass inverts what lies behind it far enough, as a ball lens.
 """
@@ -37,6 +42,7 @@ from .policy import (
     REFRACT_FAR,
     REFRACT_FIRST,
     REFRACT_GROWTH,
+    REFRACT_MIRROR_ROUGHNESS,
     REFRACT_REFINE,
     REFRACT_STEPS,
     REFRACT_THICKNESS,
@@ -159,6 +165,12 @@ def march(origins, dirs, depth, view_proj, camera, view_dir, screen):
             active[found] = False
         prev_behind, prev_s = behind, s
     return hit, rows, cols
+
+
+def mirror_weight(roughness) -> float:
+    """How much of the scene behind smooth solid glass reflects in place of the World: 1 at
+    roughness 0, falling linearly to 0 at :data:`.policy.REFRACT_MIRROR_ROUGHNESS`."""
+    return float(np.clip(1.0 - float(roughness) / REFRACT_MIRROR_ROUGHNESS, 0.0, 1.0))
 
 
 def seen(hit, rows, cols, colour, fallback) -> np.ndarray:
