@@ -171,9 +171,9 @@ def write_picture(rows, path) -> None:
 NOTES = """\
 **The background pass.** The headless frame draws the films over Blender's render of the rest
 of the scene (`render --engine`, default EEVEE). Under this studio HDRI (a lamp of 616 in a
-panorama of mean 0.55) EEVEE lights the checker ground 2–5× brighter than Cycles (ground
-radiance EEVEE 1.76/0.72/0.40 against Cycles 0.35/0.37/0.39 and the HDRI's own irradiance
-0.37–0.49 for the white squares; 0.69 with EEVEE's sun extraction off), so the glass sphere,
+panorama of mean 0.55) EEVEE lights the checker ground 2–5× brighter than Cycles (its orange
+squares: EEVEE 1.78/0.74/0.42, Cycles 0.38/0.19/0.13, the HDRI's irradiance from above times
+their albedo / π 0.33/0.12/0.05; EEVEE's sun extraction off still doubles Cycles), so the glass sphere,
 which now shows that ground refracted, is measured over a **Cycles background pass**
 (`--engine CYCLES --background-samples 128`): the comparison is of the films, not of EEVEE's
 lighting. The bubble's background is the HDRI alone, the same in every engine.
@@ -182,7 +182,9 @@ lighting. The bubble's background is the HDRI alone, the same in every engine.
 the exit ray marched over the pass's depth, overscanned on each side), adds one internal
 reflection (the lamps' glints) and mirrors the ground in its lower half
 (docs/transparent-films.md#solid-glass-refraction). What remains: its glints are tinted by the
-film's reflectance r (pink) where Cycles' are cyan-white; rays bent out of the overscanned
+film's reflectance r (pink) and reach 10, where Cycles' are cyan and 0.3–0.5 (≈ 1.3 of the
+mean; Cycles' back-face film, `adjust_thin_film_ior_at_backface`, gives a cyan r ≈ 0.03 by our
+evaluation, which explains the hue, not the 30× dimmer glint: open); rays bent out of the overscanned
 picture at the rim see the World instead of the ground; Cycles' caustics on the ground under it
 are not in the pass.
 
