@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 
 from ..precompute import pixel_filter
-from ..precompute.shading.policy import REFRACT_OVERSCAN
+from ..precompute.shading.policy import REFRACT_MAX_SIDE, REFRACT_OVERSCAN
 from ..precompute.shading.transmit import WALL_SOLID
 from .gpu.draw import is_wall, render_offscreen
 from .gpu.resources import BehindTexture
@@ -262,10 +262,11 @@ def film_layers(items, view, proj, width: int, height: int, behind=None):
 def refraction_margin(items, width: int, height: int) -> int:
     """Pixels of overscan the background pass needs on each side (:func:`render_background`'s
     ``margin``): policy.REFRACT_OVERSCAN of the frame's longer side where an item is solid
-    glass, else 0."""
+    glass, else 0; the pass's longer side kept within policy.REFRACT_MAX_SIDE."""
     if not any(is_wall(item) and int(item.wall[0]) == WALL_SOLID for item in items):
         return 0
-    return int(round(REFRACT_OVERSCAN * max(int(width), int(height))))
+    side = max(int(width), int(height))
+    return max(0, min(int(round(REFRACT_OVERSCAN * side)), (REFRACT_MAX_SIDE - side) // 2))
 
 
 def behind_texture(background: Background, items, pad: int) -> BehindTexture | None:

@@ -175,3 +175,19 @@ def test_an_overscanned_background_pass_holds_the_frame_in_its_middle(bpy, tf, c
     finite = np.isfinite(plain.depth)
     assert np.array_equal(finite, np.isfinite(wide.depth))
     assert np.allclose(wide.depth[finite], plain.depth[finite], rtol=1e-3)
+
+
+def test_the_overscan_is_asked_for_solid_glass_only_and_bounded(tf):
+    """Half the longer side on each side for a frame with solid glass, none without, and the
+    pass's longer side never over policy.REFRACT_MAX_SIDE."""
+    from types import SimpleNamespace
+
+    from precompute.shading import policy, transmit
+
+    glass = SimpleNamespace(wall=(transmit.WALL_SOLID, 1.5), film=object())
+    bubble = SimpleNamespace(wall=(transmit.WALL_SHEET, 1.0), film=object())
+    margin = tf.background.refraction_margin
+    assert margin([bubble], 256, 128) == 0
+    assert margin([bubble, glass], 256, 128) == round(policy.REFRACT_OVERSCAN * 256)
+    assert margin([glass], 3840, 2160) * 2 + 3840 <= policy.REFRACT_MAX_SIDE
+    assert margin([glass], 5000, 100) == 0

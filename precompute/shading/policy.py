@@ -166,6 +166,9 @@ REFRACT_MIRROR_ROUGHNESS = 0.2
 #: The glass sphere against Cycles: mean ΔE2000 6.76 at 0.25, 5.75 at 0.5 (4× the pass's pixels;
 #: docs/transparent-films.md#solid-glass-refraction).
 REFRACT_OVERSCAN = 0.5
+#: …but never wider than this many pixels on its longer side (a 4K frame would otherwise need a
+#: 7680 × 6000 pass: 740 MB as the RGBA32F texture the glass reads).
+REFRACT_MAX_SIDE = 4096
 #: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
 REFRACT_FAR = 1e30
 
