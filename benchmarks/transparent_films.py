@@ -10,10 +10,10 @@ Two scenes built by script (the sphere, camera and HDRI of tests/_cycles_scenes.
 - **glass**: a solid glass sphere (Transmission 1, IOR 1.5, Roughness 0) with a 300 nm film of
   IOR 1.33, over a checker-textured ground, same HDRI.
 
-Cycles (CPU, no denoising, 16 bounces) is rendered once per (scene, size, samples, Blender) and
-cached in ``benchmarks/.cache/transparent_films/``; the headless render runs in-process. Mean
-and 95th-percentile ΔE2000 over the sphere's pixels (one pixel of silhouette left out), and a
-picture ours | Cycles | ΔE (×10 grey).
+Cycles (CPU, no denoising, 16 bounces, no sample clamping) is rendered once per (scene, size,
+samples, Blender) and cached in ``benchmarks/.cache/transparent_films/``; the headless render
+runs in-process. Mean and 95th-percentile ΔE2000 over the sphere's pixels (one pixel of
+silhouette left out), and a picture ours | Cycles | ΔE (×10 grey).
 
 Run: ``.venv/bin/python -m benchmarks.transparent_films [--samples N] [--size N]`` →
 ``docs/transparent-films-cycles.md`` and ``docs/images/transparent_films.png``.
@@ -46,7 +46,9 @@ SAMPLES = 1024
 HDRI = "studio"
 #: Issue 17's acceptance (mean ΔE2000 over the object, Cycles-matching mode).
 LIMITS = {"bubble": 3.0, "glass": 5.0}
-SCENE_VERSION = 1
+#: 2: Cycles' sample clamps off (Blender's default indirect clamp of 10 dimmed the glass sphere's
+#: internal glints 30×: 0.3–0.5 instead of 10–15, a biased reference).
+SCENE_VERSION = 2
 
 
 def _bubble(bsdf, nt):
@@ -82,8 +84,10 @@ def _ground(bpy):
     plane.data.materials.append(mat)
 
 
-def build(name: str, path, size: int, samples: int):
-    """The scene ``name`` ("bubble" or "glass") saved as a .blend; returns its path."""
+def build(name: str, path, size: int, samples: int, unbiased: bool = True):
+    """The scene ``name`` ("bubble" or "glass") saved as a .blend; returns its path.
+    ``unbiased``: Cycles' sample clamps off (the reference); else Blender's defaults (the
+    headless frame's Cycles background pass, less noisy)."""
     import bpy
 
     path = cc.build_sphere_blend(
@@ -93,6 +97,8 @@ def build(name: str, path, size: int, samples: int):
     scene.cycles.max_bounces = 16
     scene.cycles.transmission_bounces = 16
     scene.cycles.transparent_max_bounces = 16
+    if unbiased:
+        scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
     mat = bpy.data.materials["film"]
     (_bubble if name == "bubble" else _glass)(mat.node_tree.nodes["Principled BSDF"], mat.node_tree)
     if name == "glass":
@@ -137,7 +143,7 @@ def compare(
     blend = build(name, pathlib.Path(workdir) / f"{name}.blend", size, samples)
     ref, cycles_s = cycles_image(blend, name, size, samples)
     if engine == "CYCLES":
-        blend = build(name, pathlib.Path(workdir) / f"{name}_ours.blend", size, background_samples)
+        blend = build(name, pathlib.Path(workdir) / f"{name}_ours.blend", size, background_samples, False)
     ours, ours_s = headless_image(blend, pathlib.Path(workdir) / f"{name}.png", engine)
     mask = cc.object_mask(render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG))
     de = delta_e_2000(ours[mask], ref[mask], xyz="E")
@@ -181,12 +187,18 @@ lighting. The bubble's background is the HDRI alone, the same in every engine.
 **The glass sphere** refracts the background pass in screen space (the sphere about its origin,
 the exit ray marched over the pass's depth, overscanned on each side), adds one internal
 reflection (the lamps' glints) and mirrors the ground in its lower half
-(docs/transparent-films.md#solid-glass-refraction). What remains: its glints are tinted by the
-film's reflectance r (pink) and reach 10, where Cycles' are cyan and 0.3–0.5 (≈ 1.3 of the
-mean; Cycles' back-face film, `adjust_thin_film_ior_at_backface`, gives a cyan r ≈ 0.03 by our
-evaluation, which explains the hue, not the 30× dimmer glint: open); rays bent out of the overscanned
-picture at the rim see the World instead of the ground; Cycles' caustics on the ground under it
-are not in the pass.
+(docs/transparent-films.md#solid-glass-refraction).
+
+**Unclamped Cycles.** Blender's default indirect clamp (10 per sample) dimmed the ball's glints
+30× in the first references (0.3–0.5 where the unclamped render shows 10–15: a reflection
+chosen with probability F ≈ 0.03 carries 1/F of the lamp's 400 and is clamped), so the references
+are rendered with the clamps off (`SCENE_VERSION` 2); the background pass keeps Blender's
+defaults (less noise). What remains: Cycles' glints are cyan where ours are tinted by the film's
+reflectance r (pink): at a back face Cycles divides the film's index by the glass's
+(`adjust_thin_film_ior_at_backface`) at the same wavelengths, an optically thinner film
+(r ≈ 0.03/0.04/0.04 by our evaluation of that configuration), while a lossless film reflects the
+same from both sides; rays bent out of the overscanned picture at the rim see the World instead
+of the ground; Cycles' caustics on the ground under the ball are not in the pass.
 
 *Cycles s* is 0 for a cached render: the 1024-spp ones took 876 s (glass) and 353 s (bubble) on
 this machine at a load average of 6–8.
@@ -201,7 +213,8 @@ def report(rows, size: int, samples: int, picture: str = "transparent_films.png"
         "Generated by `.venv/bin/python -m benchmarks.transparent_films"
         f"{command or f' --size {size} --samples {samples}'}` (benchmarks/transparent_films.py).",
         "",
-        f"Scenes: {size}×{size}, Cycles {samples} spp (CPU, no denoising, 16 bounces), studio HDRI.",
+        f"Scenes: {size}×{size}, Cycles {samples} spp (CPU, no denoising, 16 bounces, no sample clamping),"
+        " studio HDRI.",
         f"Machine: {'; '.join(common.machine_lines())}. Load average: {common.load_average()}.",
         f"Code: {common.git_describe(('precompute', 'addon', 'glsl', 'benchmarks'))}.",
         "",
