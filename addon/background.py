@@ -23,7 +23,10 @@ import bpy
 import numpy as np
 
 from ..precompute import pixel_filter
+from ..precompute.shading.policy import REFRACT_MAX_SIDE, REFRACT_OVERSCAN
+from ..precompute.shading.transmit import WALL_SOLID
 from .gpu.draw import is_wall, render_offscreen
+from .gpu.resources import BehindTexture
 
 #: ``--engine`` → Blender's render engine identifier.
 ENGINES = {"EEVEE": "BLENDER_EEVEE", "WORKBENCH": "BLENDER_WORKBENCH", "CYCLES": "CYCLES"}
@@ -40,6 +43,10 @@ class Background:
     depth: np.ndarray
     engine: str
     seconds: float = 0.0
+    #: Pixels rendered beyond the frame on each side (:func:`render_background`'s ``margin``), and
+    #: the whole render with them (RGBA, depth), which solid glass refracts; None without.
+    margin: int = 0
+    wide: tuple | None = None
 
 
 @contextlib.contextmanager
@@ -97,13 +104,41 @@ def _read_layers(path) -> tuple[np.ndarray, np.ndarray]:
     return rgba, find("Depth.Z")
 
 
+def _overscan(scene, width: int, height: int, margin: int) -> list:
+    """The settings that widen the camera's picture by ``margin`` pixels on each side, its pixels
+    unchanged: the resolution, and the sensor (or orthographic scale) and shift scaled by the
+    fitted side's growth. Panoramic cameras are not widened."""
+    cam = scene.camera.data if scene.camera is not None else None
+    if margin <= 0 or cam is None or cam.type == "PANO":
+        return []
+    side = {"HORIZONTAL": width, "VERTICAL": height}.get(cam.sensor_fit, max(width, height))
+    grow = (side + 2.0 * margin) / side
+    changes = [(cam, "shift_x", cam.shift_x / grow), (cam, "shift_y", cam.shift_y / grow)]
+    if cam.type == "ORTHO":
+        return changes + [(cam, "ortho_scale", cam.ortho_scale * grow)]
+    return changes + [
+        (cam, "sensor_width", cam.sensor_width * grow),
+        (cam, "sensor_height", cam.sensor_height * grow),
+    ]
+
+
 def render_background(
-    scene, width: int, height: int, *, engine: str = "EEVEE", hidden=(), transparent: bool = False
+    scene,
+    width: int,
+    height: int,
+    *,
+    engine: str = "EEVEE",
+    hidden=(),
+    transparent: bool = False,
+    margin: int = 0,
 ) -> Background:
     """Render ``scene`` through its camera with ``engine`` (:data:`ENGINES`) at ``width`` ×
     ``height``, the objects named in ``hidden`` invisible to the camera; see the module.
 
     ``transparent``: the World is left out of the picture (film transparent; it still lights).
+    ``margin``: render that many pixels more on each side (the camera widened, its pixels
+    unchanged; not for panoramic cameras): the frame is the middle, the whole is ``wide``, what
+    solid glass refracts beyond the frame's edges.
     """
     import time
 
@@ -118,8 +153,9 @@ def render_background(
         path = pathlib.Path(folder) / "background.exr"
         changes = [
             (render, "engine", ENGINES[engine]),
-            (render, "resolution_x", int(width)),
-            (render, "resolution_y", int(height)),
+            *_overscan(scene, width, height, margin),
+            (render, "resolution_x", int(width) + 2 * margin),
+            (render, "resolution_y", int(height) + 2 * margin),
             (render, "resolution_percentage", 100),
             (render, "use_border", False),
             (render, "film_transparent", bool(transparent) or render.film_transparent),
@@ -135,7 +171,10 @@ def render_background(
             bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
         rgba, z = _read_layers(path)
     depth = np.where(z >= FAR, np.inf, z)
-    return Background(rgba, depth, engine, time.perf_counter() - t0)
+    m = margin if depth.shape == (height + 2 * margin, width + 2 * margin) else 0  # a panorama: none
+    crop = (slice(m, m + height), slice(m, m + width))
+    wide = (rgba, depth) if m else None
+    return Background(rgba[crop], depth[crop], engine, time.perf_counter() - t0, m, wide)
 
 
 def view_depth(ndc_depth, projection) -> np.ndarray:
@@ -198,7 +237,7 @@ def composite(
     return out
 
 
-def film_layers(items, view, proj, width: int, height: int):
+def film_layers(items, view, proj, width: int, height: int, behind=None):
     """The films' pass for :func:`composite`: (colour over black (H, W, 4), transmittance (H, W, 3)
     or None, window depth (H, W)).
 
@@ -206,13 +245,36 @@ def film_layers(items, view, proj, width: int, height: int):
     :func:`.gpu.draw.is_wall`) the frame behind them is linear in what they composite over
     (multiply by T, then add R·L, back walls then front): so rendered once over black and once
     over white, T = white − black per channel, exactly; their depth (they write none) comes from
-    a third render of the walls drawn as opaque surfaces.
+    a third render of the walls drawn as opaque surfaces. ``behind`` (a
+    :class:`.gpu.resources.BehindTexture` of the background pass, or None): what solid glass
+    refracts (its T is 0: the refracted scene is part of its colour).
     """
-    black, depth = render_offscreen(items, view, proj, width, height, with_depth=True)
+    black, depth = render_offscreen(items, view, proj, width, height, with_depth=True, behind=behind)
     if not any(is_wall(item) for item in items):
         return black, None, depth
-    white = render_offscreen(items, view, proj, width, height, clear=(1.0, 1.0, 1.0, 1.0))
+    white = render_offscreen(items, view, proj, width, height, clear=(1.0, 1.0, 1.0, 1.0), behind=behind)
     solid = [dataclasses.replace(item, wall=None) if is_wall(item) else item for item in items]
     _, wall_depth = render_offscreen(solid, view, proj, width, height, with_depth=True)
     transmit = np.clip(white[..., :3].astype(np.float64) - black[..., :3], 0.0, 1.0)
     return black, transmit, np.minimum(depth, wall_depth)
+
+
+def refraction_margin(items, width: int, height: int) -> int:
+    """Pixels of overscan the background pass needs on each side (:func:`render_background`'s
+    ``margin``): policy.REFRACT_OVERSCAN of the frame's longer side where an item is solid
+    glass, else 0; the pass's longer side kept within policy.REFRACT_MAX_SIDE."""
+    if not any(is_wall(item) and int(item.wall[0]) == WALL_SOLID for item in items):
+        return 0
+    side = max(int(width), int(height))
+    return max(0, min(int(round(REFRACT_OVERSCAN * side)), (REFRACT_MAX_SIDE - side) // 2))
+
+
+def behind_texture(background: Background, items, pad: int) -> BehindTexture | None:
+    """The background pass as the texture solid glass refracts (its colour and depth, placed in
+    the films' window widened by ``pad`` pixels), or None when no item is solid glass."""
+    if not any(is_wall(item) and int(item.wall[0]) == WALL_SOLID for item in items):
+        return None
+    rgba, depth = background.wide if background.wide is not None else (background.rgba, background.depth)
+    h, w = background.depth.shape
+    screen = BehindTexture.screen(w, h, pad, background.margin)
+    return BehindTexture.from_image(rgba[..., :3], depth, screen)

@@ -33,7 +33,14 @@ from mathutils import Matrix
 
 from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
 from . import cli_args, display, frames, prefs, scene_draw, tables, world
-from .background import composite, film_layers, render_background, view_depth
+from .background import (
+    behind_texture,
+    composite,
+    film_layers,
+    refraction_margin,
+    render_background,
+    view_depth,
+)
 from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
 from .gpu.draw import render_offscreen
@@ -90,7 +97,8 @@ def _films_over(behind, items, view, proj, size, sampling, messages):
         dataclasses.replace(item, wall=None) for item in items if item.name.split("/")[0] in holdouts
     ]
     items = [item for item in items if item.name.split("/")[0] not in holdouts]
-    films, transmit, depth = film_layers(items, view, proj, *size)
+    refracted = behind_texture(behind, items, sampling[3])
+    films, transmit, depth = film_layers(items, view, proj, *size, behind=refracted)
     films, nonfinite = _finite(films.astype(np.float64), messages)
     holes = None
     if hole_items:  # holdout films cut a transparent hole where they are in front
@@ -325,7 +333,13 @@ def render_scene(
             rgba = pixel_filter.downsample(rgba, kind, filter_width, factor, pad)
     else:
         behind = render_background(
-            scene, width, height, engine=engine, hidden=film_objects, transparent=not background
+            scene,
+            width,
+            height,
+            engine=engine,
+            hidden=film_objects,
+            transparent=not background,
+            margin=refraction_margin(items, width, height),
         )
         rgba, nonfinite = _films_over(
             behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages

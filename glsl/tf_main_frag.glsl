@@ -11,9 +11,66 @@
  * A transparent film (TF_TRANSMIT, tf_transmit.glsl) is drawn in two blend passes: pass 1 writes
  * (T, mean T) for a multiply blend, pass 2 (S R L, 1 - mean T) for an additive one
  * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
- * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS) and tf_split_sum.glsl (TF_SPLIT_SUM) are joined before this chunk
+ * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl).
+ * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_refract.glsl (TF_REFRACT) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
+
+#if defined(TF_TRANSMIT) && defined(TF_SPLIT_SUM)
+/* Solid glass's one reflection inside: T r times the World along tf_solid_internal, T = (1 - r)^2
+ * (shading.transmit.solid_internal). */
+vec3 tf_solid_glint(vec3 n, vec3 v, vec3 wall_t)
+{
+  vec3 unused_moment;
+  float unused_weight;
+  vec3 r = vec3(1.0) - sqrt(max(wall_t, vec3(0.0)));
+  return wall_t * r *
+         tf_prefiltered_lookup(tf_solid_internal(n, v, tf_object.material.w), 0.0, unused_moment, unused_weight);
+}
+#endif
+
+#ifdef TF_REFRACT
+/* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray hits
+ * it, else the World along the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else
+ * the scene straight behind the pixel. */
+vec3 tf_refracted(vec3 n, vec3 v)
+{
+  vec3 exit_point, dir, colour;
+  tf_solid_exit_ray(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, exit_point, dir);
+  if (tf_refract_march(exit_point, dir, colour)) {
+    return colour;
+  }
+#ifdef TF_SPLIT_SUM
+  vec3 unused_moment;
+  float unused_weight;
+  return tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+#else
+  ivec2 texel;
+  float unused_depth;
+  tf_refract_sample(tf_world_pos, texel, unused_depth);
+  return texelFetch(tf_behind, texel, 0).rgb;
+#endif
+}
+#endif
+
+#if defined(TF_REFRACT) && defined(TF_SPLIT_SUM)
+/* Smooth solid glass reflects the scene behind where its mirror ray meets it, in place of the
+ * World: w r (scene - World) along reflect(-v, n), r = 1 - sqrt(T), w falling from 1 at roughness
+ * 0 to 0 at TF_REFRACT_MIRROR_ROUGHNESS (shading.refract.mirror_weight). */
+vec3 tf_scene_mirror(vec3 n, vec3 v, vec3 wall_t)
+{
+  float w = clamp(1.0 - tf_object.material.x / TF_REFRACT_MIRROR_ROUGHNESS, 0.0, 1.0);
+  vec3 mirror = reflect(-v, n);
+  vec3 scene;
+  if (w <= 0.0 || !tf_refract_march(tf_world_pos, mirror, scene)) {
+    return vec3(0.0);
+  }
+  vec3 unused_moment;
+  float unused_weight;
+  vec3 world = tf_prefiltered_lookup(mirror, 0.0, unused_moment, unused_weight);
+  return w * (vec3(1.0) - sqrt(max(wall_t, vec3(0.0)))) * (scene - world);
+}
+#endif
 
 void main()
 {
@@ -36,8 +93,8 @@ void main()
           tf_object.material.w, wall_t, wall_s);
   float wall_mean = dot(wall_t, vec3(1.0 / 3.0));
 #if TF_TRANSMIT == 1 /* the multiply pass: what is behind times T; alpha times mean(T) */
-#ifdef TF_SPLIT_SUM
-  if (tf_object.material.z > 1.5) { /* solid glass: the World along the exit ray replaces it */
+#if defined(TF_SPLIT_SUM) || defined(TF_REFRACT)
+  if (tf_object.material.z > 1.5) { /* solid glass: what the exit ray sees replaces it */
     wall_t = vec3(0.0);
     wall_mean = 0.0;
   }
@@ -68,12 +125,22 @@ void main()
 #endif
 #if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 /* the add pass: R L; alpha plus 1 - mean(T) */
   rgb *= wall_s;
+#ifdef TF_REFRACT
+  if (tf_object.material.z > 1.5) { /* solid glass: T times the scene behind along the exit ray */
+    rgb += wall_t * tf_refracted(n, v);
 #ifdef TF_SPLIT_SUM
+    rgb += tf_solid_glint(n, v, wall_t);
+    rgb = max(rgb + tf_scene_mirror(n, v, wall_t), vec3(0.0));
+#endif
+    wall_mean = 0.0;
+  }
+#elif defined(TF_SPLIT_SUM)
   if (tf_object.material.z > 1.5) { /* solid glass: T times the World along the exit ray */
     vec3 unused_moment;
     float unused_weight;
     rgb += wall_t * tf_prefiltered_lookup(tf_solid_exit(n, v, tf_object.material.w), 0.0,
                                           unused_moment, unused_weight);
+    rgb += tf_solid_glint(n, v, wall_t);
     wall_mean = 0.0;
   }
 #endif

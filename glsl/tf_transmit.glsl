@@ -10,7 +10,8 @@
  *   Rb = Fresnel(u, eta), T = (1 - r)(1 - Rb) / (1 - r Rb), S = 1 + (1 - r)^2 Rb / ((1 - r Rb) r);
  * WALL_CYCLES (1, Cycles' thin wall): T = (1 - r) / (1 + r), S = 2 / (1 + r);
  * WALL_SOLID (2, solid glass of index eta): T = (1 - r)^2, S = 1, and what is behind is replaced by
- * the World seen along tf_solid_exit (with TF_SPLIT_SUM: the prefiltered World's sharpest level).
+ * the scene behind refracted (TF_REFRACT, tf_refract.glsl), else the World seen along
+ * tf_solid_exit (with TF_SPLIT_SUM: the prefiltered World's sharpest level).
  * S is capped at TF_WALL_SCALE_MAX (policy.WALL_SCALE_MAX).
  */
 
@@ -61,6 +62,20 @@ void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 
   t = one_minus * (1.0 - rb) / denominator;
   vec3 extra = one_minus * one_minus * rb / denominator;
   s = min(vec3(1.0) + extra / max(refl, vec3(TF_WALL_GUARD)), vec3(TF_WALL_SCALE_MAX));
+}
+
+/* The direction a ray leaves a glass sphere of index eta after one reflection inside it, entered at
+ * normal n from the viewer (v): turned towards -n by pi + 2 theta_i - 4 theta_t
+ * (shading.transmit.solid_internal). */
+vec3 tf_solid_internal(vec3 n, vec3 v, float eta)
+{
+  float ci = clamp(dot(n, v), 0.0, 1.0);
+  float si = sqrt(max(1.0 - ci * ci, 0.0));
+  float theta_i = asin(min(si, 1.0));
+  float theta_t = asin(min(si / max(eta, TF_WALL_GUARD), 1.0));
+  float deviation = TF_PI + 2.0 * theta_i - 4.0 * theta_t;
+  vec3 w = tf_safe_normalize(ci * v - n, vec3(0.0));
+  return tf_safe_normalize(-cos(deviation) * v + sin(deviation) * w, v);
 }
 
 /* The direction a ray leaves a glass sphere of index eta it entered at normal n from the viewer

@@ -152,3 +152,42 @@ def test_a_holdout_film_cuts_a_transparent_hole(bpy, tf, tmp_path):
     outside = np.ones(hole.shape[:2], dtype=bool)
     outside[_box(bpy, scene, ball, margin=3)] = False
     assert np.abs(hole - before)[outside].max() < 1e-6
+
+
+@pytest.mark.parametrize("camera", ["PERSP", "ORTHO"])
+def test_an_overscanned_background_pass_holds_the_frame_in_its_middle(bpy, tf, camera):
+    """Solid glass refracts the background pass beyond the frame's edges: rendered ``margin``
+    pixels wider on each side (the camera widened, its pixels unchanged, shifted as set), its middle
+    is the frame's own render, and the camera's settings are restored."""
+    scene, ball = _scene(bpy, tf)
+    cam = scene.camera.data
+    cam.type = camera
+    cam.shift_x, cam.shift_y = 0.05, -0.03
+    before = (cam.sensor_width, cam.sensor_height, cam.ortho_scale, cam.shift_x, cam.shift_y)
+    plain = tf.background.render_background(scene, *SIZE, engine="WORKBENCH", hidden={ball.name})
+    wide = tf.background.render_background(scene, *SIZE, engine="WORKBENCH", hidden={ball.name}, margin=8)
+    assert (cam.sensor_width, cam.sensor_height, cam.ortho_scale, cam.shift_x, cam.shift_y) == before
+    assert wide.margin == 8 and wide.wide[0].shape == (SIZE[1] + 16, SIZE[0] + 16, 4)
+    assert wide.rgba.shape == plain.rgba.shape
+    diff = np.abs(wide.rgba - plain.rgba)
+    print(f"\n{camera}: overscan middle vs frame: mean |Δ| {diff.mean():.2e}, max {diff.max():.2e}")
+    assert diff.mean() < 2e-3 and np.percentile(diff, 99) < 0.05
+    finite = np.isfinite(plain.depth)
+    assert np.array_equal(finite, np.isfinite(wide.depth))
+    assert np.allclose(wide.depth[finite], plain.depth[finite], rtol=1e-3)
+
+
+def test_the_overscan_is_asked_for_solid_glass_only_and_bounded(tf):
+    """Half the longer side on each side for a frame with solid glass, none without, and the
+    pass's longer side never over policy.REFRACT_MAX_SIDE."""
+    from types import SimpleNamespace
+
+    from precompute.shading import policy, transmit
+
+    glass = SimpleNamespace(wall=(transmit.WALL_SOLID, 1.5), film=object())
+    bubble = SimpleNamespace(wall=(transmit.WALL_SHEET, 1.0), film=object())
+    margin = tf.background.refraction_margin
+    assert margin([bubble], 256, 128) == 0
+    assert margin([bubble, glass], 256, 128) == round(policy.REFRACT_OVERSCAN * 256)
+    assert margin([glass], 3840, 2160) * 2 + 3840 <= policy.REFRACT_MAX_SIDE
+    assert margin([glass], 5000, 100) == 0

@@ -40,13 +40,14 @@ def macro_name(name: str) -> str:
 
 
 def every_variant():
-    switches = [f for f in Variant._fields if f not in ("l_max", "transmit")]  # the on/off ones
+    switches = [f for f in Variant._fields if f not in ("l_max", "transmit", "refract")]  # the on/off ones
     for l_max, flags in itertools.product(
         (0, 2, 5, 12), itertools.product((False, True), repeat=len(switches))
     ):
         yield Variant(l_max, **dict(zip(switches, flags, strict=True))).normalised()
-    for transmit in (1, 2):  # a transparent film's blend passes (TF_TRANSMIT)
-        yield Variant(5, True, True, False, transmit=transmit).normalised()
+    for transmit in (1, 2):  # a transparent film's blend passes (TF_TRANSMIT), solid glass's TF_REFRACT
+        for refract in (False, True):
+            yield Variant(5, True, True, False, transmit=transmit, refract=refract).normalised()
 
 
 def float_literals(text: str) -> list[float]:

@@ -157,7 +157,12 @@ def test_solid_glass_shows_the_world_along_the_exit_ray(gd):  # noqa: F811
     t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
     exit_dirs = transmit.solid_exit(n, views, 1.5)
     seen = split_sum.lookup(pre, exit_dirs, np.zeros(len(n)))
-    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen
+    glint = (
+        t
+        * (1.0 - np.sqrt(t))
+        * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
+    )
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
     print(f"solid glass: {err:.1e} of the peak")
     assert inside.sum() > 300 and err < 1e-3, err

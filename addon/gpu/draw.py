@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
+from ...precompute.shading.transmit import WALL_SOLID
 from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
 from . import resources
 from .context import ensure_gpu_context
@@ -141,6 +142,8 @@ class PreparedDraw:
     groups: list
     #: The display LUT's texture (``TF_DISPLAY_LUT`` variants), or None.
     display_lut: gpu.types.GPUTexture | None = None
+    #: The scene behind the films (``TF_REFRACT`` variants, :class:`.resources.BehindTexture`), or None.
+    behind: resources.BehindTexture | None = None
 
     @property
     def draw_count(self) -> int:
@@ -159,8 +162,8 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
     """Add one item's draw to ``groups`` (keyed by what its group binds). ``options``:
     (display_srgb, shaders, uniforms, display_lut, compile_now) of :func:`prepare_draw`;
     ``transmit``: the blend pass of a transparent film (variant.TRANSMIT_PASSES), 0 for an opaque
-    one."""
-    display_srgb, shaders, uniforms, display_lut, compile_now = options
+    one; ``behind`` (in ``options``): the scene-behind texture solid glass refracts, or None."""
+    display_srgb, shaders, uniforms, display_lut, compile_now, behind = options
     table = item.table
     prefiltered = getattr(item, "prefiltered", None)
     sh_weight = float(getattr(item, "sh_weight", 1.0))
@@ -184,6 +187,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
         display_lut=display_lut is not None,
         transmit=transmit,
         grid=grid is not None,
+        refract=behind is not None and transmit != 0 and int(item.wall[0]) == WALL_SOLID,
     )
     if not compile_now and not shaders.compiled(variant):
         if not getattr(item, "grid_pending", False):  # a grid variant replaces it soon: not wanted
@@ -263,6 +267,7 @@ def prepare_draw(
     uniforms=None,
     display_lut=None,
     compile_now: bool = True,
+    behind=None,
 ) -> PreparedDraw:
     """The CPU half of :func:`draw_items`: variants, uniform buffers and the order of the draws.
 
@@ -276,7 +281,10 @@ def prepare_draw(
     parameters they hold: an unchanged view or object reuses its buffer. Transparent films
     (:func:`is_wall`) come after the opaque ones, in the :data:`WALL_PASSES`. Nothing is drawn.
     ``display_lut`` (a :class:`.resources.DisplayLUTTexture`, with ``display_srgb``): the
-    scene's view transform instead of the Standard sRGB encoding.
+    scene's view transform instead of the Standard sRGB encoding. ``behind`` (a
+    :class:`.resources.BehindTexture`: the frame drawn without the films, colour and depth):
+    solid glass refracts it (``TF_REFRACT``, precompute/shading/refract.py); None: solid glass
+    sees the World along its exit ray.
     """
     ensure_gpu_context()
     shaders = SHADERS if shaders is None else shaders
@@ -288,7 +296,7 @@ def prepare_draw(
         batch, has_thickness = _batch_of(item)
         if batch is None:
             continue
-        options = (display_srgb, shaders, uniforms, display_lut, compile_now)
+        options = (display_srgb, shaders, uniforms, display_lut, compile_now, behind)
         if is_wall(item):
             for transmit, found in walls.items():
                 _add_item(found, item, batch, has_thickness, options, transmit)
@@ -300,7 +308,7 @@ def prepare_draw(
     for cull, transmit, blend in WALL_PASSES:
         ordered += [dataclasses.replace(g, cull=cull, blend=blend) for g in _ordered(walls[transmit])]
     lut = display_lut.texture if (display_lut is not None and display_srgb) else None
-    return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered, lut)
+    return PreparedDraw(view_ubo(view_matrix, projection_matrix, exposure, uniforms), ordered, lut, behind)
 
 
 def _bind_group(shader, group: DrawGroup) -> None:
@@ -353,6 +361,9 @@ def submit(prepared: PreparedDraw) -> None:
                 shader.uniform_block(resources.VIEW.name, prepared.view)
                 if group.variant.display_lut:
                     shader.uniform_sampler(resources.DISPLAY_LUT_SAMPLER.name, prepared.display_lut)
+                if group.variant.refract:
+                    shader.uniform_block(resources.BEHIND.name, prepared.behind.ubo)
+                    shader.uniform_sampler(resources.BEHIND_SAMPLER.name, prepared.behind.texture)
             _bind_group(shader, group)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(resources.OBJECT.name, object_ubo)
@@ -373,6 +384,7 @@ def draw_items(
     uniforms=None,
     display_lut=None,
     compile_now: bool = True,
+    behind=None,
 ):
     """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
 
@@ -386,7 +398,8 @@ def draw_items(
     transparent film: (mode, η) of precompute.shading.transmit, drawn with its ``.film`` in blend
     passes over what the framebuffer holds). ``display_lut``: the scene's view transform
     (:class:`.resources.DisplayLUTTexture`). ``compile_now`` False: uncompiled variants are drawn
-    by their stand-in (:func:`prepare_draw`). :func:`prepare_draw` then :func:`submit`; see there.
+    by their stand-in (:func:`prepare_draw`). ``behind``: the scene behind that solid glass
+    refracts (:func:`prepare_draw`). :func:`prepare_draw` then :func:`submit`; see there.
     """
     submit(
         prepare_draw(
@@ -399,6 +412,7 @@ def draw_items(
             uniforms=uniforms,
             display_lut=display_lut,
             compile_now=compile_now,
+            behind=behind,
         )
     )
 
@@ -464,6 +478,7 @@ def render_offscreen(
     shaders=None,
     with_depth: bool = False,
     clear=(0.0, 0.0, 0.0, 0.0),
+    behind=None,
 ):
     """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first
     (with ``with_depth``: and the depth buffer, (H, W) window depth in [0, 1], 1 where nothing).
@@ -471,7 +486,8 @@ def render_offscreen(
     Order: clear (colour ``clear``, depth 1) → ``depth_from(offscreen)`` if given (draws the rest of the
     scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
     bound) → the ``background`` equirect image where depth is still 1 → the items, depth-tested.
-    Alpha is 1 where anything was drawn and 0 elsewhere (without a background).
+    Alpha is 1 where anything was drawn and 0 elsewhere (without a background). ``behind``: the
+    scene behind that solid glass refracts (:func:`prepare_draw`).
     """
     ensure_gpu_context()
     width, height = int(width), int(height)
@@ -487,7 +503,9 @@ def render_offscreen(
                     depth_from(offscreen)
                 if background is not None:
                     draw_background(background, view_matrix, projection_matrix, shaders=shaders)
-                draw_items(items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders)
+                draw_items(
+                    items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders, behind=behind
+                )
             rgba = read_framebuffer(fb, width, height)
             if not with_depth:
                 return rgba

@@ -239,8 +239,18 @@ LIGHTS = Block(
         ),
     ),
 )
+#: Where the scene-behind texture lies in the drawn window (``TF_REFRACT``, :class:`BehindTexture`).
+BEHIND = Block(
+    "TFBehind",
+    "tf_behind_view",
+    6,
+    (
+        Member("screen", None, "xy: scale, zw: offset from the drawn window's [0, 1] to the texture's uv"),
+        Member("size", None, "xy: the texture's width and height in texels"),
+    ),
+)
 #: The GLSL structs of every block, declared by every shader.
-TYPEDEFS = "\n" + "\n".join(b.typedef() for b in (LIGHTING, VIEW, OBJECT, TABLE, FILM, LIGHTS)) + "\n"
+TYPEDEFS = "\n" + "\n".join(b.typedef() for b in (LIGHTING, VIEW, OBJECT, TABLE, FILM, LIGHTS, BEHIND)) + "\n"
 #: vec4s of the lighting buffer.
 LIGHTING_VEC4 = LIGHTING.vec4s
 assert TABLE.nbytes == FILM.nbytes == UBO_LIMIT_BYTES  # the tables use all of it (UBO_TEXELS)
@@ -253,6 +263,8 @@ RADIANCE_GRID_SAMPLER = Sampler(6, "FLOAT_2D_ARRAY", "tf_radiance_grid")
 ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")
 #: The display LUT (tf_display.glsl, :class:`DisplayLUTTexture`) of ``TF_DISPLAY_LUT`` variants.
 DISPLAY_LUT_SAMPLER = Sampler(7, "FLOAT_2D", "tf_display_lut")
+#: The scene drawn without the films (:class:`BehindTexture`) of ``TF_REFRACT`` variants.
+BEHIND_SAMPLER = Sampler(8, "FLOAT_2D", "tf_behind")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -686,3 +698,45 @@ class DisplayLUTTexture:
         n = rgba.shape[0] - 1
         texture = gpu.types.GPUTexture((n * n, n + 1), format="RGBA32F", data=float_buffer(rgba))
         return cls(texture, n)
+
+
+@dataclass
+class BehindTexture:
+    """The scene drawn without the films, which solid glass refracts (``TF_REFRACT``,
+    precompute/shading/refract.py): an RGBA32F texture (:data:`BEHIND_SAMPLER`; .rgb its
+    scene-linear colour, .a its depth, the distance along the camera axis,
+    policy.REFRACT_FAR where nothing was drawn; read with texelFetch) and the :data:`BEHIND`
+    buffer placing it in the drawn window."""
+
+    texture: gpu.types.GPUTexture
+    ubo: gpu.types.GPUUniformBuf
+    width: int
+    height: int
+
+    @staticmethod
+    def screen(width: int, height: int, pad: int, margin: int = 0) -> tuple[float, ...]:
+        """The window → uv map (sx, sy, ox, oy) of a frame of ``width`` × ``height`` pixels drawn
+        widened by ``pad`` pixels on each side (the headless frame's filter margin; its
+        supersampling does not change the map), for an image of that frame widened by ``margin``
+        pixels on each side (the background pass's overscan)."""
+        iw, ih = width + 2.0 * margin, height + 2.0 * margin
+        sx, sy = (width + 2.0 * pad) / iw, (height + 2.0 * pad) / ih
+        return (sx, sy, (margin - pad) / iw, (margin - pad) / ih)
+
+    @classmethod
+    def from_image(cls, rgb, depth, screen=(1.0, 1.0, 0.0, 0.0)) -> BehindTexture:
+        """Upload ``rgb`` (H, W, 3+, top row first) and ``depth`` (H, W: distance along the camera
+        axis, inf where empty) with the window → uv map ``screen`` (:meth:`screen`)."""
+        rgb = np.asarray(rgb, dtype=np.float64)
+        depth = np.asarray(depth, dtype=np.float64)
+        if rgb.ndim != 3 or rgb.shape[2] < 3 or depth.shape != rgb.shape[:2]:
+            raise ValueError(
+                f"the scene behind needs colour (H, W, 3) and depth (H, W), got {rgb.shape} and {depth.shape}"
+            )
+        height, width = depth.shape
+        far = np.where(np.isfinite(depth), np.minimum(depth, policy.REFRACT_FAR), policy.REFRACT_FAR)
+        texels = np.concatenate([np.nan_to_num(rgb[..., :3]), far[..., None]], axis=-1)[::-1]
+        texture = gpu.types.GPUTexture((width, height), format="RGBA32F", data=float_buffer(texels))
+        content = BEHIND.pack(screen=screen, size=(width, height, 0, 0))
+        ubo = gpu.types.GPUUniformBuf(float_buffer(content))
+        return cls(texture, ubo, width, height)

@@ -144,6 +144,9 @@ def declare_shading_resources(info, variant: Variant) -> None:
         _declare(info, resources.DISPLAY_LUT_SAMPLER)
     if variant.grid:
         _declare(info, resources.RADIANCE_GRID_SAMPLER)
+    if variant.refract:
+        _declare(info, resources.BEHIND)
+        _declare(info, resources.BEHIND_SAMPLER)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.LIGHTING)
     _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
@@ -177,6 +180,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         roots.append("tf_split_sum.glsl")
     if variant.transmit:
         roots.append("tf_transmit.glsl")
+    if variant.refract:
+        roots.append("tf_refract.glsl")
     rest = chunk_order([*roots, "tf_main_frag.glsl"], search, done=joined)
     info.fragment_source(library + "\n" + join_chunks(rest, search))
     return info, iface
@@ -267,6 +272,7 @@ class ShaderCache:
         display_lut: bool = False,
         transmit: int = 0,
         grid: bool = False,
+        refract: bool = False,
     ):
         """The mesh shader of a variant given field by field (see :class:`Variant`)."""
         return self.mesh(
@@ -284,6 +290,7 @@ class ShaderCache:
                 display_lut,
                 transmit,
                 grid,
+                refract,
             )
         )
 

@@ -173,6 +173,33 @@ LIGHT_KINDS = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
 WALL_SCALE_MAX = 16.0
 #: Smallest reflectance and denominator a wall's formulas divide by (r → 0, r·R_b → 1).
 WALL_GUARD = 1e-6
+#: Solid glass's screen-space refraction (shading/refract.py, glsl/tf_refract.glsl): the exit ray
+#: is marched over the scene behind in REFRACT_STEPS samples at distances growing geometrically
+#: from REFRACT_FIRST × the exit point's depth by REFRACT_GROWTH per step (1.16⁴⁷ ≈ 1070: the
+#: last sample lies ≈ 10 depths away), and a crossing of the depth behind is refined by
+#: REFRACT_REFINE bisections (the hit to 1/256 of a step). A crossing further behind the surface
+#: than REFRACT_THICKNESS × its depth passed behind an occluder: no hit
+#: (docs/transparent-films.md#solid-glass-refraction).
+REFRACT_STEPS = 48
+REFRACT_FIRST = 0.01
+REFRACT_GROWTH = 1.16
+REFRACT_REFINE = 8
+REFRACT_THICKNESS = 0.25
+#: Smooth solid glass reflects the scene behind where its mirror ray meets it (the same march),
+#: in place of the World: fully at roughness 0, fading out linearly to none at this roughness,
+#: where the split sum's blurred World stands (docs/transparent-films.md#solid-glass-refraction).
+REFRACT_MIRROR_ROUGHNESS = 0.2
+#: The headless frame's background pass is rendered REFRACT_OVERSCAN × the frame's longer side
+#: wider on each side when it has solid glass: rays bent out of the frame (a ball's top half sees
+#: the ground in front of the camera, its rim the ground beside it) still find the scene there.
+#: The glass sphere against (clamped) Cycles: mean ΔE2000 6.76 at 0.25, 5.75 at 0.5 (4× the
+#: pass's pixels; docs/transparent-films.md#solid-glass-refraction).
+REFRACT_OVERSCAN = 0.5
+#: …but never wider than this many pixels on its longer side (a 4K frame would otherwise need a
+#: 7680 × 6000 pass: 740 MB as the RGBA32F texture the glass reads).
+REFRACT_MAX_SIDE = 4096
+#: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
+REFRACT_FAR = 1e30
 
 # ----------------------------------------------------------------------------------------------
 # Guards
@@ -248,7 +275,10 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
     - ``TF_DISPLAY_LUT_SIZE``, ``TF_DISPLAY_LUT_FLOOR``, ``TF_DISPLAY_LUT_MAX``: the display LUT
       (:data:`DISPLAY_LUT_SIZE` … :data:`DISPLAY_LUT_MAX`).
-    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`.
+    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`;
+    - ``TF_REFRACT_STEPS``, ``TF_REFRACT_FIRST``, ``TF_REFRACT_GROWTH``, ``TF_REFRACT_REFINE``,
+      ``TF_REFRACT_THICKNESS``, ``TF_REFRACT_MIRROR_ROUGHNESS``: solid glass's screen-space march
+      (:data:`REFRACT_STEPS` …) and its mirror of the scene.
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -272,4 +302,10 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_DISPLAY_LUT_FLOOR", glsl_float(DISPLAY_LUT_FLOOR)),
         ("TF_DISPLAY_LUT_MAX", glsl_float(DISPLAY_LUT_MAX)),
         ("TF_GRID_AZIMUTHS", str(int(GRID_AZIMUTHS))),
+        ("TF_REFRACT_STEPS", str(int(REFRACT_STEPS))),
+        ("TF_REFRACT_FIRST", glsl_float(REFRACT_FIRST)),
+        ("TF_REFRACT_GROWTH", glsl_float(REFRACT_GROWTH)),
+        ("TF_REFRACT_REFINE", str(int(REFRACT_REFINE))),
+        ("TF_REFRACT_THICKNESS", glsl_float(REFRACT_THICKNESS)),
+        ("TF_REFRACT_MIRROR_ROUGHNESS", glsl_float(REFRACT_MIRROR_ROUGHNESS)),
     )

@@ -26,10 +26,13 @@ Two walls (``mode``):
 
 - :data:`WALL_SOLID` — solid glass of index η (a Principled BSDF with *Transmission* and no *Thin
   Wall*): the light enters through the film and leaves through it again (the film on every
-  interface, as Cycles), T = (1 − r)², S = 1, internal reflections left out; what is behind is
-  replaced by the World seen along :func:`solid_exit` (the ray through a sphere of that glass),
-  read from the prefiltered World's sharpest level where the draw has one (the split sum), else
-  seen straight through.
+  interface, as Cycles), T = (1 − r)², S = 1; one reflection inside the glass adds
+  (1 − r)² r × the World along :func:`solid_internal` (the glints of lamps behind the viewer
+  that a glass ball shows), further ones are left out; what is behind is
+  replaced by what the ray sees after the glass: the scene behind where the draw has it (the
+  headless frame's background pass, :mod:`.refract`), else the World seen along
+  :func:`solid_exit` (the ray through a sphere of that glass), read from the prefiltered World's
+  sharpest level where the draw has one (the split sum), else seen straight through.
 
 The reflection is the film's shaded reflection (the baked table: r per microfacet) times the
 scale S = R / r per channel, capped at :data:`.policy.WALL_SCALE_MAX` where r → 0; exact for a
@@ -111,6 +114,26 @@ def solid_exit(normals, views, eta: float) -> np.ndarray:
     ci = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
     si = np.sqrt(np.maximum(1.0 - ci * ci, 0.0))
     deviation = 2.0 * (np.arcsin(np.minimum(si, 1.0)) - np.arcsin(np.minimum(si / max(eta, WALL_GUARD), 1.0)))
+    w = ci[:, None] * v - n
+    norm = np.linalg.norm(w, axis=-1, keepdims=True)
+    w = np.where(norm > 1e-15, w / np.maximum(norm, 1e-300), 0.0)
+    out = -np.cos(deviation)[:, None] * v + np.sin(deviation)[:, None] * w
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+def solid_internal(normals, views, eta: float) -> np.ndarray:
+    """The direction (N, 3) a ray leaves a glass sphere of index η after one reflection inside it
+    (entered at the unit normal ``normals`` from the viewer, unit ``views``): −v turned towards −n
+    by π + 2θᵢ − 4θₜ (the primary rainbow's deviation; straight back at normal incidence), as
+    tf_solid_internal. Its weight is (1 − r)² r per channel: in through the film, reflected by it
+    inside (a lossless film reflects the same from both sides), out through it."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    ci = np.clip(np.sum(n * v, axis=-1), 0.0, 1.0)
+    si = np.sqrt(np.maximum(1.0 - ci * ci, 0.0))
+    theta_i = np.arcsin(np.minimum(si, 1.0))
+    theta_t = np.arcsin(np.minimum(si / max(eta, WALL_GUARD), 1.0))
+    deviation = np.pi + 2.0 * theta_i - 4.0 * theta_t
     w = ci[:, None] * v - n
     norm = np.linalg.norm(w, axis=-1, keepdims=True)
     w = np.where(norm > 1e-15, w / np.maximum(norm, 1e-300), 0.0)

@@ -63,6 +63,9 @@ class Variant(NamedTuple):
     #: The SH half read from the outgoing-radiance grid (``TF_RADIANCE_GRID``,
     #: tf_radiance_grid.glsl; policy.uses_grid): no SH code is compiled.
     grid: bool = False
+    #: Solid glass sees the scene behind along its exit ray (``TF_REFRACT``, tf_refract.glsl, the
+    #: scene-behind texture): a transparent film's passes over a frame drawn without the films.
+    refract: bool = False
 
     @property
     def film(self) -> bool:
@@ -93,6 +96,7 @@ class Variant(NamedTuple):
             bool(self.display and self.display_lut),
             int(self.transmit) if int(self.transmit) in TRANSMIT_PASSES else 0,
             bool(self.grid and not self.split_only),
+            bool(self.refract and int(self.transmit) in TRANSMIT_PASSES),
         )
 
     def _display_switches(self) -> list[tuple[str, str]]:
@@ -100,6 +104,12 @@ class Variant(NamedTuple):
         if not self.display:
             return []
         return [("TF_DISPLAY_SRGB", "1")] + ([("TF_DISPLAY_LUT", "1")] if self.display_lut else [])
+
+    def _transmit_switches(self) -> list[tuple[str, str]]:
+        """A transparent film's ``#define``s: its blend pass, and solid glass's refraction."""
+        if not self.transmit:
+            return []
+        return [("TF_TRANSMIT", str(int(self.transmit)))] + ([("TF_REFRACT", "1")] if self.refract else [])
 
     def switches(self) -> tuple[tuple[str, str], ...]:
         """The variant's own ``#define``s (name, value), in the order the shader declares them."""
@@ -119,8 +129,7 @@ class Variant(NamedTuple):
             out.append(("TF_LAMPS", "1"))
         if self.lights:
             out.append(("TF_LIGHTS", "1"))
-        if self.transmit:
-            out.append(("TF_TRANSMIT", str(int(self.transmit))))
+        out += self._transmit_switches()
         if self.film and self.film_ubo:
             out.append(("TF_FILM_UBO", "1"))
         if self.table_ubo:
@@ -152,6 +161,7 @@ def choose_variant(
     display_lut: bool = False,
     transmit: int = 0,
     grid: bool = False,
+    refract: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -171,6 +181,8 @@ def choose_variant(
       reads the film table, which the item must then carry.
     - ``grid``: the item has an outgoing-radiance grid; its SH half is read from it where
       policy.uses_grid says so (constant thickness, l_max ≥ GRID_MIN_L, an SH half drawn).
+    - ``refract``: solid glass over a scene-behind texture (the headless frame's background pass):
+      its passes march the exit ray over it (shading/refract.py).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -191,6 +203,7 @@ def choose_variant(
         display_lut=bool(display) and bool(display_lut),
         transmit=int(transmit) if bool(film) else 0,
         grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
+        refract=bool(refract) and bool(film) and int(transmit) in TRANSMIT_PASSES,
     )
 
 
