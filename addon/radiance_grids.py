@@ -4,10 +4,11 @@ A film whose SH half policy.uses_grid reads from a grid (precompute.shading.radi
 gets one per (description key, lighting key): the table and the windowed World SH it is built
 from. :func:`grid_for` returns the uploaded grid, or None while it is being built, and the
 draw then reads the per-pixel SH as before (the same picture to mean ΔE2000 < 0.6). Building
-takes 1–4 s of numpy at l = 12 on a worker thread (never the main thread or the draw
-callback); the newest request is built first and at most :data:`QUEUE_SIZE` wait, so a
-roughness drag builds the value it stops on, not every step. When one finishes a timer asks
-the 3D viewports for a redraw. ``wait=True`` (headless frames) builds it in the caller.
+takes 1–4 s of numpy at l = 12 (an integrated grid, :func:`lobe_build`, 20–60 s) on a worker
+thread (never the main thread or the draw callback); the newest request is built first and at
+most :data:`QUEUE_SIZE` wait, so a roughness drag builds the value it stops on, not every
+step. When one finishes a timer asks the 3D viewports for a redraw. ``wait=True`` (headless
+frames) builds it in the caller.
 
 :data:`GRIDS` (registered in :mod:`.caches` as ``radiance_grids``, FILE scope) holds the
 uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU memory each).
@@ -15,13 +16,14 @@ uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU 
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 
 import bpy
 import numpy as np
 
-from ..precompute.shading import radiance_grid
+from ..precompute.shading import lobe_grid, policy, radiance_grid
 from . import caches
 from .gpu import resources
 
@@ -39,7 +41,7 @@ class _Grids:
     def __init__(self):
         self.textures = caches.LRU(GRID_CACHE_SIZE)
         self.lock = threading.Lock()
-        self.queue: dict = {}  # key → (table, coefficients), oldest first
+        self.queue: dict = {}  # key → a call that builds the grid, oldest first
         self.built: dict = {}  # key → grid array, waiting for its upload
         self.running: str | None = None
         self.finished = threading.Event()
@@ -76,10 +78,10 @@ def _work() -> None:
                 GRIDS.worker = None
                 return
             key = next(reversed(GRIDS.queue))  # the newest request first
-            result, coeffs = GRIDS.queue.pop(key)
+            build = GRIDS.queue.pop(key)
             GRIDS.running = key
         try:
-            grid = radiance_grid.build(result, coeffs)
+            grid = build()
         except Exception as exc:  # the per-pixel SH keeps drawing the film
             log.error("Thin Film SH: radiance grid failed: %s", exc)
             grid = None
@@ -107,11 +109,11 @@ def _poll() -> float | None:
     return 0.1 if busy() or GRIDS.finished.is_set() else None
 
 
-def _request(key: str, result, coeffs) -> None:
+def _request(key: str, build) -> None:
     with GRIDS.lock:
         if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built:
             return
-        GRIDS.queue[key] = (result, np.array(coeffs, dtype=np.float64))
+        GRIDS.queue[key] = build
         while len(GRIDS.queue) > QUEUE_SIZE:
             GRIDS.queue.pop(next(iter(GRIDS.queue)))
         if GRIDS.worker is None:
@@ -121,12 +123,30 @@ def _request(key: str, result, coeffs) -> None:
         bpy.app.timers.register(_poll, first_interval=0.1)
 
 
-def grid_for(key: str, result, coeffs, *, wait: bool = False) -> resources.RadianceGridTexture | None:
-    """The uploaded grid of ``result`` (a constant-thickness table) under ``coeffs`` (the
-    lighting buffer's windowed SH), or None while the worker builds it (``wait``: build it here).
+def sh_build(result, coeffs):
+    """The call that builds an SH grid: ``result`` (a constant-thickness table) under ``coeffs``
+    (the lighting buffer's windowed SH, copied now)."""
+    coeffs = np.array(coeffs, dtype=np.float64)
+    return functools.partial(radiance_grid.build, result, coeffs)
 
-    ``key`` names both (description key and lighting key). Only the upload (4.5 MiB) runs on the
-    calling thread; a failed build leaves the film on the per-pixel SH.
+
+def lobe_build(film, roughness: float, panorama, view_count: int, rotation=None, scale: float = 1.0):
+    """The call that builds an integrated grid (precompute.shading.lobe_grid): ``film`` (its
+    FilmTable) under ``panorama`` (the content's, the lamps lifted out where they are shaded per
+    direction), turned by ``rotation`` Q and scaled by ``scale``, ``view_count`` view angles."""
+    shape = policy.grid_shape(view_count)
+    return functools.partial(
+        lobe_grid.build, film, float(roughness), panorama, shape, rotation=rotation, scale=float(scale)
+    )
+
+
+def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTexture | None:
+    """The uploaded grid of ``key`` (description and lighting keys), built by ``build()``
+    (:func:`sh_build`, :func:`lobe_build`), or None while the worker builds it (``wait``: build it
+    here).
+
+    Only the upload (4.5–9 MiB) runs on the calling thread; a failed build leaves the film on the
+    per-pixel SH.
     """
     found = GRIDS.textures.get(key)
     if found is not None:
@@ -134,9 +154,9 @@ def grid_for(key: str, result, coeffs, *, wait: bool = False) -> resources.Radia
     with GRIDS.lock:
         grid = GRIDS.built.pop(key, None)
     if grid is None and wait:
-        grid = radiance_grid.build(result, coeffs)
+        grid = build()
     if grid is None:
-        _request(key, result, coeffs)
+        _request(key, build)
         return None
     found = resources.RadianceGridTexture.from_grid(grid)
     GRIDS.textures[key] = found

@@ -41,6 +41,7 @@ import bpy
 import numpy as np
 
 from ..precompute import cli_support
+from ..precompute import lamps as lamp_extraction
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
 from . import caches, description, linked, radiance_grids, tables, transparency, world, world_analysis
@@ -572,7 +573,8 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     owner = material_identity(bpy_material)
     wall = transparency.wall(bpy_material, desc)
     film = None
-    if wall is not None or _needs_film(bpy_material, desc, lighting, lights):
+    lobe = policy.uses_lobe_grid(roughness)  # an integrated grid reads the film table too
+    if wall is not None or lobe or _needs_film(bpy_material, desc, lighting, lights):
         film = _film_for(desc, key, result, allow_bake, want_bake, owner)
     env = lighting.environment
     lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
@@ -580,13 +582,15 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
     buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
+    film_table = tables.peek_film(key) if film is not None else None
+    grid, lobe = _grid_for(key, desc, result, lighting, buffer, lamps, film_table, wait=allow_bake)
     return _MaterialEntry(
         desc,
         key,
         table_texture(key, result),
         buffer,
         roughness,
-        policy.sh_weight(roughness),
+        policy.grid_weight(roughness, lobe and grid is not None),
         film,
         props,
         thickness_key,
@@ -594,7 +598,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         lamps=lamps,
         sh_order=result.sh_order,
         wall=wall,
-        grid=_grid_for(key, desc, result, lighting, buffer, lamps, wait=allow_bake),
+        grid=grid,
     )
 
 
@@ -608,19 +612,34 @@ def _previous_entry(owner, lighting: WorldLighting):
     lamps = last.lamps and env is not None and env.lamps is not None
     buffer = lighting_for(lighting, last.sh_order, last.roughness, lamps)
     grid = last.grid if buffer is last.lighting else None  # a grid holds the lighting it was built with
-    return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid)
+    weight = last.sh_weight if grid is not None else policy.sh_weight(last.roughness)  # no grid: its weight
+    return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid, sh_weight=weight)
 
 
-def _grid_for(desc_key: str, desc, result, lighting: WorldLighting, buffer, lamps: bool, *, wait: bool):
-    """The film's outgoing-radiance grid where policy.uses_grid reads one (a constant thickness,
-    an SH half at l_max ≥ GRID_MIN_L), else None; None too while the worker builds it
-    (:func:`.radiance_grids.grid_for`; ``wait``: built here, for headless frames)."""
+def _grid_for(desc_key: str, desc, result, lighting: WorldLighting, buffer, lamps: bool, film, *, wait: bool):
+    """(grid, integrated) of the film: its outgoing-radiance grid where policy.uses_grid reads
+    one (a constant thickness, an SH half at l_max ≥ GRID_MIN_L), else None; None too while the
+    worker builds it (:func:`.radiance_grids.grid_for`; ``wait``: built here, for headless
+    frames). ``integrated``: the grid integrates the exact lobe (policy.uses_lobe_grid, with
+    ``film``, the film table in memory, and the World's panorama at hand), else it holds the SH
+    sum."""
     vary = bool(desc.varies) and result.thicknesses_nm.size > 1
     weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
     if not policy.uses_grid(result.sh_order, vary, weight):
-        return None
+        return None, False
+    env = lighting.environment
+    lobe = film is not None and env is not None and policy.uses_lobe_grid(desc.roughness)
     key = f"{desc_key}|{lighting.key}|{result.sh_order}|{round(float(desc.roughness), 6)}|{bool(lamps)}"
-    return radiance_grids.grid_for(key, result, buffer.coefficients, wait=wait)
+    if lobe:
+        panorama = env.panorama
+        if lamps and env.lamps is not None:
+            panorama = lamp_extraction.remove(np.asarray(panorama), env.lamp_mask)
+        build = radiance_grids.lobe_build(
+            film, desc.roughness, panorama, policy.LOBE_GRID_VIEWS, lighting.matrix, lighting.scale or 1.0
+        )
+        return radiance_grids.grid_for(key + "|lobe", build, wait=wait), True
+    build = radiance_grids.sh_build(result, buffer.coefficients)
+    return radiance_grids.grid_for(key, build, wait=wait), False
 
 
 def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):

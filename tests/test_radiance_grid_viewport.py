@@ -143,3 +143,31 @@ def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa
     assert warmup.step() is None and shaders.compiled(second) and warmup.activity() == ""
     warmup.unregister()
     assert not bpy.app.timers.is_registered(warmup.step)
+
+
+@pytest.mark.parametrize("roughness, integrated", [(0.3, True), (0.6, False)])
+def test_a_film_in_the_hand_over_integrates_its_grid(bpy, tf, scene, monkeypatch, roughness, integrated):  # noqa: F811
+    """Roughness 0.2–0.45 (policy.uses_lobe_grid): the grid is the exact lobe against the World's
+    panorama (precompute.shading.lobe_grid), weighted policy.LOBE_GRID_WEIGHT against the split
+    sum; rougher films keep the SH grid at weight 1."""
+    from precompute.shading import policy
+
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    world = bpy.data.worlds.new("Grey")  # a node tree from Blender 5 on
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
+    scene.world = world
+    calls = []
+    real_build = rg.lobe_grid.build
+
+    def build(*args, **kwargs):
+        calls.append(args[1])  # the roughness
+        return real_build(*args, **{**kwargs, "samples": (4, 4)})  # cheap: what is drawn is tested
+
+    monkeypatch.setattr(rg.lobe_grid, "build", build)
+    quad_grid(bpy, scene, "Quad", rough_film(bpy, tf, "Film", roughness=roughness))
+    (item,), messages = collect(bpy, tf)
+    assert item.grid is not None, messages
+    assert bool(calls) == integrated
+    assert item.sh_weight == pytest.approx(policy.grid_weight(roughness, integrated))
+    assert item.sh_weight == pytest.approx(policy.LOBE_GRID_WEIGHT if integrated else 1.0)
