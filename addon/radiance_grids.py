@@ -4,7 +4,7 @@ A film whose SH half policy.uses_grid reads from a grid (precompute.shading.radi
 gets one per (description key, lighting key): the table and the windowed World SH it is built
 from. :func:`grid_for` returns the uploaded grid, or None while it is being built, and the
 draw then reads the per-pixel SH as before (the same picture to mean ΔE2000 < 0.6). Building
-takes 1–4 s of numpy at l = 12 (an integrated grid, :func:`lobe_build`, 20–60 s) on a worker
+takes 1–4 s of numpy at l = 12 (an integrated grid, :func:`lobe_build`, 15–100 s) on a worker
 thread (never the main thread or the draw callback); the newest request is built first and at
 most :data:`QUEUE_SIZE` wait, so a roughness drag builds the value it stops on, not every
 step. When one finishes a timer asks the 3D viewports for a redraw. ``wait=True`` (headless

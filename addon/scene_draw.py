@@ -573,7 +573,8 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     owner = material_identity(bpy_material)
     wall = transparency.wall(bpy_material, desc)
     film = None
-    lobe = policy.uses_lobe_grid(roughness)  # an integrated grid reads the film table too
+    diffuse = getattr(desc, "base_color", None) is not None
+    lobe = policy.uses_lobe_grid(roughness, diffuse, wall is not None)  # reads the film table too
     if wall is not None or lobe or _needs_film(bpy_material, desc, lighting, lights):
         film = _film_for(desc, key, result, allow_bake, want_bake, owner)
     env = lighting.environment
@@ -582,7 +583,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
     buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
-    film_table = tables.peek_film(key) if film is not None else None
+    film_table = tables.peek_film(key) if film is not None and lobe else None
     grid, lobe = _grid_for(key, desc, result, lighting, buffer, lamps, film_table, wait=allow_bake)
     return _MaterialEntry(
         desc,
@@ -620,15 +621,15 @@ def _grid_for(desc_key: str, desc, result, lighting: WorldLighting, buffer, lamp
     """(grid, integrated) of the film: its outgoing-radiance grid where policy.uses_grid reads
     one (a constant thickness, an SH half at l_max ≥ GRID_MIN_L), else None; None too while the
     worker builds it (:func:`.radiance_grids.grid_for`; ``wait``: built here, for headless
-    frames). ``integrated``: the grid integrates the exact lobe (policy.uses_lobe_grid, with
-    ``film``, the film table in memory, and the World's panorama at hand), else it holds the SH
-    sum."""
+    frames). ``integrated``: the grid integrates the exact lobe (``film``: the film table in
+    memory, given where policy.uses_lobe_grid says so; the World's panorama at hand), else it
+    holds the SH sum."""
     vary = bool(desc.varies) and result.thicknesses_nm.size > 1
     weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
     if not policy.uses_grid(result.sh_order, vary, weight):
         return None, False
     env = lighting.environment
-    lobe = film is not None and env is not None and policy.uses_lobe_grid(desc.roughness)
+    lobe = film is not None and env is not None
     key = f"{desc_key}|{lighting.key}|{result.sh_order}|{round(float(desc.roughness), 6)}|{bool(lamps)}"
     if lobe:
         panorama = env.panorama

@@ -112,6 +112,8 @@ def test_which_films_integrate_their_grid_and_its_weight():
     lo, hi = policy.SH_BLEND
     assert not policy.uses_lobe_grid(lo) and not policy.uses_lobe_grid(hi)
     assert policy.uses_lobe_grid(0.3)
+    # a diffuse base or a transparent wall: the table holds more than the lobe, the SH grid stays
+    assert not policy.uses_lobe_grid(0.3, diffuse_base=True) and not policy.uses_lobe_grid(0.3, wall=True)
     assert policy.grid_weight(0.6, False) == policy.sh_weight(0.6) == 1.0
     assert policy.grid_weight(policy.LOBE_GRID_RAMP[1], True) == pytest.approx(policy.LOBE_GRID_WEIGHT)
     ramp = [policy.grid_weight(r, True) for r in np.linspace(lo, policy.LOBE_GRID_RAMP[1], 9)]

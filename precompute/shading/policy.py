@@ -93,11 +93,12 @@ LOBE_GRID_WEIGHT = 0.9
 LOBE_GRID_RAMP = (0.2, 0.3)
 
 
-def uses_lobe_grid(roughness: float) -> bool:
+def uses_lobe_grid(roughness: float, diffuse_base: bool = False, wall: bool = False) -> bool:
     """Whether a grid film's grid integrates the exact lobe (:data:`LOBE_GRID_SAMPLES`): in the
     hand-over, 0 < :func:`sh_weight` < 1, where neither the l = 12 SH nor the split sum's one
-    colour per pixel holds."""
-    return 0.0 < sh_weight(roughness) < 1.0
+    colour per pixel holds; not under a ``diffuse_base`` or for a transparent film's ``wall``,
+    whose tables hold more than the specular lobe the grid integrates (they keep the SH grid)."""
+    return 0.0 < sh_weight(roughness) < 1.0 and not diffuse_base and not wall
 
 
 def grid_weight(roughness: float, lobe_grid: bool) -> float:
