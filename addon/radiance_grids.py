@@ -2,14 +2,17 @@
 
 A film whose SH half policy.uses_grid reads from a grid (precompute.shading.radiance_grid)
 gets one per (description key, World content key, roughness): the table and the windowed SH of
-the World's *content* it is built from (:meth:`.world_analysis.WorldLighting.grid_source`). The
-World's Strength and Mapping rotation are applied at the lookup (the lighting buffer's ``world``
-block), so editing them rebuilds no grid. :func:`grid_for` returns the uploaded grid, or None
-while it is being built, and the draw then reads the per-pixel SH as before (the same picture
-to mean ΔE2000 < 0.6). Building takes 0.3–0.8 s of numpy at l = 12 on a worker thread (never the
-main thread or the draw callback); the newest request is built first and at most :data:`QUEUE_SIZE` wait, so a
-roughness drag builds the value it stops on, not every step. When one finishes a timer asks
-the 3D viewports for a redraw. ``wait=True`` (headless frames) builds it in the caller.
+the World's *content* it is built from (:meth:`.world_analysis.WorldLighting.grid_source`), or,
+in the split-sum/SH hand-over (policy.uses_lobe_grid), the exact lobe integrated against the
+content's panorama (precompute.shading.lobe_grid). The World's Strength and Mapping rotation
+are applied at the lookup (the lighting buffer's ``world`` block), so editing them rebuilds no
+grid. :func:`grid_for` returns the uploaded grid, or None while it is being built, and the draw
+then reads the per-pixel SH as before (the same picture to mean ΔE2000 < 0.6). Building takes
+0.3–0.8 s of numpy at l = 12 (an integrated grid, :func:`lobe_build`, 15–100 s) on a worker
+thread (never the main thread or the draw callback); the newest request is built first and at
+most :data:`QUEUE_SIZE` wait, so a roughness drag builds the value it stops on, not every
+step. When one finishes a timer asks the 3D viewports for a redraw. ``wait=True`` (headless
+frames) builds it in the caller.
 
 :data:`GRIDS` (registered in :mod:`.caches` as ``radiance_grids``, FILE scope) holds the
 uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU memory each).
@@ -17,13 +20,15 @@ uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU 
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 
 import bpy
 import numpy as np
 
-from ..precompute.shading import policy, radiance_grid
+from ..precompute import lamps as lamp_extraction
+from ..precompute.shading import lobe_grid, policy, radiance_grid
 from . import caches
 from .gpu import resources
 
@@ -41,7 +46,7 @@ class _Grids:
     def __init__(self):
         self.textures = caches.LRU(GRID_CACHE_SIZE)
         self.lock = threading.Lock()
-        self.queue: dict = {}  # key → (table, coefficients), oldest first
+        self.queue: dict = {}  # key → a call that builds the grid, oldest first
         self.built: dict = {}  # key → grid array, waiting for its upload
         self.running: str | None = None
         self.finished = threading.Event()
@@ -78,10 +83,10 @@ def _work() -> None:
                 GRIDS.worker = None
                 return
             key = next(reversed(GRIDS.queue))  # the newest request first
-            result, coeffs = GRIDS.queue.pop(key)
+            build = GRIDS.queue.pop(key)
             GRIDS.running = key
         try:
-            grid = radiance_grid.build(result, coeffs)
+            grid = build()
         except Exception as exc:  # the per-pixel SH keeps drawing the film
             log.error("Thin Film SH: radiance grid failed: %s", exc)
             grid = None
@@ -109,11 +114,11 @@ def _poll() -> float | None:
     return 0.1 if busy() or GRIDS.finished.is_set() else None
 
 
-def _request(key: str, result, coeffs) -> None:
+def _request(key: str, build) -> None:
     with GRIDS.lock:
         if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built:
             return
-        GRIDS.queue[key] = (result, np.array(coeffs, dtype=np.float64))
+        GRIDS.queue[key] = build
         while len(GRIDS.queue) > QUEUE_SIZE:
             GRIDS.queue.pop(next(iter(GRIDS.queue)))
         if GRIDS.worker is None:
@@ -123,12 +128,30 @@ def _request(key: str, result, coeffs) -> None:
         bpy.app.timers.register(_poll, first_interval=0.1)
 
 
-def grid_for(key: str, result, coeffs, *, wait: bool = False) -> resources.RadianceGridTexture | None:
-    """The uploaded grid of ``result`` (a constant-thickness table) under ``coeffs`` (the
-    lighting buffer's windowed SH), or None while the worker builds it (``wait``: build it here).
+def sh_build(result, coeffs):
+    """The call that builds an SH grid: ``result`` (a constant-thickness table) under ``coeffs``
+    (the lighting buffer's windowed SH, copied now)."""
+    coeffs = np.array(coeffs, dtype=np.float64)
+    return functools.partial(radiance_grid.build, result, coeffs)
 
-    ``key`` names both (description key and lighting key). Only the upload (4.5 MiB) runs on the
-    calling thread; a failed build leaves the film on the per-pixel SH.
+
+def lobe_build(film, roughness: float, panorama, view_count: int, rotation=None, scale: float = 1.0):
+    """The call that builds an integrated grid (precompute.shading.lobe_grid): ``film`` (its
+    FilmTable) under ``panorama`` (the content's, the lamps lifted out where they are shaded per
+    direction), turned by ``rotation`` Q and scaled by ``scale``, ``view_count`` view angles."""
+    shape = policy.grid_shape(view_count)
+    return functools.partial(
+        lobe_grid.build, film, float(roughness), panorama, shape, rotation=rotation, scale=float(scale)
+    )
+
+
+def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTexture | None:
+    """The uploaded grid of ``key`` (description and lighting keys), built by ``build()``
+    (:func:`sh_build`, :func:`lobe_build`), or None while the worker builds it (``wait``: build it
+    here).
+
+    Only the upload (4.5–9 MiB) runs on the calling thread; a failed build leaves the film on the
+    per-pixel SH.
     """
     found = GRIDS.textures.get(key)
     if found is not None:
@@ -136,29 +159,40 @@ def grid_for(key: str, result, coeffs, *, wait: bool = False) -> resources.Radia
     with GRIDS.lock:
         grid = GRIDS.built.pop(key, None)
     if grid is None and wait:
-        grid = radiance_grid.build(result, coeffs)
+        grid = build()
     if grid is None:
-        _request(key, result, coeffs)
+        _request(key, build)
         return None
     found = resources.RadianceGridTexture.from_grid(grid)
     GRIDS.textures[key] = found
     return found
 
 
-def film_grid(desc_key: str, desc, result, lighting, lamps: bool, *, wait: bool):
-    """The film's grid where policy.uses_grid reads one (a constant thickness, an SH half at
-    l_max ≥ GRID_MIN_L), else None; None too while the worker builds it (:func:`grid_for`;
-    ``wait``: built here, for headless frames).
+def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, wait: bool):
+    """(grid, integrated) of a film: its grid where policy.uses_grid reads one (a constant
+    thickness, an SH half at l_max ≥ GRID_MIN_L), else None; None too while the worker builds it
+    (:func:`grid_for`; ``wait``: built here, for headless frames).
 
     ``lighting``: the scene's ``WorldLighting``; ``lamps``: the film is shaded with the World's
-    lamps (its grid then holds the content without them).
+    lamps (its grid then holds the content without them). ``film``: the film table in memory,
+    given where policy.uses_lobe_grid says so: the grid then integrates the exact lobe against
+    the content's panorama (``integrated`` True), else it holds the SH sum. Both are built in the
+    content's frame and strength: the lighting buffer's ``world`` block turns and scales the
+    lookup.
     """
     if not applies(desc, result, lighting):
-        return None
+        return None, False
     source, coeffs = lighting.grid_source(lamps)
     l_max, roughness = int(result.sh_order), float(desc.roughness)
-    key = f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}"
-    return grid_for(key, result, policy.windowed_lighting(coeffs, l_max, roughness), wait=wait)
+    env = lighting.environment
+    if film is not None and env is not None:
+        panorama = env.panorama
+        if lamps and env.lamps is not None:
+            panorama = lamp_extraction.remove(np.asarray(panorama), env.lamp_mask)
+        build = lobe_build(film, roughness, panorama, policy.LOBE_GRID_VIEWS)
+        return grid_for(f"{desc_key}|{source}|{round(roughness, 6)}|lobe", build, wait=wait), True
+    build = sh_build(result, policy.windowed_lighting(coeffs, l_max, roughness))
+    return grid_for(f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}", build, wait=wait), False
 
 
 def applies(desc, result, lighting) -> bool:

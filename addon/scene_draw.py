@@ -577,7 +577,9 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     owner = material_identity(bpy_material)
     wall = transparency.wall(bpy_material, desc)
     film = None
-    if wall is not None or _needs_film(bpy_material, desc, lighting, lights):
+    diffuse = getattr(desc, "base_color", None) is not None
+    lobe = policy.uses_lobe_grid(roughness, diffuse, wall is not None)  # reads the film table too
+    if wall is not None or lobe or _needs_film(bpy_material, desc, lighting, lights):
         film = _film_for(desc, key, result, allow_bake, want_bake, owner)
     env = lighting.environment
     lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
@@ -585,13 +587,15 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     props = props if props is not None and props.enabled else None
     thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
     buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
+    film_table = tables.peek_film(key) if film is not None and lobe else None
+    grid, lobe = radiance_grids.film_grid(key, desc, result, lighting, lamps, film_table, wait=allow_bake)
     return _MaterialEntry(
         desc,
         key,
         table_texture(key, result),
         buffer,
         roughness,
-        policy.sh_weight(roughness),
+        policy.grid_weight(roughness, lobe and grid is not None),
         film,
         props,
         thickness_key,
@@ -599,7 +603,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         lamps=lamps,
         sh_order=result.sh_order,
         wall=wall,
-        grid=radiance_grids.film_grid(key, desc, result, lighting, lamps, wait=allow_bake),
+        grid=grid,
         grid_source=lighting.grid_source(lamps)[0],
         grid_wanted=radiance_grids.applies(desc, result, lighting),
     )
@@ -616,7 +620,8 @@ def _previous_entry(owner, lighting: WorldLighting):
     buffer = lighting_for(lighting, last.sh_order, last.roughness, lamps)
     # a grid holds the World's content it was built from (its strength and turn are the buffer's)
     grid = last.grid if lighting.grid_source(lamps)[0] == last.grid_source else None
-    return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid)
+    weight = last.sh_weight if grid is not None else policy.sh_weight(last.roughness)  # no grid: its weight
+    return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid, sh_weight=weight)
 
 
 def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):

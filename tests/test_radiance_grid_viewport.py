@@ -143,3 +143,49 @@ def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa
     assert warmup.step() is None and shaders.compiled(second) and warmup.activity() == ""
     warmup.unregister()
     assert not bpy.app.timers.is_registered(warmup.step)
+
+
+@pytest.mark.parametrize(
+    "preset, roughness, integrated",
+    [("ANODISED_TITANIUM", 0.3, True), ("ANODISED_TITANIUM", 0.6, False), ("SOAP_FILM", 0.3, False)],
+)
+def test_a_film_in_the_hand_over_integrates_its_grid(
+    bpy,
+    tf,  # noqa: F811
+    scene,  # noqa: F811
+    monkeypatch,
+    preset,
+    roughness,
+    integrated,
+):
+    """Roughness 0.2–0.45 (policy.uses_lobe_grid): the grid is the exact lobe against the World's
+    panorama (precompute.shading.lobe_grid), weighted policy.LOBE_GRID_WEIGHT against the split
+    sum; rougher films keep the SH grid at weight 1, and so does a transparent film (a soap
+    film's wall), whose table holds more than the lobe."""
+    from precompute.shading import policy
+
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    world = bpy.data.worlds.new("Grey")  # a node tree from Blender 5 on
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
+    scene.world = world
+    calls = []
+    real_build = rg.lobe_grid.build
+
+    def build(*args, **kwargs):
+        calls.append(args[1])  # the roughness
+        return real_build(*args, **{**kwargs, "samples": (4, 4)})  # cheap: what is drawn is tested
+
+    monkeypatch.setattr(rg.lobe_grid, "build", build)
+    mat = rough_film(bpy, tf, "Film")
+    mat.thinfilm_sh.preset = preset
+    mat.thinfilm_sh.vary_thickness = False
+    mat.thinfilm_sh.roughness = roughness
+    mat.thinfilm_sh.sh_order = "3"
+    quad_grid(bpy, scene, "Quad", mat)
+    (item,), messages = collect(bpy, tf)
+    assert item.grid is not None, messages
+    assert bool(calls) == integrated
+    assert item.sh_weight == pytest.approx(policy.grid_weight(roughness, integrated))
+    expected = policy.LOBE_GRID_WEIGHT if integrated else policy.sh_weight(roughness)
+    assert item.sh_weight == pytest.approx(expected)

@@ -109,6 +109,38 @@ def uses_grid(l_max: int, vary_thickness: bool, sh_weight: float) -> bool:
     return int(l_max) >= GRID_MIN_L and not vary_thickness and float(sh_weight) > 0.0
 
 
+#: Films in the hand-over (0 < sh_weight < 1, roughness 0.2–0.45) fill their grid by integrating
+#: the exact lobe (shading/lobe_grid.py) instead of from the SH, with this many GGX nodes (θ × φ)
+#: per cell and view angles: courtyard 800 nm r 0.3 against Cycles 2.06 → 0.95 mean ΔE2000
+#: (docs/tuning.md#lobe-grid).
+LOBE_GRID_SAMPLES = (16, 16)
+LOBE_GRID_VIEWS = 16
+#: The weight of an integrated grid against the split sum, reached at roughness LOBE_GRID_RAMP[1]
+#: by a smoothstep from LOBE_GRID_RAMP[0]: the grid's 7.5° mirror cells blur the sharpest lobes,
+#: so the split sum keeps a share, and all of it at the hand-over's start (docs/tuning.md#lobe-grid).
+LOBE_GRID_WEIGHT = 0.9
+LOBE_GRID_RAMP = (0.2, 0.3)
+
+
+def uses_lobe_grid(roughness: float, diffuse_base: bool = False, wall: bool = False) -> bool:
+    """Whether a grid film's grid integrates the exact lobe (:data:`LOBE_GRID_SAMPLES`): in the
+    hand-over, 0 < :func:`sh_weight` < 1, where neither the l = 12 SH nor the split sum's one
+    colour per pixel holds; not under a ``diffuse_base`` or for a transparent film's ``wall``,
+    whose tables hold more than the specular lobe the grid integrates (they keep the SH grid)."""
+    return 0.0 < sh_weight(roughness) < 1.0 and not diffuse_base and not wall
+
+
+def grid_weight(roughness: float, lobe_grid: bool) -> float:
+    """The weight of the grid half of a film drawn from a grid: for an integrated one
+    (:func:`uses_lobe_grid`) :data:`LOBE_GRID_WEIGHT` × smoothstep over :data:`LOBE_GRID_RAMP`,
+    else :func:`sh_weight`."""
+    if not lobe_grid:
+        return sh_weight(roughness)
+    lo, hi = LOBE_GRID_RAMP
+    t = min(max((float(roughness) - lo) / (hi - lo), 0.0), 1.0)
+    return LOBE_GRID_WEIGHT * t * t * (3.0 - 2.0 * t)
+
+
 #: While a variant compiles (ahead, one per idle step) the viewport draws its film with the
 #: variant of this order at most and no grid: bands above it are left out of the sum (the
 #: table's and the lighting's layouts do not depend on the order), and up to l = 2 the
