@@ -178,7 +178,7 @@ def test_an_overscanned_background_pass_holds_the_frame_in_its_middle(bpy, tf, c
 
 
 def test_the_overscan_is_asked_for_solid_glass_only_and_bounded(tf):
-    """Half the longer side on each side for a frame with solid glass, none without, and the
+    """REFRACT_OVERSCAN of the longer side on each side for a frame with solid glass, none without, and the
     pass's longer side never over policy.REFRACT_MAX_SIDE."""
     from types import SimpleNamespace
 
