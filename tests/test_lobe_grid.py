@@ -118,3 +118,26 @@ def test_which_films_integrate_their_grid_and_its_weight():
     assert policy.grid_weight(policy.LOBE_GRID_RAMP[1], True) == pytest.approx(policy.LOBE_GRID_WEIGHT)
     ramp = [policy.grid_weight(r, True) for r in np.linspace(lo, policy.LOBE_GRID_RAMP[1], 9)]
     assert ramp[0] == 0.0 and np.all(np.diff(ramp) > 0.0)
+
+
+def test_a_content_grid_read_through_the_worlds_turn_is_the_turned_worlds_grid():
+    """The viewport builds the grid of the World's *content* (no turn, strength 1) and the shader
+    turns and scales its lookup (radiance_grid.lookup's rotation and scale, the lighting buffer's
+    world block): at the nodes of a World turned about z by whole cells and scaled, that equals
+    the grid built for the turned World in place (every node maps onto a content node)."""
+    material, film = film_of()
+    world = smooth_world()
+    w = SHAPE[0]
+    angle = 2.0 * (2.0 * np.pi / w)  # two mirror cells
+    q = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    content = lobe_grid.build(film, material.roughness, world, SHAPE, samples=SAMPLES)
+    turned = lobe_grid.build(film, material.roughness, world, SHAPE, rotation=q, scale=1.7, samples=SAMPLES)
+    n, v = radiance_grid.cell_geometry(SHAPE)  # the turned World's nodes, (T, Ψ, H, W, 3)
+    n, v = n[1:-1], v[1:-1]  # θo strictly inside (0, 90°): a unique view-aligned frame
+    got = radiance_grid.lookup(content, n, v, azimuths=SHAPE[3], rotation=q, scale=1.7)
+    expected = turned.reshape(SHAPE[2], SHAPE[3], SHAPE[1], SHAPE[0], 3)[1:-1]
+    peak = float(np.abs(expected).max())
+    assert peak > 0.05
+    assert np.abs(got - expected).max() / peak < 1e-4
+    unturned = radiance_grid.lookup(content, n, v, azimuths=SHAPE[3], scale=1.7)
+    assert np.abs(unturned - expected).max() / peak > 1e-2  # the turn matters
