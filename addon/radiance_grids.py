@@ -176,7 +176,8 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
     ``lighting``: the scene's ``WorldLighting``; ``lamps``: the film is shaded with the World's
     lamps (its grid then holds the content without them). ``film``: the film table in memory,
     given where policy.uses_lobe_grid says so: the grid then integrates the exact lobe against
-    the content's panorama (``integrated`` True), else it holds the SH sum. Both are built in the
+    the content's panorama (``integrated`` True; the SH grid is drawn while it is built), else
+    it holds the SH sum. Both are built in the
     content's frame and strength: the lighting buffer's ``world`` block turns and scales the
     lookup.
     """
@@ -190,7 +191,11 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
         if lamps and env.lamps is not None:
             panorama = lamp_extraction.remove(np.asarray(panorama), env.lamp_mask)
         build = lobe_build(film, roughness, panorama, policy.LOBE_GRID_VIEWS)
-        return grid_for(f"{desc_key}|{source}|{round(roughness, 6)}|lobe", build, wait=wait), True
+        found = grid_for(f"{desc_key}|{source}|{round(roughness, 6)}|lobe", build, wait=wait)
+        if found is not None or wait:
+            return found, True
+        # it takes 15–100 s: meanwhile the SH grid (under a second, asked for after it, so
+        # built first) stands in, better than the per-pixel variant's stand-in
     build = sh_build(result, policy.windowed_lighting(coeffs, l_max, roughness))
     return grid_for(f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}", build, wait=wait), False
 

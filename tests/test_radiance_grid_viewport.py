@@ -189,3 +189,45 @@ def test_a_film_in_the_hand_over_integrates_its_grid(
     assert item.sh_weight == pytest.approx(policy.grid_weight(roughness, integrated))
     expected = policy.LOBE_GRID_WEIGHT if integrated else policy.sh_weight(roughness)
     assert item.sh_weight == pytest.approx(expected)
+
+
+def test_the_sh_grid_stands_in_while_the_lobe_grid_is_built(bpy, tf, scene, monkeypatch):  # noqa: F811
+    """In the viewport an integrated grid takes 15–100 s of numpy: the SH grid (under a second,
+    asked for after it, so built first) is drawn meanwhile at the SH weight, then the lobe grid
+    at its own weight once the worker is done."""
+    from precompute.shading import policy
+
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    world = bpy.data.worlds.new("Grey")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
+    scene.world = world
+    gate = threading.Event()
+    real_build = rg.lobe_grid.build
+
+    def held(*args, **kwargs):
+        gate.wait(THREAD_TIMEOUT_S)
+        return real_build(*args, **{**kwargs, "samples": (4, 4)})
+
+    mat = rough_film(bpy, tf, "Film", roughness=0.3)
+    mat.thinfilm_sh.preset = "ANODISED_TITANIUM"
+    mat.thinfilm_sh.vary_thickness = False
+    mat.thinfilm_sh.roughness = 0.3
+    mat.thinfilm_sh.sh_order = "3"
+    quad_grid(bpy, scene, "Quad", mat)
+    monkeypatch.setattr(rg.lobe_grid, "build", lambda *a, **k: real_build(*a, **{**k, "samples": (4, 4)}))
+    collect(bpy, tf)  # the table and film baked here (not what is tested)
+    rg.GRIDS.clear()
+    monkeypatch.setattr(rg.lobe_grid, "build", held)
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert item.grid is None and item.grid_pending
+    deadline = time.monotonic() + THREAD_TIMEOUT_S
+    while not rg.GRIDS.built and time.monotonic() < deadline:  # the SH grid, built first
+        time.sleep(0.02)
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert item.grid is not None and item.sh_weight == pytest.approx(policy.sh_weight(0.3))
+    assert rg.busy()  # the lobe grid is still being built
+    gate.set()
+    wait_idle(rg)
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert item.grid is not None and item.sh_weight == pytest.approx(policy.grid_weight(0.3, True))
