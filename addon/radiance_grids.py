@@ -31,6 +31,7 @@ from ..precompute import lamps as lamp_extraction
 from ..precompute.shading import lobe_grid, policy, radiance_grid
 from . import caches
 from .gpu import resources
+from .redraw import tag_view3d as _tag_redraw
 
 log = logging.getLogger(__name__)
 
@@ -97,13 +98,6 @@ def _work() -> None:
                 while len(GRIDS.built) > QUEUE_SIZE:  # never fetched: a drag's intermediate value
                     GRIDS.built.pop(next(iter(GRIDS.built)))
         GRIDS.finished.set()
-
-
-def _tag_redraw() -> None:
-    for window in getattr(bpy.context.window_manager, "windows", []):
-        for area in window.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
 
 
 def _poll() -> float | None:

@@ -18,6 +18,7 @@ import logging
 import bpy
 
 from .gpu.shaders import SHADERS
+from .redraw import tag_view3d as _tag_redraw
 
 log = logging.getLogger(__name__)
 
@@ -26,13 +27,6 @@ def activity() -> str:
     """A few words for the viewport header while variants wait to be compiled, else ""."""
     count = len(SHADERS.wanted())
     return f"compiling shaders ({count} left)" if count else ""
-
-
-def _tag_redraw() -> None:
-    for window in getattr(bpy.context.window_manager, "windows", []):
-        for area in window.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
 
 
 def step() -> float | None:

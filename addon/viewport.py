@@ -45,6 +45,7 @@ import bpy
 from . import caches, display, linked, prefs, radiance_grids, scene_draw, shader_warmup, tables, world_job
 from .description import description_key
 from .gpu.draw import draw_items
+from .redraw import tag_view3d as _tag_redraw
 
 log = logging.getLogger(__name__)
 
@@ -121,14 +122,6 @@ def cancel_bakes() -> int:
     for job in jobs:
         job.cancel.set()
     return len(jobs)
-
-
-def _tag_redraw() -> None:
-    """Redraw the 3D views: background work ended, so the frame changes."""
-    for window in getattr(bpy.context.window_manager, "windows", []):
-        for area in window.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
 
 
 def _tag_header() -> None:
