@@ -129,14 +129,19 @@ def sh_build(result, coeffs):
     return functools.partial(radiance_grid.build, result, coeffs)
 
 
-def lobe_build(film, roughness: float, panorama, view_count: int, rotation=None, scale: float = 1.0):
+def lobe_build(film, roughness: float, panorama, view_count: int, lamp_mask=None):
     """The call that builds an integrated grid (precompute.shading.lobe_grid): ``film`` (its
-    FilmTable) under ``panorama`` (the content's, the lamps lifted out where they are shaded per
-    direction), turned by ``rotation`` Q and scaled by ``scale``, ``view_count`` view angles."""
+    FilmTable) under the content's ``panorama`` in its frame and strength (the lighting buffer's
+    ``world`` block turns and scales the lookup), ``view_count`` view angles. ``lamp_mask``: the
+    lamp pixels to lift out (shaded per direction), removed by the call, on the worker: a
+    float64 copy of the panorama that a frame which finds the grid built never makes."""
     shape = policy.grid_shape(view_count)
-    return functools.partial(
-        lobe_grid.build, film, float(roughness), panorama, shape, rotation=rotation, scale=float(scale)
-    )
+
+    def build():
+        image = panorama if lamp_mask is None else lamp_extraction.remove(np.asarray(panorama), lamp_mask)
+        return lobe_grid.build(film, float(roughness), image, shape)
+
+    return build
 
 
 def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTexture | None:
@@ -181,10 +186,8 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
     l_max, roughness = int(result.sh_order), float(desc.roughness)
     env = lighting.environment
     if film is not None and env is not None:
-        panorama = env.panorama
-        if lamps and env.lamps is not None:
-            panorama = lamp_extraction.remove(np.asarray(panorama), env.lamp_mask)
-        build = lobe_build(film, roughness, panorama, policy.LOBE_GRID_VIEWS)
+        mask = env.lamp_mask if lamps and env.lamps is not None else None
+        build = lobe_build(film, roughness, env.panorama, policy.LOBE_GRID_VIEWS, mask)
         found = grid_for(f"{desc_key}|{source}|{round(roughness, 6)}|lobe", build, wait=wait)
         if found is not None or wait:
             return found, True
