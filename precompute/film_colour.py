@@ -10,6 +10,7 @@ multiple-scattering factor: the film table the World's lamps are shaded with
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -144,7 +145,8 @@ def _film_rows(material, thicknesses: np.ndarray, u: np.ndarray) -> np.ndarray:
         rg = bake.channel_film(material, material.indices(), sets, wl, g, u, method)[..., None] * np.eye(3)
     else:
         r = _sweep(material.indices(), sets, wl, u, method)
-        rg = bake.clamp_film_rgb(np.einsum("tuw,wkc->tukc", r, g), material.colour_mode)
+        rgb = (r.reshape(-1, r.shape[-1]) @ g.reshape(g.shape[0], -1)).reshape(r.shape[:2] + g.shape[1:])
+        rg = bake.clamp_film_rgb(rgb, material.colour_mode)
     return rg if base else np.broadcast_to(rg, (thicknesses.size,) + rg.shape[1:])
 
 
@@ -187,6 +189,22 @@ def _albedo_weights(roughness: float, mu: np.ndarray, u: np.ndarray) -> np.ndarr
     return out
 
 
+def _albedo_nodes() -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes and weights on [0, 1] (32) of the film's F_avg integral over μ."""
+    mu, wmu = np.polynomial.legendre.leggauss(32)
+    return 0.5 * (mu + 1.0), 0.5 * wmu
+
+
+@functools.lru_cache(maxsize=16)
+def _uniform_albedo_weights(roughness: float, samples: int) -> np.ndarray:
+    """:func:`_albedo_weights` on :func:`_albedo_nodes` and a uniform u grid of ``samples``: it
+    depends on the roughness alone (29 ms a call), so a thickness or IOR edit reuses it.
+    Read-only."""
+    weights = _albedo_weights(roughness, _albedo_nodes()[0], np.linspace(0.0, 1.0, samples))
+    weights.flags.writeable = False
+    return weights
+
+
 def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
     """(T, U, 3): the factor :func:`bake.apply_multiscatter` applies at view cosine u, per row.
 
@@ -202,9 +220,12 @@ def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
         one = bake.apply_multiscatter(np.ones((1, u.size, 1, 3, 1)), material, u)[0, :, 0, :, 0]
         return np.broadcast_to(one, (rows, u.size, 3))
     white = rg.sum(axis=-1)  # (T, U, 3): the film's reflectance of white light per output channel
-    mu, wmu = np.polynomial.legendre.leggauss(32)
-    mu, wmu = 0.5 * (mu + 1.0), 0.5 * wmu
-    e_film = np.einsum("mj,tjc->tmc", _albedo_weights(float(material.roughness), mu, u), white)
+    mu, wmu = _albedo_nodes()
+    if u.size >= 2 and np.array_equal(u, np.linspace(0.0, 1.0, u.size)):
+        weights = _uniform_albedo_weights(float(material.roughness), u.size)
+    else:
+        weights = _albedo_weights(float(material.roughness), mu, u)
+    e_film = np.einsum("mj,tjc->tmc", weights, white)
     e = brdf.ggx_E(float(material.roughness), tuple(np.clip(mu, constants.MIN_COS, 1.0).tolist()))
     ratio = e_film / e[None, :, None] * (2.0 * mu * wmu)[None, :, None]
     f_avg = np.clip(np.sum(ratio, axis=1), 0.0, 1.0)  # (T, 3)

@@ -22,18 +22,76 @@ from .fresnel import normal_wavenumber
 from .stack import interface_amplitudes
 
 
-def _airy_intensity(r01, r12, delta) -> np.ndarray:
-    """Airy sum R = |r₀₁ + x|² / |1 + r₀₁ x|² with x = r₁₂ e^{2iδ}.
+def _airy_terms(r01, r12) -> tuple[np.ndarray, ...]:
+    """The thickness-free factors of the Airy sum at one polarisation, each shaped like r₀₁:
+    (ρ₁², ρ₂², conj(r₀₁) r₁₂ and r₀₁ r₁₂ as real and imaginary parts)."""
+    p = np.conj(r01) * r12
+    q = r01 * r12
+    return np.abs(r01) ** 2, np.abs(r12) ** 2, p.real, p.imag, q.real, q.imag
 
-    Algebraically the real form in the module docstring (expand the moduli); complex arithmetic
-    needs one exponential instead of two angles and two cosines, which is 3× faster in numpy.
+
+def _airy_intensity(terms, phasor) -> np.ndarray:
+    """Airy sum R = |r₀₁ + x|² / |1 + r₀₁ x|² with x = r₁₂ z, z = e^{2iδ}.
+
+    The module docstring's real form with the moduli expanded: |r₀₁ + x|² = ρ₁² + ρ₂²|z|² +
+    2 Re(r̄₀₁ r₁₂ z) and |1 + r₀₁ x|² = 1 + ρ₁²ρ₂²|z|² + 2 Re(r₀₁ r₁₂ z). The factors of r
+    (``terms``, :func:`_airy_terms`) do not depend on the thickness, so a sweep over T
+    thicknesses needs only z per element (``phasor``: its real and imaginary parts and |z|², None
+    for a lossless film, where |z| = 1; shared by both polarisations) and a few in-place
+    products: about 4× less than a complex exponential and two complex moduli.
     """
-    x = r12 * np.exp(2j * delta)
-    num = np.abs(r01 + x) ** 2
-    den = np.abs(1.0 + r01 * x) ** 2
+    rho1, rho2, pr, pi, qr, qi = terms
+    zr, zi, z2 = phasor
+    shape = np.broadcast_shapes(np.shape(zr), np.shape(pr))
+    num, den, tmp = np.empty(shape), np.empty(shape), np.empty(shape)
+    for out, re, im, one in ((num, pr, pi, rho1), (den, qr, qi, 1.0)):
+        np.multiply(zr, 2.0 * re, out=out)
+        np.multiply(zi, 2.0 * im, out=tmp)
+        out -= tmp
+        if z2 is None:
+            out += one + (rho2 if out is num else rho1 * rho2)
+        else:
+            np.multiply(z2, rho2 if out is num else rho1 * rho2, out=tmp)
+            out += tmp
+            out += one
+    num /= den
     # Passive media reflect at most what arrives; near ρ₁ = a = 1 (grazing, thick film) the
     # ratio of two nearly equal sums rounds up to ~1e-10 above 1, so clamp.
-    return np.clip(num / den, 0.0, 1.0)
+    return np.clip(num, 0.0, 1.0, out=num)
+
+
+#: Fewest evenly spaced thickness rows for which :func:`_phasor` steps the phase by recurrence.
+RECURRENCE_MIN_ROWS = 3
+
+
+def _phasor(twice_k, thickness) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """z = e^{i 2k d} for the round-trip wavenumber ``twice_k`` (2k = 4π q₁/λ, complex in an
+    absorbing or evanescent film) and ``thickness`` d, broadcast: (Re z, Im z, |z|² or None when
+    2k is real and |z| = 1).
+
+    A sweep's thickness column (T, 1, 1) of evenly spaced rows (a bake's thickness axis) is
+    stepped by the recurrence z(d₀ + (t+1)Δ) = z(d₀ + tΔ) · e^{i 2k Δ}: one complex product per
+    element instead of a complex exponential (a float64 cosine and sine cost ≈ 36 ns per element
+    in numpy without SIMD), with a rounding error that grows by ~1e-16 per row. Anything else is
+    evaluated directly.
+    """
+    k = np.asarray(twice_k, dtype=complex)
+    d = np.asarray(thickness, dtype=float)
+    rows = d.reshape(-1)
+    z = None
+    if d.ndim == 3 and d.shape[1:] == (1, 1) and rows.size >= RECURRENCE_MIN_ROWS:
+        step = np.diff(rows)
+        if np.all(np.abs(step - step[0]) <= 1e-12 * max(abs(rows).max(), 1.0)):
+            z = np.empty((rows.size,) + k.shape, dtype=complex)
+            z[0] = np.exp(1j * k * rows[0])
+            turn = np.exp(1j * k * step[0])
+            for t in range(1, rows.size):
+                np.multiply(z[t - 1], turn, out=z[t])
+    if z is None:
+        z = np.exp(1j * (k * d))
+    zr, zi = np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag)  # unit-stride products
+    lossless = not np.any(k.imag != 0.0)
+    return zr, zi, None if lossless else zr * zr + zi * zi
 
 
 def airy_film_reflectance(media, thickness, wavelengths_nm, cos_theta, polarization: str) -> np.ndarray:
@@ -44,13 +102,13 @@ def airy_film_reflectance(media, thickness, wavelengths_nm, cos_theta, polarizat
     q0 = n0.real * cos0 + 0j
     q1 = normal_wavenumber(n1, s2)
     q2 = normal_wavenumber(n2, s2)
-    delta = (2.0 * np.pi / wavelengths_nm) * q1 * np.asarray(thickness)
+    phasor = _phasor((4.0 * np.pi / wavelengths_nm) * q1, thickness)  # z = e^{2iδ}, δ = 2π q₁ d / λ
     pols = ("s", "p") if polarization == "unpolarized" else (polarization,)
     total = 0.0
     for pol in pols:
         r01 = interface_amplitudes(n0, n1, q0, q1, pol)
         r12 = interface_amplitudes(n1, n2, q1, q2, pol)
-        total = total + _airy_intensity(r01, r12, delta)
+        total = total + _airy_intensity(_airy_terms(r01, r12), phasor)
     return total / len(pols)
 
 

@@ -26,7 +26,9 @@ References
 
 from __future__ import annotations
 
-import math
+import collections
+import functools
+import threading
 
 import numpy as np
 
@@ -74,13 +76,22 @@ def cell_geometry(shape) -> tuple[np.ndarray, np.ndarray]:
     return n, v
 
 
-def _view_rotation(theta: float, l_max: int) -> np.ndarray:
-    """D(Ry(θ)ᵀ), (K, K): the SH rotation into the frame with rows (cos θ, 0, −sin θ), ŷ, (sin θ, 0,
-    cos θ) (a view-aligned frame relative to G)."""
-    c, s = math.cos(theta), math.sin(theta)
-    frame = np.array([[[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]])
+@functools.lru_cache(maxsize=8)
+def _view_rotations(count: int, l_max: int) -> np.ndarray:
+    """D(Ry(θo_j)ᵀ) at the grid's ``count`` view nodes, (T, K, K): the SH rotation into the frame
+    with rows (cos θ, 0, −sin θ), ŷ, (sin θ, 0, cos θ) (a view-aligned frame relative to G). They
+    depend on the node count and order alone, so every grid of that shape reuses them.
+    Read-only."""
     k = (l_max + 1) ** 2
-    return local_coefficients(np.eye(k), frame, l_max)[0]
+    theta = view_angles(count)
+    c, s = np.cos(theta), np.sin(theta)
+    zero, one = np.zeros_like(c), np.ones_like(c)
+    frames = np.stack(
+        [np.stack([c, zero, -s], -1), np.stack([zero, one, zero], -1), np.stack([s, zero, c], -1)], -2
+    )  # (T, 3, 3)
+    rotations = np.ascontiguousarray(local_coefficients(np.eye(k)[None], frames[:, None], l_max)[:, 0])
+    rotations.flags.writeable = False
+    return rotations
 
 
 def folded_table(result: bake.BakeResult, count: int) -> np.ndarray:
@@ -92,13 +103,48 @@ def folded_table(result: bake.BakeResult, count: int) -> np.ndarray:
     """
     l_max = result.sh_order
     kept = bake.coefficient_indices(l_max)
-    out = np.zeros(((l_max + 1) ** 2, int(count), 3, 3))
-    for j, theta in enumerate(view_angles(count)):
-        m = table_lookup(result.data[:1], np.array(math.cos(theta)))  # (K_kept, 3[, 3])
-        if m.ndim == 2:  # per channel → diagonal 3×3
-            m = m[..., :, None] * np.eye(3)
-        out[:, j] = np.einsum("ioc,iq->qoc", m, _view_rotation(theta, l_max)[kept])
-    return out
+    rotations = _view_rotations(int(count), l_max)[:, kept]  # (T, K_kept, K)
+    m = table_lookup(result.data[:1], np.cos(view_angles(count)))  # (T, K_kept, 3[, 3])
+    if m.ndim == 3:  # per channel → diagonal 3×3
+        m = m[..., :, None] * np.eye(3)
+    return np.einsum("jioc,jiq->qjoc", m, rotations)
+
+
+#: World parts of recent grids (:func:`_turned_world`), by the windowed SH's bytes and the shape.
+_TURNED: collections.OrderedDict = collections.OrderedDict()
+_TURNED_SIZE = 2
+_TURNED_LOCK = threading.Lock()
+
+
+def _turned_world(coeffs: np.ndarray, w: int, h: int, l_max: int) -> np.ndarray:
+    """B per mirror direction, (H·W, 3K) float32: the windowed World SH turned by
+    X(−90°) Z(−θ_r) X(+90°) Z(−φ_r) for every (θ_r, φ_r) cell (:func:`build`'s first factor).
+
+    It depends on the World (its content and the film's window) and not on the film, so a
+    thickness or IOR edit of a film under the same World reuses it: kept for the last
+    :data:`_TURNED_SIZE` Worlds (8–14 MiB each at l = 12). Read-only.
+    """
+    k = (l_max + 1) ** 2
+    key = (np.ascontiguousarray(coeffs[:k, :3]).tobytes(), w, h, l_max)
+    with _TURNED_LOCK:
+        found = _TURNED.get(key)
+        if found is not None:
+            _TURNED.move_to_end(key)
+            return found
+    phi = 2.0 * np.pi * (0.5 - (np.arange(w) + 0.5) / w)
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    turned = rotate_z_batch(np.broadcast_to(coeffs[:k, :3], (w, k, 3)), np.cos(-phi), np.sin(-phi), l_max)
+    turned = apply_bands(x_rotation_bands(l_max, +1), turned)
+    turned = np.broadcast_to(turned, (h, w, k, 3))
+    turned = rotate_z_batch(turned, np.cos(-theta)[:, None], np.sin(-theta)[:, None], l_max)
+    turned = apply_bands(x_rotation_bands(l_max, -1), turned)  # (H, W, K, 3): B per mirror direction
+    turned = np.ascontiguousarray(turned.reshape(h * w, k * 3), dtype=np.float32)
+    turned.flags.writeable = False
+    with _TURNED_LOCK:
+        _TURNED[key] = turned
+        while len(_TURNED) > _TURNED_SIZE:
+            _TURNED.popitem(last=False)
+    return turned
 
 
 def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
@@ -109,9 +155,11 @@ def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
 
     Separable: a cell's frame Gᵀ = Rz(−ψ) Ry(−θ_r) Rz(−φ_r), so D(Gᵀ) = Z(−ψ) X(−90°) Z(−θ_r)
     X(+90°) Z(−φ_r) (:mod:`.sh_rotation`). The SH is turned for the W columns, then for the H·W
-    mirror directions; Z(−ψ) moves into the folded table (Σ_q (Z B)_q E_q = Σ_q B_q (Zᵀ E)_q,
-    Zᵀ = Z(+ψ)), so the grid is one (H·W, 3K) × (3K, Ψ·T·3) product: ≈ 0.9 G multiply-adds at
-    l = 12, against a general rotation per cell (H·W·Ψ of them) before.
+    mirror directions (:func:`_turned_world`, kept per World); Z(−ψ) moves into the folded table
+    (Σ_q (Z B)_q E_q = Σ_q B_q (Zᵀ E)_q, Zᵀ = Z(+ψ)), so the grid is, per output channel, one
+    (Ψ·T, 3K) × (3K, H·W) float32 product written straight into the texture's layout: ≈ 0.9 G
+    multiply-adds at l = 12 in all (float32 sums of 3K terms: ~1e-7 of the peak, below the
+    texture's own rounding).
     """
     w, h, t, p = _check_shape(grid_shape(result.data.shape[1]) if shape is None else shape)
     l_max = result.sh_order
@@ -119,20 +167,17 @@ def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
     coeffs = np.asarray(world_coeffs, dtype=float)
     if coeffs.ndim != 2 or coeffs.shape[0] < k or coeffs.shape[1] < 3:
         raise ValueError(f"world_coeffs must be (≥ {k}, 3) for l_max {l_max}, got {coeffs.shape}")
-    phi = 2.0 * np.pi * (0.5 - (np.arange(w) + 0.5) / w)
-    theta = np.pi * (np.arange(h) + 0.5) / h
+    turned = _turned_world(coeffs, w, h, l_max)  # (H·W, 3K)
     psi = 2.0 * np.pi * np.arange(p) / p
-    turned = rotate_z_batch(np.broadcast_to(coeffs[:k, :3], (w, k, 3)), np.cos(-phi), np.sin(-phi), l_max)
-    turned = apply_bands(x_rotation_bands(l_max, +1), turned)
-    turned = np.broadcast_to(turned, (h, w, k, 3))
-    turned = rotate_z_batch(turned, np.cos(-theta)[:, None], np.sin(-theta)[:, None], l_max)
-    turned = apply_bands(x_rotation_bands(l_max, -1), turned)  # (H, W, K, 3): B per mirror direction
     folded = folded_table(result, t).reshape(k, t * 9)  # E[q, (j, o, c)]
     by_psi = rotate_z_batch(np.broadcast_to(folded, (p, k, t * 9)), np.cos(psi), np.sin(psi), l_max)
-    table = by_psi.reshape(p, k, t, 3, 3).transpose(1, 4, 0, 2, 3).reshape(k * 3, p * t * 3)
-    out = turned.reshape(h * w, k * 3) @ table  # (H·W, Ψ·T·3)
-    grid = np.maximum(out, 0.0).reshape(h, w, p, t, 3).transpose(3, 2, 0, 1, 4)  # (T, Ψ, H, W, 3)
-    return np.ascontiguousarray(grid.reshape(t * p, h, w, 3), dtype=np.float32)
+    by_psi = by_psi.reshape(p, k, t, 3, 3)  # [k, q, j, o, c]
+    grid = np.empty((t * p, h * w, 3), dtype=np.float32)
+    for o in range(3):  # rows (j, k), columns (q, c): the layer order j·Ψ + k
+        table = by_psi[..., o, :].transpose(2, 0, 1, 3).reshape(t * p, k * 3)
+        grid[:, :, o] = np.ascontiguousarray(table, np.float32) @ turned.T
+    np.maximum(grid, 0.0, out=grid)
+    return grid.reshape(t * p, h, w, 3)
 
 
 def coordinates(normals, views, shape) -> tuple[np.ndarray, ...]:
