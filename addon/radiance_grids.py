@@ -39,6 +39,11 @@ log = logging.getLogger(__name__)
 GRID_CACHE_SIZE = 8
 #: Requests waiting for the worker; older ones are dropped (the newest is built first).
 QUEUE_SIZE = 4
+#: The end of an integrated grid's key (:func:`lobe_build`): 15–100 s, so built after SH grids.
+LOBE_SUFFIX = "|lobe"
+#: Seconds between the timer's looks while grids are built: a grid takes 0.05–0.3 s, so a
+#: 0.1 s poll added up to a third to the edit's wait; a look that finds nothing costs µs.
+POLL_S = 0.01
 
 
 class _Grids:
@@ -50,6 +55,7 @@ class _Grids:
         self.queue: dict = {}  # key → a call that builds the grid, oldest first
         self.built: dict = {}  # key → grid array, waiting for its upload
         self.running: str | None = None
+        self.inline: set = set()  # keys a bake's worker is building (:func:`prebuild`)
         self.finished = threading.Event()
         self.worker: threading.Thread | None = None
 
@@ -67,7 +73,7 @@ GRIDS = caches.register("radiance_grids", _Grids(), scope=caches.FILE)
 def busy() -> bool:
     """Whether grids are being built or wait for the worker."""
     with GRIDS.lock:
-        return bool(GRIDS.queue) or GRIDS.running is not None
+        return bool(GRIDS.queue) or GRIDS.running is not None or bool(GRIDS.inline)
 
 
 def activity() -> str:
@@ -83,7 +89,8 @@ def _work() -> None:
             if not GRIDS.queue:
                 GRIDS.worker = None
                 return
-            key = next(reversed(GRIDS.queue))  # the newest request first
+            keys = list(GRIDS.queue)  # the newest request first; SH grids before integrated ones
+            key = ([k for k in keys if not k.endswith(LOBE_SUFFIX)] or keys)[-1]
             build = GRIDS.queue.pop(key)
             GRIDS.running = key
         try:
@@ -105,12 +112,12 @@ def _poll() -> float | None:
     if GRIDS.finished.is_set():
         GRIDS.finished.clear()
         _tag_redraw()
-    return 0.1 if busy() or GRIDS.finished.is_set() else None
+    return POLL_S if busy() or GRIDS.finished.is_set() else None
 
 
 def _request(key: str, build) -> None:
     with GRIDS.lock:
-        if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built:
+        if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built or key in GRIDS.inline:
             return
         GRIDS.queue[key] = build
         while len(GRIDS.queue) > QUEUE_SIZE:
@@ -119,7 +126,55 @@ def _request(key: str, build) -> None:
             GRIDS.worker = threading.Thread(target=_work, name="tf-radiance-grid", daemon=True)
             GRIDS.worker.start()
     if not bpy.app.timers.is_registered(_poll):
-        bpy.app.timers.register(_poll, first_interval=0.1)
+        bpy.app.timers.register(_poll, first_interval=POLL_S)
+
+
+def prebuild(key: str, build) -> bool:
+    """Build the grid of ``key`` here, on the calling worker thread (a bake's, :func:`chain`),
+    and leave it for the next draw's upload, unless it is uploaded, built, queued or being built
+    already. True when it was built here."""
+    with GRIDS.lock:
+        if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built or key in GRIDS.inline:
+            return False
+        if key in GRIDS.textures:
+            return False
+        GRIDS.inline.add(key)
+    try:
+        grid = build()
+    finally:
+        with GRIDS.lock:
+            GRIDS.inline.discard(key)
+    with GRIDS.lock:
+        GRIDS.built[key] = grid
+        while len(GRIDS.built) > QUEUE_SIZE:
+            GRIDS.built.pop(next(iter(GRIDS.built)))
+    return True
+
+
+def chain(previous, lighting):
+    """The call a bake's worker makes after the table of a material that was last drawn as
+    ``previous`` (a ``scene_draw`` entry, or None) under ``lighting`` (a ``WorldLighting``):
+    ``then(desc_key, desc, result)`` builds the new table's SH grid (:func:`prebuild`) when the
+    material read a grid and its new table still does; None when it read none. The SH grid is
+    also the stand-in an integrated grid is drawn with while it builds."""
+    if previous is None or not previous.grid_wanted or lighting is None:
+        return None
+    source, coeffs = lighting.grid_source(previous.lamps)
+    coeffs = np.array(coeffs, dtype=np.float64)
+
+    def then(desc_key: str, desc, result) -> None:
+        if applies(desc, result, lighting):
+            l_max, roughness = int(result.sh_order), float(desc.roughness)
+            build = sh_build(result, policy.windowed_lighting(coeffs, l_max, roughness))
+            prebuild(sh_key(desc_key, source, l_max, roughness), build)
+
+    return then
+
+
+def sh_key(desc_key: str, source: str, l_max: int, roughness: float) -> str:
+    """The key of a film's SH grid: its description, the World content it is built from, its
+    order and roughness (the window)."""
+    return f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}"
 
 
 def sh_build(result, coeffs):
@@ -185,16 +240,25 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
     source, coeffs = lighting.grid_source(lamps)
     l_max, roughness = int(result.sh_order), float(desc.roughness)
     env = lighting.environment
+    windowed = policy.windowed_lighting(coeffs, l_max, roughness)
     if film is not None and env is not None:
         mask = env.lamp_mask if lamps and env.lamps is not None else None
         build = lobe_build(film, roughness, env.panorama, policy.LOBE_GRID_VIEWS, mask)
-        found = grid_for(f"{desc_key}|{source}|{round(roughness, 6)}|lobe", build, wait=wait)
-        if found is not None or wait:
-            return found, True
-        # it takes 15–100 s: meanwhile the SH grid (under a second, asked for after it, so
-        # built first) stands in, better than the per-pixel variant's stand-in
-    build = sh_build(result, policy.windowed_lighting(coeffs, l_max, roughness))
-    return grid_for(f"{desc_key}|{source}|{l_max}|{round(roughness, 6)}", build, wait=wait), False
+        key = f"{desc_key}|{source}|{round(roughness, 6)}{LOBE_SUFFIX}"
+        if wait or _ready(key):
+            return grid_for(key, build, wait=wait), True
+        # it takes 15–100 s: meanwhile the SH grid (under a second, asked for first, and the
+        # worker builds SH grids first) stands in, better than the per-pixel variant's stand-in
+        stand_in = grid_for(sh_key(desc_key, source, l_max, roughness), sh_build(result, windowed))
+        _request(key, build)
+        return stand_in, False
+    return grid_for(sh_key(desc_key, source, l_max, roughness), sh_build(result, windowed), wait=wait), False
+
+
+def _ready(key: str) -> bool:
+    """Whether the grid of ``key`` is uploaded or built (waiting for its upload)."""
+    with GRIDS.lock:
+        return key in GRIDS.textures or key in GRIDS.built
 
 
 def applies(desc, result, lighting) -> bool:

@@ -43,8 +43,19 @@ import numpy as np
 from ..precompute import cli_support
 from ..precompute.material import FALLBACK
 from ..precompute.shading import policy
-from . import caches, description, linked, radiance_grids, tables, transparency, world, world_analysis
+from . import (
+    bake_asks,
+    caches,
+    description,
+    linked,
+    radiance_grids,
+    tables,
+    transparency,
+    world,
+    world_analysis,
+)
 from . import lights as scene_lights
+from .bake_asks import material_identity
 from .gpu import draw, resources, shaders
 from .gpu.mesh import MeshBatch, mesh_arrays
 from .principled import linked_thickness_socket
@@ -499,12 +510,6 @@ def _thickness_source(bpy_material, props, desc):
     return ("LINKED", linked.tree_key(socket), desc.thickness_range_nm), (bpy_material, socket)
 
 
-def material_identity(bpy_material):
-    """What the draw keys a material's previous entry and its viewport bake by: its
-    ``session_uid`` (stable across renames and edits, unlike the description key)."""
-    return getattr(bpy_material, "session_uid", None) or bpy_material.as_pointer()
-
-
 def _material_entry(
     bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None, lights=False
 ):
@@ -552,7 +557,8 @@ def _material_entry(
             return None
         if result is None:
             if want_bake is not None:
-                want_bake(desc, owner=owner, film=_needs_film(bpy_material, desc, lighting, lights))
+                film = _needs_film(bpy_material, desc, lighting, lights)
+                bake_asks.ask(want_bake, desc, owner, CACHES.previous.get(owner), lighting, film)
             return _previous_entry(owner, lighting)
     problem = tables.CACHE_ERRORS.get(key)  # tables.cache_error
     if problem is not None:

@@ -27,6 +27,7 @@ read it.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import threading
 from dataclasses import dataclass
@@ -164,9 +165,9 @@ def peek_film(desc_key: str):
 
 def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     """The film table of ``desc`` (its baked table ``result``): from :data:`FILMS`, else
-    computed (:func:`precompute.film_colour.film_table`, ≈ 0.1–0.5 s warm) and kept. Without
-    ``result`` it is computed from ``desc`` alone (:func:`~precompute.film_colour.film_table_of`:
-    the viewport's worker runs it beside the bake).
+    computed (:func:`precompute.film_colour.film_table`: ≈ 10 ms from a fresh bake's reflectance
+    at its u nodes, 20–50 ms by a sweep for a table read from disk) and kept. Without ``result``
+    it is computed from ``desc`` alone (:func:`~precompute.film_colour.film_table_of`).
 
     ``progress(fraction, text)`` is called at the computation's checkpoints (fraction 1: the
     table is done) and may raise to cancel it; nothing is kept then. Thread-safe: the viewport
@@ -250,7 +251,9 @@ def get_table_with_source(
     result = bake.bake(desc, progress)
     with _count_lock:
         bake_count += 1
-    MEMORY[key] = result  # kept (and drawn) whatever happens to the disk copy
+    # kept (and drawn) whatever happens to the disk copy; without the reflectance at the u nodes
+    # (up to 4.5 MiB), which only the caller's film table reads (film_colour.film_table)
+    MEMORY[key] = dataclasses.replace(result, node_reflectance=None)
     FAILURES.pop(key)
     if store:
         _store(key, result, cache, problem)

@@ -42,7 +42,18 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import caches, display, linked, prefs, radiance_grids, scene_draw, shader_warmup, tables, world_job
+from . import (
+    bake_asks,
+    caches,
+    display,
+    linked,
+    prefs,
+    radiance_grids,
+    scene_draw,
+    shader_warmup,
+    tables,
+    world_job,
+)
 from .description import description_key
 from .gpu.draw import draw_items
 from .redraw import tag_view3d as _tag_redraw
@@ -63,6 +74,9 @@ class _Job:
     film: bool = False
     cancel: threading.Event = field(default_factory=threading.Event)
     progress: float = 0.0
+    #: Run on the worker after the table (and film table): ``then(key, desc, result)``, the
+    #: material's grid (:func:`.radiance_grids.chain`), so the bake's one redraw shows both.
+    then: object = None
 
 
 _pending: dict[object, _Job] = {}  # material identity → the newest bake it wants
@@ -75,6 +89,10 @@ _messages: list[str] = []
 #: 3D viewports (``SpaceView3D.as_pointer()``) whose overlay is switched off (see :mod:`.caches`).
 HIDDEN_IN: set = caches.register("hidden_viewports", set(), scope=caches.FILE)
 _finished = threading.Event()  # a worker ended since the timer's last tick: redraw
+_drawn = threading.Event()  # a viewport drew films since the file was opened: bake ahead on edits
+#: Seconds between the timer's looks while bakes run: a warm bake takes 0.01–0.1 s, so the
+#: 0.1 s poll it had added up to 0.1 s to an edit's wait; a look that finds nothing costs µs.
+POLL_S = 0.01
 
 
 class BakesCancelled(Exception):
@@ -137,11 +155,11 @@ def _tag_header() -> None:
                         region.tag_redraw()
 
 
-def _want_bake(desc, owner=None, film: bool = False) -> None:
+def _want_bake(desc, owner=None, film: bool = False, then=None) -> None:
     """Queue a bake of ``desc`` for the material ``owner`` (None: the description itself), with
-    its film table if ``film``, unless its last bake failed. One bake per owner: a newer
-    description replaces the queued one, and a running bake that no owner wants any more is
-    cancelled at its next progress checkpoint."""
+    its film table if ``film`` and ``then`` run after it (:attr:`_Job.then`), unless its last
+    bake failed. One bake per owner: a newer description replaces the queued one, and a running
+    bake that no owner wants any more is cancelled at its next progress checkpoint."""
     key = description_key(desc)
     if key in tables.FAILURES:
         return  # backs off until the description (so its key) changes
@@ -151,10 +169,12 @@ def _want_bake(desc, owner=None, film: bool = False) -> None:
         running = _running.get(key)
         if running is not None and (running.film or not film):
             _pending.pop(owner, None)  # the running bake makes what this owner wants
+            running.then = running.then or then  # read by its worker after the table
         else:
             queued = _pending.get(owner)
-            film = film or (queued is not None and queued.key == key and queued.film)
-            _pending[owner] = _Job(key, desc, film)
+            same = queued is not None and queued.key == key
+            film = film or (same and queued.film)
+            _pending[owner] = _Job(key, desc, film, then=then or (queued.then if same else None))
         wanted = set(_wanted.values())
         for job in _running.values():
             if job.key not in wanted:
@@ -168,15 +188,13 @@ def _bake_worker(job: _Job, cache) -> None:
         job.progress = float(fraction)
 
     baked = None
-    film = _FilmBeside(job) if job.film and tables.peek_film(job.key) is None else None
     try:
         report(0.0, "")  # superseded before it started: stops here
         result, source = tables.get_table_with_source(job.desc, cache, report, store=False)
         baked = result if source == "bake" else None
-        if film is not None:
-            film.join()
-        elif job.film:
+        if job.film:  # from the fresh bake's reflectance at its nodes: no second sweep
             tables.get_film(job.desc, result, report)
+        _then(job, result)
     except BakesCancelled:
         pass
     except Exception as exc:  # reported, never raised into Blender's timer
@@ -195,39 +213,26 @@ def _bake_worker(job: _Job, cache) -> None:
             _finished.set()  # a redraw shows why the table was not saved
 
 
-class _FilmBeside:
-    """A bake's film table computed on a second thread while the bake runs (it needs the
-    material alone, :func:`precompute.film_colour.film_table_of`): on two cores the edit's frame
-    waits for the longer of the two, not their sum. :meth:`join` re-raises its error."""
-
-    def __init__(self, job: _Job):
-        self.job = job
-        self.error: BaseException | None = None
-        self.thread = threading.Thread(target=self._run, name="tf-film-table", daemon=True)
-        self.thread.start()
-
-    def _check(self, fraction, text) -> None:
-        if self.job.cancel.is_set():
-            raise BakesCancelled
-
-    def _run(self) -> None:
-        try:
-            tables.get_film(self.job.desc, None, self._check)
-        except BaseException as exc:  # handed to the bake's worker by join()
-            self.error = exc
-
-    def join(self) -> None:
-        """Wait for the film table; raise what computing it raised."""
-        self.thread.join()
-        if self.error is not None:
-            raise self.error
+def _then(job: _Job, result) -> None:
+    """Run the job's follow-up (its grid) unless it was superseded; its failure is logged and
+    leaves the table (the draw asks for the grid again)."""
+    if job.then is None or job.cancel.is_set():
+        return
+    try:
+        job.then(job.key, job.desc, result)
+    except Exception as exc:  # the table is good; the draw asks for the grid the usual way
+        log.error("Thin Film SH: radiance grid after the bake failed: %s", exc)
 
 
 def _start_jobs() -> list[_Job]:
     """Move the queued bakes that can start now to :data:`_running`; a description already
-    being baked waits (unless that bake makes what it wants: then it is dropped)."""
+    being baked waits (unless that bake makes what it wants: then it is dropped). Nothing starts
+    while a superseded bake is still stopping (it ends at its next checkpoint, tens of ms): on
+    two cores a slider drag's newest bake would otherwise share them with every older one."""
     jobs = []
     with _lock:
+        if any(job.cancel.is_set() for job in _running.values()):
+            return jobs
         for owner, job in list(_pending.items()):
             running = _running.get(job.key)
             if running is not None:
@@ -242,13 +247,20 @@ def _start_jobs() -> list[_Job]:
     return jobs
 
 
+def _start_queued() -> list[_Job]:
+    """Start the queued bakes that can start now, each on its thread (main thread: the cache
+    folder comes from the preferences)."""
+    jobs = _start_jobs()
+    cache = tables.open_cache() if jobs else None
+    for job in jobs:
+        threading.Thread(target=_bake_worker, args=(job, cache), daemon=True).start()
+    return jobs
+
+
 def _service() -> float | None:
     """Timer: start queued bakes on threads, refresh the World, ask for a redraw when done."""
     global _world_stale
-    jobs = _start_jobs()
-    cache = tables.open_cache() if jobs else None  # here: it reads the preferences
-    for job in jobs:
-        threading.Thread(target=_bake_worker, args=(job, cache), daemon=True).start()
+    jobs = _start_queued()
     baked = linked.has_pending()
     if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw
         for error in linked.run_pending():
@@ -266,8 +278,9 @@ def _service() -> float | None:
         _tag_redraw()
     elif jobs or _running:
         _tag_header()  # progress only
-    busy = _running or _pending or _finished.is_set() or world_job.busy() or display.baking()
-    return 0.1 if busy else None
+    if _running or _pending or _finished.is_set():
+        return POLL_S  # a bake ends within ~0.05–0.3 s: looked for often, at µs a look
+    return 0.1 if world_job.busy() or display.baking() else None
 
 
 def _schedule() -> None:
@@ -306,6 +319,7 @@ def draw_callback() -> None:
         if linked.has_pending():
             messages.append("a linked Thin Film Thickness is being baked with Cycles")
         _messages[:] = messages
+        _drawn.set()
         if _pending or linked.has_pending() or world_job.busy():  # collect may ask for a prefilter
             _schedule()
         settings = display.settings_of(depsgraph.scene)
@@ -362,11 +376,21 @@ def draw_overlay_toggle(self, context) -> None:
 def _on_load(*_args) -> None:
     caches.clear(file_load=True)
     _messages.clear()
+    _drawn.clear()
 
 
 @bpy.app.handlers.persistent
 def _on_depsgraph(scene, depsgraph) -> None:
     scene_draw.on_depsgraph_update(scene, depsgraph)
+    if not _drawn.is_set():
+        return  # no viewport draws films: nothing to bake ahead for
+    try:  # an edited material's bake starts now, while its first redraw shows the old table
+        drawn = scene_draw.CACHES
+        if bake_asks.ask_changed(depsgraph, _want_bake, drawn.previous, drawn.world):
+            _start_queued()
+            _schedule()  # the timer starts what waits for a superseded bake, and redraws
+    except Exception as exc:  # a handler must never raise; the draw asks for the bake anyway
+        log.error("Thin Film SH: early bake failed: %s", exc)
 
 
 def register() -> None:

@@ -12,7 +12,8 @@ open one, as opening it would) and loaded into the factory start-up's 3D viewpor
 cache is a private, empty folder, so the first open is cold. The event loop (:class:`Loop`):
 
 - an edit changes a property, as the UI does, and tags the 3D view for a redraw;
-- a tagged view is redrawn: Blender's depsgraph update (not ours, not timed), then the real
+- a tagged view is redrawn: Blender's depsgraph update (its ``depsgraph_update_post`` handler
+  is ours, timed as a block: it starts an edited material's bake), then the real
   ``viewport.draw_callback`` with its ``draw_items`` drawing the items off-screen (RGBA32F, the
   scene camera's view, 96×72);
 - each registered ``bpy.app.timers`` callback of the add-on (``viewport._service``, the shader
@@ -197,6 +198,11 @@ class Loop:
         if hasattr(vp, "_tag_header"):  # the header alone (progress): the 3D view is not redrawn
             vp._tag_header = lambda: None
         vp.draw_items = self._draw_items
+        handlers = self.bpy.app.handlers.depsgraph_update_post
+        for i, fn in enumerate(handlers):  # ours runs inside Blender's depsgraph update: timed as ours
+            fn = getattr(fn, "__wrapped__", fn)  # an earlier Loop's wrapper
+            if fn is getattr(vp, "_on_depsgraph", None):
+                handlers[i] = self._timed_handler(fn)
         for cls, name in (
             (res.TableTexture, "from_result"),
             (res.FilmTexture, "from_film"),
@@ -218,6 +224,18 @@ class Loop:
                     self.trace.uploads.append(spent)
 
         return upload
+
+    def _timed_handler(self, fn):
+        def handler(scene, depsgraph):
+            start = time.perf_counter()
+            try:
+                fn(scene, depsgraph)
+            finally:
+                if self.trace is not None:
+                    self.trace.blocks.append(("depsgraph", time.perf_counter() - start))
+
+        handler.__wrapped__ = fn
+        return self.bpy.app.handlers.persistent(handler)  # survives the file loads, as ours
 
     def _tag(self) -> None:
         self.tagged = True

@@ -64,6 +64,9 @@ from .sh_order import TRUNCATION_VIEWS_DEG, auto_sh_order, lobe_truncation_error
 
 #: Nodes per interval tried in turn until the interpolation error meets U_TOLERANCE.
 U_DEGREE_LADDER = (6, 8, 12, 16, 24, 32, 48, 64)
+#: The ladder's rungs probed together (one reflectance evaluation per group, ~5 ms of fixed cost
+#: each): most films stop in the first group, thick ones in the second.
+U_PROBE_GROUPS = ((6, 8, 12, 16), (24,), (32,), (48, 64))
 #: Max |R_interp − R| at test points relative to max R; keeps the factorisation error ≪ 1e-5.
 U_TOLERANCE = 1e-6
 #: Test points skip u < 0.0125 (half-vectors within 0.7° of grazing): the first interval's
@@ -121,6 +124,13 @@ def auto_view_samples(material: Material) -> tuple[int, str]:
     return count, f"roughness {r:g} → {count} view angles"
 
 
+def _test_points(degree: int) -> np.ndarray:
+    """Where a rung's interpolation is checked: the Chebyshev points of one degree more, from
+    ``U_TEST_MIN`` on."""
+    test = u_nodes(degree + 1)
+    return test[test >= U_TEST_MIN]
+
+
 def choose_u_degree(
     indices, thickness_sets, wavelengths_nm, method: str, evaluate=None, tolerance=U_TOLERANCE
 ):
@@ -130,7 +140,8 @@ def choose_u_degree(
     test points interleaved with the nodes (the Chebyshev points of one degree more), for
     u ≥ ``U_TEST_MIN``; then R is evaluated at the chosen nodes for every row, once.
     The search always starts at the bottom of the ladder (a probe step costs 4 rows only), so a
-    material's table never depends on what was baked before it.
+    material's table never depends on what was baked before it; the rungs of a group of
+    ``U_PROBE_GROUPS`` are evaluated in one sweep and checked in ladder order.
     ``evaluate(thickness_sets, u)`` → (T, U, C) replaces the spectral reflectance (e.g. the film
     per colour channel, :func:`channel_film`).
     Returns (degree, measured relative error, R at the nodes (T, U, W or C)).
@@ -143,19 +154,19 @@ def choose_u_degree(
     rows = np.unique(np.linspace(0, thickness_sets.shape[0] - 1, 4).round().astype(int))
     probe = thickness_sets[rows]
     err = math.inf
-    degree = U_DEGREE_LADDER[-1]
-    for candidate in U_DEGREE_LADDER:
-        nodes = u_nodes(candidate)
-        test = u_nodes(candidate + 1)
-        test = test[test >= U_TEST_MIN]
-        both = evaluate(probe, np.concatenate([nodes, test]))
-        at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
-        interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
-        err = float(np.max(np.abs(interp - exact))) / max(float(np.abs(exact).max()), 1e-6)
-        if err <= tolerance:
-            degree = candidate
-            break
-    return degree, err, evaluate(thickness_sets, u_nodes(degree))
+    for group in U_PROBE_GROUPS:  # one evaluation per group of rungs: its fixed cost paid once
+        points = [(u_nodes(c), _test_points(c)) for c in group]
+        values = evaluate(probe, np.concatenate([np.concatenate(pair) for pair in points]))
+        start = 0
+        for candidate, (nodes, test) in zip(group, points, strict=True):
+            both = values[:, start : start + nodes.size + test.size]
+            start += nodes.size + test.size
+            at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
+            interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
+            err = float(np.max(np.abs(interp - exact))) / max(float(np.abs(exact).max()), 1e-6)
+            if err <= tolerance:
+                return candidate, err, evaluate(thickness_sets, u_nodes(candidate))
+    return U_DEGREE_LADDER[-1], err, evaluate(thickness_sets, u_nodes(U_DEGREE_LADDER[-1]))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -180,6 +191,10 @@ class BakeResult:
     u_nodes: int
     reasons: dict = field(default_factory=dict)
     timings_s: dict = field(default_factory=dict)
+    #: The spectral reflectance R (T, U, W) at the bake's u nodes, kept by a fresh spectral bake
+    #: so its film table is interpolated from it (:func:`.film_colour.film_table`) instead of a
+    #: second sweep; None for a table read from a file and in the per-channel mode. Not saved.
+    node_reflectance: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def attributes(self) -> dict:
         """Everything that describes the table, for the EXR header."""
@@ -602,4 +617,5 @@ def bake(material: Material, progress=None) -> BakeResult:
         u_nodes=u_count,
         reasons=reasons,
         timings_s={"reflectance": t2 - t1, "kernel": t3 - t2, "contract": t4 - t3, "total": t4 - t0},
+        node_reflectance=r_nodes,
     )

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import bake, brdf, constants, film_channels
 from .chunks import chunked_sweep
+from .kernel import u_interpolation_matrix
 from .optics import reflectance
 from .progress import checkpoint
 
@@ -103,13 +104,39 @@ class FilmTable:
 def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
     """The film reflectance of a :class:`bake.BakeResult` 's material at its thickness rows.
 
-    Vectorised over the rows: one reflectance sweep for every thickness (:func:`_film_rows`)
-    and one albedo integral's geometry shared by every row's multiple-scattering factor
-    (:func:`_multiscatter`). Equal to the per-row :func:`film_rgb_matrices` and
-    :func:`brdf.directional_albedo` to float rounding (tests/test_live.py). The viewport
-    computes it on the bake's worker (:func:`addon.tables.get_film`), never in a draw.
+    A fresh spectral bake keeps its reflectance at its u nodes (``node_reflectance``): the table
+    is then interpolated from it (:func:`_interpolated_rows`, the bake's own piecewise-Chebyshev
+    interpolation, within its tolerance of 1e-6 relative above u = 0.0125), with no second
+    sweep: half the warm work of a thickness or IOR edit. Otherwise one reflectance sweep for
+    every thickness (:func:`_film_rows`). Either way one albedo integral's geometry is shared
+    by every row's multiple-scattering factor (:func:`_multiscatter`). Equal to the per-row
+    :func:`film_rgb_matrices` and :func:`brdf.directional_albedo` to float rounding (swept) or
+    the interpolation's tolerance (tests/test_live.py). The viewport computes it on the bake's
+    worker (:func:`addon.tables.get_film`), never in a draw.
     """
-    return _film_table(result.material, result.thicknesses_nm, np.asarray(result.data).ndim == 5, samples)
+    spectral = np.asarray(result.data).ndim == 5
+    nodes = getattr(result, "node_reflectance", None)
+    if nodes is None or not spectral:
+        return _film_table(result.material, result.thicknesses_nm, spectral, samples)
+    u = np.linspace(0.0, 1.0, int(samples))
+    rg = _interpolated_rows(result.material, nodes, result.u_nodes, u)
+    thicknesses = np.atleast_1d(np.asarray(result.thicknesses_nm, dtype=float))
+    ms = _multiscatter(result.material, u, rg)
+    return FilmTable(np.ascontiguousarray(rg), np.ascontiguousarray(ms), thicknesses)
+
+
+def _interpolated_rows(material, nodes: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
+    """RG(u) (T, U, 3, 3) from the spectral reflectance at a bake's u nodes (T, N, W), read at
+    ``u`` with the bake's piecewise-Chebyshev interpolation of ``degree`` nodes per interval."""
+    p = bake.plan(material)
+    _wl, g = bake.spectral_quadrature(
+        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
+    )
+    t, n, w = nodes.shape
+    weights = u_interpolation_matrix(int(degree), u)  # (U, N): one product for every row
+    r = (weights @ nodes.transpose(1, 0, 2).reshape(n, t * w)).reshape(u.size, t, w).transpose(1, 0, 2)
+    rgb = (r.reshape(-1, r.shape[-1]) @ g.reshape(g.shape[0], -1)).reshape(r.shape[:2] + g.shape[1:])
+    return bake.clamp_film_rgb(rgb, material.colour_mode)
 
 
 def film_table_of(material, samples: int = FILM_SAMPLES) -> FilmTable:

@@ -283,3 +283,38 @@ def test_presets_round_trip_through_dicts():
         preset("chrome")
     with pytest.raises(ValueError, match="unknown material parameters"):
         Material.from_dict({"colour": 1})
+
+
+@pytest.mark.parametrize("top_nm", [1010.0, 1100.0])
+def test_the_u_degree_is_the_lowest_rung_that_meets_the_tolerance(top_nm):
+    """choose_u_degree probes the ladder's rungs in groups (one sweep per group): the degree
+    must still be the lowest rung whose interpolation error, measured on its own, meets
+    U_TOLERANCE, and R at its nodes the sweep's own."""
+    from precompute.chunks import chunked_sweep
+    from precompute.kernel import u_interpolation_matrix, u_nodes
+
+    assert sum(bake.U_PROBE_GROUPS, ()) == bake.U_DEGREE_LADDER
+    material = bake.table_material(PRESETS["soap_film"].with_(thickness_range_nm=(0.0, top_nm)))
+    p = bake.plan(material)
+    wl, _g = bake.spectral_quadrature(
+        p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
+    )
+    indices, sets, _axis = bake.active_stack(material, p.thickness_samples)
+    degree, err, at_nodes = bake.choose_u_degree(indices, sets, wl, "exact")
+    probe = sets[np.unique(np.linspace(0, sets.shape[0] - 1, 4).round().astype(int))]
+    errors = {}
+    for rung in bake.U_DEGREE_LADDER[: bake.U_DEGREE_LADDER.index(degree) + 1]:
+        nodes, test = u_nodes(rung), bake._test_points(rung)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            values, exact = (
+                chunked_sweep(indices, probe, wl, nodes, "exact"),
+                chunked_sweep(indices, probe, wl, test, "exact"),
+            )
+        interp = np.matmul(u_interpolation_matrix(rung, test), values)
+        errors[rung] = float(np.max(np.abs(interp - exact))) / max(float(np.abs(exact).max()), 1e-6)
+    assert errors[degree] <= bake.U_TOLERANCE and errors[degree] == pytest.approx(err, rel=1e-9)
+    assert all(e > bake.U_TOLERANCE for rung, e in errors.items() if rung < degree), errors
+    assert degree > bake.U_DEGREE_LADDER[0]  # the check can fail: a lower rung was tried and refused
+    with np.errstate(invalid="ignore", divide="ignore"):
+        swept = chunked_sweep(indices, sets, wl, u_nodes(degree), "exact")
+    np.testing.assert_allclose(at_nodes, swept, atol=1e-14)

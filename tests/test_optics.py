@@ -162,6 +162,27 @@ def test_sweep_matches_per_thickness_calls():
         assert np.max(np.abs(swept[t] - reflectance([1.0, 2.0, 1.4, 1.5 + 0.1j], row, wl, cos))) <= 1e-14
 
 
+@pytest.mark.parametrize(
+    "indices",
+    [[1.0, 1.33, 1.0], [1.0, 2.6 + 0.3j, 2.9 + 3.0j], [1.5, 1.2, 1.0]],
+    ids=["soap", "absorbing film on metal", "evanescent film"],
+)
+def test_a_sweep_over_evenly_spaced_rows_equals_one_call_per_row(indices):
+    """A bake's thickness axis is evenly spaced: the Airy sweep then steps the phase by
+    recurrence (optics.airy._phasor) instead of an exponential per element. Each row must equal
+    its own single-thickness call (an exponential) to rounding, also where the film absorbs
+    (|z| < 1) or the wave is evanescent in it (total internal reflection from n = 1.5)."""
+    wl = np.linspace(360.0, 830.0, 24)
+    cos = np.linspace(0.0, 1.0, 33)
+    rows = np.linspace(5.0, 1505.0, 61)  # 61 rows: 60 recurrence steps of 25 nm
+    with np.errstate(invalid="ignore", divide="ignore"):
+        swept = reflectance_sweep(indices, rows[:, None], wl, cos)
+        for t in (0, 1, 30, 60):
+            one = reflectance(indices, [rows[t]], wl, cos)
+            assert np.max(np.abs(swept[t] - one)) <= 1e-12, t
+    assert np.all(np.isfinite(swept)) and swept.min() >= 0.0 and swept.max() <= 1.0
+
+
 def test_dispersion_models():
     # Malitson (1965): fused silica n = 1.4585 at the helium d line, 587.6 nm.
     assert FUSED_SILICA.index([587.56])[0].real == pytest.approx(1.4585, abs=1e-4)

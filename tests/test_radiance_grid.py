@@ -414,3 +414,21 @@ def test_a_film_waiting_for_its_grid_does_not_ask_for_its_per_pixel_variant(gd):
         [item], VIEW, PROJ, display_srgb=False, shaders=cache, compile_now=False
     ).groups
     assert group.variant == wanted
+
+
+def test_a_grid_under_another_world_is_not_the_cached_one():
+    """The grid's World part is kept per World (radiance_grid._turned_world): building under
+    World A, then B, then A again gives A's grid both times and B's is B's own (a key that
+    missed the World would hand B A's light)."""
+    result = rough_table(0.5)
+    shape = (16, 8, result.data.shape[1], 8)
+    a = windowed_world(result)
+    b = a * np.array([0.2, 1.0, 3.0])  # another World: its colour differs per channel
+    first = radiance_grid.build(result, a, shape)
+    other = radiance_grid.build(result, b, shape)
+    again = radiance_grid.build(result, a, shape)
+    np.testing.assert_array_equal(again, first)
+    scale = np.abs(first).max()
+    assert np.abs(other - first).max() > 0.1 * scale
+    radiance_grid._TURNED.clear()
+    np.testing.assert_allclose(radiance_grid.build(result, b, shape), other, rtol=0, atol=1e-6 * scale)

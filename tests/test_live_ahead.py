@@ -1,0 +1,144 @@
+"""An edit's work starts before its first redraw and arrives whole (issue 16, addon/bake_asks.py).
+
+- The depsgraph update that follows an edit (Blender runs ``depsgraph_update_post`` before it
+  redraws) starts the edited material's bake, once a viewport has drawn films; before any
+  viewport drew, it starts nothing.
+- A film drawn from an outgoing-radiance grid gets its new grid built by the bake's worker right
+  after the table: the redraw the bake's end asks for draws the grid, with no grid left to build.
+- While a superseded bake is stopping no newer one starts (on two cores a drag's newest bake would
+  share them with every older one).
+- The table kept in memory drops the bake's reflectance at its u nodes (only the film table
+  reads it, once).
+
+Nothing here is timed: the latency figures are in benchmarks/latency.py → docs/latency.md.
+"""
+
+from __future__ import annotations
+
+import importlib
+import threading
+import time
+
+import pytest
+from test_viewport_state import collect, film, scene, tf  # noqa: F401
+from test_viewport_state import grid as quad_grid
+
+pytestmark = pytest.mark.blender
+
+THREAD_TIMEOUT_S = 120.0
+
+
+def wait_for(predicate, what: str) -> None:
+    deadline = time.monotonic() + THREAD_TIMEOUT_S
+    while not predicate():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
+
+class Gate:
+    """``bake.bake`` held at its start until :meth:`open`, recording which descriptions started."""
+
+    def __init__(self, tf, monkeypatch):  # noqa: F811
+        self.real = tf.bake.bake
+        self.opened = threading.Event()
+        self.started: list[float] = []
+        monkeypatch.setattr(tf.bake, "bake", self)
+
+    def __call__(self, material, progress=None):
+        self.started.append(float(material.layers[0].thickness_nm))
+        assert self.opened.wait(THREAD_TIMEOUT_S), "the gate was never opened"
+        return self.real(material, progress)
+
+    def open(self):
+        self.opened.set()
+
+
+def drawn_once(bpy, tf, scene, mat):  # noqa: F811
+    """The material drawn as the viewport would after its first frames: lit, baked, its entry
+    kept; and the viewport marked as drawing films (what ``draw_callback`` sets)."""
+    quad_grid(bpy, scene, "Quad", mat, n=2)
+    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    (item,), _ = collect(bpy, tf)  # headless path: bakes (and builds a grid) in place
+    tf.viewport._drawn.set()
+    return item
+
+
+def test_the_edits_bake_starts_at_the_depsgraph_update(bpy, tf, scene, monkeypatch):  # noqa: F811
+    vp = tf.viewport
+    mat = film(bpy, tf, "Edited")
+    drawn_once(bpy, tf, scene, mat)
+    gate = Gate(tf, monkeypatch)
+    mat.thinfilm_sh.layers[0].thickness_nm = 420.0
+    bpy.context.view_layer.update()  # Blender's depsgraph update: our handler runs, no draw yet
+    wait_for(lambda: gate.started, "the bake to start")
+    assert gate.started == [420.0] and len(vp._running) == 1
+    gate.open()
+    wait_for(lambda: not vp._running, "the bake")
+    key = tf.scene_draw.description.description_key(tf.scene_draw.description.description(mat))
+    assert tf.tables.MEMORY.get(key) is not None
+    assert vp._finished.is_set()  # the timer's cue: the redraw that shows it
+
+
+def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeypatch):  # noqa: F811
+    vp = tf.viewport
+    mat = film(bpy, tf, "Headless")
+    drawn_once(bpy, tf, scene, mat)
+    vp._drawn.clear()  # e.g. a headless render: no viewport draws films
+    gate = Gate(tf, monkeypatch)
+    gate.open()
+    mat.thinfilm_sh.layers[0].thickness_nm = 430.0
+    bpy.context.view_layer.update()
+    assert not gate.started and not vp._running and not vp._pending
+
+
+def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa: F811
+    vp = tf.viewport
+    rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    mat = film(bpy, tf, "Rough", roughness=0.6)
+    mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
+    item = drawn_once(bpy, tf, scene, mat)
+    assert item.grid is not None
+    built_on = []
+    real_build = rg.radiance_grid.build
+
+    def build(*args, **kwargs):
+        built_on.append(threading.current_thread())
+        return real_build(*args, **kwargs)
+
+    monkeypatch.setattr(rg.radiance_grid, "build", build)
+    mat.thinfilm_sh.layers[0].thickness_nm = 610.0
+    bpy.context.view_layer.update()  # the bake starts, with the grid chained to it
+    wait_for(lambda: not vp._running, "the bake and its grid")
+    assert len(built_on) == 1 and built_on[0] is not threading.main_thread()
+    assert not rg.busy()
+    # the one redraw the bake's end asks for: the new table and its grid, nothing left to build
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
+    assert item.grid is not None and not item.grid_pending
+    assert not rg.busy() and not vp._pending and len(built_on) == 1
+    key = tf.scene_draw.description.description_key(tf.scene_draw.description.description(mat))
+    assert item.table is tf.scene_draw.CACHES.tables.get(key)
+
+
+def test_no_bake_starts_while_a_superseded_one_stops(bpy, tf, scene, monkeypatch):  # noqa: F811
+    vp = tf.viewport
+    mat = film(bpy, tf, "Dragged")
+    desc = tf.scene_draw.description.description(mat)
+    stopping = vp._Job("an older value", desc)
+    stopping.cancel.set()  # superseded: it stops at its next checkpoint
+    monkeypatch.setattr(vp, "_running", {stopping.key: stopping})
+    monkeypatch.setattr(vp, "_pending", {})
+    monkeypatch.setattr(vp, "_wanted", {})
+    vp._want_bake(desc, owner="material")
+    assert vp._start_jobs() == [] and "material" in vp._pending
+    del vp._running[stopping.key]  # it stopped
+    (started,) = vp._start_jobs()
+    assert started.desc is desc and not vp._pending
+    vp._running.clear()
+
+
+def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):  # noqa: F811
+    desc = tf.scene_draw.description.description(film(bpy, tf, "Kept"))
+    result, source = tf.tables.get_table_with_source(desc, store=False)
+    assert source == "bake" and result.node_reflectance is not None
+    kept = tf.tables.MEMORY.get(tf.scene_draw.description.description_key(desc))
+    assert kept.node_reflectance is None and kept.data is result.data
