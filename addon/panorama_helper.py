@@ -160,15 +160,15 @@ class _Process:
 
     def answer(self, ident: int, timeout: float) -> dict:
         """The answer to request ``ident`` (a worker thread waits here), or HelperError."""
-        deadline = time.perf_counter() + timeout
         if not self.ready.wait(START_TIMEOUT_S) or self.ready_s is None:
             raise HelperError(self._why("did not start"))
+        deadline = time.perf_counter() + timeout
         while True:
             remaining = deadline - time.perf_counter()
             try:
                 message = self.answers.get(timeout=max(remaining, 0.0))
             except queue.Empty:
-                raise HelperError(f"took longer than {timeout:.0f} s to render the World") from None
+                raise HelperError(f"took longer than {timeout:g} s to render the World") from None
             if message is None:
                 self.answers.put(None)  # for whoever waits next
                 raise HelperError(self._why("exited"))
@@ -270,11 +270,13 @@ class Pending:
     blend: str
     out: str
 
-    def result(self, timeout: float = RENDER_TIMEOUT_S) -> np.ndarray:
+    def result(self, timeout: float | None = None) -> np.ndarray:
         """The panorama (shape (width/2, width, 3), float32, as :func:`.panorama.render_world_panorama`).
 
-        Raises :class:`HelperError` (the helper is given up) or :class:`RenderFailed`.
+        Waits at most ``timeout`` seconds (default :data:`RENDER_TIMEOUT_S`) once the helper is
+        ready. Raises :class:`HelperError` (the helper is given up) or :class:`RenderFailed`.
         """
+        timeout = RENDER_TIMEOUT_S if timeout is None else timeout
         start = time.perf_counter()
         try:
             message = self.process.answer(self.ident, timeout)
