@@ -117,10 +117,18 @@ class _Process:
         self.ready_s: float | None = None
         self.working_space = ""
         self.answers: queue.Queue = queue.Queue()
+        self.stopped = False  # stopped on purpose (unregister, a restart): not a failure
         self._log = open(os.path.join(self.folder, "helper.log"), "wb")  # noqa: SIM115 (closed in stop)
         try:
             self.proc = subprocess.Popen(
-                argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, text=True, bufsize=1
+                argv,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=self._log,
+                text=True,
+                encoding="utf-8",
+                errors="replace",  # Blender's own output is not ours to trust
+                bufsize=1,
             )
         except BaseException:
             self._log.close()
@@ -193,6 +201,7 @@ class _Process:
     def stop(self) -> None:
         """Close its stdin (it exits), kill it if it has not within :data:`STOP_WAIT_S`, remove
         its folder."""
+        self.stopped = True
         try:
             self.proc.stdin.close()
         except OSError:
@@ -231,6 +240,9 @@ def warm() -> None:
             return
         old, _process = _process, None
     if old is not None:
+        log.warning(
+            "Thin Film SH: the panorama helper process had exited (%s): starting it again", old._why("exited")
+        )
         old.stop()
     try:
         started = _Process(command())
@@ -282,8 +294,9 @@ class Pending:
             message = self.process.answer(self.ident, timeout)
         except HelperError as exc:
             _remove(self.blend)
-            STATS["failed"] += 1
-            _give_up(str(exc))  # removes its folder, the .npy included
+            if not self.process.stopped:  # else stopped on purpose: the World is read again
+                STATS["failed"] += 1
+                _give_up(str(exc))  # removes its folder, the .npy included
             raise
         _remove(self.blend)
         LAST.update(wait_ms=1000.0 * (time.perf_counter() - start), render_ms=message.get("ms"))

@@ -97,10 +97,13 @@ def assert_lit(tf, scene, lighting):
 
 def test_procedural_world_is_rendered_by_the_helper_as_in_process(tf, sky):
     scene, renders, real = sky
+    rendered = tf.panorama_helper.STATS["rendered"]
     lighting = ask_and_settle(tf, scene)
     content = assert_lit(tf, scene, lighting)
     assert renders == []  # no Cycles render in this process
-    assert tf.panorama_helper.STATS["rendered"] >= 1 and tf.panorama_helper.process_id() is not None
+    assert (
+        tf.panorama_helper.STATS["rendered"] == rendered + 1 and tf.panorama_helper.process_id() is not None
+    )
     here = real(scene.world)  # the same function, the same samples and seed, in this process
     assert content.read.rgb.dtype == np.float32 and content.read.rgb.shape == here.shape
     np.testing.assert_array_equal(content.read.rgb, here)  # Cycles on the CPU: deterministic
@@ -123,6 +126,7 @@ def silent_command(mark: str):
 def test_a_failing_helper_falls_back_to_an_in_process_render(tf, sky, monkeypatch, caplog, how):
     scene, renders, _real = sky
     helper = tf.panorama_helper
+    given_up = helper.STATS["given_up"]
     between = None
     if how == "unstartable":
         monkeypatch.setattr(helper, "command", lambda: [os.path.join(os.sep, "nonexistent", "blender")])
@@ -141,7 +145,7 @@ def test_a_failing_helper_falls_back_to_an_in_process_render(tf, sky, monkeypatc
         lighting = ask_and_settle(tf, scene, between)
     assert_lit(tf, scene, lighting)  # the frame still gets lit
     assert renders == [1]  # once, in this process
-    assert helper.STATS["given_up"] >= 1 and not helper.enabled()
+    assert helper.STATS["given_up"] == given_up + 1 and not helper.enabled()
     assert helper.process_id() is None
     given_up = [r for r in caplog.records if "panorama helper process" in r.getMessage()]
     assert len(given_up) == 1 and "rendered in Blender itself" in given_up[0].getMessage()
@@ -175,3 +179,33 @@ def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, sky):
         assert not os.path.exists(f"/proc/{pid}")  # exited and reaped: no orphan, no zombie
     finally:
         tf.package.register()
+
+
+def test_unregister_during_a_render_does_not_give_the_helper_up(tf, sky, caplog):
+    scene, _renders, _real = sky
+    helper = tf.panorama_helper
+    given_up = helper.STATS["given_up"]
+    tf.scene_draw.world_lighting(scene, allow_compute=False)
+    with caplog.at_level(logging.ERROR, logger=helper.__name__):
+        tf.world_job.service(scene)  # handed over: a worker waits for the helper
+        pid = helper.process_id()
+        tf.package.unregister()
+        tf.world_job.wait()
+        tf.package.register()
+    assert pid is not None and not os.path.exists(f"/proc/{pid}")
+    assert helper.STATS["given_up"] == given_up and helper.enabled()
+    assert not [r for r in caplog.records if "panorama helper process" in r.getMessage()]
+
+
+def test_a_helper_that_exited_while_idle_is_started_again(tf, sky, caplog):
+    scene, renders, _real = sky
+    helper = tf.panorama_helper
+    helper.warm()
+    first = helper.process_id()
+    assert helper._process.ready.wait(helper.START_TIMEOUT_S)
+    os.kill(first, signal.SIGKILL)
+    helper._process.proc.wait()
+    with caplog.at_level(logging.WARNING, logger=helper.__name__):
+        assert_lit(tf, scene, ask_and_settle(tf, scene))
+    assert renders == [] and helper.process_id() not in (None, first)
+    assert any("had exited" in r.getMessage() for r in caplog.records)
