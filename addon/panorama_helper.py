@@ -64,6 +64,7 @@ __all__ = [
     "Pending",
     "RenderFailed",
     "command",
+    "command_for",
     "enabled",
     "info",
     "resolve",
@@ -99,12 +100,17 @@ class RenderFailed(RuntimeError):
     """The helper answered that it could not render this World (the World's failure)."""
 
 
-def command() -> list[str]:
-    """The helper's command line: Blender's binary in background mode, else this Python."""
-    binary = bpy.app.binary_path
+def command_for(binary: str, python: str) -> list[str]:
+    """The helper's command line for Blender's ``binary`` ("" for bpy as a Python module, run by
+    ``python``)."""
     if binary:
         return [binary, "--background", "--factory-startup", "--python", SCRIPT, "--", ROOT]
-    return [sys.executable, SCRIPT, ROOT]
+    return [python, SCRIPT, ROOT]
+
+
+def command() -> list[str]:
+    """The helper's command line here: Blender's binary in background mode, else this Python."""
+    return command_for(bpy.app.binary_path, sys.executable)
 
 
 class _Process:

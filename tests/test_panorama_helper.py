@@ -209,3 +209,27 @@ def test_a_helper_that_exited_while_idle_is_started_again(tf, sky, caplog):
         assert_lit(tf, scene, ask_and_settle(tf, scene))
     assert renders == [] and helper.process_id() not in (None, first)
     assert any("had exited" in r.getMessage() for r in caplog.records)
+
+
+def test_blenders_command_line_reaches_the_script(tf, sky, monkeypatch, tmp_path):
+    """Blender's binary gets ``--background --factory-startup --python SCRIPT -- ROOT``; a stand-in
+    binary runs the script with Blender's arguments in front, as Blender leaves them in sys.argv."""
+    scene, renders, _real = sky
+    helper = tf.panorama_helper
+    blender = tmp_path / "blender"
+    blender.write_text(f'#!/bin/sh\nexec {sys.executable} "$4" "$@"\n')
+    blender.chmod(0o755)
+    argv = helper.command_for(str(blender), sys.executable)
+    assert argv == [
+        str(blender),
+        "--background",
+        "--factory-startup",
+        "--python",
+        helper.SCRIPT,
+        "--",
+        helper.ROOT,
+    ]
+    assert helper.command_for("", sys.executable) == [sys.executable, helper.SCRIPT, helper.ROOT]
+    monkeypatch.setattr(helper, "command", lambda: argv)
+    assert_lit(tf, scene, ask_and_settle(tf, scene))
+    assert renders == [] and helper.process_id() is not None
