@@ -135,6 +135,7 @@ class _Process:
                 encoding="utf-8",
                 errors="replace",  # Blender's own output is not ours to trust
                 bufsize=1,
+                creationflags=getattr(subprocess, "CREATE_NO_WINDOW", 0),  # Windows: no console
             )
         except BaseException:
             self._log.close()

@@ -233,3 +233,36 @@ def test_blenders_command_line_reaches_the_script(tf, sky, monkeypatch, tmp_path
     monkeypatch.setattr(helper, "command", lambda: argv)
     assert_lit(tf, scene, ask_and_settle(tf, scene))
     assert renders == [] and helper.process_id() is not None
+
+
+@pytest.mark.parametrize("stored", ["relative", "packed"])
+def test_images_relative_to_the_file_or_packed_reach_the_helper(bpy, tf, sky, tmp_path, stored):
+    """An image behind a node the panorama route renders (Environment Texture → Gamma), saved
+    beside the .blend with a ``//`` path or packed into it: the helper renders what this process
+    renders, not the fallback colour."""
+    scene, renders, real = sky
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    img = bpy.data.images.new("studio", 64, 32, float_buffer=True, alpha=False)
+    ramp = np.linspace(0.1, 2.0, 64 * 32 * 4, dtype=np.float32)
+    img.pixels.foreach_set(ramp)
+    img.filepath_raw = str(tmp_path / "studio.exr")
+    img.file_format = "OPEN_EXR"
+    img.save()
+    img.filepath = "//studio.exr"
+    img.reload()
+    if stored == "packed":
+        img.pack()
+        os.remove(tmp_path / "studio.exr")
+    tree = scene.world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    gamma = tree.nodes.new("ShaderNodeGamma")
+    tree.links.new(env.outputs["Color"], gamma.inputs["Color"])
+    tree.links.new(gamma.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    lighting = ask_and_settle(tf, scene)
+    assert lighting is not None and renders == []
+    content_key, _ = tf.world.world_parts(scene)
+    read = tf.scene_draw.CACHES.contents[content_key].content.read
+    assert read.source == "panorama render (Gamma)"
+    np.testing.assert_array_equal(read.rgb, real(scene.world))
+    assert read.rgb.max() > 1.0  # the image's ramp, not a fallback colour
