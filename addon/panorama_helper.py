@@ -226,7 +226,7 @@ _lock = threading.Lock()
 _process: _Process | None = None
 _given_up = ""  # why the helper was given up for this session ("" while it is not)
 _ids = itertools.count(1)
-#: The last figures (benchmarks, docs): "start_s", "write_ms", "wait_ms", "render_ms".
+#: The last hand-over's figures (benchmarks, docs): "write_ms", "wait_ms", "render_ms".
 LAST: dict = {}
 
 
@@ -303,6 +303,7 @@ class Pending:
             _remove(self.blend)
             if not self.process.stopped:  # else stopped on purpose: the World is read again
                 STATS["failed"] += 1
+                self.process.stop()
                 _give_up(str(exc))  # removes its folder, the .npy included
             raise
         _remove(self.blend)
@@ -368,7 +369,12 @@ def info() -> dict:
         process = _process
     found = dict(LAST, given_up=_given_up)
     if process is not None:
-        found.update(pid=process.proc.pid, start_s=process.ready_s, rss_bytes=process.rss_bytes())
+        found.update(
+            pid=process.proc.pid,
+            start_s=process.ready_s,
+            rss_bytes=process.rss_bytes(),
+            working_space=process.working_space,
+        )
     return found
 
 

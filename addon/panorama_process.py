@@ -87,7 +87,7 @@ def render_request(bpy, panorama, request: dict):
 
 def _save(path: str, rgb) -> None:
     """Write ``rgb`` to ``path`` (.npy) whole or not at all."""
-    import numpy as np
+    import numpy as np  # in the helper only: the protocol constants import with the stdlib alone
 
     partial = path + ".part"
     with open(partial, "wb") as handle:
@@ -102,7 +102,7 @@ def _answer(message: dict) -> None:
 
 def serve(root: str) -> None:
     """Answer requests from stdin until it closes (see the module's docstring)."""
-    import bpy
+    import bpy  # in the helper only (≈ 1.5 s): the add-on imports this module for MARK
 
     panorama = load_panorama(root)
     space = getattr(getattr(bpy.data, "colorspace", None), "working_space", "") or "Linear Rec.709"
