@@ -40,6 +40,7 @@ __all__ = [
     "default_cache_dir",
     "overlay_enabled",
     "preferences",
+    "render_helper_enabled",
 ]
 
 #: The extension's id in ``blender_manifest.toml``.
@@ -147,6 +148,13 @@ def overlay_enabled(context=None) -> bool:
     return bool(prefs.show_overlay) if prefs is not None else True
 
 
+def render_helper_enabled(context=None) -> bool:
+    """The *Render Procedural Worlds in a Helper Process* preference (True while the preferences
+    are not there; :mod:`.panorama_helper`)."""
+    prefs = preferences(context)
+    return bool(prefs.use_render_helper) if prefs is not None else True
+
+
 class ThinFilmSHPreferences(AddonPreferences):
     """The extension's preferences: the overlay switch, the table cache's folder and size."""
 
@@ -157,6 +165,14 @@ class ThinFilmSHPreferences(AddonPreferences):
         description="Draw thin films over the 3D viewports and in headless renders. Off: nothing "
         "is drawn or baked in the background (each viewport also has its own switch in its "
         "Overlays popover)",
+        default=True,
+    )
+
+    use_render_helper: BoolProperty(
+        name="Render Procedural Worlds in a Helper Process",
+        description="Render the panorama of a procedural World (Sky Texture, mixes, ...) in a "
+        "background Blender process, so the viewport keeps running while it renders. Off: it is "
+        "rendered in Blender itself, which pauses the interface for about a second per World edit",
         default=True,
     )
 
@@ -182,6 +198,7 @@ class ThinFilmSHPreferences(AddonPreferences):
         layout = self.layout
         layout.use_property_split = True
         layout.prop(self, "show_overlay")
+        layout.prop(self, "use_render_helper")
         layout.prop(self, "cache_dir")
         layout.prop(self, "cache_limit_mib")
         col = layout.column(align=True)

@@ -464,6 +464,7 @@ class WorldRead:
     base: float | None = None
     turned: bool = False
     panorama: bool = False
+    pending: object = None  # a panorama a helper process renders (:func:`.panorama_helper.resolve`)
 
 
 @dataclass(frozen=True, eq=False)
@@ -539,10 +540,16 @@ def _environment(world, bg, env, l_max: int, space: str, params: WorldParams) ->
     )
 
 
-def _panorama(world, params: WorldParams, reason: str, l_max: int) -> WorldRead:
+def _panorama(world, params: WorldParams, reason: str, l_max: int, render=None) -> WorldRead:
     warnings = []
     if uses_light_path(world.node_tree):
         warnings.append("World uses a Light Path node: its SH is what the camera sees")
+    source = f"panorama render ({reason})"
+    pending = render(world) if render is not None else None
+    if pending is not None:  # a helper process renders it: awaited off the main thread
+        return WorldRead(
+            source, warnings=tuple(warnings), base=params.strength, panorama=True, pending=pending
+        )
     try:
         rgb = render_world_panorama(world)
     except (RuntimeError, OSError) as exc:
@@ -552,16 +559,14 @@ def _panorama(world, params: WorldParams, reason: str, l_max: int) -> WorldRead:
             coeffs=read.coeffs,
             warnings=(f"Could not render the World ({exc}): using its viewport color",),
         )
-    return WorldRead(
-        f"panorama render ({reason})", rgb=rgb, warnings=tuple(warnings), base=params.strength, panorama=True
-    )
+    return WorldRead(source, rgb=rgb, warnings=tuple(warnings), base=params.strength, panorama=True)
 
 
 def _black(source: str, warning: str, l_max: int) -> WorldRead:
     return WorldRead(source, coeffs=_constant(l_max, (0.0, 0.0, 0.0)), warnings=(warning,))
 
 
-def _nodes(world, l_max: int, space: str, params: WorldParams) -> WorldRead:
+def _nodes(world, l_max: int, space: str, params: WorldParams, render=None) -> WorldRead:
     tree = world.node_tree
     output = active_world_output(tree)
     if output is None or output.mute:
@@ -591,16 +596,19 @@ def _nodes(world, l_max: int, space: str, params: WorldParams) -> WorldRead:
             raise Fallback(env.bl_rna.name)
         return _environment(world, bg, env, l_max, space, params)
     except Fallback as why:
-        return _panorama(world, params, str(why), l_max)
+        return _panorama(world, params, str(why), l_max, render)
 
 
-def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = None) -> WorldRead:
+def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = None, render=None) -> WorldRead:
     """Read ``scene``'s World with bpy (main thread; :func:`analyse_read` does the rest anywhere).
 
     An Environment Texture World reads its image's pixels (no copy of Blender's buffer:
     ≈ 0.1–0.3 s for a 4k HDRI); a procedural World renders a small Cycles panorama
-    (:func:`.panorama.render_world_panorama`, ≈ 1–3 s: the one slow step that must stay on the
-    main thread); anything else is a constant.
+    (:func:`.panorama.render_world_panorama`, ≈ 1–3 s on the main thread); anything else is a
+    constant. ``render``: None, or ``render(world)`` → a pending panorama or None, e.g.
+    :func:`.panorama_helper.submit` (the viewport): a procedural World's read then holds the
+    pending render in ``pending`` (:func:`.panorama_helper.resolve` waits for it on a worker),
+    and it is rendered here only when ``render`` returns None.
     """
     l_max = sh._check_l_max(l_max)
     params = _parameters(scene.world)[0] if params is None else params
@@ -610,7 +618,7 @@ def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = No
             return _viewport_colour(None, l_max, "Scene has no World: black")
         if not world_uses_nodes(world):
             return _viewport_colour(world, l_max, "World has no nodes: using its viewport color")
-        return _nodes(world, l_max, working_space(), params)
+        return _nodes(world, l_max, working_space(), params, render)
 
 
 def analyse_read(read: WorldRead, l_max: int = MAX_SH_ORDER) -> WorldContent:

@@ -8,11 +8,15 @@ film from the SH meanwhile. :func:`service`, called by the viewport's timer
 (``viewport._service``), then
 
 1. reads the World with bpy on the main thread (:func:`.world.read_world`: an Environment
-   Texture's pixels, ≈ 0.1–0.3 s for a 4k HDRI; a procedural World's small Cycles panorama,
-   ≈ 1–3 s: the one step that must stay on the main thread);
-2. starts a worker thread that analyses it (:func:`.world_analysis.analyse_content`: the SH
-   projection, the lamps, and the prefilters the last frames' glossy films read) and stores the
-   result in ``CACHES.contents``; a prefilter asked for later gets a worker of its own;
+   Texture's pixels, ≈ 0.1–0.3 s for a 4k HDRI); a procedural World is only handed to the
+   panorama helper process (:func:`.panorama_helper.submit`: a .blend of the World written,
+   ≈ 1–2 ms), which renders its small Cycles panorama;
+2. starts a worker thread that waits for the helper's panorama (:func:`.panorama_helper.resolve`)
+   and analyses the World (:func:`.world_analysis.analyse_content`: the SH projection, the
+   lamps, and the prefilters the last frames' glossy films read) and stores the result in
+   ``CACHES.contents``; a prefilter asked for later gets a worker of its own. When the helper
+   fails the World is read again at the next step, its panorama rendered on the main thread as
+   before (:mod:`.panorama_helper`: the helper is then given up, logged once);
 3. reports when a worker finished, so the timer asks for a redraw: the next draw builds the new
    lighting from the analysed content (milliseconds) and uploads the prefilter textures.
 
@@ -29,7 +33,7 @@ import threading
 
 import numpy as np
 
-from . import scene_draw, world, world_analysis
+from . import panorama_helper, scene_draw, world, world_analysis
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +42,7 @@ __all__ = ["STATS", "busy", "service", "wait"]
 _lock = threading.Lock()
 _running: dict[tuple, threading.Thread] = {}  # ("content", key) or ("prefilter", key, kind) → worker
 _finished = threading.Event()
+_render_here = threading.Event()  # the helper failed: read the next World's panorama in process
 #: How often each step ran (tests and benchmarks count them): "read", "analyse", "prefilter".
 STATS: collections.Counter = collections.Counter()
 
@@ -67,7 +72,22 @@ def _start(label: tuple, target, *args) -> None:
     thread.start()
 
 
+def _rendered(read):
+    """``read`` with the helper's panorama, or None when the helper failed (the World is then
+    read again on the main thread: the timer's next step)."""
+    try:
+        return panorama_helper.resolve(read)
+    except (panorama_helper.HelperError, panorama_helper.RenderFailed) as exc:
+        log.warning("Thin Film SH: the World's panorama is rendered in Blender instead: %s", exc)
+        _render_here.set()
+        scene_draw.CACHES.world_wanted = True
+        return None
+
+
 def _analyse(content_key: str, read, fallback, kinds, generation: int) -> None:
+    read = _rendered(read)
+    if read is None:
+        return
     STATS["analyse"] += 1
     try:
         found = world_analysis.analyse_content(content_key, read, fallback, kinds)
@@ -94,12 +114,15 @@ def _start_content(scene) -> None:
         if any(label[0] == "content" for label in _running):
             return
     caches.world_wanted = False
+    panorama_helper.warm()  # at the first World read: warm by the first procedural World
     content_key, params = world.world_parts(scene)
     if content_key in caches.contents:
         _finished.set()  # analysed meanwhile: the next draw shows it
         return
     STATS["read"] += 1
-    read = world.read_world(scene, params=params)  # bpy: pixels, or a Cycles panorama
+    render = None if _render_here.is_set() else panorama_helper.submit
+    _render_here.clear()
+    read = world.read_world(scene, params=params, render=render)  # bpy: pixels, or a Cycles panorama
     fallback = np.asarray(world.fallback_colour(scene.world)[0], dtype=np.float64)
     kinds = tuple(sorted(caches.prefilters_used))  # what the glossy films read so far
     _start(("content", content_key), _analyse, content_key, read, fallback, kinds, caches.generation)

@@ -8,7 +8,8 @@ the World and starts ``world_job``'s worker) and the worker itself. A glossy fil
 light) under
 
 - ``hdri``: bpy's studio HDRI in an Environment Texture behind a Mapping node;
-- ``sky``: a Sky Texture (a procedural World: one small Cycles panorama on the main thread).
+- ``sky``: a Sky Texture (a procedural World: one small Cycles panorama, rendered by the
+  panorama helper process; its own figures: ``benchmarks/panorama_helper.py``).
 
 Per edit: the longest main-thread block (the timer's tick or a draw's collection, including the
 prefilter texture's upload), the time until the new lighting is drawn, and whether the old
@@ -31,7 +32,7 @@ import time
 
 import numpy as np
 
-from benchmarks import common
+from benchmarks import common, panorama_helper
 from precompute import hdri, lamps, prefilter
 from precompute.cli import studiolight
 
@@ -242,7 +243,7 @@ def prefilter_before_after(rev: str) -> dict:
     return {"before_s": t_old, "after_s": t_new, "diffs": diffs, "rev": rev}
 
 
-def report(rows, pre) -> str:
+def report(rows, pre, helper=None) -> str:
     lines = [
         "# World edits: main-thread blocks and latency",
         "",
@@ -250,7 +251,8 @@ def report(rows, pre) -> str:
         "replayed with the add-on's own code; a glossy soap-film sphere (roughness 0.1: the split sum,",
         "the prefilter is what is drawn; the World's lamps shaded per light). *Block*: the longest",
         "main-thread step (a draw's collection, with the prefilter texture's upload, or a timer tick,",
-        "with the World's read: an image's pixels or a procedural World's Cycles panorama). *Ready*:",
+        "with the World's read: an image's pixels, or a procedural World handed to the panorama",
+        "helper process, which renders its Cycles panorama). *Ready*:",
         "from the edit to the first draw of the new lighting (the World's analysis runs on a worker",
         "thread meanwhile, and the old lighting is drawn).",
         "",
@@ -270,8 +272,9 @@ def report(rows, pre) -> str:
         "main thread (its pixels: a few hundred ms for a 4k image under load) and analysed on a worker",
         "(SH projection, lamps, the prefilter the film reads: *Ready*);",
         "the old lighting is drawn meanwhile, and the draw that shows the new one uploads the",
-        "prefilter texture (packed on the worker). A procedural World renders a 256 × 128 Cycles",
-        "panorama (32 samples) on the main thread: the timer's block on a sky edit. A draw block of",
+        "prefilter texture (packed on the worker). A procedural World's 256 × 128 Cycles panorama",
+        "(32 samples) is rendered by the helper process (below): the timer only writes the World to",
+        "a .blend, and a worker waits for the panorama. A draw block of",
         "seconds on a sky's *first open* is the World lamps' film table (`film_colour.film_table`,",
         "the sun is a lamp), computed in the draw by `scene_draw.film_texture` — the viewport bake",
         "queue's work (issue 16's other part), not the World's.",
@@ -306,6 +309,7 @@ def report(rows, pre) -> str:
             "the follow-up, not fewer samples."
         ),
         "",
+        *([*panorama_helper.section(helper), ""] if helper is not None else []),
         "## Machine",
         "",
         *common.machine_lines(),
@@ -322,8 +326,9 @@ def main(argv=None) -> int:
 
     ext = Extension()
     rows = run_scene(ext, "hdri") + run_scene(ext, "sky")
+    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.panorama_helper"))
     pre = prefilter_before_after(args.before)
-    text = report(rows, pre)
+    text = report(rows, pre, helper)
     print(text)
     if not args.no_doc:
         print("wrote", common.write_doc("world-latency.md", text))
