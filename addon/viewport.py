@@ -193,7 +193,9 @@ def _bake_worker(job: _Job, cache) -> None:
         result, source = tables.get_table_with_source(job.desc, cache, report, store=False)
         baked = result if source == "bake" else None
         if job.film:  # from the fresh bake's reflectance at its nodes: no second sweep
+            report(1.0, "film table")  # superseded meanwhile: stops here
             tables.get_film(job.desc, result, report)
+        report(1.0, "grid")
         _then(job, result)
     except BakesCancelled:
         pass
@@ -206,11 +208,47 @@ def _bake_worker(job: _Job, cache) -> None:
                 del _running[job.key]
             for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
                 del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
+        shown_after = _frames.started
         _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
-    if baked is not None:  # after the frame's cue: the disk copy only serves the next session
-        tables.store_table(job.desc, baked, cache)
+    if baked is not None:  # after the frame that shows it: the disk copy only serves the next session
+        _frames.wait_past(shown_after, STORE_WAIT_S)  # the write would compete with that frame
+        if tables.MEMORY.get(job.key) is not None:  # not cleared meanwhile (Clear Cache, file load)
+            tables.store_table(job.desc, baked, cache)
         if tables.CACHE_ERRORS.get(job.key) is not None:
             _finished.set()  # a redraw shows why the table was not saved
+
+
+class _FrameCount:
+    """The draw callback's frames, numbered: a bake's worker waits for the first frame started
+    after its table arrived (:meth:`wait_past`) before it writes the table's disk copy."""
+
+    def __init__(self):
+        self.started = 0
+        self.ended = 0
+        self._cond = threading.Condition()
+
+    def start(self) -> int:
+        """A frame begins: its number."""
+        with self._cond:
+            self.started += 1
+            return self.started
+
+    def end(self, number: int) -> None:
+        """Frame ``number`` has been drawn (or given up)."""
+        with self._cond:
+            self.ended = max(self.ended, number)
+            self._cond.notify_all()
+
+    def wait_past(self, number: int, timeout: float) -> bool:
+        """Wait until a frame started after frame ``number`` has ended, at most ``timeout`` s."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self.ended > number, timeout)
+
+
+_frames = _FrameCount()
+#: Longest a bake's worker waits for the frame that shows its table before writing the disk copy
+#: (no viewport redraws, e.g. it is hidden): the copy only serves the next session.
+STORE_WAIT_S = 1.0
 
 
 def _then(job: _Job, result) -> None:
@@ -305,6 +343,7 @@ def draw_callback() -> None:
         return
     rv3d = context.region_data
     depsgraph = context.evaluated_depsgraph_get()
+    number = _frames.start()
     try:
         lighting = scene_draw.world_lighting(depsgraph.scene, allow_compute=False)
         if world_job.busy():  # a new World (or prefilter) to analyse: the old one is drawn meanwhile
@@ -338,6 +377,8 @@ def draw_callback() -> None:
         shader_warmup.schedule()  # the variants this frame drew by their stand-in
     except Exception as exc:  # a draw callback must never raise
         log.error("Thin Film SH: viewport draw failed: %s", exc)
+    finally:
+        _frames.end(number)
 
 
 def draw_header(self, context) -> None:
