@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
+from ..precompute.progress import reporting
 from . import (
     bake_asks,
     caches,
@@ -251,13 +252,21 @@ _frames = _FrameCount()
 STORE_WAIT_S = 1.0
 
 
+def _check_cancel(job: _Job) -> None:
+    if job.cancel.is_set():
+        raise BakesCancelled
+
+
 def _then(job: _Job, result) -> None:
     """Run the job's follow-up (its grid) unless it was superseded; its failure is logged and
     leaves the table (the draw asks for the grid again)."""
     if job.then is None or job.cancel.is_set():
         return
     try:
-        job.then(job.key, job.desc, result)
+        with reporting(lambda: _check_cancel(job)):  # the grid's steps: a superseded job stops
+            job.then(job.key, job.desc, result)
+    except BakesCancelled:
+        raise
     except Exception as exc:  # the table is good; the draw asks for the grid the usual way
         log.error("Thin Film SH: radiance grid after the bake failed: %s", exc)
 

@@ -142,3 +142,42 @@ def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):
     assert source == "bake" and result.node_reflectance is not None
     kept = tf.tables.MEMORY.get(tf.scene_draw.description.description_key(desc))
     assert kept.node_reflectance is None and kept.data is result.data
+
+
+def test_a_superseded_jobs_grid_stops_at_its_next_step(bpy, tf, scene):  # noqa: F811
+    """The grid a bake's worker builds after the table runs its steps under the job's cancel:
+    superseded mid-build (a drag moved on) it stops at the next step instead of finishing a
+    grid nobody wants, and the worker treats it as a cancelled bake."""
+    vp = tf.viewport
+    progress = importlib.import_module(f"{tf.package.__name__}.precompute.progress")
+    steps = []
+    job = vp._Job("superseded", None)
+
+    def then(key, desc, result):
+        for step in range(4):
+            steps.append(step)
+            if step == 1:
+                job.cancel.set()  # a newer value arrived
+            progress.checkpoint()
+
+    job.then = then
+    with pytest.raises(vp.BakesCancelled):
+        vp._then(job, None)
+    assert steps == [0, 1]
+
+
+def test_the_grid_build_has_steps_to_stop_at():
+    """radiance_grid.build reports between its steps (the World part, then each colour channel)."""
+    import numpy as np
+
+    from precompute import bake, progress
+    from precompute.material import Layer, Material, Quality
+    from precompute.shading import radiance_grid
+
+    film = Layer(1.33, 400.0)
+    result = bake.bake(Material(layers=(film,), substrate=1.5, roughness=0.6, quality=Quality(sh_order=3)))
+    coeffs = np.ones((16, 3))
+    calls = []
+    with progress.reporting(lambda: calls.append(1)):
+        radiance_grid.build(result, coeffs, (8, 4, result.data.shape[1], 4))
+    assert len(calls) >= 4

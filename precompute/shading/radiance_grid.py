@@ -33,6 +33,7 @@ import threading
 import numpy as np
 
 from .. import bake
+from ..progress import checkpoint
 from .policy import GRID_AZIMUTHS, grid_shape
 from .sh_rotation import apply_bands, local_coefficients, rotate_z_batch, x_rotation_bands
 from .table import lookup as table_lookup
@@ -159,7 +160,8 @@ def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
     (Σ_q (Z B)_q E_q = Σ_q B_q (Zᵀ E)_q, Zᵀ = Z(+ψ)), so the grid is, per output channel, one
     (Ψ·T, 3K) × (3K, H·W) float32 product written straight into the texture's layout: ≈ 0.9 G
     multiply-adds at l = 12 in all (float32 sums of 3K terms: ~1e-7 of the peak, below the
-    texture's own rounding).
+    texture's own rounding). A :func:`~precompute.progress.checkpoint` after each step (≲ 20 ms)
+    lets a superseded build stop.
     """
     w, h, t, p = _check_shape(grid_shape(result.data.shape[1]) if shape is None else shape)
     l_max = result.sh_order
@@ -168,6 +170,7 @@ def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
     if coeffs.ndim != 2 or coeffs.shape[0] < k or coeffs.shape[1] < 3:
         raise ValueError(f"world_coeffs must be (≥ {k}, 3) for l_max {l_max}, got {coeffs.shape}")
     turned = _turned_world(coeffs, w, h, l_max)  # (H·W, 3K)
+    checkpoint()  # a bake's worker builds a grid after its table: cancellable between steps
     psi = 2.0 * np.pi * np.arange(p) / p
     folded = folded_table(result, t).reshape(k, t * 9)  # E[q, (j, o, c)]
     by_psi = rotate_z_batch(np.broadcast_to(folded, (p, k, t * 9)), np.cos(psi), np.sin(psi), l_max)
@@ -176,6 +179,7 @@ def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
     for o in range(3):  # rows (j, k), columns (q, c): the layer order j·Ψ + k
         table = by_psi[..., o, :].transpose(2, 0, 1, 3).reshape(t * p, k * 3)
         grid[:, :, o] = np.ascontiguousarray(table, np.float32) @ turned.T
+        checkpoint()
     np.maximum(grid, 0.0, out=grid)
     return grid.reshape(t * p, h, w, 3)
 
