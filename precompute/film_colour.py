@@ -134,9 +134,9 @@ def _interpolated_rows(material, nodes: np.ndarray, degree: int, u: np.ndarray) 
     )
     t, n, w = nodes.shape
     weights = u_interpolation_matrix(int(degree), u)  # (U, N): one product for every row
-    r = (weights @ nodes.transpose(1, 0, 2).reshape(n, t * w)).reshape(u.size, t, w).transpose(1, 0, 2)
-    rgb = (r.reshape(-1, r.shape[-1]) @ g.reshape(g.shape[0], -1)).reshape(r.shape[:2] + g.shape[1:])
-    return bake.clamp_film_rgb(rgb, material.colour_mode)
+    r = weights @ nodes.transpose(1, 0, 2).reshape(n, t * w)  # (U, T·W), u-major
+    rgb = (r.reshape(-1, w) @ g.reshape(w, -1)).reshape((u.size, t) + g.shape[1:])  # (U, T, 3, 3)
+    return bake.clamp_film_rgb(np.ascontiguousarray(rgb.transpose(1, 0, 2, 3)), material.colour_mode)
 
 
 def film_table_of(material, samples: int = FILM_SAMPLES) -> FilmTable:
@@ -252,7 +252,8 @@ def _multiscatter(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray:
         weights = _uniform_albedo_weights(float(material.roughness), u.size)
     else:
         weights = _albedo_weights(float(material.roughness), mu, u)
-    e_film = np.einsum("mj,tjc->tmc", weights, white)
+    rows, count = white.shape[0], white.shape[1]
+    e_film = (weights @ white.transpose(1, 0, 2).reshape(count, -1)).reshape(-1, rows, 3).transpose(1, 0, 2)
     e = brdf.ggx_E(float(material.roughness), tuple(np.clip(mu, constants.MIN_COS, 1.0).tolist()))
     ratio = e_film / e[None, :, None] * (2.0 * mu * wmu)[None, :, None]
     f_avg = np.clip(np.sum(ratio, axis=1), 0.0, 1.0)  # (T, 3)
