@@ -20,6 +20,7 @@ import threading
 import time
 
 import pytest
+from test_radiance_grid_viewport import record_builds
 from test_viewport_state import collect, film, scene, tf  # noqa: F401
 from test_viewport_state import grid as quad_grid
 
@@ -98,14 +99,7 @@ def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa
     mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
     item = drawn_once(bpy, tf, scene, mat)
     assert item.grid is not None
-    built_on = []
-    real_build = rg.radiance_grid.build
-
-    def build(*args, **kwargs):
-        built_on.append(threading.current_thread())
-        return real_build(*args, **kwargs)
-
-    monkeypatch.setattr(rg.radiance_grid, "build", build)
+    built_on = record_builds(rg, monkeypatch)
     mat.thinfilm_sh.layers[0].thickness_nm = 610.0
     bpy.context.view_layer.update()  # the bake starts, with the grid chained to it
     wait_for(lambda: not vp._running, "the bake and its grid")

@@ -40,9 +40,8 @@ def wait_idle(module):
     assert not module.busy(), "the radiance grid worker did not finish"
 
 
-def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, monkeypatch):  # noqa: F811
-    rg = grids_module(tf)
-    rg.GRIDS.clear()
+def record_builds(rg, monkeypatch) -> list:
+    """The threads ``radiance_grid.build`` runs on, from now on (a list that grows)."""
     built_on = []
     real_build = rg.radiance_grid.build
 
@@ -51,6 +50,13 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
         return real_build(*args, **kwargs)
 
     monkeypatch.setattr(rg.radiance_grid, "build", build)
+    return built_on
+
+
+def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, monkeypatch):  # noqa: F811
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    built_on = record_builds(rg, monkeypatch)
     quad_grid(bpy, scene, "Quad", rough_film(bpy, tf, "Rough"))
     collect(bpy, tf)  # bakes the table (allow_bake) and builds its grid in place
     assert built_on == [threading.main_thread()]
