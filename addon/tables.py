@@ -27,7 +27,6 @@ read it.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import logging
 import threading
 from dataclasses import dataclass
@@ -176,6 +175,7 @@ def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     key = description_key(desc)
     found = FILMS.get(key)
     if found is not None:
+        release_nodes(result)
         return found
 
     def hook():
@@ -187,7 +187,15 @@ def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     with _count_lock:
         film_threads.append(threading.current_thread().name)
     FILMS[key] = found
+    release_nodes(result)
     return found
+
+
+def release_nodes(result) -> None:
+    """Drop a fresh bake's reflectance at its u nodes (kept by ``keep_nodes`` for its film
+    table): the table in memory does not need it."""
+    if result is not None:
+        result.node_reflectance = None
 
 
 def _attributes(result) -> dict:
@@ -215,13 +223,15 @@ def _from_table(table) -> bake.BakeResult:
 
 
 def get_table_with_source(
-    desc: Material, cache=None, progress=None, store: bool = True
+    desc: Material, cache=None, progress=None, store: bool = True, keep_nodes: bool = False
 ) -> tuple[bake.BakeResult, str]:
     """Like :func:`get_table`, also saying where the table came from: memory, disk or bake.
 
     ``store`` False: a baked table is kept in memory only; the caller writes it to the disk
     cache later with :func:`store_table` (the viewport's worker first lets the frame show it:
-    writing the soap preset's 61-row table takes 0.4–2 s)."""
+    writing the soap preset's 61-row table takes 0.4–2 s). ``keep_nodes``: a fresh bake keeps
+    its reflectance at its u nodes (``BakeResult.node_reflectance``) until :func:`get_film` or
+    :func:`release_nodes` drops it, so its film table needs no second sweep."""
     global bake_count
     key = description_key(desc)
     hit = MEMORY.get(key)
@@ -251,9 +261,9 @@ def get_table_with_source(
     result = bake.bake(desc, progress)
     with _count_lock:
         bake_count += 1
-    # kept (and drawn) whatever happens to the disk copy; without the reflectance at the u nodes
-    # (up to 4.5 MiB), which only the caller's film table reads (film_colour.film_table)
-    MEMORY[key] = dataclasses.replace(result, node_reflectance=None)
+    if not keep_nodes:  # up to 4.5 MiB, only a film table computed next reads it (get_film)
+        result.node_reflectance = None
+    MEMORY[key] = result  # kept (and drawn) whatever happens to the disk copy
     FAILURES.pop(key)
     if store:
         _store(key, result, cache, problem)

@@ -188,18 +188,20 @@ def _bake_worker(job: _Job, cache) -> None:
             raise BakesCancelled
         job.progress = float(fraction)
 
-    baked = None
+    baked = result = None
     try:
         report(0.0, "")  # superseded before it started: stops here
-        result, source = tables.get_table_with_source(job.desc, cache, report, store=False)
+        result, source = tables.get_table_with_source(job.desc, cache, report, store=False, keep_nodes=True)
         baked = result if source == "bake" else None
-        if job.film:  # from the fresh bake's reflectance at its nodes: no second sweep
+        if not job.film:
+            tables.release_nodes(result)
+        else:  # from the fresh bake's reflectance at its nodes: no second sweep
             report(1.0, "film table")  # superseded meanwhile: stops here
             tables.get_film(job.desc, result, report)
         report(1.0, "grid")
         _then(job, result)
     except BakesCancelled:
-        pass
+        tables.release_nodes(result)
     except Exception as exc:  # reported, never raised into Blender's timer
         text = tables.record_failure(job.desc, exc)  # before leaving _running: the draw must not re-queue
         log.error("Thin Film SH: bake failed: %s", text)

@@ -131,11 +131,19 @@ def test_no_bake_starts_while_a_superseded_one_stops(bpy, tf, scene, monkeypatch
 
 
 def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):  # noqa: F811
-    desc = tf.scene_draw.description.description(film(bpy, tf, "Kept"))
-    result, source = tf.tables.get_table_with_source(desc, store=False)
+    """A fresh bake's reflectance at its u nodes (up to 4.5 MiB) is kept only for the film table
+    the viewport's worker computes next (keep_nodes), then dropped; by default it is not kept."""
+    first = tf.scene_draw.description.description(film(bpy, tf, "Plain"))
+    result, source = tf.tables.get_table_with_source(first, store=False)
+    assert source == "bake" and result.node_reflectance is None
+    desc = tf.scene_draw.description.description(film(bpy, tf, "Kept", roughness=0.45))
+    result, source = tf.tables.get_table_with_source(desc, store=False, keep_nodes=True)
+    key = tf.scene_draw.description.description_key(desc)
     assert source == "bake" and result.node_reflectance is not None
-    kept = tf.tables.MEMORY.get(tf.scene_draw.description.description_key(desc))
-    assert kept.node_reflectance is None and kept.data is result.data
+    assert tf.tables.MEMORY.get(key) is result  # one object: the caller's and the cache's
+    film_table = tf.tables.get_film(desc, result)
+    assert film_table.reflectance.shape[0] == result.data.shape[0]
+    assert result.node_reflectance is None
 
 
 def test_a_superseded_jobs_grid_stops_at_its_next_step(bpy, tf, scene):  # noqa: F811
