@@ -481,12 +481,12 @@ def report(res: dict) -> str:
         "| multiscatter | roughness > 0 and multiscatter ≠ none | Kulla–Conty energy compensation |",
         "| world lamps (per World, at draw time) | the World has pixels brighter than 32× its mean luminance"
         ' (`lamps.extract`), the material\'s "World Lamps" is on and it has no diffuse base | up to 8'
-        " directional lights in the lighting uniform buffer, a film table per material (`lamps.film_table`),"
-        " `TF_LAMPS` (the lamp loop, `glsl/tf_lamps.glsl`); SH and prefilter without the lamps; off: none of"
-        " it (no table, no loop) |",
+        " directional lights in the lighting uniform buffer, a film table per material"
+        " (`film_colour.film_table`), `TF_LAMPS` (the lamp loop, `glsl/tf_lamps.glsl`); SH and prefilter"
+        " without the lamps; off: none of it (no table, no loop) |",
         "| dominant direction (split sum, at draw time) | a split-only film (roughness < 0.2), or a film"
-        " drawn by both halves at SH order ≥ 6 (`prefilter.uses_moment`; the automatic order of such films"
-        " is 12) |"
+        " drawn by both halves at SH order ≥ 6 (`shading.policy.uses_moment`; the automatic order of"
+        " such films is 12) |"
         " `TF_MOMENT`: a second fetch of the prefiltered World (its luminance × direction moment) and the"
         " film's albedo read at the half-vector angle of the lobe's light; off: the albedo at the view angle"
         " (forced orders ≤ 5, where the fetch cost 0.10–0.35× of the SH frame on llvmpipe for 0.36 ΔE against"
@@ -516,7 +516,11 @@ def report(res: dict) -> str:
         "",
         "Same model as docs/accuracy-vs-time.md: with K = (L+1)(L+2)/2 stored coefficients, C = 9 (3×3"
         " spectral) or 3 (per channel) floats per coefficient and taps = 2 (1-D) or 4 (2-D): floats"
-        " fetched = taps·K·C; multiply-adds = 6 Σ_{l ≤ L} (2l+1)² + 18 L(L+1) + 12 L + taps·K·C + K·C.",
+        " fetched = taps·K·C; multiply-adds = 6 Σ_{l ≤ L} (2l+1)² + 18 L(L+1) + 12 L + taps·K·C + K·C."
+        " A constant-thickness film with an SH half at L ≥ 3 (`policy.uses_grid`) reads that half from"
+        " its outgoing-radiance grid instead (`TF_RADIANCE_GRID`, `codegen.GRID_MADS`): 4 fetches and"
+        " 76 multiply-adds whatever L; the grid is built on a worker when the World or the material"
+        " changes (0.05–0.2 s; in the roughness 0.2–0.45 hand-over the exact lobe, 15–100 s).",
         "",
         "### Bake-time model",
         "",

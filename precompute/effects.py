@@ -151,7 +151,9 @@ def shader_cost(variant: Variant, lamp_count: int = policy.MAX_LAMPS) -> ShaderC
 
 def _shading_words(variant: Variant, weight: float) -> str:
     """How the variant shades, in words, for the plan's reasons."""
-    if not variant.split_sum:
+    if variant.grid:  # the SH half from the outgoing-radiance grid: 4 fetches at any order
+        path = f"split sum × {1 - weight:.2f} + grid × {weight:.2f}" if variant.split_sum else "radiance grid"
+    elif not variant.split_sum:
         path = "SH only"
     elif variant.split_only:
         path = "split sum only (SH weight 0)"
@@ -530,6 +532,7 @@ def material_plan(
         film=film,
         film_ubo=fits_uniform_buffer(4 if spectral else 2, p.thickness_samples, FILM_SAMPLES),
         table_ubo=table_ubo and fits_uniform_buffer(layers, p.thickness_samples, p.view_samples),
+        grid=True,  # policy.uses_grid decides: constant thickness, l_max ≥ GRID_MIN_L
     )
     cost = shader_cost(draw)
     stages = ", ".join(f"{name} {n[0]}" for name, n in cost.stages.items())

@@ -656,3 +656,24 @@ def test_the_world_sh_reaches_every_band_of_a_high_order_table(bpy, tf, scene):
     assert c.shape == ((top + 1) ** 2, 3)
     high = np.abs(c[81:]).max()  # bands 9–12, windowed
     assert high > 1e-3 * np.abs(c[0]).max(), high
+
+
+def test_a_constant_thickness_rough_film_is_costed_as_its_grid():
+    """The viewport reads a constant-thickness film's SH half from the outgoing-radiance grid
+    (policy.uses_grid): the plan's shader cost is the grid's four fetches, the same at every
+    order, not the per-pixel l = 12 sum it replaced; a varying thickness keeps that sum."""
+    film = Layer(1.33, 400.0)
+    rough = effects.material_plan(Material(layers=(film,), substrate=1.5, roughness=0.6))
+    vary = effects.material_plan(
+        Material(layers=(film,), substrate=1.5, roughness=0.6, thickness_range_nm=(300.0, 500.0))
+    )
+    assert rough.plan.sh_order == vary.plan.sh_order >= policy.GRID_MIN_L
+    assert dict(rough.shader.defines).get("TF_RADIANCE_GRID") == "1"
+    assert "TF_RADIANCE_GRID" not in dict(vary.shader.defines)
+    grid = rough.shader.stages["grid"]
+    assert grid[1] == 4 and "sh" not in rough.shader.stages and "radiance grid" in rough.reasons["shader"]
+    assert 10 * rough.shader.multiply_adds < vary.shader.multiply_adds  # the grid's whole point
+    lower = effects.material_plan(
+        Material(layers=(film,), substrate=1.5, roughness=0.6, quality=Quality(sh_order=6))
+    )
+    assert lower.shader.stages["grid"] == grid  # not the order's

@@ -143,6 +143,11 @@ BLEND_MADS = (4, 3)
 #: tf_shade_lamps per lamp, besides the film reads and F × power: cos θi (3), the half vector
 #: (9), n·h (3), D (6), Λ(cos θi) (7), the weight (5), v·h (3), the lerp position (2), the sum (3).
 LAMP_MADS = 41
+#: tf_shade_grid (TF_RADIANCE_GRID) in place of the SH sum, whatever l_max: r and e1 (6 + 6),
+#: turned by Q (9 + 9), ρ (2), the azimuth's unit vector (4), the equirect position (4), e1·a1
+#: and e1·a2 (4 + 3), the θo and ψ positions and weights (3 + 3 + 2), three vec3 mixes of the
+#: four fetched nodes (18) and × strength (3); three vec4 loads of Q and the strength.
+GRID_MADS, GRID_FETCHES, GRID_LOADS = 76, 4, 3
 #: tf_shade_lamps once per pixel: α, α², cos θo, Λ(cos θo) (10), × multiple scattering (3), the
 #: sum's product (3); with the split sum also the lamp weight (2).
 LAMP_FIXED_MADS = (16, 2)
@@ -224,7 +229,9 @@ def operation_counts(variant: Variant, lamp_count: int = policy.MAX_LAMPS) -> Op
     scalar) read from a uniform buffer. Table and film texels count as uniform loads in the
     ``TF_TABLE_UBO`` / ``TF_FILM_UBO`` variants.
 
-    The SH half is counted in the generated source (:func:`banded_source`: each X(±90°) term 3,
+    A grid variant reads its SH half from the outgoing-radiance grid (:data:`GRID_MADS`: four
+    fetches, the same at every order; its floats count as table floats). Otherwise the SH half
+    is counted in the generated source (:func:`banded_source`: each X(±90°) term 3,
     each z pair 12, each angle power 4, each coefficient's table read and 3×3 or 3 sum) from
     l = 3 on, from :data:`DIRECT_PATH` below; the split sum, the blend and the lamp loop (at
     ``lamp_count`` lamps, by default its bound policy.MAX_LAMPS) from their known counts. Not
@@ -234,7 +241,13 @@ def operation_counts(variant: Variant, lamp_count: int = policy.MAX_LAMPS) -> Op
     variant = variant.normalised()
     stages = {}
     floats = 0
-    if not variant.split_only:
+    if variant.grid:  # normalised: only with an SH half
+        mads, fetches, loads, f = GRID_MADS, GRID_FETCHES, GRID_LOADS, 3 * GRID_FETCHES
+        if variant.split_sum:
+            mads += BLEND_MADS[1]
+        stages["grid"] = (mads, fetches, loads)
+        floats += f
+    elif not variant.split_only:
         mads, fetches, loads, f = _sh_sum(variant)
         if variant.split_sum:
             mads += BLEND_MADS[1]
