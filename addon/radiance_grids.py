@@ -101,9 +101,7 @@ def _work() -> None:
         with GRIDS.lock:
             GRIDS.running = None
             if grid is not None:
-                GRIDS.built[key] = grid
-                while len(GRIDS.built) > QUEUE_SIZE:  # never fetched: a drag's intermediate value
-                    GRIDS.built.pop(next(iter(GRIDS.built)))
+                _keep_built(key, grid)
         GRIDS.finished.set()
 
 
@@ -117,7 +115,7 @@ def _poll() -> float | None:
 
 def _request(key: str, build) -> None:
     with GRIDS.lock:
-        if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built or key in GRIDS.inline:
+        if _known(key):
             return
         GRIDS.queue[key] = build
         while len(GRIDS.queue) > QUEUE_SIZE:
@@ -134,21 +132,31 @@ def prebuild(key: str, build) -> bool:
     and leave it for the next draw's upload, unless it is uploaded, built, queued or being built
     already. True when it was built here."""
     with GRIDS.lock:
-        if key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built or key in GRIDS.inline:
-            return False
-        if key in GRIDS.textures:
+        if _known(key) or key in GRIDS.textures:
             return False
         GRIDS.inline.add(key)
+    grid = None
     try:
         grid = build()
     finally:
-        with GRIDS.lock:
+        with GRIDS.lock:  # one step: never neither building nor built
             GRIDS.inline.discard(key)
-    with GRIDS.lock:
-        GRIDS.built[key] = grid
-        while len(GRIDS.built) > QUEUE_SIZE:
-            GRIDS.built.pop(next(iter(GRIDS.built)))
+            if grid is not None:
+                _keep_built(key, grid)
     return True
+
+
+def _known(key: str) -> bool:
+    """Whether the grid of ``key`` is queued, being built or built (call with the lock held)."""
+    return key in GRIDS.queue or key == GRIDS.running or key in GRIDS.built or key in GRIDS.inline
+
+
+def _keep_built(key: str, grid) -> None:
+    """Leave a built grid for the next draw's upload (call with the lock held); the oldest beyond
+    QUEUE_SIZE is dropped (never fetched: a drag's intermediate value)."""
+    GRIDS.built[key] = grid
+    while len(GRIDS.built) > QUEUE_SIZE:
+        GRIDS.built.pop(next(iter(GRIDS.built)))
 
 
 def chain(previous, lighting):
@@ -240,19 +248,28 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
     source, coeffs = lighting.grid_source(lamps)
     l_max, roughness = int(result.sh_order), float(desc.roughness)
     env = lighting.environment
-    windowed = policy.windowed_lighting(coeffs, l_max, roughness)
+    key = sh_key(desc_key, source, l_max, roughness)
     if film is not None and env is not None:
         mask = env.lamp_mask if lamps and env.lamps is not None else None
         build = lobe_build(film, roughness, env.panorama, policy.LOBE_GRID_VIEWS, mask)
-        key = f"{desc_key}|{source}|{round(roughness, 6)}{LOBE_SUFFIX}"
-        if wait or _ready(key):
-            return grid_for(key, build, wait=wait), True
+        lobe_key = f"{desc_key}|{source}|{round(roughness, 6)}{LOBE_SUFFIX}"
+        if wait or _ready(lobe_key):
+            return grid_for(lobe_key, build, wait=wait), True
         # it takes 15–100 s: meanwhile the SH grid (under a second, asked for first, and the
         # worker builds SH grids first) stands in, better than the per-pixel variant's stand-in
-        stand_in = grid_for(sh_key(desc_key, source, l_max, roughness), sh_build(result, windowed))
-        _request(key, build)
+        stand_in = _sh_grid(key, result, coeffs, roughness, wait=False)
+        _request(lobe_key, build)
         return stand_in, False
-    return grid_for(sh_key(desc_key, source, l_max, roughness), sh_build(result, windowed), wait=wait), False
+    return _sh_grid(key, result, coeffs, roughness, wait=wait), False
+
+
+def _sh_grid(key: str, result, coeffs, roughness: float, *, wait: bool):
+    """:func:`grid_for` of a film's SH grid; its windowed lighting is made only when it is built."""
+    found = GRIDS.textures.get(key)
+    if found is not None:  # the frame's usual case: no windowing, no copy
+        return found
+    windowed = policy.windowed_lighting(coeffs, int(result.sh_order), roughness)
+    return grid_for(key, sh_build(result, windowed), wait=wait)
 
 
 def _ready(key: str) -> bool:
