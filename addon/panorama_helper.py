@@ -40,17 +40,14 @@ import json
 import logging
 import os
 import queue
-import shutil
-import subprocess
 import sys
-import tempfile
 import threading
 import time
 
 import bpy
 import numpy as np
 
-from . import panorama_process, prefs
+from . import helper_process, panorama_process, prefs
 from .panorama import PANORAMA_SAMPLES, PANORAMA_WIDTH
 from .world_key import working_space
 
@@ -83,8 +80,6 @@ START_TIMEOUT_S = 60.0
 #: Longest wait for one panorama once the helper is ready: a 256×128, 32-sample render takes
 #: ≈ 0.5–1.5 s; a heavy node tree or a loaded machine many times that.
 RENDER_TIMEOUT_S = 60.0
-#: How long :func:`stop` lets the helper exit on its own (stdin closed) before killing it.
-STOP_WAIT_S = 2.0
 #: The working space of the helper's factory start-up (it cannot be set from Python).
 HELPER_WORKING_SPACE = "Linear Rec.709"
 
@@ -113,34 +108,15 @@ def command() -> list[str]:
     return command_for(bpy.app.binary_path, sys.executable)
 
 
-class _Process:
+class _Process(helper_process.ChildProcess):
     """One helper process: its pipes, a thread reading its answers, its private folder."""
 
     def __init__(self, argv: list[str]):
-        self.folder = tempfile.mkdtemp(prefix="thinfilm_sh_panorama_")  # private: 0700
-        self.started = time.perf_counter()
+        super().__init__(argv, "thinfilm_sh_panorama_", text=True)
         self.ready = threading.Event()
         self.ready_s: float | None = None
         self.working_space = ""
         self.answers: queue.Queue = queue.Queue()
-        self.stopped = False  # stopped on purpose (unregister, a restart): not a failure
-        self._log = open(os.path.join(self.folder, "helper.log"), "wb")  # noqa: SIM115 (closed in stop)
-        try:
-            self.proc = subprocess.Popen(
-                argv,
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=self._log,
-                text=True,
-                encoding="utf-8",
-                errors="replace",  # Blender's own output is not ours to trust
-                bufsize=1,
-                creationflags=getattr(subprocess, "CREATE_NO_WINDOW", 0),  # Windows: no console
-            )
-        except BaseException:
-            self._log.close()
-            shutil.rmtree(self.folder, ignore_errors=True)
-            raise
         self._reader = threading.Thread(target=self._read, daemon=True, name="thinfilm_sh panorama helper")
         self._reader.start()
 
@@ -160,10 +136,6 @@ class _Process:
                 self.answers.put(message)
         self.answers.put(None)  # end of output: the process exited
         self.ready.set()
-
-    def alive(self) -> bool:
-        """Whether the process still runs."""
-        return self.proc.poll() is None
 
     def send(self, request: dict) -> None:
         """Write one request line (main thread; a line never fills the pipe)."""
@@ -189,37 +161,6 @@ class _Process:
                 raise HelperError(self._why("exited"))
             if message.get("id") == ident:
                 return message
-
-    def _why(self, what: str) -> str:
-        code = self.proc.poll()
-        return f"{what}{f' (exit code {code})' if code is not None else ''}; its log: {self._log.name}"
-
-    def rss_bytes(self) -> int | None:
-        """The process's resident memory (Linux), or None."""
-        try:
-            with open(f"/proc/{self.proc.pid}/status") as status:
-                for line in status:
-                    if line.startswith("VmRSS:"):
-                        return int(line.split()[1]) * 1024
-        except OSError:
-            return None
-        return None
-
-    def stop(self) -> None:
-        """Close its stdin (it exits), kill it if it has not within :data:`STOP_WAIT_S`, remove
-        its folder."""
-        self.stopped = True
-        try:
-            self.proc.stdin.close()
-        except OSError:
-            pass
-        try:
-            self.proc.wait(STOP_WAIT_S)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-        self._log.close()
-        shutil.rmtree(self.folder, ignore_errors=True)
 
 
 _lock = threading.Lock()

@@ -39,6 +39,7 @@ __all__ = [
     "cache_max_bytes",
     "default_cache_dir",
     "overlay_enabled",
+    "bake_helper_enabled",
     "preferences",
     "render_helper_enabled",
 ]
@@ -155,6 +156,13 @@ def render_helper_enabled(context=None) -> bool:
     return bool(prefs.use_render_helper) if prefs is not None else True
 
 
+def bake_helper_enabled(context=None) -> bool:
+    """The *Bake in a Helper Process* preference (True while the preferences are not there;
+    :mod:`.bake_helper`)."""
+    prefs = preferences(context)
+    return bool(prefs.use_bake_helper) if prefs is not None else True
+
+
 class ThinFilmSHPreferences(AddonPreferences):
     """The extension's preferences: the overlay switch, the table cache's folder and size."""
 
@@ -173,6 +181,14 @@ class ThinFilmSHPreferences(AddonPreferences):
         description="Render the panorama of a procedural World (Sky Texture, mixes, ...) in a "
         "background Blender process, so the viewport keeps running while it renders. Off: it is "
         "rendered in Blender itself, which pauses the interface for about a second per World edit",
+        default=True,
+    )
+
+    use_bake_helper: BoolProperty(
+        name="Bake in a Helper Process",
+        description="Bake the viewport's film tables in a background Python process, so an edit's "
+        "new table is ready in tens of milliseconds whatever the interface is drawing. Off: they "
+        "are baked on a thread of Blender itself, which waits while the interface draws",
         default=True,
     )
 
@@ -199,6 +215,7 @@ class ThinFilmSHPreferences(AddonPreferences):
         layout.use_property_split = True
         layout.prop(self, "show_overlay")
         layout.prop(self, "use_render_helper")
+        layout.prop(self, "use_bake_helper")
         layout.prop(self, "cache_dir")
         layout.prop(self, "cache_limit_mib")
         col = layout.column(align=True)

@@ -59,6 +59,7 @@ __all__ = [
     "get_film",
     "get_table",
     "get_table_with_source",
+    "keep_film",
     "open_cache",
     "parse_plan",
     "peek_film",
@@ -191,6 +192,12 @@ def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     return found
 
 
+def keep_film(desc: Material, film) -> None:
+    """Keep ``film``, the film table of ``desc`` computed elsewhere (the bake helper process,
+    :mod:`.bake_helper`, with its table), for :func:`get_film` and :func:`peek_film`."""
+    FILMS[description_key(desc)] = film
+
+
 def release_nodes(result) -> None:
     """Drop a fresh bake's reflectance at its u nodes (kept by ``keep_nodes`` for its film
     table): the table in memory does not need it."""
@@ -223,7 +230,12 @@ def _from_table(table) -> bake.BakeResult:
 
 
 def get_table_with_source(
-    desc: Material, cache=None, progress=None, store: bool = True, keep_nodes: bool = False
+    desc: Material,
+    cache=None,
+    progress=None,
+    store: bool = True,
+    keep_nodes: bool = False,
+    baker=None,
 ) -> tuple[bake.BakeResult, str]:
     """Like :func:`get_table`, also saying where the table came from: memory, disk or bake.
 
@@ -231,7 +243,9 @@ def get_table_with_source(
     cache later with :func:`store_table` (the viewport's worker first lets the frame show it:
     writing the soap preset's 61-row table takes 0.4–2 s). ``keep_nodes``: a fresh bake keeps
     its reflectance at its u nodes (``BakeResult.node_reflectance``) until :func:`get_film` or
-    :func:`release_nodes` drops it, so its film table needs no second sweep."""
+    :func:`release_nodes` drops it, so its film table needs no second sweep. ``baker(desc,
+    progress)`` bakes in place of :func:`precompute.bake.bake` (the viewport's: the bake helper
+    process, :func:`.bake_helper.baker`)."""
     global bake_count
     key = description_key(desc)
     hit = MEMORY.get(key)
@@ -258,7 +272,7 @@ def get_table_with_source(
             MEMORY[key] = result
             CACHE_ERRORS.pop(key)
             return result, "disk"
-    result = bake.bake(desc, progress)
+    result = (baker or bake.bake)(desc, progress)
     with _count_lock:
         bake_count += 1
     if not keep_nodes:  # up to 4.5 MiB, only a film table computed next reads it (get_film)

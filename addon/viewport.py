@@ -24,6 +24,10 @@ Background work is visible: while bakes run or the World is analysed, the header
 the bakes' progress (:func:`activity`), and ``viewport.cancel_bakes`` stops them at their next
 progress checkpoint.
 
+A viewport bake runs in the bake helper process (:mod:`.bake_helper`) when it is on, its
+worker thread waiting on the pipe: Blender's main thread, which holds Python's lock while it
+draws, no longer slows it down.
+
 A frame is always drawn with the best data available: while a material's new table bakes, the
 draw shows the table it was last drawn with (``scene_draw.Caches.previous``), and when any
 background work ends (a bake, a linked thickness's bake, the World's update) the timer asks for
@@ -45,6 +49,7 @@ import bpy
 from ..precompute.progress import reporting
 from . import (
     bake_asks,
+    bake_helper,
     caches,
     display,
     linked,
@@ -191,7 +196,10 @@ def _bake_worker(job: _Job, cache) -> None:
     baked = result = None
     try:
         report(0.0, "")  # superseded before it started: stops here
-        result, source = tables.get_table_with_source(job.desc, cache, report, store=False, keep_nodes=True)
+        baker = bake_helper.baker(job.film, tables.keep_film) if bake_helper.enabled() else None
+        result, source = tables.get_table_with_source(
+            job.desc, cache, report, store=False, keep_nodes=True, baker=baker
+        )
         baked = result if source == "bake" else None
         if not job.film:
             tables.release_nodes(result)
@@ -309,6 +317,8 @@ def _start_queued() -> list[_Job]:
 def _service() -> float | None:
     """Timer: start queued bakes on threads, refresh the World, ask for a redraw when done."""
     global _world_stale
+    if _drawn.is_set():
+        bake_helper.warm()  # a few ms once: warm (kernels too) by the first edit
     jobs = _start_queued()
     baked = linked.has_pending()
     if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw

@@ -87,7 +87,7 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("scene_draw", "viewport", "tables", "prefs", "caches", "description"):
+        for name in ("scene_draw", "viewport", "tables", "prefs", "caches", "description", "bake_helper"):
             setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()
@@ -553,6 +553,7 @@ def first_open(ext: Extension, path: Path) -> tuple[Loop, Result]:
     ext.caches.clear()
     shutil.rmtree(ext.cache_dir, ignore_errors=True)
     common.clear_bake_caches()
+    ext.bake_helper.stop()  # its kernel caches too: the next draw starts a cold one
     scene = open_scene(ext, path)
     loop = Loop(ext, scene)
     trace = loop.measure(lambda i: None)

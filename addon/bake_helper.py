@@ -1,0 +1,351 @@
+"""The viewport's table bakes in a helper process, so they never wait for Blender's main thread
+(issue 16).
+
+A bake on a thread of Blender's own process runs a few hundred numpy calls and needs Python's
+global lock between them; Blender's main thread holds that lock while it draws (every Python
+draw callback and interface panel). Measured on the 2-core machine with the soap preset's warm
+bake and film table: 24 ms with the main thread idle, 461 ms while it redrew the viewport
+(``benchmarks/latency.py``'s loop), 146 ms beside a pure-Python loop. So the viewport's bake
+worker (:func:`.viewport._bake_worker`) hands the bake to one long-lived process
+(:mod:`.bake_process`: the same :func:`precompute.bake.bake` and film table, bit for bit) and
+waits for the answer on its pipe, which holds no lock:
+
+1. :func:`warm` starts the process when a viewport first draws films (≈ 0.2 s to import numpy
+   and :mod:`precompute`; 40 MiB resident), so it is ready, and its kernel caches warm, by the
+   first edit;
+2. :func:`baker` is the bake function the worker passes to :func:`.tables.get_table_with_source`
+   (the memory and disk caches are looked up first, in process); the film table comes back
+   with the table and is kept in :data:`.tables.FILMS`;
+3. a superseded bake is cancelled in the helper too (at its next checkpoint).
+
+Failures never lose a table: a helper that cannot start, dies, or stays silent for
+:data:`SILENCE_S` is given up for the session with one logged error, and the bake runs on the
+worker thread as before. A bake's own error (an invalid material) comes back as the exception
+it raised, recorded by the viewport as before. The preference *Bake in a Helper Process*
+(:func:`.prefs.bake_helper_enabled`) or ``THINFILM_SH_BAKE_HELPER=0`` turns it off (the tests
+do, except tests/test_bake_helper.py). Headless renders, the Bake button and the command line
+bake in process (nothing to draw meanwhile).
+"""
+
+from __future__ import annotations
+
+import builtins
+import collections
+import itertools
+import logging
+import os
+import queue
+import sys
+import threading
+import time
+
+import numpy as np
+
+from ..precompute import bake as precompute_bake
+from ..precompute import film_colour
+from ..precompute.material import Material
+from . import bake_process, helper_process, prefs
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "ENV",
+    "SILENCE_S",
+    "STATS",
+    "HelperError",
+    "bake",
+    "baker",
+    "command",
+    "enabled",
+    "info",
+    "process_id",
+    "stop",
+    "warm",
+]
+
+#: The helper script (run, not imported, by the helper process).
+SCRIPT = os.path.abspath(bake_process.__file__)
+#: The extension package's folder, which the script imports :mod:`precompute` from.
+ROOT = os.path.dirname(os.path.dirname(SCRIPT))
+#: Environment variable: "0", "off", "no" or "false" turns the helper off, whatever the preference.
+ENV = "THINFILM_SH_BAKE_HELPER"
+#: Longest the helper may stay silent (no progress, no answer) before it is given up: it reports
+#: progress every ≲ 0.1 s of work and starts in ≈ 0.2 s; 300× that for a machine busy rendering.
+SILENCE_S = 60.0
+#: How often a waiting worker looks whether its bake was superseded.
+POLL_S = 0.005
+
+#: Counts (tests and benchmarks): "started", "baked", "errors" (a bake's own), "failed" (the
+#: helper's), "cancelled", "given_up".
+STATS: collections.Counter = collections.Counter()
+
+
+class HelperError(RuntimeError):
+    """The helper process could not start, died or stayed silent: it is given up."""
+
+
+def command() -> list[str]:
+    """The helper's command line: this process's Python (Blender's bundled one in Blender; the
+    interpreter that imports bpy as a module otherwise) running :mod:`.bake_process`."""
+    return [sys.executable, SCRIPT, ROOT]
+
+
+class _Process(helper_process.ChildProcess):
+    """The helper process, a thread reading its frames and handing each to the bake it answers."""
+
+    def __init__(self, argv: list[str]):
+        super().__init__(argv, "thinfilm_sh_bake_", text=False)
+        self.ready = threading.Event()
+        self.ready_s: float | None = None
+        self.ended = False
+        self._waiting: dict[int, queue.Queue] = {}
+        self._lock = threading.Lock()
+        self._send_lock = threading.Lock()
+        threading.Thread(target=self._read, daemon=True, name="thinfilm_sh bake helper").start()
+
+    def _read(self) -> None:
+        try:
+            while (message := bake_process.receive(self.proc.stdout)) is not None:
+                if message[0] == "ready":
+                    self.ready_s = time.perf_counter() - self.started
+                    self.ready.set()
+                    continue
+                with self._lock:
+                    waiting = self._waiting.get(message[1])
+                if waiting is not None:  # else a cancelled bake's late answer
+                    waiting.put(message)
+        except Exception as exc:  # a broken frame: the helper is unusable
+            log.error("Thin Film SH: the bake helper's answer could not be read: %s", exc)
+        finally:
+            with self._lock:
+                self.ended = True
+                for waiting in self._waiting.values():
+                    waiting.put(None)
+            self.ready.set()
+
+    def open(self, ident: int) -> queue.Queue:
+        """The queue the answers to bake ``ident`` arrive in (None: the helper ended)."""
+        answers: queue.Queue = queue.Queue()
+        with self._lock:
+            if self.ended:
+                answers.put(None)
+            self._waiting[ident] = answers
+        return answers
+
+    def close(self, ident: int) -> None:
+        with self._lock:
+            self._waiting.pop(ident, None)
+
+    def send(self, message) -> None:
+        """One frame to the helper (any thread)."""
+        try:
+            with self._send_lock:
+                bake_process.send(self.proc.stdin, message)
+        except (OSError, ValueError) as exc:
+            raise HelperError(self._why(f"could not be sent a bake ({exc})")) from exc
+
+
+_lock = threading.Lock()
+_process: _Process | None = None
+_given_up = ""  # why the helper was given up for this session ("" while it is not)
+_ids = itertools.count(1)
+#: The last bake's figures (benchmarks, docs): "bake_ms" in the helper, "wait_ms" here (from
+#: the request to the answer).
+LAST: dict = {}
+
+
+def enabled() -> bool:
+    """Whether viewport bakes go to the helper: not turned off by :data:`ENV` or the preference,
+    and not given up."""
+    if os.environ.get(ENV, "").strip().lower() in {"0", "off", "no", "false"}:
+        return False
+    return prefs.bake_helper_enabled() and not _given_up
+
+
+def warm() -> None:
+    """Start the helper if it is enabled and not running (a process start, a few ms; it then
+    imports numpy on its own). Never raises: a failed start gives it up."""
+    global _process
+    if not enabled():
+        return
+    with _lock:
+        if _process is not None and _process.alive() and not _process.ended:
+            return
+        old, _process = _process, None
+    if old is not None:
+        log.warning("Thin Film SH: the bake helper %s: starting it again", old._why("had exited"))
+        old.stop()
+    try:
+        started = _Process(command())
+    except OSError as exc:
+        _give_up(f"could not be started ({exc})")
+        return
+    STATS["started"] += 1
+    with _lock:
+        _process = started
+
+
+def _give_up(why: str) -> None:
+    """Stop the helper and bake on the viewport's worker threads from now on (logged once)."""
+    global _given_up, _process
+    with _lock:
+        first = not _given_up
+        _given_up = _given_up or why
+        old, _process = _process, None
+    if old is not None:
+        old.stop()
+    if first:
+        STATS["given_up"] += 1
+        log.error(
+            "Thin Film SH: the bake helper process %s. Tables are baked in Blender itself from now "
+            "on: edits redraw more slowly while the interface is busy.",
+            why,
+        )
+
+
+_BUILTIN_ERRORS = {name for name in dir(builtins) if name.endswith("Error")}
+
+
+def _failure(type_name: str, message: str) -> Exception:
+    """The exception a bake raised in the helper, rebuilt here (a built-in error keeps its type)."""
+    kind = getattr(builtins, type_name, None) if type_name in _BUILTIN_ERRORS else None
+    if isinstance(kind, type) and issubclass(kind, Exception):
+        try:
+            return kind(message)
+        except TypeError:
+            pass
+    return RuntimeError(f"{type_name}: {message}")
+
+
+def _table(fields: dict) -> precompute_bake.BakeResult:
+    return precompute_bake.BakeResult(
+        data=np.asarray(fields["data"]),
+        material=Material.from_dict(fields["material"]),
+        sh_order=int(fields["sh_order"]),
+        view_angles_rad=np.asarray(fields["view_angles_rad"]),
+        thicknesses_nm=np.asarray(fields["thicknesses_nm"]),
+        wavelengths_nm=np.asarray(fields["wavelengths_nm"]),
+        u_nodes=int(fields["u_nodes"]),
+        reasons=dict(fields["reasons"]),
+        timings_s=dict(fields["timings_s"]),
+    )
+
+
+def _final(process: _Process, answers: queue.Queue, progress) -> tuple:
+    """The bake's last message ("done", "failed" or "cancelled"), its progress passed on to
+    ``progress`` meanwhile (and every :data:`POLL_S`, so a superseded bake raises promptly)."""
+    fraction, text = 0.0, ""
+    deadline = time.perf_counter() + SILENCE_S
+    while True:
+        try:
+            message = answers.get(timeout=POLL_S)
+        except queue.Empty:
+            if progress is not None:
+                progress(fraction, text)
+            if time.perf_counter() > deadline:
+                raise HelperError(f"was silent for {SILENCE_S:g} s during a bake") from None
+            continue
+        if message is None:
+            raise HelperError(process._why("exited"))
+        deadline = time.perf_counter() + SILENCE_S
+        if message[0] != "progress":
+            return message
+        fraction, text = message[2], message[3]
+        if progress is not None:
+            progress(fraction, text)
+
+
+def bake(desc: Material, film: bool, progress=None):
+    """(table, film table or None) of ``desc`` baked by the helper; the calling worker thread
+    waits. ``progress(fraction, text)`` is called with the helper's progress and every
+    :data:`POLL_S` while waiting; an exception it raises cancels the bake in the helper too and
+    propagates. Raises :class:`HelperError` (the helper is unusable: bake in process) or the
+    bake's own error."""
+    warm()
+    with _lock:
+        process = _process
+    if process is None:
+        raise HelperError("is not running")
+    ident = next(_ids)
+    answers = process.open(ident)
+    start = time.perf_counter()
+    try:
+        process.send(("bake", ident, desc.to_dict(), bool(film)))
+        message = _final(process, answers, progress)
+    except BaseException:
+        if not process.ended:  # superseded (or silent): stop it there too
+            STATS["cancelled"] += 1
+            try:
+                process.send(("cancel", ident))
+            except HelperError:
+                pass
+        raise
+    finally:
+        process.close(ident)
+    if message[0] == "done":
+        STATS["baked"] += 1
+        LAST.update(bake_ms=float(message[4]), wait_ms=1000.0 * (time.perf_counter() - start))
+        table = film_colour.FilmTable(**message[3]) if message[3] is not None else None
+        return _table(message[2]), table
+    if message[0] == "failed":
+        STATS["errors"] += 1
+        raise _failure(message[2], message[3])
+    raise HelperError("cancelled a bake nobody cancelled")
+
+
+def baker(film: bool, keep_film):
+    """The bake function for :func:`.tables.get_table_with_source`: ``(desc, progress) →
+    BakeResult`` by the helper, its film table (when ``film``) given to ``keep_film(desc,
+    film_table)``; in process (:func:`precompute.bake.bake`) when the helper is off or fails."""
+
+    def run(desc, progress=None):
+        if enabled():
+            try:
+                result, table = bake(desc, film, progress)
+            except HelperError as exc:
+                STATS["failed"] += 1
+                _give_up(str(exc))
+            else:
+                if table is not None:
+                    keep_film(desc, table)
+                return result
+        return precompute_bake.bake(desc, progress)
+
+    return run
+
+
+def info() -> dict:
+    """The helper's state and figures: pid, start-up seconds, resident memory, why it was given
+    up (benchmarks, docs)."""
+    with _lock:
+        process = _process
+    found = {"given_up": _given_up, **STATS, **LAST}
+    if process is not None:
+        found.update(pid=process.proc.pid, start_s=process.ready_s, rss_bytes=process.rss_bytes())
+    return found
+
+
+def process_id() -> int | None:
+    """The running helper's process id, or None (tests)."""
+    with _lock:
+        return _process.proc.pid if _process is not None and _process.alive() else None
+
+
+def stop() -> None:
+    """Stop the helper (the next :func:`warm` starts it again, cold)."""
+    global _process
+    with _lock:
+        old, _process = _process, None
+    if old is not None:
+        old.stop()
+
+
+def register() -> None:
+    """Nothing to start: the helper starts when a viewport first draws films (:func:`warm`)."""
+
+
+def unregister() -> None:
+    """Stop the helper and forget that it was given up (a re-enabled add-on tries it again)."""
+    global _given_up
+    stop()
+    _given_up = ""

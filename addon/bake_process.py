@@ -1,0 +1,219 @@
+"""The bake helper process: the viewport's table bakes run outside Blender's process (issue 16).
+
+Run as a script by :mod:`.bake_helper`, never imported by the add-on for its code (only for the
+framing functions below, which need nothing but the standard library)::
+
+    python bake_process.py PACKAGE_ROOT      # Blender's bundled Python, or the one running bpy
+
+``PACKAGE_ROOT`` is the extension package's folder (the parent of ``precompute/``). The script
+imports :mod:`precompute` from it under a private package name (nothing of the add-on, no bpy):
+the very :func:`precompute.bake.bake` and :func:`precompute.film_colour.film_table` the add-on
+runs in process, so a table baked here equals the one baked there bit for bit
+(tests/test_bake_helper.py). Its caches (microfacet kernels, quadrature nodes, albedo weights)
+stay warm between requests.
+
+Why a process: a bake is a few hundred numpy calls of 10–500 µs, and between them its thread
+needs Python's global lock, which Blender's main thread holds while it draws (every add-on's
+draw callback and every Python panel of the interface). On the 2-core machine the soap
+bubble's warm bake took 24 ms with the main thread idle and 461 ms while it drew frames
+(docs/latency.md); here it runs on the other core, whatever the interface does.
+
+Protocol: frames of an 8-byte big-endian length and a pickle (:func:`send`, :func:`receive`),
+between this process and the add-on that started it (private pipes):
+
+- to the parent, once started: ``("ready", pid)``;
+- from the parent: ``("bake", id, material_dict, film)``: bake ``Material.from_dict(material_dict)``
+  (and its film table when ``film``); ``("cancel", id)``: stop that bake at its next progress
+  checkpoint;
+- to the parent: ``("progress", id, fraction, text)`` (at most every :data:`PROGRESS_EVERY_S`),
+  then one of ``("done", id, table_fields, film_fields or None, ms)``,
+  ``("failed", id, exception_type_name, message)``, ``("cancelled", id)``.
+
+The process exits when its stdin closes (the parent stopped the helper, unregistered, or
+died), stopping a running bake at its next checkpoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import os
+import pickle
+import queue
+import struct
+import sys
+import threading
+import time
+import types
+
+#: Private package name the extension's files are imported under in the helper.
+PACKAGE = "_thinfilm_sh_bake_helper"
+#: A frame's length prefix.
+HEADER = struct.Struct("!Q")
+#: Longest frame read (a soap table with its film table is ≈ 0.8 MiB; an l = 16 multilayer
+#: table tens of MiB): anything longer is a broken pipe, not a table.
+MAX_FRAME = 1 << 30
+#: Progress messages are sent at most this often (the header's bar; cancels are checked at
+#: every checkpoint).
+PROGRESS_EVERY_S = 0.05
+
+
+class FrameError(OSError):
+    """A frame could not be read: the other side closed the pipe mid-frame or wrote garbage."""
+
+
+def send(stream, message) -> None:
+    """Write ``message`` as one frame to the binary ``stream`` and flush it."""
+    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(HEADER.pack(len(data)))
+    stream.write(data)
+    stream.flush()
+
+
+def _read_exactly(stream, size: int) -> bytes | None:
+    chunks, left = [], size
+    while left:
+        chunk = stream.read(left)
+        if not chunk:
+            if left == size:
+                return None
+            raise FrameError(f"the pipe closed {size - left} bytes into a {size}-byte frame")
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+def receive(stream):
+    """The next frame's message from the binary ``stream``, or None at its end."""
+    head = _read_exactly(stream, HEADER.size)
+    if head is None:
+        return None
+    (size,) = HEADER.unpack(head)
+    if size > MAX_FRAME:
+        raise FrameError(f"a frame of {size} bytes: not one of ours")
+    data = _read_exactly(stream, size)
+    if data is None:
+        raise FrameError("the pipe closed after a frame's header")
+    return pickle.loads(data)
+
+
+def table_fields(result) -> dict:
+    """A :class:`precompute.bake.BakeResult` as plain values (its class differs between this
+    process's private package and the add-on's), without its node reflectance."""
+    return {
+        "data": result.data,
+        "material": result.material.to_dict(),
+        "sh_order": int(result.sh_order),
+        "view_angles_rad": result.view_angles_rad,
+        "thicknesses_nm": result.thicknesses_nm,
+        "wavelengths_nm": result.wavelengths_nm,
+        "u_nodes": int(result.u_nodes),
+        "reasons": {str(k): str(v) for k, v in result.reasons.items()},
+        "timings_s": {str(k): float(v) for k, v in result.timings_s.items()},
+    }
+
+
+def film_fields(film) -> dict | None:
+    """A :class:`precompute.film_colour.FilmTable` as plain values."""
+    if film is None:
+        return None
+    return {f.name: getattr(film, f.name) for f in dataclasses.fields(film)}
+
+
+def _stub_package(name: str, path: str) -> None:
+    """A package ``name`` whose submodules are found in ``path``, its ``__init__`` not run."""
+    module = types.ModuleType(name)
+    module.__path__ = [path]
+    module.__package__ = name
+    sys.modules[name] = module
+
+
+def load_precompute(root: str) -> types.SimpleNamespace:
+    """The modules a bake needs, imported from ``root`` without the extension's ``__init__``."""
+    _stub_package(PACKAGE, root)
+    names = ("bake", "film_colour", "material", "progress")
+    return types.SimpleNamespace(
+        **{name: importlib.import_module(f"{PACKAGE}.precompute.{name}") for name in names}
+    )
+
+
+class Cancelled(Exception):
+    """The parent cancelled the running bake, or closed the pipe."""
+
+
+class _Requests:
+    """The parent's messages, read on a thread: bakes queued in order, cancels noted at once."""
+
+    def __init__(self, stream):
+        self.queue: queue.Queue = queue.Queue()
+        self.cancelled: set = set()
+        self.closed = False
+        self._stream = stream
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        try:
+            while (message := receive(self._stream)) is not None:
+                if message[0] == "cancel":
+                    self.cancelled.add(message[1])
+                else:
+                    self.queue.put(message)
+        except (OSError, pickle.UnpicklingError, EOFError, IndexError, TypeError) as exc:
+            print(f"bake helper: unreadable request ({exc}); exiting", file=sys.stderr)
+        finally:
+            self.closed = True
+            self.queue.put(None)
+
+    def stopped(self, ident) -> bool:
+        return self.closed or ident in self.cancelled
+
+
+def bake_request(modules, request, requests: _Requests, out) -> tuple:
+    """Answer one ``("bake", id, material_dict, film)`` request (see the module's docstring)."""
+    _kind, ident, material_dict, want_film = request
+    start = time.perf_counter()
+    last = [0.0]
+
+    def progress(fraction, text) -> None:
+        if requests.stopped(ident):
+            raise Cancelled
+        now = time.perf_counter()
+        if now - last[0] >= PROGRESS_EVERY_S:
+            last[0] = now
+            send(out, ("progress", ident, float(fraction), str(text)))
+
+    try:
+        material = modules.material.Material.from_dict(material_dict)
+        result = modules.bake.bake(material, progress)
+        film = None
+        if want_film:
+            with modules.progress.reporting(lambda: progress(1.0, "film table")):
+                film = modules.film_colour.film_table(result)
+        ms = 1000.0 * (time.perf_counter() - start)
+        return ("done", ident, table_fields(result), film_fields(film), ms)
+    except Cancelled:
+        return ("cancelled", ident)
+    except Exception as exc:  # the material's failure, answered: the parent records it
+        return ("failed", ident, type(exc).__name__, str(exc))
+    finally:
+        requests.cancelled.discard(ident)
+
+
+def serve(root: str, stdin, stdout) -> None:
+    """Answer bake requests from ``stdin`` until it closes (see the module's docstring)."""
+    modules = load_precompute(root)
+    requests = _Requests(stdin)
+    send(stdout, ("ready", os.getpid()))
+    while (request := requests.queue.get()) is not None:
+        send(stdout, bake_request(modules, request, requests, stdout))
+
+
+if __name__ == "__main__":
+    # Python put this script's folder (addon/) first on sys.path: its modules are not ours to import
+    _HERE = os.path.dirname(os.path.abspath(__file__))
+    sys.path[:] = [p for p in sys.path if os.path.abspath(p or os.curdir) != _HERE]
+    if len(sys.argv) != 2:
+        raise SystemExit("usage: bake_process.py PACKAGE_ROOT")
+    _out = os.fdopen(os.dup(1), "wb")  # the frames; print() and warnings go to stderr from now on
+    os.dup2(2, 1)
+    serve(sys.argv[1], sys.stdin.buffer, _out)

@@ -1,0 +1,279 @@
+"""Viewport bakes in the bake helper process (issue 16, addon/bake_helper.py, addon/bake_process.py).
+
+A bake on a thread of Blender's process waits for Python's lock whenever the main thread draws;
+the helper bakes in a process of its own. With the real bpy and the viewport's own path
+(``collect`` asks, the timer ``_service`` starts the worker, the worker hands the bake over):
+
+- the table and film table the helper bakes equal the in-process ones bit for bit, and no bake
+  runs in this process;
+- a bake's own error comes back as its exception; a superseded bake is cancelled in the helper,
+  which goes on serving;
+- a helper that cannot start, exits, is killed mid-bake or stays silent is given up once,
+  logged, and the table is baked in process: the film is still drawn;
+- the preference and ``THINFILM_SH_BAKE_HELPER=0`` turn it off; closing its stdin ends it, and
+  ``unregister`` leaves no process.
+
+The conftest turns the helper off for every other test module (they replace ``bake.bake``);
+this module turns it on. Nothing here is timed (docs/latency.md has the figures).
+"""
+
+from __future__ import annotations
+
+import importlib
+import io
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from test_viewport_state import film, grid, redraw, scene, tf  # noqa: F401
+
+pytestmark = pytest.mark.blender
+
+TIMEOUT_S = 120.0
+
+
+@pytest.fixture
+def helper(tf, monkeypatch):  # noqa: F811
+    """The bake helper module, turned on, no process running and none given up; ``tf.in_process``
+    counts the bakes run in this process."""
+    monkeypatch.setenv("THINFILM_SH_BAKE_HELPER", "1")
+    module = importlib.import_module(f"{tf.package.__name__}.addon.bake_helper")
+    module.unregister()
+    tf.in_process = []
+    real = tf.bake.bake
+
+    def counting(material, progress=None):
+        tf.in_process.append(material)
+        return real(material, progress)
+
+    monkeypatch.setattr(tf.bake, "bake", counting)
+    tf.film_colour = importlib.import_module(f"{tf.package.__name__}.precompute.film_colour")
+    tf.Material = importlib.import_module(f"{tf.package.__name__}.precompute.material").Material
+    tf.real_bake = real
+    yield module
+    module.unregister()
+
+
+def description(tf, mat):  # noqa: F811
+    return tf.scene_draw.description.description(mat)
+
+
+def drawn(bpy, tf, scene, mat):  # noqa: F811
+    """One viewport redraw that asks for ``mat``'s table (and film table), then the next frame's
+    items once the worker is done."""
+    grid(bpy, scene, "Quad", mat, n=2)
+    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    redraw(bpy, tf)
+    items, _messages = redraw(bpy, tf)
+    return items
+
+
+def test_the_viewports_bake_runs_in_the_helper_equal_to_in_process(bpy, tf, scene, helper):  # noqa: F811
+    baked = helper.STATS["baked"]
+    mat = film(bpy, tf, "Soap", roughness=0.05, vary=True)
+    items = drawn(bpy, tf, scene, mat)
+    assert len(items) == 1  # the film is drawn
+    assert helper.STATS["baked"] == baked + 1 and helper.process_id() is not None
+    assert tf.in_process == []  # no bake in this process
+    desc = description(tf, mat)
+    key = tf.scene_draw.description.description_key(desc)
+    table = tf.tables.MEMORY.get(key)
+    here = tf.real_bake(desc)  # the same function in this process
+    np.testing.assert_array_equal(table.data, here.data)
+    assert table.material == here.material and table.u_nodes == here.u_nodes
+    assert table.sh_order == here.sh_order and table.reasons == here.reasons
+    for name in ("view_angles_rad", "thicknesses_nm", "wavelengths_nm"):
+        np.testing.assert_array_equal(getattr(table, name), getattr(here, name))
+    info = helper.info()
+    assert info["bake_ms"] > 0.0 and info["start_s"] > 0.0 and info["rss_bytes"] > 0
+
+
+def test_the_film_table_comes_back_with_the_table(tf, helper):  # noqa: F811
+    desc = tf.bake.table_material(tf.Material.from_dict(soap_dict(tf)))
+    table, film_table = helper.bake(desc, True)
+    here = tf.real_bake(desc)
+    expected = tf.film_colour.film_table(here)  # from the bake's reflectance at its nodes
+    np.testing.assert_array_equal(table.data, here.data)
+    np.testing.assert_array_equal(film_table.reflectance, expected.reflectance)
+    np.testing.assert_array_equal(film_table.multiscatter, expected.multiscatter)
+    np.testing.assert_array_equal(film_table.thicknesses_nm, expected.thicknesses_nm)
+    assert helper.bake(desc, False)[1] is None
+
+
+def soap_dict(ns, thickness: float = 500.0) -> dict:
+    data = ns.Material.from_dict(
+        {"layers": [{"index": 1.33, "thickness_nm": thickness}], "roughness": 0.05}
+    ).to_dict()
+    data["quality"] = {"sh_order": 0, "view_samples": 8, "thickness_samples": 4, "wavelength_count": 16}
+    return data
+
+
+class Broken:
+    """A description the helper cannot read back (its own error, not the helper's)."""
+
+    def to_dict(self):
+        return {"layers": [], "no_such_parameter": 1}
+
+
+def test_a_bakes_own_error_comes_back_as_its_exception(tf, helper):  # noqa: F811
+    with pytest.raises(ValueError, match="unknown material parameters: \\['no_such_parameter'\\]"):
+        helper.bake(Broken(), False)
+    assert helper.enabled() and helper.process_id() is not None  # the helper stays
+    assert helper._failure("KeyError", "x").__class__ is KeyError
+    assert isinstance(helper._failure("TableWriteError", "disk full"), RuntimeError)
+
+
+def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):  # noqa: F811
+    material = tf.Material
+    helper.warm()
+    slow = material.from_dict(soap_dict(tf))
+    slow = slow.with_(quality=slow.quality.__class__(sh_order=8, view_samples=24))  # ≈ 1 s cold
+    calls = []
+
+    class Superseded(Exception):
+        pass
+
+    def progress(fraction, text):
+        calls.append(fraction)
+        if len(calls) >= 3:
+            raise Superseded
+
+    cancelled = helper.STATS["cancelled"]
+    pid = helper.process_id()
+    with pytest.raises(Superseded):
+        helper.bake(slow, False, progress)
+    assert helper.STATS["cancelled"] == cancelled + 1
+    quick = material.from_dict(soap_dict(tf, 640.0))
+    table, _ = helper.bake(quick, False)  # the next answer is this bake's, not the cancelled one's
+    np.testing.assert_array_equal(table.data, tf.real_bake(quick).data)
+    assert helper.process_id() == pid and helper.enabled()
+
+
+def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
+    frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
+    stream = io.BytesIO()
+    message = ("done", 7, {"data": np.arange(6.0).reshape(2, 3)}, None, 1.5)
+    frames.send(stream, message)
+    stream.seek(0)
+    got = frames.receive(stream)
+    assert got[:2] == ("done", 7) and got[3:] == (None, 1.5)
+    np.testing.assert_array_equal(got[2]["data"], message[2]["data"])
+    assert frames.receive(stream) is None  # the end
+    whole = stream.getvalue()
+    with pytest.raises(frames.FrameError, match="closed"):
+        frames.receive(io.BytesIO(whole[:-3]))
+    with pytest.raises(frames.FrameError, match="not one of ours"):
+        frames.receive(io.BytesIO(frames.HEADER.pack(frames.MAX_FRAME + 1)))
+
+
+def silent_command(tf):  # noqa: F811
+    """A helper that says it is ready, then never answers (reads until its stdin closes)."""
+    addon = os.path.dirname(importlib.import_module(f"{tf.package.__name__}.addon.bake_process").__file__)
+    code = (
+        f"import sys; sys.path.insert(0, {addon!r}); import bake_process as b; "
+        "b.send(sys.stdout.buffer, ('ready', 0)); sys.stdin.buffer.read()"
+    )
+    return lambda: [sys.executable, "-c", code]
+
+
+@pytest.mark.parametrize("how", ["unstartable", "exits", "killed", "silent"])
+def test_a_failing_helper_falls_back_to_an_in_process_bake(bpy, tf, scene, helper, monkeypatch, caplog, how):  # noqa: F811
+    given_up = helper.STATS["given_up"]
+    if how == "unstartable":
+        monkeypatch.setattr(helper, "command", lambda: [os.path.join(os.sep, "nonexistent", "python")])
+    elif how == "exits":
+        monkeypatch.setattr(helper, "command", lambda: [sys.executable, "-c", "import sys; sys.exit(3)"])
+    elif how == "silent":
+        monkeypatch.setattr(helper, "command", silent_command(tf))
+        monkeypatch.setattr(helper, "SILENCE_S", 1.0)
+    else:  # killed as soon as the bake is handed over
+        real_send = helper._Process.send
+
+        def send_then_kill(self, message):
+            real_send(self, message)
+            if message[0] == "bake":
+                os.kill(self.proc.pid, signal.SIGKILL)
+
+        monkeypatch.setattr(helper._Process, "send", send_then_kill)
+    mat = film(bpy, tf, "Soap", roughness=0.05, vary=True)
+    with caplog.at_level(logging.ERROR, logger=helper.__name__):
+        items = drawn(bpy, tf, scene, mat)
+    assert len(items) == 1  # still drawn: baked here
+    assert len(tf.in_process) == 1
+    assert helper.STATS["given_up"] == given_up + 1 and not helper.enabled()
+    assert helper.process_id() is None
+    logged = [r for r in caplog.records if "bake helper process" in r.getMessage()]
+    assert len(logged) == 1 and "baked in Blender itself" in logged[0].getMessage()
+
+
+@pytest.mark.parametrize("switch", ["preference", "environment"])
+def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switch):  # noqa: F811
+    if switch == "preference":
+        tf.prefs.preferences().use_bake_helper = False
+    else:
+        monkeypatch.setenv("THINFILM_SH_BAKE_HELPER", "0")
+    try:
+        mat = film(bpy, tf, "Soap", roughness=0.05, vary=True)
+        tf.viewport._drawn.set()
+        assert len(drawn(bpy, tf, scene, mat)) == 1
+    finally:
+        tf.prefs.preferences().use_bake_helper = True
+    assert len(tf.in_process) == 1 and helper.process_id() is None
+
+
+def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa: F811
+    helper.warm()
+    process = helper._process
+    assert process.ready.wait(TIMEOUT_S) and process.alive()
+    process.proc.stdin.close()  # what the parent's death does
+    assert process.proc.wait(TIMEOUT_S) == 0  # it exited on its own
+    helper.stop()
+
+    helper.warm()
+    pid = helper.process_id()
+    assert pid is not None and helper._process.ready.wait(TIMEOUT_S)
+    tf.package.unregister()
+    try:
+        assert helper.process_id() is None
+        assert not os.path.exists(f"/proc/{pid}")  # exited and reaped: no orphan, no zombie
+    finally:
+        tf.package.register()
+
+
+def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):  # noqa: F811
+    helper.warm()
+    first = helper.process_id()
+    assert helper._process.ready.wait(TIMEOUT_S)
+    os.kill(first, signal.SIGKILL)
+    helper._process.proc.wait()
+    deadline = time.monotonic() + TIMEOUT_S
+    while not helper._process.ended:  # its reader saw the end of the pipe
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    desc = tf.Material.from_dict(soap_dict(tf))
+    with caplog.at_level(logging.WARNING, logger=helper.__name__):
+        table, _ = helper.bake(desc, False)
+    assert helper.process_id() not in (None, first) and table.data.shape[0] == 1
+    assert any("had exited" in r.getMessage() for r in caplog.records)
+
+
+def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
+    material = tf.Material
+    descs = [material.from_dict(soap_dict(tf, t)) for t in (300.0, 700.0)]
+    results: dict = {}
+
+    def run(i):
+        results[i] = helper.bake(descs[i], True)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(TIMEOUT_S)
+    for i, desc in enumerate(descs):
+        np.testing.assert_array_equal(results[i][0].data, tf.real_bake(desc).data)
