@@ -53,6 +53,7 @@ __all__ = [
     "SILENCE_S",
     "STATS",
     "HelperError",
+    "Ticket",
     "bake",
     "baker",
     "command",
@@ -60,6 +61,7 @@ __all__ = [
     "info",
     "process_id",
     "stop",
+    "submit",
     "warm",
 ]
 
@@ -255,53 +257,86 @@ def _final(process: _Process, answers: queue.Queue, progress) -> tuple:
             progress(fraction, text)
 
 
+class Ticket:
+    """A bake handed to the helper (:func:`submit`): :meth:`wait` for its answer on a worker
+    thread, or :meth:`cancel` it (the table turned out to be in the disk cache)."""
+
+    def __init__(self, process: _Process, desc: Material, film: bool):
+        self.process, self.ident = process, next(_ids)
+        self.answers = process.open(self.ident)
+        self.start = time.perf_counter()
+        self.done = False
+        try:
+            process.send(("bake", self.ident, desc.to_dict(), bool(film)))
+        except BaseException:
+            process.close(self.ident)
+            raise
+
+    def cancel(self) -> None:
+        """Stop the bake in the helper (at its next checkpoint) and forget its answer."""
+        if self.done:
+            return
+        self.done = True
+        self.process.close(self.ident)
+        if not self.process.ended:
+            STATS["cancelled"] += 1
+            try:
+                self.process.send(("cancel", self.ident))
+            except HelperError:
+                pass
+
+    def wait(self, progress=None):
+        """(table, film table or None): see :func:`bake`."""
+        try:
+            message = _final(self.process, self.answers, progress)
+        except BaseException:
+            self.cancel()  # superseded (or silent): stop it there too
+            raise
+        self.done = True
+        self.process.close(self.ident)
+        if message[0] == "done":
+            STATS["baked"] += 1
+            LAST.update(bake_ms=float(message[4]), wait_ms=1000.0 * (time.perf_counter() - self.start))
+            table = film_colour.FilmTable(**message[3]) if message[3] is not None else None
+            return _table(message[2]), table
+        if message[0] == "failed":
+            STATS["errors"] += 1
+            raise _failure(message[2], message[3])
+        raise HelperError("cancelled a bake nobody cancelled")
+
+
+def submit(desc: Material, film: bool) -> Ticket:
+    """Hand the bake of ``desc`` (and its film table when ``film``) to the helper, starting it
+    if need be: a frame written to a pipe (≈ 0.1 ms), so the main thread may call it (the
+    depsgraph handler does: a worker thread would wait for the lock the next draw holds).
+    Raises :class:`HelperError` when the helper is not running or cannot take it."""
+    warm()
+    with _lock:
+        process = _process
+    if process is None:
+        raise HelperError("is not running")
+    return Ticket(process, desc, film)
+
+
 def bake(desc: Material, film: bool, progress=None):
     """(table, film table or None) of ``desc`` baked by the helper; the calling worker thread
     waits. ``progress(fraction, text)`` is called with the helper's progress and every
     :data:`POLL_S` while waiting; an exception it raises cancels the bake in the helper too and
     propagates. Raises :class:`HelperError` (the helper is unusable: bake in process) or the
     bake's own error."""
-    warm()
-    with _lock:
-        process = _process
-    if process is None:
-        raise HelperError("is not running")
-    ident = next(_ids)
-    answers = process.open(ident)
-    start = time.perf_counter()
-    try:
-        process.send(("bake", ident, desc.to_dict(), bool(film)))
-        message = _final(process, answers, progress)
-    except BaseException:
-        if not process.ended:  # superseded (or silent): stop it there too
-            STATS["cancelled"] += 1
-            try:
-                process.send(("cancel", ident))
-            except HelperError:
-                pass
-        raise
-    finally:
-        process.close(ident)
-    if message[0] == "done":
-        STATS["baked"] += 1
-        LAST.update(bake_ms=float(message[4]), wait_ms=1000.0 * (time.perf_counter() - start))
-        table = film_colour.FilmTable(**message[3]) if message[3] is not None else None
-        return _table(message[2]), table
-    if message[0] == "failed":
-        STATS["errors"] += 1
-        raise _failure(message[2], message[3])
-    raise HelperError("cancelled a bake nobody cancelled")
+    return submit(desc, film).wait(progress)
 
 
-def baker(film: bool, keep_film):
+def baker(film: bool, keep_film, ticket: Ticket | None = None):
     """The bake function for :func:`.tables.get_table_with_source`: ``(desc, progress) →
-    BakeResult`` by the helper, its film table (when ``film``) given to ``keep_film(desc,
-    film_table)``; in process (:func:`precompute.bake.bake`) when the helper is off or fails."""
+    BakeResult`` by the helper (through ``ticket`` when the bake was handed over already), its
+    film table (when ``film``) given to ``keep_film(desc, film_table)``; in process
+    (:func:`precompute.bake.bake`) when the helper is off or fails."""
 
     def run(desc, progress=None):
-        if enabled():
+        if ticket is not None or enabled():
             try:
-                result, table = bake(desc, film, progress)
+                result, table = ticket.wait(progress) if ticket is not None else bake(desc, film, progress)
             except HelperError as exc:
                 STATS["failed"] += 1
                 _give_up(str(exc))

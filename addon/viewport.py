@@ -83,6 +83,9 @@ class _Job:
     #: Run on the worker after the table (and film table): ``then(key, desc, result)``, the
     #: material's grid (:func:`.radiance_grids.chain`), so the bake's one redraw shows both.
     then: object = None
+    #: The bake handed to the helper process by the main thread when the job started
+    #: (:func:`.bake_helper.submit`), or None: the worker waits for it.
+    ticket: object = None
 
 
 _pending: dict[object, _Job] = {}  # material identity → the newest bake it wants
@@ -97,8 +100,9 @@ HIDDEN_IN: set = caches.register("hidden_viewports", set(), scope=caches.FILE)
 _finished = threading.Event()  # a worker ended since the timer's last tick: redraw
 _drawn = threading.Event()  # a viewport drew films since the file was opened: bake ahead on edits
 #: Seconds between the timer's looks while bakes run: a warm bake takes 0.01–0.1 s, so the
-#: 0.1 s poll it had added up to 0.1 s to an edit's wait; a look that finds nothing costs µs.
-POLL_S = 0.01
+#: 0.1 s poll it had added up to 0.1 s to an edit's wait (and 10 ms up to 10 ms); a look that
+#: finds nothing costs µs.
+POLL_S = 0.005
 
 
 class BakesCancelled(Exception):
@@ -182,9 +186,30 @@ def _want_bake(desc, owner=None, film: bool = False, then=None) -> None:
             film = film or (same and queued.film)
             _pending[owner] = _Job(key, desc, film, then=then or (queued.then if same else None))
         wanted = set(_wanted.values())
-        for job in _running.values():
-            if job.key not in wanted:
-                job.cancel.set()  # superseded: stops at its next checkpoint, caches nothing
+        superseded = [job for job in _running.values() if job.key not in wanted]
+    for job in superseded:
+        job.cancel.set()  # stops at its next checkpoint, caches nothing
+        if job.ticket is not None:
+            job.ticket.cancel()  # in the helper too, now: its worker may wait for the lock
+
+
+def _table_of(job: _Job, cache, report):
+    """(table, source) of the job: from memory or disk, else baked by the helper (its ticket,
+    or handed over now) or in process (:func:`.tables.get_table_with_source`). A ticket whose
+    table was found after all, or whose job failed or was superseded, is cancelled."""
+    helped = job.ticket is not None or bake_helper.enabled()
+    baker = bake_helper.baker(job.film, tables.keep_film, job.ticket) if helped else None
+    try:
+        result, source = tables.get_table_with_source(
+            job.desc, cache, report, store=False, keep_nodes=True, baker=baker
+        )
+    except BaseException:
+        if job.ticket is not None:
+            job.ticket.cancel()
+        raise
+    if job.ticket is not None and source != "bake":
+        job.ticket.cancel()  # in memory or on disk after all
+    return result, source
 
 
 def _bake_worker(job: _Job, cache) -> None:
@@ -196,10 +221,7 @@ def _bake_worker(job: _Job, cache) -> None:
     baked = result = None
     try:
         report(0.0, "")  # superseded before it started: stops here
-        baker = bake_helper.baker(job.film, tables.keep_film) if bake_helper.enabled() else None
-        result, source = tables.get_table_with_source(
-            job.desc, cache, report, store=False, keep_nodes=True, baker=baker
-        )
+        result, source = _table_of(job, cache, report)
         baked = result if source == "bake" else None
         if not job.film:
             tables.release_nodes(result)
@@ -306,10 +328,17 @@ def _start_jobs() -> list[_Job]:
 
 def _start_queued() -> list[_Job]:
     """Start the queued bakes that can start now, each on its thread (main thread: the cache
-    folder comes from the preferences)."""
+    folder comes from the preferences). A table not in memory is handed to the bake helper
+    here, before the thread runs: that thread needs Python's lock, which the edit's first
+    redraw holds for its whole draw (20–40 ms on the 2-core machine's llvmpipe)."""
     jobs = _start_jobs()
     cache = tables.open_cache() if jobs else None
     for job in jobs:
+        if bake_helper.enabled() and tables.peek_table(job.desc) is None:
+            try:
+                job.ticket = bake_helper.submit(job.desc, job.film)
+            except bake_helper.HelperError:
+                pass  # the worker bakes in process (and gives the helper up, if it is broken)
         threading.Thread(target=_bake_worker, args=(job, cache), daemon=True).start()
     return jobs
 

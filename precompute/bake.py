@@ -26,6 +26,7 @@ reflectance at every node's u and every wavelength (no factorisation), for valid
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -131,6 +132,17 @@ def _test_points(degree: int) -> np.ndarray:
     return test[test >= U_TEST_MIN]
 
 
+@functools.lru_cache(maxsize=16)
+def _rung(degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A ladder rung's (nodes, test points, interpolation matrix nodes → test points), the same
+    for every material: cached (≈ 0.5 ms a rung to build), read-only."""
+    test = _test_points(degree)
+    matrix = u_interpolation_matrix(degree, test)
+    test.flags.writeable = False
+    matrix.flags.writeable = False
+    return u_nodes(degree), test, matrix
+
+
 def choose_u_degree(
     indices, thickness_sets, wavelengths_nm, method: str, evaluate=None, tolerance=U_TOLERANCE
 ):
@@ -155,14 +167,14 @@ def choose_u_degree(
     probe = thickness_sets[rows]
     err = math.inf
     for group in U_PROBE_GROUPS:  # one evaluation per group of rungs: its fixed cost paid once
-        points = [(u_nodes(c), _test_points(c)) for c in group]
-        values = evaluate(probe, np.concatenate([np.concatenate(pair) for pair in points]))
+        rungs = [_rung(c) for c in group]
+        values = evaluate(probe, np.concatenate([np.concatenate(rung[:2]) for rung in rungs]))
         start = 0
-        for candidate, (nodes, test) in zip(group, points, strict=True):
+        for candidate, (nodes, test, matrix) in zip(group, rungs, strict=True):
             both = values[:, start : start + nodes.size + test.size]
             start += nodes.size + test.size
             at_nodes, exact = both[:, : nodes.size], both[:, nodes.size :]
-            interp = np.matmul(u_interpolation_matrix(candidate, test), at_nodes)
+            interp = np.matmul(matrix, at_nodes)
             err = float(np.max(np.abs(interp - exact))) / max(float(np.abs(exact).max()), 1e-6)
             if err <= tolerance:
                 return candidate, err, evaluate(thickness_sets, u_nodes(candidate))
@@ -334,7 +346,7 @@ def apply_multiscatter(data: np.ndarray, material: Material, cos_o: np.ndarray) 
         mu_w = np.gradient(cos_o)  # quadrature weights over μ on the table's own samples
         weights = np.abs(mu_w) * 2.0 * cos_o
         f_avg = np.clip(np.einsum("tak,a->tk", albedo / e[None, :, None], weights) / weights.sum(), 0.0, 1.0)
-        scale = np.stack([brdf.multiscatter_scale(cos_o, material.roughness, f) for f in f_avg])  # (T, A, 3)
+        scale = np.moveaxis(brdf.multiscatter_scale(cos_o, material.roughness, f_avg), 0, 1)  # (T, A, 3)
     if scale.ndim == 2:
         scale = np.broadcast_to(scale[None], (data.shape[0],) + scale.shape)
     out = np.empty(np.broadcast_shapes(data.shape, scale[:, :, None, :, None].shape))

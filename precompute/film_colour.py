@@ -17,7 +17,7 @@ import numpy as np
 
 from . import bake, brdf, constants, film_channels
 from .chunks import chunked_sweep
-from .kernel import u_interpolation_matrix
+from .kernel import u_interpolation_matrix, uniform_interpolation_matrix
 from .optics import reflectance
 from .progress import checkpoint
 
@@ -133,7 +133,9 @@ def _interpolated_rows(material, nodes: np.ndarray, degree: int, u: np.ndarray) 
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
     t, n, w = nodes.shape
-    weights = u_interpolation_matrix(int(degree), u)  # (U, N): one product for every row
+    uniform = u.size > 1 and np.array_equal(u, np.linspace(0.0, 1.0, u.size))
+    degree = int(degree)  # (U, N) weights below: one product for every row; the film grid's cached
+    weights = uniform_interpolation_matrix(degree, u.size) if uniform else u_interpolation_matrix(degree, u)
     r = weights @ nodes.transpose(1, 0, 2).reshape(n, t * w)  # (U, T·W), u-major
     rgb = (r.reshape(-1, w) @ g.reshape(w, -1)).reshape((u.size, t) + g.shape[1:])  # (U, T, 3, 3)
     return bake.clamp_film_rgb(np.ascontiguousarray(rgb.transpose(1, 0, 2, 3)), material.colour_mode)
@@ -216,10 +218,15 @@ def _albedo_weights(roughness: float, mu: np.ndarray, u: np.ndarray) -> np.ndarr
     return out
 
 
+@functools.lru_cache(maxsize=1)
 def _albedo_nodes() -> tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre nodes and weights on [0, 1] (32) of the film's F_avg integral over μ."""
+    """Gauss–Legendre nodes and weights on [0, 1] (32) of the film's F_avg integral over μ.
+    Cached, read-only."""
     mu, wmu = np.polynomial.legendre.leggauss(32)
-    return 0.5 * (mu + 1.0), 0.5 * wmu
+    nodes, weights = 0.5 * (mu + 1.0), 0.5 * wmu
+    nodes.flags.writeable = False
+    weights.flags.writeable = False
+    return nodes, weights
 
 
 @functools.lru_cache(maxsize=16)

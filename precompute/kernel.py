@@ -104,11 +104,15 @@ def lagrange_matrix(nodes: np.ndarray, weights: np.ndarray, x: np.ndarray) -> np
     return out
 
 
+@functools.lru_cache(maxsize=16)
 def u_nodes(degree: int) -> np.ndarray:
-    """All interpolation nodes: ``degree`` Chebyshev points in each interval of U_EDGES, (U,)."""
-    return np.concatenate(
+    """All interpolation nodes: ``degree`` Chebyshev points in each interval of U_EDGES, (U,).
+    Cached, read-only."""
+    nodes = np.concatenate(
         [chebyshev_nodes(degree, a, b)[0] for a, b in zip(U_EDGES[:-1], U_EDGES[1:], strict=False)]
     )
+    nodes.flags.writeable = False
+    return nodes
 
 
 def u_interpolation_matrix(degree: int, u: np.ndarray) -> np.ndarray:
@@ -122,6 +126,15 @@ def u_interpolation_matrix(degree: int, u: np.ndarray) -> np.ndarray:
             nodes, bw = chebyshev_nodes(degree, a, b)
             out[np.ix_(sel, np.arange(j * degree, (j + 1) * degree))] = lagrange_matrix(nodes, bw, u[sel])
     return out
+
+
+@functools.lru_cache(maxsize=16)
+def uniform_interpolation_matrix(degree: int, samples: int) -> np.ndarray:
+    """:func:`u_interpolation_matrix` at ``samples`` evenly spaced u in [0, 1] (the film
+    table's grid). Cached, read-only."""
+    weights = u_interpolation_matrix(degree, np.linspace(0.0, 1.0, samples))
+    weights.flags.writeable = False
+    return weights
 
 
 def half_vector_nodes(alpha: float, n_theta: int = N_THETA, n_phi: int = N_PHI):

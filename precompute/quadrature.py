@@ -58,8 +58,10 @@ def _illuminant_composite(illuminant: str):
     return composite.fit_composite(wl, values)
 
 
+@functools.lru_cache(maxsize=32)
 def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_mode: str):
     """Wavelength nodes (W′,) and weights G (W′, 3, 3) with M[k, c] = Σ_λ F(λ) G[λ, k, c].
+    Cached (a bake and its film table each ask for it: 1.3 ms a call); both arrays read-only.
 
     spectral: G[λ, k, c] = Σ_j M_xyz→rgb[k, j] · X_j(λ) · S(λ) · B_c(λ) — lighting channel c
     upsampled with the linear basis B (Mallett & Yuksel 2019), times the illuminant S, integrated
@@ -101,6 +103,7 @@ def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_m
         wl = np.concatenate([wl, lines])
     else:
         rgb_w = grid_w * spectra.illuminant_spd(illuminant, wl)[:, None]
-    if per_channel:
-        return wl, rgb_w[:, :, None] * np.eye(3)[None, :, :]
-    return wl, rgb_w[:, :, None] * basis.T[:, None, :]
+    g = rgb_w[:, :, None] * (np.eye(3)[None, :, :] if per_channel else basis.T[:, None, :])
+    wl.flags.writeable = False
+    g.flags.writeable = False
+    return wl, g
