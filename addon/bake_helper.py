@@ -45,6 +45,7 @@ from ..precompute import bake as precompute_bake
 from ..precompute import film_colour
 from ..precompute.material import Material
 from . import bake_process, helper_process, prefs
+from .gpu import resources
 
 log = logging.getLogger(__name__)
 
@@ -92,11 +93,28 @@ def command() -> list[str]:
     return [sys.executable, SCRIPT, ROOT]
 
 
+#: Pipe capacity asked for (Linux ``F_SETPIPE_SZ``; the default 64 KiB takes a radiance grid's
+#: 9–27 MiB in hundreds of hand-overs between the two processes).
+PIPE_BYTES = 1 << 20
+
+
+def _widen(pipe) -> None:
+    """Ask for a :data:`PIPE_BYTES` pipe where the system can (Linux); elsewhere nothing."""
+    try:
+        import fcntl
+
+        fcntl.fcntl(pipe.fileno(), getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_BYTES)
+    except (ImportError, OSError, ValueError):
+        pass
+
+
 class _Process(helper_process.ChildProcess):
     """The helper process, a thread reading its frames and handing each to the bake it answers."""
 
     def __init__(self, argv: list[str]):
         super().__init__(argv, "thinfilm_sh_bake_", text=False)
+        for pipe in (self.proc.stdin, self.proc.stdout):
+            _widen(pipe)
         self.ready = threading.Event()
         self.ready_s: float | None = None
         self.ended = False
@@ -261,13 +279,16 @@ class Ticket:
     """A bake handed to the helper (:func:`submit`): :meth:`wait` for its answer on a worker
     thread, or :meth:`cancel` it (the table turned out to be in the disk cache)."""
 
-    def __init__(self, process: _Process, desc: Material, film: bool):
+    def __init__(self, process: _Process, desc: Material, film: bool, grid: dict | None = None):
         self.process, self.ident = process, next(_ids)
         self.answers = process.open(self.ident)
         self.start = time.perf_counter()
         self.done = False
+        #: The SH grid's texels (:class:`.gpu.resources.GridTexels`) built with the table when
+        #: ``grid`` asked for it and the film reads one, else None; set by :meth:`wait`.
+        self.grid = None
         try:
-            process.send(("bake", self.ident, desc.to_dict(), bool(film)))
+            process.send(("bake", self.ident, desc.to_dict(), bool(film), grid))
         except BaseException:
             process.close(self.ident)
             raise
@@ -298,6 +319,8 @@ class Ticket:
             STATS["baked"] += 1
             LAST.update(bake_ms=float(message[4]), wait_ms=1000.0 * (time.perf_counter() - self.start))
             table = film_colour.FilmTable(**message[3]) if message[3] is not None else None
+            if message[5] is not None:
+                self.grid = resources.GridTexels(message[5]["rgba"], tuple(message[5]["shape"]))
             return _table(message[2]), table
         if message[0] == "failed":
             STATS["errors"] += 1
@@ -305,17 +328,18 @@ class Ticket:
         raise HelperError("cancelled a bake nobody cancelled")
 
 
-def submit(desc: Material, film: bool) -> Ticket:
-    """Hand the bake of ``desc`` (and its film table when ``film``) to the helper, starting it
-    if need be: a frame written to a pipe (≈ 0.1 ms), so the main thread may call it (the
-    depsgraph handler does: a worker thread would wait for the lock the next draw holds).
-    Raises :class:`HelperError` when the helper is not running or cannot take it."""
+def submit(desc: Material, film: bool, grid: dict | None = None) -> Ticket:
+    """Hand the bake of ``desc`` to the helper, starting it if need be (with its film table when
+    ``film``, and its SH grid when ``grid``, :meth:`.radiance_grids.Chain.helper_spec`): a frame
+    written to a pipe (≈ 0.1 ms), so the main thread may call it (the depsgraph handler does: a
+    worker thread would wait for the lock the next draw holds). Raises :class:`HelperError`
+    when the helper is not running or cannot take it."""
     warm()
     with _lock:
         process = _process
     if process is None:
         raise HelperError("is not running")
-    return Ticket(process, desc, film)
+    return Ticket(process, desc, film, grid)
 
 
 def bake(desc: Material, film: bool, progress=None):

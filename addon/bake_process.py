@@ -19,15 +19,18 @@ draw callback and every Python panel of the interface). On the 2-core machine th
 bubble's warm bake took 24 ms with the main thread idle and 461 ms while it drew frames
 (docs/latency.md); here it runs on the other core, whatever the interface does.
 
-Protocol: frames of an 8-byte big-endian length and a pickle (:func:`send`, :func:`receive`),
+Protocol: frames of a pickle and its arrays' out-of-band buffers (:func:`send`, :func:`receive`),
 between this process and the add-on that started it (private pipes):
 
 - to the parent, once started: ``("ready", pid)``;
-- from the parent: ``("bake", id, material_dict, film)``: bake ``Material.from_dict(material_dict)``
-  (and its film table when ``film``); ``("cancel", id)``: stop that bake at its next progress
-  checkpoint;
+- from the parent: ``("bake", id, material_dict, film, grid)``: bake
+  ``Material.from_dict(material_dict)``, and its film table when ``film``, and, when ``grid``
+  (``{"coeffs": the World's SH, "prefiltered": bool}``) is given and the film reads a radiance
+  grid (``policy.table_uses_grid``), its SH grid's texels (``radiance_grid.texels`` of
+  ``radiance_grid.build`` under ``policy.windowed_lighting``: what the viewport's worker
+  would build); ``("cancel", id)``: stop that bake at its next progress checkpoint;
 - to the parent: ``("progress", id, fraction, text)`` (at most every :data:`PROGRESS_EVERY_S`),
-  then one of ``("done", id, table_fields, film_fields or None, ms)``,
+  then one of ``("done", id, table_fields, film_fields or None, ms, grid_fields or None)``,
   ``("failed", id, exception_type_name, message)``, ``("cancelled", id)``.
 
 The process exits when its stdin closes (the parent stopped the helper, unregistered, or
@@ -49,11 +52,15 @@ import types
 
 #: Private package name the extension's files are imported under in the helper.
 PACKAGE = "_thinfilm_sh_bake_helper"
-#: A frame's length prefix.
-HEADER = struct.Struct("!Q")
-#: Longest frame read (a soap table with its film table is ≈ 0.8 MiB; an l = 16 multilayer
-#: table tens of MiB): anything longer is a broken pipe, not a table.
+#: A frame's header: the pickle's length and how many out-of-band buffers follow it.
+HEADER = struct.Struct("!QI")
+#: A buffer's length prefix.
+LENGTH = struct.Struct("!Q")
+#: Longest pickle or buffer read (a soap table with its film table is ≈ 0.8 MiB, a radiance
+#: grid's texels 9–27 MiB): anything longer is a broken pipe, not ours.
 MAX_FRAME = 1 << 30
+#: Most out-of-band buffers in one frame (a bake's answer has about ten arrays).
+MAX_BUFFERS = 256
 #: Progress messages are sent at most this often (the header's bar; cancels are checked at
 #: every checkpoint).
 PROGRESS_EVERY_S = 0.05
@@ -64,38 +71,56 @@ class FrameError(OSError):
 
 
 def send(stream, message) -> None:
-    """Write ``message`` as one frame to the binary ``stream`` and flush it."""
-    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
-    stream.write(HEADER.pack(len(data)))
-    stream.write(data)
+    """Write ``message`` as one frame to the binary ``stream`` and flush it: a pickle (protocol
+    5) whose large arrays follow it out of band, written from their own memory (a radiance
+    grid's 9–27 MiB are not copied into the pickle, nor out of it by :func:`receive`)."""
+    buffers: list = []
+    data = pickle.dumps(message, protocol=5, buffer_callback=buffers.append)
+    views = [buffer.raw() for buffer in buffers]
+    stream.write(HEADER.pack(len(data), len(views)) + data)
+    for view in views:
+        stream.write(LENGTH.pack(view.nbytes))
+        stream.write(view)
     stream.flush()
 
 
-def _read_exactly(stream, size: int) -> bytes | None:
-    chunks, left = [], size
-    while left:
-        chunk = stream.read(left)
-        if not chunk:
-            if left == size:
-                return None
-            raise FrameError(f"the pipe closed {size - left} bytes into a {size}-byte frame")
-        chunks.append(chunk)
-        left -= len(chunk)
-    return b"".join(chunks)
+def _read_into(stream, view: memoryview) -> bool:
+    """Fill ``view`` from ``stream``; False when the stream ended before its first byte."""
+    done = 0
+    while done < view.nbytes:
+        got = stream.readinto(view[done:])
+        if not got:
+            if done == 0:
+                return False
+            raise FrameError(f"the pipe closed {done} bytes into a {view.nbytes}-byte read")
+        done += got
+    return True
+
+
+def _read(stream, size: int, what: str) -> bytearray:
+    if size > MAX_FRAME:
+        raise FrameError(f"a {what} of {size} bytes: not one of ours")
+    data = bytearray(size)
+    if size and not _read_into(stream, memoryview(data)):
+        raise FrameError(f"the pipe closed before a {what}")
+    return data
 
 
 def receive(stream):
-    """The next frame's message from the binary ``stream``, or None at its end."""
-    head = _read_exactly(stream, HEADER.size)
-    if head is None:
+    """The next frame's message from the binary ``stream`` (see :func:`send`), or None at its
+    end. Raises :class:`FrameError` for a frame cut short or one that is not ours."""
+    head = bytearray(HEADER.size)
+    if not _read_into(stream, memoryview(head)):
         return None
-    (size,) = HEADER.unpack(head)
-    if size > MAX_FRAME:
-        raise FrameError(f"a frame of {size} bytes: not one of ours")
-    data = _read_exactly(stream, size)
-    if data is None:
-        raise FrameError("the pipe closed after a frame's header")
-    return pickle.loads(data)
+    size, count = HEADER.unpack(head)
+    if count > MAX_BUFFERS:
+        raise FrameError(f"a frame of {count} buffers: not one of ours")
+    data = _read(stream, size, "frame")
+    buffers = []
+    for _ in range(count):
+        (length,) = LENGTH.unpack(_read(stream, LENGTH.size, "buffer length"))
+        buffers.append(_read(stream, length, "buffer"))
+    return pickle.loads(data, buffers=buffers)
 
 
 def table_fields(result) -> dict:
@@ -132,9 +157,9 @@ def _stub_package(name: str, path: str) -> None:
 def load_precompute(root: str) -> types.SimpleNamespace:
     """The modules a bake needs, imported from ``root`` without the extension's ``__init__``."""
     _stub_package(PACKAGE, root)
-    names = ("bake", "film_colour", "material", "progress")
+    names = ("bake", "film_colour", "material", "progress", "shading.policy", "shading.radiance_grid")
     return types.SimpleNamespace(
-        **{name: importlib.import_module(f"{PACKAGE}.precompute.{name}") for name in names}
+        **{name.rpartition(".")[2]: importlib.import_module(f"{PACKAGE}.precompute.{name}") for name in names}
     )
 
 
@@ -177,10 +202,22 @@ class _Requests:
         return self.closed or not self.queue.empty()
 
 
+def grid_fields(modules, material, result, spec: dict | None) -> dict | None:
+    """The texels of ``result``'s SH grid under ``spec`` (see the module's docstring), or None
+    when no grid was asked for or the film reads none."""
+    policy, radiance_grid = modules.policy, modules.radiance_grid
+    if spec is None or not policy.table_uses_grid(material, result, bool(spec["prefiltered"])):
+        return None
+    l_max, roughness = int(result.sh_order), float(material.roughness)
+    windowed = policy.windowed_lighting(spec["coeffs"], l_max, roughness)
+    rgba, shape = radiance_grid.texels(radiance_grid.build(result, windowed))
+    return {"rgba": rgba, "shape": shape}
+
+
 def bake_request(modules, request, requests: _Requests, out) -> tuple:
-    """(the answer, the table or None) to one ``("bake", id, material_dict, film)`` request (see
-    the module's docstring)."""
-    _kind, ident, material_dict, want_film = request
+    """(the answer, the table or None) to one ``("bake", id, material_dict, film, grid)``
+    request (see the module's docstring)."""
+    _kind, ident, material_dict, want_film, grid_spec = request
     start = time.perf_counter()
     last = [0.0]
 
@@ -195,12 +232,13 @@ def bake_request(modules, request, requests: _Requests, out) -> tuple:
     try:
         material = modules.material.Material.from_dict(material_dict)
         result = modules.bake.bake(material, progress)
-        film = None
-        if want_film:
-            with modules.progress.reporting(lambda: progress(1.0, "film table")):
+        film = grid = None
+        with modules.progress.reporting(lambda: progress(1.0, "film table")):
+            if want_film:
                 film = modules.film_colour.film_table(result)
+            grid = grid_fields(modules, material, result, grid_spec)
         ms = 1000.0 * (time.perf_counter() - start)
-        return ("done", ident, table_fields(result), film_fields(film), ms), result
+        return ("done", ident, table_fields(result), film_fields(film), ms, grid), result
     except Cancelled:
         return ("cancelled", ident), None
     except Exception as exc:  # the material's failure, answered: the parent records it

@@ -31,7 +31,7 @@ class ChildProcess:
         self.started = time.perf_counter()
         self.stopped = False  # stopped on purpose (unregister, a restart): not a failure
         self._log = open(os.path.join(self.folder, "helper.log"), "wb")  # noqa: SIM115 (closed in stop)
-        options = dict(text=True, encoding="utf-8", errors="replace", bufsize=1) if text else dict(bufsize=0)
+        options = dict(text=True, encoding="utf-8", errors="replace", bufsize=1) if text else {}
         try:
             self.proc = subprocess.Popen(
                 argv,

@@ -20,6 +20,7 @@ uploaded textures by key, an LRU of :data:`GRID_CACHE_SIZE` (4.5–9 MiB of GPU 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import threading
@@ -94,7 +95,7 @@ def _work() -> None:
             build = GRIDS.queue.pop(key)
             GRIDS.running = key
         try:
-            grid = build()
+            grid = resources.grid_texels(build())  # padded here: the main thread only uploads
         except Exception as exc:  # the per-pixel SH keeps drawing the film
             log.error("Thin Film SH: radiance grid failed: %s", exc)
             grid = None
@@ -137,7 +138,7 @@ def prebuild(key: str, build) -> bool:
         GRIDS.inline.add(key)
     grid = None
     try:
-        grid = build()
+        grid = resources.grid_texels(build())
     finally:
         with GRIDS.lock:  # one step: never neither building nor built
             GRIDS.inline.discard(key)
@@ -159,24 +160,46 @@ def _keep_built(key: str, grid) -> None:
         GRIDS.built.pop(next(iter(GRIDS.built)))
 
 
-def chain(previous, lighting):
+@dataclasses.dataclass(frozen=True, eq=False)
+class Chain:
+    """A bake's follow-up (:func:`chain`): ``chain(desc_key, desc, result, built=None)`` builds
+    the new table's SH grid (:func:`prebuild`) when the film still reads one, or keeps ``built``,
+    the grid the bake helper built right after the table (:meth:`helper_spec` is what it needs:
+    the World's content SH, unwindowed, and whether the World is prefiltered)."""
+
+    source: str
+    coeffs: np.ndarray
+    prefiltered: bool
+
+    def helper_spec(self) -> dict:
+        """What the bake helper needs to build the grid (:mod:`.bake_process`)."""
+        return {"coeffs": self.coeffs, "prefiltered": self.prefiltered}
+
+    def __call__(self, desc_key: str, desc, result, built=None) -> None:
+        """Build (or keep ``built``) the SH grid of ``desc``'s new table ``result``."""
+        if not policy.table_uses_grid(desc, result, self.prefiltered):
+            return
+        l_max, roughness = int(result.sh_order), float(desc.roughness)
+        if built is None:
+            build = sh_build(result, policy.windowed_lighting(self.coeffs, l_max, roughness))
+        else:
+
+            def build():
+                return built
+
+        prebuild(sh_key(desc_key, self.source, l_max, roughness), build)
+
+
+def chain(previous, lighting) -> Chain | None:
     """The call a bake's worker makes after the table of a material that was last drawn as
     ``previous`` (a ``scene_draw`` entry, or None) under ``lighting`` (a ``WorldLighting``):
-    ``then(desc_key, desc, result)`` builds the new table's SH grid (:func:`prebuild`) when the
-    material read a grid and its new table still does; None when it read none. The SH grid is
-    also the stand-in an integrated grid is drawn with while it builds."""
+    a :class:`Chain` that builds the new table's SH grid (:func:`prebuild`) when the material
+    read a grid and its new table still does; None when it read none. The SH grid is also the
+    stand-in an integrated grid is drawn with while it builds."""
     if previous is None or not previous.grid_wanted or lighting is None:
         return None
     source, coeffs = lighting.grid_source(previous.lamps)
-    coeffs = np.array(coeffs, dtype=np.float64)
-
-    def then(desc_key: str, desc, result) -> None:
-        if applies(desc, result, lighting):
-            l_max, roughness = int(result.sh_order), float(desc.roughness)
-            build = sh_build(result, policy.windowed_lighting(coeffs, l_max, roughness))
-            prebuild(sh_key(desc_key, source, l_max, roughness), build)
-
-    return then
+    return Chain(source, np.array(coeffs, dtype=np.float64), lighting.textures is not None)
 
 
 def sh_key(desc_key: str, source: str, l_max: int, roughness: float) -> str:
@@ -281,6 +304,4 @@ def _ready(key: str) -> bool:
 def applies(desc, result, lighting) -> bool:
     """Whether the film draws its SH half from a grid (policy.uses_grid): a constant thickness,
     an SH half at l_max ≥ GRID_MIN_L."""
-    vary = bool(desc.varies) and result.thicknesses_nm.size > 1
-    weight = policy.sh_weight(desc.roughness) if lighting.textures is not None else 1.0
-    return policy.uses_grid(result.sh_order, vary, weight)
+    return policy.table_uses_grid(desc, result, lighting.textures is not None)

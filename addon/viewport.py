@@ -295,8 +295,12 @@ def _then(job: _Job, result) -> None:
     if job.then is None or job.cancel.is_set():
         return
     try:
+        built = getattr(job.ticket, "grid", None)  # built by the bake helper with the table
         with reporting(lambda: _check_cancel(job)):  # the grid's steps: a superseded job stops
-            job.then(job.key, job.desc, result)
+            if built is not None:
+                job.then(job.key, job.desc, result, built)
+            else:
+                job.then(job.key, job.desc, result)
     except BakesCancelled:
         raise
     except Exception as exc:  # the table is good; the draw asks for the grid the usual way
@@ -336,7 +340,8 @@ def _start_queued() -> list[_Job]:
     for job in jobs:
         if bake_helper.enabled() and tables.peek_table(job.desc) is None:
             try:
-                job.ticket = bake_helper.submit(job.desc, job.film)
+                spec = getattr(job.then, "helper_spec", None)  # its grid, built there too
+                job.ticket = bake_helper.submit(job.desc, job.film, spec() if spec is not None else None)
             except bake_helper.HelperError:
                 pass  # the worker bakes in process (and gives the helper up, if it is broken)
         threading.Thread(target=_bake_worker, args=(job, cache), daemon=True).start()

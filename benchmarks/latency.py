@@ -31,7 +31,7 @@ run in between). Per edit:
   only at a redraw no event asked for);
 - **block**: the longest main-thread block of ours: a draw callback or a timer tick, less the
   GPU uploads and the draw inside it; **upload** and **draw**: the longest GPU upload (table,
-  film and prefilter textures, lighting buffers) and the longest ``draw_items``, on their own;
+  film, prefilter and radiance-grid textures, lighting buffers) and the longest ``draw_items``, on their own;
 - **blank frames**: frames drawn without the film object while the edit was being worked on.
 
 Edits (each repeated ``--repeats`` times with a new value; World and cold edits once unless
@@ -208,6 +208,7 @@ class Loop:
             (res.FilmTexture, "from_film"),
             (res.PrefilterTexture, "from_levels"),
             (res.Lighting, "from_sh"),
+            (res.RadianceGridTexture, "from_grid"),
         ):
             original = getattr(cls, name)
             setattr(cls, name, classmethod(self._timed_upload(original)))

@@ -27,10 +27,11 @@ import signal
 import sys
 import threading
 import time
+import types
 
 import numpy as np
 import pytest
-from test_viewport_state import film, grid, redraw, scene, tf  # noqa: F401
+from test_viewport_state import collect, film, grid, redraw, scene, tf  # noqa: F401
 
 pytestmark = pytest.mark.blender
 
@@ -157,18 +158,21 @@ def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):
 def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
     frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
     stream = io.BytesIO()
-    message = ("done", 7, {"data": np.arange(6.0).reshape(2, 3)}, None, 1.5)
+    big = np.arange(300_000, dtype=np.float32).reshape(1000, 300)  # sent out of band
+    message = ("done", 7, {"data": np.arange(6.0).reshape(2, 3), "big": big}, None, 1.5)
     frames.send(stream, message)
     stream.seek(0)
     got = frames.receive(stream)
     assert got[:2] == ("done", 7) and got[3:] == (None, 1.5)
     np.testing.assert_array_equal(got[2]["data"], message[2]["data"])
+    np.testing.assert_array_equal(got[2]["big"], big)
+    assert got[2]["big"].dtype == np.float32 and got[2]["big"].flags.writeable
     assert frames.receive(stream) is None  # the end
     whole = stream.getvalue()
     with pytest.raises(frames.FrameError, match="closed"):
         frames.receive(io.BytesIO(whole[:-3]))
     with pytest.raises(frames.FrameError, match="not one of ours"):
-        frames.receive(io.BytesIO(frames.HEADER.pack(frames.MAX_FRAME + 1)))
+        frames.receive(io.BytesIO(frames.HEADER.pack(frames.MAX_FRAME + 1, 0)))
 
 
 def silent_command(tf):  # noqa: F811
@@ -277,3 +281,80 @@ def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
         t.join(TIMEOUT_S)
     for i, desc in enumerate(descs):
         np.testing.assert_array_equal(results[i][0].data, tf.real_bake(desc).data)
+
+
+def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene, helper, monkeypatch):  # noqa: F811
+    """A rough constant film read through its radiance grid: the edit's bake brings the grid's
+    texels from the helper, equal to the grid built here, and no grid is built in this process."""
+    from test_live_ahead import drawn_once, wait_for
+    from test_radiance_grid_viewport import record_builds
+
+    vp = tf.viewport
+    rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    mat = film(bpy, tf, "Rough", roughness=0.6)
+    mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
+    item = drawn_once(bpy, tf, scene, mat)  # the headless path: baked here
+    assert item.grid is not None
+    tf.in_process.clear()
+    built_on = record_builds(rg, monkeypatch)
+    baked = helper.STATS["baked"]
+    mat.thinfilm_sh.layers[0].thickness_nm = 610.0
+    bpy.context.view_layer.update()  # handed to the helper with the grid's spec
+    wait_for(lambda: not vp._running, "the bake and its grid")
+    assert helper.STATS["baked"] == baked + 1 and tf.in_process == []
+    assert built_on == []  # the grid came with the table
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
+    assert item.grid is not None and not item.grid_pending and not rg.busy() and built_on == []
+
+    # the same grid under a World with something in it (this scene has none): equal to here's
+    desc = tf.scene_draw.description.description(mat)
+    result = tf.real_bake(desc)
+    coeffs = np.random.default_rng(7).normal(size=(25, 3))
+    policy = importlib.import_module(f"{tf.package.__name__}.precompute.shading.policy")
+    chain = rg.Chain("a World", coeffs, False)
+    ticket = helper.submit(desc, False, chain.helper_spec())
+    ticket.wait()
+    windowed = policy.windowed_lighting(coeffs, result.sh_order, desc.roughness)
+    here, shape = rg.radiance_grid.texels(rg.radiance_grid.build(result, windowed))
+    assert ticket.grid.shape == shape and ticket.grid.rgba.dtype == np.float32
+    assert np.abs(here).max() > 0.0
+    np.testing.assert_allclose(ticket.grid.rgba, here, rtol=1e-6, atol=1e-7 * float(np.abs(here).max()))
+
+
+def test_no_grid_comes_back_for_a_film_that_reads_none(tf, helper):  # noqa: F811
+    desc = tf.Material.from_dict(soap_dict(tf))  # glossy, order 0: split sum only
+    ticket = helper.submit(desc, False, {"coeffs": np.ones((9, 3)), "prefiltered": True})
+    table, _ = ticket.wait()
+    assert ticket.grid is None and table.sh_order == 0
+
+
+def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F811
+    """Between requests the helper computes the kernels an edit that needs one more (or one
+    fewer) node per interval would wait for; a request that arrives stops it."""
+    frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
+    progress = importlib.import_module(f"{tf.package.__name__}.precompute.progress")
+    modules = types.SimpleNamespace(bake=tf.bake, progress=progress)
+    desc = tf.Material.from_dict(soap_dict(tf))
+    result = tf.real_bake(desc)
+    read, write = os.pipe()
+    try:
+        with os.fdopen(read, "rb") as stream:
+            requests = frames._Requests(stream)
+            tf.bake.microfacet_kernel.cache_clear()
+            ladder = list(tf.bake.U_DEGREE_LADDER)
+            i = ladder.index(result.u_nodes)
+            assert frames.warm_neighbours(modules, result, requests) == [ladder[i + 1], ladder[i - 1]]
+            info = tf.bake.microfacet_kernel.cache_info()
+            tf.bake.microfacet_kernel(
+                float(result.material.roughness), 0, result.view_angles_rad.size, ladder[i + 1]
+            )
+            assert tf.bake.microfacet_kernel.cache_info().hits == info.hits + 1  # warm
+            requests.queue.put(("bake", 1, {}, False, None))  # a request waits: nothing is warmed
+            tf.bake.microfacet_kernel.cache_clear()
+            assert frames.warm_neighbours(modules, result, requests) == []
+            assert tf.bake.microfacet_kernel.cache_info().currsize == 0
+            os.close(write)
+            write = None
+    finally:
+        if write is not None:
+            os.close(write)

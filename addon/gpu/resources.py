@@ -24,7 +24,7 @@ import numpy as np
 
 from ...precompute import display_lut
 from ...precompute.material import MAX_SH_ORDER
-from ...precompute.shading import policy
+from ...precompute.shading import policy, radiance_grid
 from ...precompute.shading.codegen import RX_PADDED, x_rotation_scalars
 from ...precompute.shading.lights import LIGHT_VEC4, Lights
 from ...precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, fits_uniform_buffer
@@ -587,23 +587,34 @@ class RadianceGridTexture:
 
     @classmethod
     def from_grid(cls, grid) -> RadianceGridTexture:
-        """Upload a (T·Ψ, H, W, 3) grid, Ψ = policy.GRID_AZIMUTHS; refuses another shape and
-        non-finite values."""
-        data = np.asarray(grid, dtype=np.float32)
-        p = policy.GRID_AZIMUTHS
-        if data.ndim != 4 or data.shape[3] != 3 or data.shape[0] % p or data.shape[0] < 2 * p:
-            raise ValueError(f"radiance grid must be (T·{p}, H, W, 3) with T ≥ 2, got {data.shape}")
-        t, h, w = data.shape[0] // p, data.shape[1], data.shape[2]
-        if not np.all(np.isfinite(data)):
-            raise ValueError("the radiance grid holds non-finite values")
-        rgba = np.zeros(data.shape[:3] + (4,), dtype=np.float32)
-        rgba[..., :3] = data
+        """Upload a grid: its :class:`GridTexels` (made on the worker that built it), or a
+        (T·Ψ, H, W, 3) grid, checked and padded here (:func:`grid_texels`)."""
+        texels = grid_texels(grid)
+        w, h, t, p = texels.shape
         ensure_gpu_context()
-        texture = gpu.types.GPUTexture((w, h), layers=t * p, format="RGBA16F", data=float_buffer(rgba))
+        texture = gpu.types.GPUTexture((w, h), layers=t * p, format="RGBA16F", data=float_buffer(texels.rgba))
         texture.filter_mode(True)
         texture.extend_mode("EXTEND")
         texture.extend_mode_x("REPEAT")
-        return cls(texture, (w, h, t, p))
+        return cls(texture, texels.shape)
+
+
+@dataclass(frozen=True)
+class GridTexels:
+    """A radiance grid ready for :meth:`RadianceGridTexture.from_grid`: ``rgba`` (T·Ψ, H, W, 4)
+    float32, finite, alpha 0; ``shape`` (W, H, T, Ψ)."""
+
+    rgba: np.ndarray
+    shape: tuple
+
+
+def grid_texels(grid) -> GridTexels:
+    """The texels of a (T·Ψ, H, W, 3) grid (:func:`precompute.shading.radiance_grid.texels`:
+    checked and padded to RGBA, numpy only, so the worker that built the grid makes them and
+    the main thread only uploads); a :class:`GridTexels` is returned as it is."""
+    if isinstance(grid, GridTexels):
+        return grid
+    return GridTexels(*radiance_grid.texels(grid))
 
 
 def lights_content(lights: Lights | None) -> np.ndarray | None:

@@ -109,6 +109,16 @@ def uses_grid(l_max: int, vary_thickness: bool, sh_weight: float) -> bool:
     return int(l_max) >= GRID_MIN_L and not vary_thickness and float(sh_weight) > 0.0
 
 
+def table_uses_grid(material, result, prefiltered: bool) -> bool:
+    """:func:`uses_grid` for ``material``'s baked table ``result``: its SH order, whether its
+    thickness varies (a range and more than one row), its SH weight (1 while the World has no
+    prefilter: the split sum needs one). The viewport asks it, and so does the bake helper,
+    which builds the grid right after the table."""
+    vary = bool(material.varies) and np.asarray(result.thicknesses_nm).size > 1
+    weight = sh_weight(material.roughness) if prefiltered else 1.0
+    return uses_grid(result.sh_order, vary, weight)
+
+
 #: Films in the hand-over (0 < sh_weight < 1, roughness 0.2–0.45) fill their grid by integrating
 #: the exact lobe (shading/lobe_grid.py) instead of from the SH, with this many GGX nodes (θ × φ)
 #: per cell and view angles: courtyard 800 nm r 0.3 against Cycles 2.06 → 0.95 mean ΔE2000
