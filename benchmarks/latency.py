@@ -241,9 +241,11 @@ class Loop:
     def _tag(self) -> None:
         self.tagged = True
 
-    def _draw_items(self, items, *_args, **_kwargs) -> None:
+    def _draw_items(self, items, *_args, **kwargs) -> None:
         start = time.perf_counter()
-        image = self.ext.gpu.draw.render_offscreen(items, self.view, self.proj, WIDTH, HEIGHT)
+        image = self.ext.gpu.draw.render_offscreen(  # as the viewport: a new variant by its stand-in
+            items, self.view, self.proj, WIDTH, HEIGHT, compile_now=kwargs.get("compile_now", True)
+        )
         spent = time.perf_counter() - start
         self._inside += spent
         self._last = (image, bool(items))

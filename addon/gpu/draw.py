@@ -479,6 +479,7 @@ def render_offscreen(
     with_depth: bool = False,
     clear=(0.0, 0.0, 0.0, 0.0),
     behind=None,
+    compile_now: bool = True,
 ):
     """Render to an RGBA32F off-screen buffer; scene-linear (H, W, 4) float32, top row first
     (with ``with_depth``: and the depth buffer, (H, W) window depth in [0, 1], 1 where nothing).
@@ -487,7 +488,8 @@ def render_offscreen(
     scene with depth, e.g. through ``offscreen.draw_view3d``; called while the off-screen buffer is
     bound) → the ``background`` equirect image where depth is still 1 → the items, depth-tested.
     Alpha is 1 where anything was drawn and 0 elsewhere (without a background). ``behind``: the
-    scene behind that solid glass refracts (:func:`prepare_draw`).
+    scene behind that solid glass refracts (:func:`prepare_draw`). ``compile_now`` False: a
+    variant not compiled yet is drawn by its stand-in, as in the viewport (:func:`draw_items`).
     """
     ensure_gpu_context()
     width, height = int(width), int(height)
@@ -504,7 +506,13 @@ def render_offscreen(
                 if background is not None:
                     draw_background(background, view_matrix, projection_matrix, shaders=shaders)
                 draw_items(
-                    items, view_matrix, projection_matrix, display_srgb=False, shaders=shaders, behind=behind
+                    items,
+                    view_matrix,
+                    projection_matrix,
+                    display_srgb=False,
+                    shaders=shaders,
+                    behind=behind,
+                    compile_now=compile_now,
                 )
             rgba = read_framebuffer(fb, width, height)
             if not with_depth:
