@@ -93,6 +93,17 @@ def command() -> list[str]:
     return [sys.executable, SCRIPT, ROOT]
 
 
+#: The helper's BLAS runs on one thread: its products are small (a soap table's contraction is
+#: 0.3 M multiply-adds), and a second BLAS thread spinning for work would take the core that
+#: Blender's own threads (llvmpipe draws the frame on them) need.
+SINGLE_THREADED = {name: "1" for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def _environment() -> dict:
+    """The helper's environment: this one with :data:`SINGLE_THREADED`."""
+    return {**os.environ, **SINGLE_THREADED}
+
+
 #: Pipe capacity asked for (Linux ``F_SETPIPE_SZ``; the default 64 KiB takes a radiance grid's
 #: 9–27 MiB in hundreds of hand-overs between the two processes).
 PIPE_BYTES = 1 << 20
@@ -112,7 +123,7 @@ class _Process(helper_process.ChildProcess):
     """The helper process, a thread reading its frames and handing each to the bake it answers."""
 
     def __init__(self, argv: list[str]):
-        super().__init__(argv, "thinfilm_sh_bake_", text=False)
+        super().__init__(argv, "thinfilm_sh_bake_", text=False, env=_environment())
         for pipe in (self.proc.stdin, self.proc.stdout):
             _widen(pipe)
         self.ready = threading.Event()

@@ -219,6 +219,7 @@ def _bake_worker(job: _Job, cache) -> None:
         job.progress = float(fraction)
 
     baked = result = None
+    cancelled = False
     try:
         report(0.0, "")  # superseded before it started: stops here
         result, source = _table_of(job, cache, report)
@@ -231,6 +232,7 @@ def _bake_worker(job: _Job, cache) -> None:
         report(1.0, "grid")
         _then(job, result)
     except BakesCancelled:
+        cancelled = True
         tables.release_nodes(result)
     except Exception as exc:  # reported, never raised into Blender's timer
         text = tables.record_failure(job.desc, exc)  # before leaving _running: the draw must not re-queue
@@ -242,7 +244,8 @@ def _bake_worker(job: _Job, cache) -> None:
             for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
                 del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
         shown_after = _frames.started
-        _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
+        if not cancelled:  # a superseded bake has nothing to show: a redraw would only delay the next
+            _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
     if baked is not None:  # after the frame that shows it: the disk copy only serves the next session
         _frames.wait_past(shown_after, STORE_WAIT_S)  # the write would compete with that frame
         if tables.MEMORY.get(job.key) is not None:  # not cleared meanwhile (Clear Cache, file load)
@@ -310,11 +313,13 @@ def _then(job: _Job, result) -> None:
 def _start_jobs() -> list[_Job]:
     """Move the queued bakes that can start now to :data:`_running`; a description already
     being baked waits (unless that bake makes what it wants: then it is dropped). Nothing starts
-    while a superseded bake is still stopping (it ends at its next checkpoint, tens of ms): on
-    two cores a slider drag's newest bake would otherwise share them with every older one."""
+    while a superseded in-process bake is still stopping (it ends at its next checkpoint, tens
+    of ms): on two cores a slider drag's newest bake would otherwise share them with every older
+    one. A bake handed to the helper is no such obstacle: its cancel went to the helper with the
+    superseding edit, and the helper bakes one request after the other."""
     jobs = []
     with _lock:
-        if any(job.cancel.is_set() for job in _running.values()):
+        if any(job.cancel.is_set() and job.ticket is None for job in _running.values()):
             return jobs
         for owner, job in list(_pending.items()):
             running = _running.get(job.key)
