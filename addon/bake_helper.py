@@ -78,8 +78,8 @@ SILENCE_S = 60.0
 #: How often a waiting worker looks whether its bake was superseded.
 POLL_S = 0.005
 
-#: Counts (tests and benchmarks): "started", "baked", "errors" (a bake's own), "failed" (the
-#: helper's), "cancelled", "given_up".
+#: Counts (tests and benchmarks): "started", "submitted", "baked", "errors" (a bake's own),
+#: "failed" (the helper's), "cancelled", "given_up".
 STATS: collections.Counter = collections.Counter()
 
 
@@ -303,6 +303,7 @@ class Ticket:
         except BaseException:
             process.close(self.ident)
             raise
+        STATS["submitted"] += 1
 
     def cancel(self) -> None:
         """Stop the bake in the helper (at its next checkpoint) and forget its answer."""

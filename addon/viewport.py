@@ -335,6 +335,16 @@ def _start_jobs() -> list[_Job]:
     return jobs
 
 
+def _on_disk(cache, key: str) -> bool:
+    """Whether the disk cache has a table file for ``key`` (one stat: a reopened file's tables
+    are read by the worker, not baked by the helper)."""
+    path_for = getattr(cache, "path_for", None)  # an UnusableCache has none
+    try:
+        return path_for is not None and path_for(key).is_file()
+    except (OSError, ValueError):
+        return False
+
+
 def _start_queued() -> list[_Job]:
     """Start the queued bakes that can start now, each on its thread (main thread: the cache
     folder comes from the preferences). A table not in memory is handed to the bake helper
@@ -343,7 +353,7 @@ def _start_queued() -> list[_Job]:
     jobs = _start_jobs()
     cache = tables.open_cache() if jobs else None
     for job in jobs:
-        if bake_helper.enabled() and tables.peek_table(job.desc) is None:
+        if bake_helper.enabled() and tables.peek_table(job.desc) is None and not _on_disk(cache, job.key):
             try:
                 spec = getattr(job.then, "helper_spec", None)  # its grid, built there too
                 job.ticket = bake_helper.submit(job.desc, job.film, spec() if spec is not None else None)

@@ -383,3 +383,19 @@ def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):  #
         for live, old in zip((vp._running, vp._pending, vp._wanted), saved, strict=True):
             live.clear()
             live.update(old)
+
+
+def test_a_table_on_disk_is_read_not_handed_to_the_helper(bpy, tf, scene, helper):  # noqa: F811
+    """A reopened file's tables are in the disk cache: the worker reads them; the helper gets no
+    request to bake them."""
+    mat = film(bpy, tf, "Soap", roughness=0.05, vary=True)
+    desc = tf.scene_draw.description.description(mat)
+    tf.tables.get_table(desc)  # baked here and stored on disk, as in an earlier session
+    tf.tables.clear_memory_cache()
+    tf.in_process.clear()
+    submitted, baked = helper.STATS["submitted"], helper.STATS["baked"]
+    assert len(drawn(bpy, tf, scene, mat)) == 1
+    assert helper.STATS["submitted"] == submitted and helper.STATS["baked"] == baked
+    assert tf.in_process == []  # read from the disk cache
+    key = tf.scene_draw.description.description_key(desc)
+    assert tf.tables.MEMORY.get(key) is not None
