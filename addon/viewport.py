@@ -149,6 +149,8 @@ def cancel_bakes() -> int:
         _pending.clear()
     for job in jobs:
         job.cancel.set()
+        if job.ticket is not None:
+            job.ticket.cancel()  # the helper stops it now, whatever its worker waits for
     return len(jobs)
 
 

@@ -116,10 +116,14 @@ def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # n
         collect(bpy, tf)
     monkeypatch.setattr(rg.radiance_grid, "build", slow_build)
     rg.GRIDS.clear()
-    for r in steps:  # the drag: one frame per step, the worker held on the first grid
+    for k, r in enumerate(steps):  # the drag: one frame per step, the worker held on the first grid
         mat.thinfilm_sh.roughness = r
         items, messages = collect(bpy, tf, allow_bake=False, allow_world=False)
         assert len(items) == 1 and items[0].grid is None, messages
+        deadline = time.monotonic() + THREAD_TIMEOUT_S
+        while k == 0 and rg.GRIDS.running is None:  # the worker took the first step's grid
+            assert time.monotonic() < deadline, "the grid worker did not start"
+            time.sleep(0.005)
     with rg.GRIDS.lock:
         queued = len(rg.GRIDS.queue)
     assert queued == rg.QUEUE_SIZE, (queued, rg.GRIDS.running)
