@@ -176,13 +176,19 @@ class _Process(helper_process.ChildProcess):
             raise HelperError(self._why(f"could not be sent a bake ({exc})")) from exc
 
 
-_lock = threading.Lock()
-_process: _Process | None = None
-_given_up = ""  # why the helper was given up for this session ("" while it is not)
 _ids = itertools.count(1)
 #: The last bake's figures (benchmarks, docs): "bake_ms" in the helper, "wait_ms" here (from
 #: the request to the answer).
 LAST: dict = {}
+#: The session's bake helper (:class:`.helper_process.HelperSlot`).
+SLOT = helper_process.HelperSlot(
+    "bake helper process",
+    "Tables are baked in Blender itself from now on: edits redraw more slowly while the interface is busy.",
+    lambda: _Process(command()),
+    log,
+    STATS,
+    usable=lambda process: process.alive() and not process.ended,
+)
 
 
 def enabled() -> bool:
@@ -190,48 +196,14 @@ def enabled() -> bool:
     and not given up."""
     if os.environ.get(ENV, "").strip().lower() in {"0", "off", "no", "false"}:
         return False
-    return prefs.bake_helper_enabled() and not _given_up
+    return prefs.bake_helper_enabled() and not SLOT.given_up
 
 
 def warm() -> None:
     """Start the helper if it is enabled and not running (a process start, a few ms; it then
     imports numpy on its own). Never raises: a failed start gives it up."""
-    global _process
-    if not enabled():
-        return
-    with _lock:
-        if _process is not None and _process.alive() and not _process.ended:
-            return
-        old, _process = _process, None
-    if old is not None:
-        log.warning("Thin Film SH: the bake helper %s: starting it again", old._why("had exited"))
-        old.stop()
-    try:
-        started = _Process(command())
-    except OSError as exc:
-        _give_up(f"could not be started ({exc})")
-        return
-    STATS["started"] += 1
-    with _lock:
-        _process = started
-
-
-def _give_up(why: str) -> None:
-    """Stop the helper and bake on the viewport's worker threads from now on (logged once)."""
-    global _given_up, _process
-    with _lock:
-        first = not _given_up
-        _given_up = _given_up or why
-        old, _process = _process, None
-    if old is not None:
-        old.stop()
-    if first:
-        STATS["given_up"] += 1
-        log.error(
-            "Thin Film SH: the bake helper process %s. Tables are baked in Blender itself from now "
-            "on: edits redraw more slowly while the interface is busy.",
-            why,
-        )
+    if enabled():
+        SLOT.warm()
 
 
 _BUILTIN_ERRORS = {name for name in dir(builtins) if name.endswith("Error")}
@@ -347,8 +319,7 @@ def submit(desc: Material, film: bool, grid: dict | None = None) -> Ticket:
     worker thread would wait for the lock the next draw holds). Raises :class:`HelperError`
     when the helper is not running or cannot take it."""
     warm()
-    with _lock:
-        process = _process
+    process = SLOT.current()
     if process is None:
         raise HelperError("is not running")
     return Ticket(process, desc, film, grid)
@@ -375,7 +346,7 @@ def baker(film: bool, keep_film, ticket: Ticket | None = None):
                 result, table = ticket.wait(progress) if ticket is not None else bake(desc, film, progress)
             except HelperError as exc:
                 STATS["failed"] += 1
-                _give_up(str(exc))
+                SLOT.give_up(str(exc))
             else:
                 if table is not None:
                     keep_film(desc, table)
@@ -388,9 +359,8 @@ def baker(film: bool, keep_film, ticket: Ticket | None = None):
 def info() -> dict:
     """The helper's state and figures: pid, start-up seconds, resident memory, why it was given
     up (benchmarks, docs)."""
-    with _lock:
-        process = _process
-    found = {"given_up": _given_up, **STATS, **LAST}
+    process = SLOT.current()
+    found = {"given_up": SLOT.given_up, **STATS, **LAST}
     if process is not None:
         found.update(pid=process.proc.pid, start_s=process.ready_s, rss_bytes=process.rss_bytes())
     return found
@@ -398,17 +368,12 @@ def info() -> dict:
 
 def process_id() -> int | None:
     """The running helper's process id, or None (tests)."""
-    with _lock:
-        return _process.proc.pid if _process is not None and _process.alive() else None
+    return SLOT.process_id()
 
 
 def stop() -> None:
     """Stop the helper (the next :func:`warm` starts it again, cold)."""
-    global _process
-    with _lock:
-        old, _process = _process, None
-    if old is not None:
-        old.stop()
+    SLOT.stop()
 
 
 def register() -> None:
@@ -417,6 +382,4 @@ def register() -> None:
 
 def unregister() -> None:
     """Stop the helper and forget that it was given up (a re-enabled add-on tries it again)."""
-    global _given_up
-    stop()
-    _given_up = ""
+    SLOT.reset()

@@ -163,61 +163,30 @@ class _Process(helper_process.ChildProcess):
                 return message
 
 
-_lock = threading.Lock()
-_process: _Process | None = None
-_given_up = ""  # why the helper was given up for this session ("" while it is not)
 _ids = itertools.count(1)
 #: The last hand-over's figures (benchmarks, docs): "write_ms", "wait_ms", "render_ms".
 LAST: dict = {}
+#: The session's panorama helper (:class:`.helper_process.HelperSlot`).
+SLOT = helper_process.HelperSlot(
+    "panorama helper process",
+    "Procedural Worlds are rendered in Blender itself from now on: the viewport pauses while one renders.",
+    lambda: _Process(command()),
+    log,
+    STATS,
+)
 
 
 def enabled() -> bool:
     """Whether procedural Worlds go to the helper: the preference is on, the helper was not
     given up, and the file's working colour space is the helper's."""
-    return prefs.render_helper_enabled() and not _given_up and working_space() == HELPER_WORKING_SPACE
+    return prefs.render_helper_enabled() and not SLOT.given_up and working_space() == HELPER_WORKING_SPACE
 
 
 def warm() -> None:
     """Start the helper if it is enabled and not running (main thread: a process start, a few ms;
     the helper then imports bpy on its own). Never raises: a failed start gives it up."""
-    global _process
-    if not enabled():
-        return
-    with _lock:
-        if _process is not None and _process.alive():
-            return
-        old, _process = _process, None
-    if old is not None:
-        log.warning(
-            "Thin Film SH: the panorama helper process had exited (%s): starting it again", old._why("exited")
-        )
-        old.stop()
-    try:
-        started = _Process(command())
-    except OSError as exc:
-        _give_up(f"could not be started ({exc})")
-        return
-    STATS["started"] += 1
-    with _lock:
-        _process = started
-
-
-def _give_up(why: str) -> None:
-    """Stop the helper and render procedural Worlds on the main thread from now on (logged once)."""
-    global _given_up, _process
-    with _lock:
-        first = not _given_up
-        _given_up = _given_up or why
-        old, _process = _process, None
-    if old is not None:
-        old.stop()
-    if first:
-        STATS["given_up"] += 1
-        log.error(
-            "Thin Film SH: the panorama helper process %s. Procedural Worlds are rendered in "
-            "Blender itself from now on: the viewport pauses while one renders.",
-            why,
-        )
+    if enabled():
+        SLOT.warm()
 
 
 @dataclasses.dataclass
@@ -245,7 +214,7 @@ class Pending:
             if not self.process.stopped:  # else stopped on purpose: the World is read again
                 STATS["failed"] += 1
                 self.process.stop()
-                _give_up(str(exc))  # removes its folder, the .npy included
+                SLOT.give_up(str(exc))  # removes its folder, the .npy included
             raise
         _remove(self.blend)
         LAST.update(wait_ms=1000.0 * (time.perf_counter() - start), render_ms=message.get("ms"))
@@ -273,8 +242,7 @@ def submit(world) -> Pending | None:
     if not enabled():
         return None
     warm()
-    with _lock:
-        process = _process
+    process = SLOT.current()
     if process is None:
         return None
     ident = next(_ids)
@@ -288,7 +256,7 @@ def submit(world) -> Pending | None:
         process.send({**request, "width": PANORAMA_WIDTH, "samples": PANORAMA_SAMPLES})
     except (OSError, RuntimeError) as exc:  # HelperError is a RuntimeError
         _remove(blend)
-        _give_up(f"could not be handed the World ({exc})")
+        SLOT.give_up(f"could not be handed the World ({exc})")
         return None
     STATS["submitted"] += 1
     return Pending(process, ident, blend, out)
@@ -306,9 +274,8 @@ def resolve(read):
 def info() -> dict:
     """The helper's state and figures: pid, start-up seconds, resident memory, the last write,
     wait and render times, and why it was given up (benchmarks, docs)."""
-    with _lock:
-        process = _process
-    found = dict(LAST, given_up=_given_up)
+    process = SLOT.current()
+    found = dict(LAST, given_up=SLOT.given_up)
     if process is not None:
         found.update(
             pid=process.proc.pid,
@@ -321,17 +288,12 @@ def info() -> dict:
 
 def process_id() -> int | None:
     """The running helper's process id, or None (tests)."""
-    with _lock:
-        return _process.proc.pid if _process is not None and _process.alive() else None
+    return SLOT.process_id()
 
 
 def stop() -> None:
     """Stop the helper (it is started again by the next :func:`warm`)."""
-    global _process
-    with _lock:
-        old, _process = _process, None
-    if old is not None:
-        old.stop()
+    SLOT.stop()
 
 
 def register() -> None:
@@ -340,6 +302,4 @@ def register() -> None:
 
 def unregister() -> None:
     """Stop the helper and forget that it was given up (a re-enabled add-on tries it again)."""
-    global _given_up
-    stop()
-    _given_up = ""
+    SLOT.reset()

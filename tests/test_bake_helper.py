@@ -232,7 +232,7 @@ def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switc
 
 def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa: F811
     helper.warm()
-    process = helper._process
+    process = helper.SLOT.process
     assert process.ready.wait(TIMEOUT_S) and process.alive()
     process.proc.stdin.close()  # what the parent's death does
     assert process.proc.wait(TIMEOUT_S) == 0  # it exited on its own
@@ -240,7 +240,7 @@ def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa
 
     helper.warm()
     pid = helper.process_id()
-    assert pid is not None and helper._process.ready.wait(TIMEOUT_S)
+    assert pid is not None and helper.SLOT.process.ready.wait(TIMEOUT_S)
     tf.package.unregister()
     try:
         assert helper.process_id() is None
@@ -252,11 +252,11 @@ def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa
 def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):  # noqa: F811
     helper.warm()
     first = helper.process_id()
-    assert helper._process.ready.wait(TIMEOUT_S)
+    assert helper.SLOT.process.ready.wait(TIMEOUT_S)
     os.kill(first, signal.SIGKILL)
-    helper._process.proc.wait()
+    helper.SLOT.process.proc.wait()
     deadline = time.monotonic() + TIMEOUT_S
-    while not helper._process.ended:  # its reader saw the end of the pipe
+    while not helper.SLOT.process.ended:  # its reader saw the end of the pipe
         assert time.monotonic() < deadline
         time.sleep(0.01)
     desc = tf.Material.from_dict(soap_dict(tf))

@@ -109,7 +109,7 @@ def test_procedural_world_is_rendered_by_the_helper_as_in_process(tf, sky):
     np.testing.assert_array_equal(content.read.rgb, here)  # Cycles on the CPU: deterministic
     figures = tf.panorama_helper.info()
     assert figures["write_ms"] > 0.0 and figures["start_s"] > 0.0 and figures["rss_bytes"] > 0
-    assert os.listdir(tf.panorama_helper._process.folder) == ["helper.log"]  # no .blend or .npy left
+    assert os.listdir(tf.panorama_helper.SLOT.process.folder) == ["helper.log"]  # no .blend or .npy left
 
 
 def crashing_command():
@@ -138,7 +138,7 @@ def test_a_failing_helper_falls_back_to_an_in_process_render(tf, sky, monkeypatc
     else:  # killed while it renders
 
         def between():
-            assert helper._process.ready.wait(helper.START_TIMEOUT_S)
+            assert helper.SLOT.process.ready.wait(helper.START_TIMEOUT_S)
             os.kill(helper.process_id(), signal.SIGKILL)
 
     with caplog.at_level(logging.ERROR, logger=helper.__name__):
@@ -164,7 +164,7 @@ def test_the_preference_turns_the_helper_off(tf, sky):
 def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, sky):
     helper = tf.panorama_helper
     helper.warm()
-    process = helper._process
+    process = helper.SLOT.process
     assert process.ready.wait(helper.START_TIMEOUT_S) and process.alive()
     process.proc.stdin.close()  # what the parent's death does
     assert process.proc.wait(helper.START_TIMEOUT_S) == 0  # it exited on its own
@@ -172,7 +172,7 @@ def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, sky):
 
     helper.warm()
     pid = helper.process_id()
-    assert pid is not None and helper._process.ready.wait(helper.START_TIMEOUT_S)
+    assert pid is not None and helper.SLOT.process.ready.wait(helper.START_TIMEOUT_S)
     tf.package.unregister()
     try:
         assert helper.process_id() is None
@@ -202,9 +202,9 @@ def test_a_helper_that_exited_while_idle_is_started_again(tf, sky, caplog):
     helper = tf.panorama_helper
     helper.warm()
     first = helper.process_id()
-    assert helper._process.ready.wait(helper.START_TIMEOUT_S)
+    assert helper.SLOT.process.ready.wait(helper.START_TIMEOUT_S)
     os.kill(first, signal.SIGKILL)
-    helper._process.proc.wait()
+    helper.SLOT.process.proc.wait()
     with caplog.at_level(logging.WARNING, logger=helper.__name__):
         assert_lit(tf, scene, ask_and_settle(tf, scene))
     assert renders == [] and helper.process_id() not in (None, first)
