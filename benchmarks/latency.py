@@ -206,7 +206,7 @@ class Loop:
         for cls, name in (
             (res.TableTexture, "from_result"),
             (res.FilmTexture, "from_film"),
-            (res.PrefilterTexture, "from_levels"),
+            (res.PrefilterTexture, "from_packed"),  # from_levels packs, then calls it
             (res.Lighting, "from_sh"),
             (res.RadianceGridTexture, "from_grid"),
         ):
