@@ -366,20 +366,13 @@ def info() -> dict:
     return found
 
 
-def process_id() -> int | None:
-    """The running helper's process id, or None (tests)."""
-    return SLOT.process_id()
-
-
-def stop() -> None:
-    """Stop the helper (the next :func:`warm` starts it again, cold)."""
-    SLOT.stop()
+#: The running helper's process id, or None (tests).
+process_id = SLOT.process_id
+#: Stop the helper (the next :func:`warm` starts it again).
+stop = SLOT.stop
+#: Stop the helper and forget that it was given up (a re-enabled add-on tries it again).
+unregister = SLOT.reset
 
 
 def register() -> None:
     """Nothing to start: the helper starts when a viewport first draws films (:func:`warm`)."""
-
-
-def unregister() -> None:
-    """Stop the helper and forget that it was given up (a re-enabled add-on tries it again)."""
-    SLOT.reset()

@@ -84,3 +84,25 @@ def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = T
             entry = addons.get(EXTENSION_ID)
             if entry is not None:
                 addons.remove(entry)
+
+
+def assert_helper_ends_with_stdin_and_unregister(package, helper, timeout: float) -> None:
+    """A helper process module (``addon.panorama_helper``, ``addon.bake_helper``): its process
+    exits on its own when its stdin closes (what its parent's death does), and the package's
+    ``unregister`` leaves no process behind (exited and reaped: no orphan, no zombie)."""
+    helper.warm()
+    process = helper.SLOT.process
+    assert process.ready.wait(timeout) and process.alive()
+    process.proc.stdin.close()
+    assert process.proc.wait(timeout) == 0
+    helper.stop()
+
+    helper.warm()
+    pid = helper.process_id()
+    assert pid is not None and helper.SLOT.process.ready.wait(timeout)
+    package.unregister()
+    try:
+        assert helper.process_id() is None
+        assert not os.path.exists(f"/proc/{pid}")
+    finally:
+        package.register()

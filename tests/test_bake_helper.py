@@ -31,6 +31,7 @@ import types
 
 import numpy as np
 import pytest
+from _extension import assert_helper_ends_with_stdin_and_unregister
 from test_viewport_state import collect, film, grid, redraw, scene, tf  # noqa: F401
 
 pytestmark = pytest.mark.blender
@@ -243,22 +244,7 @@ def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switc
 
 
 def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa: F811
-    helper.warm()
-    process = helper.SLOT.process
-    assert process.ready.wait(TIMEOUT_S) and process.alive()
-    process.proc.stdin.close()  # what the parent's death does
-    assert process.proc.wait(TIMEOUT_S) == 0  # it exited on its own
-    helper.stop()
-
-    helper.warm()
-    pid = helper.process_id()
-    assert pid is not None and helper.SLOT.process.ready.wait(TIMEOUT_S)
-    tf.package.unregister()
-    try:
-        assert helper.process_id() is None
-        assert not os.path.exists(f"/proc/{pid}")  # exited and reaped: no orphan, no zombie
-    finally:
-        tf.package.register()
+    assert_helper_ends_with_stdin_and_unregister(tf.package, helper, TIMEOUT_S)
 
 
 def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):  # noqa: F811

@@ -23,7 +23,7 @@ import sys
 
 import numpy as np
 import pytest
-from _extension import registered_extension
+from _extension import assert_helper_ends_with_stdin_and_unregister, registered_extension
 
 pytestmark = pytest.mark.blender
 
@@ -163,22 +163,7 @@ def test_the_preference_turns_the_helper_off(tf, sky):
 
 def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, sky):
     helper = tf.panorama_helper
-    helper.warm()
-    process = helper.SLOT.process
-    assert process.ready.wait(helper.START_TIMEOUT_S) and process.alive()
-    process.proc.stdin.close()  # what the parent's death does
-    assert process.proc.wait(helper.START_TIMEOUT_S) == 0  # it exited on its own
-    helper.stop()
-
-    helper.warm()
-    pid = helper.process_id()
-    assert pid is not None and helper.SLOT.process.ready.wait(helper.START_TIMEOUT_S)
-    tf.package.unregister()
-    try:
-        assert helper.process_id() is None
-        assert not os.path.exists(f"/proc/{pid}")  # exited and reaped: no orphan, no zombie
-    finally:
-        tf.package.register()
+    assert_helper_ends_with_stdin_and_unregister(tf.package, helper, helper.START_TIMEOUT_S)
 
 
 def test_unregister_during_a_render_does_not_give_the_helper_up(tf, sky, caplog):
