@@ -4,19 +4,22 @@
 A bake on a thread of Blender's own process runs a few hundred numpy calls and needs Python's
 global lock between them; Blender's main thread holds that lock while it draws (every Python
 draw callback and interface panel). Measured on the 2-core machine with the soap preset's warm
-bake and film table: 24 ms with the main thread idle, 461 ms while it redrew the viewport
-(``benchmarks/latency.py``'s loop), 146 ms beside a pure-Python loop. So the viewport's bake
-worker (:func:`.viewport._bake_worker`) hands the bake to one long-lived process
-(:mod:`.bake_process`: the same :func:`precompute.bake.bake` and film table, bit for bit) and
-waits for the answer on its pipe, which holds no lock:
+bake and film table (``benchmarks/bake_helper.py``, docs/bake-helper.md): on a thread 36 ms with
+the main thread idle, 132 ms beside a Python loop, 409 ms while it redrew the viewport; in the
+helper 44, 73 and 89 ms. So a viewport bake goes to one long-lived process
+(:mod:`.bake_process`: the same :func:`precompute.bake.bake` and film table, bit for bit), and
+the bake's worker thread (:func:`.viewport._bake_worker`) waits for the answer on its pipe,
+which holds no lock:
 
-1. :func:`warm` starts the process when a viewport first draws films (≈ 0.2 s to import numpy
-   and :mod:`precompute`; 40 MiB resident), so it is ready, and its kernel caches warm, by the
-   first edit;
-2. :func:`baker` is the bake function the worker passes to :func:`.tables.get_table_with_source`
-   (the memory and disk caches are looked up first, in process); the film table comes back
-   with the table and is kept in :data:`.tables.FILMS`;
-3. a superseded bake is cancelled in the helper too (at its next checkpoint).
+1. :func:`warm` starts the process when a viewport first draws films (0.4–0.6 s to import
+   numpy and :mod:`precompute`; 40–65 MiB resident), so it is ready, and its kernel caches
+   warm, by the first edit;
+2. the main thread hands a bake over when its job starts (:func:`submit`, a :class:`Ticket`:
+   a frame written to the pipe), unless its table is in memory or on disk;
+3. :func:`baker` is the bake function the worker passes to :func:`.tables.get_table_with_source`:
+   it waits for the ticket; the film table (and a rough film's SH grid) comes back with the
+   table;
+4. a superseded bake is cancelled in the helper too (at its next checkpoint).
 
 Failures never lose a table: a helper that cannot start, dies, or stays silent for
 :data:`SILENCE_S` is given up for the session with one logged error, and the bake runs on the
@@ -38,8 +41,6 @@ import queue
 import sys
 import threading
 import time
-
-import numpy as np
 
 from ..precompute import bake as precompute_bake
 from ..precompute import film_colour
@@ -221,17 +222,8 @@ def _failure(type_name: str, message: str) -> Exception:
 
 
 def _table(fields: dict) -> precompute_bake.BakeResult:
-    return precompute_bake.BakeResult(
-        data=np.asarray(fields["data"]),
-        material=Material.from_dict(fields["material"]),
-        sh_order=int(fields["sh_order"]),
-        view_angles_rad=np.asarray(fields["view_angles_rad"]),
-        thicknesses_nm=np.asarray(fields["thicknesses_nm"]),
-        wavelengths_nm=np.asarray(fields["wavelengths_nm"]),
-        u_nodes=int(fields["u_nodes"]),
-        reasons=dict(fields["reasons"]),
-        timings_s=dict(fields["timings_s"]),
-    )
+    """A table from :func:`.bake_process.table_fields`."""
+    return precompute_bake.BakeResult(**{**fields, "material": Material.from_dict(fields["material"])})
 
 
 def _final(process: _Process, answers: queue.Queue, progress) -> tuple:
@@ -316,9 +308,12 @@ def submit(desc: Material, film: bool, grid: dict | None = None) -> Ticket:
     """Hand the bake of ``desc`` to the helper, starting it if need be (with its film table when
     ``film``, and its SH grid when ``grid``, :meth:`.radiance_grids.Chain.helper_spec`): a frame
     written to a pipe (≈ 0.1 ms), so the main thread may call it (the depsgraph handler does: a
-    worker thread would wait for the lock the next draw holds). Raises :class:`HelperError`
-    when the helper is not running or cannot take it."""
-    warm()
+    worker thread would wait for the lock the next draw holds). Whether the helper is to be used
+    is the caller's to ask (:func:`enabled` reads the preferences: main thread). Raises
+    :class:`HelperError` when the helper is given up, not running or cannot take it."""
+    if SLOT.given_up:
+        raise HelperError(SLOT.given_up)
+    SLOT.warm()
     process = SLOT.current()
     if process is None:
         raise HelperError("is not running")
@@ -334,24 +329,23 @@ def bake(desc: Material, film: bool, progress=None):
     return submit(desc, film).wait(progress)
 
 
-def baker(film: bool, keep_film, ticket: Ticket | None = None):
+def baker(ticket: Ticket, keep_film):
     """The bake function for :func:`.tables.get_table_with_source`: ``(desc, progress) →
-    BakeResult`` by the helper (through ``ticket`` when the bake was handed over already), its
-    film table (when ``film``) given to ``keep_film(desc, film_table)``; in process
-    (:func:`precompute.bake.bake`) when the helper is off or fails."""
+    BakeResult`` by the helper through ``ticket`` (the bake handed over on the main thread), its
+    film table, if it came with it, given to ``keep_film(desc, film_table)``; in process
+    (:func:`precompute.bake.bake`) when the helper fails (it is given up). Runs on a worker:
+    it reads no preference (bpy)."""
 
     def run(desc, progress=None):
-        if ticket is not None or enabled():
-            try:
-                result, table = ticket.wait(progress) if ticket is not None else bake(desc, film, progress)
-            except HelperError as exc:
-                STATS["failed"] += 1
-                SLOT.give_up(str(exc))
-            else:
-                if table is not None:
-                    keep_film(desc, table)
-                return result
-        return precompute_bake.bake(desc, progress)
+        try:
+            result, table = ticket.wait(progress)
+        except HelperError as exc:
+            STATS["failed"] += 1
+            SLOT.give_up(str(exc))
+            return precompute_bake.bake(desc, progress)
+        if table is not None:
+            keep_film(desc, table)
+        return result
 
     return run
 

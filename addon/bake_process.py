@@ -16,8 +16,9 @@ next to the last bake's (:func:`warm_neighbours`).
 Why a process: a bake is a few hundred numpy calls of 10–500 µs, and between them its thread
 needs Python's global lock, which Blender's main thread holds while it draws (every add-on's
 draw callback and every Python panel of the interface). On the 2-core machine the soap
-bubble's warm bake took 24 ms with the main thread idle and 461 ms while it drew frames
-(docs/latency.md); here it runs on the other core, whatever the interface does.
+bubble's warm bake with its film table took 36 ms on a thread with the main thread idle and
+409 ms while it redrew the viewport, 44 and 89 ms here (docs/bake-helper.md): here it runs on
+the other core, whatever the interface does.
 
 Protocol: frames of a pickle and its arrays' out-of-band buffers (:func:`send`, :func:`receive`),
 between this process and the add-on that started it (private pipes):

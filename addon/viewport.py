@@ -86,6 +86,8 @@ class _Job:
     #: The bake handed to the helper process by the main thread when the job started
     #: (:func:`.bake_helper.submit`), or None: the worker waits for it.
     ticket: object = None
+    #: A newer value of its material replaced it (:func:`_want_bake`): it ends without a redraw.
+    superseded: bool = False
 
 
 _pending: dict[object, _Job] = {}  # material identity → the newest bake it wants
@@ -190,6 +192,7 @@ def _want_bake(desc, owner=None, film: bool = False, then=None) -> None:
         wanted = set(_wanted.values())
         superseded = [job for job in _running.values() if job.key not in wanted]
     for job in superseded:
+        job.superseded = True  # before the cancel: its worker reads it once it stops
         job.cancel.set()  # stops at its next checkpoint, caches nothing
         if job.ticket is not None:
             job.ticket.cancel()  # in the helper too, now: its worker may wait for the lock
@@ -197,10 +200,9 @@ def _want_bake(desc, owner=None, film: bool = False, then=None) -> None:
 
 def _table_of(job: _Job, cache, report):
     """(table, source) of the job: from memory or disk, else baked by the helper (its ticket,
-    or handed over now) or in process (:func:`.tables.get_table_with_source`). A ticket whose
+    handed over on the main thread) or in process (:func:`.tables.get_table_with_source`). A ticket whose
     table was found after all, or whose job failed or was superseded, is cancelled."""
-    helped = job.ticket is not None or bake_helper.enabled()
-    baker = bake_helper.baker(job.film, tables.keep_film, job.ticket) if helped else None
+    baker = bake_helper.baker(job.ticket, tables.keep_film) if job.ticket is not None else None
     try:
         result, source = tables.get_table_with_source(
             job.desc, cache, report, store=False, keep_nodes=True, baker=baker
@@ -246,8 +248,8 @@ def _bake_worker(job: _Job, cache) -> None:
             for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
                 del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
         shown_after = _frames.started
-        if not cancelled:  # a superseded bake has nothing to show: a redraw would only delay the next
-            _finished.set()  # its table (or its error) is there now: the timer asks for a redraw
+        if not (cancelled and job.superseded):  # it has nothing to show: a redraw would delay the next
+            _finished.set()  # its table, its error or its cancel (the header): the timer redraws
     if baked is not None:  # after the frame that shows it: the disk copy only serves the next session
         _frames.wait_past(shown_after, STORE_WAIT_S)  # the write would compete with that frame
         if tables.MEMORY.get(job.key) is not None:  # not cleared meanwhile (Clear Cache, file load)

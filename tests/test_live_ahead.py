@@ -183,3 +183,30 @@ def test_the_grid_build_has_steps_to_stop_at():
     with progress.reporting(lambda: calls.append(1)):
         radiance_grid.build(result, coeffs, (8, 4, result.data.shape[1], 4))
     assert len(calls) >= 4
+
+
+@pytest.mark.parametrize("how", ["superseded", "cancel button"])
+def test_a_cancelled_bake_asks_for_a_redraw_only_when_the_user_cancelled(bpy, tf, scene, monkeypatch, how):  # noqa: F811
+    """A bake superseded by a newer value has nothing to show (its redraw would only delay the
+    one that shows the newest table); one the Cancel button stopped asks for a redraw, so the
+    header stops saying it bakes."""
+    vp = tf.viewport
+    mat = film(bpy, tf, "Cancelled")
+    drawn_once(bpy, tf, scene, mat)
+    gate = Gate(tf, monkeypatch)
+    mat.thinfilm_sh.layers[0].thickness_nm = 440.0
+    bpy.context.view_layer.update()
+    wait_for(lambda: gate.started, "the bake to start")
+    (job,) = vp._running.values()
+    vp._finished.clear()
+    if how == "superseded":
+        mat.thinfilm_sh.layers[0].thickness_nm = 450.0
+        bpy.context.view_layer.update()  # the newer value's bake waits for this one to stop
+        assert job.superseded and job.cancel.is_set()
+    else:
+        assert vp.cancel_bakes() == 1 and not job.superseded
+    gate.open()
+    wait_for(lambda: job.key not in vp._running, "the cancelled bake to stop")
+    assert vp._finished.is_set() == (how == "cancel button")
+    vp.cancel_bakes()
+    wait_for(lambda: not vp._running, "the bakes")
