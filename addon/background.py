@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ..precompute import pixel_filter
+from ..precompute.output import pixel_filter
 from ..precompute.shading.policy import REFRACT_MAX_SIDE, REFRACT_OVERSCAN
 from ..precompute.shading.transmit import WALL_SOLID
 from .gpu.draw import is_wall, render_offscreen

@@ -7,7 +7,7 @@ draw callback and interface panel). Measured on the 2-core machine with the soap
 bake and film table (``benchmarks/bake_helper.py``, docs/bake-helper.md): on a thread 36 ms with
 the main thread idle, 132 ms beside a Python loop, 409 ms while it redrew the viewport; in the
 helper 44, 73 and 89 ms. So a viewport bake goes to one long-lived process
-(:mod:`.bake_process`: the same :func:`precompute.bake.bake` and film table, bit for bit), and
+(:mod:`.bake_process`: the same :func:`precompute.bakes.bake.bake` and film table, bit for bit), and
 the bake's worker thread (:func:`.viewport._bake_worker`) waits for the answer on its pipe,
 which holds no lock:
 
@@ -42,9 +42,9 @@ import sys
 import threading
 import time
 
-from ..precompute import bake as precompute_bake
-from ..precompute import film_colour
-from ..precompute.material import Material
+from ..precompute.bakes import bake as bake_bake
+from ..precompute.colour import film_colour
+from ..precompute.materials.material import Material
 from . import bake_process, helper_process, prefs
 from .gpu import resources
 
@@ -221,9 +221,9 @@ def _failure(type_name: str, message: str) -> Exception:
     return RuntimeError(f"{type_name}: {message}")
 
 
-def _table(fields: dict) -> precompute_bake.BakeResult:
+def _table(fields: dict) -> bake_bake.BakeResult:
     """A table from :func:`.bake_process.table_fields`."""
-    return precompute_bake.BakeResult(**{**fields, "material": Material.from_dict(fields["material"])})
+    return bake_bake.BakeResult(**{**fields, "material": Material.from_dict(fields["material"])})
 
 
 def _final(process: _Process, answers: queue.Queue, progress) -> tuple:
@@ -333,7 +333,7 @@ def baker(ticket: Ticket, keep_film):
     """The bake function for :func:`.tables.get_table_with_source`: ``(desc, progress) →
     BakeResult`` by the helper through ``ticket`` (the bake handed over on the main thread), its
     film table, if it came with it, given to ``keep_film(desc, film_table)``; in process
-    (:func:`precompute.bake.bake`) when the helper fails (it is given up). Runs on a worker:
+    (:func:`precompute.bakes.bake.bake`) when the helper fails (it is given up). Runs on a worker:
     it reads no preference (bpy)."""
 
     def run(desc, progress=None):
@@ -342,7 +342,7 @@ def baker(ticket: Ticket, keep_film):
         except HelperError as exc:
             STATS["failed"] += 1
             SLOT.give_up(str(exc))
-            return precompute_bake.bake(desc, progress)
+            return bake_bake.bake(desc, progress)
         if table is not None:
             keep_film(desc, table)
         return result

@@ -7,7 +7,7 @@ framing functions below, which need nothing but the standard library)::
 
 ``PACKAGE_ROOT`` is the extension package's folder (the parent of ``precompute/``). The script
 imports :mod:`precompute` from it under a private package name (nothing of the add-on, no bpy):
-the very :func:`precompute.bake.bake` and :func:`precompute.film_colour.film_table` the add-on
+the very :func:`precompute.bakes.bake.bake` and :func:`precompute.colour.film_colour.film_table` the add-on
 runs in process, so a table baked here equals the one baked there bit for bit
 (tests/test_bake_helper.py). Its caches (microfacet kernels, quadrature nodes, albedo weights)
 stay warm between requests, and while it waits it computes the kernels of the u-degree rungs
@@ -129,7 +129,7 @@ def receive(stream):
 
 
 def table_fields(result) -> dict:
-    """A :class:`precompute.bake.BakeResult` as plain values (its class differs between this
+    """A :class:`precompute.bakes.bake.BakeResult` as plain values (its class differs between this
     process's private package and the add-on's), without its node reflectance."""
     return {
         "data": result.data,
@@ -145,7 +145,7 @@ def table_fields(result) -> dict:
 
 
 def film_fields(film) -> dict | None:
-    """A :class:`precompute.film_colour.FilmTable` as plain values."""
+    """A :class:`precompute.colour.film_colour.FilmTable` as plain values."""
     if film is None:
         return None
     return {f.name: getattr(film, f.name) for f in dataclasses.fields(film)}
@@ -162,7 +162,14 @@ def _stub_package(name: str, path: str) -> None:
 def load_precompute(root: str) -> types.SimpleNamespace:
     """The modules a bake needs, imported from ``root`` without the extension's ``__init__``."""
     _stub_package(PACKAGE, root)
-    names = ("bake", "film_colour", "material", "progress", "shading.policy", "shading.radiance_grid")
+    names = (
+        "bakes.bake",
+        "colour.film_colour",
+        "materials.material",
+        "bakes.progress",
+        "shading.policy",
+        "shading.radiance_grid",
+    )
     return types.SimpleNamespace(
         **{name.rpartition(".")[2]: importlib.import_module(f"{PACKAGE}.precompute.{name}") for name in names}
     )

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import re
 
-from ..precompute import cli_support
+from ..precompute.commands import cli_support
 
 #: Samples per pixel along each axis of the headless frame (the default of ``--supersample``;
 #: addon/headless.py's SUPERSAMPLE).

@@ -1,10 +1,10 @@
 """What the preview shows for a Blender material: a precompute Material, its key, its caveats.
 
-- :func:`description` — the :class:`~precompute.material.Material` of a Blender material: from
+- :func:`description` — the :class:`~precompute.materials.material.Material` of a Blender material: from
   the extension's settings when they are enabled (:mod:`.props`), else from a Principled
   BSDF with a thin film (:mod:`.principled`, Cycles interop), else None;
 - :func:`warnings` — what the preview of a material cannot follow, and why it cannot be
-  evaluated at all (it is then drawn as the magenta fallback, ``precompute.material.FALLBACK``);
+  evaluated at all (it is then drawn as the magenta fallback, ``precompute.materials.material.FALLBACK``);
 - :func:`description_key` — the cache key of a description: equal descriptions share one
   baked table (:mod:`.tables`) and one GPU texture.
 """
@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import json
 
-from ..precompute import bake, spectra
-from ..precompute.material import Material
+from ..precompute.bakes import bake
+from ..precompute.colour import spectra
+from ..precompute.materials.material import Material
 from ..precompute.shading import policy
 from .linked import Pending
 from .principled import read_principled
@@ -42,7 +43,7 @@ def description(bpy_material) -> Material | None:
     (:func:`precompute.shading.policy.drawn_material`).
 
     Raises ValueError (naming the material and the parameter) for invalid settings: every
-    value is checked when the Material is built (precompute.validate), so nothing invalid
+    value is checked when the Material is built (precompute.materials.validate), so nothing invalid
     reaches a bake. The draw shows such a material as the magenta fallback.
     """
     props = getattr(bpy_material, "thinfilm_sh", None)
@@ -101,5 +102,5 @@ def _gltf_notes(bpy_material) -> list[str]:
 
 
 def description_key(desc: Material) -> str:
-    """Cache key of a description: :func:`precompute.bake.table_key` (parameters + planner version)."""
+    """Cache key of a description: :func:`precompute.bakes.bake.table_key` (parameters + planner version)."""
     return bake.table_key(desc)

@@ -18,7 +18,8 @@ import time
 
 import bpy
 
-from ..precompute import cli_support, table_io
+from ..precompute.commands import cli_support
+from ..precompute.tables import table_io
 
 
 def frame_path(out, frame: int | None, many: bool) -> pathlib.Path:

@@ -31,7 +31,7 @@ import json
 
 import bpy
 
-from ..precompute.conductors import real_index
+from ..precompute.materials.conductors import real_index
 from .description import description
 from .linked import bake_thickness_image
 from .principled import SOCKET_FILM_IOR, SOCKET_THICKNESS, principled_node

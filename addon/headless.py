@@ -10,7 +10,7 @@ The frame is anti-aliased as Cycles' is: drawn :data:`SUPERSAMPLE` times larger 
 widened by the filter's support, so border pixels see beyond the frame) and filtered down with
 the scene's Cycles pixel filter, type and width (``scene.cycles.pixel_filter_type`` /
 ``filter_width``; Cycles' defaults, Blackman–Harris of ±1.5 px, without the Cycles add-on):
-:func:`pixel_filter_settings`, :mod:`precompute.pixel_filter`. The viewport keeps Blender's own
+:func:`pixel_filter_settings`, :mod:`precompute.output.pixel_filter`. The viewport keeps Blender's own
 anti-aliasing.
 
 The table cache is the add-on's (:func:`.tables.table_cache`: ``THINFILM_SH_CACHE``, the
@@ -31,7 +31,10 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..precompute import cli_support, effects, image_io, pixel_filter, table_io
+from ..precompute.commands import cli_support
+from ..precompute.effects import plans
+from ..precompute.output import image_io, pixel_filter
+from ..precompute.tables import table_io
 from . import cli_args, display, frames, prefs, scene_draw, tables, world
 from .background import (
     behind_texture,
@@ -138,7 +141,7 @@ def bake_scene(scene, out_dir=None, progress=print, cache=None) -> dict:
 
     One material's failure does not stop the others: a material that cannot be described or
     baked is recorded in ``errors`` ({material name: why}). With ``out_dir`` each material gets
-    a file of its own, named by :func:`precompute.cli_support.unique_file_names` (``Mat 001``,
+    a file of its own, named by :func:`precompute.commands.cli_support.unique_file_names` (``Mat 001``,
     ``Mat.001`` and ``Mat_001`` never share one), ``manifest`` maps material names to the files
     written, and every destination is checked (``UsageError``) before the first bake.
     """
@@ -478,8 +481,8 @@ def _run_plan(scene, cache) -> int:
         for name, desc in found.items()
         if tables.peek_table(desc) is not None or (on_disk and cache.path_for(keys[name]).is_file())
     }
-    plan = effects.scene_plan(found, coeffs, cached=cached)
-    print(effects.format_plan(plan))
+    plan = plans.scene_plan(found, coeffs, cached=cached)
+    print(plans.format_plan(plan))
     for name, mp in plan.materials.items():  # one JSON line per material, for scripts
         first = plan.tables[mp.key][0]
         summary = {

@@ -12,7 +12,7 @@ Where the table cache lives, first match wins (:func:`cache_location`; docs/cach
 3. the *Cache Directory* preference;
 4. installed as an extension: ``cache`` in the extension's user directory (Blender keeps it
    across upgrades);
-5. otherwise the per-user default of :func:`precompute.table_cache.default_cache_dir`
+5. otherwise the per-user default of :func:`precompute.tables.table_cache.default_cache_dir`
    (``$XDG_CACHE_HOME/thinfilm_sh`` or ``~/.cache/thinfilm_sh``, created 0700).
 
 Its size limit: ``THINFILM_SH_CACHE_MAX_BYTES`` if set, else the *Cache Size Limit* preference
@@ -25,7 +25,7 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy.types import AddonPreferences
 
-from ..precompute import table_cache
+from ..precompute.tables import table_cache
 
 __all__ = [
     "CACHE_ENV",
@@ -69,7 +69,7 @@ def default_cache_dir() -> str:
     """Where baked tables go when the preference is empty (nothing is created here).
 
     ``$THINFILM_SH_CACHE`` if set; installed as an extension, ``cache`` in the extension's user
-    directory; otherwise the per-user default of :func:`precompute.table_cache.default_cache_dir`,
+    directory; otherwise the per-user default of :func:`precompute.tables.table_cache.default_cache_dir`,
     never a shared folder such as ``/tmp``.
     """
     if os.environ.get(CACHE_ENV):
@@ -86,10 +86,10 @@ def preferences(context=None):
 
 def cache_location(context=None) -> tuple:
     """(directory, source) of the table cache: the directory to give
-    :class:`~precompute.table_cache.TableCache` (None: its own private per-user default) and what
+    :class:`~precompute.tables.table_cache.TableCache` (None: its own private per-user default) and what
     chose it: ``"THINFILM_SH_CACHE"``, ``"preference"``, ``"extension"`` or ``"default"``.
 
-    Raises :class:`~precompute.table_cache.CacheDirError` for a preference relative to the .blend
+    Raises :class:`~precompute.tables.table_cache.CacheDirError` for a preference relative to the .blend
     file (``//…``) while the file is not saved, or otherwise not absolute: it would name a folder
     relative to whatever the current directory happens to be.
     """

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import math
 
-from ..precompute import validate
-from ..precompute.conductors import metal_rgb, real_index
-from ..precompute.material import Layer, Material
+from ..precompute.materials import validate
+from ..precompute.materials.conductors import metal_rgb, real_index
+from ..precompute.materials.material import Layer, Material
 from . import linked, thickness_nodes
 from .props import description_from_props, f32, working_space
 

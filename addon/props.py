@@ -1,7 +1,7 @@
 """The extension's per-material settings: ``material.thinfilm_sh`` (:class:`ThinFilmMaterialSettings`).
 
 Thicknesses are in nm (plain floats, subtype NONE: the panel puts "nm" in the labels). The
-physical settings mirror :class:`precompute.material.Material`:
+physical settings mirror :class:`precompute.materials.material.Material`:
 
 - :func:`description_from_props` — the Material the settings describe (ValueError naming a bad
   parameter);
@@ -31,8 +31,8 @@ from bpy.props import (
 )
 from bpy.types import PropertyGroup
 
-from ..precompute import spectra
-from ..precompute.material import AUTO, MAX_SH_ORDER, PRESETS, Layer, Material, Quality
+from ..precompute.colour import spectra
+from ..precompute.materials.material import AUTO, MAX_SH_ORDER, PRESETS, Layer, Material, Quality
 from ..precompute.optics import metals
 from ..precompute.optics.metals import available_metals
 from . import caches

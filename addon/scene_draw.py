@@ -40,8 +40,8 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..precompute import cli_support
-from ..precompute.material import FALLBACK
+from ..precompute.commands import cli_support
+from ..precompute.materials.material import FALLBACK
 from ..precompute.shading import policy
 from . import (
     bake_asks,
@@ -78,7 +78,7 @@ class DrawItem:
     roughness: float = 0.0
     sh_weight: float = 1.0
     film: resources.FilmTexture | None = None
-    #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
+    #: Drawn as :data:`precompute.materials.material.FALLBACK` (matte magenta): its material failed.
     fallback: bool = False
     #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
     lights: np.ndarray | None = None
@@ -292,7 +292,7 @@ def lighting_for(
 
 def film_texture(desc_key: str, film=None) -> resources.FilmTexture | None:
     """The film colour texture of a description key, uploaded once: from ``film`` (a
-    :class:`precompute.film_colour.FilmTable`) or the one the bake's worker computed
+    :class:`precompute.colour.film_colour.FilmTable`) or the one the bake's worker computed
     (:func:`.tables.peek_film`); None while neither exists (it is never computed here)."""
     found = CACHES.films.get(desc_key)
     if found is None:
@@ -446,7 +446,7 @@ class _MaterialEntry:
     props: object = None  # the original material's thinfilm_sh settings when enabled, else None
     thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
     linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
-    fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
+    fallback: bool = False  # drawn as precompute.materials.material.FALLBACK (its material failed)
     lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
     sh_order: int = 0  # the table's SH order (the lighting's l_max)
     wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
@@ -663,7 +663,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     passed to ``want_bake(desc, owner=…, film=…)`` so the caller can bake them outside drawing,
     and drawn meanwhile with the table they were last drawn with (skipped if there is none).
 
-    A material that cannot be evaluated is drawn as :data:`precompute.material.FALLBACK` (matte
+    A material that cannot be evaluated is drawn as :data:`precompute.materials.material.FALLBACK` (matte
     magenta, its items' ``fallback`` set), with a message naming it and the parameter; with an
     ``errors`` dict it is also recorded there as {material name: why}. The World's errors
     (``WorldLighting.sh.errors``) join the messages: it is lit by its fallback colour.

@@ -1,14 +1,14 @@
 """A description's baked SH table: in memory, else the disk cache, else a fresh bake.
 
 - :func:`get_table` / :func:`get_table_with_source` — the table of a
-  :class:`~precompute.material.Material`: :data:`MEMORY` (an LRU keyed by
+  :class:`~precompute.materials.material.Material`: :data:`MEMORY` (an LRU keyed by
   :func:`.description.description_key`), then the on-disk
-  :class:`~precompute.table_cache.TableCache` in the preferences' directory (:func:`table_cache`),
-  then :func:`precompute.bake.bake`. Equal descriptions share one table. Thread-safe: the bake
+  :class:`~precompute.tables.table_cache.TableCache` in the preferences' directory (:func:`table_cache`),
+  then :func:`precompute.bakes.bake.bake`. Equal descriptions share one table. Thread-safe: the bake
   operator calls it from a worker thread.
 - :func:`peek_table` — the table if it is in memory (the draw callback never bakes).
 - :func:`get_film` / :func:`peek_film` — the film table (the World lamps' and light objects'
-  reflectance, :func:`precompute.film_colour.film_table`) of a baked table, computed once per
+  reflectance, :func:`precompute.colour.film_colour.film_table`) of a baked table, computed once per
   description key beside it in :data:`FILMS`: on the viewport bake's worker, never in a draw.
 - :func:`table_cache` — the disk cache: ``--cache-dir`` (:func:`cache_dir_override`), else
   :func:`.prefs.cache_location` (``THINFILM_SH_CACHE``, the preference, the default), with the
@@ -33,11 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..precompute import bake, film_colour
-from ..precompute.material import Material
-from ..precompute.progress import reporting
+from ..precompute.bakes import bake
+from ..precompute.bakes.progress import reporting
+from ..precompute.colour import film_colour
+from ..precompute.materials.material import Material
 from ..precompute.shading import policy
-from ..precompute.table_cache import TableCache
+from ..precompute.tables.table_cache import TableCache
 from . import caches, prefs
 from .description import description_key
 
@@ -76,7 +77,7 @@ LRU_SIZE = 32
 #: Baked tables by description key (see :mod:`.caches`).
 MEMORY = caches.register("tables", caches.LRU(LRU_SIZE), scope=caches.SESSION)
 
-#: Film tables (:class:`precompute.film_colour.FilmTable`) by description key, one per table kept.
+#: Film tables (:class:`precompute.colour.film_colour.FilmTable`) by description key, one per table kept.
 FILMS = caches.register("film_tables", caches.LRU(LRU_SIZE), scope=caches.SESSION)
 #: Film tables computed since the module was loaded, by the name of the thread that computed
 #: each (the tests check that none was computed by the draw's thread).
@@ -113,7 +114,7 @@ def table_cache() -> TableCache:
     """The disk cache: ``--cache-dir``, else ``THINFILM_SH_CACHE``, else the preference, else the
     default (:func:`.prefs.cache_location`), bounded by :func:`.prefs.cache_max_bytes`.
 
-    Raises :class:`~precompute.table_cache.CacheDirError` (an ``OSError``) or ``ValueError`` (a
+    Raises :class:`~precompute.tables.table_cache.CacheDirError` (an ``OSError``) or ``ValueError`` (a
     malformed ``THINFILM_SH_CACHE_MAX_BYTES``) with a message for the user.
     """
     directory = _override if _override is not None else prefs.cache_location()[0]
@@ -165,9 +166,9 @@ def peek_film(desc_key: str):
 
 def get_film(desc: Material, result: bake.BakeResult | None, progress=None):
     """The film table of ``desc`` (its baked table ``result``): from :data:`FILMS`, else
-    computed (:func:`precompute.film_colour.film_table`: ≈ 10 ms from a fresh bake's reflectance
+    computed (:func:`precompute.colour.film_colour.film_table`: ≈ 10 ms from a fresh bake's reflectance
     at its u nodes, 20–50 ms by a sweep for a table read from disk) and kept. Without ``result``
-    it is computed from ``desc`` alone (:func:`~precompute.film_colour.film_table_of`).
+    it is computed from ``desc`` alone (:func:`~precompute.colour.film_colour.film_table_of`).
 
     ``progress(fraction, text)`` is called at the computation's checkpoints (fraction 1: the
     table is done) and may raise to cancel it; nothing is kept then. Thread-safe: the viewport
@@ -244,7 +245,7 @@ def get_table_with_source(
     writing the soap preset's 61-row table takes 0.4–2 s). ``keep_nodes``: a fresh bake keeps
     its reflectance at its u nodes (``BakeResult.node_reflectance``) until :func:`get_film` or
     :func:`release_nodes` drops it, so its film table needs no second sweep. ``baker(desc,
-    progress)`` bakes in place of :func:`precompute.bake.bake` (the viewport's: the bake helper
+    progress)`` bakes in place of :func:`precompute.bakes.bake.bake` (the viewport's: the bake helper
     process, :func:`.bake_helper.baker`)."""
     global bake_count
     key = description_key(desc)
@@ -312,13 +313,13 @@ def _store(key: str, result: bake.BakeResult, cache, problem: str | None) -> Non
 def get_table(desc: Material, cache=None, progress=None) -> bake.BakeResult:
     """The baked table of ``desc``: from memory, else the disk cache, else a fresh bake.
 
-    ``cache`` is a :class:`~precompute.table_cache.TableCache`, an :class:`UnusableCache` (none:
+    ``cache`` is a :class:`~precompute.tables.table_cache.TableCache`, an :class:`UnusableCache` (none:
     bake, keep in memory, report the reason) or None (:func:`open_cache`, which reads the
     preferences: pass the cache in from the main thread when calling from a worker).
     A corrupt disk entry is moved aside by the cache and re-baked. A disk cache that cannot be
     used (an unsafe or uncreatable directory, a full disk) never fails the call: the table is
     baked, kept in memory and returned, and :func:`cache_error` says what went wrong.
-    ``progress(fraction, text)`` is passed to :func:`precompute.bake.bake`; an exception it
+    ``progress(fraction, text)`` is passed to :func:`precompute.bakes.bake.bake`; an exception it
     raises aborts the bake and nothing is stored. Thread-safe.
     """
     return get_table_with_source(desc, cache, progress)[0]
@@ -332,8 +333,8 @@ def clear_memory_cache() -> None:
 
 def clear_caches(cache=None) -> int:
     """Empty the in-memory tables, the remembered failures and the disk cache (only the files
-    the cache wrote, :meth:`~precompute.table_cache.TableCache.clear`); returns how many files were
-    removed. Raises ``OSError`` (:class:`~precompute.table_cache.CacheDirError`) for an unusable
+    the cache wrote, :meth:`~precompute.tables.table_cache.TableCache.clear`); returns how many files were
+    removed. Raises ``OSError`` (:class:`~precompute.tables.table_cache.CacheDirError`) for an unusable
     directory, after emptying memory."""
     clear_memory_cache()
     FAILURES.clear()

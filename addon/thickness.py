@@ -19,7 +19,7 @@ import zlib
 
 import numpy as np
 
-from ..precompute.noise import value_noise
+from ..precompute.materials.noise import value_noise
 from . import caches
 from .world_key import describe_image
 
@@ -222,7 +222,7 @@ def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
 
     - ATTRIBUTE: the float attribute ``props.thickness_attribute`` on points, corners or faces
       (values clipped to [0, 1]); a missing attribute raises ValueError naming it.
-    - NOISE: :func:`precompute.noise.value_noise` of the object-space vertex positions,
+    - NOISE: :func:`precompute.materials.noise.value_noise` of the object-space vertex positions,
       ``noise_scale`` (in [0, :data:`MAX_NOISE_SCALE`]) and ``noise_seed``; deterministic.
     - IMAGE: the first channel of ``props.thickness_image`` at the corners' UVs (UV map
       ``props.thickness_uv_map``, empty = the active render map), bilinear, repeating, raw pixel

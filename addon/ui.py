@@ -2,7 +2,7 @@
 
 from bpy.types import Menu, Panel, UIList
 
-from ..precompute import effects
+from ..precompute.effects import plans
 from . import caches, linked, scene_draw, tables, viewport
 from .description import description as _description_now
 from .description import description_key
@@ -341,17 +341,17 @@ def _remember_plan(key, mp):
 
 
 def plan_for(desc, wait: bool = False):
-    """The :class:`precompute.effects.MaterialPlan` of ``desc``, memoised by description key.
+    """The :class:`precompute.effects.plans.MaterialPlan` of ``desc``, memoised by description key.
 
     Planning bakes nothing and computes no kernel: the automatic SH order is read from
-    ``precompute.sh_order.ORDER_BREAKPOINTS``, so a new roughness plans at once (≈ 1 ms) on the
+    ``precompute.bakes.sh_order.ORDER_BREAKPOINTS``, so a new roughness plans at once (≈ 1 ms) on the
     main thread. ``wait`` is accepted for callers written when a new roughness had to wait for a
     timer; it changes nothing now. A material that cannot be planned raises ValueError.
     """
     key = description_key(desc)
     mp = _PLANS.get(key)
     if mp is None:
-        mp = effects.material_plan(desc)
+        mp = plans.material_plan(desc)
         _remember_plan(key, mp)
     return mp
 
@@ -359,7 +359,7 @@ def plan_for(desc, wait: bool = False):
 def plan_lines(mp) -> list[str]:
     """The panel's summary of a plan: effects, table, orders, costs (one label each)."""
     p = mp.plan
-    warm = effects.bake_time_breakdown(
+    warm = plans.bake_time_breakdown(
         mp.material,
         p,
         mp.u_degree,
@@ -371,9 +371,8 @@ def plan_lines(mp) -> list[str]:
     shape = "×".join(str(n) for n in mp.table_shape)
     defines = " ".join(name if value == "1" else f"{name}={value}" for name, value in mp.shader.defines)
     return [
-        f"Effects: {effects.effect_summary(mp)}",
-        f"Table {shape} float32, {effects.fmt_bytes(mp.table_bytes)}"
-        f" (GPU {effects.fmt_bytes(mp.texture_bytes)})",
+        f"Effects: {plans.effect_summary(mp)}",
+        f"Table {shape} float32, {plans.fmt_bytes(mp.table_bytes)} (GPU {plans.fmt_bytes(mp.texture_bytes)})",
         f"SH order {p.sh_order} · {p.view_samples} view angles · {p.thickness_samples} thickness rows · "
         f"{mp.wavelength_nodes} wavelengths",
         f"Bake ≈ {mp.bake_seconds:.2g} s (first in a session), ≈ {warm:.2g} s with a warm kernel",
@@ -405,7 +404,7 @@ class THINFILM_PT_plan(_SubPanel, Panel):
             return
         col = layout.column(align=True)
         flow = col.grid_flow(columns=2, even_columns=True, align=True)
-        for name in effects.EFFECTS:
+        for name in plans.EFFECTS:
             icon = "CHECKBOX_HLT" if mp.effects[name] else "CHECKBOX_DEHLT"
             flow.label(text=name.replace("_", " ").capitalize(), icon=icon)
         box = layout.box()

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ..precompute.progress import reporting
+from ..precompute.bakes.progress import reporting
 from . import (
     bake_asks,
     bake_helper,
@@ -143,7 +143,7 @@ def activity() -> str:
 
 def cancel_bakes() -> int:
     """Stop the running viewport bakes at their next progress checkpoint (≤ one step of the
-    bake, :mod:`precompute.progress`) and drop the queued ones; returns how many were running.
+    bake, :mod:`precompute.bakes.progress`) and drop the queued ones; returns how many were running.
     Nothing half-made is cached, and a cancelled bake is not remembered as failed: the next
     draw queues it again unless the overlay is switched off."""
     with _lock:

@@ -9,7 +9,7 @@ takes the cheapest exact route:
    World's viewport colour (black without a World), with a warning;
 2. World Output ← Background ← Environment Texture (optionally through reroutes and Mapping
    nodes fed by Texture Coordinate "Generated"), Strength unlinked: the image's pixels are
-   projected directly (:func:`precompute.sh.project_equirect`), times Strength, turned by the
+   projected directly (:func:`precompute.sh.harmonics.project_equirect`), times Strength, turned by the
    Mapping transform;
 3. World Output ← Background with an unlinked Color: a constant, coefficient 0 = √(4π)·c;
 4. anything else (Sky Texture, gradients, mixes, muted nodes, Mapping with a location offset
@@ -44,8 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..precompute import hdri, sh
-from ..precompute.material import MAX_SH_ORDER
+from ..precompute.materials.material import MAX_SH_ORDER
+from ..precompute.sh import harmonics
+from ..precompute.world import hdri
 from . import caches
 from .panorama import render_world_panorama
 from .world_key import DEFAULT_WORKING_SPACE, image_path, working_space, world_key, world_uses_nodes
@@ -193,7 +194,7 @@ def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
     if source == target:
         return np.eye(3)
     try:  # a failed import of the spectral code must not break the World's SH
-        from ..precompute import spectra
+        from ..precompute.colour import spectra
     except ImportError:
         return None
     try:
@@ -286,7 +287,7 @@ def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarra
             rejected += int(good.size - np.count_nonzero(good))
             block = np.where(good[..., None], block, 0.0)
         small[:, c0 // factor : c1 // factor] = hdri.downsample(block, factor)
-    coeffs, info = sh.project_equirect(small, l_max, return_info=True)
+    coeffs, info = harmonics.project_equirect(small, l_max, return_info=True)
     return coeffs, rejected + int(info["rejected_pixels"]), small
 
 
@@ -382,7 +383,7 @@ def _snapped(p: np.ndarray) -> np.ndarray:
 @functools.lru_cache(maxsize=8)
 def _sh_rotation(l_max: int, rotation: tuple) -> np.ndarray:
     """The SH rotation of the World's Pᵀ (cached: the SH and the SH without lamps share it)."""
-    out = sh.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
+    out = harmonics.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
     out.setflags(write=False)
     return out
 
@@ -427,7 +428,7 @@ def apply_params(coeffs, params: WorldParams, scale: float | None, turned: bool)
     """Content SH → the World's: turned by the parameters' rotation (when ``turned``: the content
     is the image as read) and multiplied by ``scale`` (None: 1). Exact: SH rotations are."""
     c = np.asarray(coeffs, dtype=np.float64)
-    l_max = sh.l_max_from_size(c.shape[0])
+    l_max = harmonics.l_max_from_size(c.shape[0])
     if turned and params.parity < 0:
         bands = np.repeat(np.arange(l_max + 1), 2 * np.arange(l_max + 1) + 1)
         c = c * np.where(bands % 2 == 1, -1.0, 1.0)[:, None]
@@ -610,7 +611,7 @@ def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = No
     pending render in ``pending`` (:func:`.panorama_helper.resolve` waits for it on a worker),
     and it is rendered here only when ``render`` returns None.
     """
-    l_max = sh._check_l_max(l_max)
+    l_max = harmonics._check_l_max(l_max)
     params = _parameters(scene.world)[0] if params is None else params
     world = scene.world
     with np.errstate(all="ignore"):
@@ -685,7 +686,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     ----------
     scene : bpy.types.Scene
     l_max : int
-        Highest band (0 ≤ l_max ≤ :data:`precompute.sh.MAX_L_MAX`).
+        Highest band (0 ≤ l_max ≤ :data:`precompute.sh.harmonics.MAX_L_MAX`).
     cache : dict-like, optional
         Anything with ``get`` and item assignment, keyed by :func:`.world_key.world_key`; default
         :data:`SH_CACHE`, an LRU of :data:`DEFAULT_CACHE_SIZE` entries. Cached results are
@@ -706,7 +707,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     viewport does the same in three steps, the slow one on a worker (:mod:`.world_job`):
     :func:`read_world`, :func:`analyse_read`, :func:`finish`.
     """
-    l_max = sh._check_l_max(l_max)
+    l_max = harmonics._check_l_max(l_max)
     cache = SH_CACHE if cache is None else cache
     key = world_key(scene, l_max)
     hit = cache.get(key)

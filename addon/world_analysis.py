@@ -7,7 +7,7 @@ and runs on a worker thread in the viewport (:mod:`.world_job`); the parameters 
 milliseconds on the main thread, so a Strength or rotation edit recomputes nothing:
 
 - :func:`analyse_content` (any thread, pure numpy): the content's SH (:func:`.world.analyse_read`),
-  a 512 × 256 panorama of it, its lamps and their SH (:func:`precompute.environment.analyse_world`);
+  a 512 × 256 panorama of it, its lamps and their SH (:func:`precompute.world.environment.analyse_world`);
 - :meth:`Analysed.compute` (any thread): one prefilter (the whole World, or the World with its
   lamps lifted out), resampled to the GPU texture's size in float32; only those a drawn material
   reads;
@@ -25,10 +25,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..precompute import hdri, prefilter
-from ..precompute.environment import Environment, analyse_world
-from ..precompute.lamps import Lamps
-from ..precompute.material import MAX_SH_ORDER
+from ..precompute.materials.material import MAX_SH_ORDER
+from ..precompute.world import hdri, prefilter
+from ..precompute.world.environment import Environment, analyse_world
+from ..precompute.world.lamps import Lamps
 from . import world
 from .gpu import resources
 
@@ -79,7 +79,7 @@ class Analysed:
     """A World's content analysed for the draw (:func:`analyse_content`).
 
     ``content``: :class:`.world.WorldContent` (SH in the content's frame); ``environment``: the
-    content's panorama with its lamps (:class:`precompute.environment.Environment`), None when
+    content's panorama with its lamps (:class:`precompute.world.environment.Environment`), None when
     it could not be analysed; ``arrays``: the prefilters computed so far, by kind (:data:`LIFTED`,
     :data:`WHOLE`), each the texture's content (2J, 256, 512, 4) float32, ready to upload.
     """

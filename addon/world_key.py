@@ -14,7 +14,7 @@ import os
 
 import bpy
 
-from ..precompute import table_io
+from ..precompute.tables import table_io
 
 __all__ = [
     "DEFAULT_WORKING_SPACE",

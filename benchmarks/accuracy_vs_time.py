@@ -9,9 +9,9 @@ Every configuration changes ONE knob of the default (auto) plan: SH order 1–12
 count, view-angle (θo) samples, thickness samples (2-D tables), the half-vector quadrature of
 the kernel, storage precision (float32 vs half), and the colour mode (3×3 spectral — the
 default —, Cycles' per-channel film, and a three-wavelength "RGB film" as real-time engines do).
-Each is baked and shaded with :func:`precompute.render.shade_sh` (what the GLSL does per pixel)
+Each is baked and shaded with :func:`precompute.output.render.shade_sh` (what the GLSL does per pixel)
 on a 40×40 sphere under Blender's ``studio`` and ``courtyard`` HDRIs, and compared with
-:func:`precompute.render.shade_reference` (no SH: the exact spectral BRDF integrated against
+:func:`precompute.output.render.shade_reference` (no SH: the exact spectral BRDF integrated against
 the environment map by half-vector quadrature) in CIEDE2000 after a common exposure
 normalisation (the reference's 95th-percentile luminance over the sphere → 0.8).
 
@@ -32,10 +32,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from precompute import bake, cli, effects, hdri, render, table_io
-from precompute.colour_difference import delta_e_2000
-from precompute.material import AUTO, Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.commands import cli
+from precompute.effects import plans
+from precompute.materials.material import AUTO, Layer, Material, Quality
+from precompute.output import render
 from precompute.shading import sh_sum
+from precompute.tables import table_io
+from precompute.world import hdri
 
 from . import common
 
@@ -600,7 +605,7 @@ def what_this_shows(res: dict) -> list[str]:
         + " The error is dominated by the SH truncation of the glossy lobe and of the lighting:"
         " every other knob at its default is far below it."
     )
-    top = effects.MAX_ORDER
+    top = plans.MAX_ORDER
     if f"SH order {top}" in by and max(base["orders"]) == top and min(base["orders"]) < top:
         l8 = by[f"SH order {top}"]
         diff = [x for x in roughs if abs(l8["by_roughness"][x] - base["by_roughness"][x]) > 0.05]

@@ -8,7 +8,7 @@ viewport bakes it (``policy.drawn_material``: order 0), with its film table. Per
 warm bakes of films whose thickness range grows by 0.5 nm each (every value changes, the
 kernel is reused), median wall time from the request to the table (and film table) in hand:
 
-- *thread*: ``precompute.bake.bake`` and ``film_colour.film_table`` on a worker thread of this
+- *thread*: ``precompute.bakes.bake.bake`` and ``film_colour.film_table`` on a worker thread of this
   process, as the viewport baked before the helper;
 - *helper*: ``addon.bake_helper.bake`` (the worker waits on the pipe; the helper bakes);
 
@@ -39,7 +39,7 @@ BAKES = 12
 def _materials(ext, count: int, start: int):
     """``count`` soap films as the viewport bakes them, each a new table."""
     package = ext.package.__name__
-    material = sys.modules[f"{package}.precompute.material"]
+    material = sys.modules[f"{package}.precompute.materials.material"]
     policy = sys.modules[f"{package}.precompute.shading.policy"]
     base = policy.drawn_material(material.preset("soap_film"))
     out = []
@@ -52,8 +52,8 @@ def _materials(ext, count: int, start: int):
 
 def _in_thread(ext):
     package = ext.package.__name__
-    bake = sys.modules[f"{package}.precompute.bake"]
-    film_colour = sys.modules[f"{package}.precompute.film_colour"]
+    bake = sys.modules[f"{package}.precompute.bakes.bake"]
+    film_colour = sys.modules[f"{package}.precompute.colour.film_colour"]
 
     def run(desc):
         film_colour.film_table(bake.bake(desc))

@@ -1,7 +1,7 @@
 """Helpers shared by the benchmarks: machine description, median timing, doc output.
 
 Nothing here is timed itself; the benchmarks import it so that every report states the
-machine in the same words. Colour errors come from ``precompute.colour_difference``.
+machine in the same words. Colour errors come from ``precompute.colour.colour_difference``.
 """
 
 from __future__ import annotations
@@ -216,7 +216,7 @@ def fmt_bytes(count: int) -> str:
 def clear_bake_caches() -> None:
     """Forget what a new material or roughness must compute: the microfacet/diffuse kernels, the
     GGX albedo, the SH order's lobe (and the u-degree hint, in bakers that keep one)."""
-    from precompute import bake
+    from precompute.bakes import bake
 
     bake.microfacet_kernel.cache_clear()
     bake.diffuse_kernel.cache_clear()
@@ -224,7 +224,7 @@ def clear_bake_caches() -> None:
     bake.brdf.ggx_E_avg.cache_clear()
     getattr(bake, "_DEGREE_HINT", {}).clear()
     try:
-        from precompute import sh_order
+        from precompute.bakes import sh_order
     except ImportError:  # a baker from before the order table
         return
     sh_order._band_energies.cache_clear()

@@ -7,7 +7,7 @@ World, a camera; Base Color black, so only the film shows). Cycles renders the f
 headless command renders the same file in-process (``thinfilm_headless.py FILE render``: the
 draw collection, bake, lamps, prefilter and GLSL shader of the add-on, anti-aliased with the
 scene's pixel filter). ΔE2000 between the two EXRs over the sphere, one pixel of silhouette left
-out (``precompute.colour_difference.delta_e_2000``, route "E").
+out (``precompute.colour.colour_difference.delta_e_2000``, route "E").
 
 Cycles' renders are cached in ``benchmarks/.cache/cycles_compare/`` by the case, size, sample
 count and Blender version, so a rerun renders only the headless frames.
@@ -29,8 +29,8 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute import image_io, render
-from precompute.colour_difference import delta_e_2000, exposure_scale
+from precompute.colour.colour_difference import delta_e_2000, exposure_scale
+from precompute.output import image_io, render
 
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "tests"))
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "scripts"))

@@ -3,7 +3,7 @@
 Two scenes, each built by script in bpy and rendered twice — by Cycles (CPU, box filter) and by
 the extension's headless ``render`` (:func:`addon.headless.render_scene`, the viewport's shader
 on Mesa) — and compared by mean ΔE2000 over the sphere
-(``precompute.colour_difference.delta_e_2000``, route ``"E"``), in the Cycles-matching
+(``precompute.colour.colour_difference.delta_e_2000``, route ``"E"``), in the Cycles-matching
 (per-channel) colour mode a Principled BSDF is previewed in, at the default quality:
 
 - ``noise``: an opaque film sphere (Base Color black, IOR 1.5, film IOR 1.33) whose Thin Film
@@ -30,9 +30,10 @@ import time
 
 import numpy as np
 
-from precompute import hdri, image_io, render
-from precompute.cli import studiolight
-from precompute.colour_difference import delta_e_2000
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.commands.cli import studiolight
+from precompute.output import image_io, render
+from precompute.world import hdri
 from tests._cycles_scenes import DISTANCE, FOV_DEG, cycles_settings, object_mask
 from tests._extension import EXTENSION_ID, linked_extension
 

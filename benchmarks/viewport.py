@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from precompute.material import Layer, Material
+from precompute.materials.material import Layer, Material
 from precompute.shading import policy
 
 from . import common

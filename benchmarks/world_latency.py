@@ -33,8 +33,8 @@ import time
 import numpy as np
 
 from benchmarks import common, panorama_helper
-from precompute import hdri, lamps, prefilter
-from precompute.cli import studiolight
+from precompute.commands.cli import studiolight
+from precompute.world import hdri, lamps, prefilter
 
 BEFORE = "f46d98a"
 
@@ -194,9 +194,9 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
 
 
 def prefilter_at(rev: str):
-    """``rev``'s precompute/prefilter.py as a module (imported beside this one)."""
+    """``rev``'s precompute/world/prefilter.py as a module (imported beside this one)."""
     source = subprocess.run(
-        ["git", "show", f"{rev}:precompute/prefilter.py"],
+        ["git", "show", f"{rev}:precompute/world/prefilter.py"],
         cwd=common.ROOT,
         capture_output=True,
         text=True,

@@ -100,7 +100,7 @@ def read_exr(path, channels="RGB") -> np.ndarray:
 
 def srgb8(linear, exposure: float = 0.0) -> np.ndarray:
     """8-bit sRGB of scene-linear RGB ("Standard" view), as the headless PNG."""
-    from precompute.image_io import srgb_encode
+    from precompute.output.image_io import srgb_encode
 
     return np.clip(np.rint(srgb_encode(linear, exposure) * 255.0), 0, 255).astype(np.uint8)
 
@@ -195,7 +195,7 @@ def delta_e_vs_cycles(workdir, size=COMPARE_SIZE, samples=COMPARE_SAMPLES, label
     Over the pixels Cycles shows fully covered by objects (alpha of a transparent-film render),
     one pixel of silhouette eroded; both at a common exposure (reference p95 luminance 0.8).
     """
-    from precompute.colour_difference import delta_e_2000
+    from precompute.colour.colour_difference import delta_e_2000
 
     workdir = pathlib.Path(workdir)
     ours, _ = headless_render(workdir / f"ours{label}.png", size, background=False)
@@ -298,7 +298,7 @@ compiling shaders; the 320×240 picture that follows reuses them.
 
 The `principled_film` file rendered both ways at {cmp_w}×{cmp_h} (Cycles {cmp_spp} samples), mean
 (95th percentile) ΔE2000 over the sphere, one pixel of silhouette left out, at a common exposure
-(`precompute.colour_difference.delta_e_2000`):
+(`precompute.colour.colour_difference.delta_e_2000`):
 
 | Roughness | mean ΔE2000 | p95 |
 |---|---|---|

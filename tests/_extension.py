@@ -59,7 +59,7 @@ def set_cache_preference(bpy, prefs, cache_dir) -> None:
 @contextlib.contextmanager
 def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = True, gpu: bool = False):
     """The extension imported from ``root`` and registered, as a namespace: ``package``,
-    ``cache_dir`` (``root/cache``) and each of ``modules`` ("addon.headless", "precompute.bake",
+    ``cache_dir`` (``root/cache``) and each of ``modules`` ("addon.headless", "precompute.bakes.bake",
     "addon.gpu.draw", …) under its last name. ``cache_preference``: the Cache Directory
     preference set to ``cache_dir``, else only the add-on's preferences entry made; ``gpu``: a
     GPU context ensured. On exit the preferences entry is removed and the package forgotten."""

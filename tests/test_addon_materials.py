@@ -78,14 +78,14 @@ def thickness_mod(ext):
 
 @pytest.fixture
 def conductors_mod(ext):
-    """``thinfilm_sh.precompute.conductors`` as the extension imported it."""
-    return _module("precompute.conductors")
+    """``thinfilm_sh.precompute.materials.conductors`` as the extension imported it."""
+    return _module("precompute.materials.conductors")
 
 
 @pytest.fixture
 def noise_mod(ext):
-    """``thinfilm_sh.precompute.noise`` as the extension imported it."""
-    return _module("precompute.noise")
+    """``thinfilm_sh.precompute.materials.noise`` as the extension imported it."""
+    return _module("precompute.materials.noise")
 
 
 @pytest.fixture
@@ -360,7 +360,7 @@ def test_write_back_of_a_metal_substrate_and_a_multilayer(
 def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(
     bpy, tables_mod, description_mod, tmp_path
 ):
-    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache").TableCache(tmp_path)
+    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache").TableCache(tmp_path)
     a, b = _enabled(bpy, "A"), _enabled(bpy, "B")
     start = tables_mod.bake_count
     ta = tables_mod.get_table(description_mod.description(a), cache)
@@ -390,8 +390,8 @@ def test_equal_settings_share_one_bake_and_only_relevant_changes_rebake(
 
 
 def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, description_mod, tables_mod, tmp_path):
-    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
     cache = table_cache.TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
@@ -403,7 +403,7 @@ def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, description_mod,
     loaded, source = tables_mod.get_table_with_source(desc, cache)
     assert source == "disk" and tables_mod.bake_count == start + 1
     np.testing.assert_allclose(loaded.data, baked.data, rtol=1e-6, atol=1e-7)  # float32 on disk
-    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
+    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
     assert loaded.sh_order == baked.sh_order and loaded.material == bake.table_material(desc)
     np.testing.assert_array_equal(loaded.thicknesses_nm, baked.thicknesses_nm)
     np.testing.assert_allclose(loaded.view_angles_rad, baked.view_angles_rad)
@@ -425,8 +425,8 @@ def test_a_table_cached_by_an_older_planner_is_not_reused(
 ):
     """After an upgrade that changes automatic choices (e.g. the SH order cap 8 → 12), a cached
     table is stale, not corrupt: the key carries bake.PLANNER_VERSION, so it is baked again."""
-    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
-    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
+    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
     cache = table_cache.TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
@@ -477,7 +477,7 @@ def test_bake_operator_runs_synchronously_in_background_mode(bpy, tables_mod, de
 
 def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, description_mod, tables_mod, tmp_path):
     ops = importlib.import_module(f"{EXTENSION_ID}.addon.ops")
-    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache").TableCache(tmp_path)
+    cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache").TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
 
@@ -516,8 +516,8 @@ def test_clear_cache_operator_empties_memory_and_disk(bpy, tables_mod, descripti
 def test_clear_cache_operator_leaves_foreign_exr_files_alone(bpy, tables_mod, description_mod):
     """Issue 24: the cache folder is a preference, so it may hold the user's HDRIs; clearing
     deletes only the tables the cache wrote (tagged, in its own subfolder)."""
-    image_io = importlib.import_module(f"{EXTENSION_ID}.precompute.image_io")
-    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+    image_io = importlib.import_module(f"{EXTENSION_ID}.precompute.output.image_io")
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
     cache = tables_mod.table_cache()
     hdri = cache.directory / "courtyard.exr"
     hdri.parent.mkdir(parents=True)
@@ -540,7 +540,7 @@ def test_cache_location_env_preference_default_and_size_limit(bpy, ext, tables_m
     """Issue 24: THINFILM_SH_CACHE wins inside Blender too; an empty preference means the private
     per-user default (never $TMPDIR); the size limit preference reaches the TableCache."""
     prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
-    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
     monkeypatch.delenv("THINFILM_SH_CACHE", raising=False)
     monkeypatch.delenv("THINFILM_SH_CACHE_MAX_BYTES", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
@@ -580,8 +580,8 @@ def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
     message in the operator and the panel, never a traceback; the baked table is kept."""
     import errno
 
-    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
+    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
+    table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
     ui = importlib.import_module(f"{EXTENSION_ID}.addon.ui")
 
     def full(self, key, *args, **kwargs):

@@ -4,7 +4,7 @@ import colour
 import numpy as np
 import pytest
 
-from precompute import spectra
+from precompute.colour import spectra
 from precompute.optics import incoherent_film_reflectance, reflectance
 from precompute.optics.antialias import band_averaged_reflectance, bin_edges_from_centres
 

@@ -32,7 +32,7 @@ def imports_of(name: str, path: Path, modules: dict) -> tuple[set, set]:
     product, external = set(), set()
 
     def resolve(target: str):
-        # the longest prefix that is a product module (``precompute.sh.window`` → precompute.sh)
+        # the longest prefix that is a product module (``precompute.sh.harmonics.window`` → precompute.sh)
         parts = target.split(".")
         for i in range(len(parts), 0, -1):
             candidate = ".".join(parts[:i])
@@ -105,11 +105,11 @@ def test_the_graph_sees_every_kind_of_import():
     """Guards the parser: relative, parent-relative, function-local and ``from . import``."""
     graph, external = import_graph()
     assert "precompute.shading.policy" in graph["precompute.shading.split_sum"]  # from .policy import
-    assert "precompute.hdri" in graph["precompute.shading.split_sum"]  # from ..hdri import
+    assert "precompute.world.hdri" in graph["precompute.shading.split_sum"]  # from ..hdri import
     assert "precompute.shading.lamps" in graph["precompute.shading.split_sum"]  # from . import lamps
-    assert "precompute.effects" in graph["precompute.cli"]  # a function-local import
+    assert "precompute.effects.plans" in graph["precompute.commands.cli"]  # a function-local import
     assert "precompute.shading.variant" in graph["addon.gpu.shaders"]  # from ...precompute.shading.x
-    assert "bpy" in external["addon.gpu.context"] and "numpy" in external["precompute.sh"]
+    assert "bpy" in external["addon.gpu.context"] and "numpy" in external["precompute.sh.harmonics"]
 
 
 def test_precompute_has_no_import_cycle():

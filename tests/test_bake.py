@@ -5,10 +5,13 @@ import math
 import numpy as np
 import pytest
 
-from precompute import bake, brdf, spectra, table_io
-from precompute.bake_reference import bake_reference
-from precompute.material import MAX_SH_ORDER, PRESETS, Layer, Material, Quality, preset
+from precompute import brdf
+from precompute.bakes import bake
+from precompute.bakes.bake_reference import bake_reference
+from precompute.colour import spectra
+from precompute.materials.material import MAX_SH_ORDER, PRESETS, Layer, Material, Quality, preset
 from precompute.optics import reflectance
+from precompute.tables import table_io
 
 SQRT_4PI = math.sqrt(4 * math.pi)
 # 19 view angles = 5° steps, so 80°, 85° and 90° (grazing) are all in the comparison.
@@ -178,7 +181,7 @@ def test_an_unused_top_layer_thickness_changes_neither_plan_nor_key_nor_cost(unu
     yet 100 µm of it made the wavelength count 3,348 instead of 48 (a 5–7× slower bake of an
     identical table). It must change neither the plan, the table key, the planned cost nor the
     table."""
-    from precompute import effects
+    from precompute.effects import plans
 
     quality = Quality(sh_order=2, view_samples=4, thickness_samples=4)  # wavelengths automatic
     used = Material(
@@ -189,7 +192,7 @@ def test_an_unused_top_layer_thickness_changes_neither_plan_nor_key_nor_cost(unu
     assert bake.plan(other) == bake.plan(used) and bake.plan(used).wavelength_count == 48
     assert bake.table_key(other) == bake.table_key(used)
     assert bake.table_material(other) == bake.table_material(used)
-    a, b = effects.material_plan(used), effects.material_plan(other)
+    a, b = plans.material_plan(used), plans.material_plan(other)
     assert (a.key, a.plan, a.bake_seconds, a.u_degree, a.reasons) == (
         b.key,
         b.plan,
@@ -290,8 +293,8 @@ def test_the_u_degree_is_the_lowest_rung_that_meets_the_tolerance(top_nm):
     """choose_u_degree probes the ladder's rungs in groups (one sweep per group): the degree
     must still be the lowest rung whose interpolation error, measured on its own, meets
     U_TOLERANCE, and R at its nodes the sweep's own."""
-    from precompute.chunks import chunked_sweep
-    from precompute.kernel import u_interpolation_matrix, u_nodes
+    from precompute.bakes.chunks import chunked_sweep
+    from precompute.bakes.kernel import u_interpolation_matrix, u_nodes
 
     assert sum(bake.U_PROBE_GROUPS, ()) == bake.U_DEGREE_LADDER
     material = bake.table_material(PRESETS["soap_film"].with_(thickness_range_nm=(0.0, top_nm)))

@@ -54,8 +54,8 @@ def helper(tf, monkeypatch):  # noqa: F811
         return real(material, progress)
 
     monkeypatch.setattr(tf.bake, "bake", counting)
-    tf.film_colour = importlib.import_module(f"{tf.package.__name__}.precompute.film_colour")
-    tf.Material = importlib.import_module(f"{tf.package.__name__}.precompute.material").Material
+    tf.film_colour = importlib.import_module(f"{tf.package.__name__}.precompute.colour.film_colour")
+    tf.Material = importlib.import_module(f"{tf.package.__name__}.precompute.materials.material").Material
     tf.real_bake = real
     yield module
     module.unregister()
@@ -332,7 +332,7 @@ def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F8
     """Between requests the helper computes the kernels an edit that needs one more (or one
     fewer) node per interval would wait for; a request that arrives stops it."""
     frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
-    progress = importlib.import_module(f"{tf.package.__name__}.precompute.progress")
+    progress = importlib.import_module(f"{tf.package.__name__}.precompute.bakes.progress")
     modules = types.SimpleNamespace(bake=tf.bake, progress=progress)
     desc = tf.Material.from_dict(soap_dict(tf))
     result = tf.real_bake(desc)

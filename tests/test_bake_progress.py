@@ -5,8 +5,8 @@ import threading
 import numpy as np
 import pytest
 
-from precompute import bake, chunks, progress
-from precompute.material import PRESETS, Quality
+from precompute.bakes import bake, chunks, progress
+from precompute.materials.material import PRESETS, Quality
 
 #: Small enough to bake in well under a second, big enough to have every phase.
 SMALL = Quality(sh_order=4, view_samples=12, thickness_samples=8, wavelength_count=64)

@@ -23,15 +23,11 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from precompute import bake, cli, cli_support, table_cache, table_io
-from precompute.table_cache import CacheDirError, TableCache
-from precompute.table_io import (
-    TableError,
-    TableWriteError,
-    read_table,
-    write_bytes,
-    write_table,
-)
+from precompute.bakes import bake
+from precompute.commands import cli, cli_support
+from precompute.tables import table_cache, table_io
+from precompute.tables.table_cache import CacheDirError, TableCache
+from precompute.tables.table_io import TableError, TableWriteError, read_table, write_bytes, write_table
 
 try:
     import resource  # POSIX: RLIMIT_FSIZE makes the kernel refuse file growth, as a full disk does

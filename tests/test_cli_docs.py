@@ -58,7 +58,7 @@ def _options(parser) -> set[str]:
 
 
 def test_precompute_options_are_documented():
-    from precompute.cli import build_parser
+    from precompute.commands.cli import build_parser
 
     text = DOC.read_text(encoding="utf-8")
     missing = sorted(o for o in _options(build_parser()) if f"`{o}" not in text)
@@ -69,7 +69,7 @@ def test_precompute_help_imports_no_heavy_package():
     import subprocess
     import sys
 
-    probe = "import sys, contextlib, io\nfrom precompute.cli import main\n"
+    probe = "import sys, contextlib, io\nfrom precompute.commands.cli import main\n"
     probe += "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
     probe += "    main(['--help'])\nprint(sorted(sys.modules))"
     out = subprocess.run(
@@ -84,7 +84,7 @@ def test_precompute_help_imports_no_heavy_package():
     heavy = {"colour", "matplotlib", "scipy"} & modules
     assert not heavy, heavy
     loaded = set(out.stdout.split("'"))  # the bake and the renderer load with a command, not for help
-    assert not {"precompute.bake", "precompute.render", "precompute.prefilter"} & loaded
+    assert not {"precompute.bakes.bake", "precompute.output.render", "precompute.world.prefilter"} & loaded
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import colour
 import numpy as np
 import pytest
 
-from precompute import colour_tables, spectra
+from precompute.colour import colour_tables, spectra
 
 
 def test_cmfs_are_colour_sciences_exactly():

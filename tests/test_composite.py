@@ -4,7 +4,7 @@ import colour
 import numpy as np
 import pytest
 
-from precompute import composite, spectra
+from precompute.colour import composite, spectra
 
 FLUORESCENT = tuple(f"FL{i}" for i in range(1, 13))
 

@@ -10,9 +10,9 @@ import _cycles_scenes as cc
 import numpy as np
 import pytest
 
-from precompute import render
-from precompute.cli import studiolight
-from precompute.colour_difference import delta_e_2000
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.commands.cli import studiolight
+from precompute.output import render
 
 pytestmark = pytest.mark.blender
 

@@ -1,4 +1,4 @@
-"""The Cycles-matching colour mode: the film per channel (precompute/film_channels.py,
+"""The Cycles-matching colour mode: the film per channel (precompute/colour/film_channels.py,
 precompute/optics/belcour2017.py) against independent implementations of the same method.
 
 - the Airy cosine series summed to many orders is the exact Airy film (optics.reflectance) at
@@ -19,9 +19,10 @@ import math
 import numpy as np
 import pytest
 
-from precompute import bake, film_channels, film_colour, spectra
-from precompute.colour_difference import delta_e_2000
-from precompute.material import Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.colour import film_channels, film_colour, spectra
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.materials.material import Layer, Material, Quality
 from precompute.optics import belcour2017, reflectance
 
 SPACE = "Linear Rec.709"

@@ -12,9 +12,13 @@ import _cycles_scenes as cc
 import numpy as np
 import pytest
 
-from precompute import bake, film_colour, hdri, image_io, lamps, optics, prefilter, render, spectra
-from precompute.material import Layer, Material, Quality
+from precompute import optics
+from precompute.bakes import bake
+from precompute.colour import film_colour, spectra
+from precompute.materials.material import Layer, Material, Quality
+from precompute.output import image_io, render
 from precompute.shading import split_sum
+from precompute.world import hdri, lamps, prefilter
 
 SKY = 0.25
 SUN = 2.0e4
@@ -114,7 +118,7 @@ def test_combined_path_under_a_1e5_sun_is_finite_non_negative_and_firefly_free(n
     )
     result = bake.bake(material)
     found, film = None, None
-    if with_lamps:  # as the add-on: the sun lifted out (precompute/lamps.py), shaded per direction
+    if with_lamps:  # as the add-on: the sun lifted out (precompute/world/lamps.py), shaded per direction
         found, mask = lamps.extract(image)
         assert found.count >= 1 and found.share > 0.9
         film = film_colour.film_table(result)

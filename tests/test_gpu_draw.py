@@ -2,7 +2,7 @@
 
 The key test runs the production GLSL chunks (frame, SH rotation, table lookup, sum) on normals
 and views read from textures, one per pixel, and compares them with
-:func:`precompute.render.shade_sh`. The rest renders meshes off-screen: silhouettes, depth
+:func:`precompute.output.render.shade_sh`. The rest renders meshes off-screen: silhouettes, depth
 masking through the ``depth_from`` hook, the restored GPU state, the shader cache, mesh arrays.
 """
 
@@ -16,11 +16,15 @@ import numpy as np
 import pytest
 from _extension import EXTENSION_ID, REFERENCE_ROTATION, REPO, gpu_layer, linked_extension
 
-from precompute import bake, film_colour, hdri, image_io, render, sh
-from precompute.material import Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.colour import film_colour
+from precompute.materials.material import Layer, Material, Quality
+from precompute.output import image_io, render
+from precompute.sh import harmonics
 from precompute.shading import codegen, policy, sh_rotation, sh_sum, split_sum
 from precompute.shading import lamps as lamp_shading
 from precompute.shading.variant import Variant
+from precompute.world import hdri
 
 pytestmark = pytest.mark.blender
 
@@ -76,7 +80,7 @@ def world_sh(l_max: int = 12, seed: int = 3) -> np.ndarray:
     )
     rng = np.random.default_rng(seed)
     img = img * (1.0 + 0.1 * rng.random((1, 1, 3)))
-    return sh.project_equirect(img, l_max), img
+    return harmonics.project_equirect(img, l_max), img
 
 
 def unit(a):
@@ -518,12 +522,11 @@ def test_display_output_is_srgb_encoded_with_exposure(gd, sphere_scene):
 
 @pytest.mark.parametrize("exposure", [0.7, 4.0])
 def test_display_lut_output_matches_numpy_per_pixel(gd, sphere_scene, exposure):
-    """TF_DISPLAY_LUT (tf_display.glsl) against precompute.display_lut.apply, pixel by pixel,
+    """TF_DISPLAY_LUT (tf_display.glsl) against precompute.shading.display_lut.apply, pixel by pixel,
     with a LUT that mixes the channels (every corner of a cell matters)."""
     import gpu
 
-    from precompute import display_lut
-    from precompute.shading import policy
+    from precompute.shading import display_lut, policy
 
     lattice = display_lut.lattice(policy.DISPLAY_LUT_SIZE)
     mix = np.array([[0.8, 0.15, 0.05], [0.1, 0.7, 0.2], [0.05, 0.25, 0.7]])
@@ -814,7 +817,7 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
     not defined: policy.uses_moment), split-only films always do. SH weight 0 draws the
     split-only variant (TF_SPLIT_ONLY: no SH half), which must give the split sum alone.
     """
-    from precompute import prefilter
+    from precompute.world import prefilter
 
     result = baked(l_max, colour_mode, False)
     table = gd.resources.TableTexture.from_result(result)
@@ -865,12 +868,13 @@ def test_split_sum_variant_matches_numpy_per_pixel(gd, colour_mode, with_moments
 def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, film_ubo):
     """tf_lamps.glsl against lamp_shading.shade with the weights of split_sum.shade_combined.
 
-    The World gets two small suns (so precompute.lamps.extract finds lamps); the SH and the
+    The World gets two small suns (so precompute.world.lamps.extract finds lamps); the SH and the
     prefiltered levels are those of the World without them, the lamps are shaded per light
     direction with the film table (uniform buffer, or the texture). Split: the lamps' weight
     follows the level blend (split_sum.lamp_weight_at); SH alone (no prefiltered World): weight 1.
     """
-    from precompute import lamps, prefilter, sh
+    from precompute.sh import harmonics
+    from precompute.world import lamps, prefilter
 
     result = baked(5, colour_mode, False)
     table = gd.resources.TableTexture.from_result(result)
@@ -880,7 +884,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     img[20, 10] = (1.5e4, 2e4, 2.6e4)
     found, mask = lamps.extract(img)
     assert found.count == 2
-    rest_coeffs = sh.project_equirect(lamps.remove(img, mask), 12)
+    rest_coeffs = harmonics.project_equirect(lamps.remove(img, mask), 12)
     lighting = gd.resources.Lighting.from_sh(rest_coeffs, 5, result.material.roughness, found)
     film = film_colour.film_table(result)
     full = prefilter.prefilter(img, width=64, lamp_mask=mask)
@@ -927,7 +931,7 @@ def test_turned_and_scaled_prefilter_lookup_matches_numpy_per_pixel(gd, weight, 
     the content read at Q d, scaled; the moment turned back by Qᵀ) against
     split_sum.shade_split_sum with ``Prefiltered.transformed`` (issue 16: a Strength or rotation
     edit recomputes no prefilter)."""
-    from precompute import prefilter
+    from precompute.world import prefilter
 
     result = baked(l_max, "spectral", False)
     table = gd.resources.TableTexture.from_result(result)

@@ -30,7 +30,7 @@ pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, REPO, gpu_layer, linked_extension, set_cache_preference  # noqa: E402
 
-from precompute.material import MAX_SH_ORDER  # noqa: E402
+from precompute.materials.material import MAX_SH_ORDER  # noqa: E402
 
 SCRIPT = REPO / "scripts" / "thinfilm_headless.py"
 SIZE = (64, 48)
@@ -51,7 +51,7 @@ def tf(bpy, tmp_path_factory):
             for name in ("headless", "description", "tables", "prefs", "scene_draw"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.gpu = gpu_layer()
-            ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
+            ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
             set_cache_preference(bpy, ns.prefs, ns.cache_dir)
             ns.gpu.context.ensure_gpu_context()
             yield ns
@@ -75,7 +75,7 @@ def fresh(bpy, tf):
 
 
 def studiolight(name: str) -> Path:
-    from precompute.cli import studiolight as find
+    from precompute.commands.cli import studiolight as find
 
     return find(name)
 
@@ -456,7 +456,7 @@ THICKNESS_TOLERANCE = (-0.03, 0.005)
 
 
 def _normal_incidence_rgb(thickness_nm, n_film=SOAP_N, substrate=1.0):
-    from precompute import spectra
+    from precompute.colour import spectra
     from precompute.optics import reflectance
 
     wl = spectra.wavelength_grid(471)  # 1 nm bins over 360–830 nm
@@ -790,7 +790,7 @@ def test_prefilters_are_computed_only_for_the_films_that_read_them(bpy, tf, fres
     Principled film gets the World's lamps and the prefilter with them lifted out, and only it;
     a glossy film under a diffuse base adds the whole World's prefilter. Counted at the one
     function that computes a prefilter, through the draw's real code path."""
-    prefilter_mod = importlib.import_module(f"{EXTENSION_ID}.precompute.prefilter")
+    prefilter_mod = importlib.import_module(f"{EXTENSION_ID}.precompute.world.prefilter")
     calls = []
     real = prefilter_mod.prefilter
 

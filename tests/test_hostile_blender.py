@@ -48,8 +48,8 @@ def tf(bpy, tmp_path_factory):
             for name in ("headless", "description", "tables", "prefs", "scene_draw", "world"):
                 setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
             ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness")
-            ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.cli_support")
-            ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.material")
+            ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.commands.cli_support")
+            ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.materials.material")
             set_cache_preference(bpy, ns.prefs, ns.cache_dir)
             importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
             yield ns
@@ -86,7 +86,7 @@ class Guard:
 
 @pytest.fixture
 def no_bake(tf, monkeypatch):
-    guard = Guard("precompute.bake.bake")
+    guard = Guard("precompute.bakes.bake.bake")
     monkeypatch.setattr(tf.tables.bake, "bake", guard)
     return guard
 

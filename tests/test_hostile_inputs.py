@@ -20,11 +20,13 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from precompute import bake, cli, cli_support, validate
-from precompute.conductors import conductor_from_rgb
-from precompute.material import FALLBACK, Layer, Material, Quality
-from precompute.table_cache import TableCache
-from precompute.table_io import TableError, read_table, write_table
+from precompute.bakes import bake
+from precompute.commands import cli, cli_support
+from precompute.materials import validate
+from precompute.materials.conductors import conductor_from_rgb
+from precompute.materials.material import FALLBACK, Layer, Material, Quality
+from precompute.tables.table_cache import TableCache
+from precompute.tables.table_io import TableError, read_table, write_table
 
 NAN, INF = float("nan"), float("inf")
 #: Far above any refusal (each takes milliseconds) and far below the issue's 293 s bake.

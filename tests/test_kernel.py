@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from precompute import bake, brdf, kernel, quadrature, sh
+from precompute import brdf
+from precompute.bakes import bake, kernel, quadrature
+from precompute.sh import harmonics
 
 
 def _dense_kernel(roughness, l_max, views, degree):
@@ -32,9 +34,9 @@ def test_nonnegative_m_rows_are_the_basis_columns(l_max):
     rng = np.random.default_rng(l_max)
     d = rng.normal(size=(300, 3))
     w = rng.random(300)
-    full = sh.basis(l_max, d)[:, bake.coefficient_indices(l_max)]
-    np.testing.assert_allclose(sh.basis_nonnegative_m(l_max, d, w), (full * w[:, None]).T, atol=1e-13)
-    np.testing.assert_allclose(sh.basis_nonnegative_m(l_max, d), full.T, atol=1e-13)
+    full = harmonics.basis(l_max, d)[:, bake.coefficient_indices(l_max)]
+    np.testing.assert_allclose(harmonics.basis_nonnegative_m(l_max, d, w), (full * w[:, None]).T, atol=1e-13)
+    np.testing.assert_allclose(harmonics.basis_nonnegative_m(l_max, d), full.T, atol=1e-13)
 
 
 def test_gauss_legendre_is_cached_read_only_and_exact():
@@ -50,8 +52,8 @@ def test_gauss_legendre_is_cached_read_only_and_exact():
 def test_one_view_of_the_kernel_fits_between_two_checkpoints():
     """A view's block-sparse product at the largest order and node count stays within the budget
     of work between two progress checkpoints (a cancel waits for at most that)."""
-    from precompute import chunks
-    from precompute.material import MAX_SH_ORDER
+    from precompute.bakes import chunks
+    from precompute.materials.material import MAX_SH_ORDER
 
     k = len(kernel.coefficient_indices(MAX_SH_ORDER))
     assert kernel.N_THETA * kernel.N_PHI * k * max(bake.U_DEGREE_LADDER) <= chunks.KERNEL_CHUNK

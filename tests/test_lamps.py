@@ -1,4 +1,4 @@
-"""The World's lamps (precompute/lamps.py): extraction keeps every watt, shading matches the BRDF.
+"""The World's lamps (precompute/world/lamps.py): extraction keeps every watt, shading matches the BRDF.
 
 Pure numpy; the shader's copy is checked per pixel in tests/test_gpu_draw.py.
 """
@@ -9,10 +9,13 @@ import numpy as np
 import pytest
 import tmm
 
-from precompute import bake, brdf, film_channels, film_colour, hdri, lamps, prefilter
-from precompute.material import Layer, Material, Quality
+from precompute import brdf
+from precompute.bakes import bake
+from precompute.colour import film_channels, film_colour
+from precompute.materials.material import Layer, Material, Quality
 from precompute.shading import lamps as lamp_shading
 from precompute.shading import policy, split_sum
+from precompute.world import hdri, lamps, prefilter
 
 H, W = 64, 128
 
@@ -161,7 +164,7 @@ def test_film_table_matches_tmm_at_every_angle():
     )
     result = bake.bake(material)
     film = film_colour.film_table(result, samples=9)
-    from precompute.film_colour import film_rgb_matrices
+    from precompute.colour.film_colour import film_rgb_matrices
 
     u, rg, r, wl, g = film_rgb_matrices(material, None, 9)
     nk = [1.0, 1.33, 1.6, 1.5]

@@ -39,10 +39,10 @@ SIZE = 24
 def _film_table_per_row(precompute, result, samples):
     """The film table as it was computed before issue 16: one row at a time."""
     bake, brdf, constants, film_colour = (
-        precompute.bake,
+        precompute.bakes.bake,
         precompute.brdf,
         precompute.constants,
-        precompute.film_colour,
+        precompute.colour.film_colour,
     )
     m = result.material
     u = np.linspace(0.0, 1.0, samples)
@@ -89,11 +89,11 @@ def precompute():
 )
 def test_the_vectorised_film_table_equals_the_per_row_one(precompute, preset, changes):
     """Every row, every u, both arrays: equal to float rounding (1e-12 of values ≤ ~1)."""
-    material = dataclasses.replace(precompute.material.preset(preset), **changes)
-    _, axis = precompute.bake.thickness_sets(material, 5)
+    material = dataclasses.replace(precompute.materials.material.preset(preset), **changes)
+    _, axis = precompute.bakes.bake.thickness_sets(material, 5)
     ndim = 4 if material.colour_mode == "per_channel" else 5
     result = types.SimpleNamespace(material=material, thicknesses_nm=axis, data=np.zeros((1,) * ndim))
-    table = precompute.film_colour.film_table(result, samples=64)
+    table = precompute.colour.film_colour.film_table(result, samples=64)
     reflectance, multiscatter = _film_table_per_row(precompute, result, 64)
     assert table.reflectance.shape == reflectance.shape and table.multiscatter.shape == multiscatter.shape
     assert np.all(np.isfinite(table.reflectance)) and np.all(np.isfinite(table.multiscatter))
@@ -109,18 +109,22 @@ def test_the_film_table_of_a_material_is_its_bakes(precompute, preset, mode):
     reflectance at its u nodes (read from a file: swept), and within the bake's own
     interpolation tolerance when a fresh spectral bake's nodes are interpolated instead of a
     second sweep (1e-6 relative above u = 0.0125, where the bake checks it)."""
-    quality = precompute.material.Quality(sh_order=2, view_samples=4, wavelength_count=32)
-    material = dataclasses.replace(precompute.material.preset(preset), colour_mode=mode, quality=quality)
-    exact = precompute.film_colour.film_table_of(material, samples=81)
-    result = precompute.bake.bake(material)
+    quality = precompute.materials.material.Quality(sh_order=2, view_samples=4, wavelength_count=32)
+    material = dataclasses.replace(
+        precompute.materials.material.preset(preset), colour_mode=mode, quality=quality
+    )
+    exact = precompute.colour.film_colour.film_table_of(material, samples=81)
+    result = precompute.bakes.bake.bake(material)
     assert (result.node_reflectance is not None) == (mode == "spectral")
-    swept = precompute.film_colour.film_table(dataclasses.replace(result, node_reflectance=None), samples=81)
+    swept = precompute.colour.film_colour.film_table(
+        dataclasses.replace(result, node_reflectance=None), samples=81
+    )
     assert exact.thicknesses_nm.size > 1 and exact.spectral == (mode == "spectral")
     np.testing.assert_array_equal(exact.thicknesses_nm, swept.thicknesses_nm)
     np.testing.assert_allclose(exact.reflectance, swept.reflectance, rtol=0, atol=1e-12)
     np.testing.assert_allclose(exact.multiscatter, swept.multiscatter, rtol=0, atol=1e-12)
-    fresh = precompute.film_colour.film_table(result, samples=81)
-    above = np.linspace(0.0, 1.0, 81) >= precompute.bake.U_TEST_MIN
+    fresh = precompute.colour.film_colour.film_table(result, samples=81)
+    above = np.linspace(0.0, 1.0, 81) >= precompute.bakes.bake.U_TEST_MIN
     np.testing.assert_allclose(fresh.reflectance[:, above], exact.reflectance[:, above], rtol=0, atol=2e-6)
     np.testing.assert_allclose(fresh.multiscatter, exact.multiscatter, rtol=0, atol=1e-5)
     assert np.abs(fresh.reflectance - exact.reflectance).max() < 0.05  # the grazing end: extrapolated
@@ -135,7 +139,7 @@ def tf(bpy, tmp_path_factory):
     modules = [
         f"addon.{m}" for m in ("scene_draw", "prefs", "tables", "viewport", "description", "world_job")
     ]
-    modules += ["precompute.bake", "precompute.film_colour", "addon.gpu.draw"]
+    modules += ["precompute.bakes.bake", "precompute.colour.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
         ns.cache_dir = str(ns.cache_dir)

@@ -151,7 +151,7 @@ def test_a_superseded_jobs_grid_stops_at_its_next_step(bpy, tf, scene):  # noqa:
     superseded mid-build (a drag moved on) it stops at the next step instead of finishing a
     grid nobody wants, and the worker treats it as a cancelled bake."""
     vp = tf.viewport
-    progress = importlib.import_module(f"{tf.package.__name__}.precompute.progress")
+    progress = importlib.import_module(f"{tf.package.__name__}.precompute.bakes.progress")
     steps = []
     job = vp._Job("superseded", None)
 
@@ -172,8 +172,8 @@ def test_the_grid_build_has_steps_to_stop_at():
     """radiance_grid.build reports between its steps (the World part, then each colour channel)."""
     import numpy as np
 
-    from precompute import bake, progress
-    from precompute.material import Layer, Material, Quality
+    from precompute.bakes import bake, progress
+    from precompute.materials.material import Layer, Material, Quality
     from precompute.shading import radiance_grid
 
     film = Layer(1.33, 400.0)

@@ -36,7 +36,7 @@ WIDTH, HEIGHT = 256, 128
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     names = ("scene_draw", "prefs", "tables", "panorama", "world", "world_job", "world_analysis", "viewport")
-    modules = [f"addon.{m}" for m in names] + ["precompute.prefilter", "addon.gpu.draw"]
+    modules = [f"addon.{m}" for m in names] + ["precompute.world.prefilter", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
         ns.cache_dir = str(ns.cache_dir)

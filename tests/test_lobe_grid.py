@@ -14,9 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precompute import bake, film_colour, hdri, render
-from precompute.material import Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.colour import film_colour
+from precompute.materials.material import Layer, Material, Quality
+from precompute.output import render
 from precompute.shading import lobe_grid, policy, radiance_grid
+from precompute.world import hdri
 
 #: A small grid: (W, H, T, Ψ) with a few view angles, and a coarse quadrature (fast tests).
 SHAPE = (16, 8, 4, 8)

@@ -1,4 +1,4 @@
-"""Cycles' pixel filters on a supersampled frame (precompute/pixel_filter.py), the headless AA.
+"""Cycles' pixel filters on a supersampled frame (precompute/output/pixel_filter.py), the headless AA.
 
 The filter shapes are Cycles' own definitions (scene/film.cpp), written out again here; the
 downsampling is checked against a brute-force double loop over output pixels and sub-samples.
@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from precompute import pixel_filter
+from precompute.output import pixel_filter
 
 
 def cycles_filter(kind: str, width: float, x):

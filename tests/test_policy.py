@@ -288,8 +288,8 @@ def test_a_split_only_film_is_baked_at_order_0_with_the_same_albedo():
     rounding; a blended or rough film, a diffuse base and an order set by hand are kept."""
     import dataclasses
 
-    from precompute import bake
-    from precompute.material import Quality, preset
+    from precompute.bakes import bake
+    from precompute.materials.material import Quality, preset
 
     quality = Quality(view_samples=8, thickness_samples=6, wavelength_count=32)
     glossy = dataclasses.replace(preset("soap_film"), quality=quality)

@@ -24,9 +24,9 @@ from test_gpu_draw import (  # noqa: F401
     world_sh,
 )
 
-from precompute import bake
-from precompute.colour_difference import delta_e_2000
-from precompute.material import Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.materials.material import Layer, Material, Quality
 from precompute.shading import codegen, policy, radiance_grid, sh_sum
 from precompute.shading.variant import Variant, choose_variant
 
@@ -158,12 +158,12 @@ def test_a_turned_and_scaled_world_reads_the_content_grid():
     L(d) = s · L_c(Q d) (the lighting buffer's turn and strength): at the content grid's nodes
     exactly the per-pixel SH of the turned World's own coefficients (sh.rotate), so a Strength
     or rotation edit needs no new grid."""
-    from precompute import sh
+    from precompute.sh import harmonics
 
     result = rough_table(0.3)
     content = windowed_world(result)
     q, s = turn(1.1, [0.3, -0.5, 0.8]), 2.5
-    world = s * sh.rotate(content, q.T)  # coefficients of d ↦ s L_c(Q d)
+    world = s * harmonics.rotate(content, q.T)  # coefficients of d ↦ s L_c(Q d)
     grid = grid_of(result)  # built from the content
     shape = policy.grid_shape(result.data.shape[1])
     n, v = radiance_grid.cell_geometry(shape)  # nodes, in the content's frame

@@ -12,9 +12,11 @@ from _extension import linked_extension
 from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item, baked, rotation, unit, world_sh
 from test_gpu_draw import gd as gd  # noqa: F401  (the module fixture)
 
-from precompute import film_colour, prefilter, render
+from precompute.colour import film_colour
+from precompute.output import render
 from precompute.shading import policy, refract, split_sum, transmit
 from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
+from precompute.world import prefilter
 
 pytestmark = pytest.mark.blender
 assert linked_extension  # the fixture's module imports it

@@ -5,8 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from precompute import bake, image_io, render, sh
-from precompute.material import Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.materials.material import Layer, Material, Quality
+from precompute.output import image_io, render
+from precompute.sh import harmonics
 from precompute.shading import frame as shading_frame
 from precompute.shading import policy, sh_rotation, sh_sum, split_sum, table
 
@@ -44,7 +46,7 @@ def test_zyz_rotation_equals_general_rotation_including_poles(l_max):
     world = rng.normal(size=((l_max + 1) ** 2, 3))
     fast = sh_rotation.local_coefficients(world, frames, l_max)
     for p in range(frames.shape[0]):
-        expected = sh.rotation(l_max, frames[p]) @ world
+        expected = harmonics.rotation(l_max, frames[p]) @ world
         # Rows 2–3 tilt 1e-9 off the pole, below GIMBAL_SIN: treated as the pole, they err by
         # O(tilt · l) ≈ 1e-8; every other frame, exact poles included, agrees to rounding.
         tol = 1e-7 if p in (2, 3) else 1e-10
@@ -59,7 +61,9 @@ def test_local_coefficients_describe_the_rotated_function():
     frame = shading_frame.view_aligned_frame(random_unit(rng, 1), random_unit(rng, 1))[0]
     local = sh_rotation.local_coefficients(world, frame[None], l_max)[0]
     d = random_unit(rng, 50)
-    assert np.allclose(sh.basis(l_max, d) @ local, sh.basis(l_max, d @ frame) @ world, atol=1e-10)
+    assert np.allclose(
+        harmonics.basis(l_max, d) @ local, harmonics.basis(l_max, d @ frame) @ world, atol=1e-10
+    )
 
 
 def test_constant_environment_gives_the_directional_albedo_everywhere():
@@ -103,7 +107,7 @@ def test_sh_render_converges_to_ground_truth_for_a_rough_film():
     image = np.stack(
         [1 + 0.8 * d[..., 2], 1 + 0.5 * d[..., 0], 1 - 0.3 * d[..., 1]], -1
     )  # band-limited, l ≤ 1
-    coeffs = sh.project_equirect(image, 8)
+    coeffs = harmonics.project_equirect(image, 8)
     rng = np.random.default_rng(5)
     n = random_unit(rng, 12)
     v = shading_frame.view_aligned_frame(n, random_unit(rng, 12))[:, 0] * 0.6 + n * 0.8
@@ -120,13 +124,13 @@ def test_images_write(tmp_path):
     image_io.write_png(tmp_path / "a.png", image_io.srgb_encode(img))
     assert (tmp_path / "a.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     image_io.write_exr(tmp_path / "a.exr", img)
-    from precompute import hdri
+    from precompute.world import hdri
 
     assert np.allclose(hdri.read_equirect(tmp_path / "a.exr"), img, atol=1e-7)
 
 
 def test_hdr_sun_of_1e5_stays_finite_and_firefly_free():
-    from precompute import prefilter
+    from precompute.world import prefilter
 
     h, w = 64, 128
     image = np.full((h, w, 3), 0.2)
@@ -135,7 +139,7 @@ def test_hdr_sun_of_1e5_stays_finite_and_firefly_free():
         layers=(Layer(1.33, 450.0),), roughness=0.3, quality=Quality(sh_order=8, view_samples=16)
     )
     result = bake.bake(material)
-    coeffs = sh.project_equirect(image, 8) * policy.lighting_window(8, 0.3)[:, None]
+    coeffs = harmonics.project_equirect(image, 8) * policy.lighting_window(8, 0.3)[:, None]
     rng = np.random.default_rng(11)
     n = random_unit(rng, 400)
     v = shading_frame.view_aligned_frame(n, random_unit(rng, 400))[:, 0] * 0.5 + n

@@ -18,9 +18,11 @@ import numpy as np
 import pytest
 from _cycles_scenes import cycles_settings
 
-from precompute import bake, film_colour, hdri
-from precompute.material import Layer, Material, Quality
+from precompute.bakes import bake
+from precompute.colour import film_colour
+from precompute.materials.material import Layer, Material, Quality
 from precompute.shading import lights as L
+from precompute.world import hdri
 
 #: Cycles' noise on the image mean at these sample counts is ≈ 0.3 %; the acceptance is 2 %.
 SCALE_TOLERANCE = 0.02

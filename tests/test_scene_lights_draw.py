@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 from test_gpu_draw import PROJ, SIZE, VIEW, baked, gd, quad_pixels, tilted_quad_item, world_sh  # noqa: F401
 
-from precompute import film_colour, render, sh
+from precompute.colour import film_colour
+from precompute.output import render
+from precompute.sh import harmonics
 from precompute.shading import lights as light_shading
 from precompute.shading import sh_sum
 
@@ -96,8 +98,8 @@ def quad_positions(model):
 )
 def test_lights_variant_matches_numpy_per_pixel(gd, colour_mode, film_ubo, split):  # noqa: F811
     """tf_lights.glsl against shading.lights.shade: every light kind, 1e-4 of the peak (float32)."""
-    from precompute import prefilter
     from precompute.shading import policy, split_sum
+    from precompute.world import prefilter
 
     result = baked(5, colour_mode, False)
     table = gd.resources.TableTexture.from_result(result)
@@ -148,7 +150,7 @@ def test_no_lights_no_loop(gd):  # noqa: F811
     item = tilted_quad_item(
         gd,
         gd.resources.TableTexture.from_result(result),
-        gd.resources.Lighting.from_sh(sh.project_equirect(np.ones((8, 16, 3)), 5), 5, 0.3),
+        gd.resources.Lighting.from_sh(harmonics.project_equirect(np.ones((8, 16, 3)), 5), 5, 0.3),
     )
     item.film = gd.resources.FilmTexture.from_film(film_colour.film_table(result))
     (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups

@@ -16,7 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import sph_harm_y
 
-from precompute import hdri, sh
+from precompute.sh import harmonics
+from precompute.world import hdri
 
 L_MAX = 8
 RNG_SEED = 20240601
@@ -78,18 +79,18 @@ def rotated_projection_error(l_max: int, rot: np.ndarray, seed: int = 0) -> floa
     c = rng.normal(size=(l_max + 1) ** 2)
     dirs, weights = gauss_sphere(2 * l_max)
     # Row vectors: (R⁻¹ d)ᵀ = dᵀ R for orthogonal R.
-    f_turned = sh.basis(l_max, dirs @ rot) @ c
-    projected = sh.project(l_max, dirs, f_turned, weights)
-    return float(np.max(np.abs(projected - sh.rotation(l_max, rot) @ c)))
+    f_turned = harmonics.basis(l_max, dirs @ rot) @ c
+    projected = harmonics.project(l_max, dirs, f_turned, weights)
+    return float(np.max(np.abs(projected - harmonics.rotation(l_max, rot) @ c)))
 
 
 def ir_general_path(l_max: int, rot: np.ndarray) -> np.ndarray:
     """The Ivanic–Ruedenberg recurrence forced, bypassing the z fast path."""
-    r1 = sh._band1_ivanic_ruedenberg(rot)
+    r1 = harmonics._band1_ivanic_ruedenberg(rot)
     bands = [np.ones((1, 1)), r1]
     for l in range(2, l_max + 1):
-        bands.append(sh._ivanic_ruedenberg_band(l, r1, bands[-1]))
-    return sh._block_diagonal(bands[: l_max + 1])
+        bands.append(harmonics._ivanic_ruedenberg_band(l, r1, bands[-1]))
+    return harmonics._block_diagonal(bands[: l_max + 1])
 
 
 def real_sh_from_scipy(l: int, m: int, theta, phi) -> np.ndarray:
@@ -112,7 +113,7 @@ def real_sh_from_scipy(l: int, m: int, theta, phi) -> np.ndarray:
 @pytest.mark.parametrize("l_max", [0, 1, 2, 8, 16])
 def test_orthonormality_by_exact_quadrature(l_max):
     dirs, weights = gauss_sphere(2 * l_max)
-    y = sh.basis(l_max, dirs)
+    y = harmonics.basis(l_max, dirs)
     gram = y.T @ (weights[:, None] * y)
     # Exact in exact arithmetic; 1e-10 covers float64 rounding over ≤ 289×289 sums (measured
     # ~3e-15 at l = 8, ~1e-14 at l = 16).
@@ -130,7 +131,7 @@ def test_matches_scipy_without_condon_shortley():
     # atan2 form: arccos(z) loses θ ≈ 1e-9 entirely (z rounds to 1) near the poles.
     theta = np.arctan2(np.hypot(dirs[:, 0], dirs[:, 1]), dirs[:, 2])
     phi = np.mod(np.arctan2(dirs[:, 1], dirs[:, 0]), 2.0 * np.pi)  # scipy wants φ ∈ [0, 2π]
-    ours = sh.basis(L_MAX, dirs)
+    ours = harmonics.basis(L_MAX, dirs)
     worst = 0.0
     for l in range(L_MAX + 1):
         for m in range(-l, l + 1):
@@ -144,7 +145,7 @@ def test_band_closed_forms():
     rng = np.random.default_rng(1)
     d = random_directions(rng, 50)
     x, y, z = d.T
-    b = sh.basis(2, d)
+    b = harmonics.basis(2, d)
     c0 = 0.5 / math.sqrt(math.pi)
     c1 = math.sqrt(3.0 / (4.0 * math.pi))
     c2 = 0.5 * math.sqrt(15.0 / math.pi)
@@ -168,12 +169,12 @@ def test_band_closed_forms():
 def test_basis_normalises_and_broadcasts():
     rng = np.random.default_rng(2)
     d = random_directions(rng, 12).reshape(3, 4, 3)
-    assert sh.basis(3, 5.0 * d).shape == (3, 4, 16)
-    assert np.allclose(sh.basis(3, 5.0 * d), sh.basis(3, d), atol=1e-14, rtol=0)
+    assert harmonics.basis(3, 5.0 * d).shape == (3, 4, 16)
+    assert np.allclose(harmonics.basis(3, 5.0 * d), harmonics.basis(3, d), atol=1e-14, rtol=0)
 
 
 def test_poles_are_exact():
-    up = sh.basis(L_MAX, [0.0, 0.0, 1.0])
+    up = harmonics.basis(L_MAX, [0.0, 0.0, 1.0])
     for l in range(L_MAX + 1):
         # At +z only m = 0 survives, with value √((2l+1)/4π) exactly (P_l(1) = 1).
         band = up[l * l : (l + 1) ** 2]
@@ -187,17 +188,17 @@ def test_basis_from_angles_matches_basis():
     phi = rng.uniform(-np.pi, 3 * np.pi, 40)
     s = np.sqrt(1 - cos_t**2)
     d = np.stack([s * np.cos(phi), s * np.sin(phi), cos_t], axis=-1)
-    assert np.max(np.abs(sh.basis_from_angles(L_MAX, cos_t, phi) - sh.basis(L_MAX, d))) <= 1e-13
+    assert np.max(np.abs(harmonics.basis_from_angles(L_MAX, cos_t, phi) - harmonics.basis(L_MAX, d))) <= 1e-13
 
 
 def test_project_and_evaluate_round_trip_shapes():
     rng = np.random.default_rng(4)
     dirs, weights = gauss_sphere(2 * 4)
     c = rng.normal(size=(25, 3))
-    vals = sh.evaluate(c, dirs)
+    vals = harmonics.evaluate(c, dirs)
     assert vals.shape == (dirs.shape[0], 3)
-    assert np.max(np.abs(sh.project(4, dirs, vals, weights) - c)) <= 1e-12
-    one = sh.project(4, dirs, vals[:, 0], weights)
+    assert np.max(np.abs(harmonics.project(4, dirs, vals, weights) - c)) <= 1e-12
+    one = harmonics.project(4, dirs, vals[:, 0], weights)
     assert one.shape == (25,)
     assert np.max(np.abs(one - c[:, 0])) <= 1e-12
 
@@ -238,13 +239,13 @@ def test_rotation_identity_random(q):
 
 @pytest.mark.parametrize("name", sorted(NAMED_ROTATIONS))
 def test_rotation_matrices_orthogonal(name):
-    m = sh.rotation(L_MAX, NAMED_ROTATIONS[name])
+    m = harmonics.rotation(L_MAX, NAMED_ROTATIONS[name])
     assert np.max(np.abs(m @ m.T - np.eye(m.shape[0]))) <= 1e-12
 
 
 def test_rotation_orthogonal_at_high_band():
     # The recurrence accumulates rounding band by band; at l = 16 it is still ~1e-14.
-    m = sh.rotation(16, NAMED_ROTATIONS["generic"])
+    m = harmonics.rotation(16, NAMED_ROTATIONS["generic"])
     assert np.max(np.abs(m @ m.T - np.eye(m.shape[0]))) <= 1e-10
     assert rotated_projection_error(12, NAMED_ROTATIONS["gimbal_z_y-90_x"]) <= 1e-10
 
@@ -252,16 +253,16 @@ def test_rotation_orthogonal_at_high_band():
 def test_rotation_composition():
     r1 = NAMED_ROTATIONS["generic"]
     r2 = NAMED_ROTATIONS["gimbal_z_y-90_x"]
-    lhs = sh.rotation(L_MAX, r1 @ r2)
-    rhs = sh.rotation(L_MAX, r1) @ sh.rotation(L_MAX, r2)
+    lhs = harmonics.rotation(L_MAX, r1 @ r2)
+    rhs = harmonics.rotation(L_MAX, r1) @ harmonics.rotation(L_MAX, r2)
     assert np.max(np.abs(lhs - rhs)) <= 1e-12
-    inverse = sh.rotation(L_MAX, r1.T)
-    assert np.max(np.abs(inverse - sh.rotation(L_MAX, r1).T)) <= 1e-12
+    inverse = harmonics.rotation(L_MAX, r1.T)
+    assert np.max(np.abs(inverse - harmonics.rotation(L_MAX, r1).T)) <= 1e-12
 
 
 def test_rotation_is_block_diagonal():
-    m = sh.rotation(L_MAX, NAMED_ROTATIONS["generic"])
-    bands = sh.rotation_bands(L_MAX, NAMED_ROTATIONS["generic"])
+    m = harmonics.rotation(L_MAX, NAMED_ROTATIONS["generic"])
+    bands = harmonics.rotation_bands(L_MAX, NAMED_ROTATIONS["generic"])
     for l, block in enumerate(bands):
         assert block.shape == (2 * l + 1, 2 * l + 1)
         sl = slice(l * l, (l + 1) ** 2)
@@ -274,10 +275,10 @@ def test_rotation_is_block_diagonal():
 @pytest.mark.parametrize("angle", [0.0, 0.3, -1.2, np.pi, 2.5 * np.pi])
 def test_z_fast_path_equals_general_path(angle):
     rz = axis_angle([0, 0, 1], angle)
-    fast = sh.rotation_z(L_MAX, angle)
+    fast = harmonics.rotation_z(L_MAX, angle)
     assert np.max(np.abs(fast - ir_general_path(L_MAX, rz))) <= 1e-12
     # rotation() dispatches to the fast path for pure z turns and gives the same matrix.
-    assert np.max(np.abs(sh.rotation(L_MAX, rz) - fast)) <= 1e-14
+    assert np.max(np.abs(harmonics.rotation(L_MAX, rz) - fast)) <= 1e-14
     assert rotated_projection_error(L_MAX, rz) <= 1e-10
 
 
@@ -285,16 +286,16 @@ def test_rotate_applies_band_by_band():
     rng = np.random.default_rng(5)
     c = rng.normal(size=((L_MAX + 1) ** 2, 3))
     r = NAMED_ROTATIONS["generic"]
-    assert np.max(np.abs(sh.rotate(c, r) - sh.rotation(L_MAX, r) @ c)) <= 1e-12
-    assert np.max(np.abs(sh.rotate(c[:, 0], r) - sh.rotation(L_MAX, r) @ c[:, 0])) <= 1e-12
+    assert np.max(np.abs(harmonics.rotate(c, r) - harmonics.rotation(L_MAX, r) @ c)) <= 1e-12
+    assert np.max(np.abs(harmonics.rotate(c[:, 0], r) - harmonics.rotation(L_MAX, r) @ c[:, 0])) <= 1e-12
 
 
 def test_rotating_a_lobe_moves_it():
     # A zonal lobe about +z turned by R points along R e_z (checks the f∘R⁻¹ direction).
     zonal = np.array([1.0, 0.8, 0.5, 0.2])
     r = NAMED_ROTATIONS["generic"]
-    turned = sh.rotate(sh.zonal_rotation(zonal, [0, 0, 1]), r)
-    assert np.max(np.abs(turned - sh.zonal_rotation(zonal, r @ [0.0, 0.0, 1.0]))) <= 1e-12
+    turned = harmonics.rotate(harmonics.zonal_rotation(zonal, [0, 0, 1]), r)
+    assert np.max(np.abs(turned - harmonics.zonal_rotation(zonal, r @ [0.0, 0.0, 1.0]))) <= 1e-12
 
 
 # ----------------------------------------------------------------------------------------------
@@ -306,19 +307,19 @@ def test_constant_environment_gives_pi():
     c = np.zeros((L_MAX + 1) ** 2)
     c[0] = math.sqrt(4.0 * math.pi)  # L ≡ 1: L_00 = ∫ Y_00 dω = 4π/√(4π)
     rng = np.random.default_rng(6)
-    e = sh.evaluate(sh.irradiance_coefficients(c), random_directions(rng, 100))
+    e = harmonics.evaluate(harmonics.irradiance_coefficients(c), random_directions(rng, 100))
     assert np.max(np.abs(e - math.pi)) <= 1e-12
 
 
 def test_clamped_cosine_closed_forms_and_quadrature():
-    a = sh.clamped_cosine_zh(10)
+    a = harmonics.clamped_cosine_zh(10)
     assert a[:5] == pytest.approx([math.pi, 2 * math.pi / 3, math.pi / 4, 0.0, -math.pi / 24], abs=1e-15)
     assert np.all(a[3::2] == 0.0)
     # Â_l = √(4π/(2l+1)) · 2π ∫_0^1 z Y_l^0(z) dz; the integrand is a polynomial on [0, 1], so
     # 8 Gauss–Legendre nodes there are exact (degree ≤ 11).
     x, w = np.polynomial.legendre.leggauss(8)
     z, wz = 0.5 * (x + 1.0), 0.5 * w
-    y0 = sh.basis_from_angles(10, z, 0.0)[:, [l * (l + 1) for l in range(11)]]
+    y0 = harmonics.basis_from_angles(10, z, 0.0)[:, [l * (l + 1) for l in range(11)]]
     zh = 2 * np.pi * (wz * z) @ y0
     numeric = np.sqrt(4 * np.pi / (2 * np.arange(11) + 1)) * zh
     assert np.max(np.abs(numeric - a)) <= 1e-13
@@ -328,8 +329,8 @@ def test_convolve_zonal_matches_irradiance():
     rng = np.random.default_rng(8)
     c = rng.normal(size=((L_MAX + 1) ** 2, 2))
     l = np.arange(L_MAX + 1)
-    zonal = sh.clamped_cosine_zh(L_MAX) / np.sqrt(4 * np.pi / (2 * l + 1))
-    assert np.max(np.abs(sh.convolve_zonal(c, zonal) - sh.irradiance_coefficients(c))) <= 1e-13
+    zonal = harmonics.clamped_cosine_zh(L_MAX) / np.sqrt(4 * np.pi / (2 * l + 1))
+    assert np.max(np.abs(harmonics.convolve_zonal(c, zonal) - harmonics.irradiance_coefficients(c))) <= 1e-13
 
 
 def test_irradiance_of_point_light_converges():
@@ -340,7 +341,7 @@ def test_irradiance_of_point_light_converges():
     d /= np.linalg.norm(d)
     rng = np.random.default_rng(9)
     n = random_directions(rng, 300)
-    e = sh.evaluate(sh.irradiance_coefficients(sh.basis(L_MAX, d)), n)
+    e = harmonics.evaluate(harmonics.irradiance_coefficients(harmonics.basis(L_MAX, d)), n)
     assert np.max(np.abs(e - np.maximum(0.0, n @ d))) <= 0.05
 
 
@@ -350,14 +351,14 @@ def test_irradiance_of_point_light_converges():
 
 
 def synthesised_equirect(c: np.ndarray, height: int) -> np.ndarray:
-    return sh.evaluate(c, hdri.equirect_directions(height, 2 * height))
+    return harmonics.evaluate(c, hdri.equirect_directions(height, 2 * height))
 
 
 def test_project_equirect_recovers_coefficients():
     rng = np.random.default_rng(10)
     c = rng.normal(size=((L_MAX + 1) ** 2, 3))
-    err128 = np.max(np.abs(sh.project_equirect(synthesised_equirect(c, 128), L_MAX) - c))
-    err256 = np.max(np.abs(sh.project_equirect(synthesised_equirect(c, 256), L_MAX) - c))
+    err128 = np.max(np.abs(harmonics.project_equirect(synthesised_equirect(c, 128), L_MAX) - c))
+    err256 = np.max(np.abs(harmonics.project_equirect(synthesised_equirect(c, 256), L_MAX) - c))
     # In φ the uniform column rule is exact for trigonometric degree ≤ 2 l_max = 16 < W. In θ the
     # rule (centre value × exact row solid angle) is a midpoint-type rule with error
     # ≈ Δθ²/24 · |∂²(f Y sin θ)/∂θ²| per unit length; products of degree ≤ 16 give
@@ -375,9 +376,9 @@ def test_project_equirect_equals_generic_quadrature():
     img = rng.lognormal(size=(32, 64, 3))
     dirs = hdri.equirect_directions(32, 64).reshape(-1, 3)
     weights = hdri.equirect_solid_angles(32, 64).reshape(-1)
-    generic = sh.project(L_MAX, dirs, img.reshape(-1, 3), weights)
-    assert np.max(np.abs(sh.project_equirect(img, L_MAX) - generic)) <= 1e-12
-    assert sh.project_equirect(img[..., 0], L_MAX).shape == ((L_MAX + 1) ** 2,)
+    generic = harmonics.project(L_MAX, dirs, img.reshape(-1, 3), weights)
+    assert np.max(np.abs(harmonics.project_equirect(img, L_MAX) - generic)) <= 1e-12
+    assert harmonics.project_equirect(img[..., 0], L_MAX).shape == ((L_MAX + 1) ** 2,)
 
 
 def test_pixel_solid_angles_sum_to_four_pi():
@@ -391,13 +392,13 @@ def test_project_equirect_rejects_and_counts_nonfinite():
     bad[3, 4, 1] = np.nan
     bad[5, 6, 0] = np.inf
     bad[7, 8, :] = -np.inf
-    coeffs, info = sh.project_equirect(bad, 4, return_info=True)
+    coeffs, info = harmonics.project_equirect(bad, 4, return_info=True)
     assert info["rejected_pixels"] == 3
     assert np.all(np.isfinite(coeffs))
     zeroed = img.copy()
     zeroed[3, 4] = zeroed[5, 6] = zeroed[7, 8] = 0.0
-    assert np.max(np.abs(coeffs - sh.project_equirect(zeroed, 4))) <= 1e-13
-    _, clean = sh.project_equirect(img, 4, return_info=True)
+    assert np.max(np.abs(coeffs - harmonics.project_equirect(zeroed, 4))) <= 1e-13
+    _, clean = harmonics.project_equirect(img, 4, return_info=True)
     assert clean["rejected_pixels"] == 0
 
 
@@ -408,21 +409,21 @@ def _spot_image(rows, col: int, height: int = 64, width: int = 128) -> np.ndarra
 
 
 def test_equirect_convention_centre_column_is_plus_x():
-    c = sh.project_equirect(_spot_image([31, 32], 64), 1)  # u = 0.5 at the horizon
+    c = harmonics.project_equirect(_spot_image([31, 32], 64), 1)  # u = 0.5 at the horizon
     assert c[3] > 0 and abs(c[3]) > 10 * max(abs(c[1]), abs(c[2]))
 
 
 def test_equirect_convention_quarter_column_is_plus_y():
-    c = sh.project_equirect(_spot_image([31, 32], 32), 1)  # u = 0.25 at the horizon
+    c = harmonics.project_equirect(_spot_image([31, 32], 32), 1)  # u = 0.25 at the horizon
     assert c[1] > 0 and abs(c[1]) > 10 * max(abs(c[2]), abs(c[3]))
-    c = sh.project_equirect(_spot_image([31, 32], 96), 1)  # u = 0.75 → −y
+    c = harmonics.project_equirect(_spot_image([31, 32], 96), 1)  # u = 0.75 → −y
     assert c[1] < 0
 
 
 def test_equirect_convention_top_rows_are_plus_z():
     img = np.zeros((64, 128))
     img[:4] = 1.0
-    c = sh.project_equirect(img, 1)
+    c = harmonics.project_equirect(img, 1)
     assert c[2] > 0 and abs(c[2]) > 1e6 * max(abs(c[1]), abs(c[3]))
 
 
@@ -432,24 +433,24 @@ def test_equirect_convention_top_rows_are_plus_z():
 
 
 def test_window_values():
-    h = sh.window(L_MAX, "hanning")
+    h = harmonics.window(L_MAX, "hanning")
     assert h.shape == ((L_MAX + 1) ** 2,)
     assert h[0] == 1.0
     assert np.all(np.diff(h[[l * (l + 1) for l in range(L_MAX + 1)]]) < 0)  # strictly decreasing
     assert h[-1] > 0  # default width l_max + 1 keeps the top band
-    assert np.all(sh.window(L_MAX, "none") == 1.0)
-    lz = sh.window(4, "lanczos", width=5)
+    assert np.all(harmonics.window(L_MAX, "none") == 1.0)
+    lz = harmonics.window(4, "lanczos", width=5)
     assert lz[0] == 1.0 and lz[-1] == pytest.approx(math.sin(math.pi * 4 / 5) / (math.pi * 4 / 5))
 
 
 @pytest.mark.parametrize("kind", ["hanning", "lanczos"])
 def test_window_reduces_ringing_of_delta_light(kind):
     d = np.array([0.0, 0.0, 1.0])
-    c = sh.basis(L_MAX, d)  # projection of a unit delta light along +z
+    c = harmonics.basis(L_MAX, d)  # projection of a unit delta light along +z
     dirs, _ = gauss_sphere(40)
-    raw = sh.evaluate(c, dirs)
-    windowed = sh.evaluate(sh.apply_window(c, kind), dirs)
-    assert sh.apply_window(c, kind)[0] == c[0]  # l = 0 (the mean) unchanged
+    raw = harmonics.evaluate(c, dirs)
+    windowed = harmonics.evaluate(harmonics.apply_window(c, kind), dirs)
+    assert harmonics.apply_window(c, kind)[0] == c[0]  # l = 0 (the mean) unchanged
     # Negative lobes: both in absolute terms and relative to the (also reduced) peak.
     assert windowed.min() > raw.min()
     assert windowed.min() / windowed.max() > raw.min() / raw.max()
@@ -460,10 +461,10 @@ def test_window_reduces_ringing_of_delta_light(kind):
 # ----------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("l_max", [-1, 1.5, "2", True, None, sh.MAX_L_MAX + 1])
+@pytest.mark.parametrize("l_max", [-1, 1.5, "2", True, None, harmonics.MAX_L_MAX + 1])
 def test_bad_l_max(l_max):
     with pytest.raises(ValueError, match="l_max"):
-        sh.basis(l_max, [0, 0, 1])
+        harmonics.basis(l_max, [0, 0, 1])
 
 
 @pytest.mark.parametrize(
@@ -472,7 +473,7 @@ def test_bad_l_max(l_max):
 )
 def test_bad_directions(directions):
     with pytest.raises(ValueError, match="directions"):
-        sh.basis(2, directions)
+        harmonics.basis(2, directions)
 
 
 @pytest.mark.parametrize(
@@ -487,38 +488,38 @@ def test_bad_directions(directions):
 )
 def test_bad_rotation(matrix):
     with pytest.raises(ValueError, match="R"):
-        sh.rotation(2, matrix)
+        harmonics.rotation(2, matrix)
     with pytest.raises(ValueError, match="R"):
-        sh.rotate(np.zeros(9), matrix)
+        harmonics.rotate(np.zeros(9), matrix)
 
 
 def test_rotation_accepts_float32_level_rounding():
     r = NAMED_ROTATIONS["generic"].astype(np.float32).astype(np.float64)
-    assert sh.rotation(2, r).shape == (9, 9)
+    assert harmonics.rotation(2, r).shape == (9, 9)
 
 
 def test_bad_window_and_coefficients():
     with pytest.raises(ValueError, match="kind"):
-        sh.window(4, "hamming")
+        harmonics.window(4, "hamming")
     with pytest.raises(ValueError, match="width"):
-        sh.window(4, "hanning", width=0.0)
+        harmonics.window(4, "hanning", width=0.0)
     with pytest.raises(ValueError, match="coeffs"):
-        sh.apply_window(np.zeros(10))
+        harmonics.apply_window(np.zeros(10))
     with pytest.raises(ValueError, match="radiance_coeffs"):
-        sh.irradiance_coefficients(np.zeros(5))
+        harmonics.irradiance_coefficients(np.zeros(5))
     with pytest.raises(ValueError, match="zonal"):
-        sh.convolve_zonal(np.zeros(9), [1.0, 2.0])
+        harmonics.convolve_zonal(np.zeros(9), [1.0, 2.0])
 
 
 def test_bad_projection_inputs():
     dirs, weights = gauss_sphere(4)
     with pytest.raises(ValueError, match="values"):
-        sh.project(2, dirs, np.zeros(len(dirs) + 1), weights)
+        harmonics.project(2, dirs, np.zeros(len(dirs) + 1), weights)
     with pytest.raises(ValueError, match="weights"):
-        sh.project(2, dirs, np.zeros(len(dirs)), weights[:-1])
+        harmonics.project(2, dirs, np.zeros(len(dirs)), weights[:-1])
     with pytest.raises(ValueError, match="image"):
-        sh.project_equirect(np.zeros((4, 8, 3, 2)), 2)
+        harmonics.project_equirect(np.zeros((4, 8, 3, 2)), 2)
     with pytest.raises(ValueError, match="cos_theta"):
-        sh.basis_from_angles(2, 1.5, 0.0)
+        harmonics.basis_from_angles(2, 1.5, 0.0)
     with pytest.raises(ValueError, match="angle"):
-        sh.rotation_z(2, [0.1, 0.2])
+        harmonics.rotation_z(2, [0.1, 0.2])

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from precompute import bake, kernel, sh_order
-from precompute.material import Material, Quality
+from precompute.bakes import bake, kernel, sh_order
+from precompute.materials.material import Material, Quality
 
 
 def _kernel_criterion(roughness: float, l_max: int) -> float:

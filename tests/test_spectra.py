@@ -8,7 +8,7 @@ import colour
 import numpy as np
 import pytest
 
-from precompute import spectra
+from precompute.colour import spectra
 from precompute.constants import WAVELENGTH_MAX_NM, WAVELENGTH_MIN_NM
 
 SPACES = tuple(spectra.WORKING_SPACES)

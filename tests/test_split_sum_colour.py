@@ -14,9 +14,11 @@ import math
 import numpy as np
 import pytest
 
-from precompute import bake, hdri, prefilter, render
-from precompute.material import Layer, Material
+from precompute.bakes import bake
+from precompute.materials.material import Layer, Material
+from precompute.output import render
 from precompute.shading import policy, sh_sum, split_sum
+from precompute.world import hdri, prefilter
 
 
 def unit(x):

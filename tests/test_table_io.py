@@ -15,9 +15,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from precompute import table_io
-from precompute.table_cache import TableCache, default_cache_dir
-from precompute.table_io import (
+from precompute.tables import table_io
+from precompute.tables.table_cache import TableCache, default_cache_dir
+from precompute.tables.table_io import (
     FORMAT_VERSION,
     Table,
     TableError,
@@ -448,7 +448,7 @@ def test_cache_corrupt_entry_is_moved_aside_and_never_used(tmp_path, caplog):
     path = cache.store(key, data, {"k": 1})
     raw = path.read_bytes()
     path.write_bytes(raw[: len(raw) // 2])
-    with caplog.at_level(logging.WARNING, logger="precompute.table_cache"):
+    with caplog.at_level(logging.WARNING, logger="precompute.tables.table_cache"):
         assert cache.load(key) is None
     assert not path.exists()
     aside = path.with_name(path.name + ".corrupt")

@@ -10,8 +10,9 @@ reflectance a single film can have (a bubble never darkens the background below 
 import numpy as np
 import pytest
 
-from precompute import bake, film_colour
-from precompute.material import Layer, Material, preset
+from precompute.bakes import bake
+from precompute.colour import film_colour
+from precompute.materials.material import Layer, Material, preset
 from precompute.shading import transmit
 
 N_FILM = 1.33

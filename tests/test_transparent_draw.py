@@ -24,7 +24,8 @@ from test_gpu_draw import (
 )
 from test_gpu_draw import gd as gd  # noqa: F401  (the module fixture)
 
-from precompute import film_colour, render
+from precompute.colour import film_colour
+from precompute.output import render
 from precompute.shading import sh_sum, transmit
 from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
 
@@ -136,8 +137,8 @@ def test_solid_glass_shows_the_world_along_the_exit_ray(gd):  # noqa: F811
     roughness 0 along transmit.solid_exit, plus the film's reflection (split only, weight 0)."""
     import dataclasses
 
-    from precompute import prefilter
     from precompute.shading import policy, split_sum
+    from precompute.world import prefilter
 
     result = baked(5, "spectral", False)
     table = gd.resources.TableTexture.from_result(result)

@@ -42,9 +42,9 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
         for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
-        ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-        ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
+        ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
+        ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
+        ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID

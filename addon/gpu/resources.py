@@ -22,9 +22,8 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
-from ...precompute import display_lut
-from ...precompute.material import MAX_SH_ORDER
-from ...precompute.shading import policy, radiance_grid
+from ...precompute.materials.material import MAX_SH_ORDER
+from ...precompute.shading import display_lut, policy, radiance_grid
 from ...precompute.shading.codegen import RX_PADDED, x_rotation_scalars
 from ...precompute.shading.lights import LIGHT_VEC4, Lights
 from ...precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, fits_uniform_buffer
@@ -34,7 +33,7 @@ from .context import ensure_gpu_context
 MAX_L = MAX_SH_ORDER
 #: World SH coefficients in the lighting buffer: (MAX_L + 1)².
 SH_SLOTS = (MAX_L + 1) ** 2
-#: The World's lamps the lighting buffer holds (precompute/lamps.py): a count, then direction and
+#: The World's lamps the lighting buffer holds (precompute/world/lamps.py): a count, then direction and
 #: power of each.
 MAX_LAMPS = policy.MAX_LAMPS
 LAMP_VEC4 = 1 + 2 * MAX_LAMPS
@@ -340,7 +339,7 @@ class TableTexture:
 
     @classmethod
     def from_result(cls, result, *, uniform: bool | None = None) -> TableTexture:
-        """Upload a :class:`precompute.bake.BakeResult` (or anything with ``data``, ``sh_order``).
+        """Upload a :class:`precompute.bakes.bake.BakeResult` (or anything with ``data``, ``sh_order``).
 
         ``uniform``: also make the uniform-buffer copy when the table fits (drawn from there);
         None (default): where this device draws faster from it (:func:`table_ubo_preferred`).
@@ -381,7 +380,7 @@ class Lighting:
     coefficients: np.ndarray  # ((l_max+1)², 3) float64, windowed: what the shader sees
     l_max: int
     roughness: float
-    #: The World's lamps (precompute.lamps.Lamps) the coefficients were taken without, or None.
+    #: The World's lamps (precompute.world.lamps.Lamps) the coefficients were taken without, or None.
     lamps: object = None
 
     @property
@@ -529,7 +528,7 @@ class PrefilterTexture:
 @dataclass
 class FilmTexture:
     """A film's reflectance against u = cos θ and its multiple-scattering factor, for the lamps
-    (precompute.film_colour.FilmTable).
+    (precompute.colour.film_colour.FilmTable).
 
     ``texture`` (:data:`FILM_SAMPLER`, RGBA32F): width U = u uniform 0…1 inclusive, height T =
     the table's thickness rows; spectral films: layers 0…2 = rows of the film's 3×3 reflectance,
@@ -696,7 +695,7 @@ class UniformCache:
 
 @dataclass
 class DisplayLUTTexture:
-    """The display LUT (precompute/display_lut.py) as an RGBA32F texture of N · N × (N + 1)
+    """The display LUT (precompute/shading/display_lut.py) as an RGBA32F texture of N · N × (N + 1)
     texels (the last row: the input matrix), read with texelFetch (:data:`DISPLAY_LUT_SAMPLER`)."""
 
     texture: gpu.types.GPUTexture

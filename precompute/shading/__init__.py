@@ -33,7 +33,7 @@ generated code (``tf_banded_sum``,      codegen.py: ``banded_source``, ``x90_ban
 the X(±90°) constants' layout)          ``x_rotation_scalars``, ``operation_counts``
 ======================================  ====================================================
 
-The brute-force ground truth these are checked against (no SH) is precompute/render.py's
+The brute-force ground truth these are checked against (no SH) is precompute/output/render.py's
 ``shade_reference``; tests/test_gpu_draw.py runs the GLSL per pixel against these functions.
 This package imports nothing on import: take the modules you need.
 """

@@ -1,8 +1,8 @@
 """The World's lamps shaded per light direction (numpy twin of glsl/tf_lamps.glsl).
 
-Each lamp (precompute.lamps.extract) is a directional light shaded with the exact microfacet
+Each lamp (precompute.world.lamps.extract) is a directional light shaded with the exact microfacet
 BRDF, D G₂ F(ωo·h) / (4 cos θo), with the film's reflectance F at that light's half-vector
-(precompute.film_colour.film_table), times the multiple-scattering factor at the view angle.
+(precompute.colour.film_colour.film_table), times the multiple-scattering factor at the view angle.
 The split sum's sharpest levels keep the lamps in the image (policy.LAMP_LEVEL): the analytic
 lamps take the rest (:func:`lamp_weight`; the split sum's level blend of it:
 split_sum.lamp_weight_at).
@@ -70,8 +70,8 @@ def film_at(film, table, rows, u) -> np.ndarray:
 def shade(film, lamps, roughness: float, normals, views, thickness_position=None) -> np.ndarray:
     """Σ_k D G₂ F(ωo·h_k) / (4 cos θo) × power_k × multiscatter(cos θo): (N, 3), mirrored by tf_lamps.glsl.
 
-    ``film``: a :class:`precompute.film_colour.FilmTable`; ``lamps``: a
-    :class:`precompute.lamps.Lamps`. ``thickness_position`` in [0, 1] along the film table's
+    ``film``: a :class:`precompute.colour.film_colour.FilmTable`; ``lamps``: a
+    :class:`precompute.world.lamps.Lamps`. ``thickness_position`` in [0, 1] along the film table's
     thickness rows (None: the first). F is interpolated linearly in u and thickness, like the
     shader.
     """

@@ -392,7 +392,7 @@ def shade(
     """Σ_lights Σ_samples D_α' G₂ F(ωo·h) / (4 cos θo) × E⊥ × multiscatter(cos θo): (N, 3).
 
     Mirrored by tf_lights.glsl ``tf_shade_lights``. ``film``: a
-    :class:`precompute.film_colour.FilmTable`; ``positions``, ``normals``, ``views`` (N, 3),
+    :class:`precompute.colour.film_colour.FilmTable`; ``positions``, ``normals``, ``views`` (N, 3),
     world space, normals facing the viewer; ``thickness_position`` in [0, 1] along the film
     table's rows (None: the first), as shading.lamps.shade.
     """

@@ -14,7 +14,8 @@ import dataclasses
 
 import numpy as np
 
-from .. import constants, sh
+from .. import constants
+from ..sh import harmonics
 
 # ----------------------------------------------------------------------------------------------
 # Split sum and SH
@@ -54,7 +55,7 @@ WINDOW_WIDTH_PER_ROUGHNESS = 0.9
 def lighting_window(l_max: int, roughness: float) -> np.ndarray:
     """Per-coefficient factors applied to the World's SH for a material of this roughness."""
     r = min(max(float(roughness), 0.0), 1.0)
-    return sh.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
+    return harmonics.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
 
 
 def windowed_lighting(coeffs, l_max: int, roughness: float) -> np.ndarray:
@@ -270,7 +271,7 @@ TABLE_UBO_DEVICES = ("SOFTWARE",)
 # ----------------------------------------------------------------------------------------------
 # Display
 # ----------------------------------------------------------------------------------------------
-#: Lattice points per axis of the viewport's display LUT (precompute/display_lut.py): the
+#: Lattice points per axis of the viewport's display LUT (precompute/shading/display_lut.py): the
 #: trilinear error against OCIO (docs/tuning.md#display-lut).
 DISPLAY_LUT_SIZE = 65
 #: The LUT shaper's offset a in log2(x + a): resolves the sRGB toe (docs/tuning.md#display-lut).

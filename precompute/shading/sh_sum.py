@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import bake
+from ..bakes import bake
 from .frame import view_aligned_frame
 from .sh_rotation import local_coefficients
 from .table import lookup, thickness_position

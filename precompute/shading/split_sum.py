@@ -1,7 +1,7 @@
 """Split-sum image-based lighting and the product's combined shading (numpy twin of
 glsl/tf_split_sum.glsl).
 
-The World prefiltered by the GGX lobe at a ladder of roughness levels (precompute.prefilter) is
+The World prefiltered by the GGX lobe at a ladder of roughness levels (precompute.world.prefilter) is
 looked up in the reflection direction and multiplied by the film's directional albedo, the l = 0
 table entry × √(4π) (Karis 2013). The albedo is read at the half-vector angle of the lobe's
 light-weighted mean direction (:func:`dominant_cosine`) where policy.uses_moment says so.
@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..hdri import equirect_lookup
+from ..world.hdri import equirect_lookup
 from . import lamps as lamp_shading
 from .policy import effective_roughness, sh_weight, uses_moment
 from .sh_sum import shade_sh
@@ -92,7 +92,7 @@ def lamp_weight_at(pre, roughness) -> np.ndarray:
 def lookup(pre, directions: np.ndarray, roughness, moments: bool = False) -> np.ndarray:
     """Prefiltered radiance in ``directions`` at per-pixel ``roughness`` (α²-matched level blend).
 
-    ``pre``: a :class:`precompute.prefilter.Prefiltered`. ``moments=True`` reads the luminance ×
+    ``pre``: a :class:`precompute.world.prefilter.Prefiltered`. ``moments=True`` reads the luminance ×
     direction moments instead (same blend).
     """
     found = _blend(pre, directions, roughness, [pre.moments if moments else pre.levels])[0]
@@ -151,8 +151,8 @@ def shade_combined(
 ) -> np.ndarray:
     """The product's shading: split sum for glossy films, SH for rough ones, blended by roughness.
 
-    With ``lamps`` (:class:`precompute.lamps.Lamps`) and ``film``
-    (:func:`precompute.film_colour.film_table`) the World's lamps are added, shaded per light
+    With ``lamps`` (:class:`precompute.world.lamps.Lamps`) and ``film``
+    (:func:`precompute.colour.film_colour.film_table`) the World's lamps are added, shaded per light
     direction (:func:`precompute.shading.lamps.shade`); ``world_coeffs`` and ``pre`` from
     ``prefilter(…, lamp_mask=…)``. The SH half sees the World without its lamps (weight 1); the
     split-sum half keeps them in its sharpest levels (:func:`lamp_weight_at`). The split sum reads

@@ -5,7 +5,7 @@ A film drawn as a *wall* (a soap bubble, a thin sheet of coated glass, a Princip
 by the wall's transmittance T, and reflects R·L. The draw composites with two blend passes over
 what is already in the frame: multiply by T, then add R·L (addon/gpu/draw.py). Both factors come
 from the film's reflectance r(u) per channel at the view cosine u = n·v
-(:class:`precompute.film_colour.FilmTable`: Cycles' per-channel film in the per-channel mode,
+(:class:`precompute.colour.film_colour.FilmTable`: Cycles' per-channel film in the per-channel mode,
 the row sums of the 3×3 matrices, white light E, in the spectral mode), evaluated once at the
 macro view angle, as Cycles' thin wall does. The film is lossless (no absorption in a layer
 and a real substrate): what it does not reflect it transmits, r + t = 1 per channel.
@@ -97,7 +97,7 @@ def white_reflectance(film, rows, u) -> np.ndarray:
 def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=None):
     """(T, S), each (N, 3), of a wall at unit ``normals`` and view directions ``views`` (the
     normal faces the viewer, as in the shader); ``film``: a
-    :class:`precompute.film_colour.FilmTable`. Mirrored by tf_wall (glsl/tf_transmit.glsl)."""
+    :class:`precompute.colour.film_colour.FilmTable`. Mirrored by tf_wall (glsl/tf_transmit.glsl)."""
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
     cos_v = np.clip(np.abs(np.sum(n * v, axis=-1)), 0.0, 1.0)
