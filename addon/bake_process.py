@@ -164,6 +164,8 @@ def load_precompute(root: str) -> types.SimpleNamespace:
     _stub_package(PACKAGE, root)
     names = (
         "bakes.bake",
+        "bakes.kernel",
+        "bakes.planner",
         "colour.film_colour",
         "materials.material",
         "bakes.progress",
@@ -266,8 +268,7 @@ def warm_neighbours(modules, result, requests: _Requests) -> list[int]:
     kernel warm; cold it costs 65–150 ms at order 0 and seconds at l = 12. A request that
     arrives stops the warm-up at the kernel's next checkpoint (nothing half-made is cached).
     Returns the rungs warmed."""
-    bake = modules.bake
-    ladder = list(bake.U_DEGREE_LADDER)
+    ladder = list(modules.planner.U_DEGREE_LADDER)
     if result.u_nodes not in ladder:
         return []
     i = ladder.index(result.u_nodes)
@@ -284,9 +285,9 @@ def warm_neighbours(modules, result, requests: _Requests) -> list[int]:
         with modules.progress.reporting(check):
             for rung in rungs:
                 check()
-                bake.microfacet_kernel(roughness, l_max, views, rung)
+                modules.kernel.microfacet_kernel(roughness, l_max, views, rung)
                 if result.material.base_color is not None:
-                    bake.diffuse_kernel(l_max, rung)
+                    modules.kernel.diffuse_kernel(l_max, rung)
                 warmed.append(rung)
     except Interrupted:
         pass

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import json
 
-from ..precompute.bakes import bake
-from ..precompute.colour import spectra
+from ..precompute.bakes import planner
+from ..precompute.colour import rgb_spaces
 from ..precompute.materials.material import Material
 from ..precompute.shading import policy
 from .linked import Pending
@@ -83,7 +83,7 @@ def warnings(bpy_material) -> list[str]:
             notes = [f"{exc}: drawn in magenta (the fallback) until it is fixed"]
     notes.extend(_gltf_notes(bpy_material))
     space = file_working_space()
-    if space and space not in spectra.WORKING_SPACES:
+    if space and space not in rgb_spaces.WORKING_SPACES:
         notes.append(f"working color space {space!r} is not supported: previewing in Linear Rec.709")
     return notes
 
@@ -102,5 +102,6 @@ def _gltf_notes(bpy_material) -> list[str]:
 
 
 def description_key(desc: Material) -> str:
-    """Cache key of a description: :func:`precompute.bakes.bake.table_key` (parameters + planner version)."""
-    return bake.table_key(desc)
+    """Cache key of a description: :func:`precompute.bakes.planner.table_key` (parameters + planner
+    version)."""
+    return planner.table_key(desc)

@@ -19,7 +19,7 @@ import time
 import bpy
 
 from ..precompute.commands import cli_support
-from ..precompute.tables import table_io
+from ..precompute.tables import atomic_write
 
 
 def frame_path(out, frame: int | None, many: bool) -> pathlib.Path:
@@ -139,7 +139,7 @@ def run_render(args, scene, render_scene) -> int:
     if json_path is not None:
         json_path.parent.mkdir(parents=True, exist_ok=True)
         summary = {"frames": results} if args.frames is not None else results[0]
-        table_io.write_bytes(json_path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
+        atomic_write.write_bytes(json_path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
     for err in dict.fromkeys(failed):
         print(f"error: {err}", file=sys.stderr)
     return cli_support.EXIT_PARTIAL if partial else cli_support.EXIT_OK

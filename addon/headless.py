@@ -32,9 +32,9 @@ import numpy as np
 from mathutils import Matrix
 
 from ..precompute.commands import cli_support
-from ..precompute.effects import plans
+from ..precompute.effects import plan_text, plans
 from ..precompute.output import image_io, pixel_filter
-from ..precompute.tables import table_io
+from ..precompute.tables import atomic_write, table_io
 from . import cli_args, display, frames, prefs, scene_draw, tables, world
 from .background import (
     behind_texture,
@@ -153,8 +153,8 @@ def bake_scene(scene, out_dir=None, progress=print, cache=None) -> dict:
         files = {name: folder / file for name, file in cli_support.unique_file_names(found).items()}
         for path in files.values():
             try:
-                table_io.check_destination(path)
-            except table_io.TableWriteError as exc:
+                atomic_write.check_destination(path)
+            except atomic_write.TableWriteError as exc:
                 raise cli_support.UsageError(f"--out-dir: {exc}") from None
     shared: dict[str, str] = {}
     for i, (name, desc) in enumerate(sorted(found.items())):
@@ -438,7 +438,7 @@ def _chosen_scene(args):
 
 
 def _write_json(path, summary) -> None:
-    table_io.write_bytes(path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
+    atomic_write.write_bytes(path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
 
 
 def _run(args, scene, cache) -> int:
@@ -482,7 +482,7 @@ def _run_plan(scene, cache) -> int:
         if tables.peek_table(desc) is not None or (on_disk and cache.path_for(keys[name]).is_file())
     }
     plan = plans.scene_plan(found, coeffs, cached=cached)
-    print(plans.format_plan(plan))
+    print(plan_text.format_plan(plan))
     for name, mp in plan.materials.items():  # one JSON line per material, for scripts
         first = plan.tables[mp.key][0]
         summary = {

@@ -31,7 +31,7 @@ from bpy.props import (
 )
 from bpy.types import PropertyGroup
 
-from ..precompute.colour import spectra
+from ..precompute.colour import rgb_spaces
 from ..precompute.materials.material import AUTO, MAX_SH_ORDER, PRESETS, Layer, Material, Quality
 from ..precompute.optics import metals
 from ..precompute.optics.metals import available_metals
@@ -129,7 +129,7 @@ def file_working_space() -> str:
 def working_space() -> str:
     """The blend file's working colour space if precompute knows it, else "Linear Rec.709"."""
     name = file_working_space()
-    return name if name in spectra.WORKING_SPACES else spectra.DEFAULT_SPACE
+    return name if name in rgb_spaces.WORKING_SPACES else rgb_spaces.DEFAULT_SPACE
 
 
 def _metal_name(identifier: str) -> str:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..precompute.bakes import bake
+from ..precompute.bakes import bake, kernel, planner
 from ..precompute.bakes.progress import reporting
 from ..precompute.colour import film_colour
 from ..precompute.materials.material import Material
@@ -221,7 +221,7 @@ def _from_table(table) -> bake.BakeResult:
         data=np.array(table.data),
         material=Material.from_dict(a["material"]),
         sh_order=int(a["sh_order"]),
-        view_angles_rad=bake.view_angles(int(a["view_samples"])),
+        view_angles_rad=kernel.view_angles(int(a["view_samples"])),
         thicknesses_nm=np.linspace(float(lo), float(hi), int(a["thickness_samples"])),
         wavelengths_nm=np.asarray(a["wavelengths_nm"], dtype=float),
         u_nodes=int(a["u_nodes"]),
@@ -257,7 +257,7 @@ def get_table_with_source(
         cache = open_cache()
     if isinstance(cache, UnusableCache):
         problem, cache = cache.reason, None
-    expect = {"material": bake.table_material(desc).to_dict()}
+    expect = {"material": planner.table_material(desc).to_dict()}
     table = None
     if cache is not None:
         try:

@@ -2,7 +2,7 @@
 
 from bpy.types import Menu, Panel, UIList
 
-from ..precompute.effects import plans
+from ..precompute.effects import cost_model, plan_text, plans
 from . import caches, linked, scene_draw, tables, viewport
 from .description import description as _description_now
 from .description import description_key
@@ -359,7 +359,7 @@ def plan_for(desc, wait: bool = False):
 def plan_lines(mp) -> list[str]:
     """The panel's summary of a plan: effects, table, orders, costs (one label each)."""
     p = mp.plan
-    warm = plans.bake_time_breakdown(
+    warm = cost_model.bake_time_breakdown(
         mp.material,
         p,
         mp.u_degree,
@@ -371,8 +371,9 @@ def plan_lines(mp) -> list[str]:
     shape = "×".join(str(n) for n in mp.table_shape)
     defines = " ".join(name if value == "1" else f"{name}={value}" for name, value in mp.shader.defines)
     return [
-        f"Effects: {plans.effect_summary(mp)}",
-        f"Table {shape} float32, {plans.fmt_bytes(mp.table_bytes)} (GPU {plans.fmt_bytes(mp.texture_bytes)})",
+        f"Effects: {plan_text.effect_summary(mp)}",
+        f"Table {shape} float32, {plan_text.fmt_bytes(mp.table_bytes)}"
+        f" (GPU {plan_text.fmt_bytes(mp.texture_bytes)})",
         f"SH order {p.sh_order} · {p.view_samples} view angles · {p.thickness_samples} thickness rows · "
         f"{mp.wavelength_nodes} wavelengths",
         f"Bake ≈ {mp.bake_seconds:.2g} s (first in a session), ≈ {warm:.2g} s with a warm kernel",

@@ -9,7 +9,7 @@ takes the cheapest exact route:
    World's viewport colour (black without a World), with a warning;
 2. World Output ← Background ← Environment Texture (optionally through reroutes and Mapping
    nodes fed by Texture Coordinate "Generated"), Strength unlinked: the image's pixels are
-   projected directly (:func:`precompute.sh.harmonics.project_equirect`), times Strength, turned by the
+   projected directly (:func:`precompute.sh.projection.project_equirect`), times Strength, turned by the
    Mapping transform;
 3. World Output ← Background with an unlinked Color: a constant, coefficient 0 = √(4π)·c;
 4. anything else (Sky Texture, gradients, mixes, muted nodes, Mapping with a location offset
@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..precompute.materials.material import MAX_SH_ORDER
-from ..precompute.sh import harmonics
+from ..precompute.sh import harmonics, projection, rotations
 from ..precompute.world import hdri
 from . import caches
 from .panorama import render_world_panorama
@@ -194,11 +194,11 @@ def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
     if source == target:
         return np.eye(3)
     try:  # a failed import of the spectral code must not break the World's SH
-        from ..precompute.colour import spectra
+        from ..precompute.colour import rgb_spaces
     except ImportError:
         return None
     try:
-        return spectra.rgb_to_rgb_matrix(source, target)
+        return rgb_spaces.rgb_to_rgb_matrix(source, target)
     except ValueError:
         return None
 
@@ -287,7 +287,7 @@ def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarra
             rejected += int(good.size - np.count_nonzero(good))
             block = np.where(good[..., None], block, 0.0)
         small[:, c0 // factor : c1 // factor] = hdri.downsample(block, factor)
-    coeffs, info = harmonics.project_equirect(small, l_max, return_info=True)
+    coeffs, info = projection.project_equirect(small, l_max, return_info=True)
     return coeffs, rejected + int(info["rejected_pixels"]), small
 
 
@@ -383,7 +383,7 @@ def _snapped(p: np.ndarray) -> np.ndarray:
 @functools.lru_cache(maxsize=8)
 def _sh_rotation(l_max: int, rotation: tuple) -> np.ndarray:
     """The SH rotation of the World's Pᵀ (cached: the SH and the SH without lamps share it)."""
-    out = harmonics.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
+    out = rotations.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
     out.setflags(write=False)
     return out
 
@@ -611,7 +611,7 @@ def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = No
     pending render in ``pending`` (:func:`.panorama_helper.resolve` waits for it on a worker),
     and it is rendered here only when ``render`` returns None.
     """
-    l_max = harmonics._check_l_max(l_max)
+    l_max = harmonics.check_l_max(l_max)
     params = _parameters(scene.world)[0] if params is None else params
     world = scene.world
     with np.errstate(all="ignore"):
@@ -707,7 +707,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     viewport does the same in three steps, the slow one on a worker (:mod:`.world_job`):
     :func:`read_world`, :func:`analyse_read`, :func:`finish`.
     """
-    l_max = harmonics._check_l_max(l_max)
+    l_max = harmonics.check_l_max(l_max)
     cache = SH_CACHE if cache is None else cache
     key = world_key(scene, l_max)
     hit = cache.get(key)

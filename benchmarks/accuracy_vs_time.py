@@ -32,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from precompute.bakes import bake
+from precompute.bakes import bake, planner
+from precompute.bakes import kernel as bake_kernel
 from precompute.colour.colour_difference import delta_e_2000
 from precompute.commands import cli
 from precompute.effects import plans
@@ -175,7 +176,7 @@ def config_material(cfg: Config, scene: Scene) -> Material:
     two_d = cfg.thickness_samples is not None
     if two_d:
         base = base.with_(thickness_range_nm=THICKNESS_RANGE)
-    p = bake.plan(base)
+    p = planner.plan(base)
     q = Quality(
         sh_order=cfg.sh_order if cfg.sh_order is not None else p.sh_order,
         view_samples=cfg.views if cfg.views is not None else p.view_samples,
@@ -199,7 +200,7 @@ def bake_config(cfg: Config, scene: Scene, cold_start: bool = True):
     if cfg.colour == "rgb3":
         patches["spectral_quadrature"] = rgb3_quadrature
     if cfg.quadrature is not None:
-        original = bake.microfacet_kernel
+        original = bake_kernel.microfacet_kernel
         nt, nphi = cfg.quadrature
 
         def kernel(roughness, l_max, views, degree, _o=original, _nt=nt, _np=nphi):
@@ -726,7 +727,7 @@ def main(argv=None) -> None:
         cmd = [sys.executable, "-m", "benchmarks.accuracy_vs_time", *(sys.argv[1:] if argv is None else argv)]
         os.execve(sys.executable, cmd, env)
     start = time.perf_counter()
-    bake.plan(Material())  # load CMF tables etc. before any timing
+    planner.plan(Material())  # load CMF tables etc. before any timing
     if args.quick:
         res = run(quick_scenes(), quick_configs(), sphere=16)
         print(report(res, ".venv/bin/python -m benchmarks.accuracy_vs_time --quick"))

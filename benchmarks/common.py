@@ -216,10 +216,10 @@ def fmt_bytes(count: int) -> str:
 def clear_bake_caches() -> None:
     """Forget what a new material or roughness must compute: the microfacet/diffuse kernels, the
     GGX albedo, the SH order's lobe (and the u-degree hint, in bakers that keep one)."""
-    from precompute.bakes import bake
+    from precompute.bakes import bake, kernel
 
-    bake.microfacet_kernel.cache_clear()
-    bake.diffuse_kernel.cache_clear()
+    kernel.microfacet_kernel.cache_clear()
+    kernel.diffuse_kernel.cache_clear()
     bake.brdf.ggx_E.cache_clear()
     bake.brdf.ggx_E_avg.cache_clear()
     getattr(bake, "_DEGREE_HINT", {}).clear()

@@ -3,7 +3,7 @@
 Usage (from the repository root)::
 
     .venv/bin/python -m benchmarks.plan               # → docs/effect-plan.md
-    .venv/bin/python -m benchmarks.plan --calibrate   # fits precompute.effects.plans.TIME_MODEL, prints it
+    .venv/bin/python -m benchmarks.plan --calibrate   # fits cost_model.TIME_MODEL, prints it
 
 The scene (``SCENE``): 12 materials — the six presets, an equal copy of one, plain constant-
 thickness films (one of them twice), a film on gold, a film over a diffuse base and a rough
@@ -38,10 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from precompute.bakes import bake
-from precompute.effects import plans
+from precompute.bakes import bake, kernel, planner, sh_order
+from precompute.effects import cost_model, plan_text, plans
 from precompute.materials.material import PRESETS, Layer, Material, Quality
-from precompute.sh import harmonics
+from precompute.sh import projection
 from precompute.world import hdri
 
 from . import common
@@ -56,8 +56,8 @@ def _clear_all_caches() -> None:
     """Forget every cache a bake fills: microfacet/diffuse kernels, GGX albedo tables, u hints."""
     from precompute import brdf
 
-    bake.microfacet_kernel.cache_clear()
-    bake.diffuse_kernel.cache_clear()
+    kernel.microfacet_kernel.cache_clear()
+    kernel.diffuse_kernel.cache_clear()
     getattr(bake, "_DEGREE_HINT", {}).clear()  # older bakes remembered the u degree
     brdf.ggx_E.cache_clear()
     brdf.ggx_E_avg.cache_clear()
@@ -116,7 +116,7 @@ def bake_all(materials: dict[str, Material], share: bool) -> dict:
     wall = cpu = 0.0
     for name in sorted(materials):
         m = materials[name]
-        key = plans.bake.table_key(m)
+        key = planner.table_key(m)
         if share and key in done:
             results[name] = done[key]
             seconds[name] = 0.0
@@ -258,7 +258,7 @@ def world_orders() -> list[tuple[str, int, np.ndarray]]:
         image = hdri.read_equirect(path)
         while image.shape[1] > 512:
             image = hdri.downsample(image, 2)
-        c = harmonics.project_equirect(image, 8)
+        c = projection.project_equirect(image, 8)
         out.append((f"`{path.stem}` HDRI", plans.world_content_order(c)[0], plans.world_tails(c)))
     h, w = 64, 128
     el = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
@@ -267,7 +267,7 @@ def world_orders() -> list[tuple[str, int, np.ndarray]]:
         ("uniform colour", np.ones((h, w, 3)) * np.array([0.2, 0.3, 0.4])),
         ("sky gradient 0.5 + 0.4 z", (0.5 + 0.4 * z) * np.array([0.6, 0.8, 1.0])),
     ):
-        c = harmonics.project_equirect(image, 8)
+        c = projection.project_equirect(image, 8)
         out.append((name, plans.world_content_order(c)[0], plans.world_tails(c)))
     return out
 
@@ -277,11 +277,11 @@ def world_coefficients():
     from precompute.commands import cli
 
     image = hdri.read_equirect(cli.studiolight("studio"))
-    return harmonics.project_equirect(image, 8)
+    return projection.project_equirect(image, 8)
 
 
 # ----------------------------------------------------------------------------------------------
-# Calibration of precompute.effects.plans.TIME_MODEL
+# Calibration of precompute.effects.cost_model.TIME_MODEL
 # ----------------------------------------------------------------------------------------------
 def _calibration_materials() -> list[Material]:
     out = []
@@ -314,20 +314,20 @@ def _calibration_materials() -> list[Material]:
 def calibration_rows(materials=None, repeats: int = 1) -> list[dict]:
     """CPU seconds and :func:`effects.bake_features` of cold and warm bakes of ``materials``."""
     rows = []
-    ladder = bake.U_DEGREE_LADDER
+    ladder = planner.U_DEGREE_LADDER
     bake.bake(Material(quality=Quality(sh_order=2, view_samples=4, wavelength_count=32)))  # warm-up
     for m in materials or _calibration_materials():
         best = {}
         for _ in range(repeats):  # the fastest of the repeats: the least disturbed by other load
             _clear_all_caches()
-            p = bake.plan(m)  # resolved before timing: the order kernel is timed on its own
+            p = planner.plan(m)  # resolved before timing: the order kernel is timed on its own
             for cold in (True, False):
                 wall, cpu, result = common.time_once_cpu(lambda m=m: bake.bake(m))
                 if cold in best and best[cold]["cpu"] <= cpu:
                     continue
                 degree = result.u_nodes
                 tried = ladder[: ladder.index(degree) + 1]  # the search starts at the bottom
-                features = plans.bake_features(
+                features = cost_model.bake_features(
                     m, p, degree, tried, result.wavelengths_nm.size, kernel_cold=cold, order_kernel_cold=False
                 )
                 best[cold] = {"material": m, "cold": cold, "wall": wall, "cpu": cpu, "features": features}
@@ -336,11 +336,11 @@ def calibration_rows(materials=None, repeats: int = 1) -> list[dict]:
 
 
 def calibrate(repeats: int = 2) -> dict:
-    """Fit :data:`precompute.effects.plans.TIME_MODEL` (non-negative least squares, relative error)."""
+    """Fit :data:`precompute.effects.cost_model.TIME_MODEL` (non-negative least squares, relative error)."""
     from scipy.optimize import nnls
 
     rows = calibration_rows(repeats=repeats)
-    names = [n for n in plans.TIME_MODEL if n != "sh_order"]
+    names = [n for n in cost_model.TIME_MODEL if n != "sh_order"]
     x = np.array([[r["features"][n] for n in names] for r in rows])
     y = np.array([r["cpu"] for r in rows])
     scale = 1.0 / np.maximum(y, 1e-3)
@@ -349,7 +349,7 @@ def calibrate(repeats: int = 2) -> dict:
     model["contract"] = max(model["contract"], 5e-10)  # ≪ the other stages: floor at BLAS speed
     order = []
     for r in (0.123, 0.456, 0.789):
-        order.append(common.time_once_cpu(lambda r=r: bake.auto_sh_order(Material(roughness=r)))[1])
+        order.append(common.time_once_cpu(lambda r=r: sh_order.auto_sh_order(Material(roughness=r)))[1])
     model["sh_order"] = float(f"{statistics.median(order):.3g}")
     predicted = x @ coef
     ratio = y / np.maximum(predicted, 1e-9)
@@ -374,7 +374,7 @@ def estimate(materials: dict[str, Material], share: bool) -> float:
         order_cold = float(mp.material.roughness) not in orders
         seen.add(mp.kernel_key)
         orders.add(float(mp.material.roughness))
-        total += plans.bake_time_breakdown(
+        total += cost_model.bake_time_breakdown(
             mp.material,
             mp.plan,
             mp.u_degree,
@@ -533,16 +533,17 @@ def report(res: dict) -> str:
         "",
         "| term | units | seconds per unit |",
         "|---|---|---|",
-        "| fixed | 1 per bake | " + f"{plans.TIME_MODEL['fixed']:.3g} |",
+        "| fixed | 1 per bake | " + f"{cost_model.TIME_MODEL['fixed']:.3g} |",
         "| reflectance | [Σ_tried min(T, 4) · (8d + 7(d+1)) + T · 8d] · W · (layers + 1) | "
-        + f"{plans.TIME_MODEL['reflectance']:.3g} |",
+        + f"{cost_model.TIME_MODEL['reflectance']:.3g} |",
         "| kernel_views / kernel_coeffs / kernel_nodes (cold) | A, A·(L+1)², A·8d | "
-        + f"{plans.TIME_MODEL['kernel_views']:.3g} / {plans.TIME_MODEL['kernel_coeffs']:.3g} /"
-        f" {plans.TIME_MODEL['kernel_nodes']:.3g} |",
-        "| multiscatter (cold) | A + 32 GGX albedo views | " + f"{plans.TIME_MODEL['multiscatter']:.3g} |",
-        "| contract | T·U·W·9 + A·K·U·T·9 (+ diffuse) | " + f"{plans.TIME_MODEL['contract']:.3g} |",
+        + f"{cost_model.TIME_MODEL['kernel_views']:.3g} / {cost_model.TIME_MODEL['kernel_coeffs']:.3g} /"
+        f" {cost_model.TIME_MODEL['kernel_nodes']:.3g} |",
+        "| multiscatter (cold) | A + 32 GGX albedo views | "
+        + f"{cost_model.TIME_MODEL['multiscatter']:.3g} |",
+        "| contract | T·U·W·9 + A·K·U·T·9 (+ diffuse) | " + f"{cost_model.TIME_MODEL['contract']:.3g} |",
         "| sh_order | 1 per new roughness with an automatic order | "
-        + f"{plans.TIME_MODEL['sh_order']:.3g} |",
+        + f"{cost_model.TIME_MODEL['sh_order']:.3g} |",
         "",
         "The u-node degree d (the search climbs from the bottom of the ladder on 4 probe rows, then"
         " evaluates every row once) is estimated as the smallest ladder step ≥ 6 + OPD / 300 nm."
@@ -571,7 +572,7 @@ def report(res: dict) -> str:
     for name, mp in sp.materials.items():
         first = sp.tables[mp.key][0]
         lines.append(
-            f"| {name} | {plans.effect_summary(mp)} | {'×'.join(map(str, mp.table_shape))} |"
+            f"| {name} | {plan_text.effect_summary(mp)} | {'×'.join(map(str, mp.table_shape))} |"
             f" {common.fmt_bytes(mp.table_bytes)} | {mp.plan.sh_order} | {sp.bake_seconds_each[name]:.2f} s |"
             f" {planned['seconds'][name]:.2f} s | {first if first != name else ''} |"
         )

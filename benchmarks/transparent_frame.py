@@ -28,7 +28,7 @@ from benchmarks import common
 from precompute.bakes import bake
 from precompute.colour import film_colour
 from precompute.materials.material import Quality, preset
-from precompute.sh import harmonics
+from precompute.sh import projection
 
 EXTENSION_ID = "thinfilm_sh"
 SIZE = 512
@@ -92,7 +92,7 @@ def measure(repeats: int) -> dict:
     result = bake.bake(material)
     h, w = 32, 64
     img = 0.4 + 0.3 * np.random.default_rng(1).random((h, w, 3))
-    lighting = gd.resources.Lighting.from_sh(harmonics.project_equirect(img, 8), 8, material.roughness)
+    lighting = gd.resources.Lighting.from_sh(projection.project_equirect(img, 8), 8, material.roughness)
     table = gd.resources.TableTexture.from_result(result)
     film = gd.resources.FilmTexture.from_film(film_colour.film_table(result))
     batch = _sphere(gd)

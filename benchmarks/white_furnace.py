@@ -33,7 +33,7 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute.colour import film_colour, spectra
+from precompute.colour import film_colour, rgb_spaces, spectra
 from precompute.colour.colour_difference import delta_e_2000
 from precompute.materials.material import Layer, Material
 from precompute.optics import reflectance
@@ -127,8 +127,8 @@ def compare(config, size: int, samples: int) -> dict:
     ours = {
         "cycles_matching": film_colour.white_reflectance(per_channel, t, c),
         "spectral": film_colour.white_reflectance(spectral, t, c),
-        "exact_sensitivities": _exact(per_channel, t, c, spectra.channel_weights(wl), wl),
-        "before": _exact(per_channel, t, c, spectra.xyz_weights(wl) @ spectra.xyz_to_rgb_matrix().T, wl),
+        "exact_sensitivities": _exact(per_channel, t, c, rgb_spaces.channel_weights(wl), wl),
+        "before": _exact(per_channel, t, c, spectra.xyz_weights(wl) @ rgb_spaces.xyz_to_rgb_matrix().T, wl),
     }
     row = {"name": config[0], "config": config, "pixels": int(mask.sum()), "cycles_s": seconds}
     for key, img in ours.items():

@@ -194,16 +194,18 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
 
 
 def prefilter_at(rev: str):
-    """``rev``'s precompute/world/prefilter.py as a module (imported beside this one)."""
+    """``rev``'s prefilter module (precompute/prefilter.py before issue 35) as a module, imported
+    beside this one against today's precompute."""
     source = subprocess.run(
-        ["git", "show", f"{rev}:precompute/world/prefilter.py"],
+        ["git", "show", f"{rev}:precompute/prefilter.py"],
         cwd=common.ROOT,
         capture_output=True,
         text=True,
         check=True,
     ).stdout
     source = source.replace(
-        "from . import brdf, constants, hdri", "from precompute import brdf, constants, hdri"
+        "from . import brdf, constants, hdri",
+        "from precompute import brdf, constants\nfrom precompute.world import hdri",
     )
     source = source.replace("from .shading", "from precompute.shading")
     path = tempfile.NamedTemporaryFile("w", suffix=".py", delete=False)

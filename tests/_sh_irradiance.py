@@ -16,7 +16,7 @@ import os
 import numpy as np
 
 from precompute.colour.colour_difference import LUMINANCE_REC709
-from precompute.sh import harmonics
+from precompute.sh import harmonics, projection, zonal
 from precompute.world import hdri
 
 #: Normals at which irradiance is compared (Fibonacci sphere): 200 samples spaced ~14° apart,
@@ -66,8 +66,8 @@ def irradiance_errors(image: np.ndarray, l_max: int, normals: np.ndarray) -> dic
         ``rejected_pixels``: NaN/Inf pixels skipped by the projection.
     """
     brute = hdri.irradiance_brute_force(np.nan_to_num(image, nan=0.0, posinf=0.0, neginf=0.0), normals)
-    coeffs, info = harmonics.project_equirect(image, l_max, return_info=True)
-    approx = harmonics.evaluate(harmonics.irradiance_coefficients(coeffs), normals)
+    coeffs, info = projection.project_equirect(image, l_max, return_info=True)
+    approx = harmonics.evaluate(zonal.irradiance_coefficients(coeffs), normals)
     diff = np.abs(approx - brute)
     lum_diff = np.abs((approx - brute) @ LUMINANCE_REC709)
     lum = brute @ LUMINANCE_REC709

@@ -403,8 +403,8 @@ def test_disk_cache_is_used_and_a_corrupt_entry_is_rebaked(bpy, description_mod,
     loaded, source = tables_mod.get_table_with_source(desc, cache)
     assert source == "disk" and tables_mod.bake_count == start + 1
     np.testing.assert_allclose(loaded.data, baked.data, rtol=1e-6, atol=1e-7)  # float32 on disk
-    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
-    assert loaded.sh_order == baked.sh_order and loaded.material == bake.table_material(desc)
+    planner = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.planner")
+    assert loaded.sh_order == baked.sh_order and loaded.material == planner.table_material(desc)
     np.testing.assert_array_equal(loaded.thicknesses_nm, baked.thicknesses_nm)
     np.testing.assert_allclose(loaded.view_angles_rad, baked.view_angles_rad)
     assert tables_mod.format_plan(loaded) == tables_mod.format_plan(baked)
@@ -426,11 +426,11 @@ def test_a_table_cached_by_an_older_planner_is_not_reused(
     """After an upgrade that changes automatic choices (e.g. the SH order cap 8 → 12), a cached
     table is stale, not corrupt: the key carries bake.PLANNER_VERSION, so it is baked again."""
     table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
-    bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
+    planner = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.planner")
     cache = table_cache.TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
-    monkeypatch.setattr(bake, "PLANNER_VERSION", bake.PLANNER_VERSION - 1)
+    monkeypatch.setattr(planner, "PLANNER_VERSION", planner.PLANNER_VERSION - 1)
     old_key = description_mod.description_key(desc)
     tables_mod.get_table(desc, cache)
     assert cache.path_for(old_key).is_file() and tables_mod.bake_count == start + 1
@@ -580,13 +580,13 @@ def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
     message in the operator and the panel, never a traceback; the baked table is kept."""
     import errno
 
-    table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
+    atomic_write = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.atomic_write")
     table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
     ui = importlib.import_module(f"{EXTENSION_ID}.addon.ui")
 
     def full(self, key, *args, **kwargs):
         path = self.path_for(key)
-        raise table_io.TableWriteError(
+        raise atomic_write.TableWriteError(
             path, f"could not write {str(path)!r}: No space left on device", errno.ENOSPC
         )
 

@@ -32,7 +32,7 @@ def imports_of(name: str, path: Path, modules: dict) -> tuple[set, set]:
     product, external = set(), set()
 
     def resolve(target: str):
-        # the longest prefix that is a product module (``precompute.sh.harmonics.window`` → precompute.sh)
+        # the longest prefix that is a product module (``precompute.sh.windows.window`` → precompute.sh)
         parts = target.split(".")
         for i in range(len(parts), 0, -1):
             candidate = ".".join(parts[:i])

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from precompute import brdf
-from precompute.bakes import bake
+from precompute.bakes import bake, planner, sh_order
 from precompute.bakes.bake_reference import bake_reference
-from precompute.colour import spectra
+from precompute.colour import rgb_spaces, spectra
 from precompute.materials.material import MAX_SH_ORDER, PRESETS, Layer, Material, Quality, preset
 from precompute.optics import reflectance
 from precompute.tables import table_io
@@ -96,7 +96,7 @@ def test_hard_cases_are_finite_and_physically_bounded(name):
     # by the white's 1. (RGB is no bound: saturated film colours such as gold's red lie outside
     # Rec.709 and legitimately exceed 1 or dip below 0 in one channel.) 2e-3 covers the linear
     # basis summing to 1 only within 1e-5 and the single-scatter quadrature near grazing.
-    xyz = albedo_rgb(result) @ spectra.rgb_to_xyz_matrix("Linear Rec.709").T
+    xyz = albedo_rgb(result) @ rgb_spaces.rgb_to_xyz_matrix("Linear Rec.709").T
     assert np.all(xyz >= -2e-3) and np.all(xyz <= 1.0 + 2e-3), (xyz.min(), xyz.max())
 
 
@@ -137,7 +137,7 @@ def test_spectral_quadrature_integrates_illuminants_including_lines(count, tol):
         if illuminant == "E":
             expected = np.ones(3)
         else:
-            expected = spectra.xyz_to_rgb_matrix("Linear Rec.709") @ spectra.spectrum_to_xyz(
+            expected = rgb_spaces.xyz_to_rgb_matrix("Linear Rec.709") @ spectra.spectrum_to_xyz(
                 s, lam, weights=np.gradient(lam)
             )
         # Lines are exact nodes; what remains is the smooth part sampled once per cell against the
@@ -158,21 +158,23 @@ def test_per_channel_mode_is_diagonal_and_matches_spectral_on_white():
 
 
 def test_automatic_choices_follow_the_physics():
-    thin = bake.plan(Material(layers=(Layer(1.33, 200.0),)))
-    thick = bake.plan(Material(layers=(Layer(1.33, 20000.0),)))
+    thin = planner.plan(Material(layers=(Layer(1.33, 200.0),)))
+    thick = planner.plan(Material(layers=(Layer(1.33, 20000.0),)))
     assert thick.wavelength_count > 10 * thin.wavelength_count >= 10 * 48
     assert thin.thickness_samples == 1  # constant thickness → 1-D table
-    varying = bake.plan(Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 2000.0)))
+    varying = planner.plan(Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 2000.0)))
     assert (
         varying.thickness_samples
-        > bake.plan(Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 200.0))).thickness_samples
+        > planner.plan(
+            Material(layers=(Layer(1.33, 300.0),), thickness_range_nm=(0.0, 200.0))
+        ).thickness_samples
     )
-    orders = [bake.plan(Material(roughness=r)).sh_order for r in (0.1, 0.5, 0.8, 1.0)]
+    orders = [planner.plan(Material(roughness=r)).sh_order for r in (0.1, 0.5, 0.8, 1.0)]
     # Judged at normal and 80° views (the horizon cuts grazing lobes): measured 12, 12, 7, 6
     # (glossy lobes need more than the cap; rough ones stop early).
     assert orders[0] == orders[1] == MAX_SH_ORDER and orders[2] < orders[1] and orders[3] <= orders[2]
     assert all(isinstance(v, str) and v for v in thin.reasons.values())
-    assert bake.lobe_truncation_error(1.0, 4) < bake.lobe_truncation_error(0.3, 4)
+    assert sh_order.lobe_truncation_error(1.0, 4) < sh_order.lobe_truncation_error(0.3, 4)
 
 
 @pytest.mark.parametrize("unused_nm", [0.0, 300.0, 100000.0])
@@ -189,9 +191,9 @@ def test_an_unused_top_layer_thickness_changes_neither_plan_nor_key_nor_cost(unu
     )
     used = used.with_(quality=quality)
     other = used.with_(layers=(Layer(1.33, unused_nm),))
-    assert bake.plan(other) == bake.plan(used) and bake.plan(used).wavelength_count == 48
-    assert bake.table_key(other) == bake.table_key(used)
-    assert bake.table_material(other) == bake.table_material(used)
+    assert planner.plan(other) == planner.plan(used) and planner.plan(used).wavelength_count == 48
+    assert planner.table_key(other) == planner.table_key(used)
+    assert planner.table_material(other) == planner.table_material(used)
     a, b = plans.material_plan(used), plans.material_plan(other)
     assert (a.key, a.plan, a.bake_seconds, a.u_degree, a.reasons) == (
         b.key,
@@ -205,8 +207,8 @@ def test_an_unused_top_layer_thickness_changes_neither_plan_nor_key_nor_cost(unu
     assert first.attributes()["material"] == second.attributes()["material"]
     # A constant thickness is used: there it still counts.
     still = Material(layers=(Layer(1.33, 300.0),), substrate=1.5)
-    assert bake.table_key(still.with_(layers=(Layer(1.33, 310.0),))) != bake.table_key(still)
-    assert bake.table_material(still) is still
+    assert planner.table_key(still.with_(layers=(Layer(1.33, 310.0),))) != planner.table_key(still)
+    assert planner.table_material(still) is still
 
 
 def test_constant_thickness_table_has_a_single_thickness_row():
@@ -238,7 +240,7 @@ def test_multiscatter_modes_add_energy_only_where_single_scattering_loses_it(mod
         assert np.array_equal(plain, comp)
     else:
         assert np.all(comp >= plain - 1e-12) and np.any(comp > plain * 1.01)  # rough lobe: energy added
-    xyz = comp @ spectra.rgb_to_xyz_matrix("Linear Rec.709").T
+    xyz = comp @ rgb_spaces.rgb_to_xyz_matrix("Linear Rec.709").T
     assert np.all(xyz <= 1.0 + 2e-3)  # never above white
     smooth = preset("coated_car_window").with_(roughness=0.05, quality=SMALL)
     assert np.allclose(
@@ -296,18 +298,18 @@ def test_the_u_degree_is_the_lowest_rung_that_meets_the_tolerance(top_nm):
     from precompute.bakes.chunks import chunked_sweep
     from precompute.bakes.kernel import u_interpolation_matrix, u_nodes
 
-    assert sum(bake.U_PROBE_GROUPS, ()) == bake.U_DEGREE_LADDER
-    material = bake.table_material(PRESETS["soap_film"].with_(thickness_range_nm=(0.0, top_nm)))
-    p = bake.plan(material)
+    assert sum(planner.U_PROBE_GROUPS, ()) == planner.U_DEGREE_LADDER
+    material = planner.table_material(PRESETS["soap_film"].with_(thickness_range_nm=(0.0, top_nm)))
+    p = planner.plan(material)
     wl, _g = bake.spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
-    indices, sets, _axis = bake.active_stack(material, p.thickness_samples)
-    degree, err, at_nodes = bake.choose_u_degree(indices, sets, wl, "exact")
+    indices, sets, _axis = planner.active_stack(material, p.thickness_samples)
+    degree, err, at_nodes = planner.choose_u_degree(indices, sets, wl, "exact")
     probe = sets[np.unique(np.linspace(0, sets.shape[0] - 1, 4).round().astype(int))]
     errors = {}
-    for rung in bake.U_DEGREE_LADDER[: bake.U_DEGREE_LADDER.index(degree) + 1]:
-        nodes, test = u_nodes(rung), bake._test_points(rung)
+    for rung in planner.U_DEGREE_LADDER[: planner.U_DEGREE_LADDER.index(degree) + 1]:
+        nodes, test = u_nodes(rung), planner._test_points(rung)
         with np.errstate(invalid="ignore", divide="ignore"):
             values, exact = (
                 chunked_sweep(indices, probe, wl, nodes, "exact"),
@@ -315,9 +317,9 @@ def test_the_u_degree_is_the_lowest_rung_that_meets_the_tolerance(top_nm):
             )
         interp = np.matmul(u_interpolation_matrix(rung, test), values)
         errors[rung] = float(np.max(np.abs(interp - exact))) / max(float(np.abs(exact).max()), 1e-6)
-    assert errors[degree] <= bake.U_TOLERANCE and errors[degree] == pytest.approx(err, rel=1e-9)
-    assert all(e > bake.U_TOLERANCE for rung, e in errors.items() if rung < degree), errors
-    assert degree > bake.U_DEGREE_LADDER[0]  # the check can fail: a lower rung was tried and refused
+    assert errors[degree] <= planner.U_TOLERANCE and errors[degree] == pytest.approx(err, rel=1e-9)
+    assert all(e > planner.U_TOLERANCE for rung, e in errors.items() if rung < degree), errors
+    assert degree > planner.U_DEGREE_LADDER[0]  # the check can fail: a lower rung was tried and refused
     with np.errstate(invalid="ignore", divide="ignore"):
         swept = chunked_sweep(indices, sets, wl, u_nodes(degree), "exact")
     np.testing.assert_allclose(at_nodes, swept, atol=1e-14)

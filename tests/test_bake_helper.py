@@ -108,7 +108,7 @@ def test_the_viewports_bake_runs_in_the_helper_equal_to_in_process(bpy, tf, scen
 
 
 def test_the_film_table_comes_back_with_the_table(tf, helper):  # noqa: F811
-    desc = tf.bake.table_material(tf.Material.from_dict(soap_dict(tf)))
+    desc = tf.planner.table_material(tf.Material.from_dict(soap_dict(tf)))
     table, film_table = helper.bake(desc, True)
     here = tf.real_bake(desc)
     expected = tf.film_colour.film_table(here)  # from the bake's reflectance at its nodes
@@ -333,26 +333,26 @@ def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F8
     fewer) node per interval would wait for; a request that arrives stops it."""
     frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
     progress = importlib.import_module(f"{tf.package.__name__}.precompute.bakes.progress")
-    modules = types.SimpleNamespace(bake=tf.bake, progress=progress)
+    modules = types.SimpleNamespace(planner=tf.planner, kernel=tf.kernel, progress=progress)
     desc = tf.Material.from_dict(soap_dict(tf))
     result = tf.real_bake(desc)
     read, write = os.pipe()
     try:
         with os.fdopen(read, "rb") as stream:
             requests = frames._Requests(stream)
-            tf.bake.microfacet_kernel.cache_clear()
-            ladder = list(tf.bake.U_DEGREE_LADDER)
+            tf.kernel.microfacet_kernel.cache_clear()
+            ladder = list(tf.planner.U_DEGREE_LADDER)
             i = ladder.index(result.u_nodes)
             assert frames.warm_neighbours(modules, result, requests) == [ladder[i + 1], ladder[i - 1]]
-            info = tf.bake.microfacet_kernel.cache_info()
-            tf.bake.microfacet_kernel(
+            info = tf.kernel.microfacet_kernel.cache_info()
+            tf.kernel.microfacet_kernel(
                 float(result.material.roughness), 0, result.view_angles_rad.size, ladder[i + 1]
             )
-            assert tf.bake.microfacet_kernel.cache_info().hits == info.hits + 1  # warm
+            assert tf.kernel.microfacet_kernel.cache_info().hits == info.hits + 1  # warm
             requests.queue.put(("bake", 1, {}, False, None))  # a request waits: nothing is warmed
-            tf.bake.microfacet_kernel.cache_clear()
+            tf.kernel.microfacet_kernel.cache_clear()
             assert frames.warm_neighbours(modules, result, requests) == []
-            assert tf.bake.microfacet_kernel.cache_info().currsize == 0
+            assert tf.kernel.microfacet_kernel.cache_info().currsize == 0
             os.close(write)
             write = None
     finally:

@@ -5,7 +5,7 @@ import threading
 import numpy as np
 import pytest
 
-from precompute.bakes import bake, chunks, progress
+from precompute.bakes import bake, chunks, kernel, progress
 from precompute.materials.material import PRESETS, Quality
 
 #: Small enough to bake in well under a second, big enough to have every phase.
@@ -83,7 +83,7 @@ def test_a_cancelled_bake_stops_at_its_next_checkpoint_and_caches_nothing(cancel
     """The worker is cancelled from another thread after its ``cancel_after``-th report; it must
     stop at the next report (one step later), raise, and leave no kernel in the cache."""
     material = PRESETS["soap_film"].with_(roughness=0.37, quality=SMALL)  # a kernel not cached yet
-    bake.microfacet_kernel.cache_clear()
+    kernel.microfacet_kernel.cache_clear()
     cancel = threading.Event()
     reports = {"before": 0, "after": 0}
     outcome = {}
@@ -109,4 +109,4 @@ def test_a_cancelled_bake_stops_at_its_next_checkpoint_and_caches_nothing(cancel
     assert not thread.is_alive()
     assert outcome == {"cancelled": True}
     assert reports == {"before": cancel_after, "after": 1}  # stopped at the very next checkpoint
-    assert bake.microfacet_kernel.cache_info().currsize == 0 or cancel_after > 30
+    assert kernel.microfacet_kernel.cache_info().currsize == 0 or cancel_after > 30

@@ -25,9 +25,10 @@ import pytest
 
 from precompute.bakes import bake
 from precompute.commands import cli, cli_support
-from precompute.tables import table_cache, table_io
+from precompute.tables import atomic_write, table_cache, table_io
+from precompute.tables.atomic_write import TableWriteError, write_bytes
 from precompute.tables.table_cache import CacheDirError, TableCache
-from precompute.tables.table_io import TableError, TableWriteError, read_table, write_bytes, write_table
+from precompute.tables.table_io import TableError, read_table, write_table
 
 try:
     import resource  # POSIX: RLIMIT_FSIZE makes the kernel refuse file growth, as a full disk does
@@ -134,8 +135,8 @@ def test_every_write_failure_is_a_clear_error(tmp_path, monkeypatch, where, code
     def fail(*args, **kwargs):
         raise OSError(code, os.strerror(code))
 
-    target = {"mkstemp": (table_io.tempfile, "mkstemp"), "fsync": (table_io, "_fsync_file")}.get(
-        where, (table_io, "_replace")
+    target = {"mkstemp": (atomic_write.tempfile, "mkstemp"), "fsync": (atomic_write, "_fsync_file")}.get(
+        where, (atomic_write, "replace_file")
     )
     monkeypatch.setattr(*target, fail)
     for call in (lambda: write_table(path, small_table(2.0)), lambda: write_bytes(path, b"{}")):
@@ -151,18 +152,18 @@ FULL_DISK_SCRIPT = textwrap.dedent(
     """
     import resource, signal, sys
     import numpy as np
-    from precompute import table_io
+    from precompute.tables import atomic_write, table_io
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
     resource.setrlimit(resource.RLIMIT_FSIZE, (0, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
     calls = {
         "table": lambda: table_io.write_table(sys.argv[1], np.full((2, 3, 9), 2.0), {"v": 2}),
-        "json": lambda: table_io.write_bytes(sys.argv[2], b'{"v": 2}'),
+        "json": lambda: atomic_write.write_bytes(sys.argv[2], b'{"v": 2}'),
     }
     for name, call in calls.items():
         try:
             call()
             print(name, "written")
-        except table_io.TableWriteError as exc:
+        except atomic_write.TableWriteError as exc:
             print(name, "refused:", exc)
     """
 )
@@ -262,7 +263,7 @@ def test_writes_refuse_a_destination_that_is_not_a_regular_file(tmp_path, kind):
     for call in (
         lambda: write_table(path, small_table()),
         lambda: write_bytes(path, b"{}"),
-        lambda: table_io.write_file(path, lambda tmp: Path(tmp).write_bytes(b"x")),
+        lambda: atomic_write.write_file(path, lambda tmp: Path(tmp).write_bytes(b"x")),
     ):
         _, exc = finishes(call)
         assert isinstance(exc, TableWriteError), exc

@@ -61,8 +61,9 @@ def test_unknown_names_are_refused():
 def test_spectra_and_a_bake_run_without_colour_science():
     """Spectra and a bake run without colour science."""
     code = (
-        "import sys; from precompute import spectra, bake, material;"
-        "spectra.xyz_to_rgb_matrix('ACEScg'); spectra.illuminant_spd('FL2', spectra.wavelength_grid(40));"
+        "import sys; from precompute.colour import rgb_spaces, spectra; from precompute.bakes import bake;"
+        "from precompute.materials import material;"
+        "rgb_spaces.xyz_to_rgb_matrix('ACEScg'); spectra.illuminant_spd('FL2', spectra.wavelength_grid(40));"
         "bake.bake(material.PRESETS['soap_film'].with_(quality=material.Quality(sh_order=2, view_samples=4,"
         " thickness_samples=2, wavelength_count=32)));"
         "print('colour' in sys.modules)"

@@ -25,9 +25,10 @@ from _extension import EXTENSION_ID, gpu_layer, linked_extension
 
 import precompute.optics as optics
 from precompute import brdf
-from precompute.bakes import bake
+from precompute.bakes import bake, kernel, planner
 from precompute.commands import cli
-from precompute.effects import plans as effects_plans
+from precompute.effects import cost_model, plan_text
+from precompute.effects import plans as plans_plans
 from precompute.materials.material import Layer, Material, Quality
 from precompute.optics import dispersion, metals, stack
 from precompute.shading import policy, sh_rotation
@@ -69,14 +70,14 @@ def test_plain_numbers_are_constant_indices_and_no_dispersion_model_runs(no_disp
     monkeypatch.setattr(
         dispersion.ConstantIndex, "index", lambda self, wl: calls.append(1) or original(self, wl)
     )
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     assert mp.effects["dispersion"] is False and "no dispersion model" in mp.reasons["dispersion"]
     calls.clear()
     result = bake.bake(m)  # would raise if a Cauchy/Sellmeier/tabulated model were evaluated
     assert result.data.shape == mp.table_shape
     # Constant media are resolved once per reflectance sweep (a handful per bake: media × ladder
     # steps), never per wavelength, thickness row or u node.
-    assert 0 < len(calls) <= 3 * (len(bake.U_DEGREE_LADDER) + 3)
+    assert 0 < len(calls) <= 3 * (len(planner.U_DEGREE_LADDER) + 3)
 
 
 def test_a_dispersive_film_does_evaluate_its_model(no_dispersion_models):
@@ -87,9 +88,9 @@ def test_a_dispersive_film_does_evaluate_its_model(no_dispersion_models):
 
 def test_a_cauchy_law_without_b_and_c_is_planned_as_non_dispersive():
     m = fast(layers=(Layer({"cauchy": [1.45, 0.0, 0.0]}, 300.0),), substrate=1.5)
-    assert effects_plans.material_plan(m).effects["dispersion"] is False
+    assert plans_plans.material_plan(m).effects["dispersion"] is False
     m = fast(layers=(Layer({"cauchy": [1.45, 0.004]}, 300.0),), substrate={"metal": "gold"})
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     assert mp.effects["dispersion"] and "layer 1 (Cauchy)" in mp.reasons["dispersion"]
     assert "substrate (tabulated metal)" in mp.reasons["dispersion"]
 
@@ -121,7 +122,7 @@ def stack_spy(monkeypatch):
     ids=["constant", "varying", "metal+diffuse", "glassner2000"],
 )
 def test_a_single_film_never_runs_the_general_stack_code(material, stack_spy):
-    mp = effects_plans.material_plan(material)
+    mp = plans_plans.material_plan(material)
     assert mp.effects["interference"] and not mp.effects["stack"]
     assert "never the general stack code" in mp.reasons["stack"] or "glassner2000" in mp.reasons["stack"]
     stack_spy["forbid"] = True
@@ -131,7 +132,7 @@ def test_a_single_film_never_runs_the_general_stack_code(material, stack_spy):
 
 def test_a_two_layer_stack_runs_the_stack_code(stack_spy):
     m = fast(layers=(Layer(1.38, 100.0), Layer(2.1, 80.0)), substrate=1.52)
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     assert mp.effects["stack"] and "transfer recursion" in mp.reasons["stack"]
     bake.bake(m)
     assert stack_spy["calls"] > 0
@@ -145,14 +146,14 @@ def test_the_stack_spy_sees_the_code_the_dispatcher_uses(stack_spy):
 
 def test_no_film_means_no_interference_and_the_bare_interface_path(monkeypatch):
     bare = fast(layers=(), substrate=1.5)
-    mp = effects_plans.material_plan(bare)
+    mp = plans_plans.material_plan(bare)
     assert not any(mp.effects[n] for n in ("interference", "stack", "thickness_axis"))
     assert "Fresnel only" in mp.reasons["interference"]
 
     def boom(*args, **kwargs):
         raise AssertionError("the u-node search ran for a bare interface")
 
-    monkeypatch.setattr(bake, "choose_u_degree", boom)
+    monkeypatch.setattr(planner, "choose_u_degree", boom)
     monkeypatch.setattr(optics, "airy_film_reflectance", boom)
     result = bake.bake(bare)
     assert result.data.shape == mp.table_shape and result.data.shape[0] == 1
@@ -160,7 +161,7 @@ def test_no_film_means_no_interference_and_the_bare_interface_path(monkeypatch):
 
 def test_zero_thickness_film_is_planned_as_no_interference_and_bakes_the_bare_table():
     zero = fast(layers=(Layer(1.33, 0.0),), substrate=1.5)
-    mp = effects_plans.material_plan(zero)
+    mp = plans_plans.material_plan(zero)
     assert not mp.effects["interference"] and not mp.effects["stack"]
     assert "0 nm" in mp.reasons["interference"] and "bare-interface path" in mp.reasons["interference"]
     a = bake.bake(zero).data
@@ -173,7 +174,7 @@ def test_zero_thickness_film_takes_the_bare_interface_path(monkeypatch):
         raise AssertionError("film code ran for a 0 nm film")
 
     monkeypatch.setattr(optics, "airy_film_reflectance", boom)
-    monkeypatch.setattr(bake, "choose_u_degree", boom)
+    monkeypatch.setattr(planner, "choose_u_degree", boom)
     bake.bake(fast(layers=(Layer(1.33, 0.0),), substrate=1.5))
 
 
@@ -182,7 +183,7 @@ def test_zero_thickness_film_takes_the_bare_interface_path(monkeypatch):
 # ----------------------------------------------------------------------------------------------
 def test_constant_thickness_gives_a_1d_table_and_the_1d_shader():
     m = fast(layers=(Layer(1.33, 400.0),), substrate=1.5)
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     assert mp.effects["thickness_axis"] is False and mp.plan.thickness_samples == 1
     assert mp.table_shape[0] == 1 and "1-D table" in mp.reasons["thickness_axis"]
     assert mp.shader.taps == 2 and "TF_VARY_THICKNESS" not in dict(mp.shader.defines)
@@ -193,7 +194,7 @@ def test_constant_thickness_gives_a_1d_table_and_the_1d_shader():
 
 def test_a_thickness_range_gives_a_2d_table_and_the_vary_variant():
     m = fast(layers=(Layer(1.33, 400.0),), substrate=1.5, thickness_range_nm=(200.0, 600.0))
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     assert mp.effects["thickness_axis"] and mp.table_shape[0] == FAST.thickness_samples > 1
     assert mp.shader.taps == 4 and dict(mp.shader.defines)["TF_VARY_THICKNESS"] == "1"
     assert bake.bake(m).data.shape == mp.table_shape
@@ -201,7 +202,7 @@ def test_a_thickness_range_gives_a_2d_table_and_the_vary_variant():
 
 def test_per_channel_tables_and_texture_bytes():
     m = fast(layers=(Layer(1.33, 400.0),), substrate=1.5, colour_mode="per_channel")
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     k = 6  # (2+1)(2+2)/2 coefficients at l_max 2
     assert mp.table_shape == (1, FAST.view_samples, k, 3)
     assert mp.texture_bytes == k * 1 * FAST.view_samples * 16  # one RGBA32F layer per coefficient
@@ -220,11 +221,11 @@ def test_shader_cost_follows_the_documented_formula():
     )
     rotation = 3 * nonzero + 12 * 3 * 36 + 4 * 3 * 7
     assert rotation == 3 * 492 + 1296 + 84
-    c = effects_plans.shader_cost(Variant(8, spectral=True, vary_thickness=False, display=False))
+    c = cost_model.shader_cost(Variant(8, spectral=True, vary_thickness=False, display=False))
     assert (c.floats_fetched, c.multiply_adds, c.texel_fetches) == (810, rotation + 810 + 405, 270)
-    c = effects_plans.shader_cost(Variant(8, spectral=True, vary_thickness=True, display=False))
+    c = cost_model.shader_cost(Variant(8, spectral=True, vary_thickness=True, display=False))
     assert c.floats_fetched == 1620 and c.multiply_adds == rotation + 1620 + 405
-    c = effects_plans.shader_cost(Variant(2, spectral=False, vary_thickness=False, display=False))
+    c = cost_model.shader_cost(Variant(2, spectral=False, vary_thickness=False, display=False))
     assert c.floats_fetched == 2 * 6 * 3 and c.variant == (2, False, False)
     # l ≤ 2: bands 1 and 2 turned straight from the frame rows (tf_local_coefficients_direct):
     # band 1 two 3-term vec3 sums (18), band 2 the Q entries (21), Q z and Q x (54), three
@@ -235,8 +236,8 @@ def test_shader_cost_follows_the_documented_formula():
 def test_sh_order_follows_roughness_and_sets_the_variant():
     rough = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.9)
     smooth = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)
-    mr, ms = effects_plans.material_plan(rough), effects_plans.material_plan(smooth)
-    assert mr.plan.sh_order < ms.plan.sh_order == effects_plans.MAX_ORDER
+    mr, ms = plans_plans.material_plan(rough), plans_plans.material_plan(smooth)
+    assert mr.plan.sh_order < ms.plan.sh_order == plans_plans.MAX_ORDER
     assert "roughness 0.9" in mr.reasons["sh_order"]
     assert dict(mr.shader.defines)["TF_L_MAX"] == str(mr.plan.sh_order)
     assert mr.shader.multiply_adds < ms.shader.multiply_adds
@@ -244,38 +245,38 @@ def test_sh_order_follows_roughness_and_sets_the_variant():
 
 
 def test_conductor_lines_diffuse_and_multiscatter_are_detected():
-    gold = effects_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate={"metal": "gold"}))
+    gold = plans_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate={"metal": "gold"}))
     assert gold.effects["conductor"] and "absorbing substrate" in gold.reasons["conductor"]
-    nk = effects_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=[0.2, 3.0]))
+    nk = plans_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=[0.2, 3.0]))
     assert nk.effects["conductor"] and not nk.effects["dispersion"]
-    glass = effects_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=1.5))
+    glass = plans_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=1.5))
     assert not glass.effects["conductor"] and not glass.effects["illuminant_lines"]
 
     fl = fast(layers=(Layer(1.45, 250.0),), substrate=1.5, illuminant="FL2")
-    mp = effects_plans.material_plan(fl)
+    mp = plans_plans.material_plan(fl)
     assert mp.effects["illuminant_lines"] and mp.line_count > 0
     assert mp.wavelength_nodes == FAST.wavelength_count + mp.line_count
     assert bake.bake(fl).wavelengths_nm.size == mp.wavelength_nodes
 
-    diffuse = effects_plans.material_plan(
+    diffuse = plans_plans.material_plan(
         fast(layers=(Layer(1.45, 250.0),), substrate=1.5, base_color=(0.5, 0.2, 0.1))
     )
     assert diffuse.effects["diffuse_base"] and diffuse.table_shape == glass.table_shape
 
     assert glass.effects["multiscatter"]
     film = (Layer(1.45, 250.0),)
-    assert not effects_plans.material_plan(fast(layers=film, multiscatter="none")).effects["multiscatter"]
-    assert not effects_plans.material_plan(fast(layers=film, roughness=0.0)).effects["multiscatter"]
+    assert not plans_plans.material_plan(fast(layers=film, multiscatter="none")).effects["multiscatter"]
+    assert not plans_plans.material_plan(fast(layers=film, roughness=0.0)).effects["multiscatter"]
 
 
 def test_every_choice_has_a_reason_and_the_text_shows_them():
     m = Material(
         layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.5, thickness_range_nm=(100.0, 700.0)
     )
-    mp = effects_plans.material_plan(m)
-    assert list(mp.effects) == list(effects_plans.EFFECTS)
+    mp = plans_plans.material_plan(m)
+    assert list(mp.effects) == list(plans_plans.EFFECTS)
     for name in (
-        *effects_plans.EFFECTS,
+        *plans_plans.EFFECTS,
         "sh_order",
         "view_samples",
         "thickness_samples",
@@ -286,13 +287,13 @@ def test_every_choice_has_a_reason_and_the_text_shows_them():
         "colour_mode",
     ):
         assert mp.reasons.get(name), name
-    text = effects_plans.format_plan(mp, "Soap")
+    text = plan_text.format_plan(mp, "Soap")
     for needle in (
         "material 'Soap'",
         "thickness_axis on",
         "stack off",
         "float32",
-        f"SH order {effects_plans.MAX_ORDER}",
+        f"SH order {plans_plans.MAX_ORDER}",
         "bake ≈",
         "multiply-adds",
         "why:",
@@ -306,24 +307,22 @@ def test_every_choice_has_a_reason_and_the_text_shows_them():
 # Scene plan
 # ----------------------------------------------------------------------------------------------
 def test_an_empty_scene_plans_nothing():
-    sp = effects_plans.scene_plan({}, world_coeffs=np.ones((81, 3)))
+    sp = plans_plans.scene_plan({}, world_coeffs=np.ones((81, 3)))
     assert sp.empty and sp.tables == {} and sp.table_bytes == 0 and sp.bake_seconds == 0.0
-    assert "nothing is baked or drawn" in effects_plans.format_plan(sp)
+    assert "nothing is baked or drawn" in plan_text.format_plan(sp)
 
 
 def test_equal_materials_share_one_table_and_kernels_are_charged_once():
     a = fast(layers=(Layer(1.33, 400.0),), substrate=1.5)
     b = fast(layers=(Layer(1.33, 420.0),), substrate=1.5)  # same roughness and quality: same kernel
-    sp = effects_plans.scene_plan({"A": a, "A.001": a, "B": b})
-    assert len(sp.tables) == 2 and sp.tables[effects_plans.material_plan(a).key] == ("A", "A.001")
+    sp = plans_plans.scene_plan({"A": a, "A.001": a, "B": b})
+    assert len(sp.tables) == 2 and sp.tables[plans_plans.material_plan(a).key] == ("A", "A.001")
     assert sp.bake_seconds_each["A.001"] == 0.0
     assert sp.table_bytes == sp.materials["A"].table_bytes + sp.materials["B"].table_bytes
-    alone = effects_plans.material_plan(b).bake_seconds
+    alone = plans_plans.material_plan(b).bake_seconds
     assert sp.bake_seconds_each["B"] < 0.5 * alone  # its kernel was computed for A
-    assert "A.001" in effects_plans.format_plan(
-        sp
-    ) and "shares the table of 'A'" in effects_plans.format_plan(sp)
-    cached = effects_plans.scene_plan({"A": a, "B": b}, cached={sp.materials["A"].key})
+    assert "A.001" in plan_text.format_plan(sp) and "shares the table of 'A'" in plan_text.format_plan(sp)
+    cached = plans_plans.scene_plan({"A": a, "B": b}, cached={sp.materials["A"].key})
     assert cached.bake_seconds_each["A"] == 0.0 and "already cached" in cached.reasons["cache"]
     assert len(sp.variants) == 1  # one compiled shader for all three
 
@@ -339,22 +338,21 @@ def _world_with_bands(energies) -> np.ndarray:
 
 def test_world_order_is_the_highest_material_order_and_the_content_order_is_reported():
     smooth_world = _world_with_bands([1.0, 0.05, 0.003] + [0.0] * 6)  # tail above l = 1: 0.3 %
-    assert effects_plans.world_content_order(smooth_world)[0] == 1
+    assert plans_plans.world_content_order(smooth_world)[0] == 1
     detailed_world = _world_with_bands([1.0] + [0.1] * 8)  # 10 % per band up to l = 8
-    assert effects_plans.world_content_order(detailed_world)[0] == 8
-    assert effects_plans.world_content_order(np.zeros((81, 3)))[0] == 0
+    assert plans_plans.world_content_order(detailed_world)[0] == 8
+    assert plans_plans.world_content_order(np.zeros((81, 3)))[0] == 0
 
     low = fast(layers=(Layer(1.33, 400.0),), substrate=1.5)  # sh_order 2
-    sp = effects_plans.scene_plan({"low": low}, world_coeffs=smooth_world)
+    sp = plans_plans.scene_plan({"low": low}, world_coeffs=smooth_world)
     assert (sp.world_content_order, sp.world_order) == (1, 2)  # the material needs 2
-    sp = effects_plans.scene_plan({"low": low}, world_coeffs=detailed_world)
+    sp = plans_plans.scene_plan({"low": low}, world_coeffs=detailed_world)
     # The draw windows the World to each material's l_max: a detailed World is drawn at 2 here.
     assert sp.world_order == 2 and "World SH order 2" in sp.reasons["world"]
     assert sp.world_content_order == 8
     high = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)  # needs the cap
     assert (
-        effects_plans.scene_plan({"high": high}, world_coeffs=smooth_world).world_order
-        == effects_plans.MAX_ORDER
+        plans_plans.scene_plan({"high": high}, world_coeffs=smooth_world).world_order == plans_plans.MAX_ORDER
     )
 
 
@@ -362,8 +360,8 @@ def test_world_order_is_the_highest_material_order_and_the_content_order_is_repo
 # Bake-time estimate
 # ----------------------------------------------------------------------------------------------
 def _clear_caches():
-    bake.microfacet_kernel.cache_clear()
-    bake.diffuse_kernel.cache_clear()
+    kernel.microfacet_kernel.cache_clear()
+    kernel.diffuse_kernel.cache_clear()
     brdf.ggx_E.cache_clear()
     brdf.ggx_E_avg.cache_clear()
 
@@ -417,7 +415,7 @@ def test_estimated_bake_time_is_within_3x_of_the_measured_time():
     measured, estimated, previous = [], [], None
     for _name, material, cold in cases:
         material = material or previous
-        mp = effects_plans.material_plan(material, kernel_cold=cold, order_kernel_cold=False)
+        mp = plans_plans.material_plan(material, kernel_cold=cold, order_kernel_cold=False)
         best = math.inf
         # Each bake is repeatable (a cold one after clearing the caches): keep the least disturbed.
         for _ in range(2 if cold else 3):
@@ -442,9 +440,9 @@ def test_estimated_bake_time_is_within_3x_of_the_measured_time():
 @pytest.mark.parametrize("thickness", [100.0, 400.0, 1600.0])
 def test_estimated_u_degree_is_within_two_ladder_steps_of_the_bakes_choice(thickness):
     m = fast(layers=(Layer(1.33, thickness),), substrate=1.0)
-    mp = effects_plans.material_plan(m)
+    mp = plans_plans.material_plan(m)
     chosen = bake.bake(m).u_nodes
-    ladder = bake.U_DEGREE_LADDER
+    ladder = planner.U_DEGREE_LADDER
     assert abs(ladder.index(mp.u_degree) - ladder.index(chosen)) <= 2, (mp.u_degree, chosen)
     assert mp.u_tried == ladder[: ladder.index(mp.u_degree) + 1]
 
@@ -671,8 +669,8 @@ def test_a_constant_thickness_rough_film_is_costed_as_its_grid():
     (policy.uses_grid): the plan's shader cost is the grid's four fetches, the same at every
     order, not the per-pixel l = 12 sum it replaced; a varying thickness keeps that sum."""
     film = Layer(1.33, 400.0)
-    rough = effects_plans.material_plan(Material(layers=(film,), substrate=1.5, roughness=0.6))
-    vary = effects_plans.material_plan(
+    rough = plans_plans.material_plan(Material(layers=(film,), substrate=1.5, roughness=0.6))
+    vary = plans_plans.material_plan(
         Material(layers=(film,), substrate=1.5, roughness=0.6, thickness_range_nm=(300.0, 500.0))
     )
     assert rough.plan.sh_order == vary.plan.sh_order >= policy.GRID_MIN_L
@@ -681,7 +679,7 @@ def test_a_constant_thickness_rough_film_is_costed_as_its_grid():
     grid = rough.shader.stages["grid"]
     assert grid[1] == 4 and "sh" not in rough.shader.stages and "radiance grid" in rough.reasons["shader"]
     assert 10 * rough.shader.multiply_adds < vary.shader.multiply_adds  # the grid's whole point
-    lower = effects_plans.material_plan(
+    lower = plans_plans.material_plan(
         Material(layers=(film,), substrate=1.5, roughness=0.6, quality=Quality(sh_order=6))
     )
     assert lower.shader.stages["grid"] == grid  # not the order's

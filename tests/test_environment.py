@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from precompute.sh import harmonics
+from precompute.sh import projection
 from precompute.world import environment, hdri, lamps, prefilter
 
 H, W = 32, 64
@@ -35,7 +35,7 @@ def power(img):
 
 
 def analyse(img):
-    return environment.analyse_world(img, harmonics.project_equirect(img, L_MAX), l_max=L_MAX, width=W)
+    return environment.analyse_world(img, projection.project_equirect(img, L_MAX), l_max=L_MAX, width=W)
 
 
 def test_rest_plus_lamps_keeps_every_watt_in_power_and_in_sh():
@@ -50,7 +50,7 @@ def test_rest_plus_lamps_keeps_every_watt_in_power_and_in_sh():
     # the SH without the lamps is the SH of the rest (projection is linear)
     np.testing.assert_allclose(
         env.sh_without_lamps,
-        harmonics.project_equirect(rest, L_MAX),
+        projection.project_equirect(rest, L_MAX),
         rtol=1e-9,
         atol=1e-12 * power(img).max(),
     )
@@ -61,7 +61,7 @@ def test_lamp_sh_is_the_sh_of_the_masked_image():
     img = with_suns(sky())
     env = analyse(img)
     masked = np.where(env.lamp_mask[..., None], img, 0.0)
-    np.testing.assert_array_equal(env.lamp_sh, harmonics.project_equirect(masked, L_MAX))
+    np.testing.assert_array_equal(env.lamp_sh, projection.project_equirect(masked, L_MAX))
     assert env.lamp_sh.shape == ((L_MAX + 1) ** 2, 3) and env.l_max == L_MAX
 
 

@@ -19,8 +19,8 @@ import math
 import numpy as np
 import pytest
 
-from precompute.bakes import bake
-from precompute.colour import film_channels, film_colour, spectra
+from precompute.bakes import bake, kernel, planner
+from precompute.colour import film_channels, film_colour, rgb_spaces, spectra
 from precompute.colour.colour_difference import delta_e_2000
 from precompute.materials.material import Layer, Material, Quality
 from precompute.optics import belcour2017, reflectance
@@ -56,7 +56,7 @@ def test_airy_series_to_all_orders_is_the_exact_film(film, substrate):
 
 def test_sensitivity_table_is_its_discrete_fourier_sum_and_close_to_the_integral():
     table = film_channels.sensitivity(SPACE).table
-    lam, s = spectra.channel_sensitivities(SPACE)
+    lam, s = rgb_spaces.channel_sensitivities(SPACE)
     spline = belcour2017.natural_cubic_spline(lam, s)
     df = 1.0 / (2.0 * belcour2017.OPD_MAX_NM)
     f = np.arange(1, belcour2017.FREQUENCY_SAMPLES) * df  # f = 0 (λ = ∞) contributes nothing
@@ -110,7 +110,7 @@ def test_white_furnace_matches_direct_spectral_integration_of_the_same_method(fi
     ours = film_colour.white_reflectance(material, d, cos)
     wl = spectra.wavelength_grid(4700)  # 0.1 nm cells: the direct integral is converged
     direct = _direct_three_orders(
-        film_channels.cycles_stack(material), cos, d, wl, spectra.channel_weights(wl)
+        film_channels.cycles_stack(material), cos, d, wl, rgb_spaces.channel_weights(wl)
     )
     de = delta_e_2000(ours.reshape(-1, 3), direct.reshape(-1, 3), xyz="E")
     # The two differ only by the table's frequency sampling (≤ 2e-3 per term) and its linear
@@ -173,18 +173,18 @@ def test_generic_per_channel_path_is_exact_optics_with_cycles_sensitivities():
     )
     cos = np.linspace(0.1, 1.0, 7)
     ours = film_colour.white_reflectance(material, 150.0, cos)
-    wl = spectra.wavelength_grid(bake.plan(material).wavelength_count)
+    wl = spectra.wavelength_grid(planner.plan(material).wavelength_count)
     r = reflectance(material.indices(), [150.0, 90.0], wl, cos)
-    np.testing.assert_allclose(ours, np.clip(r @ spectra.channel_weights(wl, SPACE), 0, 1), atol=1e-12)
+    np.testing.assert_allclose(ours, np.clip(r @ rgb_spaces.channel_weights(wl, SPACE), 0, 1), atol=1e-12)
 
 
 def test_per_channel_white_is_one_in_every_channel_without_adaptation():
     wl = spectra.wavelength_grid(97)
-    np.testing.assert_allclose(spectra.channel_weights(wl).sum(axis=0), 1.0, atol=1e-14)
+    np.testing.assert_allclose(rgb_spaces.channel_weights(wl).sum(axis=0), 1.0, atol=1e-14)
     # No chromatic adaptation: the rows are Rec.709's own XYZ → RGB matrix (D65-relative XYZ).
-    m = spectra.scene_linear_matrix(SPACE)
+    m = rgb_spaces.scene_linear_matrix(SPACE)
     np.testing.assert_allclose(m @ [0.95047, 1.0, 1.08883], 1.0, atol=5e-4)  # D65, to its 4 digits
-    assert not np.allclose(m, spectra.xyz_to_rgb_matrix(SPACE), atol=1e-3)
+    assert not np.allclose(m, rgb_spaces.xyz_to_rgb_matrix(SPACE), atol=1e-3)
 
 
 def test_diffuse_base_is_layered_as_in_cycles_principled():
@@ -202,7 +202,7 @@ def test_diffuse_base_is_layered_as_in_cycles_principled():
     with_base = bake.bake(film.with_(base_color=grey))
     without = bake.bake(film)
     diffuse = (with_base.data - without.data)[0, :, 0, :] * math.sqrt(4.0 * math.pi)  # white World, L = 1
-    cos_o = bake.view_cosines(q.view_samples)
+    cos_o = kernel.view_cosines(q.view_samples)
     film_o = film_channels.fourier_reflectance(film, film_channels.cycles_stack(film), 400.0, cos_o)
     weight = bake.layering_weight(film, film_o[None], cos_o)[0]
     np.testing.assert_allclose(diffuse, np.outer(weight, grey), rtol=1e-6, atol=1e-9)

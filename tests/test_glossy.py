@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from precompute import optics
-from precompute.bakes import bake
-from precompute.colour import film_colour, spectra
+from precompute.bakes import bake, planner
+from precompute.colour import film_colour, rgb_spaces
 from precompute.materials.material import Layer, Material, Quality
 from precompute.output import image_io, render
 from precompute.shading import split_sum
@@ -38,7 +38,7 @@ def sky_with_sun(path, width=1024):
 
 
 def luminance(rgb):
-    return rgb @ spectra.rgb_to_xyz_matrix("Linear Rec.709")[1]
+    return rgb @ rgb_spaces.rgb_to_xyz_matrix("Linear Rec.709")[1]
 
 
 def peak(image, mask):
@@ -74,7 +74,7 @@ def test_mirror_soap_film_shows_the_sun_where_cycles_does_with_the_film_colour(t
     # from the physics, ours 0.033). Energy to 20 %. The wrong film angle (θ ± 10°) or a white
     # highlight would be off by > 0.1.
     cos_i = float(np.dot(n, SUN_DIR))
-    p = bake.plan(result.material)
+    p = planner.plan(result.material)
     wl, g = bake.spectral_quadrature(p.wavelength_count, "Linear Rec.709", "E", "per_channel")
     r = optics.reflectance(result.material.indices(), [thickness], wl, [cos_i])
     film = bake.clamp_film_rgb(np.einsum("uw,wkc->ukc", r, g), "per_channel")[0].diagonal()

@@ -20,7 +20,7 @@ from precompute.bakes import bake
 from precompute.colour import film_colour
 from precompute.materials.material import Layer, Material, Quality
 from precompute.output import image_io, render
-from precompute.sh import harmonics
+from precompute.sh import projection
 from precompute.shading import codegen, policy, sh_rotation, sh_sum, split_sum
 from precompute.shading import lamps as lamp_shading
 from precompute.shading.variant import Variant
@@ -80,7 +80,7 @@ def world_sh(l_max: int = 12, seed: int = 3) -> np.ndarray:
     )
     rng = np.random.default_rng(seed)
     img = img * (1.0 + 0.1 * rng.random((1, 1, 3)))
-    return harmonics.project_equirect(img, l_max), img
+    return projection.project_equirect(img, l_max), img
 
 
 def unit(a):
@@ -873,7 +873,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     direction with the film table (uniform buffer, or the texture). Split: the lamps' weight
     follows the level blend (split_sum.lamp_weight_at); SH alone (no prefiltered World): weight 1.
     """
-    from precompute.sh import harmonics
+    from precompute.sh import projection
     from precompute.world import lamps, prefilter
 
     result = baked(5, colour_mode, False)
@@ -884,7 +884,7 @@ def test_lamps_variant_matches_numpy_per_pixel(gd, colour_mode, weight, split, f
     img[20, 10] = (1.5e4, 2e4, 2.6e4)
     found, mask = lamps.extract(img)
     assert found.count == 2
-    rest_coeffs = harmonics.project_equirect(lamps.remove(img, mask), 12)
+    rest_coeffs = projection.project_equirect(lamps.remove(img, mask), 12)
     lighting = gd.resources.Lighting.from_sh(rest_coeffs, 5, result.material.roughness, found)
     film = film_colour.film_table(result)
     full = prefilter.prefilter(img, width=64, lamp_mask=mask)

@@ -456,12 +456,12 @@ THICKNESS_TOLERANCE = (-0.03, 0.005)
 
 
 def _normal_incidence_rgb(thickness_nm, n_film=SOAP_N, substrate=1.0):
-    from precompute.colour import spectra
+    from precompute.colour import rgb_spaces, spectra
     from precompute.optics import reflectance
 
     wl = spectra.wavelength_grid(471)  # 1 nm bins over 360–830 nm
     r = reflectance([1.0, n_film, substrate], [thickness_nm], wl, [1.0])[0]
-    return spectra.xyz_to_rgb_matrix("Linear Rec.709") @ spectra.spectrum_to_xyz(r, wl), r, wl
+    return rgb_spaces.xyz_to_rgb_matrix("Linear Rec.709") @ spectra.spectrum_to_xyz(r, wl), r, wl
 
 
 def test_reference_spectrum_peaks_at_the_first_order_condition():

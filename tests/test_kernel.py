@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from precompute import brdf
-from precompute.bakes import bake, kernel, quadrature
+from precompute.bakes import kernel, planner, quadrature
 from precompute.sh import harmonics
 
 
@@ -34,7 +34,7 @@ def test_nonnegative_m_rows_are_the_basis_columns(l_max):
     rng = np.random.default_rng(l_max)
     d = rng.normal(size=(300, 3))
     w = rng.random(300)
-    full = harmonics.basis(l_max, d)[:, bake.coefficient_indices(l_max)]
+    full = harmonics.basis(l_max, d)[:, kernel.coefficient_indices(l_max)]
     np.testing.assert_allclose(harmonics.basis_nonnegative_m(l_max, d, w), (full * w[:, None]).T, atol=1e-13)
     np.testing.assert_allclose(harmonics.basis_nonnegative_m(l_max, d), full.T, atol=1e-13)
 
@@ -56,4 +56,4 @@ def test_one_view_of_the_kernel_fits_between_two_checkpoints():
     from precompute.materials.material import MAX_SH_ORDER
 
     k = len(kernel.coefficient_indices(MAX_SH_ORDER))
-    assert kernel.N_THETA * kernel.N_PHI * k * max(bake.U_DEGREE_LADDER) <= chunks.KERNEL_CHUNK
+    assert kernel.N_THETA * kernel.N_PHI * k * max(planner.U_DEGREE_LADDER) <= chunks.KERNEL_CHUNK

@@ -90,7 +90,7 @@ def precompute():
 def test_the_vectorised_film_table_equals_the_per_row_one(precompute, preset, changes):
     """Every row, every u, both arrays: equal to float rounding (1e-12 of values ≤ ~1)."""
     material = dataclasses.replace(precompute.materials.material.preset(preset), **changes)
-    _, axis = precompute.bakes.bake.thickness_sets(material, 5)
+    _, axis = precompute.bakes.planner.thickness_sets(material, 5)
     ndim = 4 if material.colour_mode == "per_channel" else 5
     result = types.SimpleNamespace(material=material, thicknesses_nm=axis, data=np.zeros((1,) * ndim))
     table = precompute.colour.film_colour.film_table(result, samples=64)
@@ -124,7 +124,7 @@ def test_the_film_table_of_a_material_is_its_bakes(precompute, preset, mode):
     np.testing.assert_allclose(exact.reflectance, swept.reflectance, rtol=0, atol=1e-12)
     np.testing.assert_allclose(exact.multiscatter, swept.multiscatter, rtol=0, atol=1e-12)
     fresh = precompute.colour.film_colour.film_table(result, samples=81)
-    above = np.linspace(0.0, 1.0, 81) >= precompute.bakes.bake.U_TEST_MIN
+    above = np.linspace(0.0, 1.0, 81) >= precompute.bakes.planner.U_TEST_MIN
     np.testing.assert_allclose(fresh.reflectance[:, above], exact.reflectance[:, above], rtol=0, atol=2e-6)
     np.testing.assert_allclose(fresh.multiscatter, exact.multiscatter, rtol=0, atol=1e-5)
     assert np.abs(fresh.reflectance - exact.reflectance).max() < 0.05  # the grazing end: extrapolated

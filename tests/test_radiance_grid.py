@@ -158,12 +158,12 @@ def test_a_turned_and_scaled_world_reads_the_content_grid():
     L(d) = s · L_c(Q d) (the lighting buffer's turn and strength): at the content grid's nodes
     exactly the per-pixel SH of the turned World's own coefficients (sh.rotate), so a Strength
     or rotation edit needs no new grid."""
-    from precompute.sh import harmonics
+    from precompute.sh import rotations
 
     result = rough_table(0.3)
     content = windowed_world(result)
     q, s = turn(1.1, [0.3, -0.5, 0.8]), 2.5
-    world = s * harmonics.rotate(content, q.T)  # coefficients of d ↦ s L_c(Q d)
+    world = s * rotations.rotate(content, q.T)  # coefficients of d ↦ s L_c(Q d)
     grid = grid_of(result)  # built from the content
     shape = policy.grid_shape(result.data.shape[1])
     n, v = radiance_grid.cell_geometry(shape)  # nodes, in the content's frame

@@ -8,7 +8,7 @@ import pytest
 from precompute.bakes import bake
 from precompute.materials.material import Layer, Material, Quality
 from precompute.output import image_io, render
-from precompute.sh import harmonics
+from precompute.sh import harmonics, projection, rotations
 from precompute.shading import frame as shading_frame
 from precompute.shading import policy, sh_rotation, sh_sum, split_sum, table
 
@@ -46,7 +46,7 @@ def test_zyz_rotation_equals_general_rotation_including_poles(l_max):
     world = rng.normal(size=((l_max + 1) ** 2, 3))
     fast = sh_rotation.local_coefficients(world, frames, l_max)
     for p in range(frames.shape[0]):
-        expected = harmonics.rotation(l_max, frames[p]) @ world
+        expected = rotations.rotation(l_max, frames[p]) @ world
         # Rows 2–3 tilt 1e-9 off the pole, below GIMBAL_SIN: treated as the pole, they err by
         # O(tilt · l) ≈ 1e-8; every other frame, exact poles included, agrees to rounding.
         tol = 1e-7 if p in (2, 3) else 1e-10
@@ -107,7 +107,7 @@ def test_sh_render_converges_to_ground_truth_for_a_rough_film():
     image = np.stack(
         [1 + 0.8 * d[..., 2], 1 + 0.5 * d[..., 0], 1 - 0.3 * d[..., 1]], -1
     )  # band-limited, l ≤ 1
-    coeffs = harmonics.project_equirect(image, 8)
+    coeffs = projection.project_equirect(image, 8)
     rng = np.random.default_rng(5)
     n = random_unit(rng, 12)
     v = shading_frame.view_aligned_frame(n, random_unit(rng, 12))[:, 0] * 0.6 + n * 0.8
@@ -139,7 +139,7 @@ def test_hdr_sun_of_1e5_stays_finite_and_firefly_free():
         layers=(Layer(1.33, 450.0),), roughness=0.3, quality=Quality(sh_order=8, view_samples=16)
     )
     result = bake.bake(material)
-    coeffs = harmonics.project_equirect(image, 8) * policy.lighting_window(8, 0.3)[:, None]
+    coeffs = projection.project_equirect(image, 8) * policy.lighting_window(8, 0.3)[:, None]
     rng = np.random.default_rng(11)
     n = random_unit(rng, 400)
     v = shading_frame.view_aligned_frame(n, random_unit(rng, 400))[:, 0] * 0.5 + n

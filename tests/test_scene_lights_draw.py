@@ -17,7 +17,7 @@ from test_gpu_draw import PROJ, SIZE, VIEW, baked, gd, quad_pixels, tilted_quad_
 
 from precompute.colour import film_colour
 from precompute.output import render
-from precompute.sh import harmonics
+from precompute.sh import projection
 from precompute.shading import lights as light_shading
 from precompute.shading import sh_sum
 
@@ -150,7 +150,7 @@ def test_no_lights_no_loop(gd):  # noqa: F811
     item = tilted_quad_item(
         gd,
         gd.resources.TableTexture.from_result(result),
-        gd.resources.Lighting.from_sh(harmonics.project_equirect(np.ones((8, 16, 3)), 5), 5, 0.3),
+        gd.resources.Lighting.from_sh(projection.project_equirect(np.ones((8, 16, 3)), 5), 5, 0.3),
     )
     item.film = gd.resources.FilmTexture.from_film(film_colour.film_table(result))
     (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups

@@ -16,7 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import sph_harm_y
 
-from precompute.sh import harmonics
+from precompute.sh import harmonics, projection, rotations, windows
+from precompute.sh import zonal as harmonics_zonal
 from precompute.world import hdri
 
 L_MAX = 8
@@ -80,17 +81,17 @@ def rotated_projection_error(l_max: int, rot: np.ndarray, seed: int = 0) -> floa
     dirs, weights = gauss_sphere(2 * l_max)
     # Row vectors: (R⁻¹ d)ᵀ = dᵀ R for orthogonal R.
     f_turned = harmonics.basis(l_max, dirs @ rot) @ c
-    projected = harmonics.project(l_max, dirs, f_turned, weights)
-    return float(np.max(np.abs(projected - harmonics.rotation(l_max, rot) @ c)))
+    projected = projection.project(l_max, dirs, f_turned, weights)
+    return float(np.max(np.abs(projected - rotations.rotation(l_max, rot) @ c)))
 
 
 def ir_general_path(l_max: int, rot: np.ndarray) -> np.ndarray:
     """The Ivanic–Ruedenberg recurrence forced, bypassing the z fast path."""
-    r1 = harmonics._band1_ivanic_ruedenberg(rot)
+    r1 = rotations._band1_ivanic_ruedenberg(rot)
     bands = [np.ones((1, 1)), r1]
     for l in range(2, l_max + 1):
-        bands.append(harmonics._ivanic_ruedenberg_band(l, r1, bands[-1]))
-    return harmonics._block_diagonal(bands[: l_max + 1])
+        bands.append(rotations._ivanic_ruedenberg_band(l, r1, bands[-1]))
+    return rotations._block_diagonal(bands[: l_max + 1])
 
 
 def real_sh_from_scipy(l: int, m: int, theta, phi) -> np.ndarray:
@@ -197,8 +198,8 @@ def test_project_and_evaluate_round_trip_shapes():
     c = rng.normal(size=(25, 3))
     vals = harmonics.evaluate(c, dirs)
     assert vals.shape == (dirs.shape[0], 3)
-    assert np.max(np.abs(harmonics.project(4, dirs, vals, weights) - c)) <= 1e-12
-    one = harmonics.project(4, dirs, vals[:, 0], weights)
+    assert np.max(np.abs(projection.project(4, dirs, vals, weights) - c)) <= 1e-12
+    one = projection.project(4, dirs, vals[:, 0], weights)
     assert one.shape == (25,)
     assert np.max(np.abs(one - c[:, 0])) <= 1e-12
 
@@ -239,13 +240,13 @@ def test_rotation_identity_random(q):
 
 @pytest.mark.parametrize("name", sorted(NAMED_ROTATIONS))
 def test_rotation_matrices_orthogonal(name):
-    m = harmonics.rotation(L_MAX, NAMED_ROTATIONS[name])
+    m = rotations.rotation(L_MAX, NAMED_ROTATIONS[name])
     assert np.max(np.abs(m @ m.T - np.eye(m.shape[0]))) <= 1e-12
 
 
 def test_rotation_orthogonal_at_high_band():
     # The recurrence accumulates rounding band by band; at l = 16 it is still ~1e-14.
-    m = harmonics.rotation(16, NAMED_ROTATIONS["generic"])
+    m = rotations.rotation(16, NAMED_ROTATIONS["generic"])
     assert np.max(np.abs(m @ m.T - np.eye(m.shape[0]))) <= 1e-10
     assert rotated_projection_error(12, NAMED_ROTATIONS["gimbal_z_y-90_x"]) <= 1e-10
 
@@ -253,16 +254,16 @@ def test_rotation_orthogonal_at_high_band():
 def test_rotation_composition():
     r1 = NAMED_ROTATIONS["generic"]
     r2 = NAMED_ROTATIONS["gimbal_z_y-90_x"]
-    lhs = harmonics.rotation(L_MAX, r1 @ r2)
-    rhs = harmonics.rotation(L_MAX, r1) @ harmonics.rotation(L_MAX, r2)
+    lhs = rotations.rotation(L_MAX, r1 @ r2)
+    rhs = rotations.rotation(L_MAX, r1) @ rotations.rotation(L_MAX, r2)
     assert np.max(np.abs(lhs - rhs)) <= 1e-12
-    inverse = harmonics.rotation(L_MAX, r1.T)
-    assert np.max(np.abs(inverse - harmonics.rotation(L_MAX, r1).T)) <= 1e-12
+    inverse = rotations.rotation(L_MAX, r1.T)
+    assert np.max(np.abs(inverse - rotations.rotation(L_MAX, r1).T)) <= 1e-12
 
 
 def test_rotation_is_block_diagonal():
-    m = harmonics.rotation(L_MAX, NAMED_ROTATIONS["generic"])
-    bands = harmonics.rotation_bands(L_MAX, NAMED_ROTATIONS["generic"])
+    m = rotations.rotation(L_MAX, NAMED_ROTATIONS["generic"])
+    bands = rotations.rotation_bands(L_MAX, NAMED_ROTATIONS["generic"])
     for l, block in enumerate(bands):
         assert block.shape == (2 * l + 1, 2 * l + 1)
         sl = slice(l * l, (l + 1) ** 2)
@@ -275,10 +276,10 @@ def test_rotation_is_block_diagonal():
 @pytest.mark.parametrize("angle", [0.0, 0.3, -1.2, np.pi, 2.5 * np.pi])
 def test_z_fast_path_equals_general_path(angle):
     rz = axis_angle([0, 0, 1], angle)
-    fast = harmonics.rotation_z(L_MAX, angle)
+    fast = rotations.rotation_z(L_MAX, angle)
     assert np.max(np.abs(fast - ir_general_path(L_MAX, rz))) <= 1e-12
     # rotation() dispatches to the fast path for pure z turns and gives the same matrix.
-    assert np.max(np.abs(harmonics.rotation(L_MAX, rz) - fast)) <= 1e-14
+    assert np.max(np.abs(rotations.rotation(L_MAX, rz) - fast)) <= 1e-14
     assert rotated_projection_error(L_MAX, rz) <= 1e-10
 
 
@@ -286,16 +287,16 @@ def test_rotate_applies_band_by_band():
     rng = np.random.default_rng(5)
     c = rng.normal(size=((L_MAX + 1) ** 2, 3))
     r = NAMED_ROTATIONS["generic"]
-    assert np.max(np.abs(harmonics.rotate(c, r) - harmonics.rotation(L_MAX, r) @ c)) <= 1e-12
-    assert np.max(np.abs(harmonics.rotate(c[:, 0], r) - harmonics.rotation(L_MAX, r) @ c[:, 0])) <= 1e-12
+    assert np.max(np.abs(rotations.rotate(c, r) - rotations.rotation(L_MAX, r) @ c)) <= 1e-12
+    assert np.max(np.abs(rotations.rotate(c[:, 0], r) - rotations.rotation(L_MAX, r) @ c[:, 0])) <= 1e-12
 
 
 def test_rotating_a_lobe_moves_it():
     # A zonal lobe about +z turned by R points along R e_z (checks the f∘R⁻¹ direction).
     zonal = np.array([1.0, 0.8, 0.5, 0.2])
     r = NAMED_ROTATIONS["generic"]
-    turned = harmonics.rotate(harmonics.zonal_rotation(zonal, [0, 0, 1]), r)
-    assert np.max(np.abs(turned - harmonics.zonal_rotation(zonal, r @ [0.0, 0.0, 1.0]))) <= 1e-12
+    turned = rotations.rotate(harmonics_zonal.zonal_rotation(zonal, [0, 0, 1]), r)
+    assert np.max(np.abs(turned - harmonics_zonal.zonal_rotation(zonal, r @ [0.0, 0.0, 1.0]))) <= 1e-12
 
 
 # ----------------------------------------------------------------------------------------------
@@ -307,12 +308,12 @@ def test_constant_environment_gives_pi():
     c = np.zeros((L_MAX + 1) ** 2)
     c[0] = math.sqrt(4.0 * math.pi)  # L ≡ 1: L_00 = ∫ Y_00 dω = 4π/√(4π)
     rng = np.random.default_rng(6)
-    e = harmonics.evaluate(harmonics.irradiance_coefficients(c), random_directions(rng, 100))
+    e = harmonics.evaluate(harmonics_zonal.irradiance_coefficients(c), random_directions(rng, 100))
     assert np.max(np.abs(e - math.pi)) <= 1e-12
 
 
 def test_clamped_cosine_closed_forms_and_quadrature():
-    a = harmonics.clamped_cosine_zh(10)
+    a = harmonics_zonal.clamped_cosine_zh(10)
     assert a[:5] == pytest.approx([math.pi, 2 * math.pi / 3, math.pi / 4, 0.0, -math.pi / 24], abs=1e-15)
     assert np.all(a[3::2] == 0.0)
     # Â_l = √(4π/(2l+1)) · 2π ∫_0^1 z Y_l^0(z) dz; the integrand is a polynomial on [0, 1], so
@@ -329,8 +330,11 @@ def test_convolve_zonal_matches_irradiance():
     rng = np.random.default_rng(8)
     c = rng.normal(size=((L_MAX + 1) ** 2, 2))
     l = np.arange(L_MAX + 1)
-    zonal = harmonics.clamped_cosine_zh(L_MAX) / np.sqrt(4 * np.pi / (2 * l + 1))
-    assert np.max(np.abs(harmonics.convolve_zonal(c, zonal) - harmonics.irradiance_coefficients(c))) <= 1e-13
+    zonal = harmonics_zonal.clamped_cosine_zh(L_MAX) / np.sqrt(4 * np.pi / (2 * l + 1))
+    assert (
+        np.max(np.abs(harmonics_zonal.convolve_zonal(c, zonal) - harmonics_zonal.irradiance_coefficients(c)))
+        <= 1e-13
+    )
 
 
 def test_irradiance_of_point_light_converges():
@@ -341,7 +345,7 @@ def test_irradiance_of_point_light_converges():
     d /= np.linalg.norm(d)
     rng = np.random.default_rng(9)
     n = random_directions(rng, 300)
-    e = harmonics.evaluate(harmonics.irradiance_coefficients(harmonics.basis(L_MAX, d)), n)
+    e = harmonics.evaluate(harmonics_zonal.irradiance_coefficients(harmonics.basis(L_MAX, d)), n)
     assert np.max(np.abs(e - np.maximum(0.0, n @ d))) <= 0.05
 
 
@@ -357,8 +361,8 @@ def synthesised_equirect(c: np.ndarray, height: int) -> np.ndarray:
 def test_project_equirect_recovers_coefficients():
     rng = np.random.default_rng(10)
     c = rng.normal(size=((L_MAX + 1) ** 2, 3))
-    err128 = np.max(np.abs(harmonics.project_equirect(synthesised_equirect(c, 128), L_MAX) - c))
-    err256 = np.max(np.abs(harmonics.project_equirect(synthesised_equirect(c, 256), L_MAX) - c))
+    err128 = np.max(np.abs(projection.project_equirect(synthesised_equirect(c, 128), L_MAX) - c))
+    err256 = np.max(np.abs(projection.project_equirect(synthesised_equirect(c, 256), L_MAX) - c))
     # In φ the uniform column rule is exact for trigonometric degree ≤ 2 l_max = 16 < W. In θ the
     # rule (centre value × exact row solid angle) is a midpoint-type rule with error
     # ≈ Δθ²/24 · |∂²(f Y sin θ)/∂θ²| per unit length; products of degree ≤ 16 give
@@ -376,9 +380,9 @@ def test_project_equirect_equals_generic_quadrature():
     img = rng.lognormal(size=(32, 64, 3))
     dirs = hdri.equirect_directions(32, 64).reshape(-1, 3)
     weights = hdri.equirect_solid_angles(32, 64).reshape(-1)
-    generic = harmonics.project(L_MAX, dirs, img.reshape(-1, 3), weights)
-    assert np.max(np.abs(harmonics.project_equirect(img, L_MAX) - generic)) <= 1e-12
-    assert harmonics.project_equirect(img[..., 0], L_MAX).shape == ((L_MAX + 1) ** 2,)
+    generic = projection.project(L_MAX, dirs, img.reshape(-1, 3), weights)
+    assert np.max(np.abs(projection.project_equirect(img, L_MAX) - generic)) <= 1e-12
+    assert projection.project_equirect(img[..., 0], L_MAX).shape == ((L_MAX + 1) ** 2,)
 
 
 def test_pixel_solid_angles_sum_to_four_pi():
@@ -392,13 +396,13 @@ def test_project_equirect_rejects_and_counts_nonfinite():
     bad[3, 4, 1] = np.nan
     bad[5, 6, 0] = np.inf
     bad[7, 8, :] = -np.inf
-    coeffs, info = harmonics.project_equirect(bad, 4, return_info=True)
+    coeffs, info = projection.project_equirect(bad, 4, return_info=True)
     assert info["rejected_pixels"] == 3
     assert np.all(np.isfinite(coeffs))
     zeroed = img.copy()
     zeroed[3, 4] = zeroed[5, 6] = zeroed[7, 8] = 0.0
-    assert np.max(np.abs(coeffs - harmonics.project_equirect(zeroed, 4))) <= 1e-13
-    _, clean = harmonics.project_equirect(img, 4, return_info=True)
+    assert np.max(np.abs(coeffs - projection.project_equirect(zeroed, 4))) <= 1e-13
+    _, clean = projection.project_equirect(img, 4, return_info=True)
     assert clean["rejected_pixels"] == 0
 
 
@@ -409,21 +413,21 @@ def _spot_image(rows, col: int, height: int = 64, width: int = 128) -> np.ndarra
 
 
 def test_equirect_convention_centre_column_is_plus_x():
-    c = harmonics.project_equirect(_spot_image([31, 32], 64), 1)  # u = 0.5 at the horizon
+    c = projection.project_equirect(_spot_image([31, 32], 64), 1)  # u = 0.5 at the horizon
     assert c[3] > 0 and abs(c[3]) > 10 * max(abs(c[1]), abs(c[2]))
 
 
 def test_equirect_convention_quarter_column_is_plus_y():
-    c = harmonics.project_equirect(_spot_image([31, 32], 32), 1)  # u = 0.25 at the horizon
+    c = projection.project_equirect(_spot_image([31, 32], 32), 1)  # u = 0.25 at the horizon
     assert c[1] > 0 and abs(c[1]) > 10 * max(abs(c[2]), abs(c[3]))
-    c = harmonics.project_equirect(_spot_image([31, 32], 96), 1)  # u = 0.75 → −y
+    c = projection.project_equirect(_spot_image([31, 32], 96), 1)  # u = 0.75 → −y
     assert c[1] < 0
 
 
 def test_equirect_convention_top_rows_are_plus_z():
     img = np.zeros((64, 128))
     img[:4] = 1.0
-    c = harmonics.project_equirect(img, 1)
+    c = projection.project_equirect(img, 1)
     assert c[2] > 0 and abs(c[2]) > 1e6 * max(abs(c[1]), abs(c[3]))
 
 
@@ -433,13 +437,13 @@ def test_equirect_convention_top_rows_are_plus_z():
 
 
 def test_window_values():
-    h = harmonics.window(L_MAX, "hanning")
+    h = windows.window(L_MAX, "hanning")
     assert h.shape == ((L_MAX + 1) ** 2,)
     assert h[0] == 1.0
     assert np.all(np.diff(h[[l * (l + 1) for l in range(L_MAX + 1)]]) < 0)  # strictly decreasing
     assert h[-1] > 0  # default width l_max + 1 keeps the top band
-    assert np.all(harmonics.window(L_MAX, "none") == 1.0)
-    lz = harmonics.window(4, "lanczos", width=5)
+    assert np.all(windows.window(L_MAX, "none") == 1.0)
+    lz = windows.window(4, "lanczos", width=5)
     assert lz[0] == 1.0 and lz[-1] == pytest.approx(math.sin(math.pi * 4 / 5) / (math.pi * 4 / 5))
 
 
@@ -449,8 +453,8 @@ def test_window_reduces_ringing_of_delta_light(kind):
     c = harmonics.basis(L_MAX, d)  # projection of a unit delta light along +z
     dirs, _ = gauss_sphere(40)
     raw = harmonics.evaluate(c, dirs)
-    windowed = harmonics.evaluate(harmonics.apply_window(c, kind), dirs)
-    assert harmonics.apply_window(c, kind)[0] == c[0]  # l = 0 (the mean) unchanged
+    windowed = harmonics.evaluate(windows.apply_window(c, kind), dirs)
+    assert windows.apply_window(c, kind)[0] == c[0]  # l = 0 (the mean) unchanged
     # Negative lobes: both in absolute terms and relative to the (also reduced) peak.
     assert windowed.min() > raw.min()
     assert windowed.min() / windowed.max() > raw.min() / raw.max()
@@ -488,38 +492,38 @@ def test_bad_directions(directions):
 )
 def test_bad_rotation(matrix):
     with pytest.raises(ValueError, match="R"):
-        harmonics.rotation(2, matrix)
+        rotations.rotation(2, matrix)
     with pytest.raises(ValueError, match="R"):
-        harmonics.rotate(np.zeros(9), matrix)
+        rotations.rotate(np.zeros(9), matrix)
 
 
 def test_rotation_accepts_float32_level_rounding():
     r = NAMED_ROTATIONS["generic"].astype(np.float32).astype(np.float64)
-    assert harmonics.rotation(2, r).shape == (9, 9)
+    assert rotations.rotation(2, r).shape == (9, 9)
 
 
 def test_bad_window_and_coefficients():
     with pytest.raises(ValueError, match="kind"):
-        harmonics.window(4, "hamming")
+        windows.window(4, "hamming")
     with pytest.raises(ValueError, match="width"):
-        harmonics.window(4, "hanning", width=0.0)
+        windows.window(4, "hanning", width=0.0)
     with pytest.raises(ValueError, match="coeffs"):
-        harmonics.apply_window(np.zeros(10))
+        windows.apply_window(np.zeros(10))
     with pytest.raises(ValueError, match="radiance_coeffs"):
-        harmonics.irradiance_coefficients(np.zeros(5))
+        harmonics_zonal.irradiance_coefficients(np.zeros(5))
     with pytest.raises(ValueError, match="zonal"):
-        harmonics.convolve_zonal(np.zeros(9), [1.0, 2.0])
+        harmonics_zonal.convolve_zonal(np.zeros(9), [1.0, 2.0])
 
 
 def test_bad_projection_inputs():
     dirs, weights = gauss_sphere(4)
     with pytest.raises(ValueError, match="values"):
-        harmonics.project(2, dirs, np.zeros(len(dirs) + 1), weights)
+        projection.project(2, dirs, np.zeros(len(dirs) + 1), weights)
     with pytest.raises(ValueError, match="weights"):
-        harmonics.project(2, dirs, np.zeros(len(dirs)), weights[:-1])
+        projection.project(2, dirs, np.zeros(len(dirs)), weights[:-1])
     with pytest.raises(ValueError, match="image"):
-        harmonics.project_equirect(np.zeros((4, 8, 3, 2)), 2)
+        projection.project_equirect(np.zeros((4, 8, 3, 2)), 2)
     with pytest.raises(ValueError, match="cos_theta"):
         harmonics.basis_from_angles(2, 1.5, 0.0)
     with pytest.raises(ValueError, match="angle"):
-        harmonics.rotation_z(2, [0.1, 0.2])
+        rotations.rotation_z(2, [0.1, 0.2])

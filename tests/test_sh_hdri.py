@@ -27,7 +27,7 @@ from _sh_irradiance import (
     studiolight_paths,
 )
 
-from precompute.sh import harmonics
+from precompute.sh import projection
 from precompute.world import hdri
 
 #: Gate on the per-channel mean error at l_max = 8. A single point light has a 2.4 % mean
@@ -156,12 +156,13 @@ def test_downsample_conserves_power_per_block():
     # Exact up to rounding: Σ L dω over each 4×4 block equals L_out dω_out.
     np.testing.assert_allclose(small * d_small, power_big, rtol=1e-12)
     # Hence the l = 0 coefficient (Y_00 ∫ L dω) is unchanged to rounding, for any image.
-    delta = harmonics.project_equirect(small, 2)[0] - harmonics.project_equirect(img, 2)[0]
+    delta = projection.project_equirect(small, 2)[0] - projection.project_equirect(img, 2)[0]
     assert np.max(np.abs(delta)) <= 1e-12
     # A plain (unweighted) box average would not conserve it: the filter is doing real work.
     plain = img.reshape(16, 4, 32, 4, 3).mean(axis=(1, 3))
     assert (
-        np.max(np.abs(harmonics.project_equirect(plain, 0)[0] - harmonics.project_equirect(img, 0)[0])) > 1e-4
+        np.max(np.abs(projection.project_equirect(plain, 0)[0] - projection.project_equirect(img, 0)[0]))
+        > 1e-4
     )
 
 

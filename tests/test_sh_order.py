@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from precompute.bakes import bake, kernel, sh_order
+from precompute.bakes import kernel, planner, sh_order
 from precompute.materials.material import Material, Quality
 
 
@@ -49,11 +49,11 @@ def test_planning_reads_the_table_and_computes_no_kernel():
     """An automatic order for a new roughness neither computes a kernel nor projects a lobe."""
     kernel.microfacet_kernel.cache_clear()
     sh_order._band_energies.cache_clear()
-    p = bake.plan(Material(roughness=0.4137))
+    p = planner.plan(Material(roughness=0.4137))
     assert p.sh_order == sh_order.criterion_order(0.4137)[0] == 12
     assert "precomputed" in p.reasons["sh_order"]
     sh_order._band_energies.cache_clear()
-    assert bake.plan(Material(roughness=0.83)).sh_order == 6
+    assert planner.plan(Material(roughness=0.83)).sh_order == 6
     assert kernel.microfacet_kernel.cache_info().currsize == 0
     assert sh_order._band_energies.cache_info().currsize == 0
 
@@ -63,4 +63,4 @@ def test_an_explicit_target_uses_the_criterion():
     order, reason = sh_order.auto_sh_order(Material(roughness=0.9), target=0.05)
     assert order == sh_order.criterion_order(0.9, 0.05)[0]
     assert "truncation error" in reason
-    assert bake.plan(Material(roughness=0.9, quality=Quality(sh_order=3))).sh_order == 3
+    assert planner.plan(Material(roughness=0.9, quality=Quality(sh_order=3))).sh_order == 3

@@ -8,10 +8,10 @@ import colour
 import numpy as np
 import pytest
 
-from precompute.colour import spectra
+from precompute.colour import rgb_spaces, spectra
 from precompute.constants import WAVELENGTH_MAX_NM, WAVELENGTH_MIN_NM
 
-SPACES = tuple(spectra.WORKING_SPACES)
+SPACES = tuple(rgb_spaces.WORKING_SPACES)
 GRID_SIZES = (16, 64, 471)
 
 # Pure float64 arithmetic on O(1) numbers through a few hundred operations: 1e-12 leaves
@@ -182,32 +182,32 @@ def test_unknown_illuminant_lists_the_valid_names():
 @pytest.mark.parametrize("space", SPACES)
 def test_flat_spectrum_is_rgb_white(space):
     grid = spectra.wavelength_grid(64)
-    rgb = spectra.xyz_to_rgb_matrix(space) @ spectra.spectrum_to_xyz(np.ones(64), grid)
+    rgb = rgb_spaces.xyz_to_rgb_matrix(space) @ spectra.spectrum_to_xyz(np.ones(64), grid)
     np.testing.assert_allclose(rgb, 1.0, atol=1e-6)  # the brief's bound; measured ≤ 2e-15
-    np.testing.assert_allclose(spectra.rgb_to_xyz_matrix(space) @ np.ones(3), 1.0, atol=TOL_ROUNDING)
+    np.testing.assert_allclose(rgb_spaces.rgb_to_xyz_matrix(space) @ np.ones(3), 1.0, atol=TOL_ROUNDING)
 
 
 @pytest.mark.parametrize("source", SPACES)
 @pytest.mark.parametrize("target", SPACES)
 def test_rgb_to_rgb_composes_and_keeps_white(source, target):
-    m = spectra.rgb_to_rgb_matrix(source, target)
+    m = rgb_spaces.rgb_to_rgb_matrix(source, target)
     np.testing.assert_allclose(m @ np.ones(3), 1.0, atol=TOL_ROUNDING)
-    np.testing.assert_allclose(spectra.rgb_to_rgb_matrix(target, source) @ m, np.eye(3), atol=TOL_ROUNDING)
+    np.testing.assert_allclose(rgb_spaces.rgb_to_rgb_matrix(target, source) @ m, np.eye(3), atol=TOL_ROUNDING)
 
 
 def test_rec709_green_primary_chromaticity():
     # Rec.709 pure green, taken to XYZ(E) and adapted back to D65, must sit on the BT.709
     # green primary (0.30, 0.60): checks that the adaptation and the primaries are composed
     # in the right order (an order swap moves it by > 1e-3).
-    xyz_e = spectra.rgb_to_xyz_matrix("Linear Rec.709") @ np.array([0.0, 1.0, 0.0])
+    xyz_e = rgb_spaces.rgb_to_xyz_matrix("Linear Rec.709") @ np.array([0.0, 1.0, 0.0])
     d65 = colour.xy_to_XYZ(colour.RGB_COLOURSPACES["ITU-R BT.709"].whitepoint)
-    xyz_d65 = spectra.bradford_matrix(np.ones(3), d65) @ xyz_e
+    xyz_d65 = rgb_spaces.bradford_matrix(np.ones(3), d65) @ xyz_e
     np.testing.assert_allclose(xyz_d65[:2] / xyz_d65.sum(), (0.30, 0.60), atol=1e-9)
 
 
 def test_unknown_space_lists_the_valid_names():
     with pytest.raises(ValueError, match=r"space must be one of .*'ACEScg'.*'Linear Rec.709'"):
-        spectra.xyz_to_rgb_matrix("sRGB")
+        rgb_spaces.xyz_to_rgb_matrix("sRGB")
 
 
 # --------------------------------------------------------------------------------------------
@@ -246,7 +246,7 @@ def _blender_matrices():
 def test_xyz_e_to_rgb_matches_blender(space):
     e_to_d65, d65_to_rgb = _blender_matrices()
     blender = d65_to_rgb[space] @ e_to_d65
-    ours = spectra.xyz_to_rgb_matrix(space)
+    ours = rgb_spaces.xyz_to_rgb_matrix(space)
     # Relative to the matrix's largest entry. Blender's E→D65 matrix adapts to a D65 white of
     # XYZ (0.95047, 1, 1.08883) while its XYZ→RGB matrices (and colour) use xy (0.3127, 0.3290),
     # whose Z is 1.089058: a 2.1e-4 difference in one white component (see the next test),
@@ -265,9 +265,9 @@ def test_blender_matrices_explained():
     # The spimtx is Bradford(E → (0.95047, 1, 1.08883)) to its 8 printed decimals (≤ 5e-9,
     # measured 4e-9), and not Bradford(E → xy (0.3127, 0.3290)) (off by 2.3e-4).
     blender_d65 = np.array([0.95047, 1.0, 1.08883])
-    np.testing.assert_allclose(spectra.bradford_matrix(np.ones(3), blender_d65), e_to_d65, atol=1e-8)
+    np.testing.assert_allclose(rgb_spaces.bradford_matrix(np.ones(3), blender_d65), e_to_d65, atol=1e-8)
     colour_d65 = colour.xy_to_XYZ(colour.RGB_COLOURSPACES["ITU-R BT.709"].whitepoint)
-    assert np.abs(spectra.bradford_matrix(np.ones(3), colour_d65) - e_to_d65).max() > 1e-4
+    assert np.abs(rgb_spaces.bradford_matrix(np.ones(3), colour_d65) - e_to_d65).max() > 1e-4
     # Consequence: Blender maps a flat (E) spectrum to Rec.709 (1.00016, 0.99998, 0.99976).
     np.testing.assert_allclose(d65_to_rgb["Linear Rec.709"] @ e_to_d65 @ np.ones(3), 1.0, atol=3e-4)
 
@@ -281,15 +281,15 @@ def test_blender_matrices_explained():
 @pytest.mark.parametrize("count", GRID_SIZES)
 def test_rgb_basis_round_trips_exactly(space, count):
     grid = spectra.wavelength_grid(count)
-    basis = spectra.rgb_basis(grid, space)
+    basis = rgb_spaces.rgb_basis(grid, space)
     assert basis.shape == (3, count)
-    roundtrip = basis @ spectra.xyz_weights(grid) @ spectra.xyz_to_rgb_matrix(space).T
+    roundtrip = basis @ spectra.xyz_weights(grid) @ rgb_spaces.xyz_to_rgb_matrix(space).T
     np.testing.assert_allclose(roundtrip, np.eye(3), atol=1e-10)  # brief's bound; measured ≤ 5e-16
     # The issue's acceptance: RGB white → spectrum → XYZ(E) → RGB is white within 1e-4.
-    white = spectra.xyz_to_rgb_matrix(space) @ spectra.spectrum_to_xyz(np.ones(3) @ basis, grid)
+    white = rgb_spaces.xyz_to_rgb_matrix(space) @ spectra.spectrum_to_xyz(np.ones(3) @ basis, grid)
     np.testing.assert_allclose(white, 1.0, atol=1e-4)
     rgb = np.random.default_rng(count).uniform(-0.5, 4.0, (50, 3))
-    back = spectra.spectrum_to_xyz(rgb @ basis, grid) @ spectra.xyz_to_rgb_matrix(space).T
+    back = spectra.spectrum_to_xyz(rgb @ basis, grid) @ rgb_spaces.xyz_to_rgb_matrix(space).T
     np.testing.assert_allclose(back, rgb, atol=1e-10)
 
 
@@ -298,7 +298,7 @@ def test_rgb_basis_round_trips_exactly(space, count):
 def test_rgb_basis_white_is_flat(space, count):
     # Mallett & Yuksel's three curves sum to 1 within 1.0e-5 (colour's 5 nm table); the
     # correction keeps white because white already round-trips. 1e-4 bounds both.
-    basis = spectra.rgb_basis(spectra.wavelength_grid(count), space)
+    basis = rgb_spaces.rgb_basis(spectra.wavelength_grid(count), space)
     np.testing.assert_allclose(basis.sum(axis=0), 1.0, atol=1e-4)
 
 
@@ -308,7 +308,7 @@ def test_uncorrected_round_trip_is_within_a_few_percent(space, count):
     # The correction must be small (Mallett's basis is built for sRGB reflectance under D65)
     # but not nil (else it would be dead code). Measured max|T − I| 0.037–0.074.
     deviation = np.abs(
-        spectra.rgb_basis_roundtrip_matrix(spectra.wavelength_grid(count), space) - np.eye(3)
+        rgb_spaces.rgb_basis_roundtrip_matrix(spectra.wavelength_grid(count), space) - np.eye(3)
     ).max()
     assert 0.01 < deviation < 0.1
 
@@ -316,15 +316,15 @@ def test_uncorrected_round_trip_is_within_a_few_percent(space, count):
 def test_rec709_basis_is_nonnegative_on_a_fine_grid():
     # Mallett's basis is non-negative (reflectances in [0, 1]); the < 7 % correction keeps it
     # so on a 1 nm grid (measured minimum 1.7e-3). Wider gamuts go negative by design.
-    assert spectra.rgb_basis(spectra.wavelength_grid(471)).min() >= 0.0
-    assert spectra.rgb_basis(spectra.wavelength_grid(471), "Linear Rec.2020").min() < 0.0
+    assert rgb_spaces.rgb_basis(spectra.wavelength_grid(471)).min() >= 0.0
+    assert rgb_spaces.rgb_basis(spectra.wavelength_grid(471), "Linear Rec.2020").min() < 0.0
 
 
 def test_rgb_basis_rejects_bad_input():
     with pytest.raises(ValueError, match="space"):
-        spectra.rgb_basis(spectra.wavelength_grid(16), "Rec.709")
+        rgb_spaces.rgb_basis(spectra.wavelength_grid(16), "Rec.709")
     with pytest.raises(ValueError, match="wavelengths_nm"):
-        spectra.rgb_basis(np.array([[400.0, 500.0]]))
+        rgb_spaces.rgb_basis(np.array([[400.0, 500.0]]))
 
 
 # Cycles' film: XYZ → scene linear through Blender's OCIO config (PyOpenColorIO ships with bpy).
@@ -351,7 +351,7 @@ def test_scene_linear_matrix_is_blenders_xyz_to_scene_linear(bpy, space):
     assert config.hasRole("aces_interchange")  # what Cycles derives its matrix from first
     via_aces = _ocio_to_scene_linear(ocio, config, "ACES2065-1", space) @ np.linalg.inv(AP0_TO_XYZ_D65)
     via_xyz = _ocio_to_scene_linear(ocio, config, "Linear CIE-XYZ D65", space)
-    ours = spectra.scene_linear_matrix(space)
+    ours = rgb_spaces.scene_linear_matrix(space)
     # OCIO evaluates in float32 (≈ 6e-8 relative) and the built-in AP0 matrix is printed to 6
     # decimals (5e-7): 2e-6 of the largest entry bounds both routes; measured ≤ 1.1e-6.
     for blender in (via_aces, via_xyz):

@@ -10,7 +10,7 @@ reflectance a single film can have (a bubble never darkens the background below 
 import numpy as np
 import pytest
 
-from precompute.bakes import bake
+from precompute.bakes import bake, planner
 from precompute.colour import film_colour
 from precompute.materials.material import Layer, Material, preset
 from precompute.shading import transmit
@@ -64,7 +64,7 @@ def test_lossless_free_standing_film_transmits_one_minus_r(colour_mode):
     assert np.allclose((t + s * r)[inside], 1.0, atol=1e-12)  # energy: T + R = 1
     assert np.allclose(t[inside], (1.0 - r)[inside], atol=1e-12)
     if colour_mode == "spectral":  # the same T from the film's own transmission, per wavelength
-        p = bake.plan(material)
+        p = planner.plan(material)
         wl, g = bake.spectral_quadrature(p.wavelength_count, material.colour_space, "E", "spectral")
         for i, d in enumerate(thickness[:, 0]):
             tw = matrix_transmittance(N_FILM, d, 1.0, wl, COS)

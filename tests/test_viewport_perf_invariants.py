@@ -24,7 +24,7 @@ from _extension import EXTENSION_ID, gpu_layer, linked_extension  # noqa: E402
 
 from precompute.bakes import bake  # noqa: E402
 from precompute.materials.material import Layer, Material, Quality  # noqa: E402
-from precompute.sh import harmonics  # noqa: E402
+from precompute.sh import projection  # noqa: E402
 from precompute.shading import frame as shading_frame  # noqa: E402
 from precompute.shading import sh_rotation, sh_sum  # noqa: E402
 from precompute.shading.variant import Variant  # noqa: E402
@@ -74,7 +74,7 @@ def world_coefficients(l_max: int = 8) -> np.ndarray:
     img = (
         0.3 + 0.2 * d[..., 2:3] * np.array([0.6, 0.8, 1.0]) + 3.0 * sun[..., None] * np.array([1.0, 0.9, 0.7])
     )
-    return harmonics.project_equirect(img, l_max)
+    return projection.project_equirect(img, l_max)
 
 
 def look_at(eye, target=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0)) -> np.ndarray:

@@ -43,7 +43,10 @@ def tf(bpy, tmp_path_factory):
         for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
+        ns.planner = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.planner")
+        ns.kernel = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.kernel")
         ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
+        ns.atomic_write = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.atomic_write")
         ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
@@ -161,7 +164,7 @@ def test_a_full_cache_disk_still_draws_the_baked_table(bpy, tf, scene, monkeypat
 
     def full(self, key, *args, **kwargs):
         path = self.path_for(key)
-        raise tf.table_io.TableWriteError(
+        raise tf.atomic_write.TableWriteError(
             path, f"could not write {str(path)!r}: No space left on device", errno.ENOSPC
         )
 

@@ -3,7 +3,7 @@
 Every test starts from ``read_factory_settings(use_empty=True)`` and builds its World with the
 ``bpy.data`` API. Ground truths:
 
-- direct projection of the image file (:func:`precompute.sh.harmonics.project_equirect`);
+- direct projection of the image file (:func:`precompute.sh.projection.project_equirect`);
 - analytic environments sampled at the Mapping's lookup direction d' = M d (orientation and
   sense of the SH rotation);
 - Cycles itself: the panorama route renders the World, so a World read directly and the same
@@ -21,7 +21,7 @@ import time
 import numpy as np
 import pytest
 
-from precompute.sh import harmonics
+from precompute.sh import harmonics, projection, rotations, zonal
 from precompute.world import hdri
 
 pytestmark = pytest.mark.blender
@@ -160,7 +160,7 @@ def test_studio_hdri_equals_direct_projection_times_strength(bpy, world_mod, wor
     _env_world(bpy, scene, bpy.data.images.load(path))
     result = world_mod.world_sh(scene, L_MAX)
 
-    expected = harmonics.project_equirect(hdri.read_equirect(path), L_MAX)  # 1024 wide: no downsampling
+    expected = projection.project_equirect(hdri.read_equirect(path), L_MAX)  # 1024 wide: no downsampling
     assert result.coeffs.shape == ((L_MAX + 1) ** 2, 3) and result.coeffs.dtype == np.float64
     assert np.max(np.abs(result.coeffs - expected)) <= 1e-5 * _scale(expected)
     assert result.source == "environment texture 'studio.exr'"
@@ -181,10 +181,10 @@ def test_wide_image_is_downsampled_solid_angle_correctly(bpy, world_mod, scene, 
     path = _write_exr(tmp_path / "wide.exr", wide)
     _env_world(bpy, scene, bpy.data.images.load(path))
     result = world_mod.world_sh(scene, L_MAX)
-    expected = harmonics.project_equirect(hdri.downsample(wide, 2), L_MAX)
+    expected = projection.project_equirect(hdri.downsample(wide, 2), L_MAX)
     assert np.max(np.abs(result.coeffs - expected)) <= 1e-5 * _scale(expected)
     # ... and the downsampled projection is that of the full image to well below the preview's needs.
-    full = harmonics.project_equirect(wide, L_MAX)
+    full = projection.project_equirect(wide, L_MAX)
     assert np.max(np.abs(result.coeffs - full)) <= 1e-3 * _scale(full)
 
 
@@ -201,7 +201,7 @@ def test_nan_pixels_are_rejected_counted_and_warned(bpy, world_mod, scene, tmp_p
     clean = image.copy()
     clean[10, 20] = 0.0
     clean[100, 3] = 0.0
-    np.testing.assert_allclose(result.coeffs, harmonics.project_equirect(clean, 4), rtol=0, atol=1e-5)
+    np.testing.assert_allclose(result.coeffs, projection.project_equirect(clean, 4), rtol=0, atol=1e-5)
 
 
 def test_packed_and_generated_images_are_read_from_memory(bpy, world_mod, panorama_mod, scene, tmp_path):
@@ -213,7 +213,7 @@ def test_packed_and_generated_images_are_read_from_memory(bpy, world_mod, panora
     _env_world(bpy, scene, image)
     result = world_mod.world_sh(scene, 4)
     assert result.source == "environment texture 'packed_sky.exr'" and result.warnings == ()
-    expected = harmonics.project_equirect(image_data, 4)
+    expected = projection.project_equirect(image_data, 4)
     assert np.max(np.abs(result.coeffs - expected)) <= 1e-5 * _scale(expected)
 
     generated = bpy.data.images.new("Blank", 64, 32, float_buffer=True)
@@ -223,10 +223,12 @@ def test_packed_and_generated_images_are_read_from_memory(bpy, world_mod, panora
     assert result.source == "environment texture 'Blank'"
     # generated_color is a display (sRGB) colour; the float buffer holds it linearised, as Cycles renders it.
     linear = _srgb_decode([0.3, 0.6, 0.9])
-    expected = harmonics.project_equirect(np.broadcast_to(linear, (32, 64, 3)), 2)  # 32 rows: tiny l = 2 term
+    expected = projection.project_equirect(
+        np.broadcast_to(linear, (32, 64, 3)), 2
+    )  # 32 rows: tiny l = 2 term
     np.testing.assert_allclose(result.coeffs, expected, rtol=0, atol=1e-6)
     np.testing.assert_allclose(result.coeffs[0], math.sqrt(4.0 * math.pi) * linear, rtol=1e-5)
-    rendered = harmonics.project_equirect(
+    rendered = projection.project_equirect(
         panorama_mod.render_world_panorama(scene.world, width=64, samples=4), 0
     )
     np.testing.assert_allclose(result.coeffs[0], rendered[0], rtol=1e-4)
@@ -242,7 +244,7 @@ def _direct_sampling(a: np.ndarray, l_max: int, height=256, width=512) -> np.nda
     d = hdri.equirect_directions(height, width)
     looked_up = d @ a.T
     looked_up /= np.linalg.norm(looked_up, axis=-1, keepdims=True)
-    return harmonics.project_equirect(_analytic(looked_up), l_max)
+    return projection.project_equirect(_analytic(looked_up), l_max)
 
 
 def test_mapping_rotation_90_about_z(bpy, world_mod, scene, tmp_path):
@@ -257,13 +259,13 @@ def test_mapping_rotation_90_about_z(bpy, world_mod, scene, tmp_path):
     rz = _euler_xyz(0.0, 0.0, math.pi / 2)
     # The texture is looked up at Rz·d, so the World is the image turned by Rz⁻¹ (the angle is
     # stored as float32, hence the tolerance).
-    expected = harmonics.rotation(L_MAX, rz.T) @ unrotated
+    expected = rotations.rotation(L_MAX, rz.T) @ unrotated
     assert np.max(np.abs(rotated.coeffs - expected)) <= 1e-7 * _scale(expected)
     direct = _direct_sampling(rz, L_MAX)
     tol = 1e-4 * _scale(direct)
     assert np.max(np.abs(rotated.coeffs - direct)) <= tol
     # The opposite sense is clearly wrong (band 1 of this environment is far from z-symmetric).
-    assert np.max(np.abs(harmonics.rotation(L_MAX, rz) @ unrotated - direct)) > 100 * tol
+    assert np.max(np.abs(rotations.rotation(L_MAX, rz) @ unrotated - direct)) > 100 * tol
     # Concretely: the image's +x lobe (red, 0.9 x) now faces −y: L(d) = I(Rz d) peaks where Rz d = +x.
     band1_red = rotated.coeffs[1:4, 0] / math.sqrt(3.0 / (4.0 * math.pi))  # (y, z, x)
     assert band1_red[0] == pytest.approx(-0.9 * 4.0 * math.pi / 3.0, rel=1e-3)
@@ -293,7 +295,7 @@ def test_mapping_kinds_match_direct_sampling(bpy, world_mod, scene, tmp_path, ma
         d = hdri.equirect_directions(256, 512)
         looked_up = d * np.array(mapping.get("scale", (1.0, 1.0, 1.0))) + location
         looked_up /= np.linalg.norm(looked_up, axis=-1, keepdims=True)
-        direct = harmonics.project_equirect(_analytic(looked_up), 4)
+        direct = projection.project_equirect(_analytic(looked_up), 4)
         assert np.max(np.abs(result.coeffs[:9] - direct[:9])) <= 0.01 * _scale(direct)
         return
     direct = _direct_sampling(matrix, 4)
@@ -315,7 +317,7 @@ def test_panorama_orientation_matches_environment_convention(bpy, world_mod, pan
     panorama = panorama_mod.render_world_panorama(scene.world)
     seconds = time.perf_counter() - start
     assert panorama.shape == (panorama_mod.PANORAMA_WIDTH // 2, panorama_mod.PANORAMA_WIDTH, 3)
-    rendered = harmonics.project_equirect(panorama, 2)
+    rendered = projection.project_equirect(panorama, 2)
     error = np.max(np.abs(rendered - direct.coeffs), axis=1) / _scale(direct.coeffs)
     print(f"\npanorama vs direct (forest): bands 0-1 {error[:4].max():.4f}, band 2 {error[4:].max():.4f}, "
           f"render {seconds:.2f} s")  # fmt: skip
@@ -330,7 +332,7 @@ def test_mapping_and_texture_coordinates_match_cycles(bpy, world_mod, panorama_m
     _env_world(bpy, scene, bpy.data.images.load(_studio_path(bpy, "forest.exr")), mapping=mapping)
     direct = world_mod.world_sh(scene, 2)
     assert direct.source.startswith("environment texture")
-    rendered = harmonics.project_equirect(panorama_mod.render_world_panorama(scene.world), 2)
+    rendered = projection.project_equirect(panorama_mod.render_world_panorama(scene.world), 2)
     error = np.max(np.abs(rendered - direct.coeffs)) / _scale(direct.coeffs)
     assert error <= 0.05, error
 
@@ -375,7 +377,7 @@ def test_sky_texture_world_is_plausible(bpy, world_mod, scene):
     # Daylight: brighter above the horizon than below, and a blue sky.
     assert np.all(result.coeffs[2] > 0.0)
     assert result.coeffs[0, 2] > result.coeffs[0, 0]
-    irradiance = harmonics.evaluate(harmonics.irradiance_coefficients(result.coeffs), [[0, 0, 1], [0, 0, -1]])
+    irradiance = harmonics.evaluate(zonal.irradiance_coefficients(result.coeffs), [[0, 0, 1], [0, 0, -1]])
     assert np.all(irradiance[0] > irradiance[1])
     # The temporary scene, camera and render image are gone; the user's scene is untouched.
     assert [len(c) for c in (bpy.data.scenes, bpy.data.objects, bpy.data.cameras, bpy.data.images)] == counts
@@ -400,7 +402,7 @@ def test_background_colour_gives_exact_constant(bpy, world_mod, scene):
     np.testing.assert_allclose(result.coeffs[0], math.sqrt(4.0 * math.pi) * c, rtol=1e-12)
     assert np.all(result.coeffs[1:] == 0.0)
     normals = hdri.fibonacci_sphere(20)
-    irradiance = harmonics.evaluate(harmonics.irradiance_coefficients(result.coeffs), normals)
+    irradiance = harmonics.evaluate(zonal.irradiance_coefficients(result.coeffs), normals)
     np.testing.assert_allclose(irradiance, np.broadcast_to(math.pi * c, irradiance.shape), rtol=1e-12)
 
 
@@ -475,9 +477,9 @@ def test_srgb_png_is_linearised(bpy, world_mod, scene, tmp_path):
     _env_world(bpy, scene, image)
     result = world_mod.world_sh(scene, 4)
     stored = np.round(srgb * 255.0) / 255.0  # 8-bit quantisation
-    expected = harmonics.project_equirect(_srgb_decode(stored), 4)
+    expected = projection.project_equirect(_srgb_decode(stored), 4)
     assert np.max(np.abs(result.coeffs - expected)) <= 1e-5 * _scale(expected)
-    raw = harmonics.project_equirect(stored, 4)
+    raw = projection.project_equirect(stored, 4)
     assert np.max(np.abs(raw - expected)) > 0.05 * _scale(expected)  # the decoding matters
 
     # As Non-Color data the numbers are used as they are.
@@ -496,7 +498,7 @@ def test_srgb_conversion_agrees_with_cycles(bpy, world_mod, panorama_mod, scene,
     _env_world(bpy, scene, image)
     direct = world_mod.world_sh(scene, 1)
     assert direct.working_space == space and direct.source.startswith("environment texture")
-    rendered = harmonics.project_equirect(
+    rendered = projection.project_equirect(
         panorama_mod.render_world_panorama(scene.world, width=64, samples=4), 1
     )
     np.testing.assert_allclose(direct.coeffs[0], rendered[0], rtol=2e-3)

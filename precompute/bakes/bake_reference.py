@@ -16,24 +16,17 @@ from ..materials.material import Material
 from ..optics import reflectance
 from ..sh import harmonics
 from .bake import (
-    N_PHI,
-    N_THETA,
     BakeResult,
     _channel_diffuse_term,
     _method,
-    active_stack,
     apply_multiscatter,
     base_spectrum,
     channel_film,
     clamp_film_rgb,
-    coefficient_indices,
-    plan,
     spectral_quadrature,
-    table_material,
-    transfer_samples,
-    view_angles,
-    view_cosines,
 )
+from .kernel import N_PHI, N_THETA, coefficient_indices, transfer_samples, view_angles, view_cosines
+from .planner import active_stack, plan, table_material
 
 __all__ = ["bake_reference"]
 

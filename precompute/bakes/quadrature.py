@@ -16,7 +16,7 @@ import functools
 
 import numpy as np
 
-from ..colour import composite, spectra
+from ..colour import composite, rgb_spaces, spectra
 
 __all__ = ["gauss_legendre", "is_line_spectrum", "spectral_quadrature", "unit_gauss_legendre"]
 
@@ -79,14 +79,14 @@ def spectral_quadrature(count: int, colour_space: str, illuminant: str, colour_m
     wl = spectra.wavelength_grid(count)
     per_channel = colour_mode == "per_channel"
     if per_channel:
-        m = spectra.scene_linear_matrix(colour_space)
+        m = rgb_spaces.scene_linear_matrix(colour_space)
         totals = spectra.cmf_integrals() @ m.T  # each channel's ∫ s_k dλ
-        grid_w = spectra.channel_weights(wl, colour_space)
+        grid_w = rgb_spaces.channel_weights(wl, colour_space)
     else:
-        m = spectra.xyz_to_rgb_matrix(colour_space)
+        m = rgb_spaces.xyz_to_rgb_matrix(colour_space)
         totals = None
         grid_w = spectra.xyz_weights(wl) @ m.T
-    basis = spectra.rgb_basis(wl, colour_space)  # (3, W)
+    basis = rgb_spaces.rgb_basis(wl, colour_space)  # (3, W)
     if is_line_spectrum(illuminant):
         comp = _illuminant_composite(illuminant)
         scale = 1.0 / comp.to_xyz()[1]  # Y = 1, as illuminant_spd

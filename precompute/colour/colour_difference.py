@@ -31,7 +31,7 @@ from typing import Literal
 import colour
 import numpy as np
 
-from . import spectra
+from . import rgb_spaces
 
 #: Rec.709 / sRGB relative luminance weights (Blender's default scene-linear space).
 LUMINANCE_REC709 = np.array([0.2126, 0.7152, 0.0722])
@@ -54,7 +54,7 @@ def luminance(rgb: np.ndarray, xyz: XYZ = "D65") -> np.ndarray:
     """Relative luminance Y of scene-linear Rec.709 RGB (…, 3) on the route ``xyz``."""
     _check_route(xyz)
     if xyz == "E":
-        return (rgb @ spectra.rgb_to_xyz_matrix("Linear Rec.709").T)[..., 1]
+        return (rgb @ rgb_spaces.rgb_to_xyz_matrix("Linear Rec.709").T)[..., 1]
     return np.asarray(rgb, dtype=float) @ LUMINANCE_REC709
 
 
@@ -69,7 +69,7 @@ def rgb_to_lab(rgb: np.ndarray, xyz: XYZ = "D65") -> np.ndarray:
     """Scene-linear Rec.709 RGB (…, 3) → XYZ on the route ``xyz`` → CIELAB (D65 white)."""
     _check_route(xyz)
     if xyz == "E":
-        return colour.XYZ_to_Lab(rgb @ spectra.rgb_to_xyz_matrix("Linear Rec.709").T, WHITE_D65)
+        return colour.XYZ_to_Lab(rgb @ rgb_spaces.rgb_to_xyz_matrix("Linear Rec.709").T, WHITE_D65)
     space = colour.RGB_COLOURSPACES["ITU-R BT.709"]
     return colour.XYZ_to_Lab(
         colour.RGB_to_XYZ(np.asarray(rgb, dtype=float), space, apply_cctf_decoding=False), WHITE_D65

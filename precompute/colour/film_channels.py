@@ -13,7 +13,7 @@ multiplied channel by channel. This module decides how a material is evaluated i
   evaluated by :func:`fourier_reflectance` exactly as Cycles does;
 - any other material (multilayers, dispersion, measured metals, absorbing films, Glassner's
   model, a coloured illuminant): the exact spectral reflectance integrated against the same
-  channel sensitivities (:func:`precompute.colour.spectra.channel_weights`, in
+  channel sensitivities (:func:`precompute.colour.rgb_spaces.channel_weights`, in
   ``bake.spectral_quadrature``) and clamped — Cycles' colour pipeline with exact optics.
 
 The spectral mode (a 3×3 matrix per coefficient, ``bake.spectral_quadrature``) is separate and
@@ -29,7 +29,7 @@ import numpy as np
 from ..materials.material import Material
 from ..optics import belcour2017
 from ..optics.dispersion import ConstantIndex
-from .spectra import channel_sensitivities
+from .rgb_spaces import channel_sensitivities
 
 __all__ = [
     "F82_MAX_REFLECTIVITY",

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import brdf, constants
-from ..bakes import bake
+from ..bakes import bake, planner
 from ..bakes.chunks import chunked_sweep
 from ..bakes.kernel import u_interpolation_matrix, uniform_interpolation_matrix
 from ..bakes.progress import checkpoint
@@ -35,7 +35,7 @@ def film_rgb_matrices(material, thickness_nm=None, samples: int = 4097):
     mode RG is diagonal, the film per channel (bake.channel_film: Cycles' film where it applies),
     and R is None when that film does not go through a spectrum.
     """
-    p = bake.plan(material)
+    p = planner.plan(material)
     wl, g = bake.spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
@@ -69,7 +69,7 @@ def white_reflectance(material, thickness_nm, cos_theta) -> np.ndarray:
     stack = film_channels.cycles_stack(material) if material.colour_mode == "per_channel" else None
     if stack is not None:
         return film_channels.fourier_reflectance(material, stack, d, cos)
-    p = bake.plan(material)
+    p = planner.plan(material)
     wl, g = bake.spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
@@ -130,7 +130,7 @@ def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
 def _interpolated_rows(material, nodes: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
     """RG(u) (T, U, 3, 3) from the spectral reflectance at a bake's u nodes (T, N, W), read at
     ``u`` with the bake's piecewise-Chebyshev interpolation of ``degree`` nodes per interval."""
-    p = bake.plan(material)
+    p = planner.plan(material)
     _wl, g = bake.spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )
@@ -148,8 +148,8 @@ def film_table_of(material, samples: int = FILM_SAMPLES) -> FilmTable:
     the bake: its thickness rows are the bake's plan's (:func:`bake.active_stack`), so the
     viewport computes it on a second thread beside the bake (equal to the result's to float
     rounding: tests/test_live.py)."""
-    m = bake.table_material(material)
-    _indices, _sets, axis = bake.active_stack(m, bake.plan(m).thickness_samples)
+    m = planner.table_material(material)
+    _indices, _sets, axis = planner.active_stack(m, planner.plan(m).thickness_samples)
     return _film_table(m, axis, m.colour_mode != "per_channel", samples)
 
 
@@ -165,7 +165,7 @@ def _film_table(material, thicknesses_nm, spectral: bool, samples: int) -> FilmT
 def _film_rows(material, thicknesses: np.ndarray, u: np.ndarray) -> np.ndarray:
     """RG(u) (T, U, 3, 3) of :func:`film_rgb_matrices` at each top-layer thickness (nm) of
     ``thicknesses``, every row in one sweep; a material without layers has one row, repeated."""
-    p = bake.plan(material)
+    p = planner.plan(material)
     wl, g = bake.spectral_quadrature(
         p.wavelength_count, material.colour_space, material.illuminant, material.colour_mode
     )

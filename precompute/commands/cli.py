@@ -174,11 +174,11 @@ def cmd_presets(args) -> int:
 
 def cmd_plan(args) -> int:
     """`plan`: print which effects a material needs and what they cost."""
-    from ..effects import plans  # lazy: `--help` and argument errors load no bake or render code
+    from ..effects import plan_text, plans  # lazy: `--help` and argument errors load no bake or render code
 
     with cli_support.refusing():
         material = material_from_args(args)
-    print(plans.format_plan(plans.material_plan(material)))
+    print(plan_text.format_plan(plans.material_plan(material)))
     return 0
 
 
@@ -212,7 +212,10 @@ def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
 def cmd_bake(args) -> int:
     """`bake`: bake a material's SH table to an EXR file."""
     from ..bakes import bake  # lazy: `--help` and argument errors load no bake or render code
-    from ..tables import table_io  # lazy: `--help` and argument errors load no bake or render code
+    from ..tables import (  # lazy: `--help` and argument errors load no bake or render code
+        atomic_write,
+        table_io,
+    )
 
     with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
         m = material_from_args(args)
@@ -238,7 +241,7 @@ def cmd_bake(args) -> int:
     if args.half:
         err = table_io.half_precision_error(result.data)
         summary["half_error"] = {"max_abs": err.max_abs, "max_rel": err.max_rel}
-    table_io.write_bytes(json_path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
+    atomic_write.write_bytes(json_path, json.dumps(summary, indent=2, allow_nan=False).encode("utf-8"))
     if not args.quiet:
         print(f"wrote {out} ({summary['file_bytes']} bytes, table {result.data.shape}) and {json_path}")
     return 0
@@ -279,7 +282,7 @@ def cmd_render(args) -> int:
     # lazy: `--help` and argument errors load no bake or render code
     from ..bakes import bake
     from ..output import image_io, render
-    from ..tables import table_io
+    from ..tables import atomic_write, table_io
     from ..world import prefilter
 
     with cli_support.refusing():  # everything checked before the bake: a refusal is exit 2
@@ -323,8 +326,8 @@ def cmd_render(args) -> int:
         rgb = np.where(bad[..., None], 0.0, rgb)
     out.parent.mkdir(parents=True, exist_ok=True)
     display = image_io.srgb_encode(rgb, args.exposure)
-    table_io.write_file(out, lambda tmp: image_io.write_png(tmp, display), verify=verify_png)
-    table_io.write_file(exr_out, lambda tmp: image_io.write_exr(tmp, rgb), verify=table_io.verify_exr)
+    atomic_write.write_file(out, lambda tmp: image_io.write_png(tmp, display), verify=verify_png)
+    atomic_write.write_file(exr_out, lambda tmp: image_io.write_exr(tmp, rgb), verify=table_io.verify_exr)
     progress(1.0, "done")
     for note in notes:
         print(f"warning: {note}", file=sys.stderr)

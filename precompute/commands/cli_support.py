@@ -40,7 +40,7 @@ import time
 import traceback
 from pathlib import Path
 
-from ..tables import table_io
+from ..tables import atomic_write
 
 __all__ = [
     "ArgumentParser",
@@ -209,8 +209,8 @@ def output_file(option: str, path) -> Path:
         raise UsageError(f"{option} {str(target)!r} is a directory; give a file path inside it")
     _check_folder(option, target.parent)
     try:
-        table_io.check_destination(target)
-    except table_io.TableWriteError as exc:
+        atomic_write.check_destination(target)
+    except atomic_write.TableWriteError as exc:
         raise UsageError(f"{option}: {exc}") from None
     return target
 

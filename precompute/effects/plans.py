@@ -26,9 +26,9 @@ diffuse_base        a base colour under the film: the diffuse kernel and the fil
 multiscatter        Kulla–Conty energy compensation (roughness > 0 and multiscatter ≠ "none").
 ==================  ==========================================================================
 
-It also carries the resolved :class:`precompute.bakes.bake.Plan` (SH order from roughness, view
+It also carries the resolved :class:`precompute.bakes.planner.Plan` (SH order from roughness, view
 angles, thickness rows, wavelengths), the table's shape and bytes, an estimated bake time
-(:data:`TIME_MODEL`), the per-pixel shader cost and shader variant defines, and a reason for
+(:data:`.cost_model.TIME_MODEL`), the per-pixel shader cost and shader variant defines, and a reason for
 every choice. The shader cost is the draw's own: the
 :class:`~precompute.shading.variant.Variant` that :func:`~precompute.shading.variant.choose_variant`
 picks from the material's facts (as the add-on's draw does), costed by
@@ -38,9 +38,9 @@ picks from the material's facts (as the add-on's draw does), costed by
 only once, cached tables cost nothing. Its World order is the one drawn: the add-on projects the
 World to l = MAX_ORDER and windows it to each material's l_max, so the highest l_max among the
 scene's materials; the World's own content order (:func:`world_content_order`) is reported beside
-it. :func:`format_plan` prints either plan for people.
+it. :func:`.plan_text.format_plan` prints either plan for people.
 
-Nothing here bakes: :func:`material_plan` resolves :func:`precompute.bakes.bake.plan` (whose
+Nothing here bakes: :func:`material_plan` resolves :func:`precompute.bakes.planner.plan` (whose
 automatic SH order is read from a table, :data:`precompute.bakes.sh_order.ORDER_BREAKPOINTS`) and
 evaluates each medium's index at three wavelengths: ≈ 1 ms, fit for the main thread.
 """
@@ -52,12 +52,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..bakes import bake, quadrature
+from ..bakes import planner, quadrature
 from ..colour.film_colour import FILM_SAMPLES
-from ..materials.material import AUTO, MAX_SH_ORDER, Material
+from ..materials.material import MAX_SH_ORDER, Material
 from ..optics.dispersion import is_dispersive
-from ..shading import codegen, policy
+from ..shading import policy
 from ..shading.variant import Variant, choose_variant, fits_uniform_buffer
+from .cost_model import ShaderCost, bake_time_breakdown, estimate_u_degree, shader_cost
 
 EFFECTS = (
     "interference",
@@ -78,76 +79,6 @@ WORLD_TAIL = 0.01
 #: Wavelengths at which a medium is checked for absorption (the spectral grid's ends and middle).
 _PROBE_NM = np.array([360.0, 550.0, 830.0])
 
-#: Bake-time model: seconds per unit of work of each stage of :func:`bake.bake` (see
-#: :func:`bake_features` for the units). Fitted by ``benchmarks/plan.py --calibrate`` (non-
-#: negative least squares on relative error) to the process CPU time of cold and warm bakes on
-#: the 2-core machine of docs/effect-plan.md; CPU time is what an idle core would take (wall
-#: time on a shared, loaded machine is longer).
-TIME_MODEL = {
-    "fixed": 3.97e-3,  # per bake: plan lookup, spectral quadrature, small arrays
-    "reflectance": 2.47e-7,  # per thickness row × u point × wavelength × interface
-    "kernel_views": 1.15e-3,  # cold microfacet kernel: per view angle
-    "kernel_coeffs": 2.88e-5,  # … per view angle × full-basis coefficient (L+1)²
-    "kernel_nodes": 0.0,  # … per view angle × u node (fit: 0, block-sparse since issue 16)
-    "multiscatter": 1.72e-3,  # cold GGX albedo: per view angle (+ 32 for the average)
-    "contract": 5.45e-10,  # per multiply-add (a floor at numpy's BLAS speed here)
-    "sh_order": 6.4e-5,  # the automatic SH order: a table lookup (was an l = 16 kernel, 0.61 s)
-}
-
-
-# ----------------------------------------------------------------------------------------------
-# Shader cost
-# ----------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ShaderCost:
-    """Per-pixel work of the thin-film shader variant that draws a material.
-
-    ``draw``: the :class:`~precompute.shading.variant.Variant` the add-on compiles for it;
-    the counts are :func:`precompute.shading.codegen.operation_counts` of that variant (see there
-    for what is counted): the SH half rotated and summed band by band as the generated code
-    does (only the structurally non-zero X(±90°) entries), the split sum, the lamp loop. With K
-    = (L+1)(L+2)/2 stored coefficients, C = 9 floats per coefficient (3×3 spectral) or 3 (per
-    channel) and taps = 2 (1-D table, linear in θo) or 4 (2-D, bilinear in θo × thickness), the
-    SH sum reads taps · K · C floats of the table.
-    """
-
-    draw: Variant
-    channels: int
-    taps: int
-    floats_fetched: int  # floats read from the film's baked table
-    texel_fetches: int  # texelFetch / texture calls (table, prefiltered World, film)
-    uniform_loads: int  # vec4 or scalar reads from uniform buffers
-    multiply_adds: int
-    defines: tuple  # ((name, value), ...): the variant's switches (Variant.switches)
-    stages: dict = field(default_factory=dict)  # stage → (multiply-adds, texel fetches, uniform loads)
-
-    @property
-    def l_max(self) -> int:
-        """Highest SH band the draw evaluates for this material."""
-        return int(self.draw.l_max)
-
-    @property
-    def variant(self) -> tuple:
-        """(l_max, spectral, vary_thickness): the part of :attr:`draw` the table decides."""
-        return (self.draw.l_max, self.draw.spectral, self.draw.vary_thickness)
-
-
-def shader_cost(variant: Variant, lamp_count: int = policy.MAX_LAMPS) -> ShaderCost:
-    """The :class:`ShaderCost` of a variant (its lamp loop at ``lamp_count`` lamps)."""
-    variant = variant.normalised()
-    counts = codegen.operation_counts(variant, lamp_count)
-    return ShaderCost(
-        draw=variant,
-        channels=9 if variant.spectral else 3,
-        taps=4 if variant.vary_thickness else 2,
-        floats_fetched=counts.table_floats,
-        texel_fetches=counts.texel_fetches,
-        uniform_loads=counts.uniform_loads,
-        multiply_adds=counts.multiply_adds,
-        defines=variant.switches(),
-        stages=dict(counts.stages),
-    )
-
 
 def _shading_words(variant: Variant, weight: float) -> str:
     """How the variant shades, in words, for the plan's reasons."""
@@ -167,107 +98,6 @@ def _shading_words(variant: Variant, weight: float) -> str:
 
 
 # ----------------------------------------------------------------------------------------------
-# Bake-time model
-# ----------------------------------------------------------------------------------------------
-def _u_points_per_try(degree: int) -> int:
-    """u values :func:`bake.choose_u_degree` evaluates per probe row for one degree: the nodes and
-    the test points (the next degree's Chebyshev points at u ≥ U_TEST_MIN: all but the first
-    interval's)."""
-    intervals = len(bake.U_EDGES) - 1
-    return intervals * degree + (intervals - 1) * (degree + 1)
-
-
-#: Thickness rows :func:`bake.choose_u_degree` probes at each degree of its search.
-PROBE_ROWS = 4
-
-
-def estimate_u_degree(material: Material) -> tuple[int, tuple, str]:
-    """(degree, degrees tried, reason): what :func:`bake.choose_u_degree` will settle on.
-
-    The search climbs the ladder from its bottom. The estimate is a fit to measured choices:
-    the smallest ladder degree ≥ 6 + OPD / 300 nm (OPD = the round-trip optical path at the
-    thickest film), within two ladder steps of the measured degree for single films of
-    50–3000 nm on dielectrics and gold (most often within one).
-    """
-    ladder = bake.U_DEGREE_LADDER
-    if not material.layers:
-        return ladder[0], (), "no film: one Fresnel evaluation at the first ladder degree"
-    opd = bake.optical_path_nm(material)
-    target = 6.0 + opd / 300.0
-    degree = next((d for d in ladder if d >= target), ladder[-1])
-    tried = tuple(d for d in ladder if d <= degree)
-    return (
-        degree,
-        tried,
-        f"optical path {opd:.0f} nm → ≈ {degree} nodes/interval (ladder {tried[0]}…{degree})",
-    )
-
-
-def bake_features(
-    material: Material,
-    p: bake.Plan,
-    degree: int,
-    tried: tuple,
-    wavelengths: int,
-    *,
-    kernel_cold: bool = True,
-    order_kernel_cold: bool = True,
-) -> dict:
-    """Units of work of each stage of :func:`bake.bake`, keyed like :data:`TIME_MODEL`.
-
-    With T thickness rows, W wavelength nodes (grid + emission lines), n layers, A view angles,
-    L the SH order, K = (L+1)(L+2)/2, U = 8·degree u nodes:
-
-    - reflectance: [Σ over the degrees tried d of P · (8d + 7(d+1)) + T · 8·d_chosen] · W · (n + 1)
-      — :func:`bake.choose_u_degree`'s search on P = min(T, 4) probe rows (nodes and test
-      points), then the chosen nodes on every row; per interface (both polarisations);
-    - kernel_views, kernel_coeffs, kernel_nodes (cold kernel only): A, A · (L+1)² and A · U;
-    - multiscatter (cold only, when multiple scattering is on): A + 32 GGX albedo views;
-    - contract: T·U·W·9 + A·K·U·T·9 (+ T·A·(L+1)·W·9 with a diffuse base);
-    - sh_order: 1 when the SH order is automatic and not yet planned for this roughness (a table
-      lookup since issue 16: the feature is kept so older calibrations still read).
-    """
-    t, a, l_max = p.thickness_samples, p.view_samples, p.sh_order
-    k = (l_max + 1) * (l_max + 2) // 2
-    u = degree * (len(bake.U_EDGES) - 1)
-    interfaces = len(material.layers) + 1
-    if not material.layers:
-        refl = t * wavelengths * u
-    else:
-        probe = min(t, PROBE_ROWS)
-        refl = (sum(probe * _u_points_per_try(d) for d in tried) + t * u) * wavelengths * interfaces
-    contract = t * u * wavelengths * 9 + a * k * u * t * 9
-    if material.base_color is not None:
-        contract += t * a * (l_max + 1) * wavelengths * 9
-    multiscatter = material.multiscatter != "none" and material.roughness > 0.0
-    return {
-        "fixed": 1.0,
-        "reflectance": float(refl),
-        "kernel_views": float(a) if kernel_cold else 0.0,
-        "kernel_coeffs": float(a * (l_max + 1) ** 2) if kernel_cold else 0.0,
-        "kernel_nodes": float(a * u) if kernel_cold else 0.0,
-        "multiscatter": float(a + 32) if (kernel_cold and multiscatter) else 0.0,
-        "contract": float(contract),
-        "sh_order": 1.0 if (order_kernel_cold and material.quality.sh_order == AUTO) else 0.0,
-    }
-
-
-def bake_time_breakdown(*args, **kwargs) -> dict:
-    """Estimated seconds per stage (and "total"): :func:`bake_features` × :data:`TIME_MODEL`."""
-    features = bake_features(*args, **kwargs)
-    out = {
-        "fixed": TIME_MODEL["fixed"],
-        "reflectance": features["reflectance"] * TIME_MODEL["reflectance"],
-        "kernel": sum(features[n] * TIME_MODEL[n] for n in ("kernel_views", "kernel_coeffs", "kernel_nodes")),
-        "multiscatter": features["multiscatter"] * TIME_MODEL["multiscatter"],
-        "contract": features["contract"] * TIME_MODEL["contract"],
-        "sh_order": features["sh_order"] * TIME_MODEL["sh_order"],
-    }
-    out["total"] = sum(out.values())
-    return out
-
-
-# ----------------------------------------------------------------------------------------------
 # Material plan
 # ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -277,7 +107,7 @@ class MaterialPlan:
     material: Material  # bake.table_material of the material planned: what its table uses
     key: str  # bake.table_key(material): equal keys share one table
     effects: dict  # name → bool, the names of EFFECTS in order
-    plan: bake.Plan
+    plan: planner.Plan
     wavelength_nodes: int  # grid + emission lines
     line_count: int
     u_degree: int  # estimated Chebyshev nodes per interval
@@ -412,8 +242,8 @@ def material_plan(
     """
     if order_kernel_cold is None:
         order_kernel_cold = kernel_cold
-    material = bake.table_material(material)  # what the table uses: an unused value costs nothing
-    p = bake.plan(material)
+    material = planner.table_material(material)  # what the table uses: an unused value costs nothing
+    p = planner.plan(material)
     reasons: dict[str, str] = {}
     interference, stack = _film_effects(material, reasons)
 
@@ -544,7 +374,7 @@ def material_plan(
     )
     return MaterialPlan(
         material=material,
-        key=bake.table_key(material),
+        key=planner.table_key(material),
         effects=effects,
         plan=p,
         wavelength_nodes=w_nodes,
@@ -728,72 +558,3 @@ def scene_plan(
         world_content_order=content,
         reasons=reasons,
     )
-
-
-# ----------------------------------------------------------------------------------------------
-# Text
-# ----------------------------------------------------------------------------------------------
-def fmt_bytes(count: int) -> str:
-    """A byte count in B, KiB or MiB."""
-    if count >= 1 << 20:
-        return f"{count / (1 << 20):.2f} MiB"
-    if count >= 1 << 10:
-        return f"{count / (1 << 10):.1f} KiB"
-    return f"{count} B"
-
-
-def effect_summary(mp: MaterialPlan) -> str:
-    """ "interference, single film, dispersion, …" — the effects that are on, in words."""
-    on = [name for name in EFFECTS if mp.effects[name]]
-    if mp.effects["interference"] and not mp.effects["stack"]:
-        on.insert(1, "single film")
-    return ", ".join(on) if on else "none (bare substrate)"
-
-
-def _material_lines(name: str, mp: MaterialPlan, scene: ScenePlan | None = None) -> list[str]:
-    p = mp.plan
-    shape = "×".join(str(n) for n in mp.table_shape)
-    head = f"material {name!r}" if name else "material"
-    lines = [f"{head}: {effect_summary(mp)}"]
-    if scene is not None:
-        sharing = scene.tables[mp.key]
-        if sharing[0] != name:
-            lines.append(f"  shares the table of {sharing[0]!r} (equal settings): no bake of its own")
-        elif mp.key in scene.cached:
-            lines.append("  table already cached: no bake")
-    lines.append("  effects: " + ", ".join(f"{n} {'on' if mp.effects[n] else 'off'}" for n in EFFECTS))
-    lines.append(
-        f"  table {shape} float32 = {fmt_bytes(mp.table_bytes)} (GPU texture {fmt_bytes(mp.texture_bytes)}); "
-        f"SH order {p.sh_order}, {p.view_samples} view angles, {p.thickness_samples} thickness row(s), "
-        f"{mp.wavelength_nodes} wavelength nodes, ≈ {mp.u_degree} u nodes/interval"
-    )
-    seconds = mp.bake_seconds if scene is None else scene.bake_seconds_each[name]
-    lines.append(
-        f"  bake ≈ {seconds:.2g} s; shader {' '.join(f'{k}={v}' for k, v in mp.shader.defines)}: "
-        f"{mp.shader.floats_fetched} floats fetched, {mp.shader.texel_fetches} texel fetches, "
-        f"{mp.shader.uniform_loads} uniform loads, {mp.shader.multiply_adds} multiply-adds per pixel"
-    )
-    lines.append("  why:")
-    for key, reason in mp.reasons.items():
-        lines.append(f"    {key}: {reason}")
-    return lines
-
-
-def format_plan(plan, name: str = "") -> str:
-    """Human-readable text of a :class:`MaterialPlan` (``name`` optional) or a :class:`ScenePlan`."""
-    if isinstance(plan, MaterialPlan):
-        return "\n".join(_material_lines(name, plan))
-    if not isinstance(plan, ScenePlan):
-        raise TypeError(f"format_plan takes a MaterialPlan or a ScenePlan, got {type(plan).__name__}")
-    lines = [f"scene: {plan.reasons['scene']}"]
-    if plan.materials:
-        lines.append(
-            f"  total: {len(plan.tables)} table(s), {fmt_bytes(plan.table_bytes)} float32 "
-            f"(GPU {fmt_bytes(plan.texture_bytes)}), bake ≈ {plan.bake_seconds:.2g} s"
-        )
-    for key in ("cache", "world"):
-        if key in plan.reasons:
-            lines.append(f"  {key}: {plan.reasons[key]}")
-    for name, mp in plan.materials.items():
-        lines.extend(_material_lines(name, mp, plan))
-    return "\n".join(lines)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..colour import spectra
+from ..colour import rgb_spaces, spectra
 from ..optics import reflectance
 from ..optics.gulbrandsen2014 import (
     F82_COS,
@@ -53,7 +53,7 @@ _MIN_SCHLICK = 1e-6
 def _spectrum_rgb(spectrum, wavelengths_nm, colour_space: str) -> np.ndarray:
     """A reflectance spectrum as working-space RGB (E white: a flat 1 gives (1, 1, 1))."""
     xyz = spectra.spectrum_to_xyz(spectrum, wavelengths_nm)
-    return spectra.xyz_to_rgb_matrix(colour_space) @ xyz
+    return rgb_spaces.xyz_to_rgb_matrix(colour_space) @ xyz
 
 
 def metal_rgb(index_spec, colour_space: str | None = None) -> tuple[tuple, tuple]:
@@ -62,7 +62,7 @@ def metal_rgb(index_spec, colour_space: str | None = None) -> tuple[tuple, tuple
     Base Color is the normal-incidence reflectance R(0°, λ) integrated to RGB; Specular Tint
     is R(cos θ = 1/7) in RGB divided by Schlick(F0, 1/7) (Blender's F82 tint), clamped to [0, 1].
     """
-    space = colour_space or spectra.DEFAULT_SPACE
+    space = colour_space or rgb_spaces.DEFAULT_SPACE
     medium = Material(layers=(), substrate=index_spec).indices()[-1]
     wl = spectra.wavelength_grid(95)
     spectra_r = reflectance([1.0, medium], [], wl, [1.0, F82_COS])  # (2, W)

@@ -19,7 +19,7 @@ import json
 from dataclasses import asdict, dataclass, field, replace
 
 from .. import _checks
-from ..colour import spectra
+from ..colour import rgb_spaces, spectra
 from ..optics import metals
 from ..optics.dispersion import CauchyIndex, ConstantIndex, SellmeierIndex, TabulatedIndex
 from ..optics.gulbrandsen2014 import conductor_from_rgb
@@ -206,7 +206,7 @@ class Material:
         for name in ("colour_space", "illuminant"):
             if not isinstance(getattr(self, name), str):
                 raise ValueError(f"{name} must be a name, got {getattr(self, name)!r}")
-        spectra.xyz_to_rgb_matrix(self.colour_space)  # raises for unknown spaces
+        rgb_spaces.xyz_to_rgb_matrix(self.colour_space)  # raises for unknown spaces
         spectra.illuminant_spd(self.illuminant, [560.0])
 
     def _validate_range(self) -> None:

@@ -17,7 +17,7 @@ import numpy as np
 from .. import brdf, constants
 from ..bakes import bake
 from ..colour.film_colour import film_rgb_matrices
-from ..sh import harmonics
+from ..sh import projection
 from ..shading.frame import view_aligned_frame
 from ..shading.policy import lighting_window
 from ..shading.sh_sum import shade_sh
@@ -176,7 +176,7 @@ def prepare_environment(image: np.ndarray, l_max: int, max_width: int = 512, rou
     """
     while image.shape[1] > max_width:
         image = downsample(image, 2)
-    coeffs = harmonics.project_equirect(image, l_max)
+    coeffs = projection.project_equirect(image, l_max)
     if roughness is not None:
         coeffs = coeffs * lighting_window(l_max, roughness)[:, None]
     return image, coeffs

@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 
 from .. import constants
-from ..sh import harmonics
+from ..sh import windows
 
 # ----------------------------------------------------------------------------------------------
 # Split sum and SH
@@ -55,7 +55,7 @@ WINDOW_WIDTH_PER_ROUGHNESS = 0.9
 def lighting_window(l_max: int, roughness: float) -> np.ndarray:
     """Per-coefficient factors applied to the World's SH for a material of this roughness."""
     r = min(max(float(roughness), 0.0), 1.0)
-    return harmonics.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
+    return windows.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
 
 
 def windowed_lighting(coeffs, l_max: int, roughness: float) -> np.ndarray:

@@ -32,7 +32,7 @@ import threading
 
 import numpy as np
 
-from ..bakes import bake
+from ..bakes import bake, kernel
 from ..bakes.progress import checkpoint
 from .policy import GRID_AZIMUTHS, grid_shape
 from .sh_rotation import apply_bands, local_coefficients, rotate_z_batch, x_rotation_bands
@@ -103,7 +103,7 @@ def folded_table(result: bake.BakeResult, count: int) -> np.ndarray:
     C_out = C_in = 3 with zeros off the diagonal. Thickness row 0 (a constant thickness).
     """
     l_max = result.sh_order
-    kept = bake.coefficient_indices(l_max)
+    kept = kernel.coefficient_indices(l_max)
     rotations = _view_rotations(int(count), l_max)[:, kept]  # (T, K_kept, K)
     m = table_lookup(result.data[:1], np.cos(view_angles(count)))  # (T, K_kept, 3[, 3])
     if m.ndim == 3:  # per channel → diagonal 3×3

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 from .. import _checks
-from . import _untrusted_exr, table_io
+from . import _untrusted_exr, atomic_write, table_io
 
 __all__ = ["DEFAULT_CACHE_MAX_BYTES", "CacheDirError", "TableCache", "default_cache_dir"]
 
@@ -117,9 +117,9 @@ def _ensure_dir(path: Path, *, create: bool, private: bool) -> bool:
         if not create:
             return False
         try:
-            os.makedirs(path.parent, mode=table_io._PRIVATE_DIR_MODE, exist_ok=True)
+            os.makedirs(path.parent, mode=atomic_write.PRIVATE_DIR_MODE, exist_ok=True)
             with contextlib.suppress(FileExistsError):  # another process may create it first
-                os.mkdir(path, table_io._PRIVATE_DIR_MODE)
+                os.mkdir(path, atomic_write.PRIVATE_DIR_MODE)
                 created = True
             st = os.lstat(path)
         except OSError as exc:
@@ -131,9 +131,9 @@ def _ensure_dir(path: Path, *, create: bool, private: bool) -> bool:
             path, f"cache directory {str(path)!r} cannot be inspected: {exc.strerror or exc}", exc.errno
         ) from exc
     _check_dir(path, st, private=private)
-    if created and stat.S_IMODE(st.st_mode) != table_io._PRIVATE_DIR_MODE:
+    if created and stat.S_IMODE(st.st_mode) != atomic_write.PRIVATE_DIR_MODE:
         with contextlib.suppress(OSError):  # a umask that removed owner bits; the mkdir made it ours
-            os.chmod(path, table_io._PRIVATE_DIR_MODE)
+            os.chmod(path, atomic_write.PRIVATE_DIR_MODE)
     return True
 
 
@@ -249,7 +249,7 @@ class TableCache:
             return
         aside = path.with_name(path.name + ".corrupt")
         try:
-            table_io._replace(
+            atomic_write.replace_file(
                 os.fspath(path), os.fspath(aside)
             )  # renames a link or FIFO itself, never its target
             log.warning("thinfilm_sh cache: invalid entry moved to %s: %s", aside, exc)
@@ -286,7 +286,7 @@ class TableCache:
                     path, data, attributes, precision, kind, {table_io._CACHE_TAG_ATTR: key}
                 )
                 break
-            except table_io.TableWriteError as exc:
+            except atomic_write.TableWriteError as exc:
                 if exc.errno != errno.ENOENT or attempt:  # ENOENT: a concurrent clear() removed the folder
                     raise
         try:

@@ -1,4 +1,4 @@
-"""Self-describing baked tables in OpenEXR, a validating reader and safe writes.
+"""Self-describing baked tables in OpenEXR and a validating reader.
 
 A baked table is an N-D float array (for example (T, A, K, 9): thickness × view angle × SH
 coefficient × a flattened 3×3 matrix) plus a flat dict of JSON-serialisable metadata. It is
@@ -30,13 +30,11 @@ Files are untrusted input: :func:`read_table` opens and checks them with :mod:`.
 (regular files only, every declared size within hard limits before anything is allocated, JSON
 nesting limited); every failure is a :class:`TableError`.
 
-Every write (:func:`write_table`, :func:`write_file`, :func:`write_bytes`) goes to a temporary
-file beside the destination, is flushed and verified (not empty, reads back through the
-validating reader, ends where its structure says), and only then replaces the destination; a
-destination that is not a plain regular file (symbolic link, FIFO, device, directory, hard
-link) is refused, and every failure is a :class:`TableWriteError` naming the path, with the
-previous file left as it was. The content-keyed cache of tables is :mod:`.table_cache`
-(``docs/cache.md`` for users).
+:func:`write_table` writes through :func:`.atomic_write.write_file`: a temporary file beside the
+destination, flushed and verified (not empty, reads back through the validating reader, ends
+where its structure says), and only then renamed over the destination; every failure is a
+:class:`.atomic_write.TableWriteError` naming the path, with the previous file left as it was.
+The content-keyed cache of tables is :mod:`.table_cache` (``docs/cache.md`` for users).
 
 ``OpenEXR`` is imported lazily, so :func:`content_key` and :func:`half_precision_error` work
 without it. This module never imports ``bpy``.
@@ -44,9 +42,7 @@ without it. This module never imports ``bpy``.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import errno
 import hashlib
 import io
 import json
@@ -54,9 +50,6 @@ import logging
 import math
 import os
 import re
-import stat
-import tempfile
-import time
 from pathlib import Path
 from typing import NamedTuple
 
@@ -72,12 +65,12 @@ from ._untrusted_exr import (
     MAX_TABLE_VALUES,
     TableError,
     _exr_structure,
-    _file_kind,
     _parse_json,
     _read_regular,
     _short,
     verify_exr,
 )
+from .atomic_write import check_destination, write_file
 
 __all__ = [
     "FORMAT_VERSION",
@@ -86,14 +79,10 @@ __all__ = [
     "HalfError",
     "Table",
     "TableError",
-    "TableWriteError",
-    "check_destination",
     "content_key",
     "half_precision_error",
     "read_table",
     "verify_exr",
-    "write_bytes",
-    "write_file",
     "write_table",
 ]
 
@@ -118,26 +107,6 @@ _CACHE_TAG_ATTR = _PREFIX + "cache_key"
 _STORED_DTYPE = {"float": np.dtype("<f4"), "half": np.dtype("<f2")}
 _HEX64 = re.compile(r"[0-9a-f]{64}")
 _KEY_RE = re.compile(r"[A-Za-z0-9_-]{1,128}")
-
-
-_OUTPUT_MODE = 0o644  # published outputs are ordinary shareable files (mkstemp creates 0600)
-_PRIVATE_DIR_MODE = 0o700
-
-
-class TableWriteError(OSError):
-    """An output could not be written, or its destination was refused; ``str()`` names the path.
-
-    ``errno`` is the operating system's code when there is one (``ENOSPC``, ``EACCES``,
-    ``EDQUOT``, ``EROFS``, …); ``filename`` is the destination. Whatever was at the destination
-    before is unchanged.
-    """
-
-    def __init__(self, path, message: str, code: int | None = None):
-        super().__init__(code, message, os.fspath(path))
-        self.message = message
-
-    def __str__(self) -> str:
-        return self.message
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -317,164 +286,6 @@ def _channel_names(count: int) -> list[str]:
 # ----------------------------------------------------------------------------------------------
 
 
-def _replace(src: str, dst: str) -> None:
-    """``os.replace`` with a short retry: on Windows it fails while ``dst`` is open elsewhere."""
-    for attempt in range(5):
-        try:
-            os.replace(src, dst)
-            return
-        except PermissionError:
-            if os.name != "nt" or attempt == 4:
-                raise
-            time.sleep(0.05 * (attempt + 1))
-
-
-def check_destination(path) -> Path:
-    """``path`` as a Path if an output may be written there, else :class:`TableWriteError`.
-
-    A destination that does not exist, or is a regular file with no other hard link, may be
-    replaced. Anything else is refused, looked at with ``lstat`` (a link is never followed):
-    a symbolic link (replacing the link would silently not write where it points), a FIFO, a
-    device (run as root, replacing ``/dev/null`` would break the machine), a socket, a directory,
-    or a file with several hard links (replacing this name would silently separate it from the
-    others). :func:`write_file` checks again just before publishing.
-    """
-    path = Path(os.fspath(path))
-    try:
-        st = os.lstat(path)
-    except FileNotFoundError:
-        return path
-    except OSError as exc:
-        raise TableWriteError(path, f"cannot write {str(path)!r}: {exc.strerror}", exc.errno) from exc
-    if not stat.S_ISREG(st.st_mode):
-        raise TableWriteError(
-            path,
-            f"refusing to write {str(path)!r}: it exists and is {_file_kind(st.st_mode)}, not a regular "
-            "file; choose another path or remove it first",
-            errno.EEXIST,
-        )
-    if st.st_nlink > 1:
-        raise TableWriteError(
-            path,
-            f"refusing to write {str(path)!r}: it has {st.st_nlink} hard links, and replacing it would "
-            "separate it from the others; choose another path or remove it first",
-            errno.EMLINK,
-        )
-    return path
-
-
-def _write_failed(path: Path, existed: bool, what: str, code: int | None = None) -> TableWriteError:
-    after = "the previous file is unchanged" if existed else "nothing was written"
-    return TableWriteError(path, f"could not write {str(path)!r}: {what}; {after}", code)
-
-
-def _fsync_file(path: str) -> None:
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_BINARY", 0))
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_dir(path: Path) -> None:
-    """Make a rename in ``path`` durable (POSIX; a no-op where directories cannot be opened)."""
-    if os.name == "nt":
-        return
-    with contextlib.suppress(OSError):
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-def write_file(path, writer, *, verify=None) -> Path:
-    """Write an output safely: ``writer(temporary_path)`` fills a temporary file beside ``path``,
-    which is flushed, verified and then renamed over ``path``; returns ``path`` as a Path.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Destination; its folder must exist. Refused if it is not a plain regular file
-        (:func:`check_destination`).
-    writer : callable(str)
-        Writes the whole output to the path it is given (which exists, empty, mode 0600).
-        ``OSError`` and ``RuntimeError`` (how the OpenEXR binding reports I/O failures) become
-        :class:`TableWriteError`; anything else propagates unchanged.
-    verify : callable(str), optional
-        Checks the written file, raising ``ValueError`` (e.g. :class:`TableError`) if it is
-        incomplete or wrong. An empty file is always refused: a full disk can make a writer
-        return normally after writing nothing.
-
-    Raises
-    ------
-    TableWriteError
-        The destination was refused, or writing, flushing, verifying or renaming failed (disk
-        full, permission, quota, read-only file system, …). The message names ``path``; the
-        previous file at ``path``, if any, is unchanged and no temporary file is left.
-    """
-    path = check_destination(path)
-    existed = os.path.lexists(path)
-    parent = path.parent
-    try:
-        fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{path.name[:200]}.", suffix=".tmp")
-        os.close(fd)
-    except OSError as exc:
-        raise _write_failed(path, existed, exc.strerror or str(exc), exc.errno) from exc
-    try:
-        try:
-            writer(tmp)
-            _fsync_file(tmp)
-            size = os.stat(tmp).st_size
-        except OSError as exc:
-            raise _write_failed(path, existed, exc.strerror or str(exc), exc.errno) from exc
-        except RuntimeError as exc:
-            raise _write_failed(path, existed, str(exc).rstrip(". ")) from exc
-        if size == 0:
-            raise _write_failed(path, existed, "the file written is empty (is the disk full?)", errno.ENOSPC)
-        if verify is not None:
-            try:
-                verify(tmp)
-            except (ValueError, OSError) as exc:
-                raise _write_failed(
-                    path, existed, f"the file written is incomplete or wrong (is the disk full?): {exc}"
-                ) from exc
-        check_destination(path)  # again: something may have appeared there meanwhile
-        try:
-            os.chmod(tmp, _OUTPUT_MODE)
-            _replace(tmp, os.fspath(path))
-        except OSError as exc:
-            raise _write_failed(path, existed, exc.strerror or str(exc), exc.errno) from exc
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync_dir(parent)
-    return path
-
-
-def write_bytes(path, payload: bytes) -> Path:
-    """Write ``payload`` to ``path`` with the guarantees of :func:`write_file`; returns the path.
-
-    Verified by reading the file back: it must hold exactly ``payload``, which must not be empty
-    (an empty file cannot be told from a write that failed on a full disk).
-    """
-    payload = bytes(payload)
-    if not payload:
-        raise ValueError(f"refusing to write an empty file to {os.fspath(path)!r}")
-
-    def writer(tmp: str) -> None:
-        with open(tmp, "wb") as handle:
-            handle.write(payload)
-
-    def verify(tmp: str) -> None:
-        found = _read_regular(tmp, f"file {tmp!r}", len(payload) + 1)
-        if found != payload:
-            raise ValueError(f"{len(found)} bytes read back, {len(payload)} written, contents differ")
-
-    return write_file(path, writer, verify=verify)
-
-
 def write_table(path, data, attributes=None, precision: str = "float", *, kind: str = "sh_table") -> Path:
     """Store an N-D array and its metadata in one OpenEXR file, atomically; returns the path.
 
@@ -484,7 +295,7 @@ def write_table(path, data, attributes=None, precision: str = "float", *, kind: 
         Destination. The parent directory must exist. An existing regular file is replaced
         atomically (written to a temporary file beside it, verified, then ``os.replace``), so
         readers and crashes never see a half-written table; anything else there (a symbolic
-        link, FIFO, device, directory, hard-linked file) is refused (:func:`check_destination`).
+        link, FIFO, device, directory, hard-linked file) is refused (:func:`.atomic_write.check_destination`).
     data : array_like, real, finite, at least 1-D, no empty axis
         Rounded to float32 (``precision="float"``) or IEEE half (``"half"``). At most
         :data:`MAX_TABLE_VALUES` values and :data:`MAX_CHANNELS` entries on the last axis.

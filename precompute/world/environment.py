@@ -5,7 +5,7 @@ needs from it (the add-on calls it when the World's key changes):
 
 1. its bright lamps and their pixels (:func:`precompute.world.lamps.extract`), shaded per light
    direction by the lamp loop;
-2. the lamps' SH, the projection of the lamp pixels (:func:`precompute.sh.harmonics.project_equirect`),
+2. the lamps' SH, the projection of the lamp pixels (:func:`precompute.sh.projection.project_equirect`),
    so that the SH lighting of a lamp-shaded material is the World's SH without them
    (:attr:`Environment.sh_without_lamps` = world − lamps over their common bands);
 3. the GGX prefilter of the split sum (:func:`precompute.world.prefilter.prefilter`) with the lamps
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..materials.material import MAX_SH_ORDER
-from ..sh import harmonics
+from ..sh import projection
 from . import lamps as lamps_mod
 from . import prefilter as prefilter_mod
 from .lamps import Lamps
@@ -140,7 +140,7 @@ def analyse_world(
     panorama = np.asarray(panorama)
     found, mask = lamps_mod.extract(panorama)
     if found.count:
-        lamp_sh = harmonics.project_equirect(np.where(mask[..., None], panorama, 0.0), l_max)
+        lamp_sh = projection.project_equirect(np.where(mask[..., None], panorama, 0.0), l_max)
         found_lamps = found
     else:
         lamp_sh = found_lamps = None
