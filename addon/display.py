@@ -10,7 +10,7 @@ builds the same chain with Blender's bundled PyOpenColorIO
 
 - The viewport overlay: :func:`baked_lut` bakes that processor without exposure into a
   :data:`~precompute.shading.policy.DISPLAY_LUT_SIZE`³ cube over a log shaper, with a 3 × 3
-  input matrix (precompute/shading/display_lut.py, sampled per pixel by glsl/tf_display.glsl);
+  input matrix (precompute/colour/display_lut.py, sampled per pixel by glsl/tf_display.glsl);
   exposure is applied to the scene-linear value first, in the shader.
 - The headless PNG: :func:`save_png` hands the scene-linear frame to Blender
   (``Image.save_render(scene=…)``), which applies every view setting, curve mapping included.
@@ -30,7 +30,8 @@ from typing import NamedTuple
 import bpy
 import numpy as np
 
-from ..precompute.shading import display_lut, policy
+from ..precompute.colour import display_lut
+from ..precompute.shading import policy
 from . import caches
 from .gpu.resources import DisplayLUTTexture
 from .world_key import working_space

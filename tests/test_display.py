@@ -6,7 +6,7 @@
   exposure −1/0/+1, in the Linear Rec.709, Rec.2020 and ACEScg working spaces.
 - The EXR is scene-linear RGBA in the working space with its chromaticities.
 - The OCIO processor the viewport's LUT is baked from (``display.processor``) equals
-  Blender's save path too, and the LUT (precompute/shading/display_lut.py) follows it (figures printed).
+  Blender's save path too, and the LUT (precompute/colour/display_lut.py) follows it (figures printed).
 
 Run with ``-s`` for the figures.
 """
@@ -20,8 +20,8 @@ pytestmark = pytest.mark.blender
 
 from _extension import registered_extension, set_cache_preference  # noqa: E402
 
+from precompute.colour import display_lut  # noqa: E402
 from precompute.output import image_io  # noqa: E402
-from precompute.shading import display_lut  # noqa: E402
 
 #: (view transform, look) of the acceptance.
 VIEWS = (

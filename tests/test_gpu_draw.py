@@ -522,11 +522,12 @@ def test_display_output_is_srgb_encoded_with_exposure(gd, sphere_scene):
 
 @pytest.mark.parametrize("exposure", [0.7, 4.0])
 def test_display_lut_output_matches_numpy_per_pixel(gd, sphere_scene, exposure):
-    """TF_DISPLAY_LUT (tf_display.glsl) against precompute.shading.display_lut.apply, pixel by pixel,
+    """TF_DISPLAY_LUT (tf_display.glsl) against precompute.colour.display_lut.apply, pixel by pixel,
     with a LUT that mixes the channels (every corner of a cell matters)."""
     import gpu
 
-    from precompute.shading import display_lut, policy
+    from precompute.colour import display_lut
+    from precompute.shading import policy
 
     lattice = display_lut.lattice(policy.DISPLAY_LUT_SIZE)
     mix = np.array([[0.8, 0.15, 0.05], [0.1, 0.7, 0.2], [0.05, 0.25, 0.7]])

@@ -22,8 +22,9 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
+from ...precompute.colour import display_lut
 from ...precompute.materials.material import MAX_SH_ORDER
-from ...precompute.shading import display_lut, policy, radiance_grid
+from ...precompute.shading import policy, radiance_grid
 from ...precompute.shading.codegen import RX_PADDED, x_rotation_scalars
 from ...precompute.shading.lights import LIGHT_VEC4, Lights
 from ...precompute.shading.variant import UBO_LIMIT_BYTES, UBO_TEXELS, fits_uniform_buffer
@@ -695,7 +696,7 @@ class UniformCache:
 
 @dataclass
 class DisplayLUTTexture:
-    """The display LUT (precompute/shading/display_lut.py) as an RGBA32F texture of N · N × (N + 1)
+    """The display LUT (precompute/colour/display_lut.py) as an RGBA32F texture of N · N × (N + 1)
     texels (the last row: the input matrix), read with texelFetch (:data:`DISPLAY_LUT_SAMPLER`)."""
 
     texture: gpu.types.GPUTexture

@@ -4,5 +4,6 @@
 illuminants, XYZ), ``rgb_spaces`` (the working spaces, their matrices and channel
 sensitivities, RGB → spectrum), ``composite`` (spiky illuminants), ``film_colour`` (the film's
 RGB matrices per u), ``film_channels`` (Cycles' per-channel film), ``colour_difference``
-(the one ΔE2000).
+(the one ΔE2000), ``display_lut`` (the display transform as a 3-D LUT, the numpy twin of
+``glsl/tf_display.glsl``).
 """

@@ -271,7 +271,7 @@ TABLE_UBO_DEVICES = ("SOFTWARE",)
 # ----------------------------------------------------------------------------------------------
 # Display
 # ----------------------------------------------------------------------------------------------
-#: Lattice points per axis of the viewport's display LUT (precompute/shading/display_lut.py): the
+#: Lattice points per axis of the viewport's display LUT (precompute/colour/display_lut.py): the
 #: trilinear error against OCIO (docs/tuning.md#display-lut).
 DISPLAY_LUT_SIZE = 65
 #: The LUT shaper's offset a in log2(x + a): resolves the sRGB toe (docs/tuning.md#display-lut).

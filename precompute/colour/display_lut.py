@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import policy
+from ..shading import policy
 
 
 def shaper(x: np.ndarray, floor: float | None = None, top: float | None = None) -> np.ndarray:
