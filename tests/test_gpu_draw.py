@@ -656,6 +656,7 @@ def test_chunks_are_joined_by_their_includes(gd, tmp_path):
     ]
     assert shaders.chunk_order(["tf_shade.glsl"]) == library
     assert shaders.chunk_order(["tf_lamps.glsl", "tf_main_frag.glsl"], done=library) == [
+        "tf_brdf.glsl",
         "tf_lamps.glsl",
         "tf_display.glsl",
         "tf_main_frag.glsl",

@@ -99,6 +99,9 @@ def test_no_policy_value_is_typed_in_the_glsl():
         assert not redefined, f"{file} defines {sorted(redefined)} itself"
     # the guards (small floats) never appear as numbers
     guards = [policy.MIN_COS, policy.MIN_ALPHA, policy.GIMBAL_SIN, policy.TANGENT_EPS, policy.X90_ZERO]
+    guards += [policy.DIVISION_FLOOR, policy.MOMENT_EPS, policy.TIR_EPS, policy.AREA_MIN_AXIS]
+    # …nor do the tuned bounds (a typed 100.0 for AREA_MAX_WIDTH was one, issue 35)
+    guards += [policy.AREA_MAX_WIDTH, policy.AREA_UNIFORM_WIDTH, policy.HELPER_AXIS_MAX]
     for file, text in sources.items():
         typed = [x for x in float_literals(text) if any(np.isclose(x, g, rtol=1e-6, atol=0) for g in guards)]
         assert not typed, f"{file} types {typed}"

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import gpu
 
+from ...precompute.shading import policy
 from ...precompute.shading.codegen import X90_GENERATED, banded_source, define_block
 from ...precompute.shading.variant import Variant
 from . import resources
@@ -192,6 +193,8 @@ def background_shader_info(display: bool):
     info = gpu.types.GPUShaderCreateInfo()
     if display:
         info.define("TF_DISPLAY_SRGB", "1")
+    for name, value in policy.glsl_defines():  # tf_common.glsl's guards
+        info.define(name, value)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.VIEW)
     _declare(info, resources.ENVIRONMENT_SAMPLER)

@@ -301,8 +301,8 @@ def lobe_cells(centre, width, samples: int):
     together exactly the light's extent. A wide lobe (width ≫ 1) gives a uniform grid.
     """
     # bounded so that float32 keeps c + w tan(·) to ~1e-5 (a lobe that wide is uniform anyway)
-    c = np.clip(np.asarray(centre, dtype=np.float64), -AREA_MAX_WIDTH, AREA_MAX_WIDTH)[:, None]
-    w = np.clip(np.asarray(width, dtype=np.float64), policy.AREA_MIN_WIDTH, AREA_MAX_WIDTH)[:, None]
+    c = np.clip(np.asarray(centre, dtype=np.float64), -policy.AREA_MAX_WIDTH, policy.AREA_MAX_WIDTH)[:, None]
+    w = np.clip(np.asarray(width, dtype=np.float64), policy.AREA_MIN_WIDTH, policy.AREA_MAX_WIDTH)[:, None]
     lo = np.arctan((-0.5 - c) / w)
     hi = np.arctan((0.5 - c) / w)
     t = np.arange(int(samples) + 1) / int(samples)
@@ -330,19 +330,16 @@ def area_lobe(lights: Lights, k: int, positions, normals, views, alpha: float):
     hit = p + t[:, None] * r - lights.position[k]
     out = []
     for ax in (lights.axis_u[k], lights.axis_v[k]):
-        size = max(float(np.linalg.norm(ax)), 1e-12)
+        size = max(float(np.linalg.norm(ax)), policy.AREA_MIN_AXIS)
         centre = (hit @ ax) / (size * size)
         width = policy.AREA_LOBE_SCALE * alpha * t / (safe * size)
         out.append(
-            (np.where(facing > MIN_COS, centre, 0.0), np.where(facing > MIN_COS, width, UNIFORM_WIDTH))
+            (
+                np.where(facing > MIN_COS, centre, 0.0),
+                np.where(facing > MIN_COS, width, policy.AREA_UNIFORM_WIDTH),
+            )
         )
     return out[0][0], out[1][0], out[0][1], out[1][1]
-
-
-#: A lobe width that makes :func:`lobe_cells` uniform (the ray misses the light's plane).
-UNIFORM_WIDTH = 1e6
-#: Bound of a lobe's centre and width in light sizes (:func:`lobe_cells`): float32 precision.
-AREA_MAX_WIDTH = 100.0
 
 
 def _area_samples(lights: Lights, k: int, p: np.ndarray, lobe):

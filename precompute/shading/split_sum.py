@@ -22,13 +22,10 @@ import numpy as np
 
 from ..world.hdri import equirect_lookup
 from . import lamps as lamp_shading
-from .policy import effective_roughness, sh_weight, uses_moment
+from .policy import DIVISION_FLOOR, MOMENT_EPS, effective_roughness, sh_weight, uses_moment
 from .sh_sum import shade_sh
 from .table import lookup as table_lookup
 from .table import thickness_position
-
-#: Squared length below which a direction moment counts as vanished (as tf_split_sum.glsl, float32).
-MOMENT_EPS = 1e-30
 
 
 def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
@@ -42,7 +39,7 @@ def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
     r = np.clip(np.asarray(roughness, dtype=float), levels[0], levels[-1])
     lo = np.clip(np.searchsorted(levels, r, side="right") - 1, 0, levels.size - 2)
     a4, b4 = levels[lo] ** 4, levels[lo + 1] ** 4
-    return lo, np.clip((r**4 - a4) / np.maximum(b4 - a4, 1e-30), 0.0, 1.0)
+    return lo, np.clip((r**4 - a4) / np.maximum(b4 - a4, DIVISION_FLOOR), 0.0, 1.0)
 
 
 def _blend(pre, directions: np.ndarray, roughness, stacks) -> list[np.ndarray]:

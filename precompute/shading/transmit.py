@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from .lamps import film_at, thickness_lerp
-from .policy import MIN_COS, WALL_GUARD, WALL_SCALE_MAX
+from .policy import DIVISION_FLOOR, MIN_COS, WALL_GUARD, WALL_SCALE_MAX
 
 #: The extension's physical wall: the film on the front of a sheet of relative index η.
 WALL_SHEET = 0
@@ -64,8 +64,8 @@ def fresnel_dielectric(cos_i, eta) -> np.ndarray:
     eta = float(eta)
     g2 = eta * eta - 1.0 + c * c
     g = np.sqrt(np.maximum(g2, 0.0))
-    a = (g - c) / np.maximum(g + c, 1e-30)
-    b = (c * (g + c) - 1.0) / np.maximum(c * (g - c) + 1.0, 1e-30)
+    a = (g - c) / np.maximum(g + c, DIVISION_FLOOR)
+    b = (c * (g + c) - 1.0) / np.maximum(c * (g - c) + 1.0, DIVISION_FLOOR)
     return np.where(g2 > 0.0, np.clip(0.5 * a * a * (1.0 + b * b), 0.0, 1.0), 1.0)
 
 
