@@ -454,7 +454,7 @@ def main(argv=None) -> int:
     parser.add_argument("--no-area", action="store_true", help="skip the area-light sampling table")
     parser.add_argument("--report", default=str(DOCS / "scene-lights.md"))
     args = parser.parse_args(argv)
-    from benchmarks.viewport import Extension
+    from benchmarks.viewport.scene import Extension
 
     ext = Extension()
     rows = []

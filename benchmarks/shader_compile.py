@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 from . import common
-from . import viewport as vp
+from .viewport.scene import Extension
 
 # Cold compiles: Mesa's on-disk shader cache would hand back a variant compiled by an earlier run
 # (set before bpy creates its GL context).
@@ -88,7 +88,7 @@ def run(names=None, per_pixel: bool = True, log=print) -> dict:
 
     from precompute.shading.variant import stand_in
 
-    ext = vp.Extension()
+    ext = Extension()
     made = _make_scenes_module().make_scenes(tempfile.mkdtemp(prefix="tf_compile_"), names=names)
     rows = []
     done: dict = {}

@@ -324,7 +324,7 @@ def main(argv=None) -> int:
     parser.add_argument("--before", default=BEFORE, help="git revision of the prefilter to compare with")
     parser.add_argument("--no-doc", action="store_true", help="print, do not write docs/world-latency.md")
     args = parser.parse_args(argv)
-    from benchmarks.viewport import Extension
+    from benchmarks.viewport.scene import Extension
 
     ext = Extension()
     rows = run_scene(ext, "hdri") + run_scene(ext, "sky")

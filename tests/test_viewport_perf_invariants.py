@@ -1,5 +1,5 @@
 """Properties that keep the viewport's per-frame work small (never timings: those are in
-benchmarks/viewport.py and docs/performance.md).
+benchmarks/viewport/ and docs/performance.md).
 
 - Repeated frames with nothing changed allocate and upload no uniform buffer, compile no shader
   variant and rebuild no batch; an edit rebuilds exactly the edited object's batch.

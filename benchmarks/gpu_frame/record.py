@@ -1,5 +1,5 @@
 """Recording what the extension draws (bpy): create-info stand-ins, the capture of uploads and
-meshes, the manifest writer, and the benchmark scenes of benchmarks/viewport.py case by case."""
+meshes, the manifest writer, and the benchmark scenes of benchmarks/viewport/ case by case."""
 
 from __future__ import annotations
 
@@ -8,7 +8,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from .. import viewport as vp
+from ..viewport.config import AUTOMATIC_ROUGHNESS, FILM, SPLIT_SUM_L, SWEEP_SCENE, roughness_cases
+from ..viewport.frames import Frame
+from ..viewport.measure import prepare_scene
+from ..viewport.scene import Extension, Scene
 from .config import (
     LAMPS,
     LAMPS_ON_ONLY,
@@ -358,11 +361,11 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
     frame = None
     try:
         for case in spec["cases"]:
-            rough = vp.AUTOMATIC_ROUGHNESS[case]
+            rough = AUTOMATIC_ROUGHNESS[case]
             mat = bpy.data.materials.get(f"Film auto {case}")
             if mat is None:
                 mat = bpy.data.materials.new(f"Film auto {case}")
-                scene.ext.props.fill_from_material(mat.thinfilm_sh, vp.FILM.with_(roughness=rough))
+                scene.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
                 mat.thinfilm_sh.sh_order = "AUTO"
                 mat.thinfilm_sh.enabled = True
             for obj in scene.objects:
@@ -371,7 +374,7 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
             bpy.context.view_layer.update()
             scene.ext.scene_draw.collect(bpy.context.evaluated_depsgraph_get())  # bake, World, grid
             if frame is None:
-                frame = vp.Frame(scene, *size)
+                frame = Frame(scene, *size)
             items = frame.items()
             l_max = int(items[0].table.l_max)
             meta = {
@@ -404,8 +407,8 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
 
 
 def _frames(scene, size):
-    """The scene's cases: (meta, items, view, projection), as benchmarks/viewport.py draws them."""
-    rough = vp.roughness_cases()
+    """The scene's cases: (meta, items, view, projection), as benchmarks/viewport/ draws them."""
+    rough = roughness_cases()
     for scene_name, spec in SCENES.items():
         if scene_name in LAMPS_ON_ONLY:
             yield from _automatic_frames(scene, size, scene_name, spec)
@@ -417,9 +420,9 @@ def _frames(scene, size):
                 for lamps in LAMPS[::-1]:  # as viewport.split_sum: lamps off first, then the default (on)
                     for case in spec["cases"]:
                         scene.material(l_max, case).thinfilm_sh.world_lamps = lamps
-                        vp.prepare_scene(scene, objects, triangles, l_max, case)
+                        prepare_scene(scene, objects, triangles, l_max, case)
                         if frame is None:
-                            frame = vp.Frame(scene, *size)
+                            frame = Frame(scene, *size)
                         items = frame.items()
                         meta = {
                             "id": case_id(scene_name, l_max, case, lamps),
@@ -478,20 +481,20 @@ def _textures_only(items):
 
 
 def _check_constants() -> None:
-    if tuple(SCENES["sweep"]["layout"]) != tuple(vp.SWEEP_SCENE):
-        raise RuntimeError(f"viewport.SWEEP_SCENE is {vp.SWEEP_SCENE}, this harness has {SCENES['sweep']}")
-    if tuple(SCENES["sweep"]["l_max"]) != tuple(vp.SPLIT_SUM_L):
-        raise RuntimeError(f"viewport.SPLIT_SUM_L is {vp.SPLIT_SUM_L}, this harness has {SCENES['sweep']}")
+    if tuple(SCENES["sweep"]["layout"]) != tuple(SWEEP_SCENE):
+        raise RuntimeError(f"viewport.SWEEP_SCENE is {SWEEP_SCENE}, this harness has {SCENES['sweep']}")
+    if tuple(SCENES["sweep"]["l_max"]) != tuple(SPLIT_SUM_L):
+        raise RuntimeError(f"viewport.SPLIT_SUM_L is {SPLIT_SUM_L}, this harness has {SCENES['sweep']}")
 
 
 def record_cases(size, log=print):
     """Set up the scenes (bpy) and yield (meta, items, view, projection, capture) per case, with the
     capture active; the extension instance is created here."""
     _check_constants()
-    ext = vp.Extension()
+    ext = Extension()
     capture = Capture(ext.gpu)
     ext.scene_draw.CACHES.clear()
     with capture:
-        scene = vp.Scene(ext)
+        scene = Scene(ext)
         for meta, items, view, proj in _frames(scene, size):
             yield meta, items, view, proj, capture, ext
