@@ -2,7 +2,7 @@
 
 from bpy.types import Menu, Panel, UIList
 
-from ..precompute.effects import cost_model, plan_text, plans
+from ..precompute.effects import plan_text, plans
 from . import caches, linked, scene_draw, tables, viewport
 from .description import description as _description_now
 from .description import description_key
@@ -359,15 +359,7 @@ def plan_for(desc, wait: bool = False):
 def plan_lines(mp) -> list[str]:
     """The panel's summary of a plan: effects, table, orders, costs (one label each)."""
     p = mp.plan
-    warm = cost_model.bake_time_breakdown(
-        mp.material,
-        p,
-        mp.u_degree,
-        mp.u_tried,
-        mp.wavelength_nodes,
-        kernel_cold=False,
-        order_kernel_cold=False,
-    )["total"]
+    warm = mp.bake_time(kernel_cold=False, order_kernel_cold=False)["total"]
     shape = "×".join(str(n) for n in mp.table_shape)
     defines = " ".join(name if value == "1" else f"{name}={value}" for name, value in mp.shader.defines)
     return [

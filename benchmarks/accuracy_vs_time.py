@@ -36,7 +36,7 @@ from precompute.bakes import bake, planner
 from precompute.bakes import kernel as bake_kernel
 from precompute.colour.colour_difference import delta_e_2000
 from precompute.commands import cli
-from precompute.effects import plans
+from precompute.effects import plan_text, plans
 from precompute.materials.material import AUTO, Layer, Material, Quality
 from precompute.output import render
 from precompute.shading import sh_sum
@@ -551,8 +551,8 @@ def report(res: dict, command: str) -> str:
         orders = "/".join(map(str, r["orders"]))
         lines.append(
             f"| {r['cfg'].name} | {orders} | {tuple(r['example_shape'])} |"
-            f" {common.fmt_bytes(int(r['bytes32']))}"
-            f" | {common.fmt_bytes(int(r['bytes16']))} | {r['fetched']:.0f} | {r['mads']:.0f}"
+            f" {plan_text.fmt_bytes(int(r['bytes32']))}"
+            f" | {plan_text.fmt_bytes(int(r['bytes16']))} | {r['fetched']:.0f} | {r['mads']:.0f}"
             f" | {common.fmt_seconds(r['cold'])} | {common.fmt_seconds(r['warm'])} | **{r['mean']:.2f}** |"
             f" {r['p95']:.2f} | " + " | ".join(f"{r['by_roughness'][x]:.2f}" for x in roughs) + " |"
         )

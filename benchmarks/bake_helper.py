@@ -31,6 +31,7 @@ from pathlib import Path
 
 from benchmarks import common
 from benchmarks import latency as replay
+from precompute.effects import plan_text
 
 #: Bakes per condition.
 BAKES = 12
@@ -135,7 +136,7 @@ def report(rows, draw_ms: float, helper_info: dict, started: str, wall_s: float)
         "",
         f"One redraw of the scene (median, main thread alone): {draw_ms:.1f} ms. The helper:",
         f"ready {helper_info.get('start_s', float('nan')):.2f} s after it was started, "
-        f"{common.fmt_bytes(rss) if rss else 'n/a'} resident after the run.",
+        f"{plan_text.fmt_bytes(rss) if rss else 'n/a'} resident after the run.",
         "",
         "*Idle* is the baseline. *Python* is a main thread busy with Python code (another add-on, a",
         "panel's `draw`): it holds the interpreter's lock, which the thread's bake needs between its",

@@ -37,6 +37,7 @@ import numpy as np
 
 from precompute.bakes import bake, kernel, planner
 from precompute.bakes.bake_reference import bake_reference
+from precompute.effects import plan_text
 from precompute.materials.material import Layer, Quality, preset
 from precompute.optics import reflectance_sweep
 
@@ -283,7 +284,7 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
     ]
     for r in rows:
         lines.append(
-            f"| {r['name']} | {tuple(r['shape'])} | {common.fmt_bytes(r['bytes'])} |"
+            f"| {r['name']} | {tuple(r['shape'])} | {plan_text.fmt_bytes(r['bytes'])} |"
             f" {r['plan'].wavelength_count}"
             f" | {r['u_nodes']} × 8 | {common.fmt_seconds(r['cold'])} | **{common.fmt_seconds(r['warm'])}**"
             f" | {'yes' if r['warm'] <= TARGET_S else '**no**'} | {r['kernel_hits']}/{CHANGES}"

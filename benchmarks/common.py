@@ -202,14 +202,6 @@ def fmt_rate(per_second: float) -> str:
     return f"{per_second / 1e3:.1f} k/s"
 
 
-def fmt_bytes(count: int) -> str:
-    if count >= 1 << 20:
-        return f"{count / (1 << 20):.2f} MiB"
-    if count >= 1 << 10:
-        return f"{count / (1 << 10):.1f} KiB"
-    return f"{count} B"
-
-
 # ----------------------------------------------------------------------------------------------
 # Bake caches (benchmarks clear them to time cold bakes; nothing in precompute/ is modified)
 # ----------------------------------------------------------------------------------------------

@@ -374,15 +374,7 @@ def estimate(materials: dict[str, Material], share: bool) -> float:
         order_cold = float(mp.material.roughness) not in orders
         seen.add(mp.kernel_key)
         orders.add(float(mp.material.roughness))
-        total += cost_model.bake_time_breakdown(
-            mp.material,
-            mp.plan,
-            mp.u_degree,
-            mp.u_tried,
-            mp.wavelength_nodes,
-            kernel_cold=cold,
-            order_kernel_cold=order_cold,
-        )["total"]
+        total += mp.bake_time(kernel_cold=cold, order_kernel_cold=order_cold)["total"]
     return total
 
 
@@ -573,7 +565,8 @@ def report(res: dict) -> str:
         first = sp.tables[mp.key][0]
         lines.append(
             f"| {name} | {plan_text.effect_summary(mp)} | {'×'.join(map(str, mp.table_shape))} |"
-            f" {common.fmt_bytes(mp.table_bytes)} | {mp.plan.sh_order} | {sp.bake_seconds_each[name]:.2f} s |"
+            f" {plan_text.fmt_bytes(mp.table_bytes)} | {mp.plan.sh_order}"
+            f" | {sp.bake_seconds_each[name]:.2f} s |"
             f" {planned['seconds'][name]:.2f} s | {first if first != name else ''} |"
         )
     lines += [
@@ -602,8 +595,8 @@ def report(res: dict) -> str:
         _row("bake time, wall", planned["wall"], allon["wall"], _secs),
         _row("bake time, CPU", planned["cpu"], allon["cpu"], _secs),
         _row("bake time, estimated (effects model)", est_p, est_a, _secs),
-        _row("table bytes (float32)", res["planned_bytes"], res["allon_bytes"], common.fmt_bytes),
-        _row("GPU texture bytes", fp["texture_bytes"], fa["texture_bytes"], common.fmt_bytes),
+        _row("table bytes (float32)", res["planned_bytes"], res["allon_bytes"], plan_text.fmt_bytes),
+        _row("GPU texture bytes", fp["texture_bytes"], fa["texture_bytes"], plan_text.fmt_bytes),
         f"| textures / shader variants | {fp['textures']} / {len(fp['variants'])} | {fa['textures']} /"
         f" {len(fa['variants'])} | |",
         f"| frame time (median of {FRAMES}) | {fp['median'] * 1e3:.0f} ms | {fa['median'] * 1e3:.0f} ms |"

@@ -29,9 +29,28 @@ float tf_lambda_ggx(float c, float a2)
   return 0.5 * (sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)) - 1.0);
 }
 
-/* D G2 / (4 cos_o) of one light direction: D at alpha^2 = d_a2 (a light's footprint may widen
- * it), G2 at alpha^2 = a2 with lambda_o = tf_lambda_ggx(cos_o, a2) computed once per pixel. */
-float tf_ggx_weight(float nh, float d_a2, float cos_i, float a2, float lambda_o, float cos_o)
+/* What every light loop needs of its pixel once (numpy: shading.lamps.lit_pixels): GGX alpha and
+ * alpha^2, cos theta_o clamped to [TF_MIN_COS, 1] and Lambda(theta_o). */
+struct TFGgxView {
+  float alpha;
+  float a2;
+  float cos_o;
+  float lambda_o;
+};
+
+TFGgxView tf_ggx_view(float roughness, float cos_o)
 {
-  return tf_d_ggx(nh, d_a2) / ((1.0 + tf_lambda_ggx(cos_i, a2) + lambda_o) * 4.0 * cos_o);
+  TFGgxView g;
+  g.alpha = tf_alpha_from_roughness(roughness);
+  g.a2 = g.alpha * g.alpha;
+  g.cos_o = clamp(cos_o, TF_MIN_COS, 1.0);
+  g.lambda_o = tf_lambda_ggx(g.cos_o, g.a2);
+  return g;
+}
+
+/* D G2 / (4 cos_o) of one light direction: D at alpha^2 = d_a2 (a light's footprint may widen
+ * it), G2 at the view's alpha^2. */
+float tf_ggx_weight(float nh, float d_a2, float cos_i, TFGgxView g)
+{
+  return tf_d_ggx(nh, d_a2) / ((1.0 + tf_lambda_ggx(cos_i, g.a2) + g.lambda_o) * 4.0 * g.cos_o);
 }

@@ -76,10 +76,7 @@ vec3 tf_film_multiscatter(float cos_o, TFLerp r)
 vec3 tf_shade_lamps(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
 {
   int count = int(tf_lighting.lamps[0].x);
-  float alpha = tf_alpha_from_roughness(roughness);
-  float a2 = alpha * alpha;
-  float cos_o = clamp(f.cos_o, TF_MIN_COS, 1.0);
-  float lambda_o = tf_lambda_ggx(cos_o, a2);
+  TFGgxView g = tf_ggx_view(roughness, f.cos_o);
   vec3 sum = vec3(0.0);
   for (int k = 0; k < TF_MAX_LAMPS; k++) {
     if (k >= count) {
@@ -93,9 +90,9 @@ vec3 tf_shade_lamps(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
     vec3 p = tf_lighting.lamps[2 + 2 * k].rgb;
     vec3 h = tf_safe_normalize(v + l, n);
     float nh = clamp(dot(n, h), 0.0, 1.0);
-    float weight = tf_ggx_weight(nh, a2, cos_i, a2, lambda_o, cos_o);
+    float weight = tf_ggx_weight(nh, g.a2, cos_i, g);
     float u = clamp(dot(v, h), 0.0, 1.0);
     sum += weight * tf_film_response(u, r, p);
   }
-  return sum * tf_film_multiscatter(cos_o, r);
+  return sum * tf_film_multiscatter(g.cos_o, r);
 }

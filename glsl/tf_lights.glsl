@@ -59,7 +59,7 @@ vec2 tf_area_cell(int i, int j, bool ellipse)
 }
 
 /* One sample: lights.sample_weight times the film at its half vector times e. */
-vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, float a2, float lambda_o, float cos_o)
+vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, TFGgxView g)
 {
   float cos_i = dot(n, l);
   if (cos_i <= 0.0) {
@@ -67,7 +67,7 @@ vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, float
   }
   vec3 h = tf_safe_normalize(v + l, n);
   float nh = clamp(dot(n, h), 0.0, 1.0);
-  float weight = tf_ggx_weight(nh, a2 + rho2, cos_i, a2, lambda_o, cos_o);
+  float weight = tf_ggx_weight(nh, g.a2 + rho2, cos_i, g);
   float u = clamp(dot(v, h), 0.0, 1.0);
   return weight * tf_film_response(u, r, e);
 }
@@ -87,7 +87,7 @@ void tf_lobe_edges(float c, float w, out float edges[TF_AREA_SAMPLES + 1])
 }
 
 /* One area light: lights._area_samples with lights.area_lobe (rectangles) or the concentric grid. */
-vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a2, float lambda_o, float cos_o)
+vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, TFGgxView g)
 {
   vec4 s0 = tf_lights.light[5 * k];
   vec4 s1 = tf_lights.light[5 * k + 1];
@@ -108,8 +108,8 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a
   bool meets = facing > TF_MIN_COS;
   float cu = meets ? dot(hit, s3.xyz) / (len_u * len_u) : 0.0;
   float cv = meets ? dot(hit, s4.xyz) / (len_v * len_v) : 0.0;
-  float wu = meets ? TF_AREA_LOBE_SCALE * alpha * t / (safe * len_u) : TF_AREA_UNIFORM_WIDTH;
-  float wv = meets ? TF_AREA_LOBE_SCALE * alpha * t / (safe * len_v) : TF_AREA_UNIFORM_WIDTH;
+  float wu = meets ? TF_AREA_LOBE_SCALE * g.alpha * t / (safe * len_u) : TF_AREA_UNIFORM_WIDTH;
+  float wv = meets ? TF_AREA_LOBE_SCALE * g.alpha * t / (safe * len_v) : TF_AREA_UNIFORM_WIDTH;
   float eu[TF_AREA_SAMPLES + 1];
   float ev[TF_AREA_SAMPLES + 1];
   tf_lobe_edges(cu, wu, eu);
@@ -136,7 +136,7 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a
       }
       float omega = cell * cos_l / d2;
       float scale = omega * tf_spread_attenuation(cos_l, s2.w, s3.w);
-      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * omega, a2, lambda_o, cos_o);
+      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * omega, g);
     }
   }
   return sum;
@@ -145,10 +145,7 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a
 vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughness)
 {
   int count = int(tf_lights.count.x);
-  float alpha = tf_alpha_from_roughness(roughness);
-  float a2 = alpha * alpha;
-  float cos_o = clamp(f.cos_o, TF_MIN_COS, 1.0);
-  float lambda_o = tf_lambda_ggx(cos_o, a2);
+  TFGgxView g = tf_ggx_view(roughness, f.cos_o);
   vec3 sum = vec3(0.0);
   for (int k = 0; k < TF_MAX_LIGHTS; k++) {
     if (k >= count) {
@@ -161,7 +158,7 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
     vec3 axis = s1.xyz;
     if (kind == TF_LIGHT_SUN) {
       float s = sin(s1.w);
-      sum += tf_light_sample(r, n, v, -axis, s2.rgb, 0.25 * s * s, a2, lambda_o, cos_o);
+      sum += tf_light_sample(r, n, v, -axis, s2.rgb, 0.25 * s * s, g);
     }
     else if (kind == TF_LIGHT_POINT || kind == TF_LIGHT_SPOT) {
       vec3 to = s0.xyz - p;
@@ -172,11 +169,11 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
       if (kind == TF_LIGHT_SPOT) {
         scale *= tf_spot_attenuation(-dot(l, axis), s2.w, tf_lights.light[5 * k + 3].w);
       }
-      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, a2, lambda_o, cos_o);
+      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, g);
     }
     else if (kind == TF_LIGHT_AREA) {
-      sum += tf_area_light(k, r, p, n, v, alpha, a2, lambda_o, cos_o);
+      sum += tf_area_light(k, r, p, n, v, g);
     }
   }
-  return sum * tf_film_multiscatter(cos_o, r);
+  return sum * tf_film_multiscatter(g.cos_o, r);
 }

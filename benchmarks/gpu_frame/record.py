@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..viewport.config import AUTOMATIC_ROUGHNESS, FILM, SPLIT_SUM_L, SWEEP_SCENE, roughness_cases
+from ..viewport.config import AUTOMATIC_ROUGHNESS, SPLIT_SUM_L, SWEEP_SCENE, roughness_cases
 from ..viewport.frames import Frame
 from ..viewport.measure import prepare_scene
 from ..viewport.scene import Extension, Scene
@@ -362,12 +362,7 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
     try:
         for case in spec["cases"]:
             rough = AUTOMATIC_ROUGHNESS[case]
-            mat = bpy.data.materials.get(f"Film auto {case}")
-            if mat is None:
-                mat = bpy.data.materials.new(f"Film auto {case}")
-                scene.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
-                mat.thinfilm_sh.sh_order = "AUTO"
-                mat.thinfilm_sh.enabled = True
+            mat = scene.automatic_film(case)
             for obj in scene.objects:
                 obj.data.materials.clear()
                 obj.data.materials.append(mat)

@@ -7,7 +7,6 @@ from dataclasses import replace
 from .config import (
     AUTOMATIC_ROUGHNESS,
     CELLS_4K,
-    FILM,
     HEADLINE_L,
     OBJECT_COUNTS,
     RESOLUTIONS,
@@ -189,12 +188,7 @@ def automatic_orders(scene: Scene, quick: bool, log=print, per_pixel: bool = Tru
     frame = None
     try:
         for case, rough in AUTOMATIC_ROUGHNESS.items():
-            mat = bpy.data.materials.get(f"Film auto {case}")
-            if mat is None:
-                mat = bpy.data.materials.new(f"Film auto {case}")
-                scene.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
-                mat.thinfilm_sh.sh_order = "AUTO"
-                mat.thinfilm_sh.enabled = True
+            mat = scene.automatic_film(case)
             scene.materials[("auto", case)] = mat
             for obj in scene.objects:
                 obj.data.materials.clear()

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import common
-from .config import BASELINE_ID, EXTENSION_ID, FILM, HDRI, roughness_cases
+from .config import AUTOMATIC_ROUGHNESS, BASELINE_ID, EXTENSION_ID, FILM, HDRI, roughness_cases
 
 
 # ----------------------------------------------------------------------------------------------
@@ -151,6 +151,19 @@ class Scene:
             tf.enabled = True
             self.materials[key] = mat
         return self.materials[key]
+
+    def automatic_film(self, case: str):
+        """The film of roughness ``AUTOMATIC_ROUGHNESS[case]`` at its automatic SH order (made once)."""
+        import bpy
+
+        mat = bpy.data.materials.get(f"Film auto {case}")
+        if mat is None:
+            mat = bpy.data.materials.new(f"Film auto {case}")
+            rough = AUTOMATIC_ROUGHNESS[case]
+            self.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
+            mat.thinfilm_sh.sh_order = "AUTO"
+            mat.thinfilm_sh.enabled = True
+        return mat
 
     def set_objects(self, count: int, triangles: int) -> None:
         """Replace the tori by ``count`` tori with ``triangles`` in all, on a grid facing the camera."""

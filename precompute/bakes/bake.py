@@ -86,6 +86,20 @@ class BakeResult:
     #: second sweep; None for a table read from a file and in the per-channel mode. Not saved.
     node_reflectance: np.ndarray | None = field(default=None, repr=False, compare=False)
 
+    @classmethod
+    def planned(cls, data, material: Material, p, thicknesses_nm, wavelengths_nm, **fields) -> BakeResult:
+        """The result of a bake of ``material`` as planned by ``p`` (:class:`.planner.Plan`): its SH
+        order and view angles; ``fields`` the rest (u nodes, reasons, timings, …)."""
+        return cls(
+            data=data,
+            material=material,
+            sh_order=p.sh_order,
+            view_angles_rad=view_angles(p.view_samples),
+            thicknesses_nm=thicknesses_nm,
+            wavelengths_nm=wavelengths_nm,
+            **fields,
+        )
+
     def attributes(self) -> dict:
         """Everything that describes the table, for the EXR header."""
         return {
@@ -407,13 +421,12 @@ def bake(material: Material, progress=None) -> BakeResult:
             else "exact film integrated against Cycles' channel sensitivities (Cycles' film model "
             "cannot express this stack)"
         )
-    return BakeResult(
-        data=data,
-        material=material,
-        sh_order=p.sh_order,
-        view_angles_rad=view_angles(p.view_samples),
-        thicknesses_nm=axis,
-        wavelengths_nm=wl,
+    return BakeResult.planned(
+        data,
+        material,
+        p,
+        axis,
+        wl,
         u_nodes=u_count,
         reasons=reasons,
         timings_s={"reflectance": t2 - t1, "kernel": t3 - t2, "contract": t4 - t3, "total": t4 - t0},

@@ -25,7 +25,7 @@ from .bake import (
     clamp_film_rgb,
     spectral_quadrature,
 )
-from .kernel import N_PHI, N_THETA, coefficient_indices, transfer_samples, view_angles, view_cosines
+from .kernel import N_PHI, N_THETA, coefficient_indices, transfer_samples, view_cosines
 from .planner import active_stack, plan, table_material
 
 __all__ = ["bake_reference"]
@@ -83,13 +83,12 @@ def bake_reference(material: Material, n_theta: int = N_THETA, n_phi: int = N_PH
     out = apply_multiscatter(out, material, cos_os) + diffuse
     if per_channel:
         out = np.einsum("taikk->taik", out)
-    return BakeResult(
-        data=out,
-        material=material,
-        sh_order=p.sh_order,
-        view_angles_rad=view_angles(p.view_samples),
-        thicknesses_nm=axis,
-        wavelengths_nm=wl,
+    return BakeResult.planned(
+        out,
+        material,
+        p,
+        axis,
+        wl,
         u_nodes=0,
         reasons=p.reasons,
         timings_s={"total": time.perf_counter() - t0},

@@ -83,11 +83,16 @@ def _rows(name: str) -> tuple[tuple[str, ...], ...]:
     return tuple(tuple(line.split(",")) for line in body[1:])
 
 
+def _curves(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(first column, the other columns) of a shipped CSV table of curves, read-only float64."""
+    table = np.array(_rows(name), dtype=np.float64)
+    return _read_only(table[:, 0]), _read_only(table[:, 1:])
+
+
 @functools.cache
 def cmfs() -> tuple[np.ndarray, np.ndarray]:
     """CIE 1931 2° x̄, ȳ, z̄: (wavelengths nm (471,), values (471, 3)), 360–830 nm at 1 nm."""
-    table = np.array(_rows(CMFS_FILE), dtype=np.float64)
-    return _read_only(table[:, 0]), _read_only(table[:, 1:])
+    return _curves(CMFS_FILE)
 
 
 @functools.cache
@@ -106,8 +111,7 @@ def illuminant(name: str) -> tuple[np.ndarray, np.ndarray]:
 @functools.cache
 def mallett2019() -> tuple[np.ndarray, np.ndarray]:
     """Mallett & Yuksel's sRGB basis: (wavelengths nm (81,), values (81, 3) for r, g, b)."""
-    table = np.array(_rows(MALLETT_FILE), dtype=np.float64)
-    return _read_only(table[:, 0]), _read_only(table[:, 1:])
+    return _curves(MALLETT_FILE)
 
 
 @functools.cache

@@ -156,16 +156,7 @@ def scene_linear_matrix(space: str = DEFAULT_SPACE) -> np.ndarray:
     ``aces_interchange`` role (or its ``XYZ`` role); the result agrees with this one to 1e-6
     (tests/test_spectra.py, against PyOpenColorIO with Blender's config). Unlike
     :func:`xyz_to_rgb_matrix` there is no adaptation from E: a flat spectrum is not white.
-
-    Parameters
-    ----------
-    space : str
-        "Linear Rec.709" (default), "Linear Rec.2020" or "ACEScg".
-
-    Returns
-    -------
-    ndarray, shape (3, 3)
-        rgb = M @ xyz.
+    ``space`` and the result (rgb = M @ xyz, 3×3) are as in :func:`xyz_to_rgb_matrix`.
 
     References
     ----------

@@ -24,12 +24,8 @@ k = 1/∫ȳ would leave a flat spectrum at XYZ (1.00008, 1, 1.00033), not E's (1
 
 References
 ----------
-- CIE 015:2018 *Colorimetry*, 4th ed., §7 (tristimulus integrals) and Table 1 (2° CMFs).
-- Lam, K. M. (1985). Metamerism and colour constancy. PhD thesis, Univ. of Bradford (the
-  Bradford cone matrix); used as in Lindbloom, B. *Chromatic Adaptation*, brucelindbloom.com.
-- ITU-R BT.709-6 (2015), ITU-R BT.2020-2 (2015); Academy S-2014-004 (ACEScg).
-- Mallett, I. & Yuksel, C. (2019). Spectral Primary Decomposition for Rendering with sRGB
-  Reflectance. EGSR 2019 (Eurographics Symposium on Rendering), DL-only track.
+- CIE 015:2018 *Colorimetry*, 4th ed., §7 (tristimulus integrals) and Table 1 (2° CMFs);
+  CIE 15.2-1986 Table 1.1 (the fluorescent illuminants).
 - Mansencal, T. et al. colour-science 0.4.7 (source of every table used here).
 """
 
@@ -42,6 +38,23 @@ import numpy as np
 from .. import _checks
 from ..constants import WAVELENGTH_MAX_NM, WAVELENGTH_MIN_NM
 from . import colour_tables
+
+#: colour-science's name for the observer every integral uses.
+CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
+
+#: Spacing (nm) of the aligned CMF table that :func:`cmfs` interpolates. The CIE publishes the
+#: 2° observer at 1 nm; linear interpolation in between is the CIE 015 recommendation.
+CMF_TABLE_STEP_NM = 1.0
+
+#: Illuminants offered by :func:`illuminant_spd` (colour-science's ``SDS_ILLUMINANTS`` keys).
+ILLUMINANTS = ("D65", "A", "E", *(f"FL{i}" for i in range(1, 13)))
+
+#: The CIE's older "F1"…"F12" spellings of the fluorescent lamps.
+ILLUMINANT_ALIASES = {f"F{i}": f"FL{i}" for i in range(1, 13)}
+
+#: Number of equal bins (1 nm wide) used wherever a grid-independent dense integral is needed
+#: (illuminant normalisation). 1 nm is the CMF table's own resolution.
+DENSE_BIN_COUNT = int(round((WAVELENGTH_MAX_NM - WAVELENGTH_MIN_NM) / CMF_TABLE_STEP_NM))
 
 __all__ = [
     "ILLUMINANTS",
@@ -62,23 +75,6 @@ __all__ = [
     "wavelength_grid",
     "xyz_weights",
 ]
-
-#: colour-science's name for the observer every integral uses.
-CMFS_NAME = "CIE 1931 2 Degree Standard Observer"
-
-#: Spacing (nm) of the aligned CMF table that :func:`cmfs` interpolates. The CIE publishes the
-#: 2° observer at 1 nm; linear interpolation in between is the CIE 015 recommendation.
-CMF_TABLE_STEP_NM = 1.0
-
-#: Illuminants offered by :func:`illuminant_spd` (colour-science's ``SDS_ILLUMINANTS`` keys).
-ILLUMINANTS = ("D65", "A", "E", *(f"FL{i}" for i in range(1, 13)))
-
-#: The CIE's older "F1"…"F12" spellings of the fluorescent lamps.
-ILLUMINANT_ALIASES = {f"F{i}": f"FL{i}" for i in range(1, 13)}
-
-#: Number of equal bins (1 nm wide) used wherever a grid-independent dense integral is needed
-#: (illuminant normalisation). 1 nm is the CMF table's own resolution.
-DENSE_BIN_COUNT = int(round((WAVELENGTH_MAX_NM - WAVELENGTH_MIN_NM) / CMF_TABLE_STEP_NM))
 
 
 # --------------------------------------------------------------------------------------------

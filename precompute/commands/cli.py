@@ -353,6 +353,15 @@ def verify_png(path) -> None:
         raise ValueError(f"{str(path)!r} is not a complete PNG ({size} bytes)")
 
 
+def _material_command(sub, name: str, help_text: str) -> argparse.ArgumentParser:
+    """A command that takes a material (``bake``, ``render``), with the examples as its epilog."""
+    parser = sub.add_parser(
+        name, help=help_text, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    add_material_arguments(parser)
+    return parser
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The `python -m precompute` argument parser with its sub-commands."""
     parser = cli_support.ArgumentParser(
@@ -366,13 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plan", help="show the automatic quality choices for a material and why")
     add_material_arguments(p)
     p.set_defaults(func=cmd_plan)
-    b = sub.add_parser(
-        "bake",
-        help="bake a material's SH table to an OpenEXR file (+ a JSON summary)",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    add_material_arguments(b)
+    b = _material_command(sub, "bake", "bake a material's SH table to an OpenEXR file (+ a JSON summary)")
     b.add_argument(
         "--out",
         required=True,
@@ -384,13 +387,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--half", action="store_true", help="store half floats (half the size; error reported)")
     b.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     b.set_defaults(func=cmd_bake)
-    r = sub.add_parser(
-        "render",
-        help="render a sphere with the material under an HDRI to PNG + EXR",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    add_material_arguments(r)
+    r = _material_command(sub, "render", "render a sphere with the material under an HDRI to PNG + EXR")
     r.add_argument(
         "--hdri",
         default="studio",

@@ -130,6 +130,19 @@ class MaterialPlan:
             self.u_degree,
         )
 
+    def bake_time(self, *, kernel_cold: bool, order_kernel_cold: bool) -> dict:
+        """Estimated seconds per stage of this material's bake (and "total"), with the microfacet
+        kernel and the SH order's kernel cold or warm (:func:`.cost_model.bake_time_breakdown`)."""
+        return bake_time_breakdown(
+            self.material,
+            self.plan,
+            self.u_degree,
+            self.u_tried,
+            self.wavelength_nodes,
+            kernel_cold=kernel_cold,
+            order_kernel_cold=order_kernel_cold,
+        )
+
     def to_dict(self) -> dict:
         """JSON-ready summary (for ``--json`` outputs)."""
         return {
@@ -493,16 +506,7 @@ def scene_plan(
         order_cold = kernels_cold and float(mp.material.roughness) not in seen_order_kernels
         seen_kernels.add(mp.kernel_key)
         seen_order_kernels.add(float(mp.material.roughness))
-        breakdown = bake_time_breakdown(
-            mp.material,
-            mp.plan,
-            mp.u_degree,
-            mp.u_tried,
-            mp.wavelength_nodes,
-            kernel_cold=kernel_cold,
-            order_kernel_cold=order_cold,
-        )
-        each[name] = breakdown["total"]
+        each[name] = mp.bake_time(kernel_cold=kernel_cold, order_kernel_cold=order_cold)["total"]
     unique = [plans[names[0]] for names in tables.values()]
     reasons: dict[str, str] = {}
     if not plans:

@@ -1,18 +1,10 @@
 """Conductors from RGB and back: Blender's metallic Principled BSDF as a complex index.
 
-Blender's metal is the F82-tint model: F0 = Base Color, and the reflectance at cos θ = 1/7
-(:data:`F82_COS`) is Specular Tint × Schlick(F0, 1/7). :func:`conductor_from_rgb` turns that
-into a tabulated complex index (Gulbrandsen 2014 per channel, placed at
-:data:`RGB_WAVELENGTHS_NM`); :func:`metal_rgb` goes the other way, from any index to
-(Base Color, Specular Tint). :func:`real_index` reads an index at one wavelength (550 nm by
-default), as the Principled BSDF's single "IOR" needs.
-
-References
-----------
-O. Gulbrandsen (2014), "Artist Friendly Metallic Fresnel", Journal of Computer Graphics
-Techniques 3(4), 64–72.
-C. Schlick (1994), "An Inexpensive BRDF Model for Physically-based Rendering", Computer
-Graphics Forum 13(3), 233–246.
+From (Base Color, Specular Tint) to a tabulated complex index is
+:mod:`precompute.optics.gulbrandsen2014` (its names are re-exported here:
+:func:`conductor_from_rgb`, :data:`F82_COS`, …); :func:`metal_rgb` goes the other way, from any
+index to (Base Color, Specular Tint) of Blender's F82-tint metal, and :func:`real_index` reads
+an index at one wavelength (550 nm by default), as the Principled BSDF's single "IOR" needs.
 """
 
 from __future__ import annotations

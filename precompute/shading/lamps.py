@@ -67,6 +67,20 @@ def film_at(film, table, rows, u) -> np.ndarray:
     return (1 - t_w) * lo + t_w * hi
 
 
+def lit_pixels(film, count: int, roughness: float, normals, views, thickness_position=None) -> tuple:
+    """What a light loop needs of its pixels once (the shader's prologue of tf_shade_lamps and
+    tf_shade_lights): (normals (N, 3), views (N, 3), GGX α, the film's thickness rows
+    (:func:`thickness_lerp`), cos θo clamped to [MIN_COS, 1]); α and what follows are None when
+    there is nothing to shade (``count`` lights or no pixel)."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    if count == 0 or n.shape[0] == 0:
+        return n, v, None, None, None
+    alpha = float(brdf.alpha_from_roughness(roughness))
+    rows = thickness_lerp(film, thickness_position, n.shape[0])
+    return n, v, alpha, rows, np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
+
+
 def shade(film, lamps, roughness: float, normals, views, thickness_position=None) -> np.ndarray:
     """Σ_k D G₂ F(ωo·h_k) / (4 cos θo) × power_k × multiscatter(cos θo): (N, 3), mirrored by tf_lamps.glsl.
 
@@ -75,14 +89,10 @@ def shade(film, lamps, roughness: float, normals, views, thickness_position=None
     thickness rows (None: the first). F is interpolated linearly in u and thickness, like the
     shader.
     """
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    n, v, alpha, rows, cos_o = lit_pixels(film, lamps.count, roughness, normals, views, thickness_position)
     out = np.zeros((n.shape[0], 3))
-    if lamps.count == 0 or n.shape[0] == 0:
+    if alpha is None:
         return out
-    alpha = float(brdf.alpha_from_roughness(roughness))
-    rows = thickness_lerp(film, thickness_position, n.shape[0])
-    cos_o = np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
     for d, p in zip(lamps.directions, lamps.power, strict=True):
         cos_i = n @ d
         h = v + d

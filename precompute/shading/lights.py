@@ -41,7 +41,7 @@ import numpy as np
 
 from .. import brdf
 from . import policy
-from .lamps import film_at, thickness_lerp
+from .lamps import film_at, lit_pixels
 from .policy import MIN_COS
 
 #: Light kinds as the shader stores them (``tf_lights.light[5k].w``; policy.LIGHT_KINDS).
@@ -393,14 +393,10 @@ def shade(
     world space, normals facing the viewer; ``thickness_position`` in [0, 1] along the film
     table's rows (None: the first), as shading.lamps.shade.
     """
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    n, v, alpha, t, cos_o = lit_pixels(film, lights.count, roughness, normals, views, thickness_position)
     out = np.zeros((n.shape[0], 3))
-    if lights.count == 0 or n.shape[0] == 0:
+    if alpha is None:
         return out
-    alpha = float(brdf.alpha_from_roughness(roughness))
-    t = thickness_lerp(film, thickness_position, n.shape[0])
-    cos_o = np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
     for k in range(lights.count):
         lobe = area_lobe(lights, k, positions, n, v, alpha) if lights.kind[k] == AREA else None
         for l, e, rho2 in light_samples(lights, k, positions, lobe):

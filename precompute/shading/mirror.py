@@ -32,7 +32,7 @@ MIRROR = (
     Mirror(
         ("brdf.alpha_from_roughness", "brdf.D_ggx", "brdf.lambda_ggx", "brdf.G2_smith_height_correlated"),
         "tf_brdf.glsl",
-        ("tf_alpha_from_roughness", "tf_d_ggx", "tf_lambda_ggx", "tf_ggx_weight"),
+        ("tf_alpha_from_roughness", "tf_d_ggx", "tf_lambda_ggx", "tf_ggx_view", "tf_ggx_weight"),
         glsl_note="GGX D and Smith written once, for the lamps and the lights",
     ),
     Mirror(
@@ -64,7 +64,7 @@ MIRROR = (
         ("tf_prefiltered_lookup", "tf_shade_split_sum_at", "tf_shade_combined"),
     ),
     Mirror(
-        ("shading.lamps.shade",),
+        ("shading.lamps.shade", "shading.lamps.lit_pixels"),
         "tf_lamps.glsl",
         ("tf_shade_lamps", "tf_film_at", "tf_film_response", "tf_film_multiscatter"),
     ),

@@ -319,15 +319,23 @@ def _string_attribute(path, name: str) -> str | None:
         os.close(fd)
 
 
+def read_exr(path: str, where: str, *, exact_size: bool) -> bytes:
+    """The bytes of the OpenEXR file at ``path``, read once and checked before any decoding: a
+    regular file within :data:`MAX_FILE_BYTES`, the magic number, every chunk present and, with
+    ``exact_size``, nothing after the last one; :class:`TableError` otherwise (``where`` names
+    the file in the message)."""
+    raw = _read_regular(path, where, MAX_FILE_BYTES)
+    if raw[:4] != _EXR_MAGIC:
+        raise TableError(f"{where} is truncated or not an OpenEXR file (bad magic number)")
+    end = _exr_structure(raw, where)
+    if exact_size and end != len(raw):
+        raise TableError(f"{where} is {len(raw)} bytes but its last chunk ends at byte {end}")
+    return raw
+
+
 def verify_exr(path) -> None:
     """Check that ``path`` is a complete single-part scanline OpenEXR file (every chunk present,
     the file ending where its last chunk ends) within the reader's limits; :class:`TableError`
     otherwise. For outputs other than tables, e.g. a render's scene-linear EXR."""
     path = os.fspath(path)
-    where = f"file {path!r}"
-    raw = _read_regular(path, where, MAX_FILE_BYTES)
-    if raw[:4] != _EXR_MAGIC:
-        raise TableError(f"{where} is truncated or not an OpenEXR file (bad magic number)")
-    end = _exr_structure(raw, where)
-    if end != len(raw):
-        raise TableError(f"{where} is {len(raw)} bytes but its last chunk ends at byte {end}")
+    read_exr(path, f"file {path!r}", exact_size=True)

@@ -57,17 +57,14 @@ import numpy as np
 
 from .. import _checks
 from ._untrusted_exr import (
-    _EXR_MAGIC,
     _MAX_SHAPE_CHARS,
     MAX_CHANNELS,
     MAX_DIMS,
-    MAX_FILE_BYTES,
     MAX_TABLE_VALUES,
     TableError,
-    _exr_structure,
     _parse_json,
-    _read_regular,
     _short,
+    read_exr,
     verify_exr,
 )
 from .atomic_write import check_destination, write_file
@@ -414,12 +411,7 @@ def read_table(path, expect: dict | None = None, *, kind: str | None = None) -> 
 def _read_table(path, expect: dict | None, kind: str | None, *, exact_size: bool = False) -> Table:
     path = os.fspath(path)
     where = f"table {path!r}"
-    raw = _read_regular(path, where, MAX_FILE_BYTES)
-    if raw[:4] != _EXR_MAGIC:
-        raise TableError(f"{where} is truncated or not an OpenEXR file (bad magic number)")
-    end = _exr_structure(raw, where)
-    if exact_size and end != len(raw):
-        raise TableError(f"{where} is {len(raw)} bytes but its last chunk ends at byte {end}")
+    raw = read_exr(path, where, exact_size=exact_size)
 
     import OpenEXR  # lazy: only needed for file I/O
 
