@@ -42,7 +42,7 @@ import sys
 import threading
 import time
 
-from ..precompute.bakes import bake as bake_bake
+from ..precompute.bakes import bake as precompute_bake
 from ..precompute.colour import film_colour
 from ..precompute.materials.material import Material
 from . import bake_process, helper_process, prefs
@@ -221,9 +221,9 @@ def _failure(type_name: str, message: str) -> Exception:
     return RuntimeError(f"{type_name}: {message}")
 
 
-def _table(fields: dict) -> bake_bake.BakeResult:
+def _table(fields: dict) -> precompute_bake.BakeResult:
     """A table from :func:`.bake_process.table_fields`."""
-    return bake_bake.BakeResult(**{**fields, "material": Material.from_dict(fields["material"])})
+    return precompute_bake.BakeResult(**{**fields, "material": Material.from_dict(fields["material"])})
 
 
 def _final(process: _Process, answers: queue.Queue, progress) -> tuple:
@@ -342,7 +342,7 @@ def baker(ticket: Ticket, keep_film):
         except HelperError as exc:
             STATS["failed"] += 1
             SLOT.give_up(str(exc))
-            return bake_bake.bake(desc, progress)
+            return precompute_bake.bake(desc, progress)
         if table is not None:
             keep_film(desc, table)
         return result

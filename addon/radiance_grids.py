@@ -29,7 +29,7 @@ import bpy
 import numpy as np
 
 from ..precompute.shading import lobe_grid, policy, radiance_grid
-from ..precompute.world import lamps as lamps_lamps
+from ..precompute.world import lamps as lamp_extraction
 from . import caches
 from .gpu import resources
 from .redraw import tag_view3d as _tag_redraw
@@ -224,7 +224,7 @@ def lobe_build(film, roughness: float, panorama, view_count: int, lamp_mask=None
     shape = policy.grid_shape(view_count)
 
     def build():
-        image = panorama if lamp_mask is None else lamps_lamps.remove(np.asarray(panorama), lamp_mask)
+        image = panorama if lamp_mask is None else lamp_extraction.remove(np.asarray(panorama), lamp_mask)
         return lobe_grid.build(film, float(roughness), image, shape)
 
     return build

@@ -28,7 +28,7 @@ from precompute import brdf
 from precompute.bakes import bake, kernel, planner
 from precompute.commands import cli
 from precompute.effects import cost_model, plan_text
-from precompute.effects import plans as plans_plans
+from precompute.effects import plans as effects_plans
 from precompute.materials.material import Layer, Material, Quality
 from precompute.optics import dispersion, metals, stack
 from precompute.shading import policy, sh_rotation
@@ -70,7 +70,7 @@ def test_plain_numbers_are_constant_indices_and_no_dispersion_model_runs(no_disp
     monkeypatch.setattr(
         dispersion.ConstantIndex, "index", lambda self, wl: calls.append(1) or original(self, wl)
     )
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     assert mp.effects["dispersion"] is False and "no dispersion model" in mp.reasons["dispersion"]
     calls.clear()
     result = bake.bake(m)  # would raise if a Cauchy/Sellmeier/tabulated model were evaluated
@@ -88,9 +88,9 @@ def test_a_dispersive_film_does_evaluate_its_model(no_dispersion_models):
 
 def test_a_cauchy_law_without_b_and_c_is_planned_as_non_dispersive():
     m = fast(layers=(Layer({"cauchy": [1.45, 0.0, 0.0]}, 300.0),), substrate=1.5)
-    assert plans_plans.material_plan(m).effects["dispersion"] is False
+    assert effects_plans.material_plan(m).effects["dispersion"] is False
     m = fast(layers=(Layer({"cauchy": [1.45, 0.004]}, 300.0),), substrate={"metal": "gold"})
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     assert mp.effects["dispersion"] and "layer 1 (Cauchy)" in mp.reasons["dispersion"]
     assert "substrate (tabulated metal)" in mp.reasons["dispersion"]
 
@@ -122,7 +122,7 @@ def stack_spy(monkeypatch):
     ids=["constant", "varying", "metal+diffuse", "glassner2000"],
 )
 def test_a_single_film_never_runs_the_general_stack_code(material, stack_spy):
-    mp = plans_plans.material_plan(material)
+    mp = effects_plans.material_plan(material)
     assert mp.effects["interference"] and not mp.effects["stack"]
     assert "never the general stack code" in mp.reasons["stack"] or "glassner2000" in mp.reasons["stack"]
     stack_spy["forbid"] = True
@@ -132,7 +132,7 @@ def test_a_single_film_never_runs_the_general_stack_code(material, stack_spy):
 
 def test_a_two_layer_stack_runs_the_stack_code(stack_spy):
     m = fast(layers=(Layer(1.38, 100.0), Layer(2.1, 80.0)), substrate=1.52)
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     assert mp.effects["stack"] and "transfer recursion" in mp.reasons["stack"]
     bake.bake(m)
     assert stack_spy["calls"] > 0
@@ -146,7 +146,7 @@ def test_the_stack_spy_sees_the_code_the_dispatcher_uses(stack_spy):
 
 def test_no_film_means_no_interference_and_the_bare_interface_path(monkeypatch):
     bare = fast(layers=(), substrate=1.5)
-    mp = plans_plans.material_plan(bare)
+    mp = effects_plans.material_plan(bare)
     assert not any(mp.effects[n] for n in ("interference", "stack", "thickness_axis"))
     assert "Fresnel only" in mp.reasons["interference"]
 
@@ -161,7 +161,7 @@ def test_no_film_means_no_interference_and_the_bare_interface_path(monkeypatch):
 
 def test_zero_thickness_film_is_planned_as_no_interference_and_bakes_the_bare_table():
     zero = fast(layers=(Layer(1.33, 0.0),), substrate=1.5)
-    mp = plans_plans.material_plan(zero)
+    mp = effects_plans.material_plan(zero)
     assert not mp.effects["interference"] and not mp.effects["stack"]
     assert "0 nm" in mp.reasons["interference"] and "bare-interface path" in mp.reasons["interference"]
     a = bake.bake(zero).data
@@ -183,7 +183,7 @@ def test_zero_thickness_film_takes_the_bare_interface_path(monkeypatch):
 # ----------------------------------------------------------------------------------------------
 def test_constant_thickness_gives_a_1d_table_and_the_1d_shader():
     m = fast(layers=(Layer(1.33, 400.0),), substrate=1.5)
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     assert mp.effects["thickness_axis"] is False and mp.plan.thickness_samples == 1
     assert mp.table_shape[0] == 1 and "1-D table" in mp.reasons["thickness_axis"]
     assert mp.shader.taps == 2 and "TF_VARY_THICKNESS" not in dict(mp.shader.defines)
@@ -194,7 +194,7 @@ def test_constant_thickness_gives_a_1d_table_and_the_1d_shader():
 
 def test_a_thickness_range_gives_a_2d_table_and_the_vary_variant():
     m = fast(layers=(Layer(1.33, 400.0),), substrate=1.5, thickness_range_nm=(200.0, 600.0))
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     assert mp.effects["thickness_axis"] and mp.table_shape[0] == FAST.thickness_samples > 1
     assert mp.shader.taps == 4 and dict(mp.shader.defines)["TF_VARY_THICKNESS"] == "1"
     assert bake.bake(m).data.shape == mp.table_shape
@@ -202,7 +202,7 @@ def test_a_thickness_range_gives_a_2d_table_and_the_vary_variant():
 
 def test_per_channel_tables_and_texture_bytes():
     m = fast(layers=(Layer(1.33, 400.0),), substrate=1.5, colour_mode="per_channel")
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     k = 6  # (2+1)(2+2)/2 coefficients at l_max 2
     assert mp.table_shape == (1, FAST.view_samples, k, 3)
     assert mp.texture_bytes == k * 1 * FAST.view_samples * 16  # one RGBA32F layer per coefficient
@@ -236,8 +236,8 @@ def test_shader_cost_follows_the_documented_formula():
 def test_sh_order_follows_roughness_and_sets_the_variant():
     rough = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.9)
     smooth = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)
-    mr, ms = plans_plans.material_plan(rough), plans_plans.material_plan(smooth)
-    assert mr.plan.sh_order < ms.plan.sh_order == plans_plans.MAX_ORDER
+    mr, ms = effects_plans.material_plan(rough), effects_plans.material_plan(smooth)
+    assert mr.plan.sh_order < ms.plan.sh_order == effects_plans.MAX_ORDER
     assert "roughness 0.9" in mr.reasons["sh_order"]
     assert dict(mr.shader.defines)["TF_L_MAX"] == str(mr.plan.sh_order)
     assert mr.shader.multiply_adds < ms.shader.multiply_adds
@@ -245,38 +245,38 @@ def test_sh_order_follows_roughness_and_sets_the_variant():
 
 
 def test_conductor_lines_diffuse_and_multiscatter_are_detected():
-    gold = plans_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate={"metal": "gold"}))
+    gold = effects_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate={"metal": "gold"}))
     assert gold.effects["conductor"] and "absorbing substrate" in gold.reasons["conductor"]
-    nk = plans_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=[0.2, 3.0]))
+    nk = effects_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=[0.2, 3.0]))
     assert nk.effects["conductor"] and not nk.effects["dispersion"]
-    glass = plans_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=1.5))
+    glass = effects_plans.material_plan(fast(layers=(Layer(1.45, 250.0),), substrate=1.5))
     assert not glass.effects["conductor"] and not glass.effects["illuminant_lines"]
 
     fl = fast(layers=(Layer(1.45, 250.0),), substrate=1.5, illuminant="FL2")
-    mp = plans_plans.material_plan(fl)
+    mp = effects_plans.material_plan(fl)
     assert mp.effects["illuminant_lines"] and mp.line_count > 0
     assert mp.wavelength_nodes == FAST.wavelength_count + mp.line_count
     assert bake.bake(fl).wavelengths_nm.size == mp.wavelength_nodes
 
-    diffuse = plans_plans.material_plan(
+    diffuse = effects_plans.material_plan(
         fast(layers=(Layer(1.45, 250.0),), substrate=1.5, base_color=(0.5, 0.2, 0.1))
     )
     assert diffuse.effects["diffuse_base"] and diffuse.table_shape == glass.table_shape
 
     assert glass.effects["multiscatter"]
     film = (Layer(1.45, 250.0),)
-    assert not plans_plans.material_plan(fast(layers=film, multiscatter="none")).effects["multiscatter"]
-    assert not plans_plans.material_plan(fast(layers=film, roughness=0.0)).effects["multiscatter"]
+    assert not effects_plans.material_plan(fast(layers=film, multiscatter="none")).effects["multiscatter"]
+    assert not effects_plans.material_plan(fast(layers=film, roughness=0.0)).effects["multiscatter"]
 
 
 def test_every_choice_has_a_reason_and_the_text_shows_them():
     m = Material(
         layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.5, thickness_range_nm=(100.0, 700.0)
     )
-    mp = plans_plans.material_plan(m)
-    assert list(mp.effects) == list(plans_plans.EFFECTS)
+    mp = effects_plans.material_plan(m)
+    assert list(mp.effects) == list(effects_plans.EFFECTS)
     for name in (
-        *plans_plans.EFFECTS,
+        *effects_plans.EFFECTS,
         "sh_order",
         "view_samples",
         "thickness_samples",
@@ -293,7 +293,7 @@ def test_every_choice_has_a_reason_and_the_text_shows_them():
         "thickness_axis on",
         "stack off",
         "float32",
-        f"SH order {plans_plans.MAX_ORDER}",
+        f"SH order {effects_plans.MAX_ORDER}",
         "bake ≈",
         "multiply-adds",
         "why:",
@@ -307,7 +307,7 @@ def test_every_choice_has_a_reason_and_the_text_shows_them():
 # Scene plan
 # ----------------------------------------------------------------------------------------------
 def test_an_empty_scene_plans_nothing():
-    sp = plans_plans.scene_plan({}, world_coeffs=np.ones((81, 3)))
+    sp = effects_plans.scene_plan({}, world_coeffs=np.ones((81, 3)))
     assert sp.empty and sp.tables == {} and sp.table_bytes == 0 and sp.bake_seconds == 0.0
     assert "nothing is baked or drawn" in plan_text.format_plan(sp)
 
@@ -315,14 +315,14 @@ def test_an_empty_scene_plans_nothing():
 def test_equal_materials_share_one_table_and_kernels_are_charged_once():
     a = fast(layers=(Layer(1.33, 400.0),), substrate=1.5)
     b = fast(layers=(Layer(1.33, 420.0),), substrate=1.5)  # same roughness and quality: same kernel
-    sp = plans_plans.scene_plan({"A": a, "A.001": a, "B": b})
-    assert len(sp.tables) == 2 and sp.tables[plans_plans.material_plan(a).key] == ("A", "A.001")
+    sp = effects_plans.scene_plan({"A": a, "A.001": a, "B": b})
+    assert len(sp.tables) == 2 and sp.tables[effects_plans.material_plan(a).key] == ("A", "A.001")
     assert sp.bake_seconds_each["A.001"] == 0.0
     assert sp.table_bytes == sp.materials["A"].table_bytes + sp.materials["B"].table_bytes
-    alone = plans_plans.material_plan(b).bake_seconds
+    alone = effects_plans.material_plan(b).bake_seconds
     assert sp.bake_seconds_each["B"] < 0.5 * alone  # its kernel was computed for A
     assert "A.001" in plan_text.format_plan(sp) and "shares the table of 'A'" in plan_text.format_plan(sp)
-    cached = plans_plans.scene_plan({"A": a, "B": b}, cached={sp.materials["A"].key})
+    cached = effects_plans.scene_plan({"A": a, "B": b}, cached={sp.materials["A"].key})
     assert cached.bake_seconds_each["A"] == 0.0 and "already cached" in cached.reasons["cache"]
     assert len(sp.variants) == 1  # one compiled shader for all three
 
@@ -338,21 +338,22 @@ def _world_with_bands(energies) -> np.ndarray:
 
 def test_world_order_is_the_highest_material_order_and_the_content_order_is_reported():
     smooth_world = _world_with_bands([1.0, 0.05, 0.003] + [0.0] * 6)  # tail above l = 1: 0.3 %
-    assert plans_plans.world_content_order(smooth_world)[0] == 1
+    assert effects_plans.world_content_order(smooth_world)[0] == 1
     detailed_world = _world_with_bands([1.0] + [0.1] * 8)  # 10 % per band up to l = 8
-    assert plans_plans.world_content_order(detailed_world)[0] == 8
-    assert plans_plans.world_content_order(np.zeros((81, 3)))[0] == 0
+    assert effects_plans.world_content_order(detailed_world)[0] == 8
+    assert effects_plans.world_content_order(np.zeros((81, 3)))[0] == 0
 
     low = fast(layers=(Layer(1.33, 400.0),), substrate=1.5)  # sh_order 2
-    sp = plans_plans.scene_plan({"low": low}, world_coeffs=smooth_world)
+    sp = effects_plans.scene_plan({"low": low}, world_coeffs=smooth_world)
     assert (sp.world_content_order, sp.world_order) == (1, 2)  # the material needs 2
-    sp = plans_plans.scene_plan({"low": low}, world_coeffs=detailed_world)
+    sp = effects_plans.scene_plan({"low": low}, world_coeffs=detailed_world)
     # The draw windows the World to each material's l_max: a detailed World is drawn at 2 here.
     assert sp.world_order == 2 and "World SH order 2" in sp.reasons["world"]
     assert sp.world_content_order == 8
     high = Material(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.3)  # needs the cap
     assert (
-        plans_plans.scene_plan({"high": high}, world_coeffs=smooth_world).world_order == plans_plans.MAX_ORDER
+        effects_plans.scene_plan({"high": high}, world_coeffs=smooth_world).world_order
+        == effects_plans.MAX_ORDER
     )
 
 
@@ -415,7 +416,7 @@ def test_estimated_bake_time_is_within_3x_of_the_measured_time():
     measured, estimated, previous = [], [], None
     for _name, material, cold in cases:
         material = material or previous
-        mp = plans_plans.material_plan(material, kernel_cold=cold, order_kernel_cold=False)
+        mp = effects_plans.material_plan(material, kernel_cold=cold, order_kernel_cold=False)
         best = math.inf
         # Each bake is repeatable (a cold one after clearing the caches): keep the least disturbed.
         for _ in range(2 if cold else 3):
@@ -440,7 +441,7 @@ def test_estimated_bake_time_is_within_3x_of_the_measured_time():
 @pytest.mark.parametrize("thickness", [100.0, 400.0, 1600.0])
 def test_estimated_u_degree_is_within_two_ladder_steps_of_the_bakes_choice(thickness):
     m = fast(layers=(Layer(1.33, thickness),), substrate=1.0)
-    mp = plans_plans.material_plan(m)
+    mp = effects_plans.material_plan(m)
     chosen = bake.bake(m).u_nodes
     ladder = planner.U_DEGREE_LADDER
     assert abs(ladder.index(mp.u_degree) - ladder.index(chosen)) <= 2, (mp.u_degree, chosen)
@@ -669,8 +670,8 @@ def test_a_constant_thickness_rough_film_is_costed_as_its_grid():
     (policy.uses_grid): the plan's shader cost is the grid's four fetches, the same at every
     order, not the per-pixel l = 12 sum it replaced; a varying thickness keeps that sum."""
     film = Layer(1.33, 400.0)
-    rough = plans_plans.material_plan(Material(layers=(film,), substrate=1.5, roughness=0.6))
-    vary = plans_plans.material_plan(
+    rough = effects_plans.material_plan(Material(layers=(film,), substrate=1.5, roughness=0.6))
+    vary = effects_plans.material_plan(
         Material(layers=(film,), substrate=1.5, roughness=0.6, thickness_range_nm=(300.0, 500.0))
     )
     assert rough.plan.sh_order == vary.plan.sh_order >= policy.GRID_MIN_L
@@ -679,7 +680,7 @@ def test_a_constant_thickness_rough_film_is_costed_as_its_grid():
     grid = rough.shader.stages["grid"]
     assert grid[1] == 4 and "sh" not in rough.shader.stages and "radiance grid" in rough.reasons["shader"]
     assert 10 * rough.shader.multiply_adds < vary.shader.multiply_adds  # the grid's whole point
-    lower = plans_plans.material_plan(
+    lower = effects_plans.material_plan(
         Material(layers=(film,), substrate=1.5, roughness=0.6, quality=Quality(sh_order=6))
     )
     assert lower.shader.stages["grid"] == grid  # not the order's

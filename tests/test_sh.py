@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from scipy.special import sph_harm_y
 
 from precompute.sh import harmonics, projection, rotations, windows
-from precompute.sh import zonal as harmonics_zonal
+from precompute.sh import zonal as sh_zonal
 from precompute.world import hdri
 
 L_MAX = 8
@@ -295,8 +295,8 @@ def test_rotating_a_lobe_moves_it():
     # A zonal lobe about +z turned by R points along R e_z (checks the f∘R⁻¹ direction).
     zonal = np.array([1.0, 0.8, 0.5, 0.2])
     r = NAMED_ROTATIONS["generic"]
-    turned = rotations.rotate(harmonics_zonal.zonal_rotation(zonal, [0, 0, 1]), r)
-    assert np.max(np.abs(turned - harmonics_zonal.zonal_rotation(zonal, r @ [0.0, 0.0, 1.0]))) <= 1e-12
+    turned = rotations.rotate(sh_zonal.zonal_rotation(zonal, [0, 0, 1]), r)
+    assert np.max(np.abs(turned - sh_zonal.zonal_rotation(zonal, r @ [0.0, 0.0, 1.0]))) <= 1e-12
 
 
 # ----------------------------------------------------------------------------------------------
@@ -308,12 +308,12 @@ def test_constant_environment_gives_pi():
     c = np.zeros((L_MAX + 1) ** 2)
     c[0] = math.sqrt(4.0 * math.pi)  # L ≡ 1: L_00 = ∫ Y_00 dω = 4π/√(4π)
     rng = np.random.default_rng(6)
-    e = harmonics.evaluate(harmonics_zonal.irradiance_coefficients(c), random_directions(rng, 100))
+    e = harmonics.evaluate(sh_zonal.irradiance_coefficients(c), random_directions(rng, 100))
     assert np.max(np.abs(e - math.pi)) <= 1e-12
 
 
 def test_clamped_cosine_closed_forms_and_quadrature():
-    a = harmonics_zonal.clamped_cosine_zh(10)
+    a = sh_zonal.clamped_cosine_zh(10)
     assert a[:5] == pytest.approx([math.pi, 2 * math.pi / 3, math.pi / 4, 0.0, -math.pi / 24], abs=1e-15)
     assert np.all(a[3::2] == 0.0)
     # Â_l = √(4π/(2l+1)) · 2π ∫_0^1 z Y_l^0(z) dz; the integrand is a polynomial on [0, 1], so
@@ -330,11 +330,8 @@ def test_convolve_zonal_matches_irradiance():
     rng = np.random.default_rng(8)
     c = rng.normal(size=((L_MAX + 1) ** 2, 2))
     l = np.arange(L_MAX + 1)
-    zonal = harmonics_zonal.clamped_cosine_zh(L_MAX) / np.sqrt(4 * np.pi / (2 * l + 1))
-    assert (
-        np.max(np.abs(harmonics_zonal.convolve_zonal(c, zonal) - harmonics_zonal.irradiance_coefficients(c)))
-        <= 1e-13
-    )
+    zonal = sh_zonal.clamped_cosine_zh(L_MAX) / np.sqrt(4 * np.pi / (2 * l + 1))
+    assert np.max(np.abs(sh_zonal.convolve_zonal(c, zonal) - sh_zonal.irradiance_coefficients(c))) <= 1e-13
 
 
 def test_irradiance_of_point_light_converges():
@@ -345,7 +342,7 @@ def test_irradiance_of_point_light_converges():
     d /= np.linalg.norm(d)
     rng = np.random.default_rng(9)
     n = random_directions(rng, 300)
-    e = harmonics.evaluate(harmonics_zonal.irradiance_coefficients(harmonics.basis(L_MAX, d)), n)
+    e = harmonics.evaluate(sh_zonal.irradiance_coefficients(harmonics.basis(L_MAX, d)), n)
     assert np.max(np.abs(e - np.maximum(0.0, n @ d))) <= 0.05
 
 
@@ -510,9 +507,9 @@ def test_bad_window_and_coefficients():
     with pytest.raises(ValueError, match="coeffs"):
         windows.apply_window(np.zeros(10))
     with pytest.raises(ValueError, match="radiance_coeffs"):
-        harmonics_zonal.irradiance_coefficients(np.zeros(5))
+        sh_zonal.irradiance_coefficients(np.zeros(5))
     with pytest.raises(ValueError, match="zonal"):
-        harmonics_zonal.convolve_zonal(np.zeros(9), [1.0, 2.0])
+        sh_zonal.convolve_zonal(np.zeros(9), [1.0, 2.0])
 
 
 def test_bad_projection_inputs():
