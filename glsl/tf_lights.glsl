@@ -7,7 +7,8 @@
  *
  * numpy counterpart: shading.lights.shade (samples: lights.light_samples, weight:
  * lights.sample_weight). Lights in the uniform buffer tf_lights (layout: addon/gpu/resources.py
- * LIGHTS, packing: lights.Lights.pack): [5k] position, kind; [5k+1] direction (-Z), radius;
+ * LIGHTS, packing: lights.Lights.pack; TF_LIGHT_VEC4 = 5 vec4s a light): [5k] position, kind;
+ * [5k+1] direction (-Z), radius;
  * [5k+2] energy (sun E, point/spot I, area L), cos_half_spot | tan_half_spread;
  * [5k+3] axis_u, spot_smooth | normalize_spread; [5k+4] axis_v, ellipse.
  * Film reflectance from tf_film_response (tf_lamps.glsl). Each sample: D_alpha' G2 F(v.h) /
@@ -89,11 +90,11 @@ void tf_lobe_edges(float c, float w, out float edges[TF_AREA_SAMPLES + 1])
 /* One area light: lights._area_samples with lights.area_lobe (rectangles) or the concentric grid. */
 vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, TFGgxView g)
 {
-  vec4 s0 = tf_lights.light[5 * k];
-  vec4 s1 = tf_lights.light[5 * k + 1];
-  vec4 s2 = tf_lights.light[5 * k + 2];
-  vec4 s3 = tf_lights.light[5 * k + 3];
-  vec4 s4 = tf_lights.light[5 * k + 4];
+  vec4 s0 = tf_lights.light[TF_LIGHT_VEC4 * k];
+  vec4 s1 = tf_lights.light[TF_LIGHT_VEC4 * k + 1];
+  vec4 s2 = tf_lights.light[TF_LIGHT_VEC4 * k + 2];
+  vec4 s3 = tf_lights.light[TF_LIGHT_VEC4 * k + 3];
+  vec4 s4 = tf_lights.light[TF_LIGHT_VEC4 * k + 4];
   vec3 axis = s1.xyz;
   bool ellipse = s4.w > 0.5;
   float len_u = max(length(s3.xyz), TF_AREA_MIN_AXIS);
@@ -151,9 +152,9 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
     if (k >= count) {
       break;
     }
-    vec4 s0 = tf_lights.light[5 * k];
-    vec4 s1 = tf_lights.light[5 * k + 1];
-    vec4 s2 = tf_lights.light[5 * k + 2];
+    vec4 s0 = tf_lights.light[TF_LIGHT_VEC4 * k];
+    vec4 s1 = tf_lights.light[TF_LIGHT_VEC4 * k + 1];
+    vec4 s2 = tf_lights.light[TF_LIGHT_VEC4 * k + 2];
     int kind = int(s0.w + 0.5);
     vec3 axis = s1.xyz;
     if (kind == TF_LIGHT_SUN) {
@@ -167,7 +168,7 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
       vec3 l = to * inversesqrt(d2);
       float scale = 1.0 / d2;
       if (kind == TF_LIGHT_SPOT) {
-        scale *= tf_spot_attenuation(-dot(l, axis), s2.w, tf_lights.light[5 * k + 3].w);
+        scale *= tf_spot_attenuation(-dot(l, axis), s2.w, tf_lights.light[TF_LIGHT_VEC4 * k + 3].w);
       }
       sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, g);
     }

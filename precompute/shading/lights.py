@@ -42,13 +42,11 @@ import numpy as np
 from .. import brdf
 from . import policy
 from .lamps import film_at, lit_pixels
-from .policy import MIN_COS
+from .policy import LIGHT_VEC4, MIN_COS
 
 #: Light kinds as the shader stores them (``tf_lights.light[5k].w``; policy.LIGHT_KINDS).
 KINDS = dict(policy.LIGHT_KINDS)
 SUN, POINT, SPOT, AREA = (KINDS[k] for k in ("SUN", "POINT", "SPOT", "AREA"))
-#: Vec4s per light in the TFLights buffer (addon/gpu/resources.py LIGHTS).
-LIGHT_VEC4 = 5
 #: A hard spot edge (blend 0): the smoothstep's inverse width, finite in float32.
 SPOT_HARD = 1e30
 #: Nearest distance to a light's centre or sample the shaders divide by (policy).

@@ -214,6 +214,8 @@ AREA_MIN_AXIS = 1e-12
 MIN_LIGHT_DISTANCE = 1e-4
 #: The light kinds as the TFLights buffer stores them (shading/lights.py).
 LIGHT_KINDS = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
+#: Vec4s per light in the TFLights buffer (addon/gpu/resources.py LIGHTS, lights.Lights.pack).
+LIGHT_VEC4 = 5
 
 # ----------------------------------------------------------------------------------------------
 # Transparent films (shading/transmit.py)
@@ -330,8 +332,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_MAX_LAMPS``, ``TF_LAMP_LEVEL``: :data:`MAX_LAMPS`, :data:`LAMP_LEVEL`;
     - ``TF_MAX_LIGHTS``, ``TF_AREA_SAMPLES``, ``TF_AREA_LOBE_SCALE``, ``TF_AREA_MIN_WIDTH``,
       ``TF_AREA_MAX_WIDTH``, ``TF_AREA_UNIFORM_WIDTH``, ``TF_AREA_MIN_AXIS``,
-      ``TF_MIN_LIGHT_DISTANCE``, ``TF_LIGHT_<KIND>``: the light objects' rules (:data:`MAX_LIGHTS`
-      … :data:`LIGHT_KINDS`);
+      ``TF_MIN_LIGHT_DISTANCE``, ``TF_LIGHT_<KIND>``, ``TF_LIGHT_VEC4``: the light objects' rules
+      (:data:`MAX_LIGHTS` … :data:`LIGHT_KINDS`) and their buffer's stride (:data:`LIGHT_VEC4`);
     - ``TF_WALL_SCALE_MAX``, ``TF_WALL_GUARD``: :data:`WALL_SCALE_MAX`, :data:`WALL_GUARD`;
     - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``,
       ``TF_DIVISION_FLOOR``, ``TF_MOMENT_EPS``, ``TF_HELPER_AXIS_MAX``, ``TF_TIR_EPS``: the guards;
@@ -357,6 +359,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_AREA_UNIFORM_WIDTH", glsl_float(AREA_UNIFORM_WIDTH)),
         ("TF_AREA_MIN_AXIS", glsl_float(AREA_MIN_AXIS)),
         *((f"TF_LIGHT_{kind}", str(code)) for kind, code in LIGHT_KINDS.items()),
+        ("TF_LIGHT_VEC4", str(int(LIGHT_VEC4))),
         ("TF_WALL_SCALE_MAX", glsl_float(WALL_SCALE_MAX)),
         ("TF_WALL_GUARD", glsl_float(WALL_GUARD)),
         ("TF_MIN_COS", glsl_float(MIN_COS)),
