@@ -87,8 +87,18 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("scene_draw", "viewport", "tables", "prefs", "caches", "description", "bake_helper"):
-            setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.scene_draw",
+            "addon.viewport",
+            "addon.tables",
+            "addon.prefs",
+            "addon.caches",
+            "addon.description",
+            "addon.bake_helper",
+            "addon.radiance_grids",
+            "addon.shader_warmup",
+        ):
+            setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()
         self.cache_dir = self.root / "cache"
@@ -175,9 +185,8 @@ class Loop:
 
         self.ext, self.bpy, self.scene = ext, bpy, scene
         self.vp = ext.viewport
-        package = self.vp.__name__.rpartition(".")[0]
-        self.grids = importlib.import_module(f"{package}.radiance_grids")
-        self.warmup = warmup = importlib.import_module(f"{package}.shader_warmup")
+        self.grids = ext.radiance_grids
+        self.warmup = warmup = ext.shader_warmup
         #: Every timer the add-on registers: the viewport's service, the shader compile step,
         #: the radiance grids' poll; each fires when due, as Blender's event loop runs them.
         self.timers = (self.vp._service, warmup.step, self.grids._poll)

@@ -101,8 +101,8 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("scene_draw", "props", "headless"):
-            setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in ("addon.scene_draw", "addon.props", "addon.headless"):
+            setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)

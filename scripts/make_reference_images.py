@@ -77,9 +77,10 @@ def extension():
     return headless_script().register_extension()
 
 
-def addon_module(name: str):
+def addon_module(dotted: str):
+    """The extension's module ``dotted`` ("addon.headless"), the extension registered first."""
     extension()
-    return importlib.import_module(f"{EXTENSION_ID}.addon.{name}")
+    return importlib.import_module(f"{EXTENSION_ID}.{dotted}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -150,7 +151,7 @@ def headless_render(out_png, size, background: bool = True) -> tuple[np.ndarray,
     """The open file's camera view with the thin-film shader (PNG + EXR); (linear RGB, result)."""
     import bpy
 
-    result = addon_module("headless").render_scene(
+    result = addon_module("addon.headless").render_scene(
         bpy.context.scene, str(out_png), size[0], size[1], background=background
     )
     return read_exr(result["exr"]), result
@@ -237,7 +238,7 @@ def cycles_equivalent() -> tuple[bool, list[str]]:
     """Prepare the open file for Cycles: (possible?, notes). Single films are written back."""
     import bpy
 
-    principled = addon_module("principled")
+    principled = addon_module("addon.principled")
     notes = []
     for mat in film_materials(bpy):
         if len(mat.thinfilm_sh.layers) > 1:

@@ -73,7 +73,7 @@ def render(stem: str, tmp: pathlib.Path) -> dict:
 def main() -> int:
     """Build and render every step, then the overlay-off picture."""
     refs.extension()
-    prefs = refs.addon_module("prefs")
+    prefs = refs.addon_module("addon.prefs")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         for stem, what, changes in STEPS:

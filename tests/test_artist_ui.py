@@ -54,8 +54,17 @@ def tf(bpy, tmp_path_factory):
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"), root=root)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("props", "prefs", "ops", "ui", "tables", "viewport", "headless", "scene_draw"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.props",
+            "addon.prefs",
+            "addon.ops",
+            "addon.ui",
+            "addon.tables",
+            "addon.viewport",
+            "addon.headless",
+            "addon.scene_draw",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID

@@ -476,8 +476,15 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("headless", "description", "tables", "prefs", "scene_draw", "ui"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.headless",
+            "addon.description",
+            "addon.tables",
+            "addon.prefs",
+            "addon.scene_draw",
+            "addon.ui",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.gpu = gpu_layer()
         ns.effects = importlib.import_module(f"{EXTENSION_ID}.precompute.effects")
         yield ns

@@ -48,8 +48,14 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            for dotted in (
+                "addon.headless",
+                "addon.description",
+                "addon.tables",
+                "addon.prefs",
+                "addon.scene_draw",
+            ):
+                setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             ns.gpu = gpu_layer()
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
             set_cache_preference(bpy, ns.prefs, ns.cache_dir)

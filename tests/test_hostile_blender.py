@@ -45,8 +45,15 @@ def tf(bpy, tmp_path_factory):
         try:
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw", "world"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            for dotted in (
+                "addon.headless",
+                "addon.description",
+                "addon.tables",
+                "addon.prefs",
+                "addon.scene_draw",
+                "addon.world",
+            ):
+                setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness")
             ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.cli_support")
             ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.material")

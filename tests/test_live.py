@@ -133,7 +133,12 @@ def test_the_film_table_of_a_material_is_its_bakes(precompute, preset, mode):
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     modules = [
-        f"addon.{m}" for m in ("scene_draw", "prefs", "tables", "viewport", "description", "world_job")
+        "addon.scene_draw",
+        "addon.prefs",
+        "addon.tables",
+        "addon.viewport",
+        "addon.description",
+        "addon.world_job",
     ]
     modules += ["precompute.bake", "precompute.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")

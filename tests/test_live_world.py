@@ -35,8 +35,18 @@ WIDTH, HEIGHT = 256, 128
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
-    names = ("scene_draw", "prefs", "tables", "panorama", "world", "world_job", "world_analysis", "viewport")
-    modules = [f"addon.{m}" for m in names] + ["precompute.prefilter", "addon.gpu.draw"]
+    modules = [
+        "addon.scene_draw",
+        "addon.prefs",
+        "addon.tables",
+        "addon.panorama",
+        "addon.world",
+        "addon.world_job",
+        "addon.world_analysis",
+        "addon.viewport",
+        "precompute.prefilter",
+        "addon.gpu.draw",
+    ]
     root = tmp_path_factory.mktemp("extension")
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
         ns.cache_dir = str(ns.cache_dir)

@@ -27,14 +27,22 @@ from _extension import assert_helper_ends_with_stdin_and_unregister, registered_
 
 pytestmark = pytest.mark.blender
 
-MODULES = ("panorama", "panorama_helper", "panorama_process", "prefs", "scene_draw", "world", "world_job")
+MODULES = (
+    "addon.panorama",
+    "addon.panorama_helper",
+    "addon.panorama_process",
+    "addon.prefs",
+    "addon.scene_draw",
+    "addon.world",
+    "addon.world_job",
+)
 
 
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     root = tmp_path_factory.mktemp("extension")
-    with registered_extension(bpy, root, [f"addon.{m}" for m in MODULES], gpu=True) as ns:
+    with registered_extension(bpy, root, MODULES, gpu=True) as ns:
         yield ns
 
 

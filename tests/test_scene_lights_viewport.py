@@ -26,8 +26,8 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "prefs", "tables", "panorama", "world"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in ("addon.scene_draw", "addon.prefs", "addon.tables", "addon.panorama", "addon.world"):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.gpu = importlib.import_module(f"{EXTENSION_ID}.addon.gpu")
         for name in ("context", "draw", "resources"):
             importlib.import_module(f"{EXTENSION_ID}.addon.gpu.{name}")

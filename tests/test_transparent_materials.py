@@ -27,8 +27,8 @@ def ext(bpy, package):
     package.register()
     try:
         yield {
-            name: importlib.import_module(f"{EXTENSION_ID}.addon.{name}")
-            for name in ("transparency", "description", "principled")
+            dotted.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{dotted}")
+            for dotted in ("addon.transparency", "addon.description", "addon.principled")
         }
     finally:
         package.unregister()

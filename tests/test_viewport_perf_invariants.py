@@ -38,8 +38,8 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         ns.gpu = gpu_layer()
-        for name in ("scene_draw", "props", "prefs"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in ("addon.scene_draw", "addon.props", "addon.prefs"):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID

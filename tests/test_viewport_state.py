@@ -40,8 +40,16 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.scene_draw",
+            "addon.props",
+            "addon.prefs",
+            "addon.tables",
+            "addon.thickness",
+            "addon.viewport",
+            "addon.ui",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
         ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
         ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
