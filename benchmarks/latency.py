@@ -88,15 +88,15 @@ class Extension:
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
         for dotted in (
-            "addon.scene_draw",
-            "addon.viewport",
-            "addon.tables",
-            "addon.prefs",
+            "addon.drawing.scene_draw",
+            "addon.drawing.viewport",
+            "addon.bakes.tables",
+            "addon.ui.prefs",
             "addon.caches",
-            "addon.description",
-            "addon.bake_helper",
-            "addon.radiance_grids",
-            "addon.shader_warmup",
+            "addon.materials.description",
+            "addon.bakes.bake_helper",
+            "addon.bakes.radiance_grids",
+            "addon.drawing.shader_warmup",
         ):
             setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)

@@ -101,7 +101,7 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for dotted in ("addon.scene_draw", "addon.props", "addon.headless"):
+        for dotted in ("addon.drawing.scene_draw", "addon.materials.props", "addon.headless.headless"):
             setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()

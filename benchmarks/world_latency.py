@@ -84,8 +84,8 @@ class Replay:
 
     def __init__(self, ext, bpy):
         self.ext, self.bpy = ext, bpy
-        self.viewport = importlib.import_module(f"{ext.package.__name__}.addon.viewport")
-        self.world_job = importlib.import_module(f"{ext.package.__name__}.addon.world_job")
+        self.viewport = importlib.import_module(f"{ext.package.__name__}.addon.drawing.viewport")
+        self.world_job = importlib.import_module(f"{ext.package.__name__}.addon.world.world_job")
         self.viewport._tag_redraw = lambda: None  # no windows in this process
         self.profile = None  # a cProfile.Profile to find a slow draw (--profile)
 
@@ -326,7 +326,7 @@ def main(argv=None) -> int:
 
     ext = Extension()
     rows = run_scene(ext, "hdri") + run_scene(ext, "sky")
-    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.panorama_helper"))
+    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.world.panorama_helper"))
     pre = prefilter_before_after(args.before)
     text = report(rows, pre, helper)
     print(text)

@@ -55,14 +55,14 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"), root=root)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         for dotted in (
-            "addon.props",
-            "addon.prefs",
-            "addon.ops",
-            "addon.ui",
-            "addon.tables",
-            "addon.viewport",
-            "addon.headless",
-            "addon.scene_draw",
+            "addon.materials.props",
+            "addon.ui.prefs",
+            "addon.ui.ops",
+            "addon.ui.ui",
+            "addon.bakes.tables",
+            "addon.drawing.viewport",
+            "addon.headless.headless",
+            "addon.drawing.scene_draw",
         ):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
@@ -149,7 +149,7 @@ def test_every_property_enum_item_and_operator_has_an_artist_tooltip(bpy, tf):
     checked = [("Material.thinfilm_sh", pointer)]
     for label, rna in structs:
         if label.startswith("THINFILM_OT"):  # the operator's tooltip (docstring) and parameters
-            module, name = getattr(tf.addon.ops, label).bl_idname.split(".")
+            module, name = getattr(tf.addon.ui.ops, label).bl_idname.split(".")
             op_rna = getattr(getattr(bpy.ops, module), name).get_rna_type()
             checked.append((label, op_rna))
             checked += [
@@ -374,7 +374,7 @@ def test_a_principled_film_preview_can_be_switched_off_per_material(bpy, tf, sce
     mat = bpy.data.materials.new("Principled Film")
     bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     bsdf.inputs["Thin Film Thickness"].default_value = 400.0
-    description = importlib.import_module(f"{EXTENSION_ID}.addon.description").description
+    description = importlib.import_module(f"{EXTENSION_ID}.addon.materials.description").description
     assert description(mat) is not None
     mat.thinfilm_sh.preview_principled = False
     assert description(mat) is None

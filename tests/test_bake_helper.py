@@ -1,4 +1,5 @@
-"""Viewport bakes in the bake helper process (issue 16, addon/bake_helper.py, addon/bake_process.py).
+"""Viewport bakes in the bake helper process (issue 16, addon/bakes/bake_helper.py and
+addon/bakes/bake_process.py).
 
 A bake on a thread of Blender's process waits for Python's lock whenever the main thread draws;
 the helper bakes in a process of its own. With the real bpy and the viewport's own path
@@ -44,7 +45,7 @@ def helper(tf, monkeypatch):  # noqa: F811
     """The bake helper module, turned on, no process running and none given up; ``tf.in_process``
     counts the bakes run in this process."""
     monkeypatch.setenv("THINFILM_SH_BAKE_HELPER", "1")
-    module = importlib.import_module(f"{tf.package.__name__}.addon.bake_helper")
+    module = importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_helper")
     module.unregister()
     tf.in_process = []
     real = tf.bake.bake
@@ -169,7 +170,7 @@ def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):
 
 
 def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
-    frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
+    frames = importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_process")
     stream = io.BytesIO()
     big = np.arange(300_000, dtype=np.float32).reshape(1000, 300)  # sent out of band
     message = ("done", 7, {"data": np.arange(6.0).reshape(2, 3), "big": big}, None, 1.5)
@@ -190,7 +191,9 @@ def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
 
 def silent_command(tf):  # noqa: F811
     """A helper that says it is ready, then never answers (reads until its stdin closes)."""
-    addon = os.path.dirname(importlib.import_module(f"{tf.package.__name__}.addon.bake_process").__file__)
+    addon = os.path.dirname(
+        importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_process").__file__
+    )
     code = (
         f"import sys; sys.path.insert(0, {addon!r}); import bake_process as b; "
         "b.send(sys.stdout.buffer, ('ready', 0)); sys.stdin.buffer.read()"
@@ -288,7 +291,7 @@ def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene,
     from test_radiance_grid_viewport import record_builds
 
     vp = tf.viewport
-    rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    rg = importlib.import_module(f"{tf.package.__name__}.addon.bakes.radiance_grids")
     mat = film(bpy, tf, "Rough", roughness=0.6)
     mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
     item = drawn_once(bpy, tf, scene, mat)  # the headless path: baked here
@@ -331,7 +334,7 @@ def test_no_grid_comes_back_for_a_film_that_reads_none(tf, helper):  # noqa: F81
 def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F811
     """Between requests the helper computes the kernels an edit that needs one more (or one
     fewer) node per interval would wait for; a request that arrives stops it."""
-    frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
+    frames = importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_process")
     progress = importlib.import_module(f"{tf.package.__name__}.precompute.progress")
     modules = types.SimpleNamespace(bake=tf.bake, progress=progress)
     desc = tf.Material.from_dict(soap_dict(tf))

@@ -43,9 +43,9 @@ def tf(bpy, tmp_path_factory):
         bpy,
         tmp_path_factory.mktemp("extension"),
         (
-            "addon.headless",
-            "addon.display",
-            "addon.prefs",
+            "addon.headless.headless",
+            "addon.drawing.display",
+            "addon.ui.prefs",
         ),
     ) as ns:
         yield ns

@@ -477,12 +477,12 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         for dotted in (
-            "addon.headless",
-            "addon.description",
-            "addon.tables",
-            "addon.prefs",
-            "addon.scene_draw",
-            "addon.ui",
+            "addon.headless.headless",
+            "addon.materials.description",
+            "addon.bakes.tables",
+            "addon.ui.prefs",
+            "addon.drawing.scene_draw",
+            "addon.ui.ui",
         ):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.gpu = gpu_layer()

@@ -27,9 +27,9 @@ def tf(bpy, tmp_path_factory):
         bpy,
         tmp_path_factory.mktemp("extension"),
         (
-            "addon.headless",
-            "addon.prefs",
-            "addon.background",
+            "addon.headless.headless",
+            "addon.ui.prefs",
+            "addon.headless.background",
         ),
     ) as ns:
         yield ns

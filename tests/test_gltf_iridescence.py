@@ -44,12 +44,12 @@ def tf(bpy, package, tmp_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
     names = (
-        "addon.description",
-        "addon.gltf",
-        "addon.linked",
-        "addon.scene_draw",
-        "addon.tables",
-        "addon.prefs",
+        "addon.materials.description",
+        "addon.materials.gltf",
+        "addon.thickness.linked",
+        "addon.drawing.scene_draw",
+        "addon.bakes.tables",
+        "addon.ui.prefs",
     )
     mods = {n.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{n}") for n in names}
     entry = bpy.context.preferences.addons.new()

@@ -49,11 +49,11 @@ def tf(bpy, tmp_path_factory):
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
             for dotted in (
-                "addon.headless",
-                "addon.description",
-                "addon.tables",
-                "addon.prefs",
-                "addon.scene_draw",
+                "addon.headless.headless",
+                "addon.materials.description",
+                "addon.bakes.tables",
+                "addon.ui.prefs",
+                "addon.drawing.scene_draw",
             ):
                 setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             ns.gpu = gpu_layer()
@@ -903,7 +903,7 @@ def test_cli_frames_write_one_file_per_frame_computing_the_world_once(
     scene.world = bpy.data.worlds.new("Frames World")
     scene.world.color = (0.31, 0.27, 0.19)  # a World no other test analysed
     analysed = []
-    analysis = importlib.import_module(f"{EXTENSION_ID}.addon.world_analysis")
+    analysis = importlib.import_module(f"{EXTENSION_ID}.addon.world.world_analysis")
     original = analysis.analyse_world
     monkeypatch.setattr(analysis, "analyse_world", lambda *a, **k: analysed.append(1) or original(*a, **k))
     out = tmp_path / "shot_###.png"

@@ -46,15 +46,15 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             for dotted in (
-                "addon.headless",
-                "addon.description",
-                "addon.tables",
-                "addon.prefs",
-                "addon.scene_draw",
-                "addon.world",
+                "addon.headless.headless",
+                "addon.materials.description",
+                "addon.bakes.tables",
+                "addon.ui.prefs",
+                "addon.drawing.scene_draw",
+                "addon.world.world",
             ):
                 setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
-            ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness")
+            ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness.thickness")
             ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.cli_support")
             ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.material")
             set_cache_preference(bpy, ns.prefs, ns.cache_dir)

@@ -32,14 +32,14 @@ def tf(bpy, package, tmp_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
     names = (
-        "addon.description",
-        "addon.linked",
-        "addon.scene_draw",
-        "addon.tables",
-        "addon.prefs",
-        "addon.headless",
-        "addon.principled",
-        "addon.ui",
+        "addon.materials.description",
+        "addon.thickness.linked",
+        "addon.drawing.scene_draw",
+        "addon.bakes.tables",
+        "addon.ui.prefs",
+        "addon.headless.headless",
+        "addon.materials.principled",
+        "addon.ui.ui",
     )
     mods = {n.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{n}") for n in names}
     entry = bpy.context.preferences.addons.new()

@@ -133,12 +133,12 @@ def test_the_film_table_of_a_material_is_its_bakes(precompute, preset, mode):
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     modules = [
-        "addon.scene_draw",
-        "addon.prefs",
-        "addon.tables",
-        "addon.viewport",
-        "addon.description",
-        "addon.world_job",
+        "addon.drawing.scene_draw",
+        "addon.ui.prefs",
+        "addon.bakes.tables",
+        "addon.drawing.viewport",
+        "addon.materials.description",
+        "addon.world.world_job",
     ]
     modules += ["precompute.bake", "precompute.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
@@ -446,7 +446,7 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
     tf.world_job.wait()  # an earlier test's World work, if any, ends first
     tf.scene_draw.CACHES.prefilters_wanted.clear()  # as if no draw had asked yet
     tf.scene_draw.CACHES.world_wanted = False
-    display = importlib.import_module(f"{EXTENSION_ID}.addon.display")
+    display = importlib.import_module(f"{EXTENSION_ID}.addon.drawing.display")
     settings = display.settings_of(scene)  # the view's LUT baked first: its bake starts the timer too
     wait_for(lambda: display.viewport_lut(settings) is not None and not display.baking(), "the LUT")
     display.take_finished()

@@ -1,4 +1,4 @@
-"""An edit's work starts before its first redraw and arrives whole (issue 16, addon/bake_asks.py).
+"""An edit's work starts before its first redraw and arrives whole (issue 16, addon/bakes/bake_asks.py).
 
 - The depsgraph update that follows an edit (Blender runs ``depsgraph_update_post`` before it
   redraws) starts the edited material's bake, once a viewport has drawn films; before any
@@ -94,7 +94,7 @@ def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeyp
 
 def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa: F811
     vp = tf.viewport
-    rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    rg = importlib.import_module(f"{tf.package.__name__}.addon.bakes.radiance_grids")
     mat = film(bpy, tf, "Rough", roughness=0.6)
     mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
     item = drawn_once(bpy, tf, scene, mat)

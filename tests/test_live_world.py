@@ -36,14 +36,14 @@ WIDTH, HEIGHT = 256, 128
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     modules = [
-        "addon.scene_draw",
-        "addon.prefs",
-        "addon.tables",
-        "addon.panorama",
-        "addon.world",
-        "addon.world_job",
-        "addon.world_analysis",
-        "addon.viewport",
+        "addon.drawing.scene_draw",
+        "addon.ui.prefs",
+        "addon.bakes.tables",
+        "addon.world.panorama",
+        "addon.world.world",
+        "addon.world.world_job",
+        "addon.world.world_analysis",
+        "addon.drawing.viewport",
         "precompute.prefilter",
         "addon.gpu.draw",
     ]
@@ -284,7 +284,7 @@ def rough_items(bpy, tf, live):
 
 
 def forbid_grids(tf, monkeypatch):
-    grids = tf.package.addon.radiance_grids
+    grids = tf.package.addon.bakes.radiance_grids
 
     def forbidden(*_a, **_k):
         raise AssertionError("a World parameter edit rebuilt a radiance grid")

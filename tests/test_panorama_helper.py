@@ -1,7 +1,7 @@
 """Procedural Worlds in the viewport: their Cycles panorama rendered by the helper process (issue 16).
 
 The viewport's World step (``world_job.service``, the timer) hands a procedural World to
-:mod:`addon.panorama_helper`, whose process renders it with the add-on's own
+:mod:`addon.world.panorama_helper`, whose process renders it with the add-on's own
 ``panorama.render_world_panorama``; a worker waits and analyses it. With the real bpy:
 
 - no Cycles render runs in this process (counted), and the helper's panorama equals the one
@@ -28,13 +28,13 @@ from _extension import assert_helper_ends_with_stdin_and_unregister, registered_
 pytestmark = pytest.mark.blender
 
 MODULES = (
-    "addon.panorama",
-    "addon.panorama_helper",
-    "addon.panorama_process",
-    "addon.prefs",
-    "addon.scene_draw",
-    "addon.world",
-    "addon.world_job",
+    "addon.world.panorama",
+    "addon.world.panorama_helper",
+    "addon.world.panorama_process",
+    "addon.ui.prefs",
+    "addon.drawing.scene_draw",
+    "addon.world.world",
+    "addon.world.world_job",
 )
 
 

@@ -26,7 +26,13 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for dotted in ("addon.scene_draw", "addon.prefs", "addon.tables", "addon.panorama", "addon.world"):
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.ui.prefs",
+            "addon.bakes.tables",
+            "addon.world.panorama",
+            "addon.world.world",
+        ):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.gpu = importlib.import_module(f"{EXTENSION_ID}.addon.gpu")
         for name in ("context", "draw", "resources"):

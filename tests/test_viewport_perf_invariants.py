@@ -38,7 +38,7 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         ns.gpu = gpu_layer()
-        for dotted in ("addon.scene_draw", "addon.props", "addon.prefs"):
+        for dotted in ("addon.drawing.scene_draw", "addon.materials.props", "addon.ui.prefs"):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:

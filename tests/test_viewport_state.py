@@ -41,13 +41,13 @@ def tf(bpy, tmp_path_factory):
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
         for dotted in (
-            "addon.scene_draw",
-            "addon.props",
-            "addon.prefs",
-            "addon.tables",
-            "addon.thickness",
-            "addon.viewport",
-            "addon.ui",
+            "addon.drawing.scene_draw",
+            "addon.materials.props",
+            "addon.ui.prefs",
+            "addon.bakes.tables",
+            "addon.thickness.thickness",
+            "addon.drawing.viewport",
+            "addon.ui.ui",
         ):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")

@@ -2,7 +2,7 @@
 
 :func:`prepare_draw` is the CPU half of a frame (variants, uniform buffers, grouping),
 :func:`submit` the GPU half (state, binds, draw calls); :func:`draw_items` is both. Items are
-made by addon/scene_draw.py (or tests): a :class:`.mesh.MeshBatch`, a model matrix, a
+made by addon/drawing/scene_draw.py (or tests): a :class:`.mesh.MeshBatch`, a model matrix, a
 :class:`.resources.TableTexture` and :class:`.resources.Lighting`, optionally a
 :class:`.resources.PrefilterTexture` and :class:`.resources.FilmTexture`.
 """

@@ -1,0 +1,772 @@
+"""What to draw: visible objects with a thin-film material → GPU draw items, with caches.
+
+Shared by the viewport draw handler and the headless render, so both draw the same thing.
+
+:data:`CACHES` (registered in :mod:`.caches` as ``scene_draw``, emptied on file load) holds:
+
+- batches per (object, material slot, instance) (:class:`BatchEntry`), rebuilt only when the
+  object's geometry changed (a depsgraph handler marks it) or what its thickness is made of
+  changed (:func:`.thickness.thickness_inputs`: the source, noise scale and seed, attribute
+  name, image and its pixels) — moving an object only changes the matrix passed at draw time;
+- GPU table textures per material description key (equal materials share one);
+- lighting UBOs per (World key, SH order, roughness, lamps or not);
+- film textures (the reflectance table of the World's lamps and the light objects) per material
+  description key, uploaded from the film table the bake's worker computed
+  (:func:`.tables.get_film`): never computed in a draw;
+- per material (its ``session_uid``) the entry it was last drawn with (:attr:`Caches.previous`):
+  while the material's new table bakes, the draw shows that one instead of nothing — a frame is
+  always drawn with the best data available;
+- the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
+  the current World key.
+
+The four GPU maps are :class:`.caches.LRU` s bounded by :data:`BATCH_CACHE_SIZE`,
+:data:`TABLE_CACHE_SIZE`, :data:`FILM_CACHE_SIZE` and :data:`LIGHTING_CACHE_SIZE` entries, or by
+what the last frame used when that is more (a map grows rather than drop an entry the frame
+already uses, :meth:`Caches.make_room`, and shrinks back after the frame, :meth:`Caches.fit`;
+so a large scene does not rebuild every frame): a long session of edits, each making new keys,
+keeps at most that many. A dropped entry is only dereferenced; its GPU buffers and textures are
+freed with the last reference (the draw items of the frame being drawn).
+
+The GPU layer's shader and uniform-buffer caches (``gpu.shaders.SHADERS``, ``gpu.draw.UNIFORMS``)
+are registered in :mod:`.caches` here too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from ...precompute import cli_support
+from ...precompute.material import FALLBACK
+from ...precompute.shading import policy
+from .. import caches
+from ..bakes import bake_asks, radiance_grids, tables
+from ..bakes.bake_asks import material_identity
+from ..gpu import draw, resources, shaders
+from ..gpu.mesh import MeshBatch, mesh_arrays
+from ..materials import description, transparency
+from ..materials.principled import linked_thickness_socket
+from ..thickness import linked
+from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
+from ..world import world, world_analysis
+from ..world.world_analysis import WorldLighting
+from . import lights as scene_lights
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class DrawItem:
+    """One (object, material slot) to draw: what :func:`.gpu.draw.draw_items` needs."""
+
+    batch: MeshBatch
+    model_matrix: np.ndarray
+    table: resources.TableTexture
+    lighting: resources.Lighting
+    name: str
+    prefiltered: resources.PrefilterTexture | None = None
+    roughness: float = 0.0
+    sh_weight: float = 1.0
+    film: resources.FilmTexture | None = None
+    #: Drawn as :data:`precompute.material.FALLBACK` (matte magenta): its material failed.
+    fallback: bool = False
+    #: Blender's light objects this object receives (:func:`.gpu.resources.lights_content`), or None.
+    lights: np.ndarray | None = None
+    #: A transparent film's wall, (mode, η) of precompute.shading.transmit (:func:`.transparency.wall`).
+    wall: tuple | None = None
+    #: The film's outgoing-radiance grid (:mod:`.radiance_grids`), or None (per-pixel SH).
+    grid: resources.RadianceGridTexture | None = None
+    #: Its grid is being built: the per-pixel variant is drawn only if compiled (else the
+    #: stand-in, and it is not asked for: 77–83 s of llvmpipe compile for a frame or two).
+    grid_pending: bool = False
+
+
+#: Batches kept besides those the last frame drew (each holds a mesh's vertex buffers).
+BATCH_CACHE_SIZE = 256
+#: GPU table textures kept: as many as the tables kept in memory (tables.LRU_SIZE, 32).
+TABLE_CACHE_SIZE = tables.LRU_SIZE
+#: Film textures (the lamps' reflectance) kept, one per table.
+FILM_CACHE_SIZE = tables.LRU_SIZE
+#: Lighting uniform buffers kept (a roughness slider's drag makes one per step).
+LIGHTING_CACHE_SIZE = 64
+#: Analysed World contents kept (each holds a 512-wide panorama and up to two prefilters,
+#: ≈ 60 MB): the current World and two recent ones.
+CONTENT_CACHE_SIZE = 3
+
+
+@dataclass
+class BatchEntry:
+    """One (object, material slot, instance)'s batch and what it was built from.
+
+    ``signature``: the mesh's name and sizes, whether the material's thickness varies and its
+    :func:`.thickness.thickness_inputs` (a different signature rebuilds the batch; nothing else
+    of the material is in the batch, so a roughness drag rebuilds none);
+    ``thickness``: the per-vertex thickness parameters uploaded (float32, one per corner; None
+    for a constant thickness), kept to be read back; ``notes``: what the build found wrong
+    (NaN thickness values, a missing attribute), repeated in every frame's messages.
+    """
+
+    signature: tuple
+    batch: MeshBatch | None
+    thickness: np.ndarray | None = None
+    notes: tuple = ()
+
+
+def _lru(size: int) -> caches.LRU:
+    return caches.LRU(size)
+
+
+@dataclass
+class Caches:
+    """The draw collector's GPU-side caches, each a bounded LRU."""
+
+    batches: caches.LRU = field(
+        default_factory=lambda: _lru(BATCH_CACHE_SIZE)
+    )  # (object, slot, instance) → BatchEntry
+    tables: caches.LRU = field(
+        default_factory=lambda: _lru(TABLE_CACHE_SIZE)
+    )  # description key → TableTexture
+    films: caches.LRU = field(default_factory=lambda: _lru(FILM_CACHE_SIZE))  # description key → FilmTexture
+    lightings: caches.LRU = field(
+        default_factory=lambda: _lru(LIGHTING_CACHE_SIZE)
+    )  # (world key, l_max, roughness, lamps) → Lighting
+    previous: caches.LRU = field(
+        default_factory=lambda: _lru(TABLE_CACHE_SIZE)
+    )  # material session_uid → the _MaterialEntry it was last drawn with
+    world: WorldLighting | None = None  # the current World's lighting
+    #: Analysed World contents (world_analysis.Analysed) by content key: a Strength or rotation
+    #: edit, or a swap back to a recent HDRI, recomputes nothing.
+    contents: caches.LRU = field(default_factory=lambda: _lru(CONTENT_CACHE_SIZE))
+    world_wanted: bool = False  # the draw met a World content not analysed yet (.world_job)
+    prefilters_wanted: set = field(default_factory=set)  # (content key, kind) the draw asked for
+    prefilters_used: set = field(default_factory=set)  # kinds the frames' glossy films read
+    generation: int = 0  # bumped by clear(): a worker's result for an older file is dropped
+    dirty: set = field(default_factory=set)  # object names whose geometry changed
+    stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
+
+    def clear(self):
+        """Empty every cache and restore its size limit."""
+        for lru, size in self._bounded():
+            lru.clear()
+            lru.resize(size)
+        self.world = None
+        self.contents.clear()
+        self.world_wanted = False
+        self.prefilters_wanted.clear()
+        self.prefilters_used.clear()
+        self.generation += 1
+        self.dirty.clear()
+
+    def _bounded(self):
+        return (
+            (self.batches, BATCH_CACHE_SIZE),
+            (self.tables, TABLE_CACHE_SIZE),
+            (self.films, FILM_CACHE_SIZE),
+            (self.lightings, LIGHTING_CACHE_SIZE),
+            (self.previous, TABLE_CACHE_SIZE),
+        )
+
+    def make_room(self, batches: int = 0, materials: int = 0) -> None:
+        """Before storing the frame's ``batches``-th batch or ``materials``-th material: grow a
+        map that would otherwise drop an entry this frame already uses."""
+        for lru, needed in (
+            (self.batches, batches),
+            (self.tables, materials),
+            (self.films, materials),
+            (self.lightings, materials),
+            (self.previous, materials),
+        ):
+            if lru.maxsize < needed:
+                lru.resize(needed)
+
+    def fit(self, batches: int, materials: int) -> None:
+        """Bound the GPU maps after a frame that used ``batches`` batches and ``materials``
+        materials: the base sizes, or the frame's own use when it is larger."""
+        self.batches.resize(max(BATCH_CACHE_SIZE, batches))
+        self.tables.resize(max(TABLE_CACHE_SIZE, materials))
+        self.films.resize(max(FILM_CACHE_SIZE, materials))
+        self.lightings.resize(max(LIGHTING_CACHE_SIZE, materials))
+        self.previous.resize(max(TABLE_CACHE_SIZE, materials))
+
+
+CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
+caches.register("shaders", shaders.SHADERS, scope=caches.SESSION)
+caches.register("uniforms", draw.UNIFORMS, scope=caches.SESSION)
+
+
+def on_depsgraph_update(scene, depsgraph) -> None:
+    """Mark objects whose geometry changed (transform-only updates keep their batch).
+
+    Material updates mark nothing: what a batch takes from its material (the thickness source,
+    noise, image) is part of the batch's signature (:func:`.thickness.thickness_inputs`), read
+    from the material itself each frame, so any other material edit (dragging the roughness)
+    rebuilds no batch.
+    """
+    for update in depsgraph.updates:
+        data = update.id
+        if isinstance(data, bpy.types.Object) and update.is_updated_geometry:
+            name = data.original.name if hasattr(data, "original") else data.name
+            CACHES.dirty.add(name)
+            linked.mark_geometry(name)
+        elif isinstance(data, bpy.types.Mesh) and update.is_updated_geometry:
+            for obj in scene.objects:
+                if obj.data is not None and obj.data.name == data.name:
+                    CACHES.dirty.add(obj.name)
+                    linked.mark_geometry(obj.name)
+
+
+# ----------------------------------------------------------------------------------------------
+#: Panorama size for the split sum's prefilter and the headless background.
+PANORAMA_WIDTH = world_analysis.PANORAMA_WIDTH
+PREFILTER_WIDTH = world_analysis.PREFILTER_WIDTH  # 512: level 0 is the panorama itself
+
+
+def _lighting_key(content_key: str, params: world.WorldParams) -> str:
+    """The drawn lighting's key: the World's content key and its parameters."""
+    return (
+        f"{content_key}|{params.strength!r}|{params.parity}|{','.join(f'{v:.17g}' for v in params.rotation)}"
+    )
+
+
+def world_lighting(scene, *, allow_compute: bool = True) -> WorldLighting | None:
+    """The :class:`WorldLighting` of the scene's World: the content analysed once per content key,
+    the parameters (Strength, Mapping rotation) applied per edit without recomputation.
+
+    With ``allow_compute`` False (the draw callback) a World whose content is not analysed yet
+    is asked for (:attr:`Caches.world_wanted`, served by ``.world_job`` on a worker) and the
+    lighting drawn so far is returned meanwhile: the old World until the new one is ready (None
+    before the first). With ``allow_compute`` (headless renders) it is analysed here.
+    """
+    content_key, params = world.world_parts(scene)
+    key = _lighting_key(content_key, params)
+    current = CACHES.world
+    if current is not None and current.key == key:
+        return current
+    analysed = CACHES.contents.get(content_key)
+    if analysed is None:
+        if not allow_compute:
+            CACHES.world_wanted = True
+            return current
+        read = world.read_world(scene, params=params)
+        fallback = world.fallback_colour(scene.world)[0]
+        analysed = world_analysis.analyse_content(content_key, read, fallback)
+        CACHES.contents[content_key] = analysed
+    CACHES.world = world_analysis.lighting_from(scene, analysed, params, key, current)
+    for stale in [k for k, _ in CACHES.lightings.items() if k[0] != key]:
+        CACHES.lightings.pop(stale)
+    return CACHES.world
+
+
+def lighting_for(
+    lighting: WorldLighting, l_max: int, roughness: float, lamps: bool = False
+) -> resources.Lighting:
+    """The lighting UBO; with ``lamps`` (and a World that has some) the SH without the lamps and
+    the lamps themselves. The World's rotation and strength are in it for the prefilter lookup."""
+    env = lighting.environment
+    lamps = bool(lamps and env is not None and env.lamps is not None)
+    key = (lighting.key, int(l_max), round(float(roughness), 6), lamps)
+    found = CACHES.lightings.get(key)
+    if found is None:
+        coeffs = lighting.sh_without_lamps() if lamps else np.asarray(lighting.sh.coeffs, dtype=np.float64)
+        found = resources.Lighting.from_sh(
+            coeffs,
+            l_max,
+            roughness,
+            lighting.lamps() if lamps else None,
+            lighting.matrix,
+            1.0 if lighting.scale is None else lighting.scale,
+        )
+        CACHES.lightings[key] = found
+    return found
+
+
+def film_texture(desc_key: str, film=None) -> resources.FilmTexture | None:
+    """The film colour texture of a description key, uploaded once: from ``film`` (a
+    :class:`precompute.film_colour.FilmTable`) or the one the bake's worker computed
+    (:func:`.tables.peek_film`); None while neither exists (it is never computed here)."""
+    found = CACHES.films.get(desc_key)
+    if found is None:
+        film = film if film is not None else tables.peek_film(desc_key)
+        if film is None:
+            return None
+        found = resources.FilmTexture.from_film(film)
+        CACHES.films[desc_key] = found
+    return found
+
+
+def _film_for(desc, key: str, result, allow_bake: bool, want_bake, owner):
+    """The film texture of the table ``result``: uploaded from the film table in memory, computed
+    here only for a headless frame (``allow_bake``); in the viewport asked of the bake's worker
+    (``want_bake(desc, owner=…, film=True)``) and meanwhile the material's previous film, or None."""
+    found = film_texture(key)
+    if found is None and allow_bake:
+        found = film_texture(key, tables.get_film(desc, result))
+    if found is None:
+        if want_bake is not None:
+            want_bake(desc, owner=owner, film=True)
+        last = CACHES.previous.get(owner)
+        found = last.film if last is not None else None
+    return found
+
+
+def uses_lamps(bpy_material, desc) -> bool:
+    """Whether the World's lamps are shaded per light direction for this material: its
+    "World Lamps" setting (on by default, also for Principled previews), and not under a
+    diffuse base, whose lamp light the analytic specular lobe does not carry (it keeps the
+    whole World in its SH and prefilter)."""
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    return bool(getattr(props, "world_lamps", True)) and getattr(desc, "base_color", None) is None
+
+
+def lamps_summary(enabled: bool) -> str:
+    """One line for the Surface panel: what the current World's lamps are and how they are shaded,
+    or why the World could not be evaluated (it is then lit by its fallback colour)."""
+    lighting = CACHES.world
+    if lighting is not None and lighting.sh.errors:
+        return lighting.sh.errors[0]
+    env = lighting.environment if lighting is not None else None
+    if env is None:
+        return "World lamps: World not analysed yet"
+    if env.lamps is None:
+        return "World lamps: none (no small, very bright sources)"
+    lamps = env.lamps
+    how = "shaded per lamp" if enabled else "off: through SH and prefilter"
+    return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
+
+
+def lights_summary(scene) -> str:
+    """One line for the Surface panel: how many light objects light the films, and what is not
+    done yet (no cast shadows; only the film's specular layer)."""
+    count = sum(1 for obj in scene.objects if obj.type == "LIGHT" and obj.visible_get())
+    if count == 0:
+        return "Light objects: none"
+    shown = min(count, resources.MAX_LIGHTS)
+    return f"Light objects: {shown} shade the film (no cast shadows yet)"
+
+
+def table_texture(desc_key: str, result) -> resources.TableTexture:
+    """The SH table texture for a baked table, uploaded once per description key."""
+    found = CACHES.tables.get(desc_key)
+    if found is None:
+        found = resources.TableTexture.from_result(result)
+        CACHES.tables[desc_key] = found
+        CACHES.stats["table_uploads"] += 1
+    return found
+
+
+def _batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
+    """(per-corner thickness parameter or None, notes, whether a bake is awaited) of a batch:
+    from the extension's source (``props``; BLENDER_NOISE: :func:`.linked.noise_parameters`),
+    or from the link into a Principled BSDF's Thin Film Thickness
+    (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`)."""
+    notes = []
+    if not desc.varies:
+        return None, notes, False
+    try:
+        if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
+            thickness, nan_count = linked.noise_parameters(obj_eval, mesh, props.id_data)
+        elif props is not None and props.enabled:
+            thickness, nan_count = thickness_field(obj_eval, mesh, props)
+        elif linked_source is not None:
+            thickness, nan_count = linked.corner_parameters(
+                obj_eval, mesh, *linked_source, desc.thickness_range_nm
+            )
+        else:
+            return None, notes, False
+    except linked.Pending as exc:  # built again on the next frame, after the timer's bake
+        notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
+        return None, notes, True
+    except ValueError as exc:
+        notes.append(f"{name}: {exc}; using the middle of the thickness range")
+        return None, notes, False
+    if nan_count:
+        notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
+    return thickness, notes, False
+
+
+def _slot_batch(
+    name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None
+) -> BatchEntry:
+    """The batch of the triangles of material slot ``slot`` (None if it has none).
+
+    ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
+    material is not refreshed when an add-on property changes), or None; ``name``: the object's;
+    ``linked_source``: (material, Thin Film Thickness socket) of a Principled BSDF whose
+    thickness is linked, or None.
+    """
+    arrays = mesh_arrays(mesh)
+    if arrays is None:
+        return BatchEntry(signature, None)
+    positions, normals, triangles, _ = arrays
+    if len(obj_eval.material_slots) > 1:
+        tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)  # an array copy, not per item
+        poly_mat = np.zeros(len(mesh.polygons), dtype=np.int32)
+        attr = mesh.attributes.get("material_index")  # absent: every face uses slot 0
+        if attr is not None and attr.domain == "FACE" and attr.data_type == "INT":
+            attr.data.foreach_get("value", poly_mat)
+        triangles = triangles[poly_mat[tri_poly] == slot]
+    if triangles.shape[0] == 0:
+        return BatchEntry(signature, None)
+    thickness, notes, waiting = _batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
+    if desc.varies and thickness is None:
+        thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
+    if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
+        thickness = np.nan_to_num(
+            np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
+        )
+    CACHES.stats["batch_builds"] += 1
+    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    if waiting:
+        signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
+    return BatchEntry(signature, batch, thickness, tuple(notes))
+
+
+@dataclass
+class _MaterialEntry:
+    """What one material contributes to a frame, worked out once per frame however many use it."""
+
+    desc: object  # precompute Material
+    key: str  # description.description_key(desc)
+    table: resources.TableTexture
+    lighting: resources.Lighting
+    roughness: float
+    sh_weight: float
+    film: resources.FilmTexture | None = None
+    props: object = None  # the original material's thinfilm_sh settings when enabled, else None
+    thickness_key: object = None  # thickness.thickness_inputs(props): part of the batches' signature
+    linked_source: tuple | None = None  # (material, linked Thin Film Thickness socket) or None
+    fallback: bool = False  # drawn as precompute.material.FALLBACK (its material failed)
+    lamps: bool = False  # the World's lamps shaded per direction (the prefilter without them)
+    sh_order: int = 0  # the table's SH order (the lighting's l_max)
+    wall: tuple | None = None  # a transparent film's (mode, η) (transparency.wall)
+    grid: resources.RadianceGridTexture | None = None  # its SH half tabulated (policy.uses_grid)
+    grid_source: str = ""  # the World content's key the grid was built from (WorldLighting.grid_source)
+    grid_wanted: bool = False  # radiance_grids.applies: drawn from a grid once built
+
+
+def _table_of(desc, allow_bake: bool, want_bake):
+    """The baked table of ``desc``: in memory, else baked (``allow_bake``) or asked for."""
+    result = tables.peek_table(desc)
+    if result is None and allow_bake:
+        result = tables.get_table(desc)
+    elif result is None and want_bake is not None:
+        want_bake(desc)
+    return result
+
+
+def bake_failure(name: str, exc: Exception) -> str:
+    """One line on why material ``name`` could not be baked; a bug's traceback goes to a log file."""
+    text = f"material {name!r} could not be baked ({type(exc).__name__}: {' '.join(str(exc).split())}"
+    if isinstance(exc, (ValueError, OSError)):
+        return text + ")"
+    where = cli_support.write_log("thinfilm_sh", exc)
+    log.error("Thin Film SH: material %r could not be baked: %s (details in %s)", name, exc, where)
+    return text + f"; details in {where})"
+
+
+def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, messages, errors):
+    """Report why ``bpy_material`` cannot be drawn and draw it as FALLBACK (matte magenta)."""
+    messages.append(f"{why}: drawn in magenta (the fallback) until it is fixed")
+    if errors is not None:
+        errors[bpy_material.name] = why
+    result = _table_of(FALLBACK, allow_bake, want_bake)
+    if result is None:
+        return None
+    key = description.description_key(FALLBACK)
+    roughness = float(FALLBACK.roughness)
+    return _MaterialEntry(
+        FALLBACK,
+        key,
+        table_texture(key, result),
+        lighting_for(lighting, result.sh_order, roughness, False),
+        roughness,
+        policy.sh_weight(roughness),
+        fallback=True,
+        sh_order=result.sh_order,
+    )
+
+
+def _thickness_source(bpy_material, props, desc):
+    """(the batches' thickness key, (material, socket) of a linked Principled thickness or None):
+    the extension's source settings, or the linked graph's content (an edit rebuilds batches)."""
+    if not desc.varies:
+        return None, None
+    if props is not None:
+        return thickness_inputs(props), None
+    socket = linked_thickness_socket(bpy_material)
+    if socket is None:
+        return None, None
+    return ("LINKED", linked.tree_key(socket), desc.thickness_range_nm), (bpy_material, socket)
+
+
+def _material_entry(
+    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None, lights=False
+):
+    """The material's description, table texture and lighting, or None (no film / not baked yet
+    and never drawn before / its bake failed in the viewport).
+
+    Invalid settings are reported in ``messages`` (and ``errors``, by material name) and the
+    material is drawn as the fallback (matte magenta). A bake that failed is remembered by
+    description key (:func:`.tables.failure`): it is not tried again, here or by ``want_bake``,
+    until the description changes, and its error is in ``messages`` (and ``errors``) on every
+    frame; a headless frame (``allow_bake``) draws it as the fallback, the viewport draws
+    nothing for it (its header and material panel say why). A table that could not be saved to
+    the disk cache is drawn, with the reason in ``messages``. ``lights``: the frame has light
+    objects, so the film table is needed even without the World's lamps.
+
+    In the viewport a table not in memory is asked of ``want_bake(desc, owner=…, film=…)``
+    (``owner``: :func:`material_identity`, so a newer value replaces the older request) and the
+    entry the material was last drawn with is drawn meanwhile (:func:`_previous_entry`).
+    """
+    try:
+        desc = description.description(bpy_material)
+    except ValueError as exc:  # description() names the material and the parameter
+        return _fallback_entry(bpy_material, str(exc), lighting, allow_bake, want_bake, messages, errors)
+    if desc is None:
+        return None
+    name = bpy_material.name
+    owner = material_identity(bpy_material)
+    key = description.description_key(desc)  # ≈ 1 ms: once per material per frame
+    result = tables.MEMORY.get(key)  # tables.peek_table, by the key at hand
+    if result is None:
+        failed = tables.FAILURES.get(key)  # tables.failure
+        if failed is None and allow_bake:
+            try:
+                result = tables.get_table(desc)
+            except Exception as exc:  # one material's failure must not stop the others
+                tables.record_failure(desc, exc)
+                failed = bake_failure(name, exc)  # a bug's traceback goes to a log file
+        if failed is not None:
+            why = f"material {name!r}: bake failed: {failed} (not retried until it changes)"
+            if allow_bake:
+                return _fallback_entry(bpy_material, why, lighting, allow_bake, want_bake, messages, errors)
+            messages.append(why)
+            if errors is not None:
+                errors[name] = why
+            return None
+        if result is None:
+            if want_bake is not None:
+                film = _needs_film(bpy_material, desc, lighting, lights)
+                bake_asks.ask(want_bake, desc, owner, CACHES.previous.get(owner), lighting, film)
+            return _previous_entry(owner, lighting)
+    problem = tables.CACHE_ERRORS.get(key)  # tables.cache_error
+    if problem is not None:
+        messages.append(f"material {name!r}: {problem}")
+    entry = _fresh_entry(bpy_material, desc, key, result, lighting, lights, allow_bake, want_bake)
+    CACHES.previous[owner] = entry
+    return entry
+
+
+def _needs_film(bpy_material, desc, lighting: WorldLighting, lights: bool) -> bool:
+    """Whether the material's draw reads its film table: the World's lamps shaded per direction
+    for it, or light objects in the frame."""
+    env = lighting.environment
+    return bool(lights or (uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None))
+
+
+def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_bake, want_bake):
+    """The entry of a material whose table ``result`` is in memory. Without its film table yet
+    (being computed on the bake's worker) it draws the previous film, else folds the World's
+    lamps back into the SH and prefilter (their light is kept, only not per direction)."""
+    roughness = float(desc.roughness)
+    owner = material_identity(bpy_material)
+    wall = transparency.wall(bpy_material, desc)
+    film = None
+    diffuse = getattr(desc, "base_color", None) is not None
+    lobe = policy.uses_lobe_grid(roughness, diffuse, wall is not None)  # reads the film table too
+    if wall is not None or lobe or _needs_film(bpy_material, desc, lighting, lights):
+        film = _film_for(desc, key, result, allow_bake, want_bake, owner)
+    env = lighting.environment
+    lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    props = props if props is not None and props.enabled else None
+    thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
+    buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
+    film_table = tables.peek_film(key) if film is not None and lobe else None
+    grid, lobe = radiance_grids.film_grid(key, desc, result, lighting, lamps, film_table, wait=allow_bake)
+    return _MaterialEntry(
+        desc,
+        key,
+        table_texture(key, result),
+        buffer,
+        roughness,
+        policy.grid_weight(roughness, lobe and grid is not None),
+        film,
+        props,
+        thickness_key,
+        linked_source,
+        lamps=lamps,
+        sh_order=result.sh_order,
+        wall=wall,
+        grid=grid,
+        grid_source=lighting.grid_source(lamps)[0],
+        grid_wanted=radiance_grids.applies(desc, result, lighting),
+    )
+
+
+def _previous_entry(owner, lighting: WorldLighting):
+    """The entry the material ``owner`` was last drawn with, lit by the current World, or None
+    (never drawn yet): what the viewport draws while the material's new table bakes."""
+    last = CACHES.previous.get(owner)
+    if last is None:
+        return None
+    env = lighting.environment
+    lamps = last.lamps and env is not None and env.lamps is not None
+    buffer = lighting_for(lighting, last.sh_order, last.roughness, lamps)
+    # a grid holds the World's content it was built from (its strength and turn are the buffer's)
+    grid = last.grid if lighting.grid_source(lamps)[0] == last.grid_source else None
+    weight = last.sh_weight if grid is not None else policy.sh_weight(last.roughness)  # no grid: its weight
+    return dataclasses.replace(last, lighting=buffer, lamps=lamps, grid=grid, sh_weight=weight)
+
+
+def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
+    """The prefilter the entry's draw reads, computed on first use; None when it reads none.
+
+    With ``compute`` False (the draw callback) a prefilter not computed yet is asked of a worker
+    (:attr:`Caches.prefilters_wanted`) and None is returned: the film draws from the SH until it
+    is ready.
+
+    Only the split sum reads a prefilter, and only below an SH weight of 1
+    (variant.choose_variant): rough films draw from the SH alone and get none, so a scene of
+    rough films computes no prefilter at all. A lamp-shaded film reads the prefilter with the
+    lamps lifted out, any other the whole World's.
+    """
+    textures = lighting.textures
+    if textures is None or entry.sh_weight >= 1.0:
+        return None
+    # the World's lamps shaded per direction: the prefilter without them
+    kind = world_analysis.LIFTED if entry.lamps else world_analysis.WHOLE
+    CACHES.prefilters_used.add(kind)
+    found = textures.get(kind, compute)
+    if found is None:  # asked of a worker (.world_job); the SH path meanwhile
+        CACHES.prefilters_wanted.add((lighting.content_key, kind))
+    else:
+        CACHES.prefilters_wanted.discard((lighting.content_key, kind))
+    return found
+
+
+def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None, errors=None):
+    """Draw items for every visible mesh object with a thin-film material, and messages.
+
+    With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
+    passed to ``want_bake(desc, owner=…, film=…)`` so the caller can bake them outside drawing,
+    and drawn meanwhile with the table they were last drawn with (skipped if there is none).
+
+    A material that cannot be evaluated is drawn as :data:`precompute.material.FALLBACK` (matte
+    magenta, its items' ``fallback`` set), with a message naming it and the parameter; with an
+    ``errors`` dict it is also recorded there as {material name: why}. The World's errors
+    (``WorldLighting.sh.errors``) join the messages: it is lit by its fallback colour.
+
+    Per frame, each material's description, table and lighting are worked out once
+    (:func:`_material_entry`), not once per object using it; per object only the batch cache
+    is checked (a few lengths, no mesh data read) and the matrix copied, so the work does not
+    depend on the triangle count.
+    """
+    messages: list[str] = []
+    items: list[DrawItem] = []
+    scene = depsgraph.scene
+    lighting = world_lighting(scene, allow_compute=allow_world)
+    if lighting is None:
+        return items, ["World lighting is being updated"]
+    messages.extend(lighting.sh.warnings)
+    messages.extend(lighting.sh.errors)
+    found_lights = scene_lights.scene_lights(depsgraph)  # every frame: moving a light bakes nothing
+    if len(found_lights) > resources.MAX_LIGHTS:
+        messages.append(f"{len(found_lights)} lights: the first {resources.MAX_LIGHTS} light the films")
+    linked = any(receivers is not None for _, receivers in found_lights)
+    shared_lights = None if linked else resources.lights_content(scene_lights.lights_for(found_lights, ""))
+    object_lights: dict = {}  # object name → lights content (light linking)
+    entries: dict[int, _MaterialEntry | None] = {}  # material pointer → this frame's entry
+    seen = set()
+    used = set()  # this frame's batch keys
+    for inst in depsgraph.object_instances:
+        obj_eval = inst.object
+        if obj_eval.type != "MESH":  # the depsgraph lists only what is visible in this view layer
+            continue
+        original = obj_eval.original
+        for slot_index, slot in enumerate(obj_eval.material_slots):
+            bpy_material = slot.material
+            if bpy_material is None:
+                continue
+            source = bpy_material.original if hasattr(bpy_material, "original") else bpy_material
+            pointer = source.as_pointer()
+            if pointer not in entries:
+                CACHES.make_room(materials=len(entries) + 1)
+                entries[pointer] = _material_entry(
+                    source, lighting, allow_bake, want_bake, messages, errors, lights=bool(found_lights)
+                )
+            entry = entries[pointer]
+            if entry is None:
+                continue
+            key = (original.name, slot_index, inst.is_instance and inst.persistent_id[0])
+            mesh = obj_eval.data
+            signature = (
+                mesh.name,
+                len(mesh.vertices),
+                len(mesh.loops),
+                entry.desc.varies,
+                entry.thickness_key,
+            )
+            cached = CACHES.batches.get(key)
+            if cached is None or cached.signature != signature or original.name in CACHES.dirty:
+                CACHES.make_room(batches=len(used | {key}))
+                cached = _slot_batch(
+                    original.name,
+                    obj_eval,
+                    mesh,
+                    slot_index,
+                    entry.props,
+                    entry.desc,
+                    signature,
+                    entry.linked_source,
+                )
+                CACHES.batches[key] = cached
+                seen.add(original.name)
+            used.add(key)
+            messages.extend(cached.notes)
+            batch = cached.batch
+            if batch is None:
+                messages.append(
+                    f"{original.name}: no faces with material '{bpy_material.name}': nothing to draw"
+                )
+                continue
+            if linked and original.name not in object_lights:
+                object_lights[original.name] = resources.lights_content(
+                    scene_lights.lights_for(found_lights, original.name)
+                )
+            items.append(
+                DrawItem(
+                    batch,
+                    np.array(inst.matrix_world, dtype=np.float64),
+                    entry.table,
+                    entry.lighting,
+                    f"{original.name}/{bpy_material.name}",
+                    prefiltered=_prefiltered_for(lighting, entry, allow_world),
+                    roughness=entry.roughness,
+                    sh_weight=entry.sh_weight,
+                    film=entry.film,
+                    fallback=entry.fallback,
+                    lights=object_lights[original.name] if linked else shared_lights,
+                    wall=entry.wall,
+                    grid=entry.grid,
+                    grid_pending=entry.grid_wanted and entry.grid is None,
+                )
+            )
+    CACHES.dirty -= seen
+    CACHES.fit(len(used), sum(entry is not None for entry in entries.values()))
+    return items, messages
+
+
+def batch_entry(object_name: str, slot: int = 0, instance=False) -> BatchEntry | None:
+    """The cached batch of an object's material slot as the last :func:`collect` built it."""
+    return CACHES.batches.get((object_name, slot, instance))
+
+
+def object_notes(object_name: str) -> list[str]:
+    """What the last builds of ``object_name``'s batches found wrong (for the panel)."""
+    return [note for key, entry in CACHES.batches.items() if key[0] == object_name for note in entry.notes]
