@@ -97,6 +97,7 @@ class Extension:
             "addon.bakes.bake_helper",
             "addon.bakes.radiance_grids",
             "addon.drawing.shader_warmup",
+            "addon.bakes.bake_jobs",
         ):
             setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
@@ -310,7 +311,7 @@ class Loop:
                 self.dues[fn] = time.perf_counter()
 
     def busy(self) -> bool:
-        return bool(self.vp._running) or self.grids.busy()
+        return self.ext.bake_jobs.BAKES.busy() or self.grids.busy()
 
     def run(self, until: float) -> bool:
         """Process events until idle or ``until`` (perf_counter); True when idle."""
@@ -344,7 +345,7 @@ class Loop:
                 else:
                     time.sleep(0.01)
                 self._timer_check()
-            if previous is not None and np.array_equal(previous, image) and not self.vp._pending:
+            if previous is not None and np.array_equal(previous, image) and not self.ext.bake_jobs.pending():
                 return image
             previous = image
         raise RuntimeError("the viewport did not settle")

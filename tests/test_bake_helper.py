@@ -82,7 +82,7 @@ def drawn(bpy, tf, scene, mat):  # noqa: F811
     """One viewport redraw that asks for ``mat``'s table (and film table), then the next frame's
     items once the worker is done."""
     grid(bpy, scene, "Quad", mat, n=2)
-    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    tf.world_state.world_lighting(scene, allow_compute=True)
     redraw(bpy, tf)
     items, _messages = redraw(bpy, tf)
     return items
@@ -290,7 +290,7 @@ def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene,
     from test_live_ahead import drawn_once, wait_for
     from test_radiance_grid_viewport import record_builds
 
-    vp = tf.viewport
+    bj = tf.bake_jobs
     rg = importlib.import_module(f"{tf.package.__name__}.addon.bakes.radiance_grids")
     mat = film(bpy, tf, "Rough", roughness=0.6)
     mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
@@ -301,10 +301,10 @@ def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene,
     baked = helper.STATS["baked"]
     mat.thinfilm_sh.layers[0].thickness_nm = 610.0
     bpy.context.view_layer.update()  # handed to the helper with the grid's spec
-    wait_for(lambda: not vp._running, "the bake and its grid")
+    wait_for(lambda: not bj.BAKES.running, "the bake and its grid")
     assert helper.STATS["baked"] == baked + 1 and tf.in_process == []
     assert built_on == []  # the grid came with the table
-    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, bake_later=True)
     assert item.grid is not None and not item.grid_pending and not rg.busy() and built_on == []
 
     # the same grid under a World with something in it (this scene has none): equal to here's
@@ -366,22 +366,23 @@ def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F8
 def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):  # noqa: F811
     """In process, no bake starts while a superseded one stops (tests/test_live_ahead.py); one
     handed to the helper was cancelled there at once, so the newest value starts now."""
-    vp = tf.viewport
+    bj = tf.bake_jobs
     desc = tf.Material.from_dict(soap_dict(tf))
     handed_over = types.SimpleNamespace(cancel=lambda: None)  # its cancel went to the helper
-    stopping = vp._Job("an older value", desc, ticket=handed_over)
-    stopping.cancel.set()
-    saved = (dict(vp._running), dict(vp._pending), dict(vp._wanted))
+    stopping = bj.BakeJob(desc, key="an older value", viewport=True)
+    stopping.ticket = handed_over
+    stopping.cancel()
+    saved = (dict(bj.BAKES.running), dict(bj._pending), dict(bj._wanted))
     try:
-        vp._running.clear()
-        vp._pending.clear()
-        vp._wanted.clear()
-        vp._running[stopping.key] = stopping
-        vp._want_bake(desc, owner="material")
-        (started,) = vp._start_jobs()
-        assert started.desc is desc and not vp._pending
+        bj.BAKES.running.clear()
+        bj._pending.clear()
+        bj._wanted.clear()
+        bj.BAKES.running[stopping.key] = stopping
+        bj.want(desc, owner="material")
+        (started,) = bj.start_ready()
+        assert started.desc is desc and not bj._pending
     finally:
-        for live, old in zip((vp._running, vp._pending, vp._wanted), saved, strict=True):
+        for live, old in zip((bj.BAKES.running, bj._pending, bj._wanted), saved, strict=True):
             live.clear()
             live.update(old)
 

@@ -54,6 +54,7 @@ def tf(bpy, tmp_path_factory):
                 "addon.bakes.tables",
                 "addon.ui.prefs",
                 "addon.drawing.scene_draw",
+                "addon.world.world_state",
             ):
                 setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             ns.gpu = gpu_layer()
@@ -748,15 +749,15 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
         return tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
 
     (item,) = items()
-    image_entry = tf.scene_draw.CACHES.world.environment
+    image_entry = tf.world_state.STATE.lighting.environment
     assert image_entry is not None and image_entry.lamps is not None
     assert 1 <= image_entry.lamps.count <= tf.gpu.resources.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
-    summary = tf.scene_draw.lamps_summary(True)  # the Surface panel's line
+    summary = tf.world_state.lamps_summary(True)  # the Surface panel's line
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary
-    assert "off" in tf.scene_draw.lamps_summary(False)
+    assert "off" in tf.world_state.lamps_summary(False)
     # The lighting of a lamp-shaded film is the World's SH minus the lamps' SH.
-    whole = tf.scene_draw.CACHES.world.sh.coeffs
+    whole = tf.world_state.STATE.lighting.sh.coeffs
     assert item.lighting.coefficients[0, 1] < 0.5 * whole[0, 1]
     on, _ = render(tf, scene, tmp_path / "lamps_on.png")
 
@@ -822,14 +823,14 @@ def test_prefilters_are_computed_only_for_the_films_that_read_them(bpy, tf, fres
     glossy = items()["Glossy"]
     assert calls == ["lifted"]
     assert glossy.film is not None and glossy.lighting.lamp_count > 0
-    assert glossy.prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered()
+    assert glossy.prefiltered is tf.world_state.STATE.lighting.textures.prefiltered()
 
     base = principled_film(bpy, "Grey", roughness=0.1, base=(0.5, 0.5, 0.5))
     sphere(bpy, scene, "Grey", (-2.5, 0.0, 0.0), material=base)
     found = items()
     assert calls == ["lifted", "whole"]
     assert found["Grey"].film is None and found["Grey"].lighting.lamp_count == 0  # a diffuse base
-    assert found["Grey"].prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered_whole()
+    assert found["Grey"].prefiltered is tf.world_state.STATE.lighting.textures.prefiltered_whole()
     items()
     assert calls == ["lifted", "whole"]  # kept: nothing is prefiltered twice
 

@@ -35,6 +35,7 @@ MODULES = (
     "addon.drawing.scene_draw",
     "addon.world.world",
     "addon.world.world_job",
+    "addon.world.world_state",
 )
 
 
@@ -78,8 +79,8 @@ def sky(bpy, tf, monkeypatch):
 def ask_and_settle(tf, scene, between=None):
     """The draw asks for the World, the timer reads it (``between`` runs right after that first
     timer step), workers analyse it; then the lighting the next draw gets."""
-    assert tf.scene_draw.world_lighting(scene, allow_compute=False) is None  # nothing drawn yet
-    assert tf.scene_draw.CACHES.world_wanted
+    assert tf.world_state.world_lighting(scene, allow_compute=False) is None  # nothing drawn yet
+    assert tf.world_state.STATE.wanted
     tf.world_job.service(scene)
     if between is not None:
         between()
@@ -88,14 +89,14 @@ def ask_and_settle(tf, scene, between=None):
         tf.world_job.service(scene)
         if not tf.world_job.busy():
             break
-    return tf.scene_draw.world_lighting(scene, allow_compute=False)
+    return tf.world_state.world_lighting(scene, allow_compute=False)
 
 
 def assert_lit(tf, scene, lighting):
     """The frame is lit by the Sky Texture's panorama: a daylight sky, brighter above."""
     assert lighting is not None
     content_key, _ = tf.world.world_parts(scene)
-    content = tf.scene_draw.CACHES.contents[content_key].content
+    content = tf.world_state.STATE.contents[content_key].content
     assert content.read.source == "panorama render (Sky Texture)"
     assert content.read.rgb is not None and content.read.pending is None
     coeffs = content.coeffs
@@ -178,7 +179,7 @@ def test_unregister_during_a_render_does_not_give_the_helper_up(tf, sky, caplog)
     scene, _renders, _real = sky
     helper = tf.panorama_helper
     given_up = helper.STATS["given_up"]
-    tf.scene_draw.world_lighting(scene, allow_compute=False)
+    tf.world_state.world_lighting(scene, allow_compute=False)
     with caplog.at_level(logging.ERROR, logger=helper.__name__):
         tf.world_job.service(scene)  # handed over: a worker waits for the helper
         pid = helper.process_id()
@@ -255,7 +256,7 @@ def test_images_relative_to_the_file_or_packed_reach_the_helper(bpy, tf, sky, tm
     lighting = ask_and_settle(tf, scene)
     assert lighting is not None and renders == []
     content_key, _ = tf.world.world_parts(scene)
-    read = tf.scene_draw.CACHES.contents[content_key].content.read
+    read = tf.world_state.STATE.contents[content_key].content.read
     assert read.source == "panorama render (Gamma)"
     np.testing.assert_array_equal(read.rgb, real(scene.world))
     assert read.rgb.max() > 1.0  # the image's ramp, not a fallback colour

@@ -1,7 +1,7 @@
 """What a viewport bake is asked for, and asking early: before the edit's first redraw.
 
 A material whose table is not in memory is handed to the viewport's bake queue
-(``viewport._want_bake``) by the draw (:func:`ask`). Two things make the edit's correct frame
+(:func:`.bake_jobs.want`) by the draw (:func:`ask`). Two things make the edit's correct frame
 come sooner than "the next draw queues it, the timer starts it, the redraw after that asks for
 the grid":
 
@@ -24,7 +24,7 @@ import bpy
 
 from ..materials import description
 from ..thickness import linked
-from . import radiance_grids, tables
+from . import bake_jobs, radiance_grids, tables
 
 
 def material_identity(bpy_material):
@@ -33,18 +33,18 @@ def material_identity(bpy_material):
     return getattr(bpy_material, "session_uid", None) or bpy_material.as_pointer()
 
 
-def ask(want_bake, desc, owner, previous, lighting, film: bool) -> None:
-    """Ask ``want_bake`` for ``desc``'s table (for the material ``owner``), with its film table if
-    ``film``; with the grid chained (``then``) when the material's last drawn entry
-    ``previous`` read one under ``lighting`` (a ``WorldLighting``)."""
+def ask(desc, owner, previous, lighting, film: bool) -> None:
+    """Ask the viewport's bake queue for ``desc``'s table (for the material ``owner``), with its
+    film table if ``film``; with the grid chained (``then``) when the material's last drawn
+    entry ``previous`` read one under ``lighting`` (a ``WorldLighting``)."""
     then = radiance_grids.chain(previous, lighting)
     if then is None:
-        want_bake(desc, owner=owner, film=film)
+        bake_jobs.want(desc, owner=owner, film=film)
     else:
-        want_bake(desc, owner=owner, film=film, then=then)
+        bake_jobs.want(desc, owner=owner, film=film, then=then)
 
 
-def ask_changed(depsgraph, want_bake, previous, lighting) -> int:
+def ask_changed(depsgraph, previous, lighting) -> int:
     """Ask for the bakes of the materials this depsgraph update changed (the
     ``depsgraph_update_post`` handler, before the redraw); how many were asked.
 
@@ -75,6 +75,6 @@ def ask_changed(depsgraph, want_bake, previous, lighting) -> int:
         key = description.description_key(desc)
         if tables.MEMORY.get(key) is not None or tables.FAILURES.get(key) is not None:
             continue
-        ask(want_bake, desc, owner, last, lighting, film=last.film is not None)
+        ask(desc, owner, last, lighting, film=last.film is not None)
         count += 1
     return count

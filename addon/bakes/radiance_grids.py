@@ -23,14 +23,13 @@ from __future__ import annotations
 import dataclasses
 import functools
 import logging
-import threading
 
 import bpy
 import numpy as np
 
 from ...precompute import lamps as lamp_extraction
 from ...precompute.shading import lobe_grid, policy, radiance_grid
-from .. import caches
+from .. import caches, workers
 from ..gpu import resources
 from ..workers import tag_view3d as _tag_redraw
 
@@ -48,17 +47,17 @@ POLL_S = 0.01
 
 
 class _Grids:
-    """The uploaded grids (an LRU) and the worker's queue and results."""
+    """The uploaded grids (an LRU) and the worker's queue and results: the worker is the one job
+    of its lane (:attr:`work`, :mod:`..workers`), whose lock guards the queue too."""
 
     def __init__(self):
         self.textures = caches.LRU(GRID_CACHE_SIZE)
-        self.lock = threading.Lock()
+        self.work = workers.Lane("radiance grid")
+        self.lock = self.work.lock
         self.queue: dict = {}  # key → a call that builds the grid, oldest first
         self.built: dict = {}  # key → grid array, waiting for its upload
         self.running: str | None = None
         self.inline: set = set()  # keys a bake's worker is building (:func:`prebuild`)
-        self.finished = threading.Event()
-        self.worker: threading.Thread | None = None
 
     def clear(self) -> None:
         """Forget the uploaded grids, the queue and the built-but-not-uploaded ones."""
@@ -84,11 +83,31 @@ def activity() -> str:
     return f"tabulating {count} rough film{'s' if count > 1 else ''}" if count else ""
 
 
-def _work() -> None:
+class _Worker(workers.Job):
+    """The worker: builds the queued grids one after the other until none is left. Each grid
+    asks for a redraw as it is built; the worker's own end shows nothing new."""
+
+    def __init__(self):
+        super().__init__(_WORKER)
+
+    def run(self) -> None:
+        """Build the queued grids."""
+        _work(self)
+
+    def shows_something(self) -> bool:
+        """Nothing: every grid asked for its redraw when it was built."""
+        return False
+
+
+_WORKER = "worker"
+
+
+def _work(job: _Worker) -> None:
     while True:
         with GRIDS.lock:
-            if not GRIDS.queue:
-                GRIDS.worker = None
+            if not GRIDS.queue:  # off the running jobs now, in the step that finds the queue empty
+                if GRIDS.work.running.get(_WORKER) is job:
+                    del GRIDS.work.running[_WORKER]
                 return
             keys = list(GRIDS.queue)  # the newest request first; SH grids before integrated ones
             key = ([k for k in keys if not k.endswith(LOBE_SUFFIX)] or keys)[-1]
@@ -103,15 +122,14 @@ def _work() -> None:
             GRIDS.running = None
             if grid is not None:
                 _keep_built(key, grid)
-        GRIDS.finished.set()
+        GRIDS.work.mark_finished()
 
 
 def _poll() -> float | None:
     """Timer: ask for a redraw when a grid is built; stops when nothing is left to build."""
-    if GRIDS.finished.is_set():
-        GRIDS.finished.clear()
+    if GRIDS.work.take_finished():
         _tag_redraw()
-    return POLL_S if busy() or GRIDS.finished.is_set() else None
+    return POLL_S if busy() or GRIDS.work.finished() else None
 
 
 def _request(key: str, build) -> None:
@@ -121,9 +139,8 @@ def _request(key: str, build) -> None:
         GRIDS.queue[key] = build
         while len(GRIDS.queue) > QUEUE_SIZE:
             GRIDS.queue.pop(next(iter(GRIDS.queue)))
-        if GRIDS.worker is None:
-            GRIDS.worker = threading.Thread(target=_work, name="tf-radiance-grid", daemon=True)
-            GRIDS.worker.start()
+        if _WORKER not in GRIDS.work.running:
+            GRIDS.work.start(_Worker())
     if not bpy.app.timers.is_registered(_poll):
         bpy.app.timers.register(_poll, first_interval=POLL_S)
 

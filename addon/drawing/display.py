@@ -24,7 +24,6 @@ import functools
 import logging
 import os
 import pathlib
-import threading
 from typing import NamedTuple
 
 import bpy
@@ -32,7 +31,7 @@ import numpy as np
 
 from ...precompute import display_lut
 from ...precompute.shading import policy
-from .. import caches
+from .. import caches, workers
 from ..gpu.resources import DisplayLUTTexture
 from ..world.world_key import working_space
 
@@ -42,9 +41,8 @@ log = logging.getLogger(__name__)
 LUTS = caches.register("display_luts", caches.LRU(8), scope=caches.SESSION)
 #: Their GPU textures, by the same key.
 TEXTURES = caches.register("display_lut_textures", caches.LRU(4), scope=caches.FILE)
-_lock = threading.Lock()
-_baking: set = set()  # keys whose LUT a background thread is baking
-_finished = threading.Event()
+#: The LUTs being baked in the background, by their key (:mod:`..workers`).
+LUT_WORK = workers.Lane("display LUT")
 
 
 class DisplaySettings(NamedTuple):
@@ -269,10 +267,6 @@ def _bake_worker(key: DisplaySettings) -> None:
     except Exception as exc:  # a look or view the config lacks: the Standard encoding stays
         log.error("Thin Film SH: display transform: %s", exc)
         LUTS[key] = None
-    finally:
-        with _lock:
-            _baking.discard(key)
-        _finished.set()
 
 
 def viewport_lut(settings: DisplaySettings) -> DisplayLUTTexture | None:
@@ -295,22 +289,17 @@ def viewport_lut(settings: DisplaySettings) -> DisplayLUTTexture | None:
         return texture
     if ocio() is None:
         return None
-    with _lock:
-        if key in _baking:
-            return None
-        _baking.add(key)
-    threading.Thread(target=_bake_worker, args=(key,), daemon=True).start()
+    with LUT_WORK.lock:
+        if key not in LUT_WORK.running:
+            LUT_WORK.start(workers.Job(key, _bake_worker, key))
     return None
 
 
 def baking() -> bool:
     """Whether a display LUT is being baked in the background."""
-    with _lock:
-        return bool(_baking)
+    return LUT_WORK.busy()
 
 
 def take_finished() -> bool:
     """Whether a background LUT bake finished since the last call (then the viewport redraws)."""
-    done = _finished.is_set()
-    _finished.clear()
-    return done
+    return LUT_WORK.take_finished()

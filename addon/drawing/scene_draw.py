@@ -15,9 +15,10 @@ Shared by the viewport draw handler and the headless render, so both draw the sa
   (:func:`.tables.get_film`): never computed in a draw;
 - per material (its ``session_uid``) the entry it was last drawn with (:attr:`Caches.previous`):
   while the material's new table bakes, the draw shows that one instead of nothing — a frame is
-  always drawn with the best data available;
-- the World's lighting (:class:`WorldLighting`: SH, analysed panorama, prefilter textures) for
-  the current World key.
+  always drawn with the best data available.
+
+The World's lighting is the world room's (:mod:`..world.world_state`): read through
+:func:`.world_state.world_lighting` and :func:`.world_state.prefilter`.
 
 The four GPU maps are :class:`.caches.LRU` s bounded by :data:`BATCH_CACHE_SIZE`,
 :data:`TABLE_CACHE_SIZE`, :data:`FILM_CACHE_SIZE` and :data:`LIGHTING_CACHE_SIZE` entries, or by
@@ -44,7 +45,7 @@ from ...precompute import cli_support
 from ...precompute.material import FALLBACK
 from ...precompute.shading import policy
 from .. import caches
-from ..bakes import bake_asks, radiance_grids, tables
+from ..bakes import bake_asks, bake_jobs, radiance_grids, tables
 from ..bakes.bake_asks import material_identity
 from ..gpu import draw, resources, shaders
 from ..gpu.mesh import MeshBatch, mesh_arrays
@@ -52,7 +53,7 @@ from ..materials import description, transparency
 from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
 from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
-from ..world import world, world_analysis
+from ..world import world_state
 from ..world.world_analysis import WorldLighting
 from . import lights as scene_lights
 
@@ -93,9 +94,6 @@ TABLE_CACHE_SIZE = tables.LRU_SIZE
 FILM_CACHE_SIZE = tables.LRU_SIZE
 #: Lighting uniform buffers kept (a roughness slider's drag makes one per step).
 LIGHTING_CACHE_SIZE = 64
-#: Analysed World contents kept (each holds a 512-wide panorama and up to two prefilters,
-#: ≈ 60 MB): the current World and two recent ones.
-CONTENT_CACHE_SIZE = 3
 
 
 @dataclass
@@ -137,14 +135,7 @@ class Caches:
     previous: caches.LRU = field(
         default_factory=lambda: _lru(TABLE_CACHE_SIZE)
     )  # material session_uid → the _MaterialEntry it was last drawn with
-    world: WorldLighting | None = None  # the current World's lighting
-    #: Analysed World contents (world_analysis.Analysed) by content key: a Strength or rotation
-    #: edit, or a swap back to a recent HDRI, recomputes nothing.
-    contents: caches.LRU = field(default_factory=lambda: _lru(CONTENT_CACHE_SIZE))
-    world_wanted: bool = False  # the draw met a World content not analysed yet (.world_job)
-    prefilters_wanted: set = field(default_factory=set)  # (content key, kind) the draw asked for
-    prefilters_used: set = field(default_factory=set)  # kinds the frames' glossy films read
-    generation: int = 0  # bumped by clear(): a worker's result for an older file is dropped
+    lighting_key: str | None = None  # the World lighting the lighting buffers were made for
     dirty: set = field(default_factory=set)  # object names whose geometry changed
     stats: dict = field(default_factory=lambda: {"batch_builds": 0, "table_uploads": 0})
 
@@ -153,12 +144,7 @@ class Caches:
         for lru, size in self._bounded():
             lru.clear()
             lru.resize(size)
-        self.world = None
-        self.contents.clear()
-        self.world_wanted = False
-        self.prefilters_wanted.clear()
-        self.prefilters_used.clear()
-        self.generation += 1
+        self.lighting_key = None
         self.dirty.clear()
 
     def _bounded(self):
@@ -219,46 +205,12 @@ def on_depsgraph_update(scene, depsgraph) -> None:
                     linked.mark_geometry(obj.name)
 
 
-# ----------------------------------------------------------------------------------------------
-#: Panorama size for the split sum's prefilter and the headless background.
-PANORAMA_WIDTH = world_analysis.PANORAMA_WIDTH
-PREFILTER_WIDTH = world_analysis.PREFILTER_WIDTH  # 512: level 0 is the panorama itself
-
-
-def _lighting_key(content_key: str, params: world.WorldParams) -> str:
-    """The drawn lighting's key: the World's content key and its parameters."""
-    return (
-        f"{content_key}|{params.strength!r}|{params.parity}|{','.join(f'{v:.17g}' for v in params.rotation)}"
-    )
-
-
-def world_lighting(scene, *, allow_compute: bool = True) -> WorldLighting | None:
-    """The :class:`WorldLighting` of the scene's World: the content analysed once per content key,
-    the parameters (Strength, Mapping rotation) applied per edit without recomputation.
-
-    With ``allow_compute`` False (the draw callback) a World whose content is not analysed yet
-    is asked for (:attr:`Caches.world_wanted`, served by ``.world_job`` on a worker) and the
-    lighting drawn so far is returned meanwhile: the old World until the new one is ready (None
-    before the first). With ``allow_compute`` (headless renders) it is analysed here.
-    """
-    content_key, params = world.world_parts(scene)
-    key = _lighting_key(content_key, params)
-    current = CACHES.world
-    if current is not None and current.key == key:
-        return current
-    analysed = CACHES.contents.get(content_key)
-    if analysed is None:
-        if not allow_compute:
-            CACHES.world_wanted = True
-            return current
-        read = world.read_world(scene, params=params)
-        fallback = world.fallback_colour(scene.world)[0]
-        analysed = world_analysis.analyse_content(content_key, read, fallback)
-        CACHES.contents[content_key] = analysed
-    CACHES.world = world_analysis.lighting_from(scene, analysed, params, key, current)
-    for stale in [k for k, _ in CACHES.lightings.items() if k[0] != key]:
-        CACHES.lightings.pop(stale)
-    return CACHES.world
+def _keep_lightings_of(key: str) -> None:
+    """A new World lighting (``key``): the lighting buffers made for any other are dropped."""
+    if CACHES.lighting_key != key:
+        for stale in [k for k, _ in CACHES.lightings.items() if k[0] != key]:
+            CACHES.lightings.pop(stale)
+        CACHES.lighting_key = key
 
 
 def lighting_for(
@@ -298,16 +250,17 @@ def film_texture(desc_key: str, film=None) -> resources.FilmTexture | None:
     return found
 
 
-def _film_for(desc, key: str, result, allow_bake: bool, want_bake, owner):
+def _film_for(desc, key: str, result, allow_bake: bool, bake_later: bool, owner):
     """The film texture of the table ``result``: uploaded from the film table in memory, computed
-    here only for a headless frame (``allow_bake``); in the viewport asked of the bake's worker
-    (``want_bake(desc, owner=…, film=True)``) and meanwhile the material's previous film, or None."""
+    here only for a headless frame (``allow_bake``); in the viewport (``bake_later``) asked of
+    the bake's worker (:func:`.bake_jobs.want` with ``film``) and meanwhile the material's
+    previous film, or None."""
     found = film_texture(key)
     if found is None and allow_bake:
         found = film_texture(key, tables.get_film(desc, result))
     if found is None:
-        if want_bake is not None:
-            want_bake(desc, owner=owner, film=True)
+        if bake_later:
+            bake_jobs.want(desc, owner=owner, film=True)
         last = CACHES.previous.get(owner)
         found = last.film if last is not None else None
     return found
@@ -320,22 +273,6 @@ def uses_lamps(bpy_material, desc) -> bool:
     whole World in its SH and prefilter)."""
     props = getattr(bpy_material, "thinfilm_sh", None)
     return bool(getattr(props, "world_lamps", True)) and getattr(desc, "base_color", None) is None
-
-
-def lamps_summary(enabled: bool) -> str:
-    """One line for the Surface panel: what the current World's lamps are and how they are shaded,
-    or why the World could not be evaluated (it is then lit by its fallback colour)."""
-    lighting = CACHES.world
-    if lighting is not None and lighting.sh.errors:
-        return lighting.sh.errors[0]
-    env = lighting.environment if lighting is not None else None
-    if env is None:
-        return "World lamps: World not analysed yet"
-    if env.lamps is None:
-        return "World lamps: none (no small, very bright sources)"
-    lamps = env.lamps
-    how = "shaded per lamp" if enabled else "off: through SH and prefilter"
-    return f"World lamps: {lamps.count}, {100 * lamps.share:.0f} % of the light ({how})"
 
 
 def lights_summary(scene) -> str:
@@ -449,13 +386,14 @@ class _MaterialEntry:
     grid_wanted: bool = False  # radiance_grids.applies: drawn from a grid once built
 
 
-def _table_of(desc, allow_bake: bool, want_bake):
-    """The baked table of ``desc``: in memory, else baked (``allow_bake``) or asked for."""
+def _table_of(desc, allow_bake: bool, bake_later: bool):
+    """The baked table of ``desc``: in memory, else baked (``allow_bake``) or asked for
+    (``bake_later``)."""
     result = tables.peek_table(desc)
     if result is None and allow_bake:
         result = tables.get_table(desc)
-    elif result is None and want_bake is not None:
-        want_bake(desc)
+    elif result is None and bake_later:
+        bake_jobs.want(desc)
     return result
 
 
@@ -469,12 +407,12 @@ def bake_failure(name: str, exc: Exception) -> str:
     return text + f"; details in {where})"
 
 
-def _fallback_entry(bpy_material, why: str, lighting, allow_bake, want_bake, messages, errors):
+def _fallback_entry(bpy_material, why: str, lighting, allow_bake, bake_later, messages, errors):
     """Report why ``bpy_material`` cannot be drawn and draw it as FALLBACK (matte magenta)."""
     messages.append(f"{why}: drawn in magenta (the fallback) until it is fixed")
     if errors is not None:
         errors[bpy_material.name] = why
-    result = _table_of(FALLBACK, allow_bake, want_bake)
+    result = _table_of(FALLBACK, allow_bake, bake_later)
     if result is None:
         return None
     key = description.description_key(FALLBACK)
@@ -505,28 +443,29 @@ def _thickness_source(bpy_material, props, desc):
 
 
 def _material_entry(
-    bpy_material, lighting: WorldLighting, allow_bake: bool, want_bake, messages, errors=None, lights=False
+    bpy_material, lighting: WorldLighting, allow_bake: bool, bake_later, messages, errors=None, lights=False
 ):
     """The material's description, table texture and lighting, or None (no film / not baked yet
     and never drawn before / its bake failed in the viewport).
 
     Invalid settings are reported in ``messages`` (and ``errors``, by material name) and the
     material is drawn as the fallback (matte magenta). A bake that failed is remembered by
-    description key (:func:`.tables.failure`): it is not tried again, here or by ``want_bake``,
+    description key (:func:`.tables.failure`): it is not tried again, here or by the bake queue,
     until the description changes, and its error is in ``messages`` (and ``errors``) on every
     frame; a headless frame (``allow_bake``) draws it as the fallback, the viewport draws
     nothing for it (its header and material panel say why). A table that could not be saved to
     the disk cache is drawn, with the reason in ``messages``. ``lights``: the frame has light
     objects, so the film table is needed even without the World's lamps.
 
-    In the viewport a table not in memory is asked of ``want_bake(desc, owner=…, film=…)``
-    (``owner``: :func:`material_identity`, so a newer value replaces the older request) and the
+    In the viewport (``bake_later``) a table not in memory is asked of the bake queue
+    (:func:`.bake_asks.ask`, for ``owner``: :func:`material_identity`, so a newer value
+    replaces the older request) and the
     entry the material was last drawn with is drawn meanwhile (:func:`_previous_entry`).
     """
     try:
         desc = description.description(bpy_material)
     except ValueError as exc:  # description() names the material and the parameter
-        return _fallback_entry(bpy_material, str(exc), lighting, allow_bake, want_bake, messages, errors)
+        return _fallback_entry(bpy_material, str(exc), lighting, allow_bake, bake_later, messages, errors)
     if desc is None:
         return None
     name = bpy_material.name
@@ -544,20 +483,20 @@ def _material_entry(
         if failed is not None:
             why = f"material {name!r}: bake failed: {failed} (not retried until it changes)"
             if allow_bake:
-                return _fallback_entry(bpy_material, why, lighting, allow_bake, want_bake, messages, errors)
+                return _fallback_entry(bpy_material, why, lighting, allow_bake, bake_later, messages, errors)
             messages.append(why)
             if errors is not None:
                 errors[name] = why
             return None
         if result is None:
-            if want_bake is not None:
+            if bake_later:
                 film = _needs_film(bpy_material, desc, lighting, lights)
-                bake_asks.ask(want_bake, desc, owner, CACHES.previous.get(owner), lighting, film)
+                bake_asks.ask(desc, owner, CACHES.previous.get(owner), lighting, film)
             return _previous_entry(owner, lighting)
     problem = tables.CACHE_ERRORS.get(key)  # tables.cache_error
     if problem is not None:
         messages.append(f"material {name!r}: {problem}")
-    entry = _fresh_entry(bpy_material, desc, key, result, lighting, lights, allow_bake, want_bake)
+    entry = _fresh_entry(bpy_material, desc, key, result, lighting, lights, allow_bake, bake_later)
     CACHES.previous[owner] = entry
     return entry
 
@@ -569,7 +508,7 @@ def _needs_film(bpy_material, desc, lighting: WorldLighting, lights: bool) -> bo
     return bool(lights or (uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None))
 
 
-def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_bake, want_bake):
+def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_bake, bake_later):
     """The entry of a material whose table ``result`` is in memory. Without its film table yet
     (being computed on the bake's worker) it draws the previous film, else folds the World's
     lamps back into the SH and prefilter (their light is kept, only not per direction)."""
@@ -580,7 +519,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     diffuse = getattr(desc, "base_color", None) is not None
     lobe = policy.uses_lobe_grid(roughness, diffuse, wall is not None)  # reads the film table too
     if wall is not None or lobe or _needs_film(bpy_material, desc, lighting, lights):
-        film = _film_for(desc, key, result, allow_bake, want_bake, owner)
+        film = _film_for(desc, key, result, allow_bake, bake_later, owner)
     env = lighting.environment
     lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
     props = getattr(bpy_material, "thinfilm_sh", None)
@@ -628,7 +567,7 @@ def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
     """The prefilter the entry's draw reads, computed on first use; None when it reads none.
 
     With ``compute`` False (the draw callback) a prefilter not computed yet is asked of a worker
-    (:attr:`Caches.prefilters_wanted`) and None is returned: the film draws from the SH until it
+    (:func:`.world_state.prefilter`) and None is returned: the film draws from the SH until it
     is ready.
 
     Only the split sum reads a prefilter, and only below an SH weight of 1
@@ -636,26 +575,21 @@ def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
     rough films computes no prefilter at all. A lamp-shaded film reads the prefilter with the
     lamps lifted out, any other the whole World's.
     """
-    textures = lighting.textures
-    if textures is None or entry.sh_weight >= 1.0:
+    if lighting.textures is None or entry.sh_weight >= 1.0:
         return None
     # the World's lamps shaded per direction: the prefilter without them
-    kind = world_analysis.LIFTED if entry.lamps else world_analysis.WHOLE
-    CACHES.prefilters_used.add(kind)
-    found = textures.get(kind, compute)
-    if found is None:  # asked of a worker (.world_job); the SH path meanwhile
-        CACHES.prefilters_wanted.add((lighting.content_key, kind))
-    else:
-        CACHES.prefilters_wanted.discard((lighting.content_key, kind))
-    return found
+    return world_state.prefilter(lighting, entry.lamps, compute)
 
 
-def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, want_bake=None, errors=None):
+def collect(
+    depsgraph, *, allow_bake: bool = True, allow_world: bool = True, bake_later: bool = False, errors=None
+):
     """Draw items for every visible mesh object with a thin-film material, and messages.
 
     With ``allow_bake`` False (the draw callback), materials whose table is not in memory are
-    passed to ``want_bake(desc, owner=…, film=…)`` so the caller can bake them outside drawing,
-    and drawn meanwhile with the table they were last drawn with (skipped if there is none).
+    drawn with the table they were last drawn with (skipped if there is none); with
+    ``bake_later`` (the viewport's draw) they are also asked of the bakes room
+    (:func:`.bake_asks.ask`: its queue bakes them outside drawing, :mod:`.bake_jobs`).
 
     A material that cannot be evaluated is drawn as :data:`precompute.material.FALLBACK` (matte
     magenta, its items' ``fallback`` set), with a message naming it and the parameter; with an
@@ -670,9 +604,10 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
     messages: list[str] = []
     items: list[DrawItem] = []
     scene = depsgraph.scene
-    lighting = world_lighting(scene, allow_compute=allow_world)
+    lighting = world_state.world_lighting(scene, allow_compute=allow_world)
     if lighting is None:
         return items, ["World lighting is being updated"]
+    _keep_lightings_of(lighting.key)
     messages.extend(lighting.sh.warnings)
     messages.extend(lighting.sh.errors)
     found_lights = scene_lights.scene_lights(depsgraph)  # every frame: moving a light bakes nothing
@@ -698,7 +633,7 @@ def collect(depsgraph, *, allow_bake: bool = True, allow_world: bool = True, wan
             if pointer not in entries:
                 CACHES.make_room(materials=len(entries) + 1)
                 entries[pointer] = _material_entry(
-                    source, lighting, allow_bake, want_bake, messages, errors, lights=bool(found_lights)
+                    source, lighting, allow_bake, bake_later, messages, errors, lights=bool(found_lights)
                 )
             entry = entries[pointer]
             if entry is None:

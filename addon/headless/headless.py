@@ -38,7 +38,7 @@ from ..gpu.context import ensure_gpu_context
 from ..gpu.draw import render_offscreen
 from ..materials.description import description, description_key, warnings
 from ..ui import prefs
-from ..world import world
+from ..world import world, world_state
 from ..world.world_key import working_space
 from . import cli_args, frames
 from .background import (
@@ -288,7 +288,7 @@ def render_scene(
     else:  # the artist's off switch holds for renders too: Blender's own drawing only
         items, messages = [], [OVERLAY_OFF]
     env = None
-    lighting = scene_draw.CACHES.world
+    lighting = world_state.current()
     if background and lighting is not None and lighting.environment is not None:
         env = lighting.background()  # the panorama the split sum was prefiltered from, turned and scaled
     space, region = _view3d_for_depth()

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from .. import caches
+from .. import caches, workers
 from . import thickness_nodes
 from .thickness import image_stamp
 
@@ -73,7 +73,9 @@ _RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear CIE-XYZ E", "Raw"}
 _BAKE_PREFIX = ".thinfilm_sh_bake"
 
 _geometry_epoch: dict[str, int] = {}
-_pending: dict = {}  # (kind, object name) → a callable that evaluates the wanted field
+#: Cycles bakes queued inside the draw: (kind, object name) → a call that evaluates the wanted
+#: field, run by the viewport's timer (:func:`run_pending`).
+PENDING = workers.Deferred("linked thickness bakes")
 _defer = False  # True inside the draw callback: bakes are queued, never run
 
 
@@ -528,8 +530,9 @@ def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
     found = FIELDS.get(cache_key)
     if found is None:
         if _defer:
-            _pending[("noise", name)] = lambda: noise_parameters(
-                bpy.data.objects[name], _mesh_of(name), bpy_material
+            PENDING.defer(
+                ("noise", name),
+                lambda: noise_parameters(bpy.data.objects[name], _mesh_of(name), bpy_material),
             )
             raise Pending("Blender's Noise Texture is being baked with Cycles")
         try:
@@ -615,7 +618,7 @@ def _bake_or_queue(name: str, mesh, bpy_material, socket, why) -> Field:
     """Bake the field with Cycles, or queue the bake (:class:`Pending`) inside :func:`deferring`."""
     if _defer:
         node_name, socket_id = socket.node.name, socket.identifier
-        _pending[("linked", name)] = lambda: _run_linked(name, bpy_material, node_name, socket_id)
+        PENDING.defer(("linked", name), lambda: _run_linked(name, bpy_material, node_name, socket_id))
         raise Pending(f"thickness from {why} is being baked with Cycles")
     try:
         found = _bake(bpy.data.objects[name], bpy_material, socket)
@@ -677,7 +680,7 @@ def deferring():
 
 def has_pending() -> bool:
     """Whether bakes wait for :func:`run_pending`."""
-    return bool(_pending)
+    return bool(PENDING)
 
 
 def _run_linked(name: str, bpy_material, node_name: str, socket_id: str) -> None:
@@ -688,12 +691,5 @@ def _run_linked(name: str, bpy_material, node_name: str, socket_id: str) -> None
 
 def run_pending() -> list[str]:
     """Run the queued bakes (main thread, outside drawing); returns the errors met."""
-    errors = []
-    jobs = list(_pending.items())
-    _pending.clear()
-    for (_, name), job in jobs:
-        try:
-            job()
-        except (ValueError, ReferenceError, KeyError, StopIteration, RuntimeError) as exc:
-            errors.append(f"{name}: {exc}")
-    return errors
+    failed = PENDING.run((ValueError, ReferenceError, KeyError, StopIteration, RuntimeError))
+    return [f"{name}: {exc}" for (_, name), exc in failed]

@@ -1,4 +1,5 @@
-"""Operators: bake (modal, in a background thread), presets, film layers, write-back, cache.
+"""Operators: bake (modal, a ``bake_jobs.BakeJob`` on its thread), presets, film layers, write-back,
+cache.
 
 Every operator turns a ValueError (bad settings, a missing attribute, ...) into
 ``self.report({'ERROR'}, message)`` and returns CANCELLED: the user sees the message, never a
@@ -15,7 +16,6 @@ the material (its outputs live in memory, :data:`.props.OUTPUTS`). Called from a
 without a material in the context, ``poll`` lets the ``material`` parameter decide.
 """
 
-import threading
 import time
 
 import bpy
@@ -23,7 +23,8 @@ from bl_operators.presets import AddPresetBase
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 from bpy.types import Operator
 
-from ..bakes import tables
+from ..bakes import bake_jobs, tables
+from ..bakes.bake_jobs import BakeJob
 from ..drawing import viewport
 from ..materials.description import description
 from ..materials.principled import write_back_to_principled
@@ -86,63 +87,6 @@ def _tag_redraw(context) -> None:
     for area in screen.areas:
         if area.type in {"PROPERTIES", "VIEW_3D"}:
             area.tag_redraw()
-
-
-class BakeCancelled(Exception):
-    """Raised from the progress callback when the user pressed Esc."""
-
-
-class BakeJob:
-    """A table lookup/bake in a background thread (numpy releases the GIL while it works).
-
-    ``fraction``/``text`` follow the bake's progress; ``cancel()`` makes the next progress
-    report raise :class:`BakeCancelled`, so the bake stops there and nothing is cached.
-    After ``done`` is set: ``result``/``source`` on success, else ``error`` (or ``cancelled``).
-    """
-
-    def __init__(self, desc, cache):
-        self.desc = desc
-        self.cache = cache
-        self.fraction = 0.0
-        self.text = "starting"
-        self.result = None
-        self.source = ""
-        self.error = None
-        self.elapsed_s = 0.0
-        self.done = threading.Event()
-        self._cancel = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="thinfilm_sh bake", daemon=True)
-
-    @property
-    def cancelled(self) -> bool:
-        return self._cancel.is_set()
-
-    def start(self) -> "BakeJob":
-        self._thread.start()
-        return self
-
-    def cancel(self) -> None:
-        self._cancel.set()
-
-    def join(self, timeout=None) -> None:
-        self._thread.join(timeout)
-
-    def _progress(self, fraction, text):
-        if self._cancel.is_set():
-            raise BakeCancelled
-        self.fraction, self.text = float(fraction), str(text)
-
-    def _run(self):
-        start = time.perf_counter()
-        try:
-            self.result, self.source = tables.get_table_with_source(self.desc, self.cache, self._progress)
-        except BakeCancelled:
-            pass
-        except Exception as exc:  # reported in the main thread
-            self.error = exc
-        finally:
-            self.elapsed_s = time.perf_counter() - start
-            self.done.set()
 
 
 def _store_result(settings, result, source: str, elapsed_s: float) -> None:
@@ -617,7 +561,7 @@ class THINFILM_OT_cancel_bakes(Operator):
 
     def execute(self, context):
         """Ask the running bakes to stop at their next progress step."""
-        count = viewport.cancel_bakes()
+        count = bake_jobs.cancel_all()
         self.report({"INFO"}, f"Cancelled {count} thin film bake(s)")
         return {"FINISHED"}
 

@@ -11,6 +11,7 @@ from ..materials.description import description_key
 from ..materials.description import warnings as _warnings_now
 from ..materials.principled import principled_node
 from ..thickness import linked
+from ..world import world_state
 
 
 def _deferred(function, mat):
@@ -252,7 +253,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
         row = layout.row()
         row.active = not settings.diffuse_base
         row.prop(settings, "world_lamps")
-        layout.label(text=scene_draw.lamps_summary(settings.world_lamps and not settings.diffuse_base))
+        layout.label(text=world_state.lamps_summary(settings.world_lamps and not settings.diffuse_base))
         layout.label(text=scene_draw.lights_summary(context.scene))
         layout.prop(settings, "colour_mode")
         layout.prop(settings, "illuminant")

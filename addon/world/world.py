@@ -70,6 +70,7 @@ __all__ = [
     "WorldSH",
     "analyse_read",
     "apply_params",
+    "constant_sh",
     "content_scale",
     "finish",
     "read_world",
@@ -482,7 +483,9 @@ class WorldContent:
     warnings: tuple
 
 
-def _constant(l_max: int, rgb) -> np.ndarray:
+def constant_sh(l_max: int, rgb) -> np.ndarray:
+    """The SH (bands 0…``l_max``, RGB) of a constant radiance ``rgb``: coefficient 0 is √(4π)·c,
+    the rest 0 (a Background colour, the fallback lighting, a World that failed)."""
     coeffs = np.zeros(((l_max + 1) ** 2, 3))
     coeffs[0] = math.sqrt(4.0 * math.pi) * np.asarray(rgb, dtype=np.float64)[:3]
     return coeffs
@@ -491,7 +494,7 @@ def _constant(l_max: int, rgb) -> np.ndarray:
 def _viewport_colour(world, l_max: int, reason: str) -> WorldRead:
     colour = tuple(world.color) if world is not None else (0.0, 0.0, 0.0)
     source = "viewport color" if world is not None else "no world (black)"
-    return WorldRead(source, coeffs=_constant(l_max, colour), warnings=(reason,))
+    return WorldRead(source, coeffs=constant_sh(l_max, colour), warnings=(reason,))
 
 
 def _environment(world, bg, env, l_max: int, space: str, params: WorldParams) -> WorldRead:
@@ -563,7 +566,7 @@ def _panorama(world, params: WorldParams, reason: str, l_max: int, render=None) 
 
 
 def _black(source: str, warning: str, l_max: int) -> WorldRead:
-    return WorldRead(source, coeffs=_constant(l_max, (0.0, 0.0, 0.0)), warnings=(warning,))
+    return WorldRead(source, coeffs=constant_sh(l_max, (0.0, 0.0, 0.0)), warnings=(warning,))
 
 
 def _nodes(world, l_max: int, space: str, params: WorldParams, render=None) -> WorldRead:
@@ -588,9 +591,9 @@ def _nodes(world, l_max: int, space: str, params: WorldParams, render=None) -> W
                 raise Fallback("a linked Strength")
             rgb = np.array(tuple(bg.inputs["Color"].default_value)[:3])
             if params.strength is not None:
-                return WorldRead("background color", coeffs=_constant(l_max, rgb), base=1.0)
+                return WorldRead("background color", coeffs=constant_sh(l_max, rgb), base=1.0)
             strength = bg.inputs["Strength"].default_value
-            return WorldRead("background color", coeffs=_constant(l_max, rgb * strength))
+            return WorldRead("background color", coeffs=constant_sh(l_max, rgb * strength))
         env, out = colour
         if env.bl_idname != "ShaderNodeTexEnvironment" or out.identifier != "Color":
             raise Fallback(env.bl_rna.name)
@@ -661,7 +664,7 @@ def finish(scene, content: WorldContent, params: WorldParams, key: str, l_max: i
             f"its lighting from {source} is not finite or beyond {MAX_COEFFICIENT:g}"
         ]
         colour, what = fallback_colour(world)
-        coeffs = _constant(l_max, colour)
+        coeffs = constant_sh(l_max, colour)
         name = f"World '{world.name}'" if world is not None else "The World"
         errors = (f"{name} cannot be evaluated ({'; '.join(bad)}): lit by {what} instead",)
         source = f"fallback ({what})"

@@ -127,7 +127,7 @@ def analyse_content(content_key: str, read: world.WorldRead, fallback_rgb, kinds
     )
     width = PREFILTER_WIDTH
     if not usable:
-        image = _constant_panorama(world._constant(0, fallback_rgb))
+        image = _constant_panorama(world.constant_sh(0, fallback_rgb))
     elif content.image is None:
         image = _constant_panorama(content.coeffs)
     else:
@@ -135,7 +135,7 @@ def analyse_content(content_key: str, read: world.WorldRead, fallback_rgb, kinds
         # a smaller source (a procedural World's 256-wide Cycles panorama) has no detail for
         # sharper levels to keep: they are filtered at its width and resampled for the texture
         width = min(width, max(_POW2_MIN, 1 << (int(content.image.shape[1]).bit_length() - 1)))
-    coeffs = content.coeffs if usable else world._constant(MAX_SH_ORDER, fallback_rgb)
+    coeffs = content.coeffs if usable else world.constant_sh(MAX_SH_ORDER, fallback_rgb)
     env = analyse_world(image, coeffs, l_max=resources.MAX_L, width=width)
     found = Analysed(content_key, content, env)
     for kind in kinds:
@@ -197,7 +197,7 @@ class PrefilterTextures:
 
 @dataclass(frozen=True)
 class WorldLighting:
-    """The scene's World as the draw lights with it (``scene_draw.world_lighting``).
+    """The scene's World as the draw lights with it (:func:`.world_state.world_lighting`).
 
     ``key``: the content key and the parameters; ``sh``: the World's SH radiance in its frame
     and strength (:class:`.world.WorldSH`); ``environment``: the content's panorama analysed

@@ -1,11 +1,11 @@
 """The World's analysis as background work: the viewport's timer reads, a worker thread analyses.
 
 The draw never analyses a World: when it meets a content that is not analysed
-(``scene_draw.world_lighting`` with ``allow_compute`` False) it sets
-``scene_draw.CACHES.world_wanted`` and keeps drawing the lighting it has; when a glossy film
-reads a prefilter that is not computed it adds it to ``CACHES.prefilters_wanted`` and draws that
-film from the SH meanwhile. :func:`service`, called by the viewport's timer
-(``viewport._service``), then
+(:func:`.world_state.world_lighting` with ``allow_compute`` False) it sets
+``world_state.STATE.wanted`` and keeps drawing the lighting it has; when a glossy film reads a
+prefilter that is not computed it adds it to ``STATE.prefilters_wanted``
+(:func:`.world_state.prefilter`) and draws that film from the SH meanwhile. :func:`service`,
+called by the viewport's timer (``viewport._service``), then
 
 1. reads the World with bpy on the main thread (:func:`.world.read_world`: an Environment
    Texture's pixels, ≈ 0.1–0.3 s for a 4k HDRI); a procedural World is only handed to the
@@ -14,15 +14,16 @@ film from the SH meanwhile. :func:`service`, called by the viewport's timer
 2. starts a worker thread that waits for the helper's panorama (:func:`.panorama_helper.resolve`)
    and analyses the World (:func:`.world_analysis.analyse_content`: the SH projection, the
    lamps, and the prefilters the last frames' glossy films read) and stores the result in
-   ``CACHES.contents``; a prefilter asked for later gets a worker of its own. When the helper
+   ``STATE.contents``; a prefilter asked for later gets a worker of its own. When the helper
    fails the World is read again at the next step, its panorama rendered on the main thread as
    before (:mod:`.panorama_helper`: the helper is then given up, logged once);
 3. reports when a worker finished, so the timer asks for a redraw: the next draw builds the new
    lighting from the analysed content (milliseconds) and uploads the prefilter textures.
 
-One content analysis runs at a time; the newest World wins (a World edited while one is analysed
-is read when that one ends). Strength and rotation edits never come here: they keep the content
-key (:func:`.world.world_parts`).
+The workers are jobs of one lane (:data:`WORK`, :mod:`..workers`). One content analysis runs at
+a time; the newest World wins (a World edited while one is analysed is read when that one
+ends). Strength and rotation edits never come here: they keep the content key
+(:func:`.world.world_parts`).
 """
 
 from __future__ import annotations
@@ -33,16 +34,16 @@ import threading
 
 import numpy as np
 
-from ..drawing import scene_draw
+from .. import workers
 from . import panorama_helper, world, world_analysis
+from .world_state import STATE
 
 log = logging.getLogger(__name__)
 
-__all__ = ["STATS", "busy", "service", "wait"]
+__all__ = ["STATS", "WORK", "busy", "service", "wait"]
 
-_lock = threading.Lock()
-_running: dict[tuple, threading.Thread] = {}  # ("content", key) or ("prefilter", key, kind) → worker
-_finished = threading.Event()
+#: The World's workers: ("content", key) or ("prefilter", key, kind) → its job.
+WORK = workers.Lane("World analysis")
 _render_here = threading.Event()  # the helper failed: read the next World's panorama in process
 #: How often each step ran (tests and benchmarks count them): "read", "analyse", "prefilter".
 STATS: collections.Counter = collections.Counter()
@@ -50,27 +51,11 @@ STATS: collections.Counter = collections.Counter()
 
 def busy() -> bool:
     """Whether World work is running or asked for (for the viewport's header and timer)."""
-    caches = scene_draw.CACHES
-    with _lock:
-        running = bool(_running)
-    return running or caches.world_wanted or bool(caches.prefilters_wanted)
+    return WORK.busy() or STATE.wanted or bool(STATE.prefilters_wanted)
 
 
 def _start(label: tuple, target, *args) -> None:
-    def run():
-        try:
-            target(*args)
-        except Exception as exc:  # reported, never raised into Blender
-            log.error("Thin Film SH: World analysis failed: %s", exc)
-        finally:
-            with _lock:
-                _running.pop(label, None)
-            _finished.set()
-
-    thread = threading.Thread(target=run, daemon=True, name=f"thinfilm_sh World {label[0]}")
-    with _lock:
-        _running[label] = thread
-    thread.start()
+    WORK.start(workers.Job(label, target, *args))
 
 
 def _rendered(read):
@@ -81,7 +66,7 @@ def _rendered(read):
     except (panorama_helper.HelperError, panorama_helper.RenderFailed) as exc:
         log.warning("Thin Film SH: the World's panorama is rendered in Blender instead: %s", exc)
         _render_here.set()
-        scene_draw.CACHES.world_wanted = True
+        STATE.wanted = True
         return None
 
 
@@ -94,12 +79,12 @@ def _analyse(content_key: str, read, fallback, kinds, generation: int) -> None:
         found = world_analysis.analyse_content(content_key, read, fallback, kinds)
     except Exception as exc:  # kept as the fallback colour, so the timer does not retry it forever
         log.error("Thin Film SH: World analysis failed: %s", exc)
-        coeffs = world._constant(0, fallback)
+        coeffs = world.constant_sh(0, fallback)
         why = f"The World could not be analysed ({exc}): lit by its fallback colour"
         plain = world.WorldRead("fallback", coeffs=coeffs, warnings=(why,))
         found = world_analysis.Analysed(content_key, world.analyse_read(plain, 0), None)
-    if scene_draw.CACHES.generation == generation:  # not for a file loaded since
-        scene_draw.CACHES.contents[content_key] = found
+    if STATE.generation == generation:  # not for a file loaded since
+        STATE.contents[content_key] = found
 
 
 def _prefilter(analysed, kind: str) -> None:
@@ -110,40 +95,38 @@ def _prefilter(analysed, kind: str) -> None:
 def _start_content(scene) -> None:
     """Read the scene's World (main thread) and start its analysis on a worker, unless it is
     analysed already or another analysis runs (it is then read when that one ends)."""
-    caches = scene_draw.CACHES
-    with _lock:
-        if any(label[0] == "content" for label in _running):
+    with WORK.lock:
+        if any(label[0] == "content" for label in WORK.running):
             return
-    caches.world_wanted = False
+    STATE.wanted = False
     panorama_helper.warm()  # at the first World read: warm by the first procedural World
     content_key, params = world.world_parts(scene)
-    if content_key in caches.contents:
-        _finished.set()  # analysed meanwhile: the next draw shows it
+    if content_key in STATE.contents:
+        WORK.mark_finished()  # analysed meanwhile: the next draw shows it
         return
     STATS["read"] += 1
     render = None if _render_here.is_set() else panorama_helper.submit
     _render_here.clear()
     read = world.read_world(scene, params=params, render=render)  # bpy: pixels, or a Cycles panorama
     fallback = np.asarray(world.fallback_colour(scene.world)[0], dtype=np.float64)
-    kinds = tuple(sorted(caches.prefilters_used))  # what the glossy films read so far
-    _start(("content", content_key), _analyse, content_key, read, fallback, kinds, caches.generation)
+    kinds = tuple(sorted(STATE.prefilters_used))  # what the glossy films read so far
+    _start(("content", content_key), _analyse, content_key, read, fallback, kinds, STATE.generation)
 
 
 def _start_prefilters() -> None:
-    caches = scene_draw.CACHES
-    for content_key, asked in list(caches.prefilters_wanted):
-        analysed = caches.contents.get(content_key)
+    for content_key, asked in list(STATE.prefilters_wanted):
+        analysed = STATE.contents.get(content_key)
         if analysed is None:  # a World no longer analysed: its lighting is not drawn any more
-            caches.prefilters_wanted.discard((content_key, asked))
+            STATE.prefilters_wanted.discard((content_key, asked))
             continue
         kind = analysed.kind(asked)
         label = ("prefilter", content_key, kind)
-        with _lock:
-            if label in _running:
+        with WORK.lock:
+            if label in WORK.running:
                 continue
-        caches.prefilters_wanted.discard((content_key, asked))
+        STATE.prefilters_wanted.discard((content_key, asked))
         if kind in analysed.arrays:
-            _finished.set()
+            WORK.mark_finished()
             continue
         _start(label, _prefilter, analysed, kind)
 
@@ -151,17 +134,12 @@ def _start_prefilters() -> None:
 def service(scene) -> bool:
     """The viewport timer's World step (main thread); True when a worker finished since the last
     call (ask for a redraw: the next draw shows its result)."""
-    if scene is not None and scene_draw.CACHES.world_wanted:
+    if scene is not None and STATE.wanted:
         _start_content(scene)
     _start_prefilters()
-    done = _finished.is_set()
-    _finished.clear()
-    return done
+    return WORK.take_finished()
 
 
 def wait(timeout: float = 120.0) -> None:
     """Wait for the running World workers (tests, benchmarks, unregister)."""
-    with _lock:
-        threads = list(_running.values())
-    for thread in threads:
-        thread.join(timeout)
+    WORK.wait(timeout)
