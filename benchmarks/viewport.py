@@ -101,7 +101,12 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for dotted in ("addon.drawing.scene_draw", "addon.materials.props", "addon.headless.headless"):
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.materials.props",
+            "addon.headless.headless",
+            "addon.headless.render",
+        ):
             setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()
@@ -185,7 +190,7 @@ class Scene:
         self.camera = bpy.data.objects.new("Camera", cam_data)
         self.scene.collection.objects.link(self.camera)
         self.scene.camera = self.camera
-        self.space, self.region = ext.headless._view3d_for_depth()
+        self.space, self.region = ext.render._view3d_for_depth()
         if self.space is None:
             raise RuntimeError("no VIEW_3D area in bpy.data.screens: cannot draw Workbench")
         shading = self.space.shading
@@ -277,7 +282,7 @@ class Scene:
         import bpy
 
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        return self.ext.headless.camera_matrices(self.scene, depsgraph, width, height)
+        return self.ext.render.camera_matrices(self.scene, depsgraph, width, height)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -151,7 +151,7 @@ def headless_render(out_png, size, background: bool = True) -> tuple[np.ndarray,
     """The open file's camera view with the thin-film shader (PNG + EXR); (linear RGB, result)."""
     import bpy
 
-    result = addon_module("addon.headless.headless").render_scene(
+    result = addon_module("addon.headless.render").render_scene(
         bpy.context.scene, str(out_png), size[0], size[1], background=background
     )
     return read_exr(result["exr"]), result
@@ -176,7 +176,7 @@ def cycles_render(out_exr, size, samples: int = CYCLES_SAMPLES, transparent: boo
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     # The file's own Cycles pixel filter (Blackman–Harris 1.5 px by default): the headless frame
-    # applies the same one to its 4× supersampled frame (addon/headless/headless.py).
+    # applies the same one to its 4× supersampled frame (addon/headless/render.py).
     scene.render.film_transparent = transparent
     scene.render.use_compositing = False
     scene.render.use_sequencer = False

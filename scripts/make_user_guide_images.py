@@ -2,7 +2,7 @@
 
     .venv/bin/python scripts/make_user_guide_images.py        # → docs/images/guide-*.png
 
-Every picture is the extension's headless render (``addon.headless.headless.render_scene``, what
+Every picture is the extension's headless render (``addon.headless.render.render_scene``, what
 ``blender -b file.blend --command thinfilm_sh render`` does) of a scene this script builds from
 an empty file, one step of the guide's walkthrough each, at 320×240 on whatever OpenGL bpy
 finds (Mesa llvmpipe here). The last one is made with the *Show Thin Film Overlay* preference

@@ -62,6 +62,7 @@ def tf(bpy, tmp_path_factory):
             "addon.bakes.tables",
             "addon.drawing.viewport",
             "addon.headless.headless",
+            "addon.headless.render",
             "addon.drawing.scene_draw",
             "addon.bakes.bake_jobs",
             "addon.world.world_state",
@@ -364,11 +365,11 @@ def test_the_overlay_preference_stops_the_headless_render(bpy, tf, scene, tmp_pa
     cam.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    on = tf.headless.render_scene(scene, str(tmp_path / "on.png"), 32, 32, background=False)
+    on = tf.render.render_scene(scene, str(tmp_path / "on.png"), 32, 32, background=False)
     assert on["objects"] == ["Sheet/0"] or len(on["objects"]) == 1
     tf.prefs.preferences().show_overlay = False
-    off = tf.headless.render_scene(scene, str(tmp_path / "off.png"), 32, 32, background=False)
-    assert off["objects"] == [] and tf.headless.OVERLAY_OFF in off["messages"]
+    off = tf.render.render_scene(scene, str(tmp_path / "off.png"), 32, 32, background=False)
+    assert off["objects"] == [] and tf.render.OVERLAY_OFF in off["messages"]
 
 
 def test_a_principled_film_preview_can_be_switched_off_per_material(bpy, tf, scene):

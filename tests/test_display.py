@@ -44,6 +44,7 @@ def tf(bpy, tmp_path_factory):
         tmp_path_factory.mktemp("extension"),
         (
             "addon.headless.headless",
+            "addon.headless.render",
             "addon.drawing.display",
             "addon.ui.prefs",
         ),
@@ -104,7 +105,7 @@ def _ramp() -> np.ndarray:
 @pytest.mark.parametrize("space", SPACES)
 def test_headless_png_is_blenders_colour_management_of_the_exr(bpy, tf, tmp_path, space):
     scene = _scene(bpy, tf, space)
-    result = tf.headless.render_scene(scene, str(tmp_path / "frame.png"), *SIZE, supersample=1)
+    result = tf.render.render_scene(scene, str(tmp_path / "frame.png"), *SIZE, supersample=1)
     import OpenEXR
 
     with OpenEXR.File(result["exr"]) as f:

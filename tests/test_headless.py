@@ -50,6 +50,7 @@ def tf(bpy, tmp_path_factory):
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
             for dotted in (
                 "addon.headless.headless",
+                "addon.headless.render",
                 "addon.materials.description",
                 "addon.bakes.tables",
                 "addon.ui.prefs",
@@ -195,7 +196,7 @@ def read_exr(path) -> np.ndarray:
 
 
 def render(tf, scene, path, size=SIZE, background=False, supersample=None):
-    result = tf.headless.render_scene(
+    result = tf.render.render_scene(
         scene, str(path), size[0], size[1], background=background, supersample=supersample
     )
     assert Path(result["png"]).is_file() and Path(result["exr"]).is_file()
@@ -224,7 +225,7 @@ def project(tf, scene, points, size):
     """Pixel coordinates (x right, y down; pixel centres at +0.5) of world points in the camera."""
     import bpy
 
-    view, proj = tf.headless.camera_matrices(scene, bpy.context.evaluated_depsgraph_get(), *size)
+    view, proj = tf.render.camera_matrices(scene, bpy.context.evaluated_depsgraph_get(), *size)
     p = np.c_[np.asarray(points, dtype=np.float64), np.ones(len(points))] @ (proj @ view).T
     ndc = p[:, :3] / p[:, 3:4]
     return np.c_[(ndc[:, 0] + 1.0) * 0.5 * size[0], (1.0 - (ndc[:, 1] + 1.0) * 0.5) * size[1]]
@@ -843,13 +844,13 @@ def test_headless_frame_applies_the_scenes_pixel_filter(bpy, tf, fresh, tmp_path
     sphere(bpy, scene, material=film(bpy, "Film", thickness_nm=350.0, roughness=0.3))
     camera(bpy, scene)
     default, result = render(tf, scene, tmp_path / "default.png")
-    assert result["supersample"] == tf.headless.SUPERSAMPLE == 4
+    assert result["supersample"] == tf.render.SUPERSAMPLE == 4
     assert result["pixel_filter"] == ["BLACKMAN_HARRIS", 1.5]
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     box, result = render(tf, scene, tmp_path / "box.png")
     assert result["pixel_filter"] == ["BOX", 1.0]
     w, h = SIZE
-    big = tf.headless.render_scene(
+    big = tf.render.render_scene(
         scene, str(tmp_path / "big.png"), 4 * w, 4 * h, background=False, supersample=1
     )
     assert big["supersample"] == 1 and big["pixel_filter"] is None

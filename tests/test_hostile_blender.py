@@ -47,6 +47,7 @@ def tf(bpy, tmp_path_factory):
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             for dotted in (
                 "addon.headless.headless",
+                "addon.headless.frames",
                 "addon.materials.description",
                 "addon.bakes.tables",
                 "addon.ui.prefs",
@@ -101,8 +102,8 @@ def no_bake(tf, monkeypatch):
 @pytest.fixture
 def no_work(tf, monkeypatch, no_bake):
     """Neither a bake nor a render may start."""
-    guard = Guard("headless.render_scene")
-    monkeypatch.setattr(tf.headless, "render_scene", guard)
+    guard = Guard("render.render_scene")
+    monkeypatch.setattr(tf.frames, "render_scene", guard)  # what the render command calls
     return types.SimpleNamespace(bake=no_bake, render=guard)
 
 

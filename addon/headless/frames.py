@@ -19,6 +19,7 @@ import time
 import bpy
 
 from ...precompute import cli_support, table_io
+from .render import render_scene
 
 
 def frame_path(out, frame: int | None, many: bool) -> pathlib.Path:
@@ -81,11 +82,9 @@ def _aa(result) -> str:
     return f"{result['supersample']}×{result['supersample']} samples per pixel, {name} {width:g} px"
 
 
-def run_render(args, scene, render_scene) -> int:
-    """`render`: each frame through the camera to its PNG and EXR; the exit code (see docs/cli.md).
-
-    ``render_scene``: :func:`.headless.render_scene` (passed in: this module does not import it).
-    """
+def run_render(args, scene) -> int:
+    """`render`: each frame through the camera to its PNG and EXR (:func:`.render.render_scene`);
+    the exit code (see docs/cli.md)."""
     frames = args.frames or [args.frame if args.frame is not None else None]
     many = args.frames is not None and len(frames) > 1
     with cli_support.refusing():  # before any work: a refusal is exit 2
