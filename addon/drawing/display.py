@@ -32,8 +32,8 @@ import numpy as np
 from ...precompute import display_lut
 from ...precompute.shading import policy
 from .. import caches, workers
+from ..colour_space import working_space
 from ..gpu.resources import DisplayLUTTexture
-from ..world.world_key import working_space
 
 log = logging.getLogger(__name__)
 

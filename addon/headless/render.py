@@ -27,12 +27,12 @@ import numpy as np
 from mathutils import Matrix
 
 from ...precompute import image_io, pixel_filter
+from ..colour_space import working_space
 from ..drawing import display, scene_draw
 from ..gpu.context import ensure_gpu_context
 from ..gpu.draw import render_offscreen
 from ..ui import prefs
 from ..world import world_state
-from ..world.world_key import working_space
 from . import cli_args
 from .background import (
     behind_texture,

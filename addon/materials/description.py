@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import json
 
-from ...precompute import bake, spectra
+from ...precompute import bake
 from ...precompute.material import Material
 from ...precompute.shading import policy
+from ..colour_space import unsupported_working_space
 from ..thickness.linked import Pending
 from .principled import read_principled
-from .props import description_from_props, file_working_space
+from .props import description_from_props
 
 __all__ = ["description", "description_key", "warnings"]
 
@@ -81,8 +82,8 @@ def warnings(bpy_material) -> list[str]:
         except ValueError as exc:
             notes = [f"{exc}: drawn in magenta (the fallback) until it is fixed"]
     notes.extend(_gltf_notes(bpy_material))
-    space = file_working_space()
-    if space and space not in spectra.WORKING_SPACES:
+    space = unsupported_working_space()
+    if space:
         notes.append(f"working color space {space!r} is not supported: previewing in Linear Rec.709")
     return notes
 

@@ -31,11 +31,11 @@ from bpy.props import (
 )
 from bpy.types import PropertyGroup
 
-from ...precompute import spectra
 from ...precompute.material import AUTO, MAX_SH_ORDER, PRESETS, Layer, Material, Quality
 from ...precompute.optics import metals
 from ...precompute.optics.metals import available_metals
 from .. import caches
+from ..colour_space import working_space
 
 # ----------------------------------------------------------------------------------------------
 # Enum items (identifiers are stable: they are saved in .blend files)
@@ -118,18 +118,6 @@ _applying = 0  # > 0 while fill_from_material writes properties (they must not m
 def f32(value) -> float:
     """The shortest decimal that rounds to the same float32 as ``value`` (NaN/Inf pass through)."""
     return float(str(np.float32(value)))
-
-
-def file_working_space() -> str:
-    """The blend file's own working colour space name ("" before Blender 5.x)."""
-    colorspace = getattr(bpy.data, "colorspace", None)  # Blender 5.x: per-file working space
-    return getattr(colorspace, "working_space", "") if colorspace is not None else ""
-
-
-def working_space() -> str:
-    """The blend file's working colour space if precompute knows it, else "Linear Rec.709"."""
-    name = file_working_space()
-    return name if name in spectra.WORKING_SPACES else spectra.DEFAULT_SPACE
 
 
 def _metal_name(identifier: str) -> str:

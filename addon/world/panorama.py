@@ -18,7 +18,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from .world_key import working_space
+from ..colour_space import working_space
 
 __all__ = ["PANORAMA_CAMERA_ROTATION", "PANORAMA_SAMPLES", "PANORAMA_WIDTH", "render_world_panorama"]
 

@@ -48,10 +48,10 @@ import bpy
 import numpy as np
 
 from .. import helper_process
+from ..colour_space import working_space
 from ..ui import prefs
 from . import panorama_process
 from .panorama import PANORAMA_SAMPLES, PANORAMA_WIDTH
-from .world_key import working_space
 
 log = logging.getLogger(__name__)
 

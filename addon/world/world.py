@@ -47,8 +47,9 @@ import numpy as np
 from ...precompute import hdri, sh
 from ...precompute.material import MAX_SH_ORDER
 from .. import caches
+from ..colour_space import DEFAULT_WORKING_SPACE, working_space
 from .panorama import render_world_panorama
-from .world_key import DEFAULT_WORKING_SPACE, image_path, working_space, world_key, world_uses_nodes
+from .world_key import image_path, world_key, world_uses_nodes
 from .world_nodes import (
     Fallback,
     active_world_output,

@@ -15,33 +15,19 @@ import os
 import bpy
 
 from ...precompute import table_io
+from ..colour_space import working_space
 
 __all__ = [
-    "DEFAULT_WORKING_SPACE",
     "KEY_VERSION",
     "describe_image",
     "image_path",
-    "working_space",
     "world_key",
     "world_uses_nodes",
 ]
 
 #: Version of the key description; bump when the computation changes so old entries miss.
 KEY_VERSION = 1
-#: The working space of files that do not name one (before Blender 5.x).
-DEFAULT_WORKING_SPACE = "Linear Rec.709"
 _MAX_DESCRIBE_DEPTH = 4
-
-
-def working_space() -> str:
-    """The blend file's working colour space (scene linear), e.g. "Linear Rec.709".
-
-    Blender 5.x stores it per file in ``bpy.data.colorspace.working_space`` ("Linear Rec.709",
-    "Linear Rec.2020" or "ACEScg"); older versions have none and use Linear Rec.709.
-    """
-    colorspace = getattr(bpy.data, "colorspace", None)
-    name = getattr(colorspace, "working_space", "") if colorspace is not None else ""
-    return name or DEFAULT_WORKING_SPACE
 
 
 def _node_ui_properties() -> frozenset:
