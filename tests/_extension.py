@@ -34,7 +34,7 @@ def linked_extension(root: Path, *, unregister: bool = True):
 
 
 #: The add-on's GPU layer, module by module (addon/gpu/).
-GPU_MODULES = ("context", "shaders", "resources", "mesh", "draw")
+GPU_MODULES = ("context", "layout", "shaders", "resources", "mesh", "draw")
 #: The reference rotation of the shading library: generic loops, compiled by tests only.
 REFERENCE_ROTATION = REPO / "tests" / "glsl" / "tf_sh_rotate_loops.glsl"
 

@@ -649,7 +649,7 @@ def test_the_world_sh_reaches_every_band_of_a_high_order_table(bpy, tf, scene):
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(path)
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
-    top = tf.gpu.resources.MAX_L
+    top = tf.gpu.layout.MAX_L
     assert top == tf.effects.MAX_ORDER == 12
     film = _film(bpy, "Rough", "SOAP_FILM")
     film.thinfilm_sh.sh_order = str(top)

@@ -752,7 +752,7 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
     (item,) = items()
     image_entry = tf.world_state.STATE.lighting.environment
     assert image_entry is not None and image_entry.lamps is not None
-    assert 1 <= image_entry.lamps.count <= tf.gpu.resources.MAX_LAMPS and image_entry.lamps.share > 0.5
+    assert 1 <= image_entry.lamps.count <= tf.gpu.layout.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
     summary = tf.world_state.lamps_summary(True)  # the Surface panel's line
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary

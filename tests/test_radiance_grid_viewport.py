@@ -68,9 +68,9 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     assert bpy.app.timers.is_registered(rg._poll)
     wait_idle(rg)
     assert built_on and all(t is not threading.main_thread() for t in built_on)
-    assert rg.GRIDS.finished.is_set()  # the timer's cue for a redraw
+    assert rg.GRIDS.work.finished()  # the timer's cue for a redraw
     rg._poll()
-    assert not rg.GRIDS.finished.is_set()
+    assert not rg.GRIDS.work.finished()
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is not None and not item.grid_pending
     prepared = tf.package.addon.gpu.draw.prepare_draw([item], _eye(), _eye(), display_srgb=True)

@@ -429,7 +429,7 @@ def test_uniform_table_layout_and_size_limit(tf, gpu_helpers):
     layers = gd.resources.TableTexture.layer_array(result.data)
     packed = gd.resources.TableTexture.uniform_array(layers)
     n_layers, t, a = layers.shape[:3]
-    assert packed.shape == (1024, 4) and packed.nbytes == gd.resources.UBO_LIMIT_BYTES
+    assert packed.shape == (1024, 4) and packed.nbytes == gd.layout.UBO_LIMIT_BYTES
     assert tuple(packed[0, :3]) == (a, t, n_layers)
     row, column, layer = 5, 7, 4
     assert np.array_equal(packed[1 + (row * a + column) * n_layers + layer], layers[layer, row, column])

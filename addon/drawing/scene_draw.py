@@ -47,7 +47,7 @@ from ...precompute.shading import policy
 from .. import caches
 from ..bakes import bake_asks, bake_jobs, radiance_grids, tables
 from ..bakes.bake_asks import material_identity
-from ..gpu import draw, resources, shaders
+from ..gpu import draw, layout, resources, shaders
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials import description, transparency
 from ..materials.principled import linked_thickness_socket
@@ -281,7 +281,7 @@ def lights_summary(scene) -> str:
     count = sum(1 for obj in scene.objects if obj.type == "LIGHT" and obj.visible_get())
     if count == 0:
         return "Light objects: none"
-    shown = min(count, resources.MAX_LIGHTS)
+    shown = min(count, layout.MAX_LIGHTS)
     return f"Light objects: {shown} shade the film (no cast shadows yet)"
 
 
@@ -611,8 +611,8 @@ def collect(
     messages.extend(lighting.sh.warnings)
     messages.extend(lighting.sh.errors)
     found_lights = scene_lights.scene_lights(depsgraph)  # every frame: moving a light bakes nothing
-    if len(found_lights) > resources.MAX_LIGHTS:
-        messages.append(f"{len(found_lights)} lights: the first {resources.MAX_LIGHTS} light the films")
+    if len(found_lights) > layout.MAX_LIGHTS:
+        messages.append(f"{len(found_lights)} lights: the first {layout.MAX_LIGHTS} light the films")
     linked = any(receivers is not None for _, receivers in found_lights)
     shared_lights = None if linked else resources.lights_content(scene_lights.lights_for(found_lights, ""))
     object_lights: dict = {}  # object name → lights content (light linking)

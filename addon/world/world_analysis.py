@@ -29,7 +29,7 @@ from ...precompute import hdri, prefilter
 from ...precompute.environment import Environment, analyse_world
 from ...precompute.lamps import Lamps
 from ...precompute.material import MAX_SH_ORDER
-from ..gpu import resources
+from ..gpu import layout, resources
 from . import world
 
 __all__ = [
@@ -136,7 +136,7 @@ def analyse_content(content_key: str, read: world.WorldRead, fallback_rgb, kinds
         # sharper levels to keep: they are filtered at its width and resampled for the texture
         width = min(width, max(_POW2_MIN, 1 << (int(content.image.shape[1]).bit_length() - 1)))
     coeffs = content.coeffs if usable else world.constant_sh(MAX_SH_ORDER, fallback_rgb)
-    env = analyse_world(image, coeffs, l_max=resources.MAX_L, width=width)
+    env = analyse_world(image, coeffs, l_max=layout.MAX_L, width=width)
     found = Analysed(content_key, content, env)
     for kind in kinds:
         found.compute(kind)
