@@ -67,7 +67,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   room's state: the current World's lighting (``world_analysis.WorldLighting``: its SH, the
   analysed panorama, the prefilters on the GPU) for the current World key only; the analysed
   World contents (``world_analysis.Analysed``: SH, panorama, lamps, prefilter arrays) by
-  ``world.world_parts``' content key, an LRU of ``world_state.CONTENT_CACHE_SIZE`` (3), filled
+  ``world_params.world_parts``' content key, an LRU of ``world_state.CONTENT_CACHE_SIZE`` (3), filled
   by ``world_job``'s worker (the LRU is thread-safe; a result for a file loaded since is
   dropped by ``WorldState.generation``) and by ``world_state.world_lighting`` in headless
   renders; what the draw asked for (a content to analyse, prefilters to compute); FILE.

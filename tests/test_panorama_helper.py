@@ -36,6 +36,7 @@ MODULES = (
     "addon.world.world",
     "addon.world.world_job",
     "addon.world.world_state",
+    "addon.world.world_params",
 )
 
 
@@ -95,7 +96,7 @@ def ask_and_settle(tf, scene, between=None):
 def assert_lit(tf, scene, lighting):
     """The frame is lit by the Sky Texture's panorama: a daylight sky, brighter above."""
     assert lighting is not None
-    content_key, _ = tf.world.world_parts(scene)
+    content_key, _ = tf.world_params.world_parts(scene)
     content = tf.world_state.STATE.contents[content_key].content
     assert content.read.source == "panorama render (Sky Texture)"
     assert content.read.rgb is not None and content.read.pending is None
@@ -255,7 +256,7 @@ def test_images_relative_to_the_file_or_packed_reach_the_helper(bpy, tf, sky, tm
     tree.links.new(gamma.outputs["Color"], tree.nodes["Background"].inputs["Color"])
     lighting = ask_and_settle(tf, scene)
     assert lighting is not None and renders == []
-    content_key, _ = tf.world.world_parts(scene)
+    content_key, _ = tf.world_params.world_parts(scene)
     read = tf.world_state.STATE.contents[content_key].content.read
     assert read.source == "panorama render (Gamma)"
     np.testing.assert_array_equal(read.rgb, real(scene.world))

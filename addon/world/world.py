@@ -37,18 +37,18 @@ The panorama render is :mod:`.panorama`; the maths is in ``precompute``.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...precompute import hdri, sh
+from ...precompute import sh
 from ...precompute.material import MAX_SH_ORDER
 from .. import caches
 from ..colour_space import DEFAULT_WORKING_SPACE, working_space
 from .panorama import render_world_panorama
+from .world_image import image_pixels, project_image
 from .world_key import image_path, world_key, world_uses_nodes
 from .world_nodes import (
     Fallback,
@@ -58,36 +58,32 @@ from .world_nodes import (
     rotation_from_lookup,
     uses_light_path,
 )
+from .world_params import (
+    MAX_COEFFICIENT,
+    WorldParams,
+    apply_params,
+    parameters,
+)
 
 __all__ = [
     "DEFAULT_CACHE_SIZE",
     "FALLBACK_RADIANCE",
-    "MAX_COEFFICIENT",
-    "MAX_PROJECTION_WIDTH",
     "SH_CACHE",
     "WorldContent",
-    "WorldParams",
     "WorldRead",
     "WorldSH",
     "analyse_read",
-    "apply_params",
     "constant_sh",
     "content_scale",
     "finish",
     "read_world",
-    "world_parts",
     "fallback_colour",
     "world_sh",
 ]
 
-#: Images wider than this are downsampled (solid-angle-correct, :func:`hdri.downsample`) before
-#: projection. 1024 px across 2π resolves bands far beyond the l ≤ 12 the preview uses.
-MAX_PROJECTION_WIDTH = 1024
 
 #: Size of the LRU of results :func:`world_sh` keeps (:data:`SH_CACHE`).
 DEFAULT_CACHE_SIZE = 16
-
-_LINEAR_SPACES = ("Linear Rec.709", "Linear Rec.2020", "ACEScg")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -131,11 +127,6 @@ class WorldSH:
 #: Blender's default World colour (sRGB 0.25, linear 0.0509): grey, never black.
 FALLBACK_RADIANCE = 0.0509
 
-#: Largest |SH coefficient| (√(4π) × radiance) accepted. The shader sums up to 169 products of a
-#: coefficient and a table entry (≤ ~1) in float32; 1e20 stays 10¹⁸ below float32's 3.4e38 and is
-#: ~10¹⁵ times the brightest sky a scene uses. Beyond it the World counts as not evaluable.
-MAX_COEFFICIENT = 1e20
-
 
 def _usable(values) -> bool:
     v = np.asarray(values, dtype=np.float64)
@@ -177,266 +168,6 @@ def _bad_values(world, limit: int = 3) -> list[str]:
 
 #: World SH results by :func:`.world_key.world_key` (see :mod:`.caches`).
 SH_CACHE = caches.register("world_sh", caches.LRU(DEFAULT_CACHE_SIZE), scope=caches.SESSION)
-
-
-# ----------------------------------------------------------------------------------------------
-# Colour space
-# ----------------------------------------------------------------------------------------------
-
-
-def _srgb_to_linear(values: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB decoding (the piecewise curve of Blender's "sRGB" space)."""
-    v = np.asarray(values, dtype=np.float64)
-    return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4)
-
-
-def _rgb_matrix(source: str, target: str) -> np.ndarray | None:
-    """Linear RGB → RGB matrix between two working spaces, or None if it cannot be built here."""
-    if source == target:
-        return np.eye(3)
-    try:  # a failed import of the spectral code must not break the World's SH
-        from ...precompute import spectra
-    except ImportError:
-        return None
-    try:
-        return spectra.rgb_to_rgb_matrix(source, target)
-    except ValueError:
-        return None
-
-
-# ----------------------------------------------------------------------------------------------
-# Pixels
-# ----------------------------------------------------------------------------------------------
-
-
-def _image_pixels(image, space: str):
-    """The image's pixels and how to make them scene linear; raises Fallback or OSError.
-
-    Returns ``(rgb, convert)``: ``rgb`` a float32 (H, W, 3) view, top row first, onto the
-    buffer read from Blender (no copy), and ``convert`` None or a function that turns a block
-    of it into linear RGB in ``space`` (applied block by block, to bound memory).
-    """
-    width, height = image.size[:]
-    channels = image.channels
-    if width == 0 or height == 0 or not image.has_data:
-        raise OSError("no pixels could be loaded")
-    buf = np.empty(width * height * channels, dtype=np.float32)
-    image.pixels.foreach_get(buf)
-    pixels = buf.reshape(height, width, channels)[::-1]  # Blender stores the bottom row first
-    if channels >= 3:
-        rgb = pixels[..., :3]
-    else:  # grey (and grey + alpha) images
-        rgb = np.broadcast_to(pixels[..., :1], (height, width, 3))
-    if image.is_float:  # Blender converts float buffers to scene linear when it loads them
-        return rgb, None
-    name = image.colorspace_settings.name
-    if image.colorspace_settings.is_data or name == "Non-Color":
-        return rgb, None  # data: the numbers are used as they are
-    if name == "sRGB":
-        decode, primaries = _srgb_to_linear, "Linear Rec.709"
-    elif name in _LINEAR_SPACES:
-        decode, primaries = None, name
-    else:
-        raise Fallback(f"image color space '{name}'")
-    matrix = _rgb_matrix(primaries, space)
-    if matrix is None:
-        raise Fallback(f"image color space '{name}' in working space '{space}'")
-    if decode is None and primaries == space:
-        return rgb, None
-
-    def convert(block: np.ndarray) -> np.ndarray:
-        linear = decode(block) if decode is not None else block.astype(np.float64)
-        return linear @ matrix.T if primaries != space else linear
-
-    return rgb, convert
-
-
-def _downsample_factor(height: int, width: int) -> int:
-    """Smallest integer factor dividing both sizes that brings the width to ≤ MAX_PROJECTION_WIDTH."""
-    start = max(1, -(-width // MAX_PROJECTION_WIDTH))
-    for factor in range(start, 4 * start + 1):
-        if height % factor == 0 and width % factor == 0:
-            return factor
-    return 1  # no divisor nearby: project at full resolution (exact, only slower)
-
-
-#: Pixels converted and downsampled at a time (bounds the float64 temporaries to ~100 MB).
-_BLOCK_PIXELS = 1 << 22
-
-
-def _project_image(rgb: np.ndarray, l_max: int, convert=None) -> tuple[np.ndarray, int, np.ndarray]:
-    """Project a top-first equirect (after ``convert``), downsampled to ≤ MAX_PROJECTION_WIDTH.
-
-    Returns the coefficients, the rejected pixel count and the downsampled image (float64).
-
-    The image is processed in strips of whole columns: :func:`hdri.downsample` weighs rows by
-    their solid angle, and a column strip keeps every row, so each strip's result is exactly
-    that part of the whole image's. NaN/Inf pixels are set to zero and counted at full size.
-    """
-    height, width = rgb.shape[:2]
-    factor = _downsample_factor(height, width)
-    step = max(factor, (_BLOCK_PIXELS // max(height, 1)) // factor * factor)
-    small = np.empty((height // factor, width // factor, 3), dtype=np.float64)
-    rejected = 0
-    for c0 in range(0, width, step):
-        c1 = min(width, c0 + step)
-        block = rgb[:, c0:c1]
-        if convert is not None:
-            block = convert(block)
-        good = np.isfinite(block).all(axis=-1)
-        if not good.all():
-            rejected += int(good.size - np.count_nonzero(good))
-            block = np.where(good[..., None], block, 0.0)
-        small[:, c0 // factor : c1 // factor] = hdri.downsample(block, factor)
-    coeffs, info = sh.project_equirect(small, l_max, return_info=True)
-    return coeffs, rejected + int(info["rejected_pixels"]), small
-
-
-# ----------------------------------------------------------------------------------------------
-# The World's cheap parameters
-# ----------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class WorldParams:
-    """A World's cheap parameters (:func:`world_parts`): applied to its content without recomputing it.
-
-    Attributes
-    ----------
-    strength : float or None
-        The Background's Strength when it is a parameter (unlinked, finite, the Background fed
-        straight to the World Output); None when it is part of the content.
-    rotation : tuple of 9 floats
-        Proper rotation P, row-major, with parity: image direction ∝ parity · P · world direction
-        (the Mapping in front of an Environment Texture, :func:`_rotation_from_lookup`); the
-        identity when the World has no such Mapping or is read another way.
-    parity : int
-        ±1: −1 for a uniform negative scale (a point reflection).
-    """
-
-    strength: float | None = None
-    rotation: tuple = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
-    parity: int = 1
-
-    @property
-    def matrix(self) -> np.ndarray:
-        """Q = parity · P (3×3): the image direction of a world direction (the prefilter's lookup)."""
-        return self.parity * np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
-
-    @property
-    def turned(self) -> bool:
-        """Whether Q is not the identity."""
-        return bool(self.parity < 0 or not np.allclose(self.matrix, np.eye(3), rtol=0.0, atol=1e-15))
-
-
-def _background(world):
-    """The Background node fed straight to the active World Output, or None."""
-    if world is None or not world_uses_nodes(world):
-        return None
-    output = active_world_output(world.node_tree)
-    if output is None or output.mute:
-        return None
-    try:
-        surface = linked_from(output.inputs["Surface"])
-    except Fallback:
-        return None
-    if surface is None or surface[0].bl_idname != "ShaderNodeBackground" or surface[0].mute:
-        return None
-    return surface[0]
-
-
-def _environment_rotation(bg):
-    """(P, parity, Mapping names) when the World is read from its Environment Texture's pixels
-    (case 2 of the module docstring), else None."""
-    if bg.inputs["Strength"].is_linked:
-        return None
-    try:
-        colour = linked_from(bg.inputs["Color"])
-        if colour is None:
-            return None
-        env, out = colour
-        if env.bl_idname != "ShaderNodeTexEnvironment" or out.identifier != "Color" or env.mute:
-            return None
-        if env.projection != "EQUIRECTANGULAR":
-            return None
-        names: list = []
-        rotation, parity = rotation_from_lookup(lookup_matrix(env, names))
-    except Fallback:
-        return None
-    return rotation, parity, names
-
-
-#: A rotation this close to one about z (mathutils' float32 Euler, the normalisation) is taken
-#: as that rotation exactly: its SH rotation is then the cos/sin fast path (sh.rotation_z).
-_Z_SNAP = 1e-6
-
-
-def _snapped(p: np.ndarray) -> np.ndarray:
-    """``p``, or the exact rotation about z it is within :data:`_Z_SNAP` of."""
-    off = max(abs(p[0, 2]), abs(p[1, 2]), abs(p[2, 0]), abs(p[2, 1]), abs(p[2, 2] - 1.0))
-    if off > _Z_SNAP:
-        return p
-    angle = math.atan2(p[1, 0], p[0, 0])
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-@functools.lru_cache(maxsize=8)
-def _sh_rotation(l_max: int, rotation: tuple) -> np.ndarray:
-    """The SH rotation of the World's Pᵀ (cached: the SH and the SH without lamps share it)."""
-    out = sh.rotation(l_max, np.asarray(rotation, dtype=np.float64).reshape(3, 3).T)
-    out.setflags(write=False)
-    return out
-
-
-def _parameters(world) -> tuple[WorldParams, list]:
-    """The World's cheap parameters and the (node, input) pairs they are read from."""
-    bg = _background(world)
-    if bg is None:
-        return WorldParams(), []
-    without = []
-    rotation, parity = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), 1
-    found = _environment_rotation(bg)
-    if found is not None:
-        p, parity, names = found
-        rotation = tuple(float(v) for v in _snapped(np.asarray(p)).reshape(-1))
-        without += [(name, ident) for name in names for ident in ("Rotation", "Scale")]
-    strength = None
-    socket = bg.inputs["Strength"]
-    if not socket.is_linked:
-        value = float(socket.default_value)
-        read_apart = found is not None or not bg.inputs["Color"].is_linked
-        # a panorama render holds its strength: it scales only when that is not 0
-        if math.isfinite(value) and abs(value) <= MAX_COEFFICIENT and (read_apart or value != 0.0):
-            strength = value
-            without.append((bg.name, "Strength"))
-    return WorldParams(strength, rotation, parity), without
-
-
-def world_parts(scene, l_max: int = MAX_SH_ORDER) -> tuple[str, WorldParams]:
-    """(content key, parameters) of ``scene``'s World; cheap (reads no pixels).
-
-    The *content key* is :func:`.world_key.world_key` without the parameters
-    (:class:`WorldParams`: the Background's Strength, the rotation of a Mapping in front of an
-    Environment Texture), so a change of those alone keeps the content key, and the World's SH,
-    lamps and prefilter are turned and scaled (:func:`apply_params`) instead of recomputed.
-    """
-    params, without = _parameters(scene.world)
-    return world_key(scene, l_max, without=without), params
-
-
-def apply_params(coeffs, params: WorldParams, scale: float | None, turned: bool) -> np.ndarray:
-    """Content SH → the World's: turned by the parameters' rotation (when ``turned``: the content
-    is the image as read) and multiplied by ``scale`` (None: 1). Exact: SH rotations are."""
-    c = np.asarray(coeffs, dtype=np.float64)
-    l_max = sh.l_max_from_size(c.shape[0])
-    if turned and params.parity < 0:
-        bands = np.repeat(np.arange(l_max + 1), 2 * np.arange(l_max + 1) + 1)
-        c = c * np.where(bands % 2 == 1, -1.0, 1.0)[:, None]
-    p = np.asarray(params.rotation, dtype=np.float64).reshape(3, 3)
-    if turned and not np.allclose(p, np.eye(3), rtol=0.0, atol=1e-15):
-        c = _sh_rotation(l_max, tuple(params.rotation)) @ c
-    return c * scale if scale is not None else c
 
 
 # ----------------------------------------------------------------------------------------------
@@ -526,7 +257,7 @@ def _environment(world, bg, env, l_max: int, space: str, params: WorldParams) ->
                 f"Environment image '{label}' not found ({path}): using the World's viewport color",
             )
     try:
-        rgb, convert = _image_pixels(image, space)
+        rgb, convert = image_pixels(image, space)
     except OSError as exc:
         return _viewport_colour(
             world,
@@ -615,7 +346,7 @@ def read_world(scene, l_max: int = MAX_SH_ORDER, params: WorldParams | None = No
     and it is rendered here only when ``render`` returns None.
     """
     l_max = sh._check_l_max(l_max)
-    params = _parameters(scene.world)[0] if params is None else params
+    params = parameters(scene.world)[0] if params is None else params
     world = scene.world
     with np.errstate(all="ignore"):
         if world is None:
@@ -634,7 +365,7 @@ def analyse_read(read: WorldRead, l_max: int = MAX_SH_ORDER) -> WorldContent:
             np.asarray(read.coeffs, dtype=np.float64), None, read, read.rejected, tuple(warnings)
         )
     with np.errstate(all="ignore"):
-        coeffs, rejected, small = _project_image(read.rgb, l_max, read.convert)
+        coeffs, rejected, small = project_image(read.rgb, l_max, read.convert)
         if read.factor != 1.0:
             coeffs, small = coeffs * read.factor, small * read.factor
     if rejected:
@@ -716,7 +447,7 @@ def world_sh(scene, l_max: int = MAX_SH_ORDER, *, cache=None) -> WorldSH:
     hit = cache.get(key)
     if hit is not None:
         return hit
-    params = _parameters(scene.world)[0]
+    params = parameters(scene.world)[0]
     result = finish(scene, analyse_read(read_world(scene, l_max, params), l_max), params, key, l_max)
     cache[key] = result
     return result

@@ -1,8 +1,8 @@
 """The World's lighting for the draw: its content analysed once, its parameters applied per edit.
 
 A World is *content* (an Environment Texture's pixels, a procedural World's panorama, a colour:
-what :func:`.world.world_parts`' content key covers) and *parameters* (the Background's
-Strength, the Mapping's rotation: :class:`.world.WorldParams`). The content's analysis is slow
+what :func:`.world_params.world_parts`' content key covers) and *parameters* (the Background's
+Strength, the Mapping's rotation: :class:`.world_params.WorldParams`). The content's analysis is slow
 and runs on a worker thread in the viewport (:mod:`.world_job`); the parameters are applied in
 milliseconds on the main thread, so a Strength or rotation edit recomputes nothing:
 
@@ -30,7 +30,7 @@ from ...precompute.environment import Environment, analyse_world
 from ...precompute.lamps import Lamps
 from ...precompute.material import MAX_SH_ORDER
 from ..gpu import layout, resources
-from . import world
+from . import world, world_params
 
 __all__ = [
     "LIFTED",
@@ -123,7 +123,7 @@ def analyse_content(content_key: str, read: world.WorldRead, fallback_rgb, kinds
     """
     content = world.analyse_read(read, MAX_SH_ORDER)
     usable = bool(
-        np.all(np.isfinite(content.coeffs)) and np.all(np.abs(content.coeffs) <= world.MAX_COEFFICIENT)
+        np.all(np.isfinite(content.coeffs)) and np.all(np.abs(content.coeffs) <= world_params.MAX_COEFFICIENT)
     )
     width = PREFILTER_WIDTH
     if not usable:
@@ -213,7 +213,7 @@ class WorldLighting:
     textures: PrefilterTextures | None = None
     image_tried: bool = True
     content_key: str = ""
-    params: world.WorldParams = field(default_factory=world.WorldParams)
+    params: world_params.WorldParams = field(default_factory=world_params.WorldParams)
     scale: float | None = None
     turned: bool = False
     #: The content's SH (its frame and strength; None for the fallback colour): what the
@@ -233,7 +233,7 @@ class WorldLighting:
     def sh_without_lamps(self) -> np.ndarray:
         """The World's SH without its lamps, in its frame and strength."""
         env = self.environment
-        return world.apply_params(env.sh_without_lamps, self.params, self.scale, self.turned)
+        return world_params.apply_params(env.sh_without_lamps, self.params, self.scale, self.turned)
 
     def grid_source(self, lamps: bool) -> tuple[str, np.ndarray]:
         """(key, SH) a radiance grid is built from: the content's SH, without its lamps when
@@ -264,7 +264,7 @@ class WorldLighting:
 
 
 def lighting_from(
-    scene, analysed: Analysed, params: world.WorldParams, key: str, reuse=None
+    scene, analysed: Analysed, params: world_params.WorldParams, key: str, reuse=None
 ) -> WorldLighting:
     """The :class:`WorldLighting` of ``analysed`` under ``params`` (main thread, milliseconds).
 

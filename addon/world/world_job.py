@@ -23,7 +23,7 @@ called by the viewport's timer (``viewport._service``), then
 The workers are jobs of one lane (:data:`WORK`, :mod:`..workers`). One content analysis runs at
 a time; the newest World wins (a World edited while one is analysed is read when that one
 ends). Strength and rotation edits never come here: they keep the content key
-(:func:`.world.world_parts`).
+(:func:`.world_params.world_parts`).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ import threading
 import numpy as np
 
 from .. import workers
-from . import panorama_helper, world, world_analysis
+from . import panorama_helper, world, world_analysis, world_params
 from .world_state import STATE
 
 log = logging.getLogger(__name__)
@@ -100,7 +100,7 @@ def _start_content(scene) -> None:
             return
     STATE.wanted = False
     panorama_helper.warm()  # at the first World read: warm by the first procedural World
-    content_key, params = world.world_parts(scene)
+    content_key, params = world_params.world_parts(scene)
     if content_key in STATE.contents:
         WORK.mark_finished()  # analysed meanwhile: the next draw shows it
         return

@@ -180,7 +180,7 @@ def _describe_world(world, without=frozenset()) -> dict | None:
     if desc["use_nodes"]:
         desc["tree"] = _describe_tree(world.node_tree, set())
         nodes = desc["tree"].get("nodes", {}) if isinstance(desc["tree"], dict) else {}
-        for node_name, ident in without:  # the cheap parameters: read apart (world.world_parts)
+        for node_name, ident in without:  # the cheap parameters: read apart (world_params.world_parts)
             for entry in nodes.get(node_name, {}).get("inputs", ()):
                 if entry[0] == ident:
                     entry[1] = "parameter"
@@ -197,7 +197,7 @@ def world_key(scene, l_max: int = 8, *, without=()) -> str:
 
     ``without``: (node name, input identifier) pairs of the World's top-level tree whose values
     are left out (and named instead): the World's *content* key, for values applied without
-    recomputation (:func:`.world.world_parts`: a Background Strength, a Mapping rotation).
+    recomputation (:func:`.world_params.world_parts`: a Background Strength, a Mapping rotation).
     """
     without = frozenset(without)
     description = {

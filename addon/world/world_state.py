@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from .. import caches
 from ..gpu import resources
-from . import world, world_analysis
+from . import world, world_analysis, world_params
 from .world_analysis import WorldLighting
 
 __all__ = [
@@ -63,7 +63,7 @@ class WorldState:
 STATE = caches.register("world_lighting", WorldState(), scope=caches.FILE)
 
 
-def _lighting_key(content_key: str, params: world.WorldParams) -> str:
+def _lighting_key(content_key: str, params: world_params.WorldParams) -> str:
     """The drawn lighting's key: the World's content key and its parameters."""
     return (
         f"{content_key}|{params.strength!r}|{params.parity}|{','.join(f'{v:.17g}' for v in params.rotation)}"
@@ -84,7 +84,7 @@ def world_lighting(scene, *, allow_compute: bool = True) -> WorldLighting | None
     lighting drawn so far is returned meanwhile: the old World until the new one is ready (None
     before the first). With ``allow_compute`` (headless renders) it is analysed here.
     """
-    content_key, params = world.world_parts(scene)
+    content_key, params = world_params.world_parts(scene)
     key = _lighting_key(content_key, params)
     last = STATE.lighting
     if last is not None and last.key == key:
