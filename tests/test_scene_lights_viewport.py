@@ -33,6 +33,7 @@ def tf(bpy, tmp_path_factory):
             "addon.world.panorama",
             "addon.world.world",
             "addon.world.world_state",
+            "addon.drawing.lights",
             "addon.bakes.bake_jobs",
         ):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
@@ -135,7 +136,7 @@ def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, t
 def test_lights_that_cannot_reach_the_film_are_left_out(bpy, tf, lit, monkeypatch):
     """Glossy ray visibility off or Specular 0: no lights (and no light loop); the panel says
     that light objects cast no shadows yet."""
-    assert "no cast shadows" in tf.scene_draw.lights_summary(lit.scene)
+    assert "no cast shadows" in tf.lights.lights_summary(lit.scene)
     want: list = []
     lit.lamp.visible_glossy = False
     items, _ = draw_frame(bpy, tf, want, monkeypatch)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...precompute import bake, film_colour
+from ...precompute import bake, cli_support, film_colour
 from ...precompute.material import Material
 from ...precompute.progress import reporting
 from ...precompute.shading import policy
@@ -383,3 +383,13 @@ def parse_plan(text: str) -> dict[str, str]:
         name, _, rest = line.partition(" ")
         out[name] = rest.partition(":")[0].strip()
     return out
+
+
+def bake_failure(name: str, exc: Exception) -> str:
+    """One line on why material ``name`` could not be baked; a bug's traceback goes to a log file."""
+    text = f"material {name!r} could not be baked ({type(exc).__name__}: {' '.join(str(exc).split())}"
+    if isinstance(exc, (ValueError, OSError)):
+        return text + ")"
+    where = cli_support.write_log("thinfilm_sh", exc)
+    log.error("Thin Film SH: material %r could not be baked: %s (details in %s)", name, exc, where)
+    return text + f"; details in {where})"

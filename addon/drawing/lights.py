@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...precompute.shading import lights as light_shading
+from ..gpu.layout import MAX_LIGHTS
 
 
 def _colour(light) -> np.ndarray:
@@ -106,3 +107,13 @@ def scene_lights(depsgraph) -> list:
 def lights_for(found, object_name: str) -> light_shading.Lights:
     """The :class:`~precompute.shading.lights.Lights` that ``object_name`` receives."""
     return light_shading.Lights.from_rows(row for row, rec in found if receives(rec, object_name))
+
+
+def lights_summary(scene) -> str:
+    """One line for the Surface panel: how many light objects light the films, and what is not
+    done yet (no cast shadows; only the film's specular layer)."""
+    count = sum(1 for obj in scene.objects if obj.type == "LIGHT" and obj.visible_get())
+    if count == 0:
+        return "Light objects: none"
+    shown = min(count, MAX_LIGHTS)
+    return f"Light objects: {shown} shade the film (no cast shadows yet)"

@@ -41,20 +41,18 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ...precompute import cli_support
 from ...precompute.material import FALLBACK
 from ...precompute.shading import policy
 from .. import caches
 from ..bakes import bake_asks, bake_jobs, radiance_grids, tables
 from ..bakes.bake_asks import material_identity
 from ..gpu import draw, layout, resources, shaders
-from ..gpu.mesh import MeshBatch, mesh_arrays
+from ..gpu.mesh import MeshBatch
 from ..materials import description, transparency
-from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
-from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 from ..world import world_state
 from ..world.world_analysis import WorldLighting
+from . import batches
 from . import lights as scene_lights
 
 log = logging.getLogger(__name__)
@@ -94,24 +92,6 @@ TABLE_CACHE_SIZE = tables.LRU_SIZE
 FILM_CACHE_SIZE = tables.LRU_SIZE
 #: Lighting uniform buffers kept (a roughness slider's drag makes one per step).
 LIGHTING_CACHE_SIZE = 64
-
-
-@dataclass
-class BatchEntry:
-    """One (object, material slot, instance)'s batch and what it was built from.
-
-    ``signature``: the mesh's name and sizes, whether the material's thickness varies and its
-    :func:`.thickness.thickness_inputs` (a different signature rebuilds the batch; nothing else
-    of the material is in the batch, so a roughness drag rebuilds none);
-    ``thickness``: the per-vertex thickness parameters uploaded (float32, one per corner; None
-    for a constant thickness), kept to be read back; ``notes``: what the build found wrong
-    (NaN thickness values, a missing attribute), repeated in every frame's messages.
-    """
-
-    signature: tuple
-    batch: MeshBatch | None
-    thickness: np.ndarray | None = None
-    notes: tuple = ()
 
 
 def _lru(size: int) -> caches.LRU:
@@ -275,16 +255,6 @@ def uses_lamps(bpy_material, desc) -> bool:
     return bool(getattr(props, "world_lamps", True)) and getattr(desc, "base_color", None) is None
 
 
-def lights_summary(scene) -> str:
-    """One line for the Surface panel: how many light objects light the films, and what is not
-    done yet (no cast shadows; only the film's specular layer)."""
-    count = sum(1 for obj in scene.objects if obj.type == "LIGHT" and obj.visible_get())
-    if count == 0:
-        return "Light objects: none"
-    shown = min(count, layout.MAX_LIGHTS)
-    return f"Light objects: {shown} shade the film (no cast shadows yet)"
-
-
 def table_texture(desc_key: str, result) -> resources.TableTexture:
     """The SH table texture for a baked table, uploaded once per description key."""
     found = CACHES.tables.get(desc_key)
@@ -293,74 +263,6 @@ def table_texture(desc_key: str, result) -> resources.TableTexture:
         CACHES.tables[desc_key] = found
         CACHES.stats["table_uploads"] += 1
     return found
-
-
-def _batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
-    """(per-corner thickness parameter or None, notes, whether a bake is awaited) of a batch:
-    from the extension's source (``props``; BLENDER_NOISE: :func:`.linked.noise_parameters`),
-    or from the link into a Principled BSDF's Thin Film Thickness
-    (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`)."""
-    notes = []
-    if not desc.varies:
-        return None, notes, False
-    try:
-        if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
-            thickness, nan_count = linked.noise_parameters(obj_eval, mesh, props.id_data)
-        elif props is not None and props.enabled:
-            thickness, nan_count = thickness_field(obj_eval, mesh, props)
-        elif linked_source is not None:
-            thickness, nan_count = linked.corner_parameters(
-                obj_eval, mesh, *linked_source, desc.thickness_range_nm
-            )
-        else:
-            return None, notes, False
-    except linked.Pending as exc:  # built again on the next frame, after the timer's bake
-        notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
-        return None, notes, True
-    except ValueError as exc:
-        notes.append(f"{name}: {exc}; using the middle of the thickness range")
-        return None, notes, False
-    if nan_count:
-        notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
-    return thickness, notes, False
-
-
-def _slot_batch(
-    name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None
-) -> BatchEntry:
-    """The batch of the triangles of material slot ``slot`` (None if it has none).
-
-    ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
-    material is not refreshed when an add-on property changes), or None; ``name``: the object's;
-    ``linked_source``: (material, Thin Film Thickness socket) of a Principled BSDF whose
-    thickness is linked, or None.
-    """
-    arrays = mesh_arrays(mesh)
-    if arrays is None:
-        return BatchEntry(signature, None)
-    positions, normals, triangles, _ = arrays
-    if len(obj_eval.material_slots) > 1:
-        tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
-        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)  # an array copy, not per item
-        poly_mat = np.zeros(len(mesh.polygons), dtype=np.int32)
-        attr = mesh.attributes.get("material_index")  # absent: every face uses slot 0
-        if attr is not None and attr.domain == "FACE" and attr.data_type == "INT":
-            attr.data.foreach_get("value", poly_mat)
-        triangles = triangles[poly_mat[tri_poly] == slot]
-    if triangles.shape[0] == 0:
-        return BatchEntry(signature, None)
-    thickness, notes, waiting = _batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
-    if desc.varies and thickness is None:
-        thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
-    if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
-        thickness = np.nan_to_num(
-            np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
-        )
-    CACHES.stats["batch_builds"] += 1
-    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
-    if waiting:
-        signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
-    return BatchEntry(signature, batch, thickness, tuple(notes))
 
 
 @dataclass
@@ -397,16 +299,6 @@ def _table_of(desc, allow_bake: bool, bake_later: bool):
     return result
 
 
-def bake_failure(name: str, exc: Exception) -> str:
-    """One line on why material ``name`` could not be baked; a bug's traceback goes to a log file."""
-    text = f"material {name!r} could not be baked ({type(exc).__name__}: {' '.join(str(exc).split())}"
-    if isinstance(exc, (ValueError, OSError)):
-        return text + ")"
-    where = cli_support.write_log("thinfilm_sh", exc)
-    log.error("Thin Film SH: material %r could not be baked: %s (details in %s)", name, exc, where)
-    return text + f"; details in {where})"
-
-
 def _fallback_entry(bpy_material, why: str, lighting, allow_bake, bake_later, messages, errors):
     """Report why ``bpy_material`` cannot be drawn and draw it as FALLBACK (matte magenta)."""
     messages.append(f"{why}: drawn in magenta (the fallback) until it is fixed")
@@ -427,19 +319,6 @@ def _fallback_entry(bpy_material, why: str, lighting, allow_bake, bake_later, me
         fallback=True,
         sh_order=result.sh_order,
     )
-
-
-def _thickness_source(bpy_material, props, desc):
-    """(the batches' thickness key, (material, socket) of a linked Principled thickness or None):
-    the extension's source settings, or the linked graph's content (an edit rebuilds batches)."""
-    if not desc.varies:
-        return None, None
-    if props is not None:
-        return thickness_inputs(props), None
-    socket = linked_thickness_socket(bpy_material)
-    if socket is None:
-        return None, None
-    return ("LINKED", linked.tree_key(socket), desc.thickness_range_nm), (bpy_material, socket)
 
 
 def _material_entry(
@@ -479,7 +358,7 @@ def _material_entry(
                 result = tables.get_table(desc)
             except Exception as exc:  # one material's failure must not stop the others
                 tables.record_failure(desc, exc)
-                failed = bake_failure(name, exc)  # a bug's traceback goes to a log file
+                failed = tables.bake_failure(name, exc)  # a bug's traceback goes to a log file
         if failed is not None:
             why = f"material {name!r}: bake failed: {failed} (not retried until it changes)"
             if allow_bake:
@@ -524,7 +403,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
     lamps = film is not None and uses_lamps(bpy_material, desc) and env is not None and env.lamps is not None
     props = getattr(bpy_material, "thinfilm_sh", None)
     props = props if props is not None and props.enabled else None
-    thickness_key, linked_source = _thickness_source(bpy_material, props, desc)
+    thickness_key, linked_source = batches.thickness_source(bpy_material, props, desc)
     buffer = lighting_for(lighting, result.sh_order, roughness, lamps)
     film_table = tables.peek_film(key) if film is not None and lobe else None
     grid, lobe = radiance_grids.film_grid(key, desc, result, lighting, lamps, film_table, wait=allow_bake)
@@ -650,7 +529,7 @@ def collect(
             cached = CACHES.batches.get(key)
             if cached is None or cached.signature != signature or original.name in CACHES.dirty:
                 CACHES.make_room(batches=len(used | {key}))
-                cached = _slot_batch(
+                cached = batches.slot_batch(
                     original.name,
                     obj_eval,
                     mesh,
@@ -661,6 +540,7 @@ def collect(
                     entry.linked_source,
                 )
                 CACHES.batches[key] = cached
+                CACHES.stats["batch_builds"] += cached.batch is not None
                 seen.add(original.name)
             used.add(key)
             messages.extend(cached.notes)
@@ -697,7 +577,7 @@ def collect(
     return items, messages
 
 
-def batch_entry(object_name: str, slot: int = 0, instance=False) -> BatchEntry | None:
+def batch_entry(object_name: str, slot: int = 0, instance=False) -> batches.BatchEntry | None:
     """The cached batch of an object's material slot as the last :func:`collect` built it."""
     return CACHES.batches.get((object_name, slot, instance))
 

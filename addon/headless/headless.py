@@ -21,7 +21,6 @@ import bpy
 
 from ...precompute import cli_support, effects, table_io
 from ..bakes import tables
-from ..drawing import scene_draw
 from ..materials.description import description, description_key, warnings
 from ..world import world
 from . import cli_args, frames
@@ -98,7 +97,7 @@ def bake_scene(scene, out_dir=None, progress=print, cache=None) -> dict:
         try:
             result, source = tables.get_table_with_source(desc, cache)
         except Exception as exc:  # isolated: the other materials are still baked
-            errors[name] = scene_draw.bake_failure(name, exc)
+            errors[name] = tables.bake_failure(name, exc)
             progress(f"[{i + 1}/{len(found)}] {name}: failed")
             continue
         entry = {

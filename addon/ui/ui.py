@@ -5,6 +5,7 @@ from bpy.types import Menu, Panel, UIList
 from ...precompute import effects
 from .. import caches
 from ..bakes import tables
+from ..drawing import lights as scene_lights
 from ..drawing import scene_draw, viewport
 from ..materials.description import description as _description_now
 from ..materials.description import description_key
@@ -254,7 +255,7 @@ class THINFILM_PT_surface(_SubPanel, Panel):
         row.active = not settings.diffuse_base
         row.prop(settings, "world_lamps")
         layout.label(text=world_state.lamps_summary(settings.world_lamps and not settings.diffuse_base))
-        layout.label(text=scene_draw.lights_summary(context.scene))
+        layout.label(text=scene_lights.lights_summary(context.scene))
         layout.prop(settings, "colour_mode")
         layout.prop(settings, "illuminant")
         layout.prop(settings, "transparency")
