@@ -104,6 +104,7 @@ class Extension:
         for dotted in (
             "addon.drawing.scene_draw",
             "addon.materials.props",
+            "addon.materials.conversion",
             "addon.headless.headless",
             "addon.headless.render",
         ):
@@ -222,7 +223,7 @@ class Scene:
         if key not in self.materials:
             mat = bpy.data.materials.new(f"Film l{l_max} {case}")
             tf = mat.thinfilm_sh
-            self.ext.props.fill_from_material(tf, FILM.with_(roughness=roughness_cases()[case]))
+            self.ext.conversion.fill_from_material(tf, FILM.with_(roughness=roughness_cases()[case]))
             tf.sh_order = str(int(l_max))
             tf.enabled = True
             self.materials[key] = mat
@@ -613,7 +614,7 @@ def automatic_orders(scene: Scene, quick: bool, log=print, per_pixel: bool = Tru
             mat = bpy.data.materials.get(f"Film auto {case}")
             if mat is None:
                 mat = bpy.data.materials.new(f"Film auto {case}")
-                scene.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
+                scene.ext.conversion.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
                 mat.thinfilm_sh.sh_order = "AUTO"
                 mat.thinfilm_sh.enabled = True
             scene.materials[("auto", case)] = mat

@@ -38,7 +38,12 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         ns.gpu = gpu_layer()
-        for dotted in ("addon.drawing.scene_draw", "addon.materials.props", "addon.ui.prefs"):
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.materials.props",
+            "addon.materials.conversion",
+            "addon.ui.prefs",
+        ):
             setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
@@ -251,7 +256,7 @@ def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
         mesh = bpy.data.meshes.new(f"film{k}")
         mesh.from_pydata([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], [], [(0, 1, 2, 3)])
         mat = bpy.data.materials.new(f"film{k}")
-        tf.props.fill_from_material(mat.thinfilm_sh, FILM)
+        tf.conversion.fill_from_material(mat.thinfilm_sh, FILM)
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32
@@ -310,7 +315,7 @@ def test_collect_splits_a_mesh_by_material_slot(tf, bpy):
     mesh.from_pydata(verts, [], [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6)])  # three quads
     for k in range(2):
         mat = bpy.data.materials.new(f"slot{k}")
-        tf.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
+        tf.conversion.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32

@@ -18,8 +18,8 @@ from ...precompute.material import Material
 from ...precompute.shading import policy
 from ..colour_space import unsupported_working_space
 from ..thickness.linked import Pending
+from .conversion import description_from_props
 from .principled import read_principled
-from .props import description_from_props
 
 __all__ = ["description", "description_key", "warnings"]
 

@@ -19,7 +19,7 @@ from ...precompute.conductors import metal_rgb, real_index
 from ...precompute.material import Layer, Material
 from ..colour_space import working_space
 from ..thickness import linked, thickness_nodes
-from .props import description_from_props, f32
+from .conversion import description_from_props, f32
 
 __all__ = [
     "SOCKET_BASE_COLOR",

@@ -26,9 +26,10 @@ from bpy.types import Operator
 from ..bakes import bake_jobs, tables
 from ..bakes.bake_jobs import BakeJob
 from ..drawing import viewport
+from ..materials.conversion import apply_preset, mark_custom
 from ..materials.description import description
 from ..materials.principled import write_back_to_principled
-from ..materials.props import PRESET_ITEMS, apply_preset, mark_custom
+from ..materials.props import PRESET_ITEMS
 from . import prefs
 
 
