@@ -222,9 +222,13 @@ def test_blenders_command_line_reaches_the_script(tf, sky, monkeypatch, tmp_path
         "--python",
         helper.SCRIPT,
         "--",
-        helper.ROOT,
+        helper.helper_process.PACKAGE_ROOT,
     ]
-    assert helper.command_for("", sys.executable) == [sys.executable, helper.SCRIPT, helper.ROOT]
+    assert helper.command_for("", sys.executable) == [
+        sys.executable,
+        helper.SCRIPT,
+        helper.helper_process.PACKAGE_ROOT,
+    ]
     monkeypatch.setattr(helper, "command", lambda: argv)
     assert_lit(tf, scene, ask_and_settle(tf, scene))
     assert renders == [] and helper.process_id() is not None

@@ -71,8 +71,6 @@ __all__ = [
 
 #: The helper script (run, not imported, by the helper process).
 SCRIPT = os.path.abspath(bake_process.__file__)
-#: The extension package's folder, which the script imports :mod:`precompute` from.
-ROOT = helper_process.PACKAGE_ROOT
 #: Environment variable: "0", "off", "no" or "false" turns the helper off, whatever the preference.
 ENV = "THINFILM_SH_BAKE_HELPER"
 #: Longest the helper may stay silent (no progress, no answer) before it is given up: it reports
@@ -93,7 +91,7 @@ class HelperError(RuntimeError):
 def command() -> list[str]:
     """The helper's command line: this process's Python (Blender's bundled one in Blender; the
     interpreter that imports bpy as a module otherwise) running :mod:`.bake_process`."""
-    return [sys.executable, SCRIPT, ROOT]
+    return [sys.executable, SCRIPT, helper_process.PACKAGE_ROOT]  # it imports precompute from there
 
 
 #: The helper's BLAS runs on one thread: its products are small (a soap table's contraction is
@@ -185,11 +183,12 @@ _ids = itertools.count(1)
 LAST: dict = {}
 #: The session's bake helper (:class:`.helper_process.HelperSlot`).
 SLOT = helper_process.HelperSlot(
-    "bake helper process",
-    "Tables are baked in Blender itself from now on: edits redraw more slowly while the interface is busy.",
-    lambda: _Process(command()),
-    log,
-    STATS,
+    what="bake helper process",
+    fallback="Tables are baked in Blender itself from now on: edits redraw more slowly while the "
+    "interface is busy.",
+    start=lambda: _Process(command()),
+    logger=log,
+    stats=STATS,
     usable=lambda process: process.alive() and not process.ended,
 )
 

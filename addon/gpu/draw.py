@@ -312,23 +312,31 @@ def prepare_draw(
 
 
 def _bind_group(shader, group: DrawGroup) -> None:
-    """Bind what a group's draws read: lighting, table, prefilter, film, lights, grid."""
-    shader.uniform_block(layout.LIGHTING.name, group.lighting)
-    if group.variant.table_ubo:
-        shader.uniform_block(layout.TABLE.name, group.table)
-    else:
-        shader.uniform_sampler(layout.TABLE_SAMPLER.name, group.table)
-    if group.prefiltered is not None:
-        shader.uniform_sampler(layout.PREFILTERED_SAMPLER.name, group.prefiltered)
-    if group.film is not None:
-        if group.variant.film_ubo:
-            shader.uniform_block(layout.FILM.name, group.film)
+    """Bind what a group's draws read: lighting, table, prefilter, film, lights, grid (each that
+    the group has), a table or film from its uniform buffer where the variant reads it there."""
+    binds = (
+        (layout.LIGHTING, group.lighting),
+        (layout.TABLE if group.variant.table_ubo else layout.TABLE_SAMPLER, group.table),
+        (layout.PREFILTERED_SAMPLER, group.prefiltered),
+        (layout.FILM if group.variant.film_ubo else layout.FILM_SAMPLER, group.film),
+        (layout.LIGHTS, group.lights),
+        (layout.RADIANCE_GRID_SAMPLER, group.grid),
+    )
+    for resource, value in binds:
+        if value is None:
+            continue
+        if isinstance(resource, layout.Block):
+            shader.uniform_block(resource.name, value)
         else:
-            shader.uniform_sampler(layout.FILM_SAMPLER.name, group.film)
-    if group.lights is not None:
-        shader.uniform_block(layout.LIGHTS.name, group.lights)
-    if group.grid is not None:
-        shader.uniform_sampler(layout.RADIANCE_GRID_SAMPLER.name, group.grid)
+            shader.uniform_sampler(resource.name, value)
+
+
+def _opaque_state(depth_write: bool) -> None:
+    """Depth test LESS_EQUAL (writing depth when ``depth_write``), no face culling, no blending."""
+    gpu.state.depth_test_set("LESS_EQUAL")
+    gpu.state.depth_mask_set(depth_write)
+    gpu.state.face_culling_set("NONE")
+    gpu.state.blend_set("NONE")
 
 
 def submit(prepared: PreparedDraw) -> None:
@@ -343,10 +351,7 @@ def submit(prepared: PreparedDraw) -> None:
         return
     saved = _SavedState()
     try:
-        gpu.state.depth_test_set("LESS_EQUAL")
-        gpu.state.depth_mask_set(True)
-        gpu.state.face_culling_set("NONE")
-        gpu.state.blend_set("NONE")
+        _opaque_state(depth_write=True)
         shader = None
         state = ("NONE", "NONE")
         for group in prepared.groups:
@@ -373,19 +378,7 @@ def submit(prepared: PreparedDraw) -> None:
         saved.restore()
 
 
-def draw_items(
-    items,
-    view_matrix,
-    projection_matrix,
-    *,
-    display_srgb: bool,
-    exposure: float = 0.0,
-    shaders=None,
-    uniforms=None,
-    display_lut=None,
-    compile_now: bool = True,
-    behind=None,
-):
+def draw_items(items, view_matrix, projection_matrix, **options):
     """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
 
     ``items``: objects with ``.batch`` (:class:`.mesh.MeshBatch` or a GPUBatch),
@@ -399,22 +392,10 @@ def draw_items(
     passes over what the framebuffer holds). ``display_lut``: the scene's view transform
     (:class:`.resources.DisplayLUTTexture`). ``compile_now`` False: uncompiled variants are drawn
     by their stand-in (:func:`prepare_draw`). ``behind``: the scene behind that solid glass
-    refracts (:func:`prepare_draw`). :func:`prepare_draw` then :func:`submit`; see there.
+    refracts (:func:`prepare_draw`). ``options``: :func:`prepare_draw`'s (``display_srgb``
+    is required). :func:`prepare_draw` then :func:`submit`; see there.
     """
-    submit(
-        prepare_draw(
-            items,
-            view_matrix,
-            projection_matrix,
-            display_srgb=display_srgb,
-            exposure=exposure,
-            shaders=shaders,
-            uniforms=uniforms,
-            display_lut=display_lut,
-            compile_now=compile_now,
-            behind=behind,
-        )
-    )
+    submit(prepare_draw(items, view_matrix, projection_matrix, **options))
 
 
 @functools.cache
@@ -447,10 +428,7 @@ def draw_background(
     view = view_ubo(view_matrix, projection_matrix, exposure)
     saved = _SavedState()
     try:
-        gpu.state.depth_test_set("LESS_EQUAL")
-        gpu.state.depth_mask_set(False)
-        gpu.state.face_culling_set("NONE")
-        gpu.state.blend_set("NONE")
+        _opaque_state(depth_write=False)
         shader.bind()
         shader.uniform_block(layout.VIEW.name, view)
         shader.uniform_sampler(layout.ENVIRONMENT_SAMPLER.name, environment.texture)

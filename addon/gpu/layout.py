@@ -164,19 +164,15 @@ LIGHTING = Block(
         ),
     ),
 )
-#: The view (:func:`.draw.view_uniforms`).
-VIEW = Block(
-    "TFView",
-    "tf_view",
-    1,
-    (
-        Member("view_proj", 4, "view-projection matrix, columns"),
-        Member("inv_view_proj", 4, "its inverse, columns"),
-        Member("camera", None, "camera position, w = 1 for an orthographic view"),
-        Member("view_dir", None, "unit direction towards the viewer"),
-        Member("params", None, "x: 2^exposure"),
-    ),
+_VIEW_MEMBERS = (
+    Member("view_proj", 4, "view-projection matrix, columns"),
+    Member("inv_view_proj", 4, "its inverse, columns"),
+    Member("camera", None, "camera position, w = 1 for an orthographic view"),
+    Member("view_dir", None, "unit direction towards the viewer"),
+    Member("params", None, "x: 2^exposure"),
 )
+#: The view (:func:`.draw.view_uniforms`).
+VIEW = Block("TFView", "tf_view", 1, _VIEW_MEMBERS)
 #: One drawn object (:func:`.draw.object_uniforms`).
 OBJECT = Block(
     "TFObject",

@@ -265,8 +265,14 @@ class _MaterialOperator:
 
     @classmethod
     def refuse(cls, mat) -> str | None:
-        """Why this operator cannot run on ``mat``, or None (overridden to add reasons)."""
-        return read_only_reason(mat)
+        """Why this operator cannot run on ``mat``: read-only (:func:`read_only_reason`), or what
+        :meth:`unfit` finds in its settings; None when it can."""
+        return read_only_reason(mat) or cls.unfit(mat.thinfilm_sh)
+
+    @staticmethod
+    def unfit(settings) -> str | None:
+        """Why these settings leave the operator nothing to do, or None (overridden)."""
+        return None
 
     @classmethod
     def poll(cls, context):
@@ -309,95 +315,6 @@ class THINFILM_OT_apply_preset(_MaterialOperator, Operator):
         return {"FINISHED"}
 
 
-class THINFILM_OT_layer_add(_MaterialOperator, Operator):
-    """Add a film layer below the active one"""
-
-    bl_idname = "thinfilm.layer_add"
-    bl_label = "Add Film Layer"
-    bl_options = {"REGISTER", "UNDO"}
-
-    def execute(self, context):
-        settings = self.settings(context)
-        if settings is None:
-            return {"CANCELLED"}
-        layers = settings.layers
-        index = min(settings.active_layer_index + 1, len(layers)) if len(layers) else 0
-        layers.add()
-        layers.move(len(layers) - 1, index)
-        settings.active_layer_index = index
-        mark_custom(settings)
-        return {"FINISHED"}
-
-
-class THINFILM_OT_layer_remove(_MaterialOperator, Operator):
-    """Remove the active film layer"""
-
-    bl_idname = "thinfilm.layer_remove"
-    bl_label = "Remove Film Layer"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def refuse(cls, mat) -> str | None:
-        """Read-only, or no layer to remove."""
-        reason = read_only_reason(mat)
-        if reason is None and not len(mat.thinfilm_sh.layers):
-            return "There is no film layer to remove"
-        return reason
-
-    def execute(self, context):
-        settings = self.settings(context)
-        if settings is None:
-            return {"CANCELLED"}
-        layers = settings.layers
-        if not len(layers):
-            self.report({"ERROR"}, "There is no film layer to remove")
-            return {"CANCELLED"}
-        index = min(settings.active_layer_index, len(layers) - 1)
-        layers.remove(index)
-        settings.active_layer_index = max(0, min(index, len(layers) - 1))
-        mark_custom(settings)
-        return {"FINISHED"}
-
-
-class THINFILM_OT_layer_move(_MaterialOperator, Operator):
-    """Move the active film layer up (toward the ambient) or down (toward the substrate)"""
-
-    bl_idname = "thinfilm.layer_move"
-    bl_label = "Move Film Layer"
-    bl_options = {"REGISTER", "UNDO"}
-
-    direction: EnumProperty(
-        name="Direction",
-        description="Which way to move the layer in the stack",
-        items=[
-            ("UP", "Up", "Toward the air side (the top of the list)"),
-            ("DOWN", "Down", "Toward the substrate (the bottom of the list)"),
-        ],
-    )
-
-    @classmethod
-    def refuse(cls, mat) -> str | None:
-        """Read-only, or fewer than two layers."""
-        reason = read_only_reason(mat)
-        if reason is None and len(mat.thinfilm_sh.layers) < 2:
-            return "Moving a film layer needs at least two layers"
-        return reason
-
-    def execute(self, context):
-        settings = self.settings(context)
-        if settings is None:
-            return {"CANCELLED"}
-        layers = settings.layers
-        index = settings.active_layer_index
-        target = index - 1 if self.direction == "UP" else index + 1
-        if not (0 <= index < len(layers) and 0 <= target < len(layers)):
-            return {"CANCELLED"}
-        layers.move(index, target)
-        settings.active_layer_index = target
-        mark_custom(settings)
-        return {"FINISHED"}
-
-
 class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
     """Write these settings into the material's Principled BSDF so Cycles renders the same film"""
 
@@ -405,14 +322,13 @@ class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
     bl_label = "Write to Principled BSDF"
     bl_options = {"REGISTER", "UNDO"}
 
-    @classmethod
-    def refuse(cls, mat) -> str | None:
-        """Read-only, or the extension's settings off (nothing to write). A material without a
-        Principled BSDF gets one."""
-        reason = read_only_reason(mat)
-        if reason is None and not mat.thinfilm_sh.enabled:
-            return "Thin Film SH is off for this material: there is nothing to write"
-        return reason
+    @staticmethod
+    def unfit(settings) -> str | None:
+        """The extension's settings off (nothing to write). A material without a Principled BSDF
+        gets one."""
+        return (
+            None if settings.enabled else "Thin Film SH is off for this material: there is nothing to write"
+        )
 
     def execute(self, context):
         if self.settings(context) is None:
@@ -427,6 +343,99 @@ class THINFILM_OT_write_to_principled(_MaterialOperator, Operator):
             self.report({"WARNING"}, note)
         self.report({"INFO"}, f"Wrote the thin film of {mat.name!r} to its Principled BSDF")
         return {"FINISHED"}
+
+
+class _LayerOperator(_MaterialOperator):
+    """An operator that edits the film's layer stack (:meth:`edit`), then selects a layer and
+    marks the settings CUSTOM; it needs :attr:`min_layers` layers."""
+
+    #: The layers the operator needs (its button is greyed out with fewer).
+    min_layers = 0
+    #: Why, by :attr:`min_layers`.
+    TOO_FEW = {1: "There is no film layer to remove", 2: "Moving a film layer needs at least two layers"}
+
+    @classmethod
+    def unfit(cls, settings) -> str | None:
+        """Fewer than :attr:`min_layers` layers."""
+        return cls.TOO_FEW[cls.min_layers] if len(settings.layers) < cls.min_layers else None
+
+    def edit(self, layers, active: int) -> int | None:
+        """Change ``layers`` (the active one is ``active``); the layer to select after, or None
+        when nothing was changed (the operator is cancelled)."""
+        raise NotImplementedError
+
+    def execute(self, context):
+        settings = self.settings(context)
+        if settings is None:
+            return {"CANCELLED"}
+        index = self.edit(settings.layers, settings.active_layer_index)
+        if index is None:
+            return {"CANCELLED"}
+        settings.active_layer_index = index
+        mark_custom(settings)
+        return {"FINISHED"}
+
+
+class THINFILM_OT_layer_add(_LayerOperator, Operator):
+    """Add a film layer below the active one"""
+
+    bl_idname = "thinfilm.layer_add"
+    bl_label = "Add Film Layer"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def edit(self, layers, active: int) -> int:
+        """A new layer below the active one, selected."""
+        index = min(active + 1, len(layers)) if len(layers) else 0
+        layers.add()
+        layers.move(len(layers) - 1, index)
+        return index
+
+
+class THINFILM_OT_layer_remove(_LayerOperator, Operator):
+    """Remove the active film layer"""
+
+    bl_idname = "thinfilm.layer_remove"
+    bl_label = "Remove Film Layer"
+    bl_options = {"REGISTER", "UNDO"}
+
+    min_layers = 1
+
+    def edit(self, layers, active: int) -> int | None:
+        """The active layer removed; its neighbour selected."""
+        if not len(layers):
+            self.report({"ERROR"}, "There is no film layer to remove")
+            return None
+        index = min(active, len(layers) - 1)
+        layers.remove(index)
+        return max(0, min(index, len(layers) - 1))
+
+
+class THINFILM_OT_layer_move(_LayerOperator, Operator):
+    """Move the active film layer up (toward the ambient) or down (toward the substrate)"""
+
+    bl_idname = "thinfilm.layer_move"
+    bl_label = "Move Film Layer"
+    bl_options = {"REGISTER", "UNDO"}
+
+    direction: EnumProperty(
+        name="Direction",
+        description="Which way to move the layer in the stack",
+        items=[
+            ("UP", "Up", "Toward the air side (the top of the list)"),
+            ("DOWN", "Down", "Toward the substrate (the bottom of the list)"),
+        ],
+    )
+    min_layers = 2
+
+    min_layers = 2
+
+    def edit(self, layers, active: int) -> int | None:
+        """The active layer one place up or down, still selected."""
+        target = active - 1 if self.direction == "UP" else active + 1
+        if 0 <= active < len(layers) and 0 <= target < len(layers):
+            layers.move(active, target)
+            return target
+        return None
 
 
 class THINFILM_OT_clear_cache(Operator):
@@ -552,6 +561,12 @@ class THINFILM_OT_cancel_bakes(Operator):
     bl_label = "Cancel Thin Film Bakes"
     bl_options = {"REGISTER"}
 
+    def execute(self, context):
+        """Ask the running bakes to stop at their next progress step."""
+        count = bake_jobs.cancel_all()
+        self.report({"INFO"}, f"Cancelled {count} thin film bake(s)")
+        return {"FINISHED"}
+
     @classmethod
     def poll(cls, context):
         """Only while a viewport bake runs."""
@@ -559,12 +574,6 @@ class THINFILM_OT_cancel_bakes(Operator):
             cls.poll_message_set("No thin film is baking")
             return False
         return True
-
-    def execute(self, context):
-        """Ask the running bakes to stop at their next progress step."""
-        count = bake_jobs.cancel_all()
-        self.report({"INFO"}, f"Cancelled {count} thin film bake(s)")
-        return {"FINISHED"}
 
 
 classes = (

@@ -40,6 +40,17 @@ def _settings(context):
     return mat, (getattr(mat, "thinfilm_sh", None) if mat is not None else None)
 
 
+def _split_layout(panel, context):
+    """(material, settings, layout) of a material panel, its layout in Blender's property-split
+    style and greyed out while the film is off."""
+    mat, settings = _settings(context)
+    layout = panel.layout
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    layout.active = settings.enabled
+    return mat, settings, layout
+
+
 class THINFILM_UL_layers(UIList):
     """Film layers from the ambient side (top) to the substrate (bottom)."""
 
@@ -86,11 +97,7 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
         self.layout.prop(_settings(context)[1], "enabled", text="")
 
     def draw(self, context):
-        mat, settings = _settings(context)
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layout.active = settings.enabled
+        mat, settings, layout = _split_layout(self, context)
         row = layout.row(align=True)
         row.prop(settings, "preset")
         row = layout.row(align=True)  # the user's own presets, beside the built-in ones
@@ -141,11 +148,7 @@ class _SubPanel(_MaterialPanel):
     bl_parent_id = "THINFILM_PT_material"
 
     def draw(self, context):
-        mat, settings = _settings(context)
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layout.active = settings.enabled
+        mat, settings, layout = _split_layout(self, context)
         self.draw_settings(context, layout, mat, settings)
 
 

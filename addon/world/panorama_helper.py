@@ -74,8 +74,6 @@ __all__ = [
 
 #: The helper script (run, not imported, by the helper process).
 SCRIPT = os.path.abspath(panorama_process.__file__)
-#: The extension package's folder, which the script imports :mod:`.panorama` from.
-ROOT = helper_process.PACKAGE_ROOT
 #: Longest wait for a started helper to be ready: ``import bpy`` takes ≈ 1.5–3 s on the 2-core
 #: machine (docs/world-latency.md); 20× that for a machine busy with a render.
 START_TIMEOUT_S = 60.0
@@ -100,9 +98,10 @@ class RenderFailed(RuntimeError):
 def command_for(binary: str, python: str) -> list[str]:
     """The helper's command line for Blender's ``binary`` ("" for bpy as a Python module, run by
     ``python``)."""
+    root = helper_process.PACKAGE_ROOT  # the script imports panorama.py from there
     if binary:
-        return [binary, "--background", "--factory-startup", "--python", SCRIPT, "--", ROOT]
-    return [python, SCRIPT, ROOT]
+        return [binary, "--background", "--factory-startup", "--python", SCRIPT, "--", root]
+    return [python, SCRIPT, root]
 
 
 def command() -> list[str]:
