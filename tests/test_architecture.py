@@ -157,3 +157,24 @@ def test_no_product_file_is_longer_than_800_lines():
     assert sizes, "no product files found"
     too_long = {path: n for path, n in sizes.items() if n > MAX_LINES}
     assert not too_long, f"split these by concern (more than {MAX_LINES} lines): {too_long}"
+
+
+# issue 35: addon/ is cut by entity into rooms (subpackages); a file is cut by concern well inside
+# the line cap, and a folder that grows past a room's size is split into rooms again.
+ADDON_MAX_LINES = 600
+ADDON_MAX_MODULES = 15
+
+
+def test_addon_files_stay_within_600_lines_and_folders_within_15_modules():
+    files = sorted((REPO / "addon").rglob("*.py"))
+    lines = {p: len(p.read_text(encoding="utf-8").splitlines()) for p in files}
+    too_long = {str(p.relative_to(REPO)): n for p, n in lines.items() if n > ADDON_MAX_LINES}
+    assert not too_long, f"split these by concern (more than {ADDON_MAX_LINES} lines): {too_long}"
+    modules: dict[str, int] = {}
+    for p in files:
+        if p.name != "__init__.py":
+            folder = str(p.parent.relative_to(REPO))
+            modules[folder] = modules.get(folder, 0) + 1
+    assert len(modules) > 1, "addon/ has no rooms: the walk found nothing"
+    crowded = {folder: n for folder, n in modules.items() if n > ADDON_MAX_MODULES}
+    assert not crowded, f"split these folders into rooms (more than {ADDON_MAX_MODULES} modules): {crowded}"
