@@ -8,7 +8,7 @@ bake and film table (``benchmarks/bake_helper.py``, docs/bake-helper.md): on a t
 the main thread idle, 132 ms beside a Python loop, 409 ms while it redrew the viewport; in the
 helper 44, 73 and 89 ms. So a viewport bake goes to one long-lived process
 (:mod:`.bake_process`: the same :func:`precompute.bake.bake` and film table, bit for bit), and
-the bake's worker thread (:func:`.viewport._bake_worker`) waits for the answer on its pipe,
+the bake's worker thread (:meth:`.bake_jobs.BakeJob.run`) waits for the answer on its pipe,
 which holds no lock:
 
 1. :func:`warm` starts the process when a viewport first draws films (0.4–0.6 s to import

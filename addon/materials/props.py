@@ -6,6 +6,8 @@ is :mod:`.conversion`'s (which also marks a hand edit CUSTOM: :func:`.conversion
 The Bake button's outputs live in memory (:data:`OUTPUTS`), never in the file.
 """
 
+from typing import NamedTuple
+
 import bpy
 from bpy.props import (
     BoolProperty,
@@ -37,6 +39,12 @@ PRESET_TOOLTIPS = {
     "coated_car_window": "A car window with a thin anti-reflective coating: a faint purple sheen",
 }
 
+
+def _items(*rows: str) -> list[tuple[str, str, str]]:
+    """Enum items (identifier, name, description) from "IDENTIFIER | Name | description" rows."""
+    return [tuple(part.strip() for part in row.split("|", 2)) for row in rows]
+
+
 PRESET_ITEMS = [
     (
         name.upper(),
@@ -51,39 +59,35 @@ METAL_ITEMS = [
     for name in available_metals()
 ]
 
-INDEX_MODE_ITEMS = [
-    ("CONSTANT", "Constant", "Constant complex index n + ik"),
-    ("CAUCHY", "Cauchy", "Dispersive dielectric n(λ) = A + B/λ² + C/λ⁴ (λ in µm)"),
-    ("METAL", "Metal", "Measured index of a metal"),
-]
+INDEX_MODE_ITEMS = _items(
+    "CONSTANT | Constant | Constant complex index n + ik",
+    "CAUCHY | Cauchy | Dispersive dielectric n(λ) = A + B/λ² + C/λ⁴ (λ in µm)",
+    "METAL | Metal | Measured index of a metal",
+)
 
-THICKNESS_SOURCE_ITEMS = [
-    ("ATTRIBUTE", "Attribute", "A float mesh attribute in [0, 1] (points, corners or faces)"),
-    ("NOISE", "Noise", "Procedural 3-D value noise of object-space positions"),
-    ("IMAGE", "Image", "First channel of an image at the mesh's UVs"),
-    (
-        "BLENDER_NOISE",
-        "Blender Noise",
-        "Blender's own Noise Texture of object-space positions (baked with Cycles): written back to "
-        "the Principled BSDF as nodes, so Cycles renders the same variation",
-    ),
-]
+THICKNESS_SOURCE_ITEMS = _items(
+    "ATTRIBUTE | Attribute | A float mesh attribute in [0, 1] (points, corners or faces)",
+    "NOISE | Noise | Procedural 3-D value noise of object-space positions",
+    "IMAGE | Image | First channel of an image at the mesh's UVs",
+    "BLENDER_NOISE | Blender Noise | Blender's own Noise Texture of object-space positions (baked "
+    "with Cycles): written back to the Principled BSDF as nodes, so Cycles renders the same variation",
+)
 
-SUBSTRATE_MODE_ITEMS = [
-    ("DIELECTRIC", "Dielectric", "Transparent substrate with a real index (glass, water, air)"),
-    ("METAL", "Metal", "Measured index of a metal"),
-    ("CUSTOM", "Custom", "Constant complex index n + ik"),
-]
+SUBSTRATE_MODE_ITEMS = _items(
+    "DIELECTRIC | Dielectric | Transparent substrate with a real index (glass, water, air)",
+    "METAL | Metal | Measured index of a metal",
+    "CUSTOM | Custom | Constant complex index n + ik",
+)
 
-MODEL_ITEMS = [
-    ("EXACT", "Exact", "Exact multiple-beam (Airy / transfer-matrix) interference"),
-    ("GLASSNER2000", "Glassner 2000", "Glassner's single-film approximation (one layer only)"),
-]
+MODEL_ITEMS = _items(
+    "EXACT | Exact | Exact multiple-beam (Airy / transfer-matrix) interference",
+    "GLASSNER2000 | Glassner 2000 | Glassner's single-film approximation (one layer only)",
+)
 
-COLOUR_MODE_ITEMS = [
-    ("SPECTRAL", "Spectral", "Spectral rendering: lighting turned into spectra, exact color"),
-    ("PER_CHANNEL", "Per Channel", "RGB channels filtered independently, like Cycles' thin film"),
-]
+COLOUR_MODE_ITEMS = _items(
+    "SPECTRAL | Spectral | Spectral rendering: lighting turned into spectra, exact color",
+    "PER_CHANNEL | Per Channel | RGB channels filtered independently, like Cycles' thin film",
+)
 
 ILLUMINANT_ITEMS = [
     ("E", "E", "Equal-energy white (Blender's working spaces are E-balanced here)"),
@@ -146,80 +150,125 @@ def _output_setter(name: str):
 # ----------------------------------------------------------------------------------------------
 # Property groups
 # ----------------------------------------------------------------------------------------------
+class _Limits(NamedTuple):
+    """A physical setting's slider: hard minimum, soft minimum, soft maximum (None: Blender's
+    default) and the digits shown."""
+
+    min: float | None
+    soft_min: float | None
+    soft_max: float | None
+    precision: int
+
+
+#: The sliders of the film's float settings (:class:`_Limits`).
+_INDEX = _Limits(0.01, 1.0, 4.0, 4)  # a refractive index: water 1.33, glass 1.5, TiO2 2.4
+_EXTINCTION = _Limits(0.0, None, 5.0, 4)  # a layer's extinction coefficient k
+_CAUCHY_A = _Limits(0.01, 1.0, 3.0, 4)
+_CAUCHY_B = _Limits(None, 0.0, 0.1, 5)  # µm²
+_CAUCHY_C = _Limits(None, 0.0, 0.01, 6)  # µm⁴
+_NM = _Limits(0.0, None, 2000.0, 1)  # a thickness in nm: colours from about 100 to 1500 nm
+_SUBSTRATE_N = _Limits(0.01, None, 4.0, 4)
+_SUBSTRATE_K = _Limits(0.0, None, 10.0, 4)  # metals 1 to 10
+_AMBIENT = _Limits(1.0, None, 2.0, 4)  # air 1.0, water 1.33
+_FACTOR = _Limits(0.0, None, None, 2)  # 0 to 1 (max=1.0): Blender's default precision, 2
+#: The tooltip of the thickness range's ends.
+_END_TIP = "The top layer's thickness in nanometers where the thickness source is {}"
+
+
+def _physical(name: str, description: str, default: float, limits: _Limits, **extra):
+    """A float setting of the film (an index, a thickness in nm, the roughness): editing it by
+    hand marks the preset CUSTOM; its slider's ``limits`` (:class:`_Limits`); ``extra``: more of
+    ``FloatProperty``'s options (a hard maximum, a subtype)."""
+    bounds = {
+        key: limits[i] for i, key in enumerate(("min", "soft_min", "soft_max")) if limits[i] is not None
+    }
+    return FloatProperty(
+        name=name,
+        description=description,
+        default=default,
+        precision=limits.precision,
+        update=_settings_changed,
+        **bounds,
+        **extra,
+    )
+
+
+def _choice(name: str, description: str, items, default: str):
+    """A choice of how the film is shown or baked (not its physics: the preset stays)."""
+    return EnumProperty(name=name, description=description, items=items, default=default)
+
+
+def _text(name: str, description: str, default: str):
+    """A name the thickness is read by (an attribute, a UV map)."""
+    return StringProperty(name=name, description=description, default=default)
+
+
+def _physical_choice(name: str, description: str, items, default=None):
+    """A choice of the film's physics (an index mode, a metal, a model): editing it by hand marks
+    the preset CUSTOM."""
+    extra = {} if default is None else {"default": default}
+    return EnumProperty(name=name, description=description, items=items, update=_settings_changed, **extra)
+
+
+def _physical_switch(name: str, description: str, default: bool):
+    """A switch of the film's physics: editing it by hand marks the preset CUSTOM."""
+    return BoolProperty(name=name, description=description, default=default, update=_settings_changed)
+
+
+def _count(name: str, description: str, maximum: int):
+    """A table size of the bake's quality, 0 (chosen automatically) to ``maximum``."""
+    return IntProperty(name=name, description=description, default=0, min=0, max=maximum)
+
+
+def _output(kind, name: str, description: str, key: str, default):
+    """One of the Bake button's outputs: a ``kind`` property read and written through
+    :data:`OUTPUTS` under ``key`` (never saved, never animated, editable on linked data)."""
+    return kind(
+        name=name,
+        description=description,
+        get=_output_getter(key, default),
+        set=_output_setter(key),
+        options=OUTPUT_OPTIONS,
+    )
+
+
 class ThinFilmLayer(PropertyGroup):
     """One film layer: its index and thickness."""
 
-    index_mode: EnumProperty(
-        name="Index",
-        description="How the layer's refractive index is given: a constant, Cauchy's dispersion "
+    index_mode: _physical_choice(
+        "Index",
+        "How the layer's refractive index is given: a constant, Cauchy's dispersion "
         "formula or a measured metal",
-        items=INDEX_MODE_ITEMS,
-        default="CONSTANT",
-        update=_settings_changed,
+        INDEX_MODE_ITEMS,
+        "CONSTANT",
     )
-    n: FloatProperty(
-        name="n",
-        description="Refractive index of the layer (water 1.33, glass 1.5, titanium dioxide 2.4)",
-        default=1.33,
-        min=0.01,
-        soft_min=1.0,
-        soft_max=4.0,
-        precision=4,
-        update=_settings_changed,
+    n: _physical(
+        "n",
+        "Refractive index of the layer (water 1.33, glass 1.5, titanium dioxide 2.4)",
+        1.33,
+        _INDEX,
     )
-    k: FloatProperty(
-        name="k",
-        description="Extinction coefficient (0 = transparent)",
-        default=0.0,
-        min=0.0,
-        soft_max=5.0,
-        precision=4,
-        update=_settings_changed,
+    k: _physical("k", "Extinction coefficient (0 = transparent)", 0.0, _EXTINCTION)
+    cauchy_a: _physical(
+        "A",
+        "Cauchy's A: the layer's refractive index at long (red) wavelengths",
+        1.5,
+        _CAUCHY_A,
     )
-    cauchy_a: FloatProperty(
-        name="A",
-        description="Cauchy's A: the layer's refractive index at long (red) wavelengths",
-        default=1.5,
-        min=0.01,
-        soft_min=1.0,
-        soft_max=3.0,
-        precision=4,
-        update=_settings_changed,
+    cauchy_b: _physical(
+        "B",
+        "Cauchy's B in µm²: how much the index rises toward blue (dispersion)",
+        0.004,
+        _CAUCHY_B,
     )
-    cauchy_b: FloatProperty(
-        name="B",
-        description="Cauchy's B in µm²: how much the index rises toward blue (dispersion)",
-        default=0.004,
-        soft_min=0.0,
-        soft_max=0.1,
-        precision=5,
-        update=_settings_changed,
-    )
-    cauchy_c: FloatProperty(
-        name="C",
-        description="Cauchy's C in µm⁴: a finer dispersion term, usually 0",
-        default=0.0,
-        soft_min=0.0,
-        soft_max=0.01,
-        precision=6,
-        update=_settings_changed,
-    )
-    metal: EnumProperty(
-        name="Metal",
-        description="The metal whose measured refractive index the layer uses",
-        items=METAL_ITEMS,
-        update=_settings_changed,
-    )
-    thickness_nm: FloatProperty(
-        name="Thickness",
-        description="Thickness of the layer in nanometers: interference colors appear from about "
+    cauchy_c: _physical("C", "Cauchy's C in µm⁴: a finer dispersion term, usually 0", 0.0, _CAUCHY_C)
+    metal: _physical_choice("Metal", "The metal whose measured refractive index the layer uses", METAL_ITEMS)
+    thickness_nm: _physical(
+        "Thickness",
+        "Thickness of the layer in nanometers: interference colors appear from about "
         "100 to 1500 nm; thicker films fade to white",
-        default=500.0,
-        min=0.0,
-        soft_max=2000.0,
-        precision=1,
-        subtype="NONE",
-        update=_settings_changed,
+        500.0,
+        _NM,
     )
 
 
@@ -255,41 +304,23 @@ class ThinFilmMaterialSettings(PropertyGroup):
     )
 
     # Top-layer thickness over the surface.
-    vary_thickness: BoolProperty(
-        name="Vary Thickness",
-        description="Vary the top layer's thickness over the surface between the minimum and "
-        "maximum thickness",
-        default=True,
-        update=_settings_changed,
+    vary_thickness: _physical_switch(
+        "Vary Thickness",
+        "Vary the top layer's thickness over the surface between the minimum and maximum thickness",
+        True,
     )
-    thickness_min_nm: FloatProperty(
-        name="Minimum Thickness",
-        description="The top layer's thickness in nanometers where the thickness source is 0",
-        default=0.0,
-        min=0.0,
-        soft_max=2000.0,
-        precision=1,
-        update=_settings_changed,
+    thickness_min_nm: _physical("Minimum Thickness", _END_TIP.format(0), 0.0, _NM)
+    thickness_max_nm: _physical("Maximum Thickness", _END_TIP.format(1), 1000.0, _NM)
+    thickness_source: _choice(
+        "Thickness Source",
+        "Where the top layer's thickness over the surface comes from",
+        THICKNESS_SOURCE_ITEMS,
+        "NOISE",
     )
-    thickness_max_nm: FloatProperty(
-        name="Maximum Thickness",
-        description="The top layer's thickness in nanometers where the thickness source is 1",
-        default=1000.0,
-        min=0.0,
-        soft_max=2000.0,
-        precision=1,
-        update=_settings_changed,
-    )
-    thickness_source: EnumProperty(
-        name="Thickness Source",
-        items=THICKNESS_SOURCE_ITEMS,
-        default="NOISE",
-        description="Where the top layer's thickness over the surface comes from",
-    )
-    thickness_attribute: StringProperty(
-        name="Thickness Attribute",
-        description="Name of a float mesh attribute from 0 (minimum thickness) to 1 (maximum thickness)",
-        default="thickness",
+    thickness_attribute: _text(
+        "Thickness Attribute",
+        "Name of a float mesh attribute from 0 (minimum thickness) to 1 (maximum thickness)",
+        "thickness",
     )
     noise_scale: FloatProperty(
         name="Noise Scale",
@@ -307,81 +338,51 @@ class ThinFilmMaterialSettings(PropertyGroup):
         description="Image whose first channel gives the thickness (0 minimum, 1 maximum); set its "
         "color space to Non-Color",
     )
-    thickness_uv_map: StringProperty(
-        name="Thickness UV Map",
-        description="UV map that places the thickness image (empty: the active render UV map)",
-        default="",
+    thickness_uv_map: _text(
+        "Thickness UV Map", "UV map that places the thickness image (empty: the active render UV map)", ""
     )
 
     # Substrate and ambient.
-    substrate_mode: EnumProperty(
-        name="Substrate",
-        description="What lies under the film: a transparent material, a measured metal or a custom "
-        "complex index",
-        items=SUBSTRATE_MODE_ITEMS,
-        default="DIELECTRIC",
-        update=_settings_changed,
+    substrate_mode: _physical_choice(
+        "Substrate",
+        "What lies under the film: a transparent material, a measured metal or a custom complex index",
+        SUBSTRATE_MODE_ITEMS,
+        "DIELECTRIC",
     )
-    substrate_ior: FloatProperty(
-        name="Substrate IOR",
-        description="Refractive index under the film (1.0: a free film in air such as a bubble, "
-        "1.33 water, 1.5 glass)",
-        default=1.0,
-        min=0.01,
-        soft_min=1.0,
-        soft_max=4.0,
-        precision=4,
-        update=_settings_changed,
+    substrate_ior: _physical(
+        "Substrate IOR",
+        "Refractive index under the film (1.0: a free film in air such as a bubble, 1.33 water, 1.5 glass)",
+        1.0,
+        _INDEX,
     )
-    substrate_metal: EnumProperty(
-        name="Substrate Metal",
-        description="The metal under the film, with its measured refractive index",
-        items=METAL_ITEMS,
-        update=_settings_changed,
+    substrate_metal: _physical_choice(
+        "Substrate Metal", "The metal under the film, with its measured refractive index", METAL_ITEMS
     )
-    substrate_n: FloatProperty(
-        name="Substrate n",
-        description="Refractive index (real part) of the substrate",
-        default=1.5,
-        min=0.01,
-        soft_max=4.0,
-        precision=4,
-        update=_settings_changed,
+    substrate_n: _physical("Substrate n", "Refractive index (real part) of the substrate", 1.5, _SUBSTRATE_N)
+    substrate_k: _physical(
+        "Substrate k",
+        "Extinction coefficient of the substrate (0: transparent, metals 1 to 10)",
+        0.0,
+        _SUBSTRATE_K,
     )
-    substrate_k: FloatProperty(
-        name="Substrate k",
-        description="Extinction coefficient of the substrate (0: transparent, metals 1 to 10)",
-        default=0.0,
-        min=0.0,
-        soft_max=10.0,
-        precision=4,
-        update=_settings_changed,
-    )
-    ambient_ior: FloatProperty(
-        name="Ambient IOR",
-        description="Index of the medium around the object (air 1.0, water 1.33)",
-        default=1.0,
-        min=1.0,
-        soft_max=2.0,
-        precision=4,
-        update=_settings_changed,
+    ambient_ior: _physical(
+        "Ambient IOR",
+        "Index of the medium around the object (air 1.0, water 1.33)",
+        1.0,
+        _AMBIENT,
     )
 
     # Surface.
-    roughness: FloatProperty(
-        name="Roughness",
-        description="GGX roughness as in the Principled BSDF (α = roughness²)",
-        default=0.05,
-        min=0.0,
+    roughness: _physical(
+        "Roughness",
+        "GGX roughness as in the Principled BSDF (α = roughness²)",
+        0.05,
+        _FACTOR,
         max=1.0,
         subtype="FACTOR",
-        update=_settings_changed,
     )
-    diffuse_base: BoolProperty(
-        name="Diffuse Base",
-        description="Add a diffuse color under the film, as paint or pigment under a clear coat",
-        default=False,
-        update=_settings_changed,
+    diffuse_base: _physical_switch(
+        "Diffuse Base", "Add a diffuse color under the film, as paint or pigment under a clear coat", False
     )
     diffuse_color: FloatVectorProperty(
         name="Diffuse Color",
@@ -393,19 +394,15 @@ class ThinFilmMaterialSettings(PropertyGroup):
         default=(0.05, 0.05, 0.05),
         update=_settings_changed,
     )
-    model: EnumProperty(
-        name="Interference Model",
-        description="How the film's interference is computed",
-        items=MODEL_ITEMS,
-        default="EXACT",
-        update=_settings_changed,
+    model: _physical_choice(
+        "Interference Model", "How the film's interference is computed", MODEL_ITEMS, "EXACT"
     )
 
     # Viewing.
-    transparency: EnumProperty(
-        name="Transparency",
-        description="What lies behind the film: hidden by it, or seen through it, tinted by its color",
-        items=(
+    transparency: _choice(
+        "Transparency",
+        "What lies behind the film: hidden by it, or seen through it, tinted by its color",
+        (
             (
                 "AUTO",
                 "Automatic",
@@ -420,7 +417,7 @@ class ThinFilmMaterialSettings(PropertyGroup):
                 "what lies behind seen through it, tinted by the film's transmittance",
             ),
         ),
-        default="AUTO",
+        "AUTO",
     )
     world_lamps: BoolProperty(
         name="World Lamps",
@@ -431,49 +428,37 @@ class ThinFilmMaterialSettings(PropertyGroup):
         ),
         default=True,
     )
-    colour_mode: EnumProperty(
-        name="Color Mode",
-        description="How the film filters the light's color: spectrally (exact) or per RGB channel "
+    colour_mode: _choice(
+        "Color Mode",
+        "How the film filters the light's color: spectrally (exact) or per RGB channel "
         "(as Cycles renders a Principled BSDF's thin film)",
-        items=COLOUR_MODE_ITEMS,
-        default="SPECTRAL",
+        COLOUR_MODE_ITEMS,
+        "SPECTRAL",
     )
-    illuminant: EnumProperty(
-        name="Illuminant",
-        items=ILLUMINANT_ITEMS,
-        default="E",
-        description="Spectrum assumed for white light in the world lighting",
+    illuminant: _choice(
+        "Illuminant", "Spectrum assumed for white light in the world lighting", ILLUMINANT_ITEMS, "E"
     )
 
     # Quality (0 = auto).
-    sh_order: EnumProperty(
-        name="SH Order",
-        description="Detail of the lighting, in spherical-harmonic bands: higher is sharper and "
+    sh_order: _choice(
+        "SH Order",
+        "Detail of the lighting, in spherical-harmonic bands: higher is sharper and "
         "slower to bake. Auto picks the smallest that holds the material's reflection",
-        items=SH_ORDER_ITEMS,
-        default="AUTO",
+        SH_ORDER_ITEMS,
+        "AUTO",
     )
-    view_samples: IntProperty(
-        name="View Angles",
-        description="How many viewing angles the table holds (0: chosen automatically)",
-        default=0,
-        min=0,
-        max=512,
+    view_samples: _count(
+        "View Angles", "How many viewing angles the table holds (0: chosen automatically)", 512
     )
-    thickness_samples: IntProperty(
-        name="Thickness Samples",
-        description="How many thicknesses the table holds across the range (0: chosen automatically)",
-        default=0,
-        min=0,
-        max=512,
+    thickness_samples: _count(
+        "Thickness Samples",
+        "How many thicknesses the table holds across the range (0: chosen automatically)",
+        512,
     )
-    wavelength_count: IntProperty(
-        name="Wavelengths",
-        description="How many wavelengths of visible light (360–830 nm) the bake adds up (0: chosen "
-        "automatically)",
-        default=0,
-        min=0,
-        max=8192,
+    wavelength_count: _count(
+        "Wavelengths",
+        "How many wavelengths of visible light (360–830 nm) the bake adds up (0: chosen automatically)",
+        8192,
     )
 
     # Previewing a Principled BSDF's own thin film (when the extension's settings are off).
@@ -487,26 +472,26 @@ class ThinFilmMaterialSettings(PropertyGroup):
 
     # Outputs of the Bake button: kept for this session only (OUTPUTS), never saved in the
     # file nor animated, and writable on linked materials (baking changes no library data).
-    last_bake_ms: FloatProperty(
-        name="Last Bake Time (ms)",
-        description="How long the last bake of this material took, in milliseconds",
-        get=_output_getter("last_bake_ms", 0.0),
-        set=_output_setter("last_bake_ms"),
-        options=OUTPUT_OPTIONS,
+    last_bake_ms: _output(
+        FloatProperty,
+        "Last Bake Time (ms)",
+        "How long the last bake of this material took, in milliseconds",
+        "last_bake_ms",
+        0.0,
     )
-    last_plan: StringProperty(
-        name="Last Bake Plan",
-        description="What the last bake of this material chose (SH order, angles, wavelengths)",
-        get=_output_getter("last_plan", ""),
-        set=_output_setter("last_plan"),
-        options=OUTPUT_OPTIONS,
+    last_plan: _output(
+        StringProperty,
+        "Last Bake Plan",
+        "What the last bake of this material chose (SH order, angles, wavelengths)",
+        "last_plan",
+        "",
     )
-    last_error: StringProperty(
-        name="Last Bake Error",
-        description="Why the last bake of this material failed (empty when it succeeded)",
-        get=_output_getter("last_error", ""),
-        set=_output_setter("last_error"),
-        options=OUTPUT_OPTIONS,
+    last_error: _output(
+        StringProperty,
+        "Last Bake Error",
+        "Why the last bake of this material failed (empty when it succeeded)",
+        "last_error",
+        "",
     )
 
 
