@@ -83,6 +83,7 @@ class BakeJob(workers.Job):
         super().__init__(description_key(desc) if key is None else key)
         self.desc, self.cache, self.film, self.then = desc, cache, film, then
         self.viewport = viewport
+        self.text = "starting"  # the Bake button's status line until the first checkpoint
         self.ticket = None
         self.source = ""
         self.baked = None  # a fresh bake whose disk copy is still to be written (viewport)
@@ -118,9 +119,8 @@ class BakeJob(workers.Job):
                 tables.get_film(self.desc, result, self.report)
             self.report(1.0, "grid")
             self._then(result)
-        except workers.Cancelled:
+        except workers.Cancelled:  # a table baked before the cancel is still written to disk (after)
             tables.release_nodes(result)
-            self.baked = None
             raise
         return result
 
