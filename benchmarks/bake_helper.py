@@ -10,7 +10,7 @@ kernel is reused), median wall time from the request to the table (and film tabl
 
 - *thread*: ``precompute.bakes.bake.bake`` and ``film_colour.film_table`` on a worker thread of this
   process, as the viewport baked before the helper;
-- *helper*: ``addon.bake_helper.bake`` (the worker waits on the pipe; the helper bakes);
+- *helper*: ``addon.bakes.bake_helper.bake`` (the worker waits on the pipe; the helper bakes);
 
 while the main thread (a) sleeps, (b) runs a pure-Python loop (an add-on's or a panel's Python:
 it holds the interpreter's lock), (c) redraws the soap bubble again and again (the loop's

@@ -613,7 +613,7 @@ COLD_NOTES = (
     " (the same sums in another order).",
     "- Films drawn by the split sum alone read only the l = 0 entry; `bake.bake` with"
     " `Quality(sh_order=0)` bakes just that, but choosing it needs the draw's knowledge of the World"
-    " (a prefiltered World must be there), which lives in addon/tables.py (not changed here).",
+    " (a prefiltered World must be there), which lives in addon/bakes/tables.py (not changed here).",
 )
 COLD_BEGIN = "<!-- cold-bakes:begin -->"
 COLD_END = "<!-- cold-bakes:end -->"

@@ -17,7 +17,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: The add-on's GPU layer, module by module (addon/gpu/).
-GPU_MODULES = ("context", "shaders", "resources", "mesh", "draw")
+GPU_MODULES = ("context", "layout", "shaders", "resources", "mesh", "draw")
 
 
 def gpu_layer(package: str):

@@ -202,7 +202,8 @@ def main(argv=None) -> int:
         f"{samples} samples, no denoising, its default Blackman–Harris 1.5 px pixel filter. **Ours**: the",
         "extension's headless command on the same file, in-process (`scripts/thinfilm_headless.py FILE",
         "render`): the add-on's draw collection, table bake, World lamps, prefilter and GLSL shader on",
-        "Mesa llvmpipe, drawn 4× larger and filtered with the scene's pixel filter (addon/headless.py).",
+        "Mesa llvmpipe, drawn 4× larger and filtered with the scene's pixel filter "
+        "(addon/headless/render.py).",
         "The Principled film is previewed in the Cycles-matching colour mode (Cycles' film pipeline,",
         "docs/white-furnace.md). ΔE2000 between the two EXRs over the sphere, one pixel of silhouette",
         "left out, at a common exposure (the reference's p95 luminance at 0.8). Cycles' own noise at",

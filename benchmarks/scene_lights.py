@@ -179,7 +179,7 @@ def our_frame(ext, scene, size: int) -> tuple[np.ndarray, dict]:
     """The headless ``render`` command's frame (2× and box-averaged), and its summary."""
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "ours.png"
-        summary = ext.headless.render_scene(scene, str(out), size * SUPERSAMPLE, size * SUPERSAMPLE)
+        summary = ext.render.render_scene(scene, str(out), size * SUPERSAMPLE, size * SUPERSAMPLE)
         image = hdri.read_equirect(out.with_suffix(".exr"))[..., :3]
     return render.box_downsample(image, SUPERSAMPLE), summary
 
@@ -250,11 +250,11 @@ def time_lights(ext, cases=TIMED, size: int = 256, frames: int = 5) -> list[dict
         scene = build_scene(case, size)
         with tempfile.TemporaryDirectory() as tmp:
             out = pathlib.Path(tmp) / "t.png"
-            ext.headless.render_scene(scene, str(out), size, size, background=False)  # warm-up: bake, compile
+            ext.render.render_scene(scene, str(out), size, size, background=False)  # warm-up: bake, compile
             times = []
             for _ in range(frames):
                 t0 = time.perf_counter()
-                ext.headless.render_scene(scene, str(out), size, size, background=False)
+                ext.render.render_scene(scene, str(out), size, size, background=False)
                 times.append(time.perf_counter() - t0)
         rows.append({"lights": count, "kind": kind, "ms": 1000.0 * float(np.median(times))})
     return rows

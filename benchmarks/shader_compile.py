@@ -123,7 +123,7 @@ def report(res: dict) -> str:
         "First compile of every shader variant the sample scenes draw, cold, each in a fresh",
         "`ShaderCache` (`python -m benchmarks.shader_compile`). *drawn*: what the product draws;",
         "*stand-in*: what the viewport draws while that variant compiles at idle",
-        "(`variant.stand_in`, addon/shader_warmup.py); *per-pixel SH (before)*: the variant a",
+        "(`variant.stand_in`, addon/drawing/shader_warmup.py); *per-pixel SH (before)*: the variant a",
         "radiance-grid variant replaces, which the viewport compiled in its draw callback before.",
         "A variant several scenes draw is compiled once: its rows repeat that figure.",
         "",

@@ -84,8 +84,9 @@ class Replay:
 
     def __init__(self, ext, bpy):
         self.ext, self.bpy = ext, bpy
-        self.viewport = importlib.import_module(f"{ext.package.__name__}.addon.viewport")
-        self.world_job = importlib.import_module(f"{ext.package.__name__}.addon.world_job")
+        self.viewport = importlib.import_module(f"{ext.package.__name__}.addon.drawing.viewport")
+        self.world_job = importlib.import_module(f"{ext.package.__name__}.addon.world.world_job")
+        self.world_state = importlib.import_module(f"{ext.package.__name__}.addon.world.world_state")
         self.viewport._tag_redraw = lambda: None  # no windows in this process
         self.profile = None  # a cProfile.Profile to find a slow draw (--profile)
 
@@ -153,7 +154,7 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
     film_sphere(bpy, scene)
     replay = Replay(ext, bpy)
     rows = []
-    first = replay.until_ready(lambda items: ext.scene_draw.CACHES.world is not None)  # first open
+    first = replay.until_ready(lambda items: replay.world_state.current() is not None)  # first open
     replay.draw(allow_bake=True)  # the table (not timed), then the prefilter the film reads
     replay.until_ready(lambda items: bool(items) and items[0].prefiltered is not None)
     rows.append((f"{kind}: first open (World only)", first))
@@ -328,7 +329,7 @@ def main(argv=None) -> int:
 
     ext = Extension()
     rows = run_scene(ext, "hdri") + run_scene(ext, "sky")
-    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.panorama_helper"))
+    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.world.panorama_helper"))
     pre = prefilter_before_after(args.before)
     text = report(rows, pre, helper)
     print(text)

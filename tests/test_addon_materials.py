@@ -34,8 +34,8 @@ def ext(bpy, package, tmp_path):
     """A fresh empty file, the extension registered and its preferences' cache in tmp_path."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
-    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
-    tables = importlib.import_module(f"{EXTENSION_ID}.addon.tables")
+    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.ui.prefs")
+    tables = importlib.import_module(f"{EXTENSION_ID}.addon.bakes.tables")
     tables.clear_memory_cache()
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
@@ -54,26 +54,26 @@ def _module(name):
 
 @pytest.fixture
 def description_mod(ext):
-    """``thinfilm_sh.addon.description``: what the preview shows for a Blender material."""
-    return _module("addon.description")
+    """``thinfilm_sh.addon.materials.description``: what the preview shows for a Blender material."""
+    return _module("addon.materials.description")
 
 
 @pytest.fixture
 def principled_mod(ext):
-    """``thinfilm_sh.addon.principled``: reading and writing the Principled BSDF."""
-    return _module("addon.principled")
+    """``thinfilm_sh.addon.materials.principled``: reading and writing the Principled BSDF."""
+    return _module("addon.materials.principled")
 
 
 @pytest.fixture
 def tables_mod(ext):
-    """``thinfilm_sh.addon.tables``: memory, disk cache, bake."""
-    return _module("addon.tables")
+    """``thinfilm_sh.addon.bakes.tables``: memory, disk cache, bake."""
+    return _module("addon.bakes.tables")
 
 
 @pytest.fixture
 def thickness_mod(ext):
-    """``thinfilm_sh.addon.thickness``: the thickness over a mesh."""
-    return _module("addon.thickness")
+    """``thinfilm_sh.addon.thickness.thickness``: the thickness over a mesh."""
+    return _module("addon.thickness.thickness")
 
 
 @pytest.fixture
@@ -205,7 +205,7 @@ def test_principled_thin_film_is_previewed_from_its_own_values(bpy, description_
 def test_principled_black_base_color_has_no_diffuse_base_and_gets_world_lamps(bpy, description_mod):
     """Cycles gives a black Base Color no diffuse lobe: the preview shows the film alone, and
     with it the World's lamps (scene_draw.uses_lamps), as for the extension's own films."""
-    scene_draw = _module("addon.scene_draw")
+    scene_draw = _module("addon.drawing.scene_draw")
     mat, node = _principled(bpy, **{"Thin Film Thickness": 500.0, "Base Color": (0.0, 0.0, 0.0, 1.0)})
     desc = description_mod.description(mat)
     assert desc.base_color is None
@@ -476,7 +476,7 @@ def test_bake_operator_runs_synchronously_in_background_mode(bpy, tables_mod, de
 
 
 def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, description_mod, tables_mod, tmp_path):
-    ops = importlib.import_module(f"{EXTENSION_ID}.addon.ops")
+    ops = importlib.import_module(f"{EXTENSION_ID}.addon.ui.ops")
     cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache").TableCache(tmp_path)
     desc = description_mod.description(_enabled(bpy))
     start = tables_mod.bake_count
@@ -539,7 +539,7 @@ def test_clear_cache_operator_leaves_foreign_exr_files_alone(bpy, tables_mod, de
 def test_cache_location_env_preference_default_and_size_limit(bpy, ext, tables_mod, tmp_path, monkeypatch):
     """Issue 24: THINFILM_SH_CACHE wins inside Blender too; an empty preference means the private
     per-user default (never $TMPDIR); the size limit preference reaches the TableCache."""
-    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+    prefs = importlib.import_module(f"{EXTENSION_ID}.addon.ui.prefs")
     table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
     monkeypatch.delenv("THINFILM_SH_CACHE", raising=False)
     monkeypatch.delenv("THINFILM_SH_CACHE_MAX_BYTES", raising=False)
@@ -582,7 +582,7 @@ def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
 
     atomic_write = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.atomic_write")
     table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_cache")
-    ui = importlib.import_module(f"{EXTENSION_ID}.addon.ui")
+    ui = importlib.import_module(f"{EXTENSION_ID}.addon.ui.ui")
 
     def full(self, key, *args, **kwargs):
         path = self.path_for(key)
@@ -603,7 +603,7 @@ def test_an_unusable_or_full_cache_keeps_the_table_in_memory_and_says_why(
     tables_mod.clear_memory_cache()
     link = tmp_path / "link"
     link.symlink_to(tmp_path / "cache", target_is_directory=True)
-    importlib.import_module(f"{EXTENSION_ID}.addon.prefs").preferences().cache_dir = str(link)
+    importlib.import_module(f"{EXTENSION_ID}.addon.ui.prefs").preferences().cache_dir = str(link)
     other = _enabled(bpy, "Other")
     other.thinfilm_sh.roughness = 0.4
     assert bpy.ops.thinfilm.bake(material=other.name) == {"FINISHED"}

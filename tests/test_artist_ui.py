@@ -54,8 +54,20 @@ def tf(bpy, tmp_path_factory):
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"), root=root)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("props", "prefs", "ops", "ui", "tables", "viewport", "headless", "scene_draw"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.materials.props",
+            "addon.ui.prefs",
+            "addon.ui.ops",
+            "addon.ui.ui",
+            "addon.bakes.tables",
+            "addon.drawing.viewport",
+            "addon.headless.headless",
+            "addon.headless.render",
+            "addon.drawing.scene_draw",
+            "addon.bakes.bake_jobs",
+            "addon.world.world_state",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID
@@ -140,7 +152,7 @@ def test_every_property_enum_item_and_operator_has_an_artist_tooltip(bpy, tf):
     checked = [("Material.thinfilm_sh", pointer)]
     for label, rna in structs:
         if label.startswith("THINFILM_OT"):  # the operator's tooltip (docstring) and parameters
-            module, name = getattr(tf.addon.ops, label).bl_idname.split(".")
+            module, name = getattr(tf.addon.ui.ops, label).bl_idname.split(".")
             op_rna = getattr(getattr(bpy.ops, module), name).get_rna_type()
             checked.append((label, op_rna))
             checked += [
@@ -326,7 +338,7 @@ def test_the_overlay_switches_stop_the_viewport_draw(bpy, tf, scene, monkeypatch
     mat = film(bpy)
     sheet(bpy, scene, mat)
     assert bpy.ops.thinfilm.bake(material=mat.name) == {"FINISHED"}
-    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    tf.world_state.world_lighting(scene, allow_compute=True)
     bpy.context.view_layer.update()
     assert len(_drawn(bpy, tf, monkeypatch)) == 1
 
@@ -353,11 +365,11 @@ def test_the_overlay_preference_stops_the_headless_render(bpy, tf, scene, tmp_pa
     cam.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    on = tf.headless.render_scene(scene, str(tmp_path / "on.png"), 32, 32, background=False)
+    on = tf.render.render_scene(scene, str(tmp_path / "on.png"), 32, 32, background=False)
     assert on["objects"] == ["Sheet/0"] or len(on["objects"]) == 1
     tf.prefs.preferences().show_overlay = False
-    off = tf.headless.render_scene(scene, str(tmp_path / "off.png"), 32, 32, background=False)
-    assert off["objects"] == [] and tf.headless.OVERLAY_OFF in off["messages"]
+    off = tf.render.render_scene(scene, str(tmp_path / "off.png"), 32, 32, background=False)
+    assert off["objects"] == [] and tf.render.OVERLAY_OFF in off["messages"]
 
 
 def test_a_principled_film_preview_can_be_switched_off_per_material(bpy, tf, scene):
@@ -365,12 +377,12 @@ def test_a_principled_film_preview_can_be_switched_off_per_material(bpy, tf, sce
     mat = bpy.data.materials.new("Principled Film")
     bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     bsdf.inputs["Thin Film Thickness"].default_value = 400.0
-    description = importlib.import_module(f"{EXTENSION_ID}.addon.description").description
+    description = importlib.import_module(f"{EXTENSION_ID}.addon.materials.description").description
     assert description(mat) is not None
     mat.thinfilm_sh.preview_principled = False
     assert description(mat) is None
     sheet(bpy, scene, mat)
-    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    tf.world_state.world_lighting(scene, allow_compute=True)
     bpy.context.view_layer.update()
     items, _ = tf.scene_draw.collect(
         bpy.context.evaluated_depsgraph_get(), allow_bake=False, allow_world=False
@@ -385,43 +397,45 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     """A queued viewport bake shows in the header's activity; Cancel stops its worker, which
     caches nothing and is not remembered as a failure."""
     vp = tf.viewport
-    vp.cancel_bakes()  # an earlier test's draw may have left its bake running: start from none
+    bj = tf.bake_jobs
+    bj.cancel_all()  # an earlier test's draw may have left its bake running: start from none
     for t in [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]:
         t.join(THREAD_TIMEOUT_S)
     vp._service()
-    assert not vp._running
+    assert not bj.BAKES.running
     mat = film(bpy)
     mat.thinfilm_sh.sh_order = "AUTO"  # a default-quality bake: seconds, so it is still running
     mat.thinfilm_sh.view_samples = 0
     mat.thinfilm_sh.roughness = 0.123  # a kernel no other test has cached
     desc = tf.ui.description(mat)
-    vp._want_bake(desc)
+    bj.want(desc)
     vp._service()  # starts the worker thread
-    assert vp._running
+    assert bj.BAKES.running
     assert "baking 1 film" in vp.activity()
-    assert vp.cancel_bakes() == 1
+    assert bj.cancel_all() == 1
     threads = [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]
     for t in threads:
         t.join(THREAD_TIMEOUT_S)
-    assert not vp._running and vp.activity() == ""
+    assert not bj.BAKES.running and vp.activity() == ""
     assert tf.tables.peek_table(desc) is None
-    assert vp.description_key(desc) not in tf.tables.FAILURES
+    assert tf.bake_jobs.description_key(desc) not in tf.tables.FAILURES
 
 
 def test_a_finished_viewport_bake_asks_for_a_redraw(bpy, tf, scene, monkeypatch):
     """Issue 16: when a worker's bake ends, the timer's next tick tags the 3D views for a redraw
     (the table is there now), and keeps ticking until it has done so."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     redraws = []
     monkeypatch.setattr(vp, "_tag_redraw", lambda: redraws.append(1))
     mat = film(bpy)
     mat.thinfilm_sh.roughness = 0.234  # a table no other test has baked
     desc = tf.ui.description(mat)
-    vp._want_bake(desc)
+    bj.want(desc)
     vp._service()  # starts the worker
     for t in [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]:
         t.join(THREAD_TIMEOUT_S)
-    assert not vp._running
+    assert not bj.BAKES.running
     redraws.clear()
     assert vp._service() is None  # the last tick: nothing runs any more …
     assert redraws == [1]  # … and it asked for the redraw that shows the new table

@@ -1,4 +1,5 @@
-"""Viewport bakes in the bake helper process (issue 16, addon/bake_helper.py, addon/bake_process.py).
+"""Viewport bakes in the bake helper process (issue 16, addon/bakes/bake_helper.py and
+addon/bakes/bake_process.py).
 
 A bake on a thread of Blender's process waits for Python's lock whenever the main thread draws;
 the helper bakes in a process of its own. With the real bpy and the viewport's own path
@@ -44,7 +45,7 @@ def helper(tf, monkeypatch):  # noqa: F811
     """The bake helper module, turned on, no process running and none given up; ``tf.in_process``
     counts the bakes run in this process."""
     monkeypatch.setenv("THINFILM_SH_BAKE_HELPER", "1")
-    module = importlib.import_module(f"{tf.package.__name__}.addon.bake_helper")
+    module = importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_helper")
     module.unregister()
     tf.in_process = []
     real = tf.bake.bake
@@ -81,7 +82,7 @@ def drawn(bpy, tf, scene, mat):  # noqa: F811
     """One viewport redraw that asks for ``mat``'s table (and film table), then the next frame's
     items once the worker is done."""
     grid(bpy, scene, "Quad", mat, n=2)
-    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    tf.world_state.world_lighting(scene, allow_compute=True)
     redraw(bpy, tf)
     items, _messages = redraw(bpy, tf)
     return items
@@ -169,7 +170,7 @@ def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):
 
 
 def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
-    frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
+    frames = importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_process")
     stream = io.BytesIO()
     big = np.arange(300_000, dtype=np.float32).reshape(1000, 300)  # sent out of band
     message = ("done", 7, {"data": np.arange(6.0).reshape(2, 3), "big": big}, None, 1.5)
@@ -190,7 +191,9 @@ def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
 
 def silent_command(tf):  # noqa: F811
     """A helper that says it is ready, then never answers (reads until its stdin closes)."""
-    addon = os.path.dirname(importlib.import_module(f"{tf.package.__name__}.addon.bake_process").__file__)
+    addon = os.path.dirname(
+        importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_process").__file__
+    )
     code = (
         f"import sys; sys.path.insert(0, {addon!r}); import bake_process as b; "
         "b.send(sys.stdout.buffer, ('ready', 0)); sys.stdin.buffer.read()"
@@ -287,8 +290,8 @@ def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene,
     from test_live_ahead import drawn_once, wait_for
     from test_radiance_grid_viewport import record_builds
 
-    vp = tf.viewport
-    rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    bj = tf.bake_jobs
+    rg = importlib.import_module(f"{tf.package.__name__}.addon.bakes.radiance_grids")
     mat = film(bpy, tf, "Rough", roughness=0.6)
     mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
     item = drawn_once(bpy, tf, scene, mat)  # the headless path: baked here
@@ -298,10 +301,10 @@ def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene,
     baked = helper.STATS["baked"]
     mat.thinfilm_sh.layers[0].thickness_nm = 610.0
     bpy.context.view_layer.update()  # handed to the helper with the grid's spec
-    wait_for(lambda: not vp._running, "the bake and its grid")
+    wait_for(lambda: not bj.BAKES.running, "the bake and its grid")
     assert helper.STATS["baked"] == baked + 1 and tf.in_process == []
     assert built_on == []  # the grid came with the table
-    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, bake_later=True)
     assert item.grid is not None and not item.grid_pending and not rg.busy() and built_on == []
 
     # the same grid under a World with something in it (this scene has none): equal to here's
@@ -331,7 +334,7 @@ def test_no_grid_comes_back_for_a_film_that_reads_none(tf, helper):  # noqa: F81
 def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F811
     """Between requests the helper computes the kernels an edit that needs one more (or one
     fewer) node per interval would wait for; a request that arrives stops it."""
-    frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
+    frames = importlib.import_module(f"{tf.package.__name__}.addon.bakes.bake_process")
     progress = importlib.import_module(f"{tf.package.__name__}.precompute.bakes.progress")
     modules = types.SimpleNamespace(planner=tf.planner, kernel=tf.kernel, progress=progress)
     desc = tf.Material.from_dict(soap_dict(tf))
@@ -363,22 +366,23 @@ def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F8
 def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):  # noqa: F811
     """In process, no bake starts while a superseded one stops (tests/test_live_ahead.py); one
     handed to the helper was cancelled there at once, so the newest value starts now."""
-    vp = tf.viewport
+    bj = tf.bake_jobs
     desc = tf.Material.from_dict(soap_dict(tf))
     handed_over = types.SimpleNamespace(cancel=lambda: None)  # its cancel went to the helper
-    stopping = vp._Job("an older value", desc, ticket=handed_over)
-    stopping.cancel.set()
-    saved = (dict(vp._running), dict(vp._pending), dict(vp._wanted))
+    stopping = bj.BakeJob(desc, key="an older value", viewport=True)
+    stopping.ticket = handed_over
+    stopping.cancel()
+    saved = (dict(bj.BAKES.running), dict(bj._pending), dict(bj._wanted))
     try:
-        vp._running.clear()
-        vp._pending.clear()
-        vp._wanted.clear()
-        vp._running[stopping.key] = stopping
-        vp._want_bake(desc, owner="material")
-        (started,) = vp._start_jobs()
-        assert started.desc is desc and not vp._pending
+        bj.BAKES.running.clear()
+        bj._pending.clear()
+        bj._wanted.clear()
+        bj.BAKES.running[stopping.key] = stopping
+        bj.want(desc, owner="material")
+        (started,) = bj.start_ready()
+        assert started.desc is desc and not bj._pending
     finally:
-        for live, old in zip((vp._running, vp._pending, vp._wanted), saved, strict=True):
+        for live, old in zip((bj.BAKES.running, bj._pending, bj._wanted), saved, strict=True):
             live.clear()
             live.update(old)
 

@@ -94,9 +94,9 @@ def tf(bpy, tmp_path_factory):
         bpy,
         tmp_path_factory.mktemp("extension"),
         (
-            "addon.headless",
-            "addon.prefs",
-            "addon.cli_args",
+            "addon.headless.headless",
+            "addon.ui.prefs",
+            "addon.headless.cli_args",
         ),
     ) as ns:
         yield ns

@@ -44,9 +44,10 @@ def tf(bpy, tmp_path_factory):
         bpy,
         tmp_path_factory.mktemp("extension"),
         (
-            "addon.headless",
-            "addon.display",
-            "addon.prefs",
+            "addon.headless.headless",
+            "addon.headless.render",
+            "addon.drawing.display",
+            "addon.ui.prefs",
         ),
     ) as ns:
         yield ns
@@ -105,7 +106,7 @@ def _ramp() -> np.ndarray:
 @pytest.mark.parametrize("space", SPACES)
 def test_headless_png_is_blenders_colour_management_of_the_exr(bpy, tf, tmp_path, space):
     scene = _scene(bpy, tf, space)
-    result = tf.headless.render_scene(scene, str(tmp_path / "frame.png"), *SIZE, supersample=1)
+    result = tf.render.render_scene(scene, str(tmp_path / "frame.png"), *SIZE, supersample=1)
     import OpenEXR
 
     with OpenEXR.File(result["exr"]) as f:

@@ -483,8 +483,15 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for name in ("headless", "description", "tables", "prefs", "scene_draw", "ui"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.headless.headless",
+            "addon.materials.description",
+            "addon.bakes.tables",
+            "addon.ui.prefs",
+            "addon.drawing.scene_draw",
+            "addon.ui.ui",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.gpu = gpu_layer()
         ns.plans = importlib.import_module(f"{EXTENSION_ID}.precompute.effects.plans")
         yield ns
@@ -649,7 +656,7 @@ def test_the_world_sh_reaches_every_band_of_a_high_order_table(bpy, tf, scene):
     env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(path)
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
-    top = tf.gpu.resources.MAX_L
+    top = tf.gpu.layout.MAX_L
     assert top == tf.plans.MAX_ORDER == 12
     film = _film(bpy, "Rough", "SOAP_FILM")
     film.thinfilm_sh.sh_order = str(top)

@@ -168,7 +168,7 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, extension):
 
 
 def test_preferences_hold_the_cache_directory(bpy, extension, tmp_path):
-    prefs_mod = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+    prefs_mod = importlib.import_module(f"{EXTENSION_ID}.addon.ui.prefs")
     extension.register()
     addons = bpy.context.preferences.addons
     assert addons.get(EXTENSION_ID) is None
@@ -207,7 +207,7 @@ def test_every_cache_is_registered_documented_and_emptied(bpy, extension):
     tables, ui = registered["tables"].cache, registered["plan_orders_seen"].cache
     tables["key"] = "table"
     ui.add(0.5)
-    scene_draw = importlib.import_module(f"{EXTENSION_ID}.addon.scene_draw")
+    scene_draw = importlib.import_module(f"{EXTENSION_ID}.addon.drawing.scene_draw")
     scene_draw.CACHES.tables["key"] = "texture"
     bpy.ops.wm.read_factory_settings(use_empty=True)  # load_post: the per-file caches only
     assert not scene_draw.CACHES.tables and tables.get("key") == "table" and 0.5 in ui

@@ -27,9 +27,10 @@ def tf(bpy, tmp_path_factory):
         bpy,
         tmp_path_factory.mktemp("extension"),
         (
-            "addon.headless",
-            "addon.prefs",
-            "addon.background",
+            "addon.headless.headless",
+            "addon.headless.render",
+            "addon.ui.prefs",
+            "addon.headless.background",
         ),
     ) as ns:
         yield ns
@@ -83,9 +84,7 @@ def _png(path) -> np.ndarray:
 
 def test_outside_the_films_the_frame_is_eevees_render(bpy, tf, tmp_path):
     scene, ball = _scene(bpy, tf)
-    result = tf.headless.render_scene(
-        scene, str(tmp_path / "frame.png"), *SIZE, supersample=2, engine="EEVEE"
-    )
+    result = tf.render.render_scene(scene, str(tmp_path / "frame.png"), *SIZE, supersample=2, engine="EEVEE")
     assert result["engine"] == "EEVEE" and result["objects"] == ["Sphere/Film"], result
     ours = _png(result["png"])
     # EEVEE's own render of the whole scene, the film sphere included (as Blender renders it)
@@ -122,9 +121,9 @@ def test_a_transparent_film_shows_the_eevee_frame_behind_it(bpy, tf, tmp_path):
     wall at these angles), where the same film drawn opaque replaces it."""
     scene, ball = _scene(bpy, tf)
     behind = tf.background.render_background(scene, *SIZE, engine="EEVEE", hidden={ball.name})
-    seen = tf.headless.render_scene(scene, str(tmp_path / "wall.png"), *SIZE, supersample=1, engine="EEVEE")
+    seen = tf.render.render_scene(scene, str(tmp_path / "wall.png"), *SIZE, supersample=1, engine="EEVEE")
     ball.active_material.thinfilm_sh.transparency = "OPAQUE"
-    solid = tf.headless.render_scene(scene, str(tmp_path / "solid.png"), *SIZE, supersample=1, engine="EEVEE")
+    solid = tf.render.render_scene(scene, str(tmp_path / "solid.png"), *SIZE, supersample=1, engine="EEVEE")
     rows, cols = _box(bpy, scene, ball, margin=0)
     centre = (slice(rows.start + 4, rows.stop - 4), slice(cols.start + 4, cols.stop - 4))
     bg = behind.rgba[centre][..., :3]
@@ -138,9 +137,9 @@ def test_a_holdout_film_cuts_a_transparent_hole(bpy, tf, tmp_path):
     """A film object set to *Holdout* renders as Blender renders a holdout: transparent black
     where it is in front (C = 0, α = 0), the rest of the frame unchanged."""
     scene, ball = _scene(bpy, tf)
-    kept = tf.headless.render_scene(scene, str(tmp_path / "kept.png"), *SIZE, supersample=1, engine="EEVEE")
+    kept = tf.render.render_scene(scene, str(tmp_path / "kept.png"), *SIZE, supersample=1, engine="EEVEE")
     ball.is_holdout = True
-    cut = tf.headless.render_scene(scene, str(tmp_path / "cut.png"), *SIZE, supersample=1, engine="EEVEE")
+    cut = tf.render.render_scene(scene, str(tmp_path / "cut.png"), *SIZE, supersample=1, engine="EEVEE")
     rows, cols = _box(bpy, scene, ball, margin=0)
     centre = (slice(rows.start + 4, rows.stop - 4), slice(cols.start + 4, cols.stop - 4))
     hole, before = _exr(cut["exr"]), _exr(kept["exr"])

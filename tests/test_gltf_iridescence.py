@@ -43,8 +43,15 @@ def tf(bpy, package, tmp_path):
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
-    names = ("description", "gltf", "linked", "scene_draw", "tables", "prefs")
-    mods = {n: importlib.import_module(f"{EXTENSION_ID}.addon.{n}") for n in names}
+    names = (
+        "addon.materials.description",
+        "addon.materials.gltf",
+        "addon.thickness.linked",
+        "addon.drawing.scene_draw",
+        "addon.bakes.tables",
+        "addon.ui.prefs",
+    )
+    mods = {n.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{n}") for n in names}
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
     mods["prefs"].preferences().cache_dir = str(tmp_path / "cache")

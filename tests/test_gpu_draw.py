@@ -281,14 +281,14 @@ def test_table_layers_and_lighting_layout(gd):
     window = policy.lighting_window(5, 0.3)
     assert np.allclose(lighting.coefficients, world[:36] * window[:, None])
     packed = gd.resources.Lighting.pack(lighting.coefficients).reshape(-1, 4)
-    assert packed.nbytes == gd.resources.LIGHTING_VEC4 * 16 <= gd.resources.UBO_LIMIT_BYTES
-    slots = gd.resources.SH_SLOTS
+    assert packed.nbytes == gd.layout.LIGHTING_VEC4 * 16 <= gd.layout.UBO_LIMIT_BYTES
+    slots = gd.layout.SH_SLOTS
     assert np.allclose(packed[:36, :3], lighting.coefficients) and np.all(packed[36:slots] == 0)
-    assert np.all(packed[slots : slots + gd.resources.LAMP_VEC4] == 0)  # no lamps: count 0
-    rx = packed[slots + gd.resources.LAMP_VEC4 :].ravel()
+    assert np.all(packed[slots : slots + gd.layout.LAMP_VEC4] == 0)  # no lamps: count 0
+    rx = packed[slots + gd.layout.LAMP_VEC4 :].ravel()
     # One set: X(+90°) row-major; X(−90°) is read as its transpose.
     for sign in (+1, -1):
-        for l, block in enumerate(sh_rotation.x_rotation_bands(gd.resources.MAX_L, sign)):
+        for l, block in enumerate(sh_rotation.x_rotation_bands(gd.layout.MAX_L, sign)):
             stored = rx[codegen.rx_offset(l) : codegen.rx_offset(l) + block.size].reshape(block.shape)
             assert np.allclose(stored if sign > 0 else stored.T, block, atol=1e-7)
     # The generated X(±90°) code (band by band, codegen.banded_source) multiplies exactly the
@@ -639,7 +639,7 @@ def test_shader_cache_compiles_each_variant_once(gd):
     cache.background(False)
     assert cache.compile_count == 6 == len(cache)
     with pytest.raises(ValueError):
-        cache.get(gd.resources.MAX_L + 1, True, False, False)
+        cache.get(gd.layout.MAX_L + 1, True, False, False)
 
 
 def test_chunks_are_joined_by_their_includes(gd, tmp_path):

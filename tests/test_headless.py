@@ -48,8 +48,16 @@ def tf(bpy, tmp_path_factory):
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
             ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+            for dotted in (
+                "addon.headless.headless",
+                "addon.headless.render",
+                "addon.materials.description",
+                "addon.bakes.tables",
+                "addon.ui.prefs",
+                "addon.drawing.scene_draw",
+                "addon.world.world_state",
+            ):
+                setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             ns.gpu = gpu_layer()
             ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.tables.table_io")
             set_cache_preference(bpy, ns.prefs, ns.cache_dir)
@@ -188,7 +196,7 @@ def read_exr(path) -> np.ndarray:
 
 
 def render(tf, scene, path, size=SIZE, background=False, supersample=None):
-    result = tf.headless.render_scene(
+    result = tf.render.render_scene(
         scene, str(path), size[0], size[1], background=background, supersample=supersample
     )
     assert Path(result["png"]).is_file() and Path(result["exr"]).is_file()
@@ -217,7 +225,7 @@ def project(tf, scene, points, size):
     """Pixel coordinates (x right, y down; pixel centres at +0.5) of world points in the camera."""
     import bpy
 
-    view, proj = tf.headless.camera_matrices(scene, bpy.context.evaluated_depsgraph_get(), *size)
+    view, proj = tf.render.camera_matrices(scene, bpy.context.evaluated_depsgraph_get(), *size)
     p = np.c_[np.asarray(points, dtype=np.float64), np.ones(len(points))] @ (proj @ view).T
     ndc = p[:, :3] / p[:, 3:4]
     return np.c_[(ndc[:, 0] + 1.0) * 0.5 * size[0], (1.0 - (ndc[:, 1] + 1.0) * 0.5) * size[1]]
@@ -742,15 +750,15 @@ def test_studio_lamps_are_shaded_per_light_and_can_be_turned_off(bpy, tf, fresh,
         return tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
 
     (item,) = items()
-    image_entry = tf.scene_draw.CACHES.world.environment
+    image_entry = tf.world_state.STATE.lighting.environment
     assert image_entry is not None and image_entry.lamps is not None
-    assert 1 <= image_entry.lamps.count <= tf.gpu.resources.MAX_LAMPS and image_entry.lamps.share > 0.5
+    assert 1 <= image_entry.lamps.count <= tf.gpu.layout.MAX_LAMPS and image_entry.lamps.share > 0.5
     assert item.film is not None and item.lighting.lamp_count == image_entry.lamps.count
-    summary = tf.scene_draw.lamps_summary(True)  # the Surface panel's line
+    summary = tf.world_state.lamps_summary(True)  # the Surface panel's line
     assert summary.startswith(f"World lamps: {image_entry.lamps.count}, ") and "per lamp" in summary, summary
-    assert "off" in tf.scene_draw.lamps_summary(False)
+    assert "off" in tf.world_state.lamps_summary(False)
     # The lighting of a lamp-shaded film is the World's SH minus the lamps' SH.
-    whole = tf.scene_draw.CACHES.world.sh.coeffs
+    whole = tf.world_state.STATE.lighting.sh.coeffs
     assert item.lighting.coefficients[0, 1] < 0.5 * whole[0, 1]
     on, _ = render(tf, scene, tmp_path / "lamps_on.png")
 
@@ -816,14 +824,14 @@ def test_prefilters_are_computed_only_for_the_films_that_read_them(bpy, tf, fres
     glossy = items()["Glossy"]
     assert calls == ["lifted"]
     assert glossy.film is not None and glossy.lighting.lamp_count > 0
-    assert glossy.prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered()
+    assert glossy.prefiltered is tf.world_state.STATE.lighting.textures.prefiltered()
 
     base = principled_film(bpy, "Grey", roughness=0.1, base=(0.5, 0.5, 0.5))
     sphere(bpy, scene, "Grey", (-2.5, 0.0, 0.0), material=base)
     found = items()
     assert calls == ["lifted", "whole"]
     assert found["Grey"].film is None and found["Grey"].lighting.lamp_count == 0  # a diffuse base
-    assert found["Grey"].prefiltered is tf.scene_draw.CACHES.world.textures.prefiltered_whole()
+    assert found["Grey"].prefiltered is tf.world_state.STATE.lighting.textures.prefiltered_whole()
     items()
     assert calls == ["lifted", "whole"]  # kept: nothing is prefiltered twice
 
@@ -836,13 +844,13 @@ def test_headless_frame_applies_the_scenes_pixel_filter(bpy, tf, fresh, tmp_path
     sphere(bpy, scene, material=film(bpy, "Film", thickness_nm=350.0, roughness=0.3))
     camera(bpy, scene)
     default, result = render(tf, scene, tmp_path / "default.png")
-    assert result["supersample"] == tf.headless.SUPERSAMPLE == 4
+    assert result["supersample"] == tf.render.SUPERSAMPLE == 4
     assert result["pixel_filter"] == ["BLACKMAN_HARRIS", 1.5]
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     box, result = render(tf, scene, tmp_path / "box.png")
     assert result["pixel_filter"] == ["BOX", 1.0]
     w, h = SIZE
-    big = tf.headless.render_scene(
+    big = tf.render.render_scene(
         scene, str(tmp_path / "big.png"), 4 * w, 4 * h, background=False, supersample=1
     )
     assert big["supersample"] == 1 and big["pixel_filter"] is None
@@ -897,7 +905,7 @@ def test_cli_frames_write_one_file_per_frame_computing_the_world_once(
     scene.world = bpy.data.worlds.new("Frames World")
     scene.world.color = (0.31, 0.27, 0.19)  # a World no other test analysed
     analysed = []
-    analysis = importlib.import_module(f"{EXTENSION_ID}.addon.world_analysis")
+    analysis = importlib.import_module(f"{EXTENSION_ID}.addon.world.world_analysis")
     original = analysis.analyse_world
     monkeypatch.setattr(analysis, "analyse_world", lambda *a, **k: analysed.append(1) or original(*a, **k))
     out = tmp_path / "shot_###.png"

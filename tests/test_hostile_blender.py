@@ -45,9 +45,17 @@ def tf(bpy, tmp_path_factory):
         try:
             package.register()
             ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
-            for name in ("headless", "description", "tables", "prefs", "scene_draw", "world"):
-                setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-            ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness")
+            for dotted in (
+                "addon.headless.headless",
+                "addon.headless.frames",
+                "addon.materials.description",
+                "addon.bakes.tables",
+                "addon.ui.prefs",
+                "addon.drawing.scene_draw",
+                "addon.world.world",
+            ):
+                setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
+            ns.thickness = importlib.import_module(f"{EXTENSION_ID}.addon.thickness.thickness")
             ns.cli_support = importlib.import_module(f"{EXTENSION_ID}.precompute.commands.cli_support")
             ns.material = importlib.import_module(f"{EXTENSION_ID}.precompute.materials.material")
             set_cache_preference(bpy, ns.prefs, ns.cache_dir)
@@ -94,8 +102,8 @@ def no_bake(tf, monkeypatch):
 @pytest.fixture
 def no_work(tf, monkeypatch, no_bake):
     """Neither a bake nor a render may start."""
-    guard = Guard("headless.render_scene")
-    monkeypatch.setattr(tf.headless, "render_scene", guard)
+    guard = Guard("render.render_scene")
+    monkeypatch.setattr(tf.frames, "render_scene", guard)  # what the render command calls
     return types.SimpleNamespace(bake=no_bake, render=guard)
 
 

@@ -31,10 +31,17 @@ def tf(bpy, package, tmp_path):
     """A fresh empty file with the extension registered; its modules as attributes."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     package.register()
-    mods = {
-        n: importlib.import_module(f"{EXTENSION_ID}.addon.{n}")
-        for n in ("description", "linked", "scene_draw", "tables", "prefs", "headless", "principled", "ui")
-    }
+    names = (
+        "addon.materials.description",
+        "addon.thickness.linked",
+        "addon.drawing.scene_draw",
+        "addon.bakes.tables",
+        "addon.ui.prefs",
+        "addon.headless.headless",
+        "addon.materials.principled",
+        "addon.ui.ui",
+    )
+    mods = {n.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{n}") for n in names}
     entry = bpy.context.preferences.addons.new()
     entry.module = EXTENSION_ID
     mods["prefs"].preferences().cache_dir = str(tmp_path / "cache")

@@ -137,7 +137,14 @@ def test_the_film_table_of_a_material_is_its_bakes(precompute, preset, mode):
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     modules = [
-        f"addon.{m}" for m in ("scene_draw", "prefs", "tables", "viewport", "description", "world_job")
+        "addon.drawing.scene_draw",
+        "addon.ui.prefs",
+        "addon.bakes.tables",
+        "addon.drawing.viewport",
+        "addon.materials.description",
+        "addon.world.world_job",
+        "addon.world.world_state",
+        "addon.bakes.bake_jobs",
     ]
     modules += ["precompute.bakes.bake", "precompute.colour.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
@@ -165,22 +172,22 @@ def scene(bpy, tf):
     light.data.energy = 800.0
     light.location = (1.0, -3.0, 1.0)
     scene.collection.objects.link(light)
-    tf.scene_draw.world_lighting(scene, allow_compute=True)  # no World: a constant, no render
+    tf.world_state.world_lighting(scene, allow_compute=True)  # no World: a constant, no render
     yield scene
     _settle(tf)
 
 
 def _settle(tf):
     """Wait until no viewport bake runs; empty the queue."""
-    vp = tf.viewport
-    vp.cancel_bakes()
+    bj = tf.bake_jobs
+    bj.cancel_all()
     deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while vp._running and time.monotonic() < deadline:
+    while bj.BAKES.running and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert not vp._running, "a viewport bake thread did not finish"
-    vp._pending.clear()
-    vp._wanted.clear()
-    vp._finished.clear()
+    assert not bj.BAKES.running, "a viewport bake thread did not finish"
+    bj._pending.clear()
+    bj._wanted.clear()
+    bj.BAKES.take_finished()
 
 
 def film(bpy, scene, thickness: float = 500.0):
@@ -205,14 +212,14 @@ def film(bpy, scene, thickness: float = 500.0):
 
 
 def frame(bpy, tf):
-    """One draw as the draw callback does it (collect without baking; want_bake queues), drawn
+    """One draw as the draw callback does it (collect without baking; the bakes asked for), drawn
     off-screen: (RGBA image, items)."""
     bpy.context.view_layer.update()
     items, _ = tf.scene_draw.collect(
         bpy.context.evaluated_depsgraph_get(),
         allow_bake=False,
         allow_world=False,
-        want_bake=tf.viewport._want_bake,
+        bake_later=True,
     )
     return tf.draw.render_offscreen(items, VIEW, PROJ, SIZE, SIZE), items
 
@@ -220,13 +227,14 @@ def frame(bpy, tf):
 def settled_frame(bpy, tf):
     """Draw, run the timer, wait for its bakes, until a frame queues nothing: the final frame."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     for _ in range(6):
         image, items = frame(bpy, tf)
-        if not vp._pending and not vp._running:
+        if not bj._pending and not bj.BAKES.running:
             return image, items
         vp._service()
         deadline = time.monotonic() + THREAD_TIMEOUT_S
-        while vp._running and time.monotonic() < deadline:
+        while bj.BAKES.running and time.monotonic() < deadline:
             time.sleep(0.01)
     raise AssertionError("the viewport never settled")
 
@@ -266,6 +274,7 @@ def test_a_baked_table_is_drawn_before_it_is_written_to_disk(bpy, tf, scene, mon
     which only serves a later session (0.4–2 s for the soap preset's 61 rows), is written after
     that, and still written."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     held = threading.Event()
     stored = []
     cache = tf.tables.open_cache()
@@ -281,10 +290,10 @@ def test_a_baked_table_is_drawn_before_it_is_written_to_disk(bpy, tf, scene, mon
     film(bpy, scene)
     frame(bpy, tf)  # queues the bake
     vp._service()
-    wait_for(lambda: not vp._running, "the bake")
-    assert vp._finished.is_set() and not stored  # the redraw's cue came while the write is held
+    wait_for(lambda: not bj.BAKES.running, "the bake")
+    assert bj.BAKES.finished() and not stored  # the redraw's cue came while the write is held
     image, items = frame(bpy, tf)
-    assert len(items) == 1 and image[..., 3].max() > 0 and not vp._pending  # drawn, not re-queued
+    assert len(items) == 1 and image[..., 3].max() > 0 and not bj._pending  # drawn, not re-queued
     held.set()
     wait_for(lambda: stored, "the disk write")
     assert stored[0].exists()
@@ -295,12 +304,13 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     """The timer tags the 3D views after a bake's worker ended and after it updated the World,
     even when nothing else runs any more (no stalled edit waiting for an unrelated redraw)."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     redraws = []
     monkeypatch.setattr(vp, "_tag_redraw", lambda: redraws.append(1))
     film(bpy, scene)
     frame(bpy, tf)  # queues the bake
     vp._service()
-    wait_for(lambda: not vp._running, "the bake")
+    wait_for(lambda: not bj.BAKES.running, "the bake")
     redraws.clear()
     assert vp._service() is None and redraws == [1]
 
@@ -312,7 +322,7 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
     scene.world = world
     bpy.context.view_layer.update()
-    tf.scene_draw.world_lighting(scene, allow_compute=False)  # the old lighting, and an ask
+    tf.world_state.world_lighting(scene, allow_compute=False)  # the old lighting, and an ask
     assert tf.world_job.busy()
     vp._service()  # reads it here, analyses it on a worker
     wait_for(lambda: not tf.world_job.busy(), "the World's analysis")
@@ -326,6 +336,7 @@ def test_the_previous_table_is_drawn_while_the_new_one_bakes(bpy, tf, scene, mon
     """Pixels: mid-bake the sheet shows the 500 nm film it showed before (not blank), and once
     the 300 nm table is there, the 300 nm film (a different colour)."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     mat = film(bpy, scene, 500.0)
     before, items = settled_frame(bpy, tf)
     covered = before[..., 3] > 0.5
@@ -335,11 +346,11 @@ def test_the_previous_table_is_drawn_while_the_new_one_bakes(bpy, tf, scene, mon
     gate = Gate(tf, monkeypatch)
     mat.thinfilm_sh.layers[0].thickness_nm = 300.0
     mid, items = frame(bpy, tf)  # the table is missing: the bake is queued
-    assert len(vp._pending) == 1
+    assert len(bj._pending) == 1
     vp._service()
     wait_for(lambda: gate.started, "the bake to start")
     mid, items = frame(bpy, tf)  # drawn while the worker bakes
-    assert vp._running and "baking 1 film" in vp.activity()
+    assert bj.BAKES.running and "baking 1 film" in vp.activity()
     assert len(items) == 1, "the object disappeared while its new table bakes"
     np.testing.assert_array_equal(mid, before)  # the previous table, film and lighting
 
@@ -356,6 +367,7 @@ def test_a_ten_step_drag_leaves_one_bake(bpy, tf, scene, monkeypatch):
     one bake queued at a time per material, every superseded bake cancelled, one completed
     (the last value), and the frame after it shows that value's table."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     mat = film(bpy, scene, 500.0)
     settled_frame(bpy, tf)
     gate = Gate(tf, monkeypatch)
@@ -364,9 +376,9 @@ def test_a_ten_step_drag_leaves_one_bake(bpy, tf, scene, monkeypatch):
     for value in values:
         mat.thinfilm_sh.layers[0].thickness_nm = value
         frame(bpy, tf)
-        assert len(vp._pending) <= 1  # one per material, the newest value
+        assert len(bj._pending) <= 1  # one per material, the newest value
         vp._service()
-        assert sum(not job.cancel.is_set() for job in vp._running.values()) <= 1
+        assert sum(not job.cancelled for job in bj.BAKES.running.values()) <= 1
     gate.open()
     _, items = settled_frame(bpy, tf)
     assert gate.completed == [values[-1]], gate.completed
@@ -383,6 +395,7 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
     """The real draw callback in the start-up file's 3D viewport and the real timer, from a cold
     material to its settled frame: every bake and film table ran on a worker thread."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     calls = []
     real_bake, real_film = tf.bake.bake, tf.film_colour.film_table
 
@@ -411,8 +424,8 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
         with bpy.context.temp_override(window=window, area=area, region=region):
             vp.draw_callback()
         vp._service()
-        wait_for(lambda: not vp._running, "the viewport's bakes")
-        if drawn and (drawn[-1][..., 3] > 0.5).any() and not vp._pending:
+        wait_for(lambda: not bj.BAKES.running, "the viewport's bakes")
+        if drawn and (drawn[-1][..., 3] > 0.5).any() and not bj._pending:
             break
     assert ("bake", False) in calls and ("film", False) in calls, calls
     assert not any(on_main for _, on_main in calls), calls
@@ -425,6 +438,7 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
     draw callback must start the timer that serves the ask, or the frame with the prefilter waits
     for an unrelated redraw (the stalled first open of benchmarks/latency.py)."""
     vp = tf.viewport
+    bj = tf.bake_jobs
     monkeypatch.setattr(vp, "draw_items", lambda *a, **k: None)
     mat = film(bpy, scene)
     mat.thinfilm_sh.roughness = 0.1  # the split sum alone: it reads the prefiltered World
@@ -437,15 +451,15 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
     scene.world = world
     bpy.context.view_layer.update()
-    tf.scene_draw.world_lighting(scene, allow_compute=True)  # the World analysed, no prefilter yet
+    tf.world_state.world_lighting(scene, allow_compute=True)  # the World analysed, no prefilter yet
     items, _ = tf.scene_draw.collect(
         bpy.context.evaluated_depsgraph_get(), allow_bake=True, allow_world=False
     )
     assert items and items[0].prefiltered is None  # the table is baked; the prefilter not computed
     tf.world_job.wait()  # an earlier test's World work, if any, ends first
-    tf.scene_draw.CACHES.prefilters_wanted.clear()  # as if no draw had asked yet
-    tf.scene_draw.CACHES.world_wanted = False
-    display = importlib.import_module(f"{EXTENSION_ID}.addon.display")
+    tf.world_state.STATE.prefilters_wanted.clear()  # as if no draw had asked yet
+    tf.world_state.STATE.wanted = False
+    display = importlib.import_module(f"{EXTENSION_ID}.addon.drawing.display")
     settings = display.settings_of(scene)  # the view's LUT baked first: its bake starts the timer too
     wait_for(lambda: display.viewport_lut(settings) is not None and not display.baking(), "the LUT")
     display.take_finished()
@@ -457,5 +471,5 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
     region = next(r for r in area.regions if r.type == "WINDOW")
     with bpy.context.temp_override(window=window, area=area, region=region):
         vp.draw_callback()
-    assert tf.world_job.busy() and not vp._pending  # the draw asked for the prefilter alone …
+    assert tf.world_job.busy() and not bj._pending  # the draw asked for the prefilter alone …
     assert bpy.app.timers.is_registered(vp._service)  # … and started the timer that serves it

@@ -1,4 +1,4 @@
-"""An edit's work starts before its first redraw and arrives whole (issue 16, addon/bake_asks.py).
+"""An edit's work starts before its first redraw and arrives whole (issue 16, addon/bakes/bake_asks.py).
 
 - The depsgraph update that follows an edit (Blender runs ``depsgraph_update_post`` before it
   redraws) starts the edited material's bake, once a viewport has drawn films; before any
@@ -58,30 +58,31 @@ def drawn_once(bpy, tf, scene, mat):  # noqa: F811
     """The material drawn as the viewport would after its first frames: lit, baked, its entry
     kept; and the viewport marked as drawing films (what ``draw_callback`` sets)."""
     quad_grid(bpy, scene, "Quad", mat, n=2)
-    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    tf.world_state.world_lighting(scene, allow_compute=True)
     (item,), _ = collect(bpy, tf)  # headless path: bakes (and builds a grid) in place
     tf.viewport._drawn.set()
     return item
 
 
 def test_the_edits_bake_starts_at_the_depsgraph_update(bpy, tf, scene, monkeypatch):  # noqa: F811
-    vp = tf.viewport
+    bj = tf.bake_jobs
     mat = film(bpy, tf, "Edited")
     drawn_once(bpy, tf, scene, mat)
     gate = Gate(tf, monkeypatch)
     mat.thinfilm_sh.layers[0].thickness_nm = 420.0
     bpy.context.view_layer.update()  # Blender's depsgraph update: our handler runs, no draw yet
     wait_for(lambda: gate.started, "the bake to start")
-    assert gate.started == [420.0] and len(vp._running) == 1
+    assert gate.started == [420.0] and len(bj.BAKES.running) == 1
     gate.open()
-    wait_for(lambda: not vp._running, "the bake")
+    wait_for(lambda: not bj.BAKES.running, "the bake")
     key = tf.scene_draw.description.description_key(tf.scene_draw.description.description(mat))
     assert tf.tables.MEMORY.get(key) is not None
-    assert vp._finished.is_set()  # the timer's cue: the redraw that shows it
+    assert bj.BAKES.finished()  # the timer's cue: the redraw that shows it
 
 
 def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeypatch):  # noqa: F811
     vp = tf.viewport
+    bj = tf.bake_jobs
     mat = film(bpy, tf, "Headless")
     drawn_once(bpy, tf, scene, mat)
     vp._drawn.clear()  # e.g. a headless render: no viewport draws films
@@ -89,12 +90,12 @@ def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeyp
     gate.open()
     mat.thinfilm_sh.layers[0].thickness_nm = 430.0
     bpy.context.view_layer.update()
-    assert not gate.started and not vp._running and not vp._pending
+    assert not gate.started and not bj.BAKES.running and not bj._pending
 
 
 def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa: F811
-    vp = tf.viewport
-    rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    bj = tf.bake_jobs
+    rg = importlib.import_module(f"{tf.package.__name__}.addon.bakes.radiance_grids")
     mat = film(bpy, tf, "Rough", roughness=0.6)
     mat.thinfilm_sh.sh_order = "3"  # l ≥ policy.GRID_MIN_L: the SH half is read from a grid
     item = drawn_once(bpy, tf, scene, mat)
@@ -102,32 +103,32 @@ def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa
     built_on = record_builds(rg, monkeypatch)
     mat.thinfilm_sh.layers[0].thickness_nm = 610.0
     bpy.context.view_layer.update()  # the bake starts, with the grid chained to it
-    wait_for(lambda: not vp._running, "the bake and its grid")
+    wait_for(lambda: not bj.BAKES.running, "the bake and its grid")
     assert len(built_on) == 1 and built_on[0] is not threading.main_thread()
     assert not rg.busy()
     # the one redraw the bake's end asks for: the new table and its grid, nothing left to build
-    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False, bake_later=True)
     assert item.grid is not None and not item.grid_pending
-    assert not rg.busy() and not vp._pending and len(built_on) == 1
+    assert not rg.busy() and not bj._pending and len(built_on) == 1
     key = tf.scene_draw.description.description_key(tf.scene_draw.description.description(mat))
     assert item.table is tf.scene_draw.CACHES.tables.get(key)
 
 
 def test_no_bake_starts_while_a_superseded_one_stops(bpy, tf, scene, monkeypatch):  # noqa: F811
-    vp = tf.viewport
+    bj = tf.bake_jobs
     mat = film(bpy, tf, "Dragged")
     desc = tf.scene_draw.description.description(mat)
-    stopping = vp._Job("an older value", desc)
-    stopping.cancel.set()  # superseded: it stops at its next checkpoint
-    monkeypatch.setattr(vp, "_running", {stopping.key: stopping})
-    monkeypatch.setattr(vp, "_pending", {})
-    monkeypatch.setattr(vp, "_wanted", {})
-    vp._want_bake(desc, owner="material")
-    assert vp._start_jobs() == [] and "material" in vp._pending
-    del vp._running[stopping.key]  # it stopped
-    (started,) = vp._start_jobs()
-    assert started.desc is desc and not vp._pending
-    vp._running.clear()
+    stopping = bj.BakeJob(desc, key="an older value", viewport=True)
+    stopping.cancel()  # superseded: it stops at its next checkpoint
+    monkeypatch.setattr(bj.BAKES, "running", {stopping.key: stopping})
+    monkeypatch.setattr(bj, "_pending", {})
+    monkeypatch.setattr(bj, "_wanted", {})
+    bj.want(desc, owner="material")
+    assert bj.start_ready() == [] and "material" in bj._pending
+    del bj.BAKES.running[stopping.key]  # it stopped
+    (started,) = bj.start_ready()
+    assert started.desc is desc and not bj._pending
+    bj.BAKES.running.clear()
 
 
 def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):  # noqa: F811
@@ -150,21 +151,20 @@ def test_a_superseded_jobs_grid_stops_at_its_next_step(bpy, tf, scene):  # noqa:
     """The grid a bake's worker builds after the table runs its steps under the job's cancel:
     superseded mid-build (a drag moved on) it stops at the next step instead of finishing a
     grid nobody wants, and the worker treats it as a cancelled bake."""
-    vp = tf.viewport
     progress = importlib.import_module(f"{tf.package.__name__}.precompute.bakes.progress")
     steps = []
-    job = vp._Job("superseded", None)
+    job = tf.bake_jobs.BakeJob(None, key="superseded", viewport=True)
 
     def then(key, desc, result):
         for step in range(4):
             steps.append(step)
             if step == 1:
-                job.cancel.set()  # a newer value arrived
+                job.cancel()  # a newer value arrived
             progress.checkpoint()
 
     job.then = then
-    with pytest.raises(vp.BakesCancelled):
-        vp._then(job, None)
+    with pytest.raises(tf.workers.Cancelled):
+        job._then(None)
     assert steps == [0, 1]
 
 
@@ -190,23 +190,23 @@ def test_a_cancelled_bake_asks_for_a_redraw_only_when_the_user_cancelled(bpy, tf
     """A bake superseded by a newer value has nothing to show (its redraw would only delay the
     one that shows the newest table); one the Cancel button stopped asks for a redraw, so the
     header stops saying it bakes."""
-    vp = tf.viewport
+    bj = tf.bake_jobs
     mat = film(bpy, tf, "Cancelled")
     drawn_once(bpy, tf, scene, mat)
     gate = Gate(tf, monkeypatch)
     mat.thinfilm_sh.layers[0].thickness_nm = 440.0
     bpy.context.view_layer.update()
     wait_for(lambda: gate.started, "the bake to start")
-    (job,) = vp._running.values()
-    vp._finished.clear()
+    (job,) = bj.BAKES.running.values()
+    bj.BAKES.take_finished()
     if how == "superseded":
         mat.thinfilm_sh.layers[0].thickness_nm = 450.0
         bpy.context.view_layer.update()  # the newer value's bake waits for this one to stop
-        assert job.superseded and job.cancel.is_set()
+        assert job.superseded and job.cancelled
     else:
-        assert vp.cancel_bakes() == 1 and not job.superseded
+        assert bj.cancel_all() == 1 and not job.superseded
     gate.open()
-    wait_for(lambda: job.key not in vp._running, "the cancelled bake to stop")
-    assert vp._finished.is_set() == (how == "cancel button")
-    vp.cancel_bakes()
-    wait_for(lambda: not vp._running, "the bakes")
+    wait_for(lambda: job.key not in bj.BAKES.running, "the cancelled bake to stop")
+    assert bj.BAKES.finished() == (how == "cancel button")
+    bj.cancel_all()
+    wait_for(lambda: not bj.BAKES.running, "the bakes")

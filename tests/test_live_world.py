@@ -35,8 +35,19 @@ WIDTH, HEIGHT = 256, 128
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
-    names = ("scene_draw", "prefs", "tables", "panorama", "world", "world_job", "world_analysis", "viewport")
-    modules = [f"addon.{m}" for m in names] + ["precompute.world.prefilter", "addon.gpu.draw"]
+    modules = [
+        "addon.drawing.scene_draw",
+        "addon.ui.prefs",
+        "addon.bakes.tables",
+        "addon.world.panorama",
+        "addon.world.world",
+        "addon.world.world_job",
+        "addon.world.world_state",
+        "addon.world.world_analysis",
+        "addon.drawing.viewport",
+        "precompute.world.prefilter",
+        "addon.gpu.draw",
+    ]
     root = tmp_path_factory.mktemp("extension")
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
         ns.cache_dir = str(ns.cache_dir)
@@ -173,8 +184,8 @@ def test_strength_scales_the_drawn_pixels_without_recomputation(bpy, tf, live, m
     covered = before[..., 3] > 0
     assert covered.sum() > 50
     np.testing.assert_allclose(after[covered, :3], 2.0 * before[covered, :3], rtol=1e-4, atol=1e-6)
-    coeffs = tf.scene_draw.CACHES.world.sh.coeffs
-    assert tf.scene_draw.CACHES.world.scale == 2.0 and np.all(np.isfinite(coeffs))
+    coeffs = tf.world_state.STATE.lighting.sh.coeffs
+    assert tf.world_state.STATE.lighting.scale == 2.0 and np.all(np.isfinite(coeffs))
 
 
 def test_rotation_matches_a_world_rebuilt_turned(bpy, tf, live, monkeypatch):
@@ -187,7 +198,7 @@ def test_rotation_matches_a_world_rebuilt_turned(bpy, tf, live, monkeypatch):
         items, _ = frame(bpy, tf)
         assert len(live.calls) == prefilters and not tf.world_job.busy()
         turned = pixels(tf, items)
-        sh_turned = np.array(tf.scene_draw.CACHES.world.sh.coeffs)
+        sh_turned = np.array(tf.world_state.STATE.lighting.sh.coeffs)
     # the same World with the image itself turned by W/4 columns (u decreases as φ grows)
     hdri_world(bpy, live.scene, image(bpy, "sky turned", shift=WIDTH // 4), mapping=False)
     frame(bpy, tf)
@@ -195,7 +206,7 @@ def test_rotation_matches_a_world_rebuilt_turned(bpy, tf, live, monkeypatch):
     items, _ = frame(bpy, tf)
     assert len(live.calls) > prefilters  # this one was analysed and prefiltered
     rebuilt = pixels(tf, items)
-    rebuilt_sh = np.array(tf.scene_draw.CACHES.world.sh.coeffs)
+    rebuilt_sh = np.array(tf.world_state.STATE.lighting.sh.coeffs)
     # exact rotation vs a projection of turned pixels: equal up to the quadrature's float32 rounding
     np.testing.assert_allclose(sh_turned, rebuilt_sh, rtol=0, atol=1e-5 * np.max(np.abs(rebuilt_sh)))
     covered = (turned[..., 3] > 0) & (rebuilt[..., 3] > 0)
@@ -222,10 +233,10 @@ def test_old_lighting_is_drawn_while_a_new_world_is_analysed(bpy, tf, live, monk
         return real(*args, **kwargs)
 
     monkeypatch.setattr(tf.world_analysis, "analyse_content", held)
-    old = tf.scene_draw.CACHES.world
+    old = tf.world_state.STATE.lighting
     hdri_world(bpy, live.scene, image(bpy, "other", shift=30))
     items, _ = frame(bpy, tf)
-    assert tf.scene_draw.CACHES.world is old and items[0].lighting is live.items[0].lighting
+    assert tf.world_state.STATE.lighting is old and items[0].lighting is live.items[0].lighting
     assert tf.world_job.busy()
     live.redraws.clear()
     tf.viewport._service()  # reads the World, starts the worker
@@ -237,7 +248,7 @@ def test_old_lighting_is_drawn_while_a_new_world_is_analysed(bpy, tf, live, monk
     tf.viewport._service()
     assert live.redraws  # a finished World job asks for a redraw
     items, _ = frame(bpy, tf)
-    assert tf.scene_draw.CACHES.world is not old and items[0].lighting is not live.items[0].lighting
+    assert tf.world_state.STATE.lighting is not old and items[0].lighting is not live.items[0].lighting
     assert items[0].prefiltered is not None  # computed with the content: the films read it
     main = threading.main_thread().name
     assert live.calls and all(name != main for name, _ in live.calls)
@@ -274,7 +285,7 @@ def rough_items(bpy, tf, live):
 
 
 def forbid_grids(tf, monkeypatch):
-    grids = tf.package.addon.radiance_grids
+    grids = tf.package.addon.bakes.radiance_grids
 
     def forbidden(*_a, **_k):
         raise AssertionError("a World parameter edit rebuilt a radiance grid")

@@ -1,7 +1,7 @@
 """Procedural Worlds in the viewport: their Cycles panorama rendered by the helper process (issue 16).
 
 The viewport's World step (``world_job.service``, the timer) hands a procedural World to
-:mod:`addon.panorama_helper`, whose process renders it with the add-on's own
+:mod:`addon.world.panorama_helper`, whose process renders it with the add-on's own
 ``panorama.render_world_panorama``; a worker waits and analyses it. With the real bpy:
 
 - no Cycles render runs in this process (counted), and the helper's panorama equals the one
@@ -27,14 +27,24 @@ from _extension import assert_helper_ends_with_stdin_and_unregister, registered_
 
 pytestmark = pytest.mark.blender
 
-MODULES = ("panorama", "panorama_helper", "panorama_process", "prefs", "scene_draw", "world", "world_job")
+MODULES = (
+    "addon.world.panorama",
+    "addon.world.panorama_helper",
+    "addon.world.panorama_process",
+    "addon.ui.prefs",
+    "addon.drawing.scene_draw",
+    "addon.world.world",
+    "addon.world.world_job",
+    "addon.world.world_state",
+    "addon.world.world_params",
+)
 
 
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     root = tmp_path_factory.mktemp("extension")
-    with registered_extension(bpy, root, [f"addon.{m}" for m in MODULES], gpu=True) as ns:
+    with registered_extension(bpy, root, MODULES, gpu=True) as ns:
         yield ns
 
 
@@ -70,8 +80,8 @@ def sky(bpy, tf, monkeypatch):
 def ask_and_settle(tf, scene, between=None):
     """The draw asks for the World, the timer reads it (``between`` runs right after that first
     timer step), workers analyse it; then the lighting the next draw gets."""
-    assert tf.scene_draw.world_lighting(scene, allow_compute=False) is None  # nothing drawn yet
-    assert tf.scene_draw.CACHES.world_wanted
+    assert tf.world_state.world_lighting(scene, allow_compute=False) is None  # nothing drawn yet
+    assert tf.world_state.STATE.wanted
     tf.world_job.service(scene)
     if between is not None:
         between()
@@ -80,14 +90,14 @@ def ask_and_settle(tf, scene, between=None):
         tf.world_job.service(scene)
         if not tf.world_job.busy():
             break
-    return tf.scene_draw.world_lighting(scene, allow_compute=False)
+    return tf.world_state.world_lighting(scene, allow_compute=False)
 
 
 def assert_lit(tf, scene, lighting):
     """The frame is lit by the Sky Texture's panorama: a daylight sky, brighter above."""
     assert lighting is not None
-    content_key, _ = tf.world.world_parts(scene)
-    content = tf.scene_draw.CACHES.contents[content_key].content
+    content_key, _ = tf.world_params.world_parts(scene)
+    content = tf.world_state.STATE.contents[content_key].content
     assert content.read.source == "panorama render (Sky Texture)"
     assert content.read.rgb is not None and content.read.pending is None
     coeffs = content.coeffs
@@ -170,7 +180,7 @@ def test_unregister_during_a_render_does_not_give_the_helper_up(tf, sky, caplog)
     scene, _renders, _real = sky
     helper = tf.panorama_helper
     given_up = helper.STATS["given_up"]
-    tf.scene_draw.world_lighting(scene, allow_compute=False)
+    tf.world_state.world_lighting(scene, allow_compute=False)
     with caplog.at_level(logging.ERROR, logger=helper.__name__):
         tf.world_job.service(scene)  # handed over: a worker waits for the helper
         pid = helper.process_id()
@@ -212,9 +222,13 @@ def test_blenders_command_line_reaches_the_script(tf, sky, monkeypatch, tmp_path
         "--python",
         helper.SCRIPT,
         "--",
-        helper.ROOT,
+        helper.helper_process.PACKAGE_ROOT,
     ]
-    assert helper.command_for("", sys.executable) == [sys.executable, helper.SCRIPT, helper.ROOT]
+    assert helper.command_for("", sys.executable) == [
+        sys.executable,
+        helper.SCRIPT,
+        helper.helper_process.PACKAGE_ROOT,
+    ]
     monkeypatch.setattr(helper, "command", lambda: argv)
     assert_lit(tf, scene, ask_and_settle(tf, scene))
     assert renders == [] and helper.process_id() is not None
@@ -246,8 +260,8 @@ def test_images_relative_to_the_file_or_packed_reach_the_helper(bpy, tf, sky, tm
     tree.links.new(gamma.outputs["Color"], tree.nodes["Background"].inputs["Color"])
     lighting = ask_and_settle(tf, scene)
     assert lighting is not None and renders == []
-    content_key, _ = tf.world.world_parts(scene)
-    read = tf.scene_draw.CACHES.contents[content_key].content.read
+    content_key, _ = tf.world_params.world_parts(scene)
+    read = tf.world_state.STATE.contents[content_key].content.read
     assert read.source == "panorama render (Gamma)"
     np.testing.assert_array_equal(read.rgb, real(scene.world))
     assert read.rgb.max() > 1.0  # the image's ramp, not a fallback colour

@@ -1,4 +1,4 @@
-"""The outgoing-radiance grid in the add-on (addon/radiance_grids.py through scene_draw.collect).
+"""The outgoing-radiance grid in the add-on (addon/bakes/radiance_grids.py through scene_draw.collect).
 
 - the viewport's collect never builds a grid: it asks the worker and draws the per-pixel SH
   meanwhile; once built, the next frame reads the grid (and a timer asks for that redraw);
@@ -30,7 +30,7 @@ def rough_film(bpy, tf, name, roughness=0.6, vary=False, order="3"):  # noqa: F8
 def grids_module(tf):  # noqa: F811
     import importlib
 
-    return importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
+    return importlib.import_module(f"{tf.package.__name__}.addon.bakes.radiance_grids")
 
 
 def wait_idle(module):
@@ -68,9 +68,9 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     assert bpy.app.timers.is_registered(rg._poll)
     wait_idle(rg)
     assert built_on and all(t is not threading.main_thread() for t in built_on)
-    assert rg.GRIDS.finished.is_set()  # the timer's cue for a redraw
+    assert rg.GRIDS.work.finished()  # the timer's cue for a redraw
     rg._poll()
-    assert not rg.GRIDS.finished.is_set()
+    assert not rg.GRIDS.work.finished()
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is not None and not item.grid_pending
     prepared = tf.package.addon.gpu.draw.prepare_draw([item], _eye(), _eye(), display_srgb=True)
@@ -138,7 +138,7 @@ def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa
 
     from precompute.shading.variant import Variant
 
-    warmup = importlib.import_module(f"{tf.package.__name__}.addon.shader_warmup")
+    warmup = importlib.import_module(f"{tf.package.__name__}.addon.drawing.shader_warmup")
     shaders = importlib.import_module(f"{tf.package.__name__}.addon.gpu.shaders").SHADERS
     first, second = Variant(0, False, False, True), Variant(1, False, False, True)
     for v in (first, second):

@@ -83,12 +83,12 @@ def tf(bpy, tmp_path_factory):
             addons = bpy.context.preferences.addons
             entry = addons.get(EXTENSION_ID) or addons.new()
             entry.module = EXTENSION_ID
-            prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+            prefs = importlib.import_module(f"{EXTENSION_ID}.addon.ui.prefs")
             prefs.preferences().cache_dir = str(root / "cache")
             yield types.SimpleNamespace(
                 package=package,
                 addon=addon,
-                headless=importlib.import_module(f"{EXTENSION_ID}.addon.headless"),
+                headless=importlib.import_module(f"{EXTENSION_ID}.addon.headless.headless"),
                 make_scenes=_load("thinfilm_sh_make_scenes", REPO / "sample_scenes" / "make_scenes.py"),
                 refs=_load(
                     "thinfilm_sh_make_reference_images", REPO / "scripts" / "make_reference_images.py"

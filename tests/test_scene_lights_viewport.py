@@ -26,8 +26,17 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "prefs", "tables", "panorama", "world"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.ui.prefs",
+            "addon.bakes.tables",
+            "addon.world.panorama",
+            "addon.world.world",
+            "addon.world.world_state",
+            "addon.drawing.lights",
+            "addon.bakes.bake_jobs",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.gpu = importlib.import_module(f"{EXTENSION_ID}.addon.gpu")
         for name in ("context", "draw", "resources"):
             importlib.import_module(f"{EXTENSION_ID}.addon.gpu.{name}")
@@ -76,11 +85,13 @@ def lit(bpy, tf):
     return types.SimpleNamespace(scene=scene, sphere=sphere, lamp=lamp, first=items[0])
 
 
-def draw_frame(bpy, tf, want):
-    """``collect`` as the draw callback calls it."""
+def draw_frame(bpy, tf, want, monkeypatch):
+    """``collect`` as the draw callback calls it; the bakes it asks the bakes room for land in
+    ``want``."""
+    monkeypatch.setattr(tf.bake_jobs, "want", lambda desc, **_: want.append(desc))
     bpy.context.view_layer.update()
     return tf.scene_draw.collect(
-        bpy.context.evaluated_depsgraph_get(), allow_bake=False, allow_world=False, want_bake=want.append
+        bpy.context.evaluated_depsgraph_get(), allow_bake=False, allow_world=False, bake_later=True
     )
 
 
@@ -90,7 +101,7 @@ PROJ = np.array([[3.5, 0, 0, 0], [0, 3.5, 0, 0], [0, 0, -1.002, -0.2002], [0, 0,
 
 def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, tf, lit, monkeypatch):
     """Move, re-colour, re-power: new lights and new pixels; no bake, no panorama, same World."""
-    world_before = tf.scene_draw.CACHES.world
+    world_before = tf.world_state.STATE.lighting
     bakes = tf.tables.bake_count
 
     def forbidden(*_a, **_k):
@@ -98,7 +109,7 @@ def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, t
 
     monkeypatch.setattr(tf.panorama, "render_world_panorama", forbidden)
     monkeypatch.setattr(tf.world, "world_sh", forbidden)
-    monkeypatch.setattr(tf.scene_draw.world_analysis, "analyse_world", forbidden)
+    monkeypatch.setattr(tf.world_state.world_analysis, "analyse_world", forbidden)
     monkeypatch.setattr(tf.tables, "get_table", forbidden)
     want: list = []
     frames, contents = [], []
@@ -109,12 +120,12 @@ def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, t
             lit.lamp.data.color = (1.0, 0.3, 0.2)
         elif edit == "power":
             lit.lamp.data.energy = 2000.0
-        items, messages = draw_frame(bpy, tf, want)
+        items, messages = draw_frame(bpy, tf, want, monkeypatch)
         assert len(items) == 1, messages
         contents.append(np.array(items[0].lights))
         frames.append(tf.gpu.draw.render_offscreen(items, VIEW, PROJ, 32, 32))
     assert want == [] and tf.tables.bake_count == bakes
-    assert tf.scene_draw.CACHES.world is world_before
+    assert tf.world_state.STATE.lighting is world_before
     np.testing.assert_array_equal(contents[0], np.array(lit.first.lights))
     for a, b in zip(frames, frames[1:], strict=False):
         assert np.max(np.abs(a[..., :3] - b[..., :3])) > 1e-3  # every edit shows in the frame
@@ -122,26 +133,26 @@ def test_moving_or_editing_a_light_redraws_with_no_bake_and_no_world_work(bpy, t
         assert not np.array_equal(a, b)
 
 
-def test_lights_that_cannot_reach_the_film_are_left_out(bpy, tf, lit):
+def test_lights_that_cannot_reach_the_film_are_left_out(bpy, tf, lit, monkeypatch):
     """Glossy ray visibility off or Specular 0: no lights (and no light loop); the panel says
     that light objects cast no shadows yet."""
-    assert "no cast shadows" in tf.scene_draw.lights_summary(lit.scene)
+    assert "no cast shadows" in tf.lights.lights_summary(lit.scene)
     want: list = []
     lit.lamp.visible_glossy = False
-    items, _ = draw_frame(bpy, tf, want)
+    items, _ = draw_frame(bpy, tf, want, monkeypatch)
     assert items[0].lights is None
     lit.lamp.visible_glossy = True
     lit.lamp.data.specular_factor = 0.0
-    items, _ = draw_frame(bpy, tf, want)
+    items, _ = draw_frame(bpy, tf, want, monkeypatch)
     assert items[0].lights is None
     lit.lamp.data.specular_factor = 0.5
-    items, _ = draw_frame(bpy, tf, want)
+    items, _ = draw_frame(bpy, tf, want, monkeypatch)
     full = np.array(lit.first.lights)
     # energy (row 2 of light 0, after the count vec4) halves
     np.testing.assert_allclose(np.array(items[0].lights)[3, :3], 0.5 * full[3, :3], rtol=1e-6)
 
 
-def test_light_linking_limits_a_light_to_its_receivers(bpy, tf, lit):
+def test_light_linking_limits_a_light_to_its_receivers(bpy, tf, lit, monkeypatch):
     """A light whose receiver collection holds another object lights only that object."""
     bpy.ops.mesh.primitive_cube_add(location=(3.0, 0.0, 0.0))
     cube = bpy.context.active_object
@@ -149,7 +160,7 @@ def test_light_linking_limits_a_light_to_its_receivers(bpy, tf, lit):
     receivers = bpy.data.collections.new("receivers")
     receivers.objects.link(cube)
     lit.lamp.light_linking.receiver_collection = receivers
-    items, _ = draw_frame(bpy, tf, [])
+    items, _ = draw_frame(bpy, tf, [], monkeypatch)
     by_name = {item.name.split("/")[0]: item for item in items}
     assert by_name[cube.name].lights is not None
     assert by_name[lit.sphere.name].lights is None

@@ -1,4 +1,4 @@
-"""Which Blender materials are drawn as transparent walls (addon/transparency.py), in bpy.
+"""Which Blender materials are drawn as transparent walls (addon/materials/transparency.py), in bpy.
 
 The extension's *Transparency* setting (Automatic: a film on air; Thin Sheet; Opaque), a
 Principled BSDF's *Transmission Weight* and *Thin Wall*, the write-back of Thin Wall for Cycles,
@@ -27,8 +27,12 @@ def ext(bpy, package):
     package.register()
     try:
         yield {
-            name: importlib.import_module(f"{EXTENSION_ID}.addon.{name}")
-            for name in ("transparency", "description", "principled")
+            dotted.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{dotted}")
+            for dotted in (
+                "addon.materials.transparency",
+                "addon.materials.description",
+                "addon.materials.principled",
+            )
         }
     finally:
         package.unregister()

@@ -39,8 +39,13 @@ def tf(bpy, tmp_path_factory):
         ns = types.SimpleNamespace(package=package)
         ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
         ns.gpu = gpu_layer()
-        for name in ("scene_draw", "props", "prefs"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.materials.props",
+            "addon.materials.conversion",
+            "addon.ui.prefs",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID
@@ -252,7 +257,7 @@ def test_collect_rebuilds_no_batch_until_the_mesh_changes(tf, bpy):
         mesh = bpy.data.meshes.new(f"film{k}")
         mesh.from_pydata([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], [], [(0, 1, 2, 3)])
         mat = bpy.data.materials.new(f"film{k}")
-        tf.props.fill_from_material(mat.thinfilm_sh, FILM)
+        tf.conversion.fill_from_material(mat.thinfilm_sh, FILM)
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32
@@ -311,7 +316,7 @@ def test_collect_splits_a_mesh_by_material_slot(tf, bpy):
     mesh.from_pydata(verts, [], [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6)])  # three quads
     for k in range(2):
         mat = bpy.data.materials.new(f"slot{k}")
-        tf.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
+        tf.conversion.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=0.6 + 0.1 * k))
         mat.thinfilm_sh.sh_order = "2"
         mat.thinfilm_sh.view_samples = 8
         mat.thinfilm_sh.wavelength_count = 32
@@ -430,7 +435,7 @@ def test_uniform_table_layout_and_size_limit(tf, gpu_helpers):
     layers = gd.resources.TableTexture.layer_array(result.data)
     packed = gd.resources.TableTexture.uniform_array(layers)
     n_layers, t, a = layers.shape[:3]
-    assert packed.shape == (1024, 4) and packed.nbytes == gd.resources.UBO_LIMIT_BYTES
+    assert packed.shape == (1024, 4) and packed.nbytes == gd.layout.UBO_LIMIT_BYTES
     assert tuple(packed[0, :3]) == (a, t, n_layers)
     row, column, layer = 5, 7, 4
     assert np.array_equal(packed[1 + (row * a + column) * n_layers + layer], layers[layer, row, column])

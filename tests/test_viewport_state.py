@@ -1,8 +1,8 @@
 """What the viewport remembers between frames, through the draw's own code path (issue 24).
 
 - A material whose bake fails is baked once per change of its description, not once per redraw
-  (``viewport._want_bake`` / ``_service`` / ``scene_draw.collect`` as the draw callback calls
-  them), and its error is in every frame's messages and in the material panel's error line.
+  (``bake_jobs.want`` / ``viewport._service`` / ``scene_draw.collect`` as the draw callback
+  calls them), and its error is in every frame's messages and in the material panel's error line.
 - The GPU caches of ``scene_draw`` (batches, table and film textures, lightings) stay within
   their bounds over a long session, and what they drop is freed.
 - The thickness a batch uploads follows its inputs: the noise scale and seed, the attribute's
@@ -40,8 +40,19 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.materials.props",
+            "addon.ui.prefs",
+            "addon.bakes.tables",
+            "addon.thickness.thickness",
+            "addon.drawing.viewport",
+            "addon.ui.ui",
+            "addon.bakes.bake_jobs",
+            "addon.world.world_state",
+            "addon.workers",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
         ns.planner = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.planner")
         ns.kernel = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.kernel")
@@ -111,15 +122,16 @@ def collect(bpy, tf, **kwargs):
 # A failing bake backs off
 # ----------------------------------------------------------------------------------------------
 def redraw(bpy, tf):
-    """One viewport redraw as draw_callback does it (collect without baking, want_bake queues),
+    """One viewport redraw as draw_callback does it (collect without baking, the bakes asked for),
     then the timer (_service: starts the queued bakes on threads), waiting for the threads."""
     vp = tf.viewport
-    items, messages = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
+    bj = tf.bake_jobs
+    items, messages = collect(bpy, tf, allow_bake=False, allow_world=False, bake_later=True)
     vp._service()
     deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while vp._running and time.monotonic() < deadline:
+    while bj.BAKES.running and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert not vp._running, "a viewport bake thread did not finish"
+    assert not bj.BAKES.running, "a viewport bake thread did not finish"
     return items, messages
 
 
@@ -134,7 +146,7 @@ def test_a_failing_material_is_baked_once_per_change_not_per_redraw(bpy, tf, sce
     monkeypatch.setattr(tf.bake, "bake", failing_bake)
     mat = film(bpy, tf, "Failing")
     grid(bpy, scene, "Sheet", mat, n=2)
-    tf.scene_draw.world_lighting(scene, allow_compute=True)
+    tf.world_state.world_lighting(scene, allow_compute=True)
 
     frames = [redraw(bpy, tf) for _ in range(REDRAWS)]
     assert len(calls) == 1

@@ -1,4 +1,4 @@
-"""``addon.world``: the scene's World as SH radiance, in a real Blender session (bpy module).
+"""``addon.world.world``: the scene's World as SH radiance, in a real Blender session (bpy module).
 
 Every test starts from ``read_factory_settings(use_empty=True)`` and builds its World with the
 ``bpy.data`` API. Ground truths:
@@ -33,21 +33,21 @@ L_MAX = 8
 
 @pytest.fixture(scope="module")
 def world_mod(bpy, tmp_path_factory):
-    """``thinfilm_sh.addon.world``, imported from a symlink named like the extension."""
+    """``thinfilm_sh.addon.world.world``, imported from a symlink named like the extension."""
     with linked_extension(tmp_path_factory.mktemp("ext"), unregister=False):
-        yield importlib.import_module(f"{EXTENSION_ID}.addon.world")
+        yield importlib.import_module(f"{EXTENSION_ID}.addon.world.world")
 
 
 @pytest.fixture(scope="module")
 def panorama_mod(world_mod):
-    """``thinfilm_sh.addon.panorama``: the World rendered alone."""
-    return importlib.import_module(f"{EXTENSION_ID}.addon.panorama")
+    """``thinfilm_sh.addon.world.panorama``: the World rendered alone."""
+    return importlib.import_module(f"{EXTENSION_ID}.addon.world.panorama")
 
 
 @pytest.fixture(scope="module")
 def world_key_mod(world_mod):
-    """``thinfilm_sh.addon.world_key``: the World's content key."""
-    return importlib.import_module(f"{EXTENSION_ID}.addon.world_key")
+    """``thinfilm_sh.addon.world.world_key``: the World's content key."""
+    return importlib.import_module(f"{EXTENSION_ID}.addon.world.world_key")
 
 
 @pytest.fixture(scope="module")

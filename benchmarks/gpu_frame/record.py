@@ -1,5 +1,5 @@
 """Recording what the extension draws (bpy): create-info stand-ins, the capture of uploads and
-meshes, the manifest writer, and the benchmark scenes of benchmarks/viewport/ case by case."""
+meshes, the manifest writer, and the benchmark scenes of benchmarks/viewport.py case by case."""
 
 from __future__ import annotations
 
@@ -8,10 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..viewport.config import AUTOMATIC_ROUGHNESS, SPLIT_SUM_L, SWEEP_SCENE, roughness_cases
-from ..viewport.frames import Frame
-from ..viewport.measure import prepare_scene
-from ..viewport.scene import Extension, Scene
+from .. import viewport as vp
 from .config import (
     LAMPS,
     LAMPS_ON_ONLY,
@@ -361,15 +358,20 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
     frame = None
     try:
         for case in spec["cases"]:
-            rough = AUTOMATIC_ROUGHNESS[case]
-            mat = scene.automatic_film(case)
+            rough = vp.AUTOMATIC_ROUGHNESS[case]
+            mat = bpy.data.materials.get(f"Film auto {case}")
+            if mat is None:
+                mat = bpy.data.materials.new(f"Film auto {case}")
+                scene.ext.conversion.fill_from_material(mat.thinfilm_sh, vp.FILM.with_(roughness=rough))
+                mat.thinfilm_sh.sh_order = "AUTO"
+                mat.thinfilm_sh.enabled = True
             for obj in scene.objects:
                 obj.data.materials.clear()
                 obj.data.materials.append(mat)
             bpy.context.view_layer.update()
             scene.ext.scene_draw.collect(bpy.context.evaluated_depsgraph_get())  # bake, World, grid
             if frame is None:
-                frame = Frame(scene, *size)
+                frame = vp.Frame(scene, *size)
             items = frame.items()
             l_max = int(items[0].table.l_max)
             meta = {
@@ -402,8 +404,8 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
 
 
 def _frames(scene, size):
-    """The scene's cases: (meta, items, view, projection), as benchmarks/viewport/ draws them."""
-    rough = roughness_cases()
+    """The scene's cases: (meta, items, view, projection), as benchmarks/viewport.py draws them."""
+    rough = vp.roughness_cases()
     for scene_name, spec in SCENES.items():
         if scene_name in LAMPS_ON_ONLY:
             yield from _automatic_frames(scene, size, scene_name, spec)
@@ -415,9 +417,9 @@ def _frames(scene, size):
                 for lamps in LAMPS[::-1]:  # as viewport.split_sum: lamps off first, then the default (on)
                     for case in spec["cases"]:
                         scene.material(l_max, case).thinfilm_sh.world_lamps = lamps
-                        prepare_scene(scene, objects, triangles, l_max, case)
+                        vp.prepare_scene(scene, objects, triangles, l_max, case)
                         if frame is None:
-                            frame = Frame(scene, *size)
+                            frame = vp.Frame(scene, *size)
                         items = frame.items()
                         meta = {
                             "id": case_id(scene_name, l_max, case, lamps),
@@ -476,20 +478,20 @@ def _textures_only(items):
 
 
 def _check_constants() -> None:
-    if tuple(SCENES["sweep"]["layout"]) != tuple(SWEEP_SCENE):
-        raise RuntimeError(f"viewport.SWEEP_SCENE is {SWEEP_SCENE}, this harness has {SCENES['sweep']}")
-    if tuple(SCENES["sweep"]["l_max"]) != tuple(SPLIT_SUM_L):
-        raise RuntimeError(f"viewport.SPLIT_SUM_L is {SPLIT_SUM_L}, this harness has {SCENES['sweep']}")
+    if tuple(SCENES["sweep"]["layout"]) != tuple(vp.SWEEP_SCENE):
+        raise RuntimeError(f"viewport.SWEEP_SCENE is {vp.SWEEP_SCENE}, this harness has {SCENES['sweep']}")
+    if tuple(SCENES["sweep"]["l_max"]) != tuple(vp.SPLIT_SUM_L):
+        raise RuntimeError(f"viewport.SPLIT_SUM_L is {vp.SPLIT_SUM_L}, this harness has {SCENES['sweep']}")
 
 
 def record_cases(size, log=print):
     """Set up the scenes (bpy) and yield (meta, items, view, projection, capture) per case, with the
     capture active; the extension instance is created here."""
     _check_constants()
-    ext = Extension()
+    ext = vp.Extension()
     capture = Capture(ext.gpu)
     ext.scene_draw.CACHES.clear()
     with capture:
-        scene = Scene(ext)
+        scene = vp.Scene(ext)
         for meta, items, view, proj in _frames(scene, size):
             yield meta, items, view, proj, capture, ext

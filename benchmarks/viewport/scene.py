@@ -30,8 +30,14 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("scene_draw", "props", "headless"):
-            setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.materials.props",
+            "addon.materials.conversion",
+            "addon.headless.headless",
+            "addon.headless.render",
+        ):
+            setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
@@ -114,7 +120,7 @@ class Scene:
         self.camera = bpy.data.objects.new("Camera", cam_data)
         self.scene.collection.objects.link(self.camera)
         self.scene.camera = self.camera
-        self.space, self.region = ext.headless._view3d_for_depth()
+        self.space, self.region = ext.render._view3d_for_depth()
         if self.space is None:
             raise RuntimeError("no VIEW_3D area in bpy.data.screens: cannot draw Workbench")
         shading = self.space.shading
@@ -146,7 +152,7 @@ class Scene:
         if key not in self.materials:
             mat = bpy.data.materials.new(f"Film l{l_max} {case}")
             tf = mat.thinfilm_sh
-            self.ext.props.fill_from_material(tf, FILM.with_(roughness=roughness_cases()[case]))
+            self.ext.conversion.fill_from_material(tf, FILM.with_(roughness=roughness_cases()[case]))
             tf.sh_order = str(int(l_max))
             tf.enabled = True
             self.materials[key] = mat
@@ -160,7 +166,7 @@ class Scene:
         if mat is None:
             mat = bpy.data.materials.new(f"Film auto {case}")
             rough = AUTOMATIC_ROUGHNESS[case]
-            self.ext.props.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
+            self.ext.conversion.fill_from_material(mat.thinfilm_sh, FILM.with_(roughness=rough))
             mat.thinfilm_sh.sh_order = "AUTO"
             mat.thinfilm_sh.enabled = True
         return mat
@@ -219,4 +225,4 @@ class Scene:
         import bpy
 
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        return self.ext.headless.camera_matrices(self.scene, depsgraph, width, height)
+        return self.ext.render.camera_matrices(self.scene, depsgraph, width, height)

@@ -1,13 +1,13 @@
 """The display transform as a 3-D lookup table: the numpy mirror of ``glsl/tf_display.glsl``.
 
 The scene's colour management (display device, view transform, look, gamma; OCIO, evaluated by
-addon/display.py) is baked on the CPU into a cube of ``N``³ display-referred RGB values over a
+addon/drawing/display.py) is baked on the CPU into a cube of ``N``³ display-referred RGB values over a
 logarithmic *shaper* of the scene-linear input, and sampled per pixel with trilinear
 interpolation. Exposure stays outside the table: the caller scales the scene-linear input by
 2^exposure first, as Blender does. A 3 × 3 matrix then takes the working space into the table's
 input space: the display's own linear gamut for views that clip to it (Standard, Filmic, PBR
 Neutral: the clip then falls on the cube's faces instead of inside its cells), the working
-space itself for views that map wide gamuts (AgX); addon/display.py picks the one that follows
+space itself for views that map wide gamuts (AgX); addon/drawing/display.py picks the one that follows
 OCIO best.
 
 Shaper (each channel, x scene-linear in the working space after exposure, clamped to ≥ 0):

@@ -114,7 +114,7 @@ def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
     by every row's multiple-scattering factor (:func:`_multiscatter`). Equal to the per-row
     :func:`film_rgb_matrices` and :func:`brdf.directional_albedo` to float rounding (swept) or
     the interpolation's tolerance (tests/test_live.py). The viewport computes it on the bake's
-    worker (:func:`addon.tables.get_film`), never in a draw.
+    worker (:func:`addon.bakes.tables.get_film`), never in a draw.
     """
     spectral = np.asarray(result.data).ndim == 5
     nodes = getattr(result, "node_reflectance", None)

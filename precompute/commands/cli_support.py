@@ -1,7 +1,7 @@
 """What both command lines share: exit codes, checks done before any work, one top-level handler.
 
 ``python -m precompute`` (:mod:`precompute.commands.cli`) and the headless Blender commands
-(``addon/headless.py``) both use it, so they refuse the same bad input with the same words and
+(``addon/headless/headless.py``) both use it, so they refuse the same bad input with the same words and
 exit with the same codes (docs/cli-exit-codes.md):
 
 ====  ================  =====================================================================

@@ -473,7 +473,7 @@ def scene_plan(
 ) -> ScenePlan:
     """Plan a scene: ``materials`` maps names of materials used by VISIBLE objects to descriptions.
 
-    ``world_coeffs``: the World's SH ((L+1)², 3), e.g. ``addon.world.world_sh(scene).coeffs``.
+    ``world_coeffs``: the World's SH ((L+1)², 3), e.g. ``addon.world.world.world_sh(scene).coeffs``.
     ``cached``: content keys whose tables are already in memory or on disk (bake time 0).
     ``kernels_cold``: whether microfacet kernels start uncached (a new session).
 

@@ -15,7 +15,7 @@ needs from it (the add-on calls it when the World's key changes):
    materials the lamps do not apply to.
 
 A prefilter costs seconds, so neither is computed by :func:`analyse_world`: each is computed the
-first time a drawn material reads it, then kept (addon/scene_draw.py asks only for those its
+first time a drawn material reads it, then kept (addon/drawing/scene_draw.py asks only for those its
 glossy materials read). Without lamps the two are one and the same.
 
 Every watt is kept: rest + lamps = the panorama, in power and in SH (tests/test_environment.py).
@@ -48,7 +48,7 @@ class Environment:
     panorama : ndarray, shape (H, W, 3)
         Scene-linear radiance, top row first (docs/conventions.md), as given (not copied).
     world_sh : ndarray, shape ((L+1)², 3), float64
-        The World's SH radiance as given (e.g. from its nodes, ``addon.world.world_sh``).
+        The World's SH radiance as given (e.g. from its nodes, ``addon.world.world.world_sh``).
     lamps : precompute.world.lamps.Lamps or None
         The lamps lifted out of the panorama; None when it has none.
     lamp_mask : ndarray, shape (H, W), bool
