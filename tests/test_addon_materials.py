@@ -95,7 +95,7 @@ def pre(ext):
 
 
 def _material(pre):
-    return importlib.import_module(f"{pre.__name__}.material")
+    return importlib.import_module(f"{pre.__name__}.materials.material")
 
 
 def _drawn(pre, material):

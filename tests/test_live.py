@@ -75,8 +75,10 @@ def _film_table_per_row(precompute, result, samples):
 @pytest.fixture(scope="module")
 def precompute():
     """The precompute package's modules the film-table check needs (no Blender)."""
-    names = ("bake", "brdf", "constants", "film_colour", "material")
-    return types.SimpleNamespace(**{n: importlib.import_module(f"precompute.{n}") for n in names})
+    names = ("bakes.bake", "bakes.planner", "brdf", "constants", "colour.film_colour", "materials.material")
+    for name in names:
+        importlib.import_module(f"precompute.{name}")
+    return importlib.import_module("precompute")
 
 
 @pytest.mark.parametrize(
