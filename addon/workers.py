@@ -4,20 +4,20 @@ Every piece of the add-on's background work is a :class:`Job` (what it works on,
 its cancel, its result or error) run by a :class:`Lane` (one kind of work: its running jobs by
 key, one lock, a daemon thread per job, a *finished* flag). What runs where:
 
-============================== ================================= =====================================
-lane                           jobs                              its own scheduling rules
-============================== ================================= =====================================
-``bakes.queue.BAKES``          the viewport's table bakes        one per material, the newest value
-                               (``bakes.bake_job.BakeJob``)      wins, a superseded one cancelled,
-                                                                 nothing new while one stops
-``bakes.bake_job.BUTTON``      the Bake button's bake (the same  one per button press, Esc cancels
-                               ``BakeJob``)
-``world.world_job.WORK``       the World's analysis, prefilters  one content analysis at a time, the
-                                                                 newest World read when it ends
-``bakes.radiance_grids.GRIDS`` outgoing-radiance grids           one worker drains a queue of at most
-                                                                 ``QUEUE_SIZE``, newest first
-``drawing.display.LUT_WORK``   the viewport's display LUT        one per display settings
-============================== ================================= =====================================
+=================================== ============================== ====================================
+lane                                jobs                           its own scheduling rules
+=================================== ============================== ====================================
+``bakes.bake_jobs.BAKES``           the viewport's table bakes     one per material, the newest value
+                                    (``bake_jobs.BakeJob``)        wins, a superseded one cancelled,
+                                                                   nothing new while one stops
+``bakes.bake_jobs.BUTTON``          the Bake button's bake (the    one per button press, Esc cancels
+                                    same ``BakeJob``)
+``world.world_job.WORK``            the World's analysis,          one content analysis at a time, the
+                                    prefilters                     newest World read when it ends
+``bakes.radiance_grids.GRIDS.work`` outgoing-radiance grids        one worker drains a queue of at most
+                                                                   ``QUEUE_SIZE``, newest first
+``drawing.display.LUT_WORK``        the viewport's display LUT     one per display settings
+=================================== ============================== ====================================
 
 Work that must run on Blender's main thread but not inside a draw is :class:`Deferred`: queued
 (the newest per key wins) where it cannot run and run by a timer — the Cycles bakes of linked

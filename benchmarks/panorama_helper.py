@@ -82,7 +82,7 @@ def measure(helper=None) -> dict:
     start = time.perf_counter()
     helper.warm()
     found["popen_ms"] = _ms(time.perf_counter() - start)
-    process = helper._process
+    process = helper.SLOT.current()  # the session's helper (helper_process.HelperSlot)
     if process is None or not process.ready.wait(helper.START_TIMEOUT_S) or process.ready_s is None:
         raise RuntimeError(f"the helper did not start: {helper.info()}")
     found["ready_s"] = process.ready_s
