@@ -27,3 +27,25 @@ def bpy():
     import bpy as bpy_module
 
     return bpy_module
+
+
+class _RepositoryRootIsNotATestPackage:
+    """The repository root has an ``__init__.py`` (it is the extension package), so pytest would
+    collect it as a test package and import that ``__init__.py`` before the first test, under the
+    checkout folder's name. A folder name that is not a Python identifier (``thin-film-sh``, a
+    git worktree ``wt-x``) makes that a bare ``import __init__`` whose relative imports fail: every
+    test errors. The root is collected as a plain folder instead; the tests import the extension
+    as ``thinfilm_sh`` themselves (tests/_extension.py)."""
+
+    def __init__(self, root):
+        self.root = root
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_collect_directory(self, path, parent):
+        if path == self.root and (path / "__init__.py").is_file():
+            return pytest.Dir.from_parent(parent, path=path)
+        return None
+
+
+def pytest_configure(config):
+    config.pluginmanager.register(_RepositoryRootIsNotATestPackage(config.rootpath), "thinfilm-root-dir")
