@@ -38,7 +38,7 @@ try:
 except ImportError:
     resource = None
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 POSIX_LIMITS = pytest.mark.skipif(resource is None or not hasattr(signal, "SIGXFSZ"), reason="POSIX only")
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 # A deadline that no correct refusal comes near (each takes milliseconds) and that every

@@ -15,7 +15,7 @@ import pytest
 from precompute.shading import codegen, policy, sh_rotation
 from precompute.shading.variant import Variant, choose_variant
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 GLSL = REPO / "glsl"
 
 #: Defines the shaders set for themselves: the library switch of the generated code.

@@ -11,7 +11,7 @@ edge (it would make every package that imports its own submodules a cycle).
 import ast
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 PRODUCT = ("precompute", "addon")
 #: Blender's modules: precompute/ runs standalone and must never import them.
 BLENDER = {"bpy", "gpu", "mathutils", "bmesh", "gpu_extras", "bl_math", "blf", "idprop"}

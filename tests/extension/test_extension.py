@@ -20,7 +20,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 MANIFEST = tomllib.loads((REPO / "blender_manifest.toml").read_text(encoding="utf-8"))
 EXTENSION_ID = MANIFEST["id"]
 REGISTER_CYCLES = 10
