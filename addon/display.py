@@ -270,9 +270,9 @@ def _bake_worker(key: DisplaySettings) -> None:
         log.error("Thin Film SH: display transform: %s", exc)
         LUTS[key] = None
     finally:
-        with _lock:
+        with _lock:  # the cue before leaving _baking: a timer that sees neither stops for good
+            _finished.set()
             _baking.discard(key)
-        _finished.set()
 
 
 def viewport_lut(settings: DisplaySettings) -> DisplayLUTTexture | None:

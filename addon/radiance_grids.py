@@ -100,10 +100,10 @@ def _work() -> None:
             log.error("Thin Film SH: radiance grid failed: %s", exc)
             grid = None
         with GRIDS.lock:
-            GRIDS.running = None
             if grid is not None:
                 _keep_built(key, grid)
-        GRIDS.finished.set()
+            GRIDS.finished.set()  # before leaving ``running``: a timer that saw neither stops for good
+            GRIDS.running = None
 
 
 def _poll() -> float | None:

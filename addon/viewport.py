@@ -243,13 +243,14 @@ def _bake_worker(job: _Job, cache) -> None:
         log.error("Thin Film SH: bake failed: %s", text)
     finally:
         with _lock:
+            shown_after = _frames.started
+            # the cue before leaving _running: a timer tick that saw neither would stop for good
+            if not (cancelled and job.superseded):  # it has nothing to show: a redraw would delay the next
+                _finished.set()  # its table, its error or its cancel (the header): the timer redraws
             if _running.get(job.key) is job:
                 del _running[job.key]
             for owner in [o for o, k in _wanted.items() if k == job.key and o not in _pending]:
                 del _wanted[owner]  # served (or failed, or cancelled: the next draw asks again)
-        shown_after = _frames.started
-        if not (cancelled and job.superseded):  # it has nothing to show: a redraw would delay the next
-            _finished.set()  # its table, its error or its cancel (the header): the timer redraws
     if baked is not None:  # after the frame that shows it: the disk copy only serves the next session
         _frames.wait_past(shown_after, STORE_WAIT_S)  # the write would compete with that frame
         if tables.MEMORY.get(job.key) is not None:  # not cleared meanwhile (Clear Cache, file load)

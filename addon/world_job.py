@@ -62,9 +62,9 @@ def _start(label: tuple, target, *args) -> None:
         except Exception as exc:  # reported, never raised into Blender
             log.error("Thin Film SH: World analysis failed: %s", exc)
         finally:
-            with _lock:
+            with _lock:  # the cue before leaving _running: a timer that sees neither stops for good
+                _finished.set()
                 _running.pop(label, None)
-            _finished.set()
 
     thread = threading.Thread(target=run, daemon=True, name=f"thinfilm_sh World {label[0]}")
     with _lock:

@@ -16,12 +16,12 @@ import struct
 import subprocess
 import sys
 import textwrap
-import threading
 from pathlib import Path
 
 import numpy as np
 import OpenEXR
 import pytest
+from _waits import finishes
 
 from precompute import bake, cli, cli_support, table_cache, table_io
 from precompute.table_cache import CacheDirError, TableCache
@@ -41,30 +41,6 @@ except ImportError:
 ROOT = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 POSIX_LIMITS = pytest.mark.skipif(resource is None or not hasattr(signal, "SIGXFSZ"), reason="POSIX only")
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
-# A deadline that no correct refusal comes near (each takes milliseconds) and that every
-# regression of the issue (building 10^10 channel names, reading /dev/zero, a FIFO that never
-# opens) passes without fail.
-DEADLINE_S = 10.0
-
-
-def finishes(call, seconds=DEADLINE_S):
-    """Run ``call`` in a daemon thread; fail the test if it is still running after ``seconds``.
-
-    Returns ``(result, exception)``.
-    """
-    box = {}
-
-    def run():
-        try:
-            box["result"] = call()
-        except BaseException as exc:  # noqa: BLE001 - handed back to the test
-            box["exc"] = exc
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    thread.join(seconds)
-    assert not thread.is_alive(), f"still running after {seconds} s: a hang"
-    return box.get("result"), box.get("exc")
 
 
 def is_char_device(path) -> bool:

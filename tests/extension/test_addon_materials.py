@@ -15,6 +15,7 @@ import pytest
 pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _waits import EVENT_TIMEOUT_S  # noqa: E402
 
 REGISTER_CYCLES = 10
 
@@ -483,8 +484,9 @@ def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, descripti
 
     job = ops.BakeJob(desc, cache)
     job.cancel()
-    job.start().join(60)
-    assert job.done.is_set() and job.cancelled and job.result is None and job.error is None
+    job.start().join(EVENT_TIMEOUT_S)
+    assert job.done.is_set(), f"a cancelled bake job did not end in {EVENT_TIMEOUT_S:.0f} s"
+    assert job.cancelled and job.result is None and job.error is None
     assert (
         tables_mod.bake_count == start
         and tables_mod.peek_table(desc) is None
@@ -492,8 +494,9 @@ def test_bake_job_runs_in_a_thread_and_cancel_discards_the_result(bpy, descripti
     )
 
     job = ops.BakeJob(desc, cache).start()
-    job.join(60)
-    assert job.done.is_set() and job.error is None and job.source == "bake"
+    job.join(EVENT_TIMEOUT_S)
+    assert job.done.is_set(), f"a bake job did not end in {EVENT_TIMEOUT_S:.0f} s"
+    assert job.error is None and job.source == "bake"
     assert (
         job.fraction == 1.0
         and tables_mod.peek_table(desc) is job.result

@@ -22,10 +22,10 @@ import pytest
 pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _waits import EVENT_TIMEOUT_S, wait_for  # noqa: E402
 
 #: Longest wait for a worker thread to stop (a safety net, not a timing: the tests assert that it
 #: stopped, and precompute's tests that it stops at its next checkpoint).
-THREAD_TIMEOUT_S = 60.0
 #: Words of British spelling that must not reach the UI (Blender's UI is US English).
 BRITISH = re.compile(r"colou?r(?<=colour)|nanometre|anodis|analys|behaviour|grey", re.IGNORECASE)
 #: What a tooltip must not show: code paths, module names, Python spellings.
@@ -386,10 +386,9 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     caches nothing and is not remembered as a failure."""
     vp = tf.viewport
     vp.cancel_bakes()  # an earlier test's draw may have left its bake running: start from none
-    for t in [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]:
-        t.join(THREAD_TIMEOUT_S)
+    wait_for(lambda: not vp._running, "an earlier test's cancelled viewport bakes to end")
     vp._service()
-    assert not vp._running
+    assert not vp._running, f"a bake started with nothing queued: {list(vp._running)}"
     mat = film(bpy)
     mat.thinfilm_sh.sh_order = "AUTO"  # a default-quality bake: seconds, so it is still running
     mat.thinfilm_sh.view_samples = 0
@@ -400,10 +399,8 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     assert vp._running
     assert "baking 1 film" in vp.activity()
     assert vp.cancel_bakes() == 1
-    threads = [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]
-    for t in threads:
-        t.join(THREAD_TIMEOUT_S)
-    assert not vp._running and vp.activity() == ""
+    wait_for(lambda: not vp._running, "the cancelled bake's worker to stop")
+    assert vp.activity() == "", f"the header still shows {vp.activity()!r} after the bake stopped"
     assert tf.tables.peek_table(desc) is None
     assert vp.description_key(desc) not in tf.tables.FAILURES
 
@@ -419,9 +416,7 @@ def test_a_finished_viewport_bake_asks_for_a_redraw(bpy, tf, scene, monkeypatch)
     desc = tf.ui.description(mat)
     vp._want_bake(desc)
     vp._service()  # starts the worker
-    for t in [t for t in __import__("threading").enumerate() if t.daemon and t.is_alive()]:
-        t.join(THREAD_TIMEOUT_S)
-    assert not vp._running
+    wait_for(lambda: not vp._running, "the viewport bake's worker to end")
     redraws.clear()
     assert vp._service() is None  # the last tick: nothing runs any more …
     assert redraws == [1]  # … and it asked for the redraw that shows the new table
@@ -437,8 +432,9 @@ def test_a_cancelled_modal_bake_stops_its_worker_and_caches_nothing(bpy, tf, sce
     desc = tf.ui.description(mat)
     job = tf.ops.BakeJob(desc, tf.tables.open_cache()).start()
     job.cancel()
-    job.join(THREAD_TIMEOUT_S)
-    assert job.done.is_set() and job.cancelled
+    job.join(EVENT_TIMEOUT_S)
+    assert job.done.is_set(), f"the cancelled bake's worker did not end in {EVENT_TIMEOUT_S:.0f} s"
+    assert job.cancelled
     assert job.result is None and job.error is None
     assert tf.tables.peek_table(desc) is None
     assert np.isfinite(job.elapsed_s)

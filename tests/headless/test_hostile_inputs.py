@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import json
 import os
-import threading
 from pathlib import Path
 
 import numpy as np
 import OpenEXR
 import pytest
+from _waits import finishes
 
 from precompute import bake, cli, cli_support, validate
 from precompute.conductors import conductor_from_rgb
@@ -27,26 +27,6 @@ from precompute.table_cache import TableCache
 from precompute.table_io import TableError, read_table, write_table
 
 NAN, INF = float("nan"), float("inf")
-#: Far above any refusal (each takes milliseconds) and far below the issue's 293 s bake.
-DEADLINE_S = 10.0
-
-
-def finishes(call, seconds=DEADLINE_S):
-    """``(result, exception)`` of ``call()`` run in a thread; the test fails if it is still
-    running after ``seconds`` (a hang or a long bake on an invalid value)."""
-    box = {}
-
-    def run():
-        try:
-            box["result"] = call()
-        except BaseException as exc:  # noqa: BLE001 - handed back to the test
-            box["exc"] = exc
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    thread.join(seconds)
-    assert not thread.is_alive(), f"still running after {seconds} s"
-    return box.get("result"), box.get("exc")
 
 
 # ----------------------------------------------------------------------------------------------

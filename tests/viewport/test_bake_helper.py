@@ -26,17 +26,15 @@ import os
 import signal
 import sys
 import threading
-import time
 import types
 
 import numpy as np
 import pytest
 from _extension import assert_helper_ends_with_stdin_and_unregister
+from _waits import EVENT_TIMEOUT_S, wait_for
 from test_viewport_state import collect, film, grid, redraw, scene, tf  # noqa: F401
 
 pytestmark = pytest.mark.blender
-
-TIMEOUT_S = 120.0
 
 
 @pytest.fixture
@@ -244,19 +242,16 @@ def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switc
 
 
 def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa: F811
-    assert_helper_ends_with_stdin_and_unregister(tf.package, helper, TIMEOUT_S)
+    assert_helper_ends_with_stdin_and_unregister(tf.package, helper, EVENT_TIMEOUT_S)
 
 
 def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):  # noqa: F811
     helper.warm()
     first = helper.process_id()
-    assert helper.SLOT.process.ready.wait(TIMEOUT_S)
+    assert helper.SLOT.process.ready.wait(EVENT_TIMEOUT_S)
     os.kill(first, signal.SIGKILL)
     helper.SLOT.process.proc.wait()
-    deadline = time.monotonic() + TIMEOUT_S
-    while not helper.SLOT.process.ended:  # its reader saw the end of the pipe
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
+    wait_for(lambda: helper.SLOT.process.ended, "the helper's reader to see the end of its pipe")
     desc = tf.Material.from_dict(soap_dict(tf))
     with caplog.at_level(logging.WARNING, logger=helper.__name__):
         table, _ = helper.bake(desc, False)
@@ -276,7 +271,8 @@ def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
     for t in threads:
         t.start()
     for t in threads:
-        t.join(TIMEOUT_S)
+        t.join(EVENT_TIMEOUT_S)
+        assert not t.is_alive(), f"a bake through the helper did not return in {EVENT_TIMEOUT_S:.0f} s"
     for i, desc in enumerate(descs):
         np.testing.assert_array_equal(results[i][0].data, tf.real_bake(desc).data)
 
@@ -284,7 +280,7 @@ def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
 def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene, helper, monkeypatch):  # noqa: F811
     """A rough constant film read through its radiance grid: the edit's bake brings the grid's
     texels from the helper, equal to the grid built here, and no grid is built in this process."""
-    from test_live_ahead import drawn_once, wait_for
+    from test_live_ahead import drawn_once
     from test_radiance_grid_viewport import record_builds
 
     vp = tf.viewport

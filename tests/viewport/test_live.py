@@ -18,15 +18,13 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import threading
-import time
 import types
 
 import numpy as np
 import pytest
 from _extension import EXTENSION_ID, registered_extension
+from _waits import EVENT_TIMEOUT_S, CueRecorder, wait_for
 
-#: Longest wait for a viewport bake thread (a tiny table bakes in well under a second).
-THREAD_TIMEOUT_S = 60.0
 #: The camera of the off-screen draws: at −y, looking at the sheet in the xz-plane.
 VIEW = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, -4.0], [0, 0, 0, 1]], dtype=float)
 PROJ = np.array([[2.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, -1.002, -0.2002], [0, 0, -1, 0]], dtype=float)
@@ -170,10 +168,7 @@ def _settle(tf):
     """Wait until no viewport bake runs; empty the queue."""
     vp = tf.viewport
     vp.cancel_bakes()
-    deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while vp._running and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert not vp._running, "a viewport bake thread did not finish"
+    wait_for(lambda: not vp._running, "the cancelled viewport bakes to end")
     vp._pending.clear()
     vp._wanted.clear()
     vp._finished.clear()
@@ -221,10 +216,8 @@ def settled_frame(bpy, tf):
         if not vp._pending and not vp._running:
             return image, items
         vp._service()
-        deadline = time.monotonic() + THREAD_TIMEOUT_S
-        while vp._running and time.monotonic() < deadline:
-            time.sleep(0.01)
-    raise AssertionError("the viewport never settled")
+        wait_for(lambda: not vp._running, "the viewport's bakes")
+    raise AssertionError("the viewport never settled: every frame of 6 queued another bake")
 
 
 class Gate:
@@ -240,20 +233,13 @@ class Gate:
 
     def __call__(self, material, progress=None):
         self.started.append(threading.current_thread().name)
-        assert self.opened.wait(THREAD_TIMEOUT_S), "the gate was never opened"
+        assert self.opened.wait(EVENT_TIMEOUT_S), "the gate was never opened"
         result = self.real(material, progress)
         self.completed.append(float(material.layers[0].thickness_nm))
         return result
 
     def open(self):
         self.opened.set()
-
-
-def wait_for(predicate, what: str):
-    deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while not predicate():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
 
 
 @pytest.mark.blender
@@ -268,7 +254,7 @@ def test_a_baked_table_is_drawn_before_it_is_written_to_disk(bpy, tf, scene, mon
     real = type(cache).store
 
     def held_store(self, key, *args, **kwargs):
-        assert held.wait(THREAD_TIMEOUT_S), "the disk write was never released"
+        assert held.wait(EVENT_TIMEOUT_S), "the disk write was never released"
         path = real(self, key, *args, **kwargs)
         stored.append(path)
         return path
@@ -293,12 +279,18 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     vp = tf.viewport
     redraws = []
     monkeypatch.setattr(vp, "_tag_redraw", lambda: redraws.append(1))
+    bake_cue = CueRecorder(lambda: vp._running)
+    monkeypatch.setattr(vp, "_finished", bake_cue)
     film(bpy, scene)
     frame(bpy, tf)  # queues the bake
     vp._service()
     wait_for(lambda: not vp._running, "the bake")
+    assert bake_cue.seen == [True], (
+        f"the bake's worker set its redraw cue with running={bake_cue.seen}: it must set it before "
+        "it leaves the running list, or a timer tick in between stops the timer and the redraw is lost"
+    )
     redraws.clear()
-    assert vp._service() is None and redraws == [1]
+    assert vp._service() is None and redraws == [1], f"redraws asked for after the bake ended: {redraws}"
 
     img = bpy.data.images.new("Sky", 32, 16, float_buffer=True, alpha=False)
     img.pixels.foreach_set(np.full(32 * 16 * 4, 0.5, dtype=np.float32))
@@ -310,10 +302,19 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     bpy.context.view_layer.update()
     tf.scene_draw.world_lighting(scene, allow_compute=False)  # the old lighting, and an ask
     assert tf.world_job.busy()
+    world_cue = CueRecorder(lambda: tf.world_job._running)
+    monkeypatch.setattr(tf.world_job, "_finished", world_cue)
     vp._service()  # reads it here, analyses it on a worker
     wait_for(lambda: not tf.world_job.busy(), "the World's analysis")
+    assert world_cue.seen == [True], (
+        f"the World's worker set its redraw cue with running={world_cue.seen}: it must set it "
+        "before it leaves the running list (the same lost redraw as the bake's)"
+    )
     redraws.clear()
-    assert vp._service() is None and redraws == [1]  # the job ended: the tick after redraws
+    # the job ended: the tick after redraws
+    assert vp._service() is None and redraws == [1], (
+        f"redraws asked for after the World's analysis: {redraws}"
+    )
     assert vp.activity() == ""
 
 

@@ -17,23 +17,14 @@ from __future__ import annotations
 
 import importlib
 import threading
-import time
 
 import pytest
+from _waits import EVENT_TIMEOUT_S, wait_for
 from test_radiance_grid_viewport import record_builds
 from test_viewport_state import collect, film, scene, tf  # noqa: F401
 from test_viewport_state import grid as quad_grid
 
 pytestmark = pytest.mark.blender
-
-THREAD_TIMEOUT_S = 120.0
-
-
-def wait_for(predicate, what: str) -> None:
-    deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while not predicate():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
 
 
 class Gate:
@@ -47,7 +38,7 @@ class Gate:
 
     def __call__(self, material, progress=None):
         self.started.append(float(material.layers[0].thickness_nm))
-        assert self.opened.wait(THREAD_TIMEOUT_S), "the gate was never opened"
+        assert self.opened.wait(EVENT_TIMEOUT_S), "the gate was never opened"
         return self.real(material, progress)
 
     def open(self):

@@ -10,15 +10,13 @@
 from __future__ import annotations
 
 import threading
-import time
 
 import pytest
+from _waits import EVENT_TIMEOUT_S, CueRecorder, wait_for
 from test_viewport_state import collect, film, scene, tf  # noqa: F401
 from test_viewport_state import grid as quad_grid
 
 pytestmark = pytest.mark.blender
-
-THREAD_TIMEOUT_S = 120.0
 
 
 def rough_film(bpy, tf, name, roughness=0.6, vary=False, order="3"):  # noqa: F811
@@ -34,10 +32,7 @@ def grids_module(tf):  # noqa: F811
 
 
 def wait_idle(module):
-    deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while module.busy() and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert not module.busy(), "the radiance grid worker did not finish"
+    wait_for(lambda: not module.busy(), "the radiance grid worker to finish")
 
 
 def record_builds(rg, monkeypatch) -> list:
@@ -63,12 +58,18 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     rg.GRIDS.clear()
     built_on.clear()
     # the viewport: no build on this thread, the per-pixel SH meanwhile
+    cue = CueRecorder(lambda: rg.GRIDS.running is not None)
+    monkeypatch.setattr(rg.GRIDS, "finished", cue)
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is None and item.grid_pending and rg.busy() and "tabulating" in rg.activity()
     assert bpy.app.timers.is_registered(rg._poll)
     wait_idle(rg)
     assert built_on and all(t is not threading.main_thread() for t in built_on)
-    assert rg.GRIDS.finished.is_set()  # the timer's cue for a redraw
+    assert rg.GRIDS.finished.is_set(), "the worker ended without the timer's cue for a redraw"
+    assert cue.seen == [True], (
+        f"the grid worker set its cue with running={cue.seen}: set after it stopped running, a "
+        "timer tick in between sees neither and stops, and the redraw with the grid never comes"
+    )
     rg._poll()
     assert not rg.GRIDS.finished.is_set()
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
@@ -104,7 +105,7 @@ def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # n
     real_build = rg.radiance_grid.build
 
     def slow_build(result, coeffs, *args, **kwargs):
-        gate.wait(THREAD_TIMEOUT_S)
+        gate.wait(EVENT_TIMEOUT_S)
         order.append(round(float(result.material.roughness), 3))
         return real_build(result, coeffs, *args, **kwargs)
 
@@ -120,10 +121,8 @@ def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # n
         mat.thinfilm_sh.roughness = r
         items, messages = collect(bpy, tf, allow_bake=False, allow_world=False)
         assert len(items) == 1 and items[0].grid is None, messages
-        deadline = time.monotonic() + THREAD_TIMEOUT_S
-        while k == 0 and rg.GRIDS.running is None:  # the worker took the first step's grid
-            assert time.monotonic() < deadline, "the grid worker did not start"
-            time.sleep(0.005)
+        if k == 0:  # the worker took the first step's grid
+            wait_for(lambda: rg.GRIDS.running is not None, "the grid worker to start")
     with rg.GRIDS.lock:
         queued = len(rg.GRIDS.queue)
     assert queued == rg.QUEUE_SIZE, (queued, rg.GRIDS.running)
@@ -216,7 +215,7 @@ def test_the_sh_grid_stands_in_while_the_lobe_grid_is_built(bpy, tf, scene, monk
     real_build = rg.lobe_grid.build
 
     def held(*args, **kwargs):
-        gate.wait(THREAD_TIMEOUT_S)
+        gate.wait(EVENT_TIMEOUT_S)
         return real_build(*args, **{**kwargs, "samples": (4, 4)})
 
     mat = rough_film(bpy, tf, "Film", roughness=0.3)
@@ -231,9 +230,7 @@ def test_the_sh_grid_stands_in_while_the_lobe_grid_is_built(bpy, tf, scene, monk
     monkeypatch.setattr(rg.lobe_grid, "build", held)
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is None and item.grid_pending
-    deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while not rg.GRIDS.built and time.monotonic() < deadline:  # the SH grid, built first
-        time.sleep(0.02)
+    wait_for(lambda: rg.GRIDS.built, "the SH grid, built first")
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is not None and item.sh_weight == pytest.approx(policy.sh_weight(0.3))
     assert rg.busy()  # the lobe grid is still being built

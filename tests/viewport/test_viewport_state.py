@@ -16,7 +16,6 @@ from __future__ import annotations
 import errno
 import gc
 import importlib
-import time
 import types
 import weakref
 
@@ -26,11 +25,10 @@ import pytest
 pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _waits import wait_for  # noqa: E402
 
 #: Redraws simulated per case; a bake per redraw would show as REDRAWS bakes.
 REDRAWS = 6
-#: Longest wait for a viewport bake thread (a tiny table bakes in well under a second).
-THREAD_TIMEOUT_S = 60.0
 
 
 @pytest.fixture(scope="module")
@@ -113,10 +111,7 @@ def redraw(bpy, tf):
     vp = tf.viewport
     items, messages = collect(bpy, tf, allow_bake=False, allow_world=False, want_bake=vp._want_bake)
     vp._service()
-    deadline = time.monotonic() + THREAD_TIMEOUT_S
-    while vp._running and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert not vp._running, "a viewport bake thread did not finish"
+    wait_for(lambda: not vp._running, "the viewport's bake threads to finish")
     return items, messages
 
 
