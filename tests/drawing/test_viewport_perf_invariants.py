@@ -235,7 +235,11 @@ def test_grouping_does_not_change_the_image(tf, drawn):
         finally:
             offscreen.free()
     assert np.mean(images[0][..., 3] > 0.5) > 0.05  # all six quads are in view
-    assert np.array_equal(images[0], images[1])
+    # The same shader on the same inputs: float32 rounding at most on any GPU; a film drawn with
+    # another's table or lighting differs by ≫ 1e-6.
+    np.testing.assert_allclose(
+        images[1], images[0], rtol=0, atol=1e-6, err_msg="grouped draws against one draw call per item"
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -533,4 +537,11 @@ def test_uniform_table_draws_the_image_of_the_texture(tf, gpu_helpers):
         )
         images.append(gd.draw.render_offscreen([item], VIEW, PROJ, 48, 48))
     assert np.mean(images[0][..., 3] > 0.5) > 0.1
-    assert np.array_equal(images[0], images[1])
+    # Two shader variants (uniform buffer, texture) reading the same float32 values: rounding only.
+    np.testing.assert_allclose(
+        images[1],
+        images[0],
+        rtol=0,
+        atol=1e-6,
+        err_msg="the table read from its texture against its uniform buffer",
+    )

@@ -568,8 +568,14 @@ def test_depth_masking_by_an_opaque_cube(bpy, tf, fresh, tmp_path):
     # Behind the cube: no film colour, the grey of Blender's Solid drawing.
     assert saturation(with_cube[covered]).max() < 0.05
     assert np.abs(with_cube[covered] - without[covered]).max() > 0.01
-    # Away from the cube nothing changed.
-    np.testing.assert_array_equal(with_cube[~near], without[~near])
+    # Away from the cube nothing changed (two GPU renders: float32 rounding at most).
+    np.testing.assert_allclose(
+        with_cube[~near],
+        without[~near],
+        rtol=0,
+        atol=1e-6,
+        err_msg="pixels away from the cube changed when the cube was added: depth leaks elsewhere",
+    )
     del block
 
 

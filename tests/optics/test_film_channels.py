@@ -128,7 +128,12 @@ def test_cutoffs_bare_interface_and_index_blend():
     np.testing.assert_allclose(bare, np.repeat(fresnel[:, None], 3, axis=1), atol=1e-15)
     # ≤ 0.1 nm: no film; just above, the index is 2.8 % of the way from the ambient's
     # (smoothstep(0.1)): close to bare, a step of ≤ 0.011 at grazing (as Cycles' cutoff).
-    np.testing.assert_array_equal(belcour2017.film_reflectance(stack, cos, 0.1, sens), bare)
+    # Bit for bit: at ≤ 0.1 nm the film is dropped and the bare interface's own code runs.
+    np.testing.assert_array_equal(
+        belcour2017.film_reflectance(stack, cos, 0.1, sens),
+        bare,
+        err_msg="a 0.1 nm film must be the bare interface",
+    )
     np.testing.assert_allclose(belcour2017.film_reflectance(stack, cos, 0.1 + 1e-6, sens), bare, atol=0.015)
     # The blend ends at 1 nm: continuous there.
     below = belcour2017.film_reflectance(stack, cos, 1.0 - 1e-7, sens)

@@ -37,6 +37,13 @@ from test_viewport_state import collect, film, grid, redraw, scene, tf  # noqa: 
 pytestmark = pytest.mark.blender
 
 
+def same_bake(got, expected, what: str) -> None:
+    """A table from the helper process against the same bake here: the same code in another
+    process (its BLAS single-threaded), so equal up to float64 rounding; another material's
+    table, a mixed-up answer or a lost row differs by far more than 1e-12."""
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15, err_msg=what)
+
+
 @pytest.fixture
 def helper(tf, monkeypatch):  # noqa: F811
     """The bake helper module, turned on, no process running and none given up; ``tf.in_process``
@@ -96,11 +103,11 @@ def test_the_viewports_bake_runs_in_the_helper_equal_to_in_process(bpy, tf, scen
     key = tf.scene_draw.description.description_key(desc)
     table = tf.tables.MEMORY.get(key)
     here = tf.real_bake(desc)  # the same function in this process
-    np.testing.assert_array_equal(table.data, here.data)
+    same_bake(table.data, here.data, "the table baked by the helper process")
     assert table.material == here.material and table.u_nodes == here.u_nodes
     assert table.sh_order == here.sh_order and table.reasons == here.reasons
     for name in ("view_angles_rad", "thicknesses_nm", "wavelengths_nm"):
-        np.testing.assert_array_equal(getattr(table, name), getattr(here, name))
+        same_bake(getattr(table, name), getattr(here, name), f"the helper's {name}")
     info = helper.info()
     assert info["bake_ms"] > 0.0 and info["start_s"] > 0.0 and info["rss_bytes"] > 0
 
@@ -110,10 +117,10 @@ def test_the_film_table_comes_back_with_the_table(tf, helper):  # noqa: F811
     table, film_table = helper.bake(desc, True)
     here = tf.real_bake(desc)
     expected = tf.film_colour.film_table(here)  # from the bake's reflectance at its nodes
-    np.testing.assert_array_equal(table.data, here.data)
-    np.testing.assert_array_equal(film_table.reflectance, expected.reflectance)
-    np.testing.assert_array_equal(film_table.multiscatter, expected.multiscatter)
-    np.testing.assert_array_equal(film_table.thicknesses_nm, expected.thicknesses_nm)
+    same_bake(table.data, here.data, "the table baked by the helper process")
+    same_bake(film_table.reflectance, expected.reflectance, "the helper's film table (reflectance)")
+    same_bake(film_table.multiscatter, expected.multiscatter, "the helper's film table (multiscatter)")
+    same_bake(film_table.thicknesses_nm, expected.thicknesses_nm, "the helper's film table (thicknesses)")
     assert helper.bake(desc, False)[1] is None
 
 
@@ -162,7 +169,7 @@ def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):
     assert helper.STATS["cancelled"] == cancelled + 1
     quick = material.from_dict(soap_dict(tf, 640.0))
     table, _ = helper.bake(quick, False)  # the next answer is this bake's, not the cancelled one's
-    np.testing.assert_array_equal(table.data, tf.real_bake(quick).data)
+    same_bake(table.data, tf.real_bake(quick).data, "the answer after a cancel (must be this bake's)")
     assert helper.process_id() == pid and helper.enabled()
 
 
@@ -274,7 +281,7 @@ def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
         t.join(EVENT_TIMEOUT_S)
         assert not t.is_alive(), f"a bake through the helper did not return in {EVENT_TIMEOUT_S:.0f} s"
     for i, desc in enumerate(descs):
-        np.testing.assert_array_equal(results[i][0].data, tf.real_bake(desc).data)
+        same_bake(results[i][0].data, tf.real_bake(desc).data, f"worker {i}'s answer (must be its own bake)")
 
 
 def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene, helper, monkeypatch):  # noqa: F811
