@@ -355,7 +355,6 @@ def test_cli_full_disk_fails_and_keeps_the_previous_table(tmp_path, monkeypatch,
     assert no_temporaries(tmp_path)
 
 
-@pytest.mark.slow
 @POSIX_LIMITS
 def test_cli_full_disk_for_real_in_a_child_process(tmp_path):
     """The issue's reproduction: ``bake --out good.exr`` on a full disk replaced a valid table with

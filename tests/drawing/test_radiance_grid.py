@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_gpu_draw import (  # noqa: F401
+from test_gpu_draw import (
     PROJ,
     SIZE,
     TEST_VERTEX,
     VIEW,
     baked,
-    gd,
     quad_pixels,
     tilted_quad_item,
     unit,
@@ -226,7 +225,7 @@ void main()
 """
 
 
-def grid_on_gpu(gd, gpu, texture, variant, normals, views, width: int, turn_=None, scale=1.0):  # noqa: F811
+def grid_on_gpu(gd, gpu, texture, variant, normals, views, width: int, turn_=None, scale=1.0):
     """tf_shade_grid per pixel, inputs from two RGBA32F textures: RGB (N, 3); ``turn_`` and
     ``scale``: the lighting buffer's World turn Q and strength."""
     count = normals.shape[0]
@@ -277,7 +276,7 @@ def half(grid) -> np.ndarray:
 @pytest.mark.parametrize(
     "colour_mode, turned", [("spectral", False), ("per_channel", False), ("spectral", True)]
 )
-def test_glsl_grid_lookup_matches_numpy_per_pixel(gd, colour_mode, turned):  # noqa: F811
+def test_glsl_grid_lookup_matches_numpy_per_pixel(gd, colour_mode, turned):
     """tf_shade_grid against radiance_grid.lookup of the half-float grid, per pixel (``turned``:
     under a World turn and strength from the lighting buffer)."""
     import gpu
@@ -313,7 +312,7 @@ def test_glsl_grid_lookup_matches_numpy_per_pixel(gd, colour_mode, turned):  # n
 
 
 @pytest.mark.blender
-def test_grid_variant_draws_the_grid_through_the_draw_path(gd):  # noqa: F811
+def test_grid_variant_draws_the_grid_through_the_draw_path(gd):
     """A tilted quad drawn by draw_items with a grid: the grid variant is chosen, the sampler is
     bound, and the pixels are radiance_grid.lookup — close to the per-pixel SH drawn without it."""
     result = rough_table(0.6)
@@ -340,7 +339,7 @@ def test_grid_variant_draws_the_grid_through_the_draw_path(gd):  # noqa: F811
 # Shaders compiled ahead: the stand-in while a variant is not compiled
 # ----------------------------------------------------------------------------------------------
 @pytest.mark.blender
-def test_an_uncompiled_variant_is_drawn_by_its_stand_in_until_compiled(gd):  # noqa: F811
+def test_an_uncompiled_variant_is_drawn_by_its_stand_in_until_compiled(gd):
     """prepare_draw(compile_now=False) never compiles the item's variant: it asks for it and draws
     the stand-in (order ≤ policy.STAND_IN_L, the same table and lighting), which is the SH sum
     truncated there; compile_next (the idle step) compiles it and the next frame uses it."""
@@ -389,7 +388,7 @@ def test_an_uncompiled_variant_is_drawn_by_its_stand_in_until_compiled(gd):  # n
 
 
 @pytest.mark.blender
-def test_a_film_waiting_for_its_grid_does_not_ask_for_its_per_pixel_variant(gd):  # noqa: F811
+def test_a_film_waiting_for_its_grid_does_not_ask_for_its_per_pixel_variant(gd):
     """While its grid is built (under a second) a film is drawn by the stand-in, and its per-pixel
     variant is not queued for the idle compile (77–83 s of llvmpipe for a per-pixel l = 12
     variant, needed for a frame or two); once compiled it would be used."""

@@ -8,16 +8,13 @@ top rows empty (the World along the exit ray is seen there).
 
 import numpy as np
 import pytest
-from _extension import linked_extension
 from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item, baked, rotation, unit, world_sh
-from test_gpu_draw import gd as gd  # noqa: F401  (the module fixture)
 
 from precompute import film_colour, prefilter, render
 from precompute.shading import policy, refract, split_sum, transmit
 from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
 
 pytestmark = pytest.mark.blender
-assert linked_extension  # the fixture's module imports it
 
 #: The quad's plane in object space (its origin 0.6 behind it).
 QUAD_Y = -0.6
@@ -35,7 +32,7 @@ def behind_scene():
     return colour, depth
 
 
-def quad_item(gd, table, lighting):  # noqa: F811
+def quad_item(gd, table, lighting):
     """A 2×2 quad at local y = QUAD_Y, tilted 35° about x and 25° about z."""
     positions = np.array([[-1, QUAD_Y, -1], [1, QUAD_Y, -1], [1, QUAD_Y, 1], [-1, QUAD_Y, 1]], np.float32)
     batch = gd.mesh.MeshBatch.from_arrays(
@@ -61,7 +58,7 @@ def quad_hits(model):
     return inside, hit[inside], n, views
 
 
-def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):  # noqa: F811
+def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
     result = baked(8, "spectral", False)  # roughness 0.15: the scene's mirror weighs 0.25
     world, img = world_sh()
     lighting = gd.resources.Lighting.from_sh(world, 8, result.material.roughness)
@@ -123,7 +120,7 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):  # noqa: F811
     assert np.median(np.abs(seen[hit] - straight[hit])) > 0.02
 
 
-def test_the_scene_behind_is_placed_in_the_widened_window_and_checked(gd):  # noqa: F811
+def test_the_scene_behind_is_placed_in_the_widened_window_and_checked(gd):
     """BehindTexture.screen maps the headless frame's widened window (filter pad) to the
     overscanned background pass (margin): its pixel pad + i is the picture's pixel margin + i; a
     colour and depth of different sizes are refused, naming both shapes."""

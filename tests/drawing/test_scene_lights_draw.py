@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from test_gpu_draw import PROJ, SIZE, VIEW, baked, gd, quad_pixels, tilted_quad_item, world_sh  # noqa: F401
+from test_gpu_draw import PROJ, SIZE, VIEW, baked, quad_pixels, tilted_quad_item, world_sh
 
 from precompute import film_colour, render, sh
 from precompute.shading import lights as light_shading
@@ -94,7 +94,7 @@ def quad_positions(model):
     "colour_mode, film_ubo, split",
     [("spectral", True, False), ("per_channel", False, False), ("per_channel", True, True)],
 )
-def test_lights_variant_matches_numpy_per_pixel(gd, colour_mode, film_ubo, split):  # noqa: F811
+def test_lights_variant_matches_numpy_per_pixel(gd, colour_mode, film_ubo, split):
     """tf_lights.glsl against shading.lights.shade: every light kind, 1e-4 of the peak (float32)."""
     from precompute import prefilter
     from precompute.shading import policy, split_sum
@@ -141,7 +141,7 @@ def test_lights_variant_matches_numpy_per_pixel(gd, colour_mode, film_ubo, split
     assert inside.sum() > 300 and err < 1e-4, err
 
 
-def test_no_lights_no_loop(gd):  # noqa: F811
+def test_no_lights_no_loop(gd):
     """Without lights the variant has no light loop, and an empty light list packs to None."""
     assert gd.resources.lights_content(light_shading.Lights.from_rows([])) is None
     result = baked(5, "per_channel", False)

@@ -7,7 +7,6 @@ sh_sum.shade_sh on a tilted quad, and as a closed bubble (two walls) on a sphere
 
 import numpy as np
 import pytest
-from _extension import linked_extension
 from test_gpu_draw import (
     DISTANCE,
     FOV,
@@ -22,14 +21,12 @@ from test_gpu_draw import (
     uv_sphere_mesh,
     world_sh,
 )
-from test_gpu_draw import gd as gd  # noqa: F401  (the module fixture)
 
 from precompute import film_colour, render
 from precompute.shading import sh_sum, transmit
 from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
 
 pytestmark = pytest.mark.blender
-assert linked_extension  # the fixture's module imports it
 
 BEHIND = (0.3, 0.55, 0.8)
 
@@ -53,7 +50,7 @@ def behind(alpha):
         ("per_channel", (transmit.WALL_SHEET, 1.5), False),
     ],
 )
-def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo):  # noqa: F811
+def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo):
     result = baked(5, colour_mode, False)
     table = gd.resources.TableTexture.from_result(result)
     world, _img = world_sh()
@@ -89,7 +86,7 @@ def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo): 
     assert np.all(t > 0.5)
 
 
-def test_closed_bubble_shows_both_walls(gd, bpy):  # noqa: F811
+def test_closed_bubble_shows_both_walls(gd, bpy):
     """A sphere as a bubble: through the middle two walls, T_back·T_front·B + …; never below
     (1 − R_max)² of the background per channel at normal incidence, and brighter than opaque."""
     mesh = uv_sphere_mesh(bpy, name="tf_bubble")
@@ -131,7 +128,7 @@ def test_closed_bubble_shows_both_walls(gd, bpy):  # noqa: F811
     assert np.mean(image[inner][:, :3]) > np.mean(opaque[inner][:, :3]) + 0.2
 
 
-def test_solid_glass_shows_the_world_along_the_exit_ray(gd):  # noqa: F811
+def test_solid_glass_shows_the_world_along_the_exit_ray(gd):
     """WALL_SOLID with the split sum: what is behind is replaced by T × the prefiltered World at
     roughness 0 along transmit.solid_exit, plus the film's reflection (split only, weight 0)."""
     import dataclasses

@@ -14,7 +14,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID  # noqa: E402
 from _waits import EVENT_TIMEOUT_S  # noqa: E402
 
 REGISTER_CYCLES = 10
@@ -23,13 +23,6 @@ REGISTER_CYCLES = 10
 # ----------------------------------------------------------------------------------------------
 # Fixtures
 # ----------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def package(bpy, tmp_path_factory):
-    """The repository imported as ``thinfilm_sh`` (once for this module)."""
-    with linked_extension(tmp_path_factory.mktemp("extension")) as module:
-        yield module
-
-
 @pytest.fixture
 def ext(bpy, package, tmp_path):
     """A fresh empty file, the extension registered and its preferences' cache in tmp_path."""

@@ -16,7 +16,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID  # noqa: E402
 
 FILE_VALUES = {
     "iridescenceFactor": 0.8,
@@ -26,13 +26,6 @@ FILE_VALUES = {
 }
 #: 8-bit PNG storage of the green channel: one step of 1/255 of the 670 nm range is 2.6 nm.
 PNG_STEP_NM = (820.0 - 150.0) / 255.0
-
-
-@pytest.fixture(scope="module")
-def package(bpy, tmp_path_factory):
-    """The repository imported as ``thinfilm_sh`` (once for this module)."""
-    with linked_extension(tmp_path_factory.mktemp("extension")) as module:
-        yield module
 
 
 @pytest.fixture

@@ -13,17 +13,10 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID  # noqa: E402
 
 #: Cycles bakes the Emission into a float colour attribute: float32 storage of values in nm.
 BAKE_TOLERANCE_NM = 1e-3
-
-
-@pytest.fixture(scope="module")
-def package(bpy, tmp_path_factory):
-    """The repository imported as ``thinfilm_sh`` (once for this module)."""
-    with linked_extension(tmp_path_factory.mktemp("extension")) as module:
-        yield module
 
 
 @pytest.fixture

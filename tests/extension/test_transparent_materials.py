@@ -8,17 +8,11 @@ and the draw items :func:`scene_draw.collect` makes (a wall carries the film tab
 import importlib
 
 import pytest
-from _extension import EXTENSION_ID, linked_extension
+from _extension import EXTENSION_ID
 
 from precompute.shading import transmit
 
 pytestmark = pytest.mark.blender
-
-
-@pytest.fixture(scope="module")
-def package(bpy, tmp_path_factory):
-    with linked_extension(tmp_path_factory.mktemp("extension")) as module:
-        yield module
 
 
 @pytest.fixture

@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 from _extension import assert_helper_ends_with_stdin_and_unregister
 from _waits import EVENT_TIMEOUT_S, wait_for
-from test_viewport_state import collect, film, grid, redraw, scene, tf  # noqa: F401
+from test_viewport_state import collect, film, grid, redraw
 
 pytestmark = pytest.mark.blender
 
@@ -45,7 +45,7 @@ def same_bake(got, expected, what: str) -> None:
 
 
 @pytest.fixture
-def helper(tf, monkeypatch):  # noqa: F811
+def helper(tf, monkeypatch):
     """The bake helper module, turned on, no process running and none given up; ``tf.in_process``
     counts the bakes run in this process."""
     monkeypatch.setenv("THINFILM_SH_BAKE_HELPER", "1")
@@ -69,7 +69,7 @@ def helper(tf, monkeypatch):  # noqa: F811
 _FILMS = iter(range(1000))
 
 
-def soap(bpy, tf):  # noqa: F811
+def soap(bpy, tf):
     """A glossy soap film with a thickness range of its own: a table no other test baked (a
     viewport worker writes its table's disk copy up to 1 s after its bake, so an earlier test's
     table can arrive in the disk cache after this test's fixture emptied it)."""
@@ -78,11 +78,11 @@ def soap(bpy, tf):  # noqa: F811
     return mat
 
 
-def description(tf, mat):  # noqa: F811
+def description(tf, mat):
     return tf.scene_draw.description.description(mat)
 
 
-def drawn(bpy, tf, scene, mat):  # noqa: F811
+def drawn(bpy, tf, scene, mat):
     """One viewport redraw that asks for ``mat``'s table (and film table), then the next frame's
     items once the worker is done."""
     grid(bpy, scene, "Quad", mat, n=2)
@@ -92,7 +92,7 @@ def drawn(bpy, tf, scene, mat):  # noqa: F811
     return items
 
 
-def test_the_viewports_bake_runs_in_the_helper_equal_to_in_process(bpy, tf, scene, helper):  # noqa: F811
+def test_the_viewports_bake_runs_in_the_helper_equal_to_in_process(bpy, tf, scene, helper):
     baked = helper.STATS["baked"]
     mat = soap(bpy, tf)
     items = drawn(bpy, tf, scene, mat)
@@ -112,7 +112,7 @@ def test_the_viewports_bake_runs_in_the_helper_equal_to_in_process(bpy, tf, scen
     assert info["bake_ms"] > 0.0 and info["start_s"] > 0.0 and info["rss_bytes"] > 0
 
 
-def test_the_film_table_comes_back_with_the_table(tf, helper):  # noqa: F811
+def test_the_film_table_comes_back_with_the_table(tf, helper):
     desc = tf.bake.table_material(tf.Material.from_dict(soap_dict(tf)))
     table, film_table = helper.bake(desc, True)
     here = tf.real_bake(desc)
@@ -139,7 +139,7 @@ class Broken:
         return {"layers": [], "no_such_parameter": 1}
 
 
-def test_a_bakes_own_error_comes_back_as_its_exception(tf, helper):  # noqa: F811
+def test_a_bakes_own_error_comes_back_as_its_exception(tf, helper):
     with pytest.raises(ValueError, match="unknown material parameters: \\['no_such_parameter'\\]"):
         helper.bake(Broken(), False)
     assert helper.enabled() and helper.process_id() is not None  # the helper stays
@@ -147,7 +147,7 @@ def test_a_bakes_own_error_comes_back_as_its_exception(tf, helper):  # noqa: F81
     assert isinstance(helper._failure("TableWriteError", "disk full"), RuntimeError)
 
 
-def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):  # noqa: F811
+def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):
     material = tf.Material
     helper.warm()
     slow = material.from_dict(soap_dict(tf))
@@ -173,7 +173,7 @@ def test_a_superseded_bake_is_cancelled_in_the_helper_which_goes_on(tf, helper):
     assert helper.process_id() == pid and helper.enabled()
 
 
-def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
+def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):
     frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
     stream = io.BytesIO()
     big = np.arange(300_000, dtype=np.float32).reshape(1000, 300)  # sent out of band
@@ -193,7 +193,7 @@ def test_frames_round_trip_and_a_broken_frame_is_an_error(tf):  # noqa: F811
         frames.receive(io.BytesIO(frames.HEADER.pack(frames.MAX_FRAME + 1, 0)))
 
 
-def silent_command(tf):  # noqa: F811
+def silent_command(tf):
     """A helper that says it is ready, then never answers (reads until its stdin closes)."""
     addon = os.path.dirname(importlib.import_module(f"{tf.package.__name__}.addon.bake_process").__file__)
     code = (
@@ -204,7 +204,7 @@ def silent_command(tf):  # noqa: F811
 
 
 @pytest.mark.parametrize("how", ["unstartable", "exits", "killed", "silent"])
-def test_a_failing_helper_falls_back_to_an_in_process_bake(bpy, tf, scene, helper, monkeypatch, caplog, how):  # noqa: F811
+def test_a_failing_helper_falls_back_to_an_in_process_bake(bpy, tf, scene, helper, monkeypatch, caplog, how):
     given_up = helper.STATS["given_up"]
     if how == "unstartable":
         monkeypatch.setattr(helper, "command", lambda: [os.path.join(os.sep, "nonexistent", "python")])
@@ -234,7 +234,7 @@ def test_a_failing_helper_falls_back_to_an_in_process_bake(bpy, tf, scene, helpe
 
 
 @pytest.mark.parametrize("switch", ["preference", "environment"])
-def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switch):  # noqa: F811
+def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switch):
     if switch == "preference":
         tf.prefs.preferences().use_bake_helper = False
     else:
@@ -248,11 +248,11 @@ def test_the_helper_can_be_turned_off(bpy, tf, scene, helper, monkeypatch, switc
     assert len(tf.in_process) == 1 and helper.process_id() is None
 
 
-def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):  # noqa: F811
+def test_the_helper_ends_with_its_stdin_and_with_unregister(tf, helper):
     assert_helper_ends_with_stdin_and_unregister(tf.package, helper, EVENT_TIMEOUT_S)
 
 
-def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):  # noqa: F811
+def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):
     helper.warm()
     first = helper.process_id()
     assert helper.SLOT.process.ready.wait(EVENT_TIMEOUT_S)
@@ -266,7 +266,7 @@ def test_a_helper_that_exited_while_idle_is_started_again(tf, helper, caplog):  
     assert any("had exited" in r.getMessage() for r in caplog.records)
 
 
-def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
+def test_two_workers_get_their_own_answers(tf, helper):
     material = tf.Material
     descs = [material.from_dict(soap_dict(tf, t)) for t in (300.0, 700.0)]
     results: dict = {}
@@ -284,7 +284,7 @@ def test_two_workers_get_their_own_answers(tf, helper):  # noqa: F811
         same_bake(results[i][0].data, tf.real_bake(desc).data, f"worker {i}'s answer (must be its own bake)")
 
 
-def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene, helper, monkeypatch):  # noqa: F811
+def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene, helper, monkeypatch):
     """A rough constant film read through its radiance grid: the edit's bake brings the grid's
     texels from the helper, equal to the grid built here, and no grid is built in this process."""
     from test_live_ahead import drawn_once
@@ -324,14 +324,14 @@ def test_a_grid_films_grid_is_built_by_the_helper_with_its_table(bpy, tf, scene,
     np.testing.assert_allclose(ticket.grid.rgba, here, rtol=1e-5, atol=1e-6 * float(np.abs(here).max()))
 
 
-def test_no_grid_comes_back_for_a_film_that_reads_none(tf, helper):  # noqa: F811
+def test_no_grid_comes_back_for_a_film_that_reads_none(tf, helper):
     desc = tf.Material.from_dict(soap_dict(tf))  # glossy, order 0: split sum only
     ticket = helper.submit(desc, False, {"coeffs": np.ones((9, 3)), "prefiltered": True})
     table, _ = ticket.wait()
     assert ticket.grid is None and table.sh_order == 0
 
 
-def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F811
+def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):
     """Between requests the helper computes the kernels an edit that needs one more (or one
     fewer) node per interval would wait for; a request that arrives stops it."""
     frames = importlib.import_module(f"{tf.package.__name__}.addon.bake_process")
@@ -363,7 +363,7 @@ def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):  # noqa: F8
             os.close(write)
 
 
-def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):  # noqa: F811
+def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):
     """In process, no bake starts while a superseded one stops (tests/test_live_ahead.py); one
     handed to the helper was cancelled there at once, so the newest value starts now."""
     vp = tf.viewport
@@ -386,7 +386,7 @@ def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):  #
             live.update(old)
 
 
-def test_a_table_on_disk_is_read_not_handed_to_the_helper(bpy, tf, scene, helper):  # noqa: F811
+def test_a_table_on_disk_is_read_not_handed_to_the_helper(bpy, tf, scene, helper):
     """A reopened file's tables are in the disk cache: the worker reads them; the helper gets no
     request to bake them."""
     mat = soap(bpy, tf)

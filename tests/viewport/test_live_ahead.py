@@ -21,7 +21,7 @@ import threading
 import pytest
 from _waits import EVENT_TIMEOUT_S, wait_for
 from test_radiance_grid_viewport import record_builds
-from test_viewport_state import collect, film, scene, tf  # noqa: F401
+from test_viewport_state import collect, film
 from test_viewport_state import grid as quad_grid
 
 pytestmark = pytest.mark.blender
@@ -30,7 +30,7 @@ pytestmark = pytest.mark.blender
 class Gate:
     """``bake.bake`` held at its start until :meth:`open`, recording which descriptions started."""
 
-    def __init__(self, tf, monkeypatch):  # noqa: F811
+    def __init__(self, tf, monkeypatch):
         self.real = tf.bake.bake
         self.opened = threading.Event()
         self.started: list[float] = []
@@ -45,7 +45,7 @@ class Gate:
         self.opened.set()
 
 
-def drawn_once(bpy, tf, scene, mat):  # noqa: F811
+def drawn_once(bpy, tf, scene, mat):
     """The material drawn as the viewport would after its first frames: lit, baked, its entry
     kept; and the viewport marked as drawing films (what ``draw_callback`` sets)."""
     quad_grid(bpy, scene, "Quad", mat, n=2)
@@ -55,7 +55,7 @@ def drawn_once(bpy, tf, scene, mat):  # noqa: F811
     return item
 
 
-def test_the_edits_bake_starts_at_the_depsgraph_update(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_the_edits_bake_starts_at_the_depsgraph_update(bpy, tf, scene, monkeypatch):
     vp = tf.viewport
     mat = film(bpy, tf, "Edited")
     drawn_once(bpy, tf, scene, mat)
@@ -71,7 +71,7 @@ def test_the_edits_bake_starts_at_the_depsgraph_update(bpy, tf, scene, monkeypat
     assert vp._finished.is_set()  # the timer's cue: the redraw that shows it
 
 
-def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeypatch):
     vp = tf.viewport
     mat = film(bpy, tf, "Headless")
     drawn_once(bpy, tf, scene, mat)
@@ -83,7 +83,7 @@ def test_before_any_viewport_drew_an_edit_starts_nothing(bpy, tf, scene, monkeyp
     assert not gate.started and not vp._running and not vp._pending
 
 
-def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):
     vp = tf.viewport
     rg = importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
     mat = film(bpy, tf, "Rough", roughness=0.6)
@@ -104,7 +104,7 @@ def test_a_grid_films_bake_brings_its_grid(bpy, tf, scene, monkeypatch):  # noqa
     assert item.table is tf.scene_draw.CACHES.tables.get(key)
 
 
-def test_no_bake_starts_while_a_superseded_one_stops(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_no_bake_starts_while_a_superseded_one_stops(bpy, tf, scene, monkeypatch):
     vp = tf.viewport
     mat = film(bpy, tf, "Dragged")
     desc = tf.scene_draw.description.description(mat)
@@ -121,7 +121,7 @@ def test_no_bake_starts_while_a_superseded_one_stops(bpy, tf, scene, monkeypatch
     vp._running.clear()
 
 
-def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):  # noqa: F811
+def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):
     """A fresh bake's reflectance at its u nodes (up to 4.5 MiB) is kept only for the film table
     the viewport's worker computes next (keep_nodes), then dropped; by default it is not kept."""
     first = tf.scene_draw.description.description(film(bpy, tf, "Plain"))
@@ -137,7 +137,7 @@ def test_the_table_in_memory_drops_the_reflectance_at_its_nodes(bpy, tf, scene):
     assert result.node_reflectance is None
 
 
-def test_a_superseded_jobs_grid_stops_at_its_next_step(bpy, tf, scene):  # noqa: F811
+def test_a_superseded_jobs_grid_stops_at_its_next_step(bpy, tf, scene):
     """The grid a bake's worker builds after the table runs its steps under the job's cancel:
     superseded mid-build (a drag moved on) it stops at the next step instead of finishing a
     grid nobody wants, and the worker treats it as a cancelled bake."""
@@ -177,7 +177,7 @@ def test_the_grid_build_has_steps_to_stop_at():
 
 
 @pytest.mark.parametrize("how", ["superseded", "cancel button"])
-def test_a_cancelled_bake_asks_for_a_redraw_only_when_the_user_cancelled(bpy, tf, scene, monkeypatch, how):  # noqa: F811
+def test_a_cancelled_bake_asks_for_a_redraw_only_when_the_user_cancelled(bpy, tf, scene, monkeypatch, how):
     """A bake superseded by a newer value has nothing to show (its redraw would only delay the
     one that shows the newest table); one the Cancel button stopped asks for a redraw, so the
     header stops saying it bakes."""

@@ -13,19 +13,19 @@ import threading
 
 import pytest
 from _waits import EVENT_TIMEOUT_S, CueRecorder, wait_for
-from test_viewport_state import collect, film, scene, tf  # noqa: F401
+from test_viewport_state import collect, film
 from test_viewport_state import grid as quad_grid
 
 pytestmark = pytest.mark.blender
 
 
-def rough_film(bpy, tf, name, roughness=0.6, vary=False, order="3"):  # noqa: F811
+def rough_film(bpy, tf, name, roughness=0.6, vary=False, order="3"):
     mat = film(bpy, tf, name, roughness=roughness, vary=vary)
     mat.thinfilm_sh.sh_order = order
     return mat
 
 
-def grids_module(tf):  # noqa: F811
+def grids_module(tf):
     import importlib
 
     return importlib.import_module(f"{tf.package.__name__}.addon.radiance_grids")
@@ -48,7 +48,7 @@ def record_builds(rg, monkeypatch) -> list:
     return built_on
 
 
-def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, monkeypatch):
     rg = grids_module(tf)
     rg.GRIDS.clear()
     built_on = record_builds(rg, monkeypatch)
@@ -89,7 +89,7 @@ def _eye():
 
 
 @pytest.mark.parametrize("vary, order", [(True, "3"), (False, "2")])
-def test_no_grid_for_varying_thickness_or_low_orders(bpy, tf, scene, vary, order):  # noqa: F811
+def test_no_grid_for_varying_thickness_or_low_orders(bpy, tf, scene, vary, order):
     rg = grids_module(tf)
     rg.GRIDS.clear()
     quad_grid(bpy, scene, "Quad", rough_film(bpy, tf, "Film", vary=vary, order=order))
@@ -97,7 +97,7 @@ def test_no_grid_for_varying_thickness_or_low_orders(bpy, tf, scene, vary, order
     assert item.grid is None and not item.grid_pending and not rg.busy()
 
 
-def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):
     rg = grids_module(tf)
     rg.GRIDS.clear()
     gate = threading.Event()
@@ -132,7 +132,7 @@ def test_a_drag_queues_few_grids_newest_first(bpy, tf, scene, monkeypatch):  # n
     assert order[1] == round(steps[-1], 3), order  # after the one running, the newest
 
 
-def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa: F811
+def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):
     import importlib
 
     from precompute.shading.variant import Variant
@@ -160,8 +160,8 @@ def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):  # noqa
 )
 def test_a_film_in_the_hand_over_integrates_its_grid(
     bpy,
-    tf,  # noqa: F811
-    scene,  # noqa: F811
+    tf,
+    scene,
     monkeypatch,
     preset,
     roughness,
@@ -200,7 +200,7 @@ def test_a_film_in_the_hand_over_integrates_its_grid(
     assert item.sh_weight == pytest.approx(expected)
 
 
-def test_the_sh_grid_stands_in_while_the_lobe_grid_is_built(bpy, tf, scene, monkeypatch):  # noqa: F811
+def test_the_sh_grid_stands_in_while_the_lobe_grid_is_built(bpy, tf, scene, monkeypatch):
     """In the viewport an integrated grid takes 15–100 s of numpy: the SH grid (under a second,
     asked for after it, so built first) is drawn meanwhile at the SH weight, then the lobe grid
     at its own weight once the worker is done."""

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import errno
 import gc
-import importlib
-import types
 import weakref
 
 import numpy as np
@@ -24,46 +22,10 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
 from _waits import wait_for  # noqa: E402
 
 #: Redraws simulated per case; a bake per redraw would show as REDRAWS bakes.
 REDRAWS = 6
-
-
-@pytest.fixture(scope="module")
-def tf(bpy, tmp_path_factory):
-    """The extension, registered once for the module, with a private table cache."""
-    root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
-        ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
-        ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
-
-
-@pytest.fixture
-def scene(bpy, tf):
-    """An empty file (no World: nothing to render for the lighting), the caches emptied."""
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    tf.package.register()
-    tf.prefs.preferences().cache_dir = tf.cache_dir
-    tf.tables.clear_caches()  # memory, remembered failures and the disk cache
-    tf.scene_draw.CACHES.clear()
-    return bpy.context.scene
 
 
 def film(bpy, tf, name: str, roughness: float = 0.5, vary: bool = False):
