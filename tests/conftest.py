@@ -24,7 +24,7 @@ settings.load_profile("ci" if os.environ.get("CI") else os.environ.get("HYPOTHES
 for _name in ("THINFILM_SH_CACHE", "THINFILM_SH_CACHE_MAX_BYTES"):
     os.environ.pop(_name, None)
 # Viewport bakes run in process in the tests: many replace precompute.bake.bake to slow a bake
-# down or make it fail, which a helper process would not see. tests/test_bake_helper.py turns
+# down or make it fail, which a helper process would not see. tests/viewport/test_bake_helper.py turns
 # the helper on and tests it through the viewport's own path.
 os.environ["THINFILM_SH_BAKE_HELPER"] = "0"
 

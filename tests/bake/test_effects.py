@@ -6,7 +6,7 @@ shader cost, the scene plan (sharing, World order) and the bake-time estimate. B
 through a symlink as in test_extension.py): what the viewport collects and bakes for a scene,
 the ``thinfilm_sh plan`` command and the Plan panel's data.
 
-Already covered elsewhere, not repeated here (tests/test_addon_materials.py,
+Already covered elsewhere, not repeated here (tests/extension/test_addon_materials.py,
 ``test_equal_settings_share_one_bake_and_only_relevant_changes_rebake``): two materials with
 equal settings share one table, changing the thickness re-bakes, an unrelated property (viewport
 colour, object colour) does not.

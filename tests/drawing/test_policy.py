@@ -2,7 +2,7 @@
 generated ``#define``s; the variant decisions (shading/variant.py) and the generated code's
 operation counts (shading/codegen.py) follow them.
 
-Pure Python: the GLSL is read as text (tests/test_gpu_draw.py compiles and runs it).
+Pure Python: the GLSL is read as text (tests/drawing/test_gpu_draw.py compiles and runs it).
 """
 
 import itertools

@@ -7,7 +7,7 @@ benchmarks/viewport.py and docs/performance.md).
 - Draws are grouped by shader variant: one bind per variant, whatever the item order.
 - Small tables drawn from a uniform buffer (TF_TABLE_UBO) shade like the texture and numpy.
 - The cheaper rotation paths of the fast shading library (l ≤ 2 straight from the frame) give
-  the z-y-z result (orders not covered by tests/test_gpu_draw.py).
+  the z-y-z result (orders not covered by tests/drawing/test_gpu_draw.py).
 """
 
 from __future__ import annotations
@@ -421,7 +421,7 @@ def test_direct_low_band_rotation_matches_numpy(tf, l_max):
 # ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def gpu_helpers(tf):
-    """tests/test_gpu_draw.py's bakes, World and shading inputs (no tests are imported)."""
+    """tests/drawing/test_gpu_draw.py's bakes, World and shading inputs (no tests are imported)."""
     import test_gpu_draw
 
     return test_gpu_draw
@@ -469,7 +469,7 @@ def test_table_uniform_buffer_only_on_software_rasterisers(tf, gpu_helpers):
     [(2, "spectral", "constant"), (2, "per_channel", "varying"), (5, "spectral", "constant")],
 )
 def test_uniform_table_shading_matches_numpy(tf, gpu_helpers, l_max, colour_mode, thickness):
-    """tf_shade with TF_TABLE_UBO against sh_sum.shade_sh, as tests/test_gpu_draw.py does for the
+    """tf_shade with TF_TABLE_UBO against sh_sum.shade_sh, as tests/drawing/test_gpu_draw.py does for the
     texture (same bounds: float32 maths of the same interpolation)."""
     import gpu
 

@@ -1,7 +1,7 @@
 """The material bridge, settings, operators and registration in a real Blender session (bpy).
 
 The repository is imported as the package ``thinfilm_sh`` through a symlink, as Blender names
-the installed extension (see tests/test_extension.py). Every test starts from
+the installed extension (see tests/extension/test_extension.py). Every test starts from
 ``read_factory_settings(use_empty=True)`` with the extension registered, and bakes at a tiny
 explicit quality so that a bake takes a fraction of a second.
 """
@@ -224,7 +224,7 @@ def test_principled_zero_thickness_or_no_principled_is_not_previewed(bpy, descri
 
 def test_principled_linked_socket_without_users_uses_its_value_and_warns(bpy, description_mod):
     # No object uses the material, so the link has no surface to be evaluated on (issue 21:
-    # tests/test_linked_thickness.py evaluates it over the objects that use it).
+    # tests/extension/test_linked_thickness.py evaluates it over the objects that use it).
     mat, node = _principled(bpy, **{"Thin Film Thickness": 320.0, "Transmission Weight": 1.0})
     value = mat.node_tree.nodes.new("ShaderNodeValue")
     mat.node_tree.links.new(value.outputs[0], node.inputs["Thin Film Thickness"])

@@ -8,7 +8,7 @@ extension is registered once for the module); most cases read descriptions, Worl
 thickness values and cost milliseconds, and six render 64×48 pictures on llvmpipe.
 
 The pure side (materials, both command lines' options, EXR and cache files, output names) is
-tests/test_hostile_inputs.py. docs/hostile-input.md lists the fallbacks these tests check.
+tests/headless/test_hostile_inputs.py. docs/hostile-input.md lists the fallbacks these tests check.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ that re-bakes; never a traceback, a hang, a non-finite pixel written without a m
 overwritten file. "Before any work" is asserted by counting (the bake function is replaced by one
 that fails the test), "never a hang" by a thread deadline that no correct refusal comes near
 (each takes milliseconds). The Blender side (material settings, Worlds, mesh data, the headless
-commands) is tests/test_hostile_blender.py; the exit codes are docs/cli-exit-codes.md.
+commands) is tests/extension/test_hostile_blender.py; the exit codes are docs/cli-exit-codes.md.
 """
 
 from __future__ import annotations

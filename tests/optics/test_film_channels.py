@@ -9,7 +9,7 @@ precompute/optics/belcour2017.py) against independent implementations of the sam
   three-order series against the same RGB sensitivities (no table, no FFT) to ΔE2000 ≪ 1;
 - the cutoffs (no film at ≤ 0.1 nm, the index blend below 1 nm), the clamp, the F82 metal, the
   per-channel white normalisation, and the bake's Cycles layering of a diffuse base.
-Pure numpy: no bpy (the matrix against Blender's own OCIO config is in tests/test_spectra.py).
+Pure numpy: no bpy (the matrix against Blender's own OCIO config is in tests/optics/test_spectra.py).
 """
 
 from __future__ import annotations

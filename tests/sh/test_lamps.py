@@ -1,6 +1,6 @@
 """The World's lamps (precompute/lamps.py): extraction keeps every watt, shading matches the BRDF.
 
-Pure numpy; the shader's copy is checked per pixel in tests/test_gpu_draw.py.
+Pure numpy; the shader's copy is checked per pixel in tests/drawing/test_gpu_draw.py.
 """
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ def test_film_table_matches_tmm_at_every_angle():
     integrates the exact film against Cycles' channel sensitivities there. A single film goes
     through Cycles' own three-order Fourier-space film instead (issue 22), checked below
     against that function and, to every order, against exact optics in
-    tests/test_film_channels.py.
+    tests/optics/test_film_channels.py.
     """
     material = Material(
         layers=(Layer(1.33, 380.0), Layer(1.6, 120.0)),

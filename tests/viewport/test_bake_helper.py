@@ -364,7 +364,7 @@ def test_the_helper_warms_the_kernels_of_the_neighbouring_rungs(tf):
 
 
 def test_a_bake_superseded_in_the_helper_does_not_hold_the_next_one_back(tf):
-    """In process, no bake starts while a superseded one stops (tests/test_live_ahead.py); one
+    """In process, no bake starts while a superseded one stops (tests/viewport/test_live_ahead.py); one
     handed to the helper was cancelled there at once, so the newest value starts now."""
     vp = tf.viewport
     desc = tf.Material.from_dict(soap_dict(tf))
