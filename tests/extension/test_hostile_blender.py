@@ -13,6 +13,7 @@ tests/headless/test_hostile_inputs.py. docs/hostile-input.md lists the fallbacks
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import json
@@ -26,7 +27,13 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
+import _blender_scene  # noqa: E402
+from _blender_scene import read_exr, white_world  # noqa: E402
 from _extension import EXTENSION_ID, REPO, linked_extension, set_cache_preference  # noqa: E402
+
+#: This file's spheres are coarser (32 × 16) and its camera farther (7) than test_headless.py's.
+sphere = functools.partial(_blender_scene.sphere, segments=(32, 16))
+camera = functools.partial(_blender_scene.camera, distance=7.0)
 
 NAN, INF = float("nan"), float("inf")
 FLT_MAX = 3.4028234663852886e38  # what Blender stores for inf
@@ -99,42 +106,6 @@ def no_work(tf, monkeypatch, no_bake):
     return types.SimpleNamespace(bake=no_bake, render=guard)
 
 
-def sphere(bpy, scene, name="Sphere", location=(0.0, 0.0, 0.0), radius=1.0, material=None):
-    import bmesh
-
-    bm = bmesh.new()
-    bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=radius)
-    mesh = bpy.data.meshes.new(name)
-    bm.to_mesh(mesh)
-    bm.free()
-    mesh.shade_smooth()
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
-    scene.collection.objects.link(obj)
-    if material is not None:
-        mesh.materials.append(material)
-    return obj
-
-
-def camera(bpy, scene, distance=7.0):
-    data = bpy.data.cameras.new("Camera")
-    obj = bpy.data.objects.new("Camera", data)
-    obj.location = (0.0, -distance, 0.0)
-    obj.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    scene.collection.objects.link(obj)
-    scene.camera = obj
-    return obj
-
-
-def white_world(bpy, scene, value=1.0):
-    world = bpy.data.worlds.new("White")
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (value, value, value, 1.0)
-    background.inputs["Strength"].default_value = 1.0
-    scene.world = world
-    return world
-
-
 def film(bpy, name="Film", thickness_nm=420.0, roughness=0.3, preset="SOAP_FILM"):
     """A film at small explicit quality: its table bakes in a fraction of a second."""
     mat = bpy.data.materials.new(name)
@@ -146,17 +117,6 @@ def film(bpy, name="Film", thickness_nm=420.0, roughness=0.3, preset="SOAP_FILM"
     s.roughness = roughness
     s.sh_order, s.view_samples, s.thickness_samples, s.wavelength_count = "4", 8, 8, 32
     return mat
-
-
-def read_exr(path) -> np.ndarray:
-    import OpenEXR
-
-    with OpenEXR.File(str(path)) as f:
-        channels = f.channels()
-        for key in ("RGBA", "RGB"):  # the headless EXR is RGBA
-            if key in channels:
-                return np.array(channels[key].pixels, dtype=np.float64)[..., :3]
-        return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
+from _blender_scene import camera, cube, read_exr, sphere, white_world  # noqa: E402
 from _extension import EXTENSION_ID, REPO, gpu_layer, linked_extension, set_cache_preference  # noqa: E402
 
 from precompute.material import MAX_SH_ORDER  # noqa: E402
@@ -86,58 +87,6 @@ def studiolight(name: str) -> Path:
     return find(name)
 
 
-def sphere(bpy, scene, name="Sphere", location=(0.0, 0.0, 0.0), radius=1.0, material=None):
-    import bmesh
-
-    bm = bmesh.new()
-    bmesh.ops.create_uvsphere(bm, u_segments=64, v_segments=32, radius=radius)
-    mesh = bpy.data.meshes.new(name)
-    bm.to_mesh(mesh)
-    bm.free()
-    mesh.shade_smooth()
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
-    scene.collection.objects.link(obj)
-    if material is not None:
-        mesh.materials.append(material)
-    return obj
-
-
-def cube(bpy, scene, name="Cube", location=(0.0, 0.0, 0.0), size=1.0):
-    import bmesh
-
-    bm = bmesh.new()
-    bmesh.ops.create_cube(bm, size=size)
-    mesh = bpy.data.meshes.new(name)
-    bm.to_mesh(mesh)
-    bm.free()
-    obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
-    scene.collection.objects.link(obj)
-    return obj
-
-
-def camera(bpy, scene, distance=5.0, lens=50.0):
-    """A camera on −y looking at the origin along +y."""
-    data = bpy.data.cameras.new("Camera")
-    data.lens = lens
-    obj = bpy.data.objects.new("Camera", data)
-    obj.location = (0.0, -distance, 0.0)
-    obj.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    scene.collection.objects.link(obj)
-    scene.camera = obj
-    return obj
-
-
-def white_world(bpy, scene, value=1.0):
-    world = bpy.data.worlds.new("White")
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (value, value, value, 1.0)
-    background.inputs["Strength"].default_value = 1.0
-    scene.world = world
-    return world
-
-
 def hdri_world(bpy, scene, path, name="HDRI"):
     world = bpy.data.worlds.new(name)
     tree = world.node_tree
@@ -180,17 +129,6 @@ def film(
         s.substrate_mode = "DIELECTRIC"
         s.substrate_ior = substrate
     return mat
-
-
-def read_exr(path) -> np.ndarray:
-    import OpenEXR
-
-    with OpenEXR.File(str(path)) as f:
-        channels = f.channels()
-        for key in ("RGBA", "RGB"):  # the headless EXR is RGBA
-            if key in channels:
-                return np.array(channels[key].pixels, dtype=np.float64)[..., :3]
-        return np.stack([np.array(channels[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
 def render(tf, scene, path, size=SIZE, background=False, supersample=None):

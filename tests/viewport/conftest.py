@@ -1,15 +1,15 @@
 """Fixtures of the viewport tests: the extension registered once per file, an empty scene per test.
 
-test_live.py and test_scene_lights_viewport.py define their own ``tf``/``scene`` (a start-up file
-with a 3D viewport, other modules); the plain helpers (``film``, ``grid``, ``collect``,
-``redraw``) are test_viewport_state.py's, which the other files here import from it.
+test_live.py defines its own ``tf``/``scene`` (a start-up file with a 3D viewport, other
+modules); the plain helpers (``film``, ``grid``, ``collect``, ``redraw``) are those of
+test_viewport_state.py, which the other files here import from it.
 """
 
 import importlib
 import types
 
 import pytest
-from _extension import EXTENSION_ID, linked_extension
+from _extension import EXTENSION_ID, gpu_layer, linked_extension
 
 
 @pytest.fixture(scope="module")
@@ -19,15 +19,26 @@ def tf(bpy, tmp_path_factory):
     with linked_extension(root) as package:
         package.register()
         ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "props", "prefs", "tables", "thickness", "viewport", "ui"):
+        for name in (
+            "scene_draw",
+            "props",
+            "prefs",
+            "tables",
+            "thickness",
+            "viewport",
+            "ui",
+            "panorama",
+            "world",
+        ):
             setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        ns.gpu = gpu_layer()
         ns.bake = importlib.import_module(f"{EXTENSION_ID}.precompute.bake")
         ns.table_io = importlib.import_module(f"{EXTENSION_ID}.precompute.table_io")
         ns.table_cache = importlib.import_module(f"{EXTENSION_ID}.precompute.table_cache")
         addons = bpy.context.preferences.addons
         if addons.get(EXTENSION_ID) is None:
             addons.new().module = EXTENSION_ID
-        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
+        ns.gpu.context.ensure_gpu_context()
         try:
             yield ns
         finally:

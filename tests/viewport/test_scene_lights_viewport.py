@@ -8,39 +8,12 @@ buffer and the drawn pixels, with no bake asked for, no World panorama or SH, an
 
 from __future__ import annotations
 
-import importlib
 import types
 
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
-
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def tf(bpy, tmp_path_factory):
-    """The extension, registered once for the module, with a private table cache."""
-    root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for name in ("scene_draw", "prefs", "tables", "panorama", "world"):
-            setattr(ns, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
-        ns.gpu = importlib.import_module(f"{EXTENSION_ID}.addon.gpu")
-        for name in ("context", "draw", "resources"):
-            importlib.import_module(f"{EXTENSION_ID}.addon.gpu.{name}")
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        ns.gpu.context.ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
 
 
 @pytest.fixture
