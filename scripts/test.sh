@@ -10,8 +10,8 @@
 # `slow` marks the rest of a thinned parameter sweep (the fast set keeps a few values of each)
 # and the checks whose set-up takes tens of seconds (docs/benchmarks.md#test-suite). Each test
 # file runs on one worker (--dist loadfile), so its module fixtures (a registered extension,
-# rendered scenes, compiled shaders) are made once; tests/conftest.py hands the longest files
-# out first. With no path among the arguments pytest falls back to testpaths = ["tests"]
+# rendered scenes, compiled shaders) are made once; tests/conftest.py puts the longest files
+# first and --no-loadscope-reorder keeps that order (xdist would sort by test count). With no path among the arguments pytest falls back to testpaths = ["tests"]
 # (pyproject.toml). The exit code is pytest's; the wall time is printed last.
 set -euo pipefail
 
@@ -36,6 +36,6 @@ fi
 
 start=$(date +%s)
 status=0
-.venv/bin/python -m pytest -q -n 2 --dist loadfile "${selection[@]}" "${args[@]}" || status=$?
+.venv/bin/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder "${selection[@]}" "${args[@]}" || status=$?
 echo "tests: ${selection[*]:-all} exit $status in $(($(date +%s) - start)) s (load average $(cut -d' ' -f1-3 /proc/loadavg))"
 exit "$status"
