@@ -170,13 +170,14 @@ class Lane:
         finally:
             job.elapsed_s = time.perf_counter() - start
             with self.lock:
+                # the cue before leaving the running jobs: a timer tick that saw neither would stop
+                if job.shows_something():  # for good and never show this job's result
+                    self._finished.set()
                 if self.running.get(job.key) is job:
                     del self.running[job.key]
                 self._threads.pop(job, None)
                 job.leave()
             job.done.set()
-            if job.shows_something():
-                self._finished.set()
         job.after()
 
     def busy(self) -> bool:

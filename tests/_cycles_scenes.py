@@ -6,10 +6,10 @@ SH, combined) and by our brute force (``render.shade_reference``). The camera ma
 ``precompute.output.render.sphere_view`` exactly (pinhole on −y looking at +y, 32° field of view, sphere
 of radius 1 at the origin).
 
-Used by tests/test_cycles_parity.py, tests/test_glossy.py and ``benchmarks.cycles_compare``
+Used by tests/parity/test_cycles_parity.py, tests/parity/test_glossy.py and ``benchmarks.cycles_compare``
 (docs/cycles-comparison.md). It lives in tests/ because the tests never import benchmarks/.
 
-:func:`white_furnace_render` is the white furnace of the colour pipeline (tests/test_cycles_parity.py,
+:func:`white_furnace_render` is the white furnace of the colour pipeline (tests/parity/test_cycles_parity.py,
 ``benchmarks.white_furnace``): a mirror-smooth Principled film under a uniform white World, seen by
 an orthographic camera, so each pixel is the film's F_rgb(θ), with each pixel's cos θ and film
 thickness read back from a second render.

@@ -90,19 +90,27 @@ def assert_helper_ends_with_stdin_and_unregister(package, helper, timeout: float
     """A helper process module (``addon.world.panorama_helper``, ``addon.bakes.bake_helper``): its process
     exits on its own when its stdin closes (what its parent's death does), and the package's
     ``unregister`` leaves no process behind (exited and reaped: no orphan, no zombie)."""
+    name = helper.__name__.rpartition(".")[2]
     helper.warm()
     process = helper.SLOT.process
-    assert process.ready.wait(timeout) and process.alive()
+    assert process.ready.wait(timeout), f"the {name} process did not say it was ready in {timeout:.0f} s"
+    assert process.alive(), f"the {name} process died after starting"
     process.proc.stdin.close()
-    assert process.proc.wait(timeout) == 0
+    code = process.proc.wait(timeout)
+    assert code == 0, f"the {name} process exited {code} when its stdin closed (its parent died): must be 0"
     helper.stop()
 
     helper.warm()
     pid = helper.process_id()
-    assert pid is not None and helper.SLOT.process.ready.wait(timeout)
+    assert pid is not None, f"warm() started no {name} process"
+    assert helper.SLOT.process.ready.wait(timeout), (
+        f"the second {name} process was not ready in {timeout:.0f} s"
+    )
     package.unregister()
     try:
-        assert helper.process_id() is None
-        assert not os.path.exists(f"/proc/{pid}")
+        assert helper.process_id() is None, f"unregister left the {name} process in its slot"
+        assert not os.path.exists(f"/proc/{pid}"), (
+            f"unregister left the {name} process {pid} (orphan or zombie)"
+        )
     finally:
         package.register()

@@ -2,7 +2,7 @@
 
 For every studiolight (found in the bpy wheel without importing bpy), brute-force
 E(n) = Σ_pixels L max(0, n·ω) dω at 200 Fibonacci normals against the SH irradiance
-Σ Â_l L_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001). Used by tests/test_sh_hdri.py (the gate at
+Σ Â_l L_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001). Used by tests/sh/test_sh_hdri.py (the gate at
 l_max = 8) and ``benchmarks.sh_projection --irradiance-doc`` (docs/sh-irradiance.md). It lives in
 tests/ because the tests never import benchmarks/.
 """
