@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# The fast test set three times in a row while a CPU-heavy process runs beside it: Cycles
-# rendering a sample scene in a loop, at the tests' own priority. A test that waits on time
+# The test set three times in a row while a CPU-heavy process runs beside it: Cycles
+# rendering a sample scene in a loop, at the tests' own priority (the fast set; `--full` the
+# whole suite, as CI runs it). A test that waits on time
 # instead of on its event, or that asserts a timing, fails here first.
 #
 #   bash scripts/stress_tests.sh                  # 3 passes of `bash scripts/test.sh`
+#   bash scripts/stress_tests.sh --full           # 3 passes of the full suite (CI's second step)
 #   STRESS_PASSES=5 bash scripts/stress_tests.sh tests/viewport   # more passes, other arguments
 #
 # Prints each pass's result, wall time and load average, and the number of Cycles renders done
