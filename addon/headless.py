@@ -40,6 +40,7 @@ from .background import (
     refraction_margin,
     render_background,
     view_depth,
+    wall_objects,
 )
 from .description import description, description_key, warnings
 from .gpu.context import ensure_gpu_context
@@ -338,8 +339,10 @@ def render_scene(
             height,
             engine=engine,
             hidden=film_objects,
+            shadowless=wall_objects(items),
             transparent=not background,
             margin=refraction_margin(items, width, height),
+            world=lighting.background() if lighting is not None else None,
         )
         rgba, nonfinite = _films_over(
             behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages

@@ -274,6 +274,9 @@ def compare(
         key: float(np.sum(full[where & mask]) / max(mask.sum(), 1))
         for key, where in regions(name, ours, ref, size).items()
     }
+    around = ~mask
+    around[: size // 2] = False  # the ground beside and in front of the object
+    parts["ground"] = float(np.mean(delta_e_2000(ours[around], ref[around], xyz="E")))
     return dict(
         name=name,
         limit=LIMITS[(name, "CYCLES" if engine == "CYCLES" else "EEVEE")],
@@ -426,6 +429,9 @@ def main(argv=None) -> int:
             if args.dump:
                 keep = {k: row[k] for k in ("ours", "cycles", "delta_e")}
                 np.savez_compressed(pathlib.Path(args.dump) / f"{name}_{args.engine}.npz", **keep)
+    import thinfilm_headless
+
+    thinfilm_headless.release()  # GPU data freed while Blender lives (else a crash at exit)
     write_picture(rows, pathlib.Path(common.ROOT) / "docs" / "images" / args.picture)
     command = " " + " ".join(sys.argv[1:] if argv is None else argv)
     print(common.write_doc(args.out, report(rows, args.size, args.samples, args.picture, command)))

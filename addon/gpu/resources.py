@@ -17,7 +17,7 @@ Also here: :class:`Lighting` (the World's SH for one material, in :data:`LIGHTIN
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gpu
 import numpy as np
@@ -192,6 +192,7 @@ OBJECT = Block(
         Member("model", 4, "model matrix, columns"),
         Member("normal", 4, "normal matrix (inverse transpose of the model's 3x3), columns"),
         Member("material", None, "x: roughness, y: SH weight of the split-sum blend, z, w: wall mode, eta"),
+        Member("glass", None, "x: solid glass's id in the glass buffers (TF_REFRACT), -1 where none"),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).
@@ -265,6 +266,11 @@ ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")
 DISPLAY_LUT_SAMPLER = Sampler(7, "FLOAT_2D", "tf_display_lut")
 #: The scene drawn without the films (:class:`BehindTexture`) of ``TF_REFRACT`` variants.
 BEHIND_SAMPLER = Sampler(8, "FLOAT_2D", "tf_behind")
+#: Solid glass's nearest front and back faces per pixel (:class:`BehindTexture`, ``TF_REFRACT``).
+GLASS_FRONT_SAMPLER = Sampler(9, "FLOAT_2D", "tf_glass_front")
+GLASS_BACK_SAMPLER = Sampler(10, "FLOAT_2D", "tf_glass_back")
+#: Cycles' film seen from inside each solid glass (row = its id; tf_refract.glsl tf_glass_back_r).
+GLASS_FILM_SAMPLER = Sampler(11, "FLOAT_2D", "tf_glass_film")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -717,12 +723,31 @@ class BehindTexture:
     precompute/shading/refract.py): an RGBA32F texture (:data:`BEHIND_SAMPLER`; .rgb its
     scene-linear colour, .a its depth, the distance along the camera axis,
     policy.REFRACT_FAR where nothing was drawn; read with texelFetch) and the :data:`BEHIND`
-    buffer placing it in the drawn window."""
+    buffer placing it in the drawn window; the glass buffers ``front`` and ``back`` (the drawn
+    window's solid glass faces, :mod:`.glass_buffers`; 1 × 1 empty ones without) and ``ids``
+    (a glass item's name → its id there)."""
 
     texture: gpu.types.GPUTexture
     ubo: gpu.types.GPUUniformBuf
     width: int
     height: int
+    front: gpu.types.GPUTexture | None = None
+    back: gpu.types.GPUTexture | None = None
+    #: A glass draw item (its ``id()``) → its id in the glass buffers and ``film``.
+    ids: dict = field(default_factory=dict)
+    #: Cycles' back-face film per glass id (rows), u uniform 0…1 (columns), .a = 1 where given.
+    film: gpu.types.GPUTexture | None = None
+
+    def glass_textures(self) -> tuple:
+        """(front, back, film): the glass buffers and back-face films, empty 1 × 1 (2 × 1) ones
+        where none were drawn."""
+        empty = float_buffer(np.zeros((1, 2, 4)))
+        if self.front is None or self.back is None:
+            self.front = gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
+            self.back = gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
+        if self.film is None:
+            self.film = gpu.types.GPUTexture((2, 1), format="RGBA32F", data=empty)
+        return self.front, self.back, self.film
 
     @staticmethod
     def screen(width: int, height: int, pad: int, margin: int = 0) -> tuple[float, ...]:

@@ -147,6 +147,9 @@ def declare_shading_resources(info, variant: Variant) -> None:
     if variant.refract:
         _declare(info, resources.BEHIND)
         _declare(info, resources.BEHIND_SAMPLER)
+        _declare(info, resources.GLASS_FRONT_SAMPLER)
+        _declare(info, resources.GLASS_BACK_SAMPLER)
+        _declare(info, resources.GLASS_FILM_SAMPLER)
     info.typedef_source(resources.TYPEDEFS)
     _declare(info, resources.LIGHTING)
     _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
