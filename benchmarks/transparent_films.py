@@ -33,8 +33,8 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute import image_io, render
-from precompute.colour_difference import delta_e_2000
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.output import image_io, render
 
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "tests"))
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "scripts"))
@@ -341,29 +341,30 @@ def write_picture(rows, path) -> None:
 #: What the report says about the background pass and the figures (docs/transparent-films.md).
 NOTES = """\
 **The background pass.** The headless frame draws the films over Blender's render of the rest
-of the scene (`render --engine`, default EEVEE). Under this studio HDRI (a lamp of 616 in a
-panorama of mean 0.55) EEVEE lights the checker ground 2–5× brighter than Cycles (its orange
-squares: EEVEE 1.78/0.74/0.42, Cycles 0.38/0.19/0.13, the HDRI's irradiance from above times
-their albedo / π 0.33/0.12/0.05; EEVEE's sun extraction off still doubles Cycles), so the glass sphere,
-which now shows that ground refracted, is measured over a **Cycles background pass**
-(`--engine CYCLES --background-samples 128`): the comparison is of the films, not of EEVEE's
-lighting. The bubble's background is the HDRI alone, the same in every engine.
+of the scene (`render --engine`, default EEVEE). EEVEE's pass is lit by the World's lamps as sun
+lights (addon/headless/background_lamps.py: under this studio HDRI, a lamp of 616 in a panorama
+of mean 0.55, EEVEE's own World lighting lit the checker ground 5.1× brighter than Cycles; the
+lamps as suns 0.98×), and transparent films cast no EEVEE shadow there (EEVEE's is opaque). A
+run with `--engine CYCLES` renders the pass with Cycles instead: the comparison is then of the
+films alone. The bubble's background is the HDRI alone, the same in every engine.
 
-**The glass sphere** refracts the background pass in screen space (the sphere about its origin,
-the exit ray marched over the pass's depth, overscanned on each side), adds one internal
-reflection (the lamps' glints) and mirrors the ground in its lower half
-(docs/transparent-films.md#solid-glass-refraction).
+**Solid glass** (ball, cube, wine glass; a 300 nm film of 1.33 on glass of 1.5, roughness 0.05)
+leaves through its real mesh: its nearest front and back faces per pixel (the glass buffers),
+total internal reflection followed, refracted over the background pass's depth (overscanned on
+each side; a ray leaving the picture sees its edge), one internal reflection (the lamps' glints)
+and the ground mirrored (docs/transparent-films.md#solid-glass-refraction). The film seen from
+inside is Cycles' back-face film (its index divided by the glass's). *glints*, *rim*, *upper*,
+*lower*: the mean ΔE2000 over the object's pixels contributed by its glints (either picture's
+luminance above 2, one pixel around), a ball's rim (n·v < 0.35; – for other shapes) and the
+rest of its upper and lower halves: they add up to the mean.
 
 **Unclamped Cycles.** Blender's default indirect clamp (10 per sample) dimmed the ball's glints
-30× in the first references (0.3–0.5 where the unclamped render shows 10–15: a reflection
-chosen with probability F ≈ 0.03 carries 1/F of the lamp's 400 and is clamped), so the references
-are rendered with the clamps off (`SCENE_VERSION` 2); the background pass keeps Blender's
-defaults (less noise). What remains: Cycles' glints are cyan where ours are tinted by the film's
-reflectance r (pink): at a back face Cycles divides the film's index by the glass's
-(`adjust_thin_film_ior_at_backface`) at the same wavelengths, an optically thinner film
-(r ≈ 0.03/0.04/0.04 by our evaluation of that configuration), while a lossless film reflects the
-same from both sides; rays bent out of the overscanned picture at the rim see the World instead
-of the ground; Cycles' caustics on the ground under the ball are not in the pass.
+30× in the first references (a reflection chosen with probability F ≈ 0.03 carries 1/F of the
+lamp's 400 and is clamped), so the references are rendered with the clamps off
+(`SCENE_VERSION` 2). Not in our frame: Cycles' caustics on the ground (a ball brightens the
+ground beside its foot to 1.15–1.25× and shades a band to 0.72–0.85×), a concave glass's far
+wall (a wine glass is taken as its nearest front and back faces), light inside the glass after
+more than one reflection.
 
 *Cycles s* is 0 for a cached render: the 1024-spp ones took 876 s (glass) and 353 s (bubble) on
 this machine at a load average of 6–8.

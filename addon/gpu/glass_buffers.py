@@ -23,10 +23,10 @@ import gpu
 import numpy as np
 
 from ...precompute.shading.transmit import WALL_SOLID
-from . import resources
+from . import layout
 from .draw import _batch_of, _matrix, object_uniforms, read_framebuffer, view_ubo
 from .resources import float_buffer
-from .shaders import _declare, chunk_order, join_chunks
+from .shaders import chunk_order, declare_mesh_inputs, join_chunks
 
 #: The glass buffers' passes: (name, the faces culled).
 PASSES = (("front", "BACK"), ("back", "FRONT"))
@@ -43,14 +43,8 @@ def glass_shader():
         info = gpu.types.GPUShaderCreateInfo()
         for name, value in glsl_defines():
             info.define(name, value)
-        info.typedef_source(resources.TYPEDEFS)
-        _declare(info, resources.VIEW)
-        _declare(info, resources.OBJECT)
-        info.vertex_in(0, "VEC3", "pos")
-        info.vertex_in(1, "VEC3", "nor")
-        iface = gpu.types.GPUStageInterfaceInfo("tf_glass_iface")
-        iface.smooth("VEC3", "tf_world_pos")
-        iface.smooth("VEC3", "tf_world_nor")
+        info.typedef_source(layout.TYPEDEFS)
+        iface = declare_mesh_inputs(info, "tf_glass_iface")
         info.vertex_out(iface)
         info.fragment_out(0, "VEC4", "tf_frag_color")
         info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
@@ -119,9 +113,9 @@ def render_glass_buffers(
                 gpu.state.face_culling_set(cull)
                 try:
                     shader.bind()
-                    shader.uniform_block(resources.VIEW.name, view)
+                    shader.uniform_block(layout.VIEW.name, view)
                     for item, ubo in zip(glass, ubos, strict=True):
-                        shader.uniform_block(resources.OBJECT.name, ubo)
+                        shader.uniform_block(layout.OBJECT.name, ubo)
                         _batch_of(item)[0].draw(shader)
                 finally:
                     gpu.state.face_culling_set("NONE")
