@@ -23,7 +23,8 @@ the pass renders and restored after it (:func:`world_lamps_as_suns`):
   camera-invisible films still cast theirs);
 - EEVEE's own sun extraction is turned off (*Sun Threshold* raised above any radiance).
 
-The sum keeps the World's power (the suns take exactly what the World lost, tested). It applies
+The sum keeps the World's power (the suns take exactly what the World lost:
+tests/headless/test_background_lamps.py). It applies
 where the World is a Background shader (its Color any node or a constant, its Strength a
 constant) into the World Output; other Worlds are left as they are (EEVEE's own lighting).
 """
