@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import math
 import pathlib
 import sys
 import tempfile
@@ -44,11 +45,50 @@ CACHE = pathlib.Path(common.ROOT) / "benchmarks" / ".cache" / "transparent_films
 SIZE = 256
 SAMPLES = 1024
 HDRI = "studio"
-#: Issue 17's acceptance (mean ΔE2000 over the object, Cycles-matching mode).
-LIMITS = {"bubble": 3.0, "glass": 5.0}
-#: 2: Cycles' sample clamps off (Blender's default indirect clamp of 10 dimmed the glass sphere's
-#: internal glints 30×: 0.3–0.5 instead of 10–15, a biased reference).
-SCENE_VERSION = 2
+#: Issue 34's acceptance: mean ΔE2000 over the object, per scene, in the default frame (EEVEE
+#: behind) and over a Cycles background pass.
+LIMITS = {
+    ("bubble", "EEVEE"): 2.0,
+    ("bubble", "CYCLES"): 2.0,
+    ("glass", "EEVEE"): 3.0,
+    ("glass", "CYCLES"): 2.0,
+    ("cube", "EEVEE"): 5.0,
+    ("cube", "CYCLES"): 5.0,
+    ("wineglass", "EEVEE"): 5.0,
+    ("wineglass", "CYCLES"): 5.0,
+}
+SCENES = ("bubble", "glass", "cube", "wineglass")
+#: Each scene's version, part of its reference's cache key. 2: Cycles' sample clamps off (Blender's
+#: default indirect clamp of 10 dimmed the glass sphere's internal glints 30×: 0.3–0.5 instead of
+#: 10–15, a biased reference). 3 (glass): roughness 0.05, the scene of issue 34's comparison.
+SCENE_VERSION = {"bubble": 2, "glass": 3, "cube": 1, "wineglass": 1}
+#: The glass objects' roughness (issue 34's independent comparison: 0.05).
+GLASS_ROUGHNESS = 0.05
+#: The cube: its side, the height of its centre (it stands on the ground at z = −1) and its turn
+#: about the vertical (degrees), so that two of its faces and its top face the camera.
+CUBE_SIDE, CUBE_Z, CUBE_TURN = 1.2, -0.4, 30.0
+#: The wine glass: a lathe of this (radius, height) outline, closed, about the vertical; solid
+#: glass between its outer and inner surfaces (a thick foot and stem, a bowl of 0.05 walls).
+WINEGLASS_PROFILE = (
+    (0.0, -1.0),
+    (0.55, -1.0),
+    (0.55, -0.96),
+    (0.12, -0.92),
+    (0.06, -0.82),
+    (0.05, -0.45),
+    (0.12, -0.32),
+    (0.42, -0.1),
+    (0.56, 0.15),
+    (0.58, 0.45),
+    (0.55, 0.7),
+    (0.5, 0.7),
+    (0.53, 0.45),
+    (0.51, 0.17),
+    (0.38, -0.06),
+    (0.1, -0.25),
+    (0.0, -0.27),
+)
+WINEGLASS_SEGMENTS = 96
 
 
 def _bubble(bsdf, nt):
@@ -63,6 +103,7 @@ def _bubble(bsdf, nt):
 def _glass(bsdf, nt):
     bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     bsdf.inputs["IOR"].default_value = 1.5
+    bsdf.inputs["Roughness"].default_value = GLASS_ROUGHNESS
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["Thin Film IOR"].default_value = 1.33
     bsdf.inputs["Thin Film Thickness"].default_value = 300.0
@@ -84,6 +125,55 @@ def _ground(bpy):
     plane.data.materials.append(mat)
 
 
+def _lathe(bm, profile, segments: int) -> None:
+    """The closed (radius, height) ``profile`` turned about the z axis in ``segments`` steps, into
+    ``bm``: quads between neighbouring rings, the axis points shared (triangle fans there)."""
+    rings = []
+    for k in range(segments):
+        a = 2.0 * math.pi * k / segments
+        rings.append([(r * math.cos(a), r * math.sin(a), z) for r, z in profile])
+    verts = {}
+    for k, ring in enumerate(rings):
+        for j, co in enumerate(ring):
+            key = (0, j) if profile[j][0] == 0.0 else (k, j)
+            if key not in verts:
+                verts[key] = bm.verts.new(co)
+    count = len(profile)
+    for k in range(segments):
+        k2 = (k + 1) % segments
+        for j in range(count - 1):
+            quad = [(k, j), (k2, j), (k2, j + 1), (k, j + 1)]
+            keys = [(0, jj) if profile[jj][0] == 0.0 else (kk, jj) for kk, jj in quad]
+            face = list(dict.fromkeys(verts[key] for key in keys))
+            if len(face) >= 3:
+                bm.faces.new(face)
+
+
+def _shape(bpy, name: str) -> None:
+    """Give the film object the shape of the scene ``name``: the cube or the wine glass (the
+    sphere stays)."""
+    import bmesh
+
+    obj = next(o for o in bpy.data.objects if o.type == "MESH" and "film" in o.data.materials)
+    if name not in ("cube", "wineglass"):
+        return
+    bm = bmesh.new()
+    if name == "cube":
+        bmesh.ops.create_cube(bm, size=CUBE_SIDE)
+        obj.location = (0.0, 0.0, CUBE_Z)
+        obj.rotation_euler = (0.0, 0.0, math.radians(CUBE_TURN))
+    else:
+        _lathe(bm, WINEGLASS_PROFILE, WINEGLASS_SEGMENTS)
+        bmesh.ops.recalc_face_normals(bm, faces=bm.faces)
+    for face in bm.faces:
+        face.smooth = name == "wineglass"
+    mesh = bpy.data.meshes.new(name)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.materials.append(obj.data.materials[0])
+    obj.data = mesh
+
+
 def build(name: str, path, size: int, samples: int, unbiased: bool = True):
     """The scene ``name`` ("bubble" or "glass") saved as a .blend; returns its path.
     ``unbiased``: Cycles' sample clamps off (the reference); else Blender's defaults (the
@@ -101,7 +191,8 @@ def build(name: str, path, size: int, samples: int, unbiased: bool = True):
         scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
     mat = bpy.data.materials["film"]
     (_bubble if name == "bubble" else _glass)(mat.node_tree.nodes["Principled BSDF"], mat.node_tree)
-    if name == "glass":
+    _shape(bpy, name)
+    if name != "bubble":
         _ground(bpy)
     bpy.ops.wm.save_as_mainfile(filepath=str(pathlib.Path(path).resolve()), check_existing=False)
     return path
@@ -111,7 +202,7 @@ def cycles_image(blend, name: str, size: int, samples: int) -> tuple[np.ndarray,
     """Cycles' render of ``blend``, cached: (RGB, seconds; 0 if cached)."""
     import bpy
 
-    key = json.dumps([name, size, samples, bpy.app.version_string, SCENE_VERSION])
+    key = json.dumps([name, size, samples, bpy.app.version_string, SCENE_VERSION[name]])
     path = CACHE / f"{name}_{hashlib.sha256(key.encode()).hexdigest()[:12]}.npz"
     if path.is_file():
         return np.load(path)["rgb"], 0.0
@@ -121,6 +212,33 @@ def cycles_image(blend, name: str, size: int, samples: int) -> tuple[np.ndarray,
     CACHE.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, rgb=rgb)
     return rgb, seconds
+
+
+def silhouette(blend, erode: int = 1) -> np.ndarray:
+    """The film object's pixels (H, W) bool, a border of ``erode`` pixels left out: Workbench's
+    render of it alone, no anti-aliasing, alpha > 0.5."""
+    import bpy
+
+    bpy.ops.wm.open_mainfile(filepath=str(pathlib.Path(blend).resolve()))
+    scene = bpy.context.scene
+    for obj in scene.objects:
+        obj.hide_render = obj.type == "MESH" and "film" not in obj.data.materials
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.render_aa = "OFF"
+    scene.display.shading.light = "FLAT"
+    scene.display.shading.color_type = "SINGLE"
+    scene.display.shading.single_color = (1.0, 1.0, 1.0)
+    scene.render.film_transparent = True
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "mask.exr"
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        scene.render.filepath = str(out)
+        bpy.ops.render.render(write_still=True)
+        m = cc.read_exr(out).mean(axis=-1) > 0.5
+    for _ in range(erode):
+        m[1:-1, 1:-1] &= m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
+        m[0, :] = m[-1, :] = m[:, 0] = m[:, -1] = False
+    return m
 
 
 def headless_image(blend, out_png, engine: str = "EEVEE") -> tuple[np.ndarray, float]:
@@ -145,12 +263,23 @@ def compare(
     if engine == "CYCLES":
         blend = build(name, pathlib.Path(workdir) / f"{name}_ours.blend", size, background_samples, False)
     ours, ours_s = headless_image(blend, pathlib.Path(workdir) / f"{name}.png", engine)
-    mask = cc.object_mask(render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG))
+    if name in ("bubble", "glass"):
+        mask = cc.object_mask(render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG))
+    else:
+        mask = silhouette(blend)
     de = delta_e_2000(ours[mask], ref[mask], xyz="E")
     full = np.zeros(mask.shape)
     full[mask] = de
+    parts = {
+        key: float(np.sum(full[where & mask]) / max(mask.sum(), 1))
+        for key, where in regions(name, ours, ref, size).items()
+    }
+    around = ~mask
+    around[: size // 2] = False  # the ground beside and in front of the object
+    parts["ground"] = float(np.mean(delta_e_2000(ours[around], ref[around], xyz="E")))
     return dict(
         name=name,
+        limit=LIMITS[(name, "CYCLES" if engine == "CYCLES" else "EEVEE")],
         engine=engine if engine != "CYCLES" else f"Cycles {background_samples} spp",
         mean=float(np.mean(de)),
         p95=float(np.percentile(de, 95)),
@@ -159,7 +288,43 @@ def compare(
         ours=ours,
         cycles=ref,
         delta_e=full,
+        parts=parts,
     )
+
+
+#: A pixel is a glint where either picture's luminance exceeds this (the lamps' reflections).
+GLINT_LUMINANCE = 2.0
+#: The rim: where the sphere's normal is within this cosine of the silhouette (rays bent far).
+RIM_COS = 0.35
+
+
+def regions(name: str, ours, ref, size: int) -> dict:
+    """Where the ΔE comes from (H, W) bool each, disjoint: ``glints`` (either picture brighter
+    than :data:`GLINT_LUMINANCE`, one pixel around), then on a sphere the ``rim`` (n·v <
+    :data:`RIM_COS`), and the ``upper`` and ``lower`` halves of the picture's rows (a sphere's
+    halves about its centre, another object's about the picture's middle)."""
+    y = np.maximum(ours @ LUMA, ref @ LUMA) > GLINT_LUMINANCE
+    glints = y.copy()
+    glints[1:] |= y[:-1]
+    glints[:-1] |= y[1:]
+    glints[:, 1:] |= y[:, :-1]
+    glints[:, :-1] |= y[:, 1:]
+    out = {"glints": glints}
+    rest = ~glints
+    if name in ("bubble", "glass"):
+        view = render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG)
+        cos = np.sum(view.normals * view.views, axis=-1)
+        out["rim"] = rest & (cos < RIM_COS)
+        rest = rest & ~out["rim"]
+    upper = (np.arange(size) < size // 2)[:, None] & np.ones((1, size), dtype=bool)
+    out["upper"] = rest & upper
+    out["lower"] = rest & ~upper
+    return out
+
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+#: The regions' order in the report.
+PARTS = ("glints", "rim", "upper", "lower")
 
 
 def write_picture(rows, path) -> None:
@@ -176,29 +341,30 @@ def write_picture(rows, path) -> None:
 #: What the report says about the background pass and the figures (docs/transparent-films.md).
 NOTES = """\
 **The background pass.** The headless frame draws the films over Blender's render of the rest
-of the scene (`render --engine`, default EEVEE). Under this studio HDRI (a lamp of 616 in a
-panorama of mean 0.55) EEVEE lights the checker ground 2–5× brighter than Cycles (its orange
-squares: EEVEE 1.78/0.74/0.42, Cycles 0.38/0.19/0.13, the HDRI's irradiance from above times
-their albedo / π 0.33/0.12/0.05; EEVEE's sun extraction off still doubles Cycles), so the glass sphere,
-which now shows that ground refracted, is measured over a **Cycles background pass**
-(`--engine CYCLES --background-samples 128`): the comparison is of the films, not of EEVEE's
-lighting. The bubble's background is the HDRI alone, the same in every engine.
+of the scene (`render --engine`, default EEVEE). EEVEE's pass is lit by the World's lamps as sun
+lights (addon/headless/background_lamps.py: under this studio HDRI, a lamp of 616 in a panorama
+of mean 0.55, EEVEE's own World lighting lit the checker ground 5.1× brighter than Cycles; the
+lamps as suns 0.98×), and transparent films cast no EEVEE shadow there (EEVEE's is opaque). A
+run with `--engine CYCLES` renders the pass with Cycles instead: the comparison is then of the
+films alone. The bubble's background is the HDRI alone, the same in every engine.
 
-**The glass sphere** refracts the background pass in screen space (the sphere about its origin,
-the exit ray marched over the pass's depth, overscanned on each side), adds one internal
-reflection (the lamps' glints) and mirrors the ground in its lower half
-(docs/transparent-films.md#solid-glass-refraction).
+**Solid glass** (ball, cube, wine glass; a 300 nm film of 1.33 on glass of 1.5, roughness 0.05)
+leaves through its real mesh: its nearest front and back faces per pixel (the glass buffers),
+total internal reflection followed, refracted over the background pass's depth (overscanned on
+each side; a ray leaving the picture sees its edge), one internal reflection (the lamps' glints)
+and the ground mirrored (docs/transparent-films.md#solid-glass-refraction). The film seen from
+inside is Cycles' back-face film (its index divided by the glass's). *glints*, *rim*, *upper*,
+*lower*: the mean ΔE2000 over the object's pixels contributed by its glints (either picture's
+luminance above 2, one pixel around), a ball's rim (n·v < 0.35; – for other shapes) and the
+rest of its upper and lower halves: they add up to the mean.
 
 **Unclamped Cycles.** Blender's default indirect clamp (10 per sample) dimmed the ball's glints
-30× in the first references (0.3–0.5 where the unclamped render shows 10–15: a reflection
-chosen with probability F ≈ 0.03 carries 1/F of the lamp's 400 and is clamped), so the references
-are rendered with the clamps off (`SCENE_VERSION` 2); the background pass keeps Blender's
-defaults (less noise). What remains: Cycles' glints are cyan where ours are tinted by the film's
-reflectance r (pink): at a back face Cycles divides the film's index by the glass's
-(`adjust_thin_film_ior_at_backface`) at the same wavelengths, an optically thinner film
-(r ≈ 0.03/0.04/0.04 by our evaluation of that configuration), while a lossless film reflects the
-same from both sides; rays bent out of the overscanned picture at the rim see the World instead
-of the ground; Cycles' caustics on the ground under the ball are not in the pass.
+30× in the first references (a reflection chosen with probability F ≈ 0.03 carries 1/F of the
+lamp's 400 and is clamped), so the references are rendered with the clamps off
+(`SCENE_VERSION` 2). Not in our frame: Cycles' caustics on the ground (a ball brightens the
+ground beside its foot to 1.15–1.25× and shades a band to 0.72–0.85×), a concave glass's far
+wall (a wine glass is taken as its nearest front and back faces), light inside the glass after
+more than one reflection.
 
 *Cycles s* is 0 for a cached render: the 1024-spp ones took 876 s (glass) and 353 s (bubble) on
 this machine at a load average of 6–8.
@@ -218,13 +384,18 @@ def report(rows, size: int, samples: int, picture: str = "transparent_films.png"
         f"Machine: {'; '.join(common.machine_lines())}. Load average: {common.load_average()}.",
         f"Code: {common.git_describe(('precompute', 'addon', 'glsl', 'benchmarks'))}.",
         "",
-        "| scene | background pass | mean ΔE2000 | p95 | limit | Cycles s | ours s |",
-        "|---|---|---|---|---|---|---|",
+        "| scene | background pass | mean ΔE2000 | p95 | limit | glints | rim | upper | lower"
+        " | Cycles s | ours s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['name']} | {r['engine']} | {r['mean']:.2f} | {r['p95']:.2f} | {LIMITS[r['name']]:.0f} | "
-            f"{r['cycles_s']:.0f} | {r['ours_s']:.1f} |"
+            f"| {r['name']} | {r['engine']} | {r['mean']:.2f} | {r['p95']:.2f} | {r['limit']:.0f} | "
+            + " | ".join(
+                f"{r['parts'][k]:.2f}" if k in r["parts"] else "–"
+                for k in ("glints", "rim", "upper", "lower")
+            )
+            + f" | {r['cycles_s']:.0f} | {r['ours_s']:.1f} |"
         )
     lines += ["", NOTES, f"![ours | Cycles | ΔE/10, one row per scene](images/{picture})", ""]
     return "\n".join(lines)
@@ -235,7 +406,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=SIZE)
     parser.add_argument("--samples", type=int, default=SAMPLES)
-    parser.add_argument("--scenes", nargs="+", default=list(LIMITS))
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES)
     parser.add_argument(
         "--engine",
         default="EEVEE",
@@ -245,6 +416,7 @@ def main(argv=None) -> int:
     parser.add_argument("--background-samples", type=int, default=256, help="with --engine CYCLES")
     parser.add_argument("--out", default="transparent-films-cycles.md")
     parser.add_argument("--picture", default="transparent_films.png", help="under docs/images/")
+    parser.add_argument("--dump", help="also save each scene's pictures and ΔE here (.npz), to study")
     args = parser.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -252,8 +424,15 @@ def main(argv=None) -> int:
             row = compare(
                 name, pathlib.Path(tmp), args.size, args.samples, args.engine, args.background_samples
             )
-            print(f"{name}: mean ΔE2000 {row['mean']:.2f}, p95 {row['p95']:.2f}", flush=True)
+            split = ", ".join(f"{k} {v:.2f}" for k, v in row["parts"].items())
+            print(f"{name}: mean ΔE2000 {row['mean']:.2f}, p95 {row['p95']:.2f} ({split})", flush=True)
             rows.append(row)
+            if args.dump:
+                keep = {k: row[k] for k in ("ours", "cycles", "delta_e")}
+                np.savez_compressed(pathlib.Path(args.dump) / f"{name}_{args.engine}.npz", **keep)
+    import thinfilm_headless
+
+    thinfilm_headless.release()  # GPU data freed while Blender lives (else a crash at exit)
     write_picture(rows, pathlib.Path(common.ROOT) / "docs" / "images" / args.picture)
     command = " " + " ".join(sys.argv[1:] if argv is None else argv)
     print(common.write_doc(args.out, report(rows, args.size, args.samples, args.picture, command)))

@@ -30,13 +30,21 @@ vec3 tf_solid_glint(vec3 n, vec3 v, vec3 wall_t)
 #endif
 
 #ifdef TF_REFRACT
-/* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray hits
- * it, else the World along the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else
- * the scene straight behind the pixel. */
-vec3 tf_refracted(vec3 n, vec3 v)
+/* Solid glass's id in the glass buffers (-1: none). */
+int tf_glass_own()
+{
+  return int(floor(tf_object.glass.x + 0.5));
+}
+
+/* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray (through
+ * the real mesh, tf_glass_exit, else the sphere about the origin) hits it, else the World along
+ * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
+ * the pixel; cosines: inside the glass at the first face and the face it leaves through. */
+vec3 tf_refracted(vec3 n, vec3 v, out vec2 cosines)
 {
   vec3 exit_point, dir, colour;
-  tf_solid_exit_ray(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, exit_point, dir);
+  tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), false,
+                exit_point, dir, cosines);
   if (tf_refract_march(exit_point, dir, colour)) {
     return colour;
   }
@@ -54,6 +62,24 @@ vec3 tf_refracted(vec3 n, vec3 v)
 #endif
 
 #if defined(TF_REFRACT) && defined(TF_SPLIT_SUM)
+/* Solid glass's one reflection inside (shading.transmit.solid_glint): in through the film (t_in),
+ * reflected by it from inside at the first face met, out through it at the next, times the World
+ * along that ray (tf_glass_exit with reflect_first). */
+vec3 tf_glass_glint(vec3 n, vec3 v, vec3 t_in, TFLerp r)
+{
+  vec3 exit_point, dir;
+  vec2 cosines;
+  int own = tf_glass_own();
+  float eta = tf_object.material.w;
+  if (!tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, eta, own, true, exit_point, dir, cosines)) {
+    dir = tf_solid_internal(n, v, eta);
+  }
+  vec3 unused_moment;
+  float unused_weight;
+  vec3 inside = tf_glass_back_r(cosines.x, r, eta, own) * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own));
+  return t_in * inside * tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+}
+
 /* Smooth solid glass reflects the scene behind where its mirror ray meets it, in place of the
  * World: w r (scene - World) along reflect(-v, n), r = 1 - sqrt(T), w falling from 1 at roughness
  * 0 to 0 at TF_REFRACT_MIRROR_ROUGHNESS (shading.refract.mirror_weight). */
@@ -74,6 +100,11 @@ vec3 tf_scene_mirror(vec3 n, vec3 v, vec3 wall_t)
 
 void main()
 {
+#ifdef TF_REFRACT
+  if (tf_object.material.z > 1.5 && !tf_glass_nearest_front(tf_world_pos, tf_glass_own(), gl_FrontFacing)) {
+    discard; /* solid glass is its nearest front face, the rest is inside it (tf_glass_exit) */
+  }
+#endif
   vec3 toward_viewer = tf_view.view_dir.xyz;
   vec3 v = (tf_view.camera.w > 0.5) ? toward_viewer :
                                       tf_safe_normalize(tf_view.camera.xyz - tf_world_pos, toward_viewer);
@@ -126,10 +157,15 @@ void main()
 #if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 /* the add pass: R L; alpha plus 1 - mean(T) */
   rgb *= wall_s;
 #ifdef TF_REFRACT
-  if (tf_object.material.z > 1.5) { /* solid glass: T times the scene behind along the exit ray */
-    rgb += wall_t * tf_refracted(n, v);
+  if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
+    TFLerp r_wall = tf_table_lerp(fw.cos_o, fw.sin_o, thickness01);
+    vec3 t_in = sqrt(max(wall_t, vec3(0.0))); /* wall_t = (1 - r)^2 */
+    vec2 cosines;
+    vec3 seen = tf_refracted(n, v, cosines);
+    vec3 r_out = tf_glass_back_r(cosines.y, r_wall, tf_object.material.w, tf_glass_own());
+    rgb += t_in * (vec3(1.0) - r_out) * seen;
 #ifdef TF_SPLIT_SUM
-    rgb += tf_solid_glint(n, v, wall_t);
+    rgb += tf_glass_glint(n, v, t_in, r_wall);
     rgb = max(rgb + tf_scene_mirror(n, v, wall_t), vec3(0.0));
 #endif
     wall_mean = 0.0;

@@ -1,4 +1,5 @@
 #include "tf_common.glsl"
+#include "tf_transmit.glsl"
 
 /* tf_refract.glsl: solid glass refracts the scene behind it (TF_REFRACT).
  *
@@ -9,8 +10,10 @@
  * point, across the sphere about the object's origin through that point, and out;
  * tf_refract_march: that ray sampled at depths growing by TF_REFRACT_GROWTH from
  * TF_REFRACT_FIRST x the exit point's depth, the first crossing of the depth behind bisected
- * TF_REFRACT_REFINE times, accepted within TF_REFRACT_THICKNESS x its depth; false where the ray
- * leaves the picture or hits nothing (the caller reads the World along it).
+ * TF_REFRACT_REFINE times, accepted within TF_REFRACT_THICKNESS x its depth; a ray that leaves
+ * the picture takes the texel of its last sample inside (TF_REFRACT_EDGE); false where it hits
+ * nothing (the caller reads the World along it). tf_glass_exit: the exit through the real mesh
+ * (the glass buffers, below).
  */
 
 /* Exit point and direction of the ray from the viewer (v) entering glass of index eta at p with
@@ -61,6 +64,7 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
   float prev_s = 0.0;
   bool prev_behind = false;
   colour = vec3(0.0);
+  ivec2 last = ivec2(0);
   for (int k = 0; k < TF_REFRACT_STEPS; k++) {
     float s = scale * (TF_REFRACT_FIRST * pow(TF_REFRACT_GROWTH, float(k)));
     ivec2 texel;
@@ -68,8 +72,16 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     bool inside;
     bool behind = tf_refract_behind(o, w, s, texel, gap, inside);
     if (!inside) {
+#if TF_REFRACT_EDGE
+      vec4 edge = texelFetch(tf_behind, last, 0);
+      if (k > 0 && edge.a < TF_REFRACT_FAR) { /* left the picture: the surface at its edge (policy.REFRACT_EDGE) */
+        colour = edge.rgb;
+        return true;
+      }
+#endif
       return false;
     }
+    last = texel;
     if (behind && !prev_behind) {
       float lo = prev_s, hi = s;
       for (int j = 0; j < TF_REFRACT_REFINE; j++) {
@@ -94,4 +106,198 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     prev_s = s;
   }
   return false;
+}
+
+/* The exit through the real mesh (shading.refract.mesh_exit): the glass buffers tf_glass_front and
+ * tf_glass_back (.xyz the outward normal times (id + 1), .w the depth along the camera axis; 0
+ * where empty) hold the object's nearest front and back faces per pixel of the drawn window. */
+
+/* Decode a glass-buffer texel: its object id (-1 where empty), unit normal and depth. */
+int tf_glass_decode(vec4 texel, out vec3 normal, out float depth)
+{
+  float len = length(texel.xyz);
+  normal = texel.xyz / max(len, 1e-30);
+  depth = texel.w;
+  return int(floor(len + 0.5)) - 1;
+}
+
+/* The object id in the back buffer under world point q (-1: none or off the picture). */
+int tf_glass_id_at(vec3 q)
+{
+  mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
+  vec4 clip = view_proj * vec4(q, 1.0);
+  vec2 size = vec2(textureSize(tf_glass_back, 0));
+  vec2 cell = floor((clip.xy / clip.w * 0.5 + 0.5) * size);
+  if (clip.w <= 0.0 || any(lessThan(cell, vec2(0.0))) || any(greaterThanEqual(cell, size))) {
+    return -1;
+  }
+  vec3 normal;
+  float depth;
+  return tf_glass_decode(texelFetch(tf_glass_back, ivec2(cell), 0), normal, depth);
+}
+
+/* Whether a fragment of solid glass own at q is drawn: with the glass buffers only its nearest
+ * front face (a concave glass's other faces, and every back face, are inside it: the exit ray
+ * crosses them); without them (own < 0, or not in the buffers there) every fragment, as before. */
+bool tf_glass_nearest_front(vec3 q, int own, bool front_facing)
+{
+  if (own < 0 || tf_glass_id_at(q) != own) {
+    return true;
+  }
+  if (!front_facing) {
+    return false;
+  }
+  mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
+  vec4 clip = view_proj * vec4(q, 1.0);
+  vec2 size = vec2(textureSize(tf_glass_front, 0));
+  ivec2 cell = ivec2(clamp(floor((clip.xy / clip.w * 0.5 + 0.5) * size), vec2(0.0), size - 1.0));
+  vec3 normal;
+  float nearest;
+  int id = tf_glass_decode(texelFetch(tf_glass_front, cell, 0), normal, nearest);
+  float z = dot(tf_view.camera.xyz - q, tf_view.view_dir.xyz);
+  return id != own || z <= nearest + TF_GLASS_FRONT_SLACK * z;
+}
+
+/* Whether q lies outside object own along its pixel's camera ray (shading.refract._Glass.outside):
+ * behind its back face, in front of its front face, or off its silhouette; which face and its
+ * normal. */
+bool tf_glass_outside(vec3 q, int own, out bool through_back, out vec3 face_normal, out bool inside)
+{
+  mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
+  vec4 clip = view_proj * vec4(q, 1.0);
+  float z = dot(tf_view.camera.xyz - q, tf_view.view_dir.xyz);
+  vec2 size = vec2(textureSize(tf_glass_back, 0));
+  vec2 uv = (clip.xy / max(abs(clip.w), 1e-30) * sign(clip.w) * 0.5 + 0.5);
+  vec2 cell = floor(uv * size);
+  inside = clip.w > 0.0 && z > 0.0 && all(greaterThanEqual(cell, vec2(0.0))) && all(lessThan(cell, size));
+  ivec2 texel = ivec2(clamp(cell, vec2(0.0), size - 1.0));
+  vec3 nb, nf;
+  float db, df;
+  int id_b = tf_glass_decode(texelFetch(tf_glass_back, texel, 0), nb, db);
+  int id_f = tf_glass_decode(texelFetch(tf_glass_front, texel, 0), nf, df);
+  float slack = TF_GLASS_SLACK * z;
+  through_back = id_b != own || z > db + slack;
+  bool before_front = id_f == own && z < df - slack;
+  face_normal = through_back ? nb : nf;
+  return through_back || before_front;
+}
+
+/* Where o + s d, s in (0, reach], first leaves object own (shading.refract._march_inside). */
+bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out bool through_back,
+                    out vec3 face_normal)
+{
+  float lo = 0.0;
+  s_hit = 0.0;
+  bool found = false;
+  bool back_k, inside;
+  vec3 n_k;
+  for (int k = 0; k < TF_GLASS_STEPS; k++) {
+    float s = reach * float(k + 1) / float(TF_GLASS_STEPS);
+    if (tf_glass_outside(o + s * d, own, back_k, n_k, inside) && inside) {
+      s_hit = s;
+      found = true;
+      break;
+    }
+    lo = s;
+  }
+  if (!found) {
+    return false;
+  }
+  float hi = s_hit;
+  for (int j = 0; j < TF_GLASS_REFINE; j++) {
+    float mid = 0.5 * (lo + hi);
+    if (tf_glass_outside(o + mid * d, own, back_k, n_k, inside)) {
+      hi = mid;
+    }
+    else {
+      lo = mid;
+    }
+  }
+  s_hit = hi;
+  tf_glass_outside(o + hi * d, own, through_back, face_normal, inside);
+  return true;
+}
+
+/* cos theta_t inside glass of index eta of a ray entering at cos_outside (shading.refract.inner_cosine). */
+float tf_inner_cosine(float cos_outside, float eta)
+{
+  float c = clamp(cos_outside, 0.0, 1.0);
+  float e = max(eta, TF_WALL_GUARD);
+  return sqrt(max(1.0 - (1.0 - c * c) / (e * e), 0.0));
+}
+
+/* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
+ * (normal n) and leaving object own through its real faces (shading.refract.mesh_exit), total
+ * internal reflections followed up to TF_GLASS_BOUNCES faces; reflect_first: the first face
+ * reflects (the glints); cosines: inside the glass at the first face met and at the face it
+ * leaves through (1 where it never leaves). False where the buffers do not hold the object (the
+ * sphere about c stands in, tf_solid_exit_ray; both cosines its cos theta_t). */
+bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, bool reflect_first,
+                   out vec3 exit_point, out vec3 dir, out vec2 cosines)
+{
+  float e = max(eta, TF_WALL_GUARD);
+  cosines = vec2(tf_inner_cosine(dot(n, v), e));
+  if (own < 0 || tf_glass_id_at(p) != own) { /* the object is not in the buffers at its entry */
+    tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
+    return false;
+  }
+  vec3 d = tf_safe_normalize(refract(-v, n, 1.0 / e), -v);
+  float reach = TF_GLASS_REACH * max(length(p - c), TF_WALL_GUARD);
+  vec3 o = p;
+  bool first = true;
+  float cos_first = 1.0;
+  for (int bounce = 0; bounce < TF_GLASS_BOUNCES; bounce++) {
+    float s;
+    bool through_back;
+    vec3 face_n;
+    if (!tf_glass_march(o, d, reach, own, s, through_back, face_n)) {
+      if (bounce == 0) {
+        tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
+        return false;
+      }
+      break;
+    }
+    o = o + s * d;
+    float cos_face = abs(dot(d, face_n));
+    if (first) {
+      cos_first = cos_face;
+    }
+    vec3 out_dir = refract(d, -face_n, e);
+    bool tir = dot(out_dir, out_dir) < 1e-12;
+    if (!tir && !(reflect_first && first)) {
+      exit_point = o;
+      dir = tf_safe_normalize(out_dir, d);
+      cosines = vec2(cos_first, cos_face);
+      return true;
+    }
+    d = tf_safe_normalize(d - 2.0 * dot(d, face_n) * face_n, d);
+    first = false;
+  }
+  exit_point = o;
+  dir = d;
+  cosines = vec2(cos_first, 1.0);
+  return true;
+}
+
+/* The film's reflectance seen from inside solid glass of index eta at cos_inside
+ * (shading.transmit.back_reflectance): Cycles' back face from row own of tf_glass_film (u uniform
+ * 0..1, .a = 1 where the row holds one; linear in u), else the front film at the Snell-related
+ * outside cosine (a lossless film reflects the same from both sides), 1 under total internal
+ * reflection. */
+vec3 tf_glass_back_r(float cos_inside, TFLerp r, float eta, int own)
+{
+  float c = clamp(cos_inside, 0.0, 1.0);
+  ivec2 size = textureSize(tf_glass_film, 0);
+  if (own >= 0 && own < size.y && size.x > 1 && texelFetch(tf_glass_film, ivec2(0, own), 0).a > 0.5) {
+    float x = c * float(size.x - 1);
+    int i0 = clamp(int(floor(x)), 0, size.x - 2);
+    float w = x - float(i0);
+    return mix(texelFetch(tf_glass_film, ivec2(i0, own), 0).rgb, texelFetch(tf_glass_film, ivec2(i0 + 1, own), 0).rgb, w);
+  }
+  float e = max(eta, TF_WALL_GUARD);
+  float s2 = e * e * (1.0 - c * c);
+  if (s2 >= 1.0) {
+    return vec3(1.0);
+  }
+  return clamp(tf_film_white(sqrt(max(1.0 - s2, 0.0)), r), vec3(0.0), vec3(1.0));
 }

@@ -60,11 +60,12 @@ def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.n
 
 
 def object_uniforms(
-    model_matrix, roughness: float = 0.0, sh_weight: float = 1.0, wall: tuple = (0.0, 1.0)
+    model_matrix, roughness: float = 0.0, sh_weight: float = 1.0, wall: tuple = (0.0, 1.0), glass: int = -1
 ) -> np.ndarray:
     """:data:`.layout.OBJECT` content, flat float32: model matrix, normal matrix (inverse
     transpose of its 3×3), material parameters (roughness, SH weight and a transparent film's
-    ``wall``: its mode and relative index, precompute.shading.transmit)."""
+    ``wall``: its mode and relative index, precompute.shading.transmit) and solid glass's id in
+    the glass buffers (−1: none, its exit through the sphere about its origin)."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:
@@ -77,6 +78,7 @@ def object_uniforms(
         model=_columns(model),
         normal=_columns(normal),
         material=[float(roughness), float(sh_weight), float(wall[0]), float(wall[1])],
+        glass=[float(glass), 0.0, 0.0, 0.0],
     ).reshape(-1)
 
 
@@ -198,9 +200,10 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
     weight = sh_weight if split else 1.0
     wall = tuple(float(x) for x in item.wall) if variant.transmit else (0.0, 1.0)
     model = _matrix(item.model_matrix)
+    glass = behind.ids.get(id(item), -1) if variant.refract else -1
     object_ubo = uniforms.get(
-        ("object", model.tobytes(), roughness, weight, wall),
-        lambda: object_uniforms(model, roughness, weight, wall),
+        ("object", model.tobytes(), roughness, weight, wall, glass),
+        lambda: object_uniforms(model, roughness, weight, wall, glass),
     )
     table_data = table.ubo if variant.table_ubo else table.texture
     film_data = (film.ubo if variant.film_ubo else film.texture) if variant.film else None
@@ -369,6 +372,10 @@ def submit(prepared: PreparedDraw) -> None:
                 if group.variant.refract:
                     shader.uniform_block(layout.BEHIND.name, prepared.behind.ubo)
                     shader.uniform_sampler(layout.BEHIND_SAMPLER.name, prepared.behind.texture)
+                    front, back, film = prepared.behind.glass_textures()
+                    shader.uniform_sampler(layout.GLASS_FRONT_SAMPLER.name, front)
+                    shader.uniform_sampler(layout.GLASS_BACK_SAMPLER.name, back)
+                    shader.uniform_sampler(layout.GLASS_FILM_SAMPLER.name, film)
             _bind_group(shader, group)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(layout.OBJECT.name, object_ubo)

@@ -182,6 +182,7 @@ OBJECT = Block(
         Member("model", 4, "model matrix, columns"),
         Member("normal", 4, "normal matrix (inverse transpose of the model's 3x3), columns"),
         Member("material", None, "x: roughness, y: SH weight of the split-sum blend, z, w: wall mode, eta"),
+        Member("glass", None, "x: solid glass's id in the glass buffers (TF_REFRACT), -1 where none"),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).
@@ -255,3 +256,9 @@ ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")
 DISPLAY_LUT_SAMPLER = Sampler(7, "FLOAT_2D", "tf_display_lut")
 #: The scene drawn without the films (:class:`BehindTexture`) of ``TF_REFRACT`` variants.
 BEHIND_SAMPLER = Sampler(8, "FLOAT_2D", "tf_behind")
+#: Solid glass's nearest front and back faces per pixel (:class:`.resources.BehindTexture`,
+#: ``TF_REFRACT``).
+GLASS_FRONT_SAMPLER = Sampler(9, "FLOAT_2D", "tf_glass_front")
+GLASS_BACK_SAMPLER = Sampler(10, "FLOAT_2D", "tf_glass_back")
+#: Cycles' film seen from inside each solid glass (row = its id; tf_refract.glsl tf_glass_back_r).
+GLASS_FILM_SAMPLER = Sampler(11, "FLOAT_2D", "tf_glass_film")

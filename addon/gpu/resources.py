@@ -10,7 +10,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gpu
 import numpy as np
@@ -474,12 +474,31 @@ class BehindTexture:
     precompute/shading/refract.py): an RGBA32F texture (:data:`BEHIND_SAMPLER`; .rgb its
     scene-linear colour, .a its depth, the distance along the camera axis,
     policy.REFRACT_FAR where nothing was drawn; read with texelFetch) and the :data:`BEHIND`
-    buffer placing it in the drawn window."""
+    buffer placing it in the drawn window; the glass buffers ``front`` and ``back`` (the drawn
+    window's solid glass faces, :mod:`.glass_buffers`; 1 × 1 empty ones without) and ``ids``
+    (a glass item's name → its id there)."""
 
     texture: gpu.types.GPUTexture
     ubo: gpu.types.GPUUniformBuf
     width: int
     height: int
+    front: gpu.types.GPUTexture | None = None
+    back: gpu.types.GPUTexture | None = None
+    #: A glass draw item (its ``id()``) → its id in the glass buffers and ``film``.
+    ids: dict = field(default_factory=dict)
+    #: Cycles' back-face film per glass id (rows), u uniform 0…1 (columns), .a = 1 where given.
+    film: gpu.types.GPUTexture | None = None
+
+    def glass_textures(self) -> tuple:
+        """(front, back, film): the glass buffers and back-face films, empty 1 × 1 (2 × 1) ones
+        where none were drawn."""
+        empty = float_buffer(np.zeros((1, 2, 4)))
+        if self.front is None or self.back is None:
+            self.front = gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
+            self.back = gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
+        if self.film is None:
+            self.film = gpu.types.GPUTexture((2, 1), format="RGBA32F", data=empty)
+        return self.front, self.back, self.film
 
     @staticmethod
     def screen(width: int, height: int, pad: int, margin: int = 0) -> tuple[float, ...]:

@@ -148,9 +148,26 @@ def declare_shading_resources(info, variant: Variant) -> None:
     if variant.refract:
         _declare(info, layout.BEHIND)
         _declare(info, layout.BEHIND_SAMPLER)
+        _declare(info, layout.GLASS_FRONT_SAMPLER)
+        _declare(info, layout.GLASS_BACK_SAMPLER)
+        _declare(info, layout.GLASS_FILM_SAMPLER)
     info.typedef_source(layout.TYPEDEFS)
     _declare(info, layout.LIGHTING)
     _declare(info, layout.TABLE if variant.table_ubo else layout.TABLE_SAMPLER)
+
+
+def declare_mesh_inputs(info, iface_name: str):
+    """Declare what tf_main_vert.glsl reads (the view and object buffers, a mesh's position and
+    normal) on ``info``; return the stage interface it writes (world position and normal), for the
+    caller to extend and hand to ``info.vertex_out``."""
+    _declare(info, layout.VIEW)
+    _declare(info, layout.OBJECT)
+    info.vertex_in(0, "VEC3", "pos")
+    info.vertex_in(1, "VEC3", "nor")
+    iface = gpu.types.GPUStageInterfaceInfo(iface_name)
+    iface.smooth("VEC3", "tf_world_pos")
+    iface.smooth("VEC3", "tf_world_nor")
+    return iface
 
 
 def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
@@ -158,13 +175,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     create-info until it is compiled."""
     info = gpu.types.GPUShaderCreateInfo()
     declare_shading_resources(info, variant)
-    _declare(info, layout.VIEW)
-    _declare(info, layout.OBJECT)
-    info.vertex_in(0, "VEC3", "pos")
-    info.vertex_in(1, "VEC3", "nor")
-    iface = gpu.types.GPUStageInterfaceInfo("tf_mesh_iface")
-    iface.smooth("VEC3", "tf_world_pos")
-    iface.smooth("VEC3", "tf_world_nor")
+    iface = declare_mesh_inputs(info, "tf_mesh_iface")
     if variant.vary_thickness:
         info.vertex_in(2, "FLOAT", "thickness")
         iface.smooth("FLOAT", "tf_thickness")

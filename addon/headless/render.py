@@ -41,6 +41,7 @@ from .background import (
     refraction_margin,
     render_background,
     view_depth,
+    wall_objects,
 )
 
 #: The message of a render made while the *Show Thin Film Overlay* preference is off.
@@ -238,8 +239,10 @@ def render_scene(
             height,
             engine=engine,
             hidden=film_objects,
+            shadowless=wall_objects(items),
             transparent=not background,
             margin=refraction_margin(items, width, height),
+            world=lighting.background() if lighting is not None else None,
         )
         rgba, nonfinite = _films_over(
             behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages

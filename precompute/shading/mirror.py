@@ -90,6 +90,26 @@ MIRROR = (
         glsl_note="`TF_REFRACT`; `tf_refracted` in `tf_main_frag.glsl`",
     ),
     Mirror(
+        (
+            "shading.refract.glass_texel",
+            "shading.refract.mesh_exit",
+            "shading.refract.inner_cosine",
+            "shading.transmit.back_reflectance",
+        ),
+        "tf_refract.glsl",
+        (
+            "tf_glass_decode",
+            "tf_glass_outside",
+            "tf_glass_march",
+            "tf_glass_exit",
+            "tf_inner_cosine",
+            "tf_glass_back_r",
+        ),
+        numpy_note="solid glass's exit through its real mesh (the glass buffers), total internal "
+        "reflection, the film seen from inside",
+        glsl_note="`TF_REFRACT` with the glass buffers; `tf_glass_glint` in `tf_main_frag.glsl`",
+    ),
+    Mirror(
         ("shading.radiance_grid.lookup", "shading.radiance_grid.coordinates"),
         "tf_radiance_grid.glsl",
         ("tf_shade_grid",),

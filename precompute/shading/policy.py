@@ -237,6 +237,11 @@ REFRACT_FIRST = 0.01
 REFRACT_GROWTH = 1.16
 REFRACT_REFINE = 8
 REFRACT_THICKNESS = 0.25
+#: A ray marched out of the picture (after a sample inside it) sees the picture's texel where it
+#: left (the scene beyond the edge taken as the scene at the edge: the ground goes on) instead of
+#: the World: a glass cube's side faces, whose rays leave sideways after total internal
+#: reflection, and a ball's rim see the ground as Cycles does (docs/tuning.md#refract-edge).
+REFRACT_EDGE = True
 #: Smooth solid glass reflects the scene behind where its mirror ray meets it (the same march),
 #: in place of the World: fully at roughness 0, fading out linearly to none at this roughness,
 #: where the split sum's blurred World stands (docs/transparent-films.md#solid-glass-refraction).
@@ -253,6 +258,28 @@ REFRACT_OVERSCAN = 1.0
 REFRACT_MAX_SIDE = 4096
 #: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
 REFRACT_FAR = 1e30
+#: Solid glass's exit through its real mesh (shading/refract.py mesh_exit, glsl/tf_refract.glsl):
+#: the inner ray is marched over the object's front and back faces (the glass buffers) in
+#: GLASS_STEPS even steps over GLASS_REACH × the entry point's distance from the object's origin
+#: (a cube's corner lies √3 half sides away, a face's middle one: its space diagonal is 3.5× that),
+#: the first step outside bisected GLASS_REFINE times; a point counts as outside a face when it
+#: lies GLASS_SLACK × its depth beyond it (the buffers' rasterised depth against the interpolated
+#: surface); GLASS_BOUNCES faces at most (total internal reflections), then the ray goes on
+#: straight (docs/tuning.md#glass-buffers).
+GLASS_STEPS = 24
+GLASS_REACH = 4.0
+GLASS_REFINE = 6
+GLASS_SLACK = 1e-4
+GLASS_BOUNCES = 8
+#: With the glass buffers solid glass draws only its nearest front face: a fragment more than this
+#: × its depth behind the front buffer's face is inside the glass (a wine glass's far wall, seen
+#: through its near one), and is left out (docs/tuning.md#glass-buffers).
+GLASS_FRONT_SLACK = 1e-3
+#: EEVEE's background pass lights the scene with the World's radiance above this × its mean
+#: luminance lifted out into sun lights (addon/headless/background_lamps.py): the benchmark's checker
+#: ground against Cycles 1.15× at 32 (the lamps' own threshold, lamps.THRESHOLD), 1.04× at 8,
+#: 0.98× at 2 (EEVEE's own lighting: 5.1×; docs/tuning.md#background-lamp-threshold).
+BACKGROUND_LAMP_THRESHOLD = 2.0
 
 # ----------------------------------------------------------------------------------------------
 # Guards
@@ -345,7 +372,11 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`;
     - ``TF_REFRACT_STEPS``, ``TF_REFRACT_FIRST``, ``TF_REFRACT_GROWTH``, ``TF_REFRACT_REFINE``,
       ``TF_REFRACT_THICKNESS``, ``TF_REFRACT_MIRROR_ROUGHNESS``: solid glass's screen-space march
-      (:data:`REFRACT_STEPS` …) and its mirror of the scene.
+      (:data:`REFRACT_STEPS` …) and its mirror of the scene; ``TF_REFRACT_EDGE``: 1 where
+      :data:`REFRACT_EDGE`; ``TF_REFRACT_FAR``: :data:`REFRACT_FAR`;
+    - ``TF_GLASS_STEPS``, ``TF_GLASS_REACH``, ``TF_GLASS_REFINE``, ``TF_GLASS_SLACK``,
+      ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``: the exit through the real mesh
+      (:data:`GLASS_STEPS` …).
     """
     return (
         ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
@@ -383,4 +414,12 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_REFRACT_REFINE", str(int(REFRACT_REFINE))),
         ("TF_REFRACT_THICKNESS", glsl_float(REFRACT_THICKNESS)),
         ("TF_REFRACT_MIRROR_ROUGHNESS", glsl_float(REFRACT_MIRROR_ROUGHNESS)),
+        ("TF_REFRACT_EDGE", "1" if REFRACT_EDGE else "0"),
+        ("TF_REFRACT_FAR", glsl_float(REFRACT_FAR)),
+        ("TF_GLASS_STEPS", str(int(GLASS_STEPS))),
+        ("TF_GLASS_REACH", glsl_float(GLASS_REACH)),
+        ("TF_GLASS_REFINE", str(int(GLASS_REFINE))),
+        ("TF_GLASS_SLACK", glsl_float(GLASS_SLACK)),
+        ("TF_GLASS_BOUNCES", str(int(GLASS_BOUNCES))),
+        ("TF_GLASS_FRONT_SLACK", glsl_float(GLASS_FRONT_SLACK)),
     )

@@ -39,6 +39,12 @@ from __future__ import annotations
 import numpy as np
 
 from .policy import (
+    GLASS_BOUNCES,
+    GLASS_REACH,
+    GLASS_REFINE,
+    GLASS_SLACK,
+    GLASS_STEPS,
+    REFRACT_EDGE,
     REFRACT_FAR,
     REFRACT_FIRST,
     REFRACT_GROWTH,
@@ -133,12 +139,15 @@ def _refine(scene, origins, dirs, lo, hi):
     return hi
 
 
-def march(origins, dirs, depth, view_proj, camera, view_dir, screen):
+def march(origins, dirs, depth, view_proj, camera, view_dir, screen, edge: bool = REFRACT_EDGE):
     """Where the rays ``origins`` + s ``dirs`` (N, 3) first hit the scene behind, an image of
     ``depth`` (H, W, top row first; distance along the camera axis, inf where empty): (hit (N,)
     bool, row (N,), column (N,)) of the texel hit. ``view_proj`` (4 × 4), ``camera`` (its
     position), ``view_dir`` (unit, towards the viewer) and ``screen`` (sx, sy, ox, oy: the
-    drawn window's [0, 1] coordinates → the image's uv) place the image. See the module."""
+    drawn window's [0, 1] coordinates → the image's uv) place the image. See the module.
+    ``edge``: a ray that leaves the picture after a sample inside it takes the texel of its last
+    sample inside where that texel is a surface (the scene beyond the edge taken as the scene at
+    the edge: a floor goes on), counted as a hit; else (the World there) it sees nothing."""
     scene = _Scene(depth, view_proj, camera, view_dir, screen)
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     w = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
@@ -152,8 +161,13 @@ def march(origins, dirs, depth, view_proj, camera, view_dir, screen):
     cols = np.zeros(count, dtype=np.int64)
     for k in range(REFRACT_STEPS):
         s = scale * (REFRACT_FIRST * REFRACT_GROWTH**k)
-        z, d, _r, _c, inside = scene.sample(o + s[:, None] * w)
+        z, d, r_k, c_k, inside = scene.sample(o + s[:, None] * w)
+        leaving = active & ~inside & (scene.depth[rows, cols] < REFRACT_FAR)
+        if edge and k > 0 and np.any(leaving):
+            hit |= leaving  # rows, cols still hold the last sample inside: a surface
         active &= inside
+        rows = np.where(active, r_k, rows)
+        cols = np.where(active, c_k, cols)
         behind = z >= d
         cross = active & behind & ~prev_behind
         if np.any(cross):
@@ -179,3 +193,154 @@ def seen(hit, rows, cols, colour, fallback) -> np.ndarray:
     ``fallback`` (N, 3): the World along the exit ray."""
     c = np.asarray(colour, dtype=np.float64)[rows, cols, :3]
     return np.where(np.asarray(hit)[:, None], c, np.asarray(fallback, dtype=np.float64))
+
+
+# ----------------------------------------------------------------------------------------------
+# The exit through the real mesh (the glass buffers)
+# ----------------------------------------------------------------------------------------------
+
+
+def glass_texel(encoded) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(object id (…,) int, unit outward normal (…, 3), depth (…,)) of glass-buffer texels
+    (…, 4): .xyz the normal times (id + 1), .w the depth along the camera axis; id −1 where empty
+    (a zero texel)."""
+    e = np.asarray(encoded, dtype=np.float64)
+    length = np.linalg.norm(e[..., :3], axis=-1)
+    ids = np.rint(length).astype(np.int64) - 1
+    normal = e[..., :3] / np.maximum(length, 1e-30)[..., None]
+    return ids, normal, e[..., 3]
+
+
+class _Glass:
+    """The glass buffers as the mesh march reads them: front and back (H, W, 4) top row first
+    (:func:`glass_texel`), placed in the drawn window by ``screen``, as :class:`_Scene`."""
+
+    def __init__(self, front, back, view_proj, camera, view_dir, screen):
+        self.front = glass_texel(front)
+        self.back = glass_texel(back)
+        self.view_proj = np.asarray(view_proj, dtype=np.float64)
+        self.camera = np.asarray(camera, dtype=np.float64).reshape(3)
+        self.view_dir = np.asarray(view_dir, dtype=np.float64).reshape(3)
+        self.screen = np.asarray(screen, dtype=np.float64).reshape(4)
+
+    def outside(self, q, own):
+        """(outside (N,), through the back (N,), row, column, inside the picture) of points ``q``:
+        whether q lies outside the object ``own`` along its pixel's camera ray (behind its back
+        face, in front of its front face, or off its silhouette)."""
+        row, col, inside = _project(q, self.view_proj, self.screen, self.back[0].shape)
+        z = (self.camera - q) @ self.view_dir
+        id_b, _nb, d_b = (a[row, col] for a in self.back)
+        id_f, _nf, d_f = (a[row, col] for a in self.front)
+        slack = GLASS_SLACK * z
+        past_back = (id_b != own) | (z > d_b + slack)
+        before_front = (id_f == own) & (z < d_f - slack)
+        return past_back | before_front, past_back, row, col, inside
+
+
+def _march_inside(glass, o, d, reach, own):
+    """Where the rays o + s d (N, 3), s in (0, reach], first leave the object ``own``: (found,
+    s, through the back, row, column). GLASS_STEPS even steps, the first exit bisected
+    GLASS_REFINE times."""
+    count = o.shape[0]
+    found = np.zeros(count, dtype=bool)
+    s_hit = np.zeros(count)
+    lo = np.zeros(count)
+    for k in range(GLASS_STEPS):
+        s = reach * (k + 1) / GLASS_STEPS
+        out, _b, _r, _c, inside = glass.outside(o + s[:, None] * d, own)
+        new = ~found & out & inside
+        s_hit = np.where(new, s, s_hit)
+        found |= new
+        lo = np.where(found, lo, s)
+    hi = s_hit
+    for _ in range(GLASS_REFINE):
+        mid = 0.5 * (lo + hi)
+        out, _b, _r, _c, _in = glass.outside(o + mid[:, None] * d, own)
+        hi = np.where(out, mid, hi)
+        lo = np.where(out, lo, mid)
+    _o, back, row, col, _in = glass.outside(o + hi[:, None] * d, own)
+    return found, hi, back, row, col
+
+
+def mesh_exit(
+    points,
+    normals,
+    views,
+    centre,
+    eta: float,
+    own: int,
+    front,
+    back,
+    view_proj,
+    camera,
+    view_dir,
+    screen=(1.0, 1.0, 0.0, 0.0),
+    reflect_first: bool = False,
+):
+    """(exit points (N, 3), exit directions (N, 3), found (N,), cosines (N, 2)): rays from the
+    viewer entering glass of index ``eta`` at ``points`` (unit ``normals`` facing the viewer) and
+    leaving the object ``own`` through its real surface, read from the glass buffers ``front`` and
+    ``back`` (see :func:`glass_texel`; the object's nearest front and back faces per pixel).
+
+    The inner ray is marched until it leaves the object (:func:`_march_inside`, over
+    GLASS_REACH × ‖p − centre‖), refracted out at the face it crosses (its buffer's normal); under
+    total internal reflection it is reflected and marched again, up to GLASS_BOUNCES faces, then
+    goes on straight. ``reflect_first``: the first face reflects (the glints' one reflection
+    inside). ``cosines``: the cosine inside the glass at the first face met and at the face the
+    ray leaves through (1 where it never leaves), for the film's reflectance from inside
+    (:func:`.transmit.back_reflectance`). Where the first march finds no face (the object is not
+    in the back buffer at the entry's pixel, or no exit within reach) ``found`` is False and the
+    sphere about ``centre`` stands in (:func:`exit_ray`; both cosines its cos θₜ)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    c = np.asarray(centre, dtype=np.float64).reshape(3)
+    e = max(float(eta), WALL_GUARD)
+    glass = _Glass(front, back, view_proj, camera, view_dir, screen)
+    d = _unit(refract(-v, n, 1.0 / e), -v)
+    reach = GLASS_REACH * np.maximum(np.linalg.norm(p - c, axis=-1), WALL_GUARD)
+    o = p.copy()
+    count = p.shape[0]
+    done = np.zeros(count, dtype=bool)
+    first = np.ones(count, dtype=bool)
+    any_found = np.zeros(count, dtype=bool)
+    cos_first = np.ones(count)
+    cos_last = np.ones(count)
+    _o, _b, row, col, on_picture = glass.outside(p, own)
+    present = (glass.back[0][row, col] == own) & on_picture  # the object is in the buffers at its entry
+    for bounce in range(GLASS_BOUNCES):
+        found, s, through_back, row, col = _march_inside(glass, o, d, reach, own)
+        found &= present
+        if bounce == 0:
+            any_found = found
+        live = found & ~done
+        q = o + s[:, None] * d
+        face_n = np.where(through_back[:, None], glass.back[1][row, col], glass.front[1][row, col])
+        cos_face = np.abs(np.sum(d * face_n, axis=-1))
+        cos_first = np.where(live & first, cos_face, cos_first)
+        out = refract(d, -face_n, e)
+        tir = np.sum(out * out, axis=-1) < 1e-12
+        bounce_here = tir | (reflect_first & first)
+        mirrored = _unit(d - 2.0 * np.sum(d * face_n, -1, keepdims=True) * face_n, d)
+        leave = live & ~bounce_here
+        cos_last = np.where(leave, cos_face, cos_last)
+        o = np.where(live[:, None], q, o)
+        d = np.where(leave[:, None], _unit(out, d), np.where(live[:, None], mirrored, d))
+        done |= leave | ~found
+        first &= ~live
+    sphere_point, sphere_dir = exit_ray(p, n, v, c, e)
+    cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
+    cosines = np.where(any_found[:, None], np.stack([cos_first, cos_last], -1), cos_t[:, None])
+    return (
+        np.where(any_found[:, None], o, sphere_point),
+        np.where(any_found[:, None], d, sphere_dir),
+        any_found,
+        cosines,
+    )
+
+
+def inner_cosine(cos_outside, eta: float) -> np.ndarray:
+    """cos θₜ inside glass of index ``eta`` of a ray entering at cos θᵢ = ``cos_outside`` (…,):
+    the cosine at which it meets a sphere's far side."""
+    c = np.clip(np.asarray(cos_outside, dtype=np.float64), 0.0, 1.0)
+    return np.sqrt(np.maximum(1.0 - (1.0 - c * c) / (max(float(eta), WALL_GUARD) ** 2), 0.0))

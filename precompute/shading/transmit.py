@@ -149,3 +149,54 @@ def composite(behind, reflected, t) -> np.ndarray:
 def coverage(t) -> np.ndarray:
     """The alpha a wall writes over an empty background: 1 − mean(T) (…,)."""
     return 1.0 - np.mean(np.asarray(t, dtype=np.float64), axis=-1)
+
+
+#: Samples in u = cos θ of Cycles' back-face film table (:func:`cycles_back_table`).
+BACK_SAMPLES = 129
+
+
+def cycles_back_table(material, samples: int = BACK_SAMPLES) -> np.ndarray | None:
+    """Cycles' film seen from inside solid glass, per channel (``samples``, 3) at u uniform 0…1
+    inside the glass, or None where Cycles' per-channel film does not apply (the spectral mode,
+    a metal, several layers).
+
+    At a back face Cycles divides the film's index by the glass's
+    (``adjust_thin_film_ior_at_backface``, Blender 5.2): the light comes from an ambient of 1
+    through a film of n_f / η onto a substrate of 1 / η, the same interfaces as the film seen from
+    inside but an optical path η times shorter (an optically thinner film: its glints are cyan
+    where the front's reflection of a 300 nm film of 1.33 on 1.5 is pink)."""
+    from ..colour import film_channels
+    from ..optics import belcour2017
+
+    if material.colour_mode != "per_channel" or not material.layers:
+        return None
+    stack = film_channels.cycles_stack(material)
+    if stack is None or stack.f82 is not None or np.any(np.imag(stack.substrate) != 0.0):
+        return None
+    eta = float(np.real(stack.substrate[0])) / float(stack.ambient)
+    film = float(stack.film) / float(stack.ambient)
+    back = belcour2017.FilmStack(1.0, film / eta, np.full(3, 1.0 / eta + 0j))
+    u = np.linspace(0.0, 1.0, int(samples))
+    d = float(material.thicknesses()[0])
+    sens = film_channels.sensitivity(material.colour_space)
+    return belcour2017.film_reflectance(back, u, d, sens)
+
+
+def back_reflectance(film, rows, cos_inside, eta: float, table=None) -> np.ndarray:
+    """The film's reflectance per channel (N, 3) seen from inside solid glass of index ``eta`` at
+    the inside cosines ``cos_inside`` (N,): Cycles' back face from ``table``
+    (:func:`cycles_back_table`, linear in u) where given, else the front film (``film``, thickness
+    ``rows``) at the Snell-related outside cosine (a lossless film reflects the same from both
+    sides), 1 under total internal reflection. As tf_glass_back_r."""
+    c = np.clip(np.asarray(cos_inside, dtype=np.float64), 0.0, 1.0)
+    if table is not None:
+        t = np.asarray(table, dtype=np.float64)
+        x = c * (t.shape[0] - 1)
+        i0 = np.clip(np.floor(x).astype(np.int64), 0, t.shape[0] - 2)
+        w = (x - i0)[:, None]
+        return (1.0 - w) * t[i0] + w * t[i0 + 1]
+    e = max(float(eta), WALL_GUARD)
+    s2 = e * e * (1.0 - c * c)
+    outside = np.sqrt(np.maximum(1.0 - s2, 0.0))
+    r = np.clip(white_reflectance(film, rows, outside), 0.0, 1.0)
+    return np.where((s2 >= 1.0)[:, None], 1.0, r)

@@ -60,21 +60,51 @@ def quad_hits(model):
     return inside, hit[inside], n, views
 
 
-def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
-    result = baked(8, "spectral", False)  # roughness 0.15: the scene's mirror weighs 0.25
+def glass_lighting(gd, colour_mode):
+    """(bake, lighting buffer, prefiltered World, film table) of a roughness-0.15 film (l = 8) on
+    solid glass under the test World."""
+    result = baked(8, colour_mode, False)
     world, img = world_sh()
     lighting = gd.resources.Lighting.from_sh(world, 8, result.material.roughness)
     full = prefilter.prefilter(img, width=64)
     levels, moments = full.resampled(64), full.resampled_moments(64)
     pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
-    film = film_colour.film_table(result)
-    item = quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
-    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
+    return result, lighting, pre, film_colour.film_table(result)
+
+
+def as_solid_glass(gd, item, result, pre, film):
+    """Make ``item`` solid glass (η = 1.5) of the bake ``result``, the World ``pre`` and ``film``;
+    (colour, depth, :class:`BehindTexture`) of :func:`behind_scene` behind it."""
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(pre.levels, pre.moments)
     item.roughness, item.sh_weight = result.material.roughness, 0.0
     item.film = gd.resources.FilmTexture.from_film(film)
     item.wall = (transmit.WALL_SOLID, 1.5)
     colour, depth = behind_scene()
-    behind = gd.resources.BehindTexture.from_image(colour, depth)
+    return colour, depth, gd.resources.BehindTexture.from_image(colour, depth)
+
+
+def with_scene_mirror(expected, surface, scene, pre, roughness, t):
+    """(``expected`` + the scene mirrored in place of the World where the mirror ray meets it,
+    clamped at 0; which mirror rays met it; the mirror's weight) at the pixels ``surface`` =
+    (points, normals, views) of solid glass of transmittance ``t``, over ``scene`` = (colour, depth)
+    seen from VIEW, PROJ."""
+    points, n, views = surface
+    colour, depth = scene
+    inv_view = np.linalg.inv(VIEW)
+    mirror = -views + 2.0 * np.sum(n * views, -1, keepdims=True) * n
+    m_hit, m_rows, m_cols = refract.march(
+        points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    )
+    world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
+    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m)
+    weight = refract.mirror_weight(roughness)
+    return np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0), m_hit, weight
+
+
+def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
+    result, lighting, pre, film = glass_lighting(gd, "spectral")  # the scene's mirror weighs 0.25
+    item = quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
+    colour, depth, behind = as_solid_glass(gd, item, result, pre, film)
     groups = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False, behind=behind).groups
     assert [(g.variant.transmit, g.variant.refract) for g in groups] == [
         (TRANSMIT_MULTIPLY, True),
@@ -96,15 +126,9 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
         * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
     )
     expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
-    # the scene mirrored in place of the World where the mirror ray meets it
-    mirror = -views + 2.0 * np.sum(n * views, -1, keepdims=True) * n
-    m_hit, m_rows, m_cols = refract.march(
-        points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    expected, m_hit, weight = with_scene_mirror(
+        expected, (points, n, views), (colour, depth), pre, item.roughness, t
     )
-    world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
-    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m)
-    weight = refract.mirror_weight(item.roughness)
-    expected = np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0)
     err = np.abs(image[inside][:, :3] - expected).max(axis=-1) / np.max(expected)
     print(
         f"refracted glass: {inside.sum()} px, {hit.mean():.0%} hit the scene behind; error median "

@@ -132,10 +132,28 @@ def test_rays_that_leave_the_picture_or_meet_nothing_see_nothing():
     origins = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     dirs = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # sideways out of the picture; straight on
     empty = np.full((SIZE, SIZE), np.inf)
-    hit, _r, _c = refract.march(origins, dirs, empty, vp, eye, vd, (1, 1, 0, 0))
+    hit, _r, _c = refract.march(origins, dirs, empty, vp, eye, vd, (1, 1, 0, 0), edge=False)
     assert not hit.any()
-    hit, _r, _c = refract.march(origins, dirs, wall_depth(rays, eye, 5.0), vp, eye, vd, (1, 1, 0, 0))
+    far = wall_depth(rays, eye, 5.0)
+    hit, _r, _c = refract.march(origins, dirs, far, vp, eye, vd, (1, 1, 0, 0), edge=False)
     assert hit.tolist() == [False, True]
+
+
+def test_a_ray_that_leaves_the_picture_sees_its_edge():
+    """policy.REFRACT_EDGE: the sideways ray, passing behind a near wall (never within its
+    thickness of it), takes the wall's texel where it left the picture (the right edge, on its
+    row); where the picture holds no surface (the World) it sees nothing, as one that never left."""
+    vp, eye, vd, _rays = camera()
+    origins = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    dirs = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    near_wall = np.full((SIZE, SIZE), 2.0)
+    hit, rows, cols = refract.march(origins, dirs, near_wall, vp, eye, vd, (1, 1, 0, 0), edge=True)
+    assert hit.tolist() == [True, False]
+    empty = np.full((SIZE, SIZE), np.inf)
+    hit, _r, _c = refract.march(origins, dirs, empty, vp, eye, vd, (1, 1, 0, 0), edge=True)
+    assert not hit.any()
+    # the march steps grow geometrically: its last sample inside lies near the edge, not on it
+    assert cols[0] > 0.9 * SIZE and abs(rows[0] - (SIZE - 1) / 2) <= 1
 
 
 def test_an_occluder_in_front_of_the_path_is_not_a_hit():

@@ -1,0 +1,193 @@
+"""The World's lamps as sun lights for EEVEE's background pass, so that it lights like Cycles.
+
+EEVEE lights a surface from the World by a low-order expansion of it (its sphere probe's
+spherical harmonics) plus at most one sun it extracts from the World's brightest pixels (World →
+Settings → *Sun Threshold*). Under a studio HDRI whose lamps sit near the horizon at several
+azimuths (bpy's ``studio.exr``: eight clusters at 3–30° elevation), the extracted sun is the
+lamps' mean direction, high in the sky, carrying all their power: EEVEE lit the benchmark's
+checker ground 5.1× brighter than Cycles; with the sun extraction off, the expansion's band 1
+still lights an upward surface with a quarter of a lamp on the horizon: 1.8×.
+(docs/transparent-films-cycles.md).
+
+For the headless frame's EEVEE background pass (:func:`.background.render_background`), while
+the pass renders and restored after it (:func:`world_lamps_as_suns`):
+
+- the World's radiance seen by anything but the camera is scaled down to at most
+  ``policy.BACKGROUND_LAMP_THRESHOLD`` × its mean luminance, L · min(1, T / Y(L)) (nodes before
+  the World's Background shader: *RGB to BW*, *Math*, *Light Path → Is Camera Ray*), so the
+  camera still sees the World unchanged;
+- what was taken off, ∫ L (1 − min(1, T / Y(L))) dω, becomes at most ``policy.MAX_LAMPS`` sun
+  lights: the pixels above T grouped by :func:`precompute.world.lamps.extract`'s spherical k-means,
+  each sun carrying its group's power (RGB) as its irradiance, along its power-weighted mean
+  direction, with the angle of a disc of its group's solid angle; they cast shadows (the
+  camera-invisible films still cast theirs);
+- EEVEE's own sun extraction is turned off (*Sun Threshold* raised above any radiance).
+
+The sum keeps the World's power (the suns take exactly what the World lost:
+tests/headless/test_background_lamps.py). It applies
+where the World is a Background shader (its Color any node or a constant, its Strength a
+constant) into the World Output; other Worlds are left as they are (EEVEE's own lighting).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+
+import numpy as np
+
+from ...precompute.shading.policy import BACKGROUND_LAMP_THRESHOLD, MAX_LAMPS
+from ...precompute.world import hdri
+from ...precompute.world.lamps import extract
+from ...precompute.world.prefilter import LUMINANCE
+from ..world.world_key import world_uses_nodes
+
+#: The World's Sun Threshold while the suns stand in for its lamps: above any radiance.
+NO_SUN_THRESHOLD = 1e30
+
+
+def suns_of(panorama, threshold: float = BACKGROUND_LAMP_THRESHOLD, max_lamps: int = MAX_LAMPS):
+    """(clamp T, suns): the World's panorama (H, W, 3, top row first, world frame, radiance)
+    split at T = ``threshold`` × its mean luminance; each sun (direction (3,) towards the light,
+    irradiance (3,) RGB, angle in radians) carries what the clamp L · min(1, T / Y(L)) takes off
+    the pixels nearest its direction. No suns where nothing exceeds T."""
+    img = np.asarray(panorama, dtype=np.float64)[..., :3]
+    img = np.where(np.isfinite(img), img, 0.0)
+    y = img @ np.asarray(LUMINANCE)
+    omega = hdri.equirect_solid_angles(*img.shape[:2])
+    mean = float(np.sum(np.maximum(y, 0.0) * omega)) / (4.0 * np.pi)
+    t = float(threshold) * mean
+    if not mean > 0.0:
+        return t, []
+    lamps, _ = extract(img, threshold=float(threshold), max_lamps=max_lamps)
+    if lamps.count == 0:
+        return t, []
+    over = y > t
+    dirs = hdri.equirect_directions(*img.shape[:2])[over]
+    share = 1.0 - t / y[over]
+    removed = img[over] * share[:, None] * omega[over][:, None]
+    label = np.argmax(dirs @ lamps.directions.T, axis=1)
+    suns = []
+    for k in range(lamps.count):
+        sel = label == k
+        if not np.any(sel):
+            continue
+        power = removed[sel].sum(axis=0)
+        weight = removed[sel] @ np.asarray(LUMINANCE)
+        d = (weight[:, None] * dirs[sel]).sum(axis=0)
+        norm = float(np.linalg.norm(d))
+        if not norm > 0.0 or not float(power.max()) > 0.0:
+            continue
+        solid = float(np.sum(omega[over][sel]))
+        suns.append((d / norm, power, 2.0 * math.sqrt(min(solid, 2.0 * np.pi) / np.pi)))
+    return t, suns
+
+
+def _background_node(world):
+    """The World's Background shader feeding its active output, with a constant Strength, or None."""
+    tree = world.node_tree if world is not None and world_uses_nodes(world) else None
+    if tree is None:
+        return None
+    outputs = [n for n in tree.nodes if n.type == "OUTPUT_WORLD" and n.target in ("ALL", "EEVEE")]
+    active = [n for n in outputs if n.is_active_output] or outputs
+    if not active or not active[0].inputs["Surface"].is_linked:
+        return None
+    node = active[0].inputs["Surface"].links[0].from_node
+    if node.type != "BACKGROUND" or node.inputs["Strength"].is_linked:
+        return None
+    return node
+
+
+def _clamp_nodes(tree, background, limit: float) -> list:
+    """Insert L · max(Is Camera Ray, min(1, limit / Y(L))) before ``background``'s Color; the
+    nodes added (to remove)."""
+    colour = background.inputs["Color"]
+    source = colour.links[0].from_socket if colour.is_linked else None
+    nodes = []
+
+    def new(kind, **values):
+        node = tree.nodes.new(kind)
+        for name, value in values.items():
+            setattr(node, name, value)
+        nodes.append(node)
+        return node
+
+    if source is None:
+        rgb = new("ShaderNodeRGB")
+        rgb.outputs[0].default_value = tuple(colour.default_value)
+        source = rgb.outputs[0]
+    grey = new("ShaderNodeRGBToBW")
+    ratio = new("ShaderNodeMath", operation="DIVIDE")
+    ratio.inputs[0].default_value = float(limit)
+    cap = new("ShaderNodeMath", operation="MINIMUM")
+    cap.inputs[1].default_value = 1.0
+    path = new("ShaderNodeLightPath")
+    keep = new("ShaderNodeMath", operation="MAXIMUM")
+    scale = new("ShaderNodeVectorMath", operation="SCALE")
+    links = tree.links
+    links.new(source, grey.inputs[0])
+    links.new(grey.outputs[0], ratio.inputs[1])
+    links.new(ratio.outputs[0], cap.inputs[0])
+    links.new(cap.outputs[0], keep.inputs[0])
+    links.new(path.outputs["Is Camera Ray"], keep.inputs[1])
+    links.new(source, scale.inputs[0])
+    links.new(keep.outputs[0], scale.inputs["Scale"])
+    links.new(scale.outputs[0], colour)
+    return nodes
+
+
+def _add_sun(bpy, scene, index: int, direction, irradiance, angle: float):
+    from mathutils import Vector
+
+    strength = float(np.max(irradiance))
+    light = bpy.data.lights.new(f"thinfilm_world_lamp_{index}", "SUN")
+    light.energy = strength
+    light.color = tuple(float(c) for c in np.asarray(irradiance) / strength)
+    light.angle = float(angle)
+    light.use_shadow = True
+    obj = bpy.data.objects.new(light.name, light)
+    scene.collection.objects.link(obj)
+    obj.rotation_euler = Vector(tuple(-float(c) for c in direction)).to_track_quat("-Z", "Y").to_euler()
+    return obj, light
+
+
+@contextlib.contextmanager
+def world_lamps_as_suns(scene, panorama):
+    """While inside: the World's lamps lit as sun lights for EEVEE (see the module); yields the
+    number of suns (0: the World left as it is). ``panorama``: the World's radiance (H, W, 3),
+    top row first, in the world frame and at its strength (``WorldLighting.background``)."""
+    import bpy
+
+    world = scene.world
+    background = _background_node(world)
+    if background is None or panorama is None:
+        yield 0
+        return
+    limit, suns = suns_of(panorama)
+    if not suns:
+        yield 0
+        return
+    strength = float(background.inputs["Strength"].default_value)
+    tree = world.node_tree
+    colour = background.inputs["Color"]
+    source = colour.links[0].from_socket if colour.is_linked else None
+    saved_threshold = world.sun_threshold
+    nodes, added = [], []
+    try:
+        nodes = _clamp_nodes(tree, background, limit / max(strength, 1e-30))
+        world.sun_threshold = NO_SUN_THRESHOLD
+        for k, (direction, irradiance, angle) in enumerate(suns):
+            added.append(_add_sun(bpy, scene, k, direction, irradiance, angle))
+        yield len(suns)
+    finally:
+        for obj, light in added:
+            scene.collection.objects.unlink(obj)
+            bpy.data.objects.remove(obj)
+            bpy.data.lights.remove(light)
+        if added:
+            bpy.context.view_layer.update()
+        for node in nodes:
+            tree.nodes.remove(node)
+        if source is not None:
+            tree.links.new(source, colour)
+        world.sun_threshold = saved_threshold

@@ -1,0 +1,168 @@
+"""EEVEE's background pass lit like Cycles: the World's lamps as sun lights
+(addon/headless/background_lamps.py), transparent films casting no shadow (background.wall_objects).
+
+The split of a panorama into a capped World and suns is checked against an independent sum over
+its pixels (each pixel's solid angle from its band of latitude, written here): the suns carry
+exactly what the cap takes off, point at the lamps and have their size; in Blender the World and
+the scene are left as they were after the pass; a film's shadow is left out of the pass.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pytest
+from _extension import EXTENSION_ID, linked_extension
+
+pytestmark = pytest.mark.blender
+
+H, W = 64, 128
+#: Two lamps: (direction towards it, angular radius in radians, RGB radiance).
+LAMPS = (
+    (np.array([1.0, 0.0, 0.2]), 0.12, np.array([300.0, 250.0, 200.0])),
+    (np.array([-0.3, 0.8, 0.5]), 0.08, np.array([100.0, 180.0, 400.0])),
+)
+SKY = np.array([0.4, 0.5, 0.6])
+
+
+@pytest.fixture(scope="module")
+def bl(bpy, tmp_path_factory):
+    """addon.headless.background_lamps inside the package ``thinfilm_sh``."""
+    with linked_extension(tmp_path_factory.mktemp("ext")):
+        yield importlib.import_module(f"{EXTENSION_ID}.addon.headless.background_lamps")
+
+
+def solid_angles():
+    """Each pixel's solid angle (H, W) of an equirect panorama, row 0 at the top (+z): its band of
+    latitude Δφ (cos θ_top − cos θ_bottom)."""
+    theta_edges = np.linspace(0.0, np.pi, H + 1)
+    band = (2.0 * np.pi / W) * (np.cos(theta_edges[:-1]) - np.cos(theta_edges[1:]))
+    return np.broadcast_to(band[:, None], (H, W))
+
+
+def panorama(hdri):
+    """The test World: a dim sky and the two lamps as discs (H, W, 3)."""
+    dirs = hdri.equirect_directions(H, W)
+    img = np.broadcast_to(SKY, (H, W, 3)).copy()
+    for d, radius, rgb in LAMPS:
+        d = d / np.linalg.norm(d)
+        img[dirs @ d > np.cos(radius)] = rgb
+    return img, dirs
+
+
+def test_the_suns_carry_what_the_cap_takes_off_towards_the_lamps(bl):
+    from precompute.world import hdri
+
+    img, dirs = panorama(hdri)
+    omega = solid_angles()
+    assert abs(omega.sum() - 4.0 * np.pi) < 1e-9
+    y = img @ np.array([0.2126, 0.7152, 0.0722])
+    limit, suns = bl.suns_of(img, threshold=2.0)
+    mean = float(np.sum(y * omega)) / (4.0 * np.pi)
+    removed = img * (1.0 - np.minimum(1.0, limit / y))[..., None] * omega[..., None]
+    print(f"cap {limit:.3f} (2 × mean {mean:.3f}); {len(suns)} suns; removed {removed.sum((0, 1))}")
+    assert limit == pytest.approx(2.0 * mean, rel=1e-3)  # Rec. 709 luminance either way
+    assert len(LAMPS) <= len(suns) <= 8  # the lamps' k-means may split a disc into several
+    total = np.sum([irradiance for _d, irradiance, _a in suns], axis=0)
+    # the power the World loses is what the suns carry: the sum of the two is the World's
+    np.testing.assert_allclose(total, removed.sum((0, 1)), rtol=1e-3)
+    units = [d / np.linalg.norm(d) for d, _r, _c in LAMPS]
+    owner = [int(np.argmax([float(sun[0] @ u) for u in units])) for sun in suns]
+    for k, ((_d, radius, rgb), u) in enumerate(zip(LAMPS, units, strict=True)):
+        mine = [sun for sun, o in zip(suns, owner, strict=True) if o == k]
+        on = dirs @ u > np.cos(radius)
+        want = rgb * (1.0 - limit / float(rgb @ np.array([0.2126, 0.7152, 0.0722]))) * omega[on].sum()
+        power = np.sum([s[1] for s in mine], axis=0)
+        mean_dir = np.sum([float(s[1] @ np.array([0.2126, 0.7152, 0.0722])) * s[0] for s in mine], axis=0)
+        error = np.degrees(np.arccos(min(float(mean_dir @ u) / np.linalg.norm(mean_dir), 1.0)))
+        angles = np.degrees([s[2] for s in mine])
+        print(
+            f"lamp {k}: {len(mine)} suns, their mean off by {error:.2f}°, angles {angles.round(1)}° in a"
+            f" disc of {np.degrees(2 * radius):.1f}°, irradiance {power.round(2)} for {want.round(2)}"
+        )
+        assert error < 180.0 / H  # within a pixel's height
+        np.testing.assert_allclose(power, want, rtol=1e-3)  # each lamp's own share
+        assert np.all(angles > 0.0) and np.all(angles < np.degrees(2.0 * radius) + 2 * 180.0 / H)
+
+
+def test_a_world_without_lamps_gives_no_suns(bl):
+    limit, suns = bl.suns_of(np.full((H, W, 3), 0.7), threshold=2.0)
+    assert suns == [] and limit == pytest.approx(2.0 * 0.7, rel=1e-3)
+    assert bl.suns_of(np.zeros((H, W, 3)))[1] == []
+
+
+def test_the_pass_leaves_the_world_and_the_scene_as_they_were(bpy, bl):
+    """Inside: one sun per lamp, EEVEE's own sun extraction off, the cap before the Background's
+    Color (the camera still sees the World); after: the same nodes, links, lights and threshold."""
+    from precompute.world import hdri
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    scene.world = bpy.data.worlds.new("World")
+    world = scene.world
+    if world.node_tree is None:  # before Blender 5.0
+        world.use_nodes = True
+    background = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+    background.inputs["Color"].default_value = (*SKY, 1.0)
+    world.sun_threshold = 7.5
+
+    def state():
+        tree = world.node_tree
+        return (
+            sorted(n.bl_idname for n in tree.nodes),
+            sorted((link.from_node.name, link.to_node.name, link.to_socket.name) for link in tree.links),
+            sorted(o.name for o in scene.objects),
+            len(bpy.data.lights),
+            world.sun_threshold,
+            tuple(background.inputs["Color"].default_value),
+        )
+
+    before = state()
+    img, _dirs = panorama(hdri)
+    with bl.world_lamps_as_suns(scene, img) as count:
+        assert len(LAMPS) <= count <= 8
+        assert sum(o.type == "LIGHT" and o.data.type == "SUN" for o in scene.objects) == count
+        assert world.sun_threshold >= bl.NO_SUN_THRESHOLD
+        colour = background.inputs["Color"]
+        assert colour.is_linked and colour.links[0].from_node.bl_idname == "ShaderNodeVectorMath"
+        assert any(n.bl_idname == "ShaderNodeLightPath" for n in world.node_tree.nodes)
+    assert state() == before
+    # a World the cap cannot be put into (its Strength driven by a node) is left to EEVEE
+    value = world.node_tree.nodes.new("ShaderNodeValue")
+    world.node_tree.links.new(value.outputs[0], background.inputs["Strength"])
+    with bl.world_lamps_as_suns(scene, img) as count:
+        assert count == 0 and world.sun_threshold == 7.5
+
+
+def test_a_shadowless_film_casts_no_shadow_in_the_pass(bpy, bl):
+    """A cube between a sun and the floor, invisible to the pass's camera: with it in
+    ``shadowless`` (a transparent film, background.wall_objects) the floor under it is as lit as
+    with no cube at all; without, it is in the cube's shadow. Its setting is restored after."""
+    background = importlib.import_module(f"{EXTENSION_ID}.addon.headless.background")
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    scene.eevee.taa_render_samples = 1
+    scene.view_settings.view_transform = "Standard"
+    bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0.0, 0.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.0))
+    cube = bpy.context.object
+    bpy.ops.object.light_add(type="SUN", rotation=(0.0, 0.0, 0.0))
+    bpy.context.object.data.energy = 3.0
+    bpy.ops.object.camera_add(location=(0.0, 0.0, 6.0), rotation=(0.0, 0.0, 0.0))
+    scene.camera = bpy.context.object
+    scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.02, 0.02, 0.02)
+
+    def floor_under_cube(**kw):
+        rgba = background.render_background(scene, 32, 32, engine="EEVEE", hidden={cube.name}, **kw).rgba
+        return float(rgba[12:20, 12:20, :3].mean())
+
+    shadowless = floor_under_cube(shadowless={cube.name})
+    assert cube.visible_shadow
+    shadowed = floor_under_cube()
+    cube.hide_render = True
+    bare = floor_under_cube()
+    print(f"floor under the cube: shadowless {shadowless:.3f}, shadowed {shadowed:.3f}, no cube {bare:.3f}")
+    assert shadowed < 0.3 * bare  # the cube's shadow is there without the option
+    assert abs(shadowless - bare) < 0.02 * bare  # and gone with it
