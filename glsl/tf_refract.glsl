@@ -116,7 +116,7 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
 int tf_glass_decode(vec4 texel, out vec3 normal, out float depth)
 {
   float len = length(texel.xyz);
-  normal = texel.xyz / max(len, 1e-30);
+  normal = texel.xyz / max(len, TF_DIVISION_FLOOR);
   depth = texel.w;
   return int(floor(len + 0.5)) - 1;
 }
@@ -167,7 +167,7 @@ bool tf_glass_outside(vec3 q, int own, out bool through_back, out vec3 face_norm
   vec4 clip = view_proj * vec4(q, 1.0);
   float z = dot(tf_view.camera.xyz - q, tf_view.view_dir.xyz);
   vec2 size = vec2(textureSize(tf_glass_back, 0));
-  vec2 uv = (clip.xy / max(abs(clip.w), 1e-30) * sign(clip.w) * 0.5 + 0.5);
+  vec2 uv = (clip.xy / max(abs(clip.w), TF_DIVISION_FLOOR) * sign(clip.w) * 0.5 + 0.5);
   vec2 cell = floor(uv * size);
   inside = clip.w > 0.0 && z > 0.0 && all(greaterThanEqual(cell, vec2(0.0))) && all(lessThan(cell, size));
   ivec2 texel = ivec2(clamp(cell, vec2(0.0), size - 1.0));
@@ -263,7 +263,7 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, bool refl
       cos_first = cos_face;
     }
     vec3 out_dir = refract(d, -face_n, e);
-    bool tir = dot(out_dir, out_dir) < 1e-12;
+    bool tir = dot(out_dir, out_dir) < TF_TIR_EPS;
     if (!tir && !(reflect_first && first)) {
       exit_point = o;
       dir = tf_safe_normalize(out_dir, d);

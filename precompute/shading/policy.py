@@ -353,6 +353,23 @@ def glsl_power(x: str, exponent: float) -> str:
     return f"pow({x}, {glsl_float(e)})"
 
 
+def _glsl_value(value) -> str:
+    """A constant's GLSL literal by its Python type: a bool as 1/0, an int as an int, a float as a
+    float (:func:`glsl_float`); a float constant is declared with a decimal point (``100.0``)."""
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return glsl_float(value)
+    raise TypeError(f"policy constant of type {type(value).__name__} has no GLSL literal")
+
+
+def _defines(*names: str) -> tuple[tuple[str, str], ...]:
+    """``(TF_<name>, literal)`` of this module's constants ``names``, in their order."""
+    return tuple((f"TF_{name}", _glsl_value(globals()[name])) for name in names)
+
+
 def glsl_defines() -> tuple[tuple[str, str], ...]:
     """(name, value) of every ``#define`` of a shading rule the shaders use (read at call time).
 
@@ -379,47 +396,53 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       (:data:`GLASS_STEPS` …).
     """
     return (
-        ("TF_MAX_LAMPS", str(int(MAX_LAMPS))),
-        ("TF_LAMP_LEVEL", str(int(LAMP_LEVEL))),
-        ("TF_MAX_LIGHTS", str(int(MAX_LIGHTS))),
-        ("TF_AREA_SAMPLES", str(int(AREA_SAMPLES))),
-        ("TF_MIN_LIGHT_DISTANCE", glsl_float(MIN_LIGHT_DISTANCE)),
-        ("TF_AREA_LOBE_SCALE", glsl_float(AREA_LOBE_SCALE)),
-        ("TF_AREA_MIN_WIDTH", glsl_float(AREA_MIN_WIDTH)),
-        ("TF_AREA_MAX_WIDTH", glsl_float(AREA_MAX_WIDTH)),
-        ("TF_AREA_UNIFORM_WIDTH", glsl_float(AREA_UNIFORM_WIDTH)),
-        ("TF_AREA_MIN_AXIS", glsl_float(AREA_MIN_AXIS)),
+        *_defines(
+            "MAX_LAMPS",
+            "LAMP_LEVEL",
+            "MAX_LIGHTS",
+            "AREA_SAMPLES",
+            "MIN_LIGHT_DISTANCE",
+            "AREA_LOBE_SCALE",
+            "AREA_MIN_WIDTH",
+            "AREA_MAX_WIDTH",
+            "AREA_UNIFORM_WIDTH",
+            "AREA_MIN_AXIS",
+        ),
         *((f"TF_LIGHT_{kind}", str(code)) for kind, code in LIGHT_KINDS.items()),
-        ("TF_LIGHT_VEC4", str(int(LIGHT_VEC4))),
-        ("TF_WALL_SCALE_MAX", glsl_float(WALL_SCALE_MAX)),
-        ("TF_WALL_GUARD", glsl_float(WALL_GUARD)),
-        ("TF_MIN_COS", glsl_float(MIN_COS)),
-        ("TF_MIN_ALPHA", glsl_float(MIN_ALPHA)),
-        ("TF_GIMBAL_SIN", glsl_float(GIMBAL_SIN)),
-        ("TF_TANGENT_EPS", glsl_float(TANGENT_EPS)),
-        ("TF_DIVISION_FLOOR", glsl_float(DIVISION_FLOOR)),
-        ("TF_MOMENT_EPS", glsl_float(MOMENT_EPS)),
-        ("TF_HELPER_AXIS_MAX", glsl_float(HELPER_AXIS_MAX)),
-        ("TF_TIR_EPS", glsl_float(TIR_EPS)),
+        *_defines(
+            "LIGHT_VEC4",
+            "WALL_SCALE_MAX",
+            "WALL_GUARD",
+            "MIN_COS",
+            "MIN_ALPHA",
+            "GIMBAL_SIN",
+            "TANGENT_EPS",
+            "DIVISION_FLOOR",
+            "MOMENT_EPS",
+            "HELPER_AXIS_MAX",
+            "TIR_EPS",
+        ),
         ("TF_GRAZING(x)", glsl_power("x", GRAZING_EXPONENT)),
         ("TF_LADDER_ROUGHNESS(x)", glsl_power("x", LEVEL_EXPONENT)),
         ("TF_LADDER_POSITION(r)", glsl_power("r", 1.0 / LEVEL_EXPONENT)),
-        ("TF_DISPLAY_LUT_SIZE", str(int(DISPLAY_LUT_SIZE))),
-        ("TF_DISPLAY_LUT_FLOOR", glsl_float(DISPLAY_LUT_FLOOR)),
-        ("TF_DISPLAY_LUT_MAX", glsl_float(DISPLAY_LUT_MAX)),
-        ("TF_GRID_AZIMUTHS", str(int(GRID_AZIMUTHS))),
-        ("TF_REFRACT_STEPS", str(int(REFRACT_STEPS))),
-        ("TF_REFRACT_FIRST", glsl_float(REFRACT_FIRST)),
-        ("TF_REFRACT_GROWTH", glsl_float(REFRACT_GROWTH)),
-        ("TF_REFRACT_REFINE", str(int(REFRACT_REFINE))),
-        ("TF_REFRACT_THICKNESS", glsl_float(REFRACT_THICKNESS)),
-        ("TF_REFRACT_MIRROR_ROUGHNESS", glsl_float(REFRACT_MIRROR_ROUGHNESS)),
-        ("TF_REFRACT_EDGE", "1" if REFRACT_EDGE else "0"),
-        ("TF_REFRACT_FAR", glsl_float(REFRACT_FAR)),
-        ("TF_GLASS_STEPS", str(int(GLASS_STEPS))),
-        ("TF_GLASS_REACH", glsl_float(GLASS_REACH)),
-        ("TF_GLASS_REFINE", str(int(GLASS_REFINE))),
-        ("TF_GLASS_SLACK", glsl_float(GLASS_SLACK)),
-        ("TF_GLASS_BOUNCES", str(int(GLASS_BOUNCES))),
-        ("TF_GLASS_FRONT_SLACK", glsl_float(GLASS_FRONT_SLACK)),
+        *_defines(
+            "DISPLAY_LUT_SIZE",
+            "DISPLAY_LUT_FLOOR",
+            "DISPLAY_LUT_MAX",
+            "GRID_AZIMUTHS",
+            "REFRACT_STEPS",
+            "REFRACT_FIRST",
+            "REFRACT_GROWTH",
+            "REFRACT_REFINE",
+            "REFRACT_THICKNESS",
+            "REFRACT_MIRROR_ROUGHNESS",
+            "REFRACT_EDGE",
+            "REFRACT_FAR",
+            "GLASS_STEPS",
+            "GLASS_REACH",
+            "GLASS_REFINE",
+            "GLASS_SLACK",
+            "GLASS_BOUNCES",
+            "GLASS_FRONT_SLACK",
+        ),
     )
