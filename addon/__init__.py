@@ -7,7 +7,7 @@ Everything here is Blender glue. The physics lives in ``precompute/`` (which nev
 import bpy
 from bpy.props import PointerProperty
 
-from . import bake_helper, caches, gltf, headless, ops, panorama_helper, prefs, props, ui, viewport
+from . import bake_helper, caches, eevee, gltf, headless, ops, panorama_helper, prefs, props, ui, viewport
 
 #: The glTF add-on looks these names up on enabled add-ons (KHR_materials_iridescence, :mod:`.gltf`).
 glTF2ExportUserExtension = gltf.ExportUserExtension
@@ -23,7 +23,7 @@ classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classe
 # reverse order BEFORE them. Both calls must be harmless when repeated (register() is called
 # twice by the tests). To add one: import it above and append it to the tuple.
 # ----------------------------------------------------------------------------------------------
-modules: tuple = (panorama_helper, bake_helper, viewport, headless)
+modules: tuple = (panorama_helper, bake_helper, viewport, headless, eevee)  # eevee: EEVEE-native films
 
 #: Name of the per-material settings: ``material.thinfilm_sh``.
 MATERIAL_PROPERTY = "thinfilm_sh"

@@ -1,0 +1,336 @@
+"""The film's node group for EEVEE and its place in the material: an EEVEE-only Material Output.
+
+The group (one per material, named ``TF EEVEE Film · <material>``) reads the film's image
+(:mod:`.image`, :func:`precompute.eevee_table.film_image`) at the pixel's view angle and film
+thickness and shades with EEVEE's own closures:
+
+- θo = acos |N · I| (Geometry: *Normal*, or the material's own normal link; *Incoming*), mapped
+  to the image's width; the *Thickness* input (nm) mapped through the table's rows to its height
+  (Map Range, clamped), one band of rows per quantity; each band read bilinearly from four
+  *Closest* texels (EEVEE mipmaps *Linear* images by screen derivatives, which would mix rows
+  where the thickness changes fast and columns near normal incidence, where acos is steep);
+- a **Glossy BSDF** (GGX, single scattering) of the *specular* band's colour: EEVEE multiplies it
+  by its split sum, which the band is divided by, so EEVEE returns the film's albedo;
+- a **Diffuse BSDF** of *Base Color* × the *diffuse* band (a diffuse base under the film);
+- a **Transparent BSDF** of the *transmission* band (a thin wall: soap bubble, window), or a
+  **Refraction BSDF** of it (solid glass).
+
+The material gets a second Material Output, target *EEVEE*, fed by the group; its own output
+(target *All*) is left as it is: Blender picks the output whose target matches the engine
+before an *All* one (``ntreeShaderOutputNode``), so Cycles renders the Principled film and
+EEVEE the group. :func:`remove` deletes exactly what :func:`ensure` added.
+
+Every constant that follows the table (its size, thickness range, bands) is a socket value
+(:func:`set_constants`): changing it does not recompile EEVEE's shader. A change of what the
+group is made of (:class:`Structure`) rebuilds its inside.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+__all__ = [
+    "GROUP_PREFIX",
+    "NODE_GROUP",
+    "NODE_OUTPUT",
+    "TAG",
+    "Structure",
+    "ensure",
+    "find",
+    "remove",
+    "set_constants",
+    "set_image",
+]
+
+#: Names of the two nodes added to a material's tree, and the node groups' name prefix.
+NODE_GROUP = "TF EEVEE Film"
+NODE_OUTPUT = "TF EEVEE Output"
+GROUP_PREFIX = "TF EEVEE Film · "
+#: Custom property marking what the extension added (on the two nodes and the group).
+TAG = "thinfilm_eevee"
+#: Version of the group's inside: a group built by another version is rebuilt.
+LAYOUT_VERSION = 2
+#: The group's inputs.
+IN_THICKNESS, IN_ROUGHNESS, IN_NORMAL, IN_BASE = "Thickness", "Roughness", "Normal", "Base Color"
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What the group is made of; equal structures differ only in socket values.
+
+    ``bands``: the image's bands in row order (precompute.eevee_table.BANDS); ``normal``: the
+    group has a *Normal* input (the material's own normal is linked); ``wall``: "" (opaque),
+    "transparent" (a thin wall: Transparent BSDF) or "refraction" (solid glass).
+    """
+
+    bands: tuple = ("specular",)
+    normal: bool = False
+    wall: str = ""
+
+    def key(self) -> str:
+        """A text naming the structure and the group's layout version (stored on the group)."""
+        return repr([LAYOUT_VERSION, *sorted(asdict(self).items())])
+
+
+def _node(tree, kind: str, name: str, x: float, y: float, **settings):
+    node = tree.nodes.new(kind)
+    node.name = node.label = name
+    node.location = (x, y)
+    for key, value in settings.items():
+        setattr(node, key, value)
+    return node
+
+
+def _math(tree, operation: str, name: str, x: float, y: float):
+    return _node(tree, "ShaderNodeMath", name, x, y, operation=operation)
+
+
+def _interface(group, structure: Structure) -> None:
+    group.interface.clear()
+    group.interface.new_socket(IN_THICKNESS, in_out="INPUT", socket_type="NodeSocketFloat")
+    group.interface.new_socket(IN_ROUGHNESS, in_out="INPUT", socket_type="NodeSocketFloat")
+    if structure.normal:
+        group.interface.new_socket(IN_NORMAL, in_out="INPUT", socket_type="NodeSocketVector")
+    if "diffuse" in structure.bands:
+        group.interface.new_socket(IN_BASE, in_out="INPUT", socket_type="NodeSocketColor")
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+
+
+def _split(tree, links, value, name: str, y: float):
+    """(floor, fraction) of a texel coordinate: the two texels either side and the weight."""
+    low = _math(tree, "FLOOR", f"{name}0", -700, y)
+    links.new(value, low.inputs[0])
+    weight = _math(tree, "SUBTRACT", f"f{name}", -550, y)
+    links.new(value, weight.inputs[0])
+    links.new(low.outputs[0], weight.inputs[1])
+    return low.outputs[0], weight.outputs[0]
+
+
+def _view_column(tree, normal, links):
+    """The texel column of the view angle, px = acos|N·I| · (A − 1) / (π/2) (node "x",
+    :func:`set_constants`), split into its lower texel and weight."""
+    geometry = _node(tree, "ShaderNodeNewGeometry", "Geometry", -1500, 300)
+    dot = _node(tree, "ShaderNodeVectorMath", "N·I", -1350, 300, operation="DOT_PRODUCT")
+    links.new(normal if normal is not None else geometry.outputs["Normal"], dot.inputs[0])
+    links.new(geometry.outputs["Incoming"], dot.inputs[1])
+    absolute = _math(tree, "ABSOLUTE", "|N·I|", -1200, 300)
+    links.new(dot.outputs["Value"], absolute.inputs[0])
+    clamp = _math(tree, "MINIMUM", "cos θo", -1050, 300)
+    clamp.inputs[1].default_value = 1.0
+    links.new(absolute.outputs[0], clamp.inputs[0])
+    angle = _math(tree, "ARCCOSINE", "θo", -900, 300)
+    links.new(clamp.outputs[0], angle.inputs[0])
+    column = _math(tree, "MULTIPLY", "x", -850, 300)
+    links.new(angle.outputs[0], column.inputs[0])
+    low, weight = _split(tree, links, column.outputs[0], "x", 300)
+    return low, weight, geometry
+
+
+def _texel(tree, links, image, name: str, u, v, x: float, y: float):
+    """The image at texture coordinates (u, v) with *Closest* interpolation: one texel, no
+    filtering and no mipmaps (EEVEE filters *Linear* images with mipmaps chosen by the screen
+    derivatives, which mix a table's rows and columns where the thickness or angle changes fast)."""
+    combine = _node(tree, "ShaderNodeCombineXYZ", f"uv {name}", x, y)
+    links.new(u, combine.inputs["X"])
+    links.new(v, combine.inputs["Y"])
+    texture = _node(
+        tree, "ShaderNodeTexImage", f"texel {name}", x + 170, y, interpolation="Closest", extension="EXTEND"
+    )
+    texture.image = image
+    links.new(combine.outputs["Vector"], texture.inputs["Vector"])
+    return texture.outputs["Color"]
+
+
+def _mix(tree, links, name: str, factor, a, b, x: float, y: float):
+    mix = _node(tree, "ShaderNodeMix", name, x, y, data_type="RGBA", blend_type="MIX")
+    links.new(factor, mix.inputs["Factor"])
+    links.new(a, mix.inputs["A"])
+    links.new(b, mix.inputs["B"])
+    return mix.outputs["Result"]
+
+
+def _offset(tree, links, value, name: str, x: float, y: float):
+    """value · 1/size + (offset + 0.5)/size (constants in node ``name``, :func:`set_constants`)."""
+    node = _math(tree, "MULTIPLY_ADD", name, x, y)
+    links.new(value, node.inputs[0])
+    return node.outputs[0]
+
+
+def _band_lookup(tree, links, image, band: int, columns, rows):
+    """The band's bilinear lookup from four *Closest* texels (:func:`_texel`): ``columns`` =
+    (u0, u1, fx), ``rows`` = (lower row, fy) within the band."""
+    u0, u1, fx = columns
+    low, fy = rows
+    y = -200 - 700 * band
+    v0 = _offset(tree, links, low, f"v0 {band}", -450, y)
+    v1 = _offset(tree, links, low, f"v1 {band}", -450, y - 150)
+    corners = [
+        _texel(tree, links, image, f"{band}{i}{j}", u, v, -300, y - 170 * (2 * j + i))
+        for j, v in enumerate((v0, v1))
+        for i, u in enumerate((u0, u1))
+    ]
+    bottom = _mix(tree, links, f"lerp x {band}0", fx, corners[0], corners[1], 100, y)
+    top = _mix(tree, links, f"lerp x {band}1", fx, corners[2], corners[3], 100, y - 250)
+    return _mix(tree, links, f"lerp y {band}", fy, bottom, top, 280, y - 100)
+
+
+def _build(group, structure: Structure, image) -> None:
+    """The inside of the group for ``structure`` (its nodes replaced)."""
+    tree, links = group, group.links
+    tree.nodes.clear()
+    _interface(group, structure)
+    inputs = _node(tree, "NodeGroupInput", "Group Input", -1700, 0)
+    output = _node(tree, "NodeGroupOutput", "Group Output", 950, 0)
+    normal = inputs.outputs[IN_NORMAL] if structure.normal else None
+    x0, fx, geometry = _view_column(tree, normal, links)
+    normal = normal if normal is not None else geometry.outputs["Normal"]
+    columns = (_offset(tree, links, x0, "u0", -450, 300), _offset(tree, links, x0, "u1", -450, 150), fx)
+    row = _node(tree, "ShaderNodeMapRange", "row", -1050, 0, clamp=True)
+    links.new(inputs.outputs[IN_THICKNESS], row.inputs["Value"])
+    rows = _split(tree, links, row.outputs["Result"], "y", 0)
+    colours = {
+        name: _band_lookup(tree, links, image, i, columns, rows) for i, name in enumerate(structure.bands)
+    }
+    glossy = _node(tree, "ShaderNodeBsdfGlossy", "Film", 500, 300, distribution="GGX")
+    links.new(colours["specular"], glossy.inputs["Color"])
+    links.new(inputs.outputs[IN_ROUGHNESS], glossy.inputs["Roughness"])
+    links.new(normal, glossy.inputs["Normal"])
+    shader = glossy.outputs["BSDF"]
+    for name, extra in (("diffuse", _diffuse), ("transmission", _transmission)):
+        if name in colours:
+            add = _node(tree, "ShaderNodeAddShader", f"+ {name}", 750, -60 - 150 * len(name))
+            links.new(shader, add.inputs[0])
+            links.new(extra(tree, links, inputs, colours[name], normal, structure), add.inputs[1])
+            shader = add.outputs["Shader"]
+    links.new(shader, output.inputs["BSDF"])
+    group[TAG + "_structure"] = structure.key()
+
+
+def _diffuse(tree, links, inputs, colour, normal, structure):
+    tint = _node(tree, "ShaderNodeMix", "base × weight", 0, -300, data_type="RGBA", blend_type="MULTIPLY")
+    tint.inputs["Factor"].default_value = 1.0
+    links.new(inputs.outputs[IN_BASE], tint.inputs["A"])
+    links.new(colour, tint.inputs["B"])
+    diffuse = _node(tree, "ShaderNodeBsdfDiffuse", "Base", 150, -300)
+    links.new(tint.outputs["Result"], diffuse.inputs["Color"])
+    links.new(normal, diffuse.inputs["Normal"])
+    return diffuse.outputs["BSDF"]
+
+
+def _transmission(tree, links, inputs, colour, normal, structure):
+    if structure.wall == "refraction":
+        bsdf = _node(tree, "ShaderNodeBsdfRefraction", "Through", 150, -500, distribution="GGX")
+        links.new(inputs.outputs[IN_ROUGHNESS], bsdf.inputs["Roughness"])
+        links.new(normal, bsdf.inputs["Normal"])
+    else:
+        bsdf = _node(tree, "ShaderNodeBsdfTransparent", "Through", 150, -500)
+    links.new(colour, bsdf.inputs["Color"])
+    return bsdf.outputs["BSDF"]
+
+
+def set_constants(group, layout, ior: float = 1.0) -> None:
+    """Write the image's axes into the group's socket values (no shader recompile):
+    ``layout`` is a :class:`precompute.eevee_table.FilmImage` (or anything with its ``width``,
+    ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index.
+
+    Texel coordinates: the view column px = θo (A − 1)/(π/2), the row py = (d − lo)/(hi − lo)
+    (T − 1) (clamped); a texel (i, j) of band b is read at ((i + 0.5)/A, (j + bT + 0.5)/H).
+    """
+    nodes = group.nodes
+    width, height, rows = int(layout.width), int(layout.height), int(layout.rows)
+    nodes["x"].inputs[1].default_value = (width - 1) / (0.5 * math.pi)
+    for name, offset in (("u0", 0.5), ("u1", 1.5)):
+        nodes[name].inputs[1].default_value = 1.0 / width
+        nodes[name].inputs[2].default_value = offset / width
+    lo, hi = layout.thickness_nm
+    row = nodes["row"]
+    row.inputs["From Min"].default_value = float(lo)
+    row.inputs["From Max"].default_value = float(hi) if hi > lo else float(lo) + 1.0
+    row.inputs["To Min"].default_value = 0.0
+    row.inputs["To Max"].default_value = float(rows - 1)
+    band = 0
+    while f"v0 {band}" in nodes:
+        for name, offset in ((f"v0 {band}", 0.5), (f"v1 {band}", 1.5)):
+            nodes[name].inputs[1].default_value = 1.0 / height
+            nodes[name].inputs[2].default_value = (band * rows + offset) / height
+        band += 1
+    through = nodes.get("Through")
+    if through is not None and "IOR" in through.inputs:
+        through.inputs["IOR"].default_value = float(ior)
+
+
+def find(tree):
+    """(group node, output node) the extension added to a material's tree, each None if absent."""
+    if tree is None:
+        return None, None
+    group = tree.nodes.get(NODE_GROUP)
+    output = tree.nodes.get(NODE_OUTPUT)
+    group = group if group is not None and group.get(TAG) else None
+    output = output if output is not None and output.get(TAG) else None
+    return group, output
+
+
+def _new_group(material_name: str):
+    import bpy  # the add-on layer: imported here so the module's docs and constants load without it
+
+    group = bpy.data.node_groups.new(GROUP_PREFIX + material_name, "ShaderNodeTree")
+    group[TAG] = 1
+    return group
+
+
+def ensure(tree, material_name: str, structure: Structure):
+    """The group node and EEVEE output in ``tree``, made or repaired, the group's inside built for
+    ``structure`` when it differs; returns the group node. A group shared with another material
+    (a copied or appended material) is copied first, so each material owns its group. The
+    material's own outputs and nodes are not touched."""
+    node, output = find(tree)
+    if node is None:
+        anchor = _anchor(tree)
+        node = tree.nodes.new("ShaderNodeGroup")
+        node.name = node.label = NODE_GROUP
+        node.location = (anchor[0], anchor[1] - 260.0)
+        node[TAG] = 1
+    group = node.node_tree
+    if group is None or group.users > 1:  # a copied material shares its original's: own one
+        group = group.copy() if group is not None else _new_group(material_name)
+        group.name = GROUP_PREFIX + material_name
+        group[TAG] = 1
+        node.node_tree = group
+    if group.get(TAG + "_structure") != structure.key():
+        _build(group, structure, None)
+    if output is None:
+        output = tree.nodes.new("ShaderNodeOutputMaterial")
+        output.name = output.label = NODE_OUTPUT
+        output.target = "EEVEE"
+        output.location = (node.location.x + 250.0, node.location.y)
+        output[TAG] = 1
+    if not output.inputs["Surface"].is_linked or output.inputs["Surface"].links[0].from_node != node:
+        tree.links.new(node.outputs[0], output.inputs["Surface"])
+    return node
+
+
+def set_image(group, image) -> None:
+    """Point every band's Image Texture of ``group`` at ``image``."""
+    for node in group.nodes:
+        if node.bl_idname == "ShaderNodeTexImage" and node.image != image:
+            node.image = image
+
+
+def _anchor(tree) -> tuple[float, float]:
+    """Where to put the added nodes: under the material's active output."""
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeOutputMaterial" and getattr(node, "is_active_output", False):
+            return float(node.location.x), float(node.location.y)
+    return 300.0, 0.0
+
+
+def remove(tree) -> object | None:
+    """Remove the group node and EEVEE output from ``tree``; returns the group (node tree) they
+    used, for the caller to delete when nothing else uses it, or None."""
+    node, output = find(tree)
+    group = node.node_tree if node is not None else None
+    for added in (node, output):
+        if added is not None:
+            tree.nodes.remove(added)
+    return group

@@ -1,0 +1,293 @@
+"""Keeping every film material's EEVEE path in step with its film, live and headless.
+
+- **Live (the interface):** ``depsgraph_update_post`` notes the materials an update touched;
+  a timer reads their :class:`.source.Spec` on the main thread and, where the image's key
+  differs, hands the spec to one worker thread, which gets the table (memory, disk cache, or a
+  bake: in the bake helper process when it is on, :mod:`..bake_helper`) and computes the
+  pixels (:func:`precompute.eevee_table.film_image`). The timer then writes them (:mod:`.wiring`:
+  a copy, an update, a pack). A newer edit of the same material replaces a queued one; the
+  EEVEE film shows its last image until then. A film that is switched off loses its EEVEE path
+  at once.
+- **Headless (``blender -b``, the bpy module):** after a file loads (``load_post``) and before
+  each render (``render_pre`` on the main thread: ``bpy.ops.render.render``, ``-f``, ``-a``)
+  every film material is synced in place, baking what it needs, so a farm renders the film
+  even from a file saved without it. In the interface, F12's ``render_pre`` runs on the render
+  job's thread and writes nothing: the live path has already.
+
+:func:`sync_material` and :func:`sync_all` are the calls the tests and commands use.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+
+import bpy
+
+from ...precompute import eevee_table
+from .. import bake_helper, linked, tables
+from . import image as film_image_store
+from . import nodes, source, wiring
+
+__all__ = ["compute", "pending", "register", "sync_all", "sync_material", "unregister", "wait_idle"]
+
+log = logging.getLogger(__name__)
+
+#: Seconds between the timer's looks while work is queued or running.
+POLL_S = 0.02
+_queue: queue.Queue = queue.Queue()
+_done: list = []  # (material name, spec, FilmImage | Exception), filled by the worker
+_lock = threading.Lock()
+_wanted: dict[str, str] = {}  # material name → the spec key it wants now
+_dirty: set[str] = set()  # materials an update touched: the timer reads their spec
+_worker: threading.Thread | None = None
+_idle = threading.Event()
+_idle.set()
+#: Main-thread seconds spent writing each image (the tests and the benchmark read it).
+write_seconds: list[float] = []
+
+
+def compute(spec: source.Spec, cache=None, baker=None) -> eevee_table.FilmImage:
+    """The image of ``spec``: its table (:func:`..tables.get_table_with_source`), the diffuse
+    base's and the film table a wall needs, then the pixels. Thread-safe, no bpy."""
+    result = tables.get_table_with_source(spec.film, cache, baker=baker)[0]
+    film = tables.get_film(spec.film, result) if spec.wall is not None else None
+    base = tables.get_table(spec.base, cache) if spec.base is not None else None
+    return eevee_table.film_image(
+        result, film=film, wall=spec.wall, base_result=base, base_color=spec.base_color
+    )
+
+
+def _spec_of(material, scene):
+    """(spec or None, True if known): a film being evaluated elsewhere is not known."""
+    with linked.deferring():
+        try:
+            return source.spec(material, scene), True
+        except linked.Pending:
+            return None, False
+        except ValueError as exc:  # the panel and the overlay say why; EEVEE keeps what it had
+            log.info("Thin Film SH: EEVEE film of %r not updated: %s", material.name, exc)
+            return None, False
+
+
+def _current_key(material) -> str | None:
+    node, _output = nodes.find(material.node_tree)
+    if node is None or node.node_tree is None:
+        return None
+    image = next(
+        (
+            n.image
+            for n in node.node_tree.nodes
+            if n.bl_idname == "ShaderNodeTexImage" and n.image is not None
+        ),
+        None,
+    )
+    return film_image_store.stored_key(image)
+
+
+def _written(material, spec, made) -> None:
+    t0 = time.perf_counter()
+    wiring.apply(material, spec, made)
+    write_seconds.append(time.perf_counter() - t0)
+
+
+def sync_material(material, scene=None, wait: bool = True) -> str:
+    """Bring ``material``'s EEVEE path in step: "removed", "unchanged", "written" (``wait``: baked
+    here), "queued" (the worker bakes it), "read-only" (a linked material) or "unknown" (its film
+    cannot be evaluated now). Main thread."""
+    if material.node_tree is None or wiring.is_read_only(material):
+        return "read-only"
+    scene = scene or bpy.context.scene
+    spec, known = _spec_of(material, scene)
+    if not known:
+        return "unknown"
+    if spec is None:
+        with _lock:
+            _wanted.pop(material.name, None)
+        return "removed" if wiring.remove(material) else "unchanged"
+    key = spec.key
+    if _current_key(material) == key:
+        node, _output = nodes.find(material.node_tree)
+        wiring.feed(material, node, spec, getattr(material, "thinfilm_sh", None))  # a relinked input
+        return "unchanged"
+    if wait:
+        _written(material, spec, compute(spec))
+        return "written"
+    with _lock:
+        if _wanted.get(material.name) == key:
+            return "queued"
+        _wanted[material.name] = key
+    ticket = None
+    if bake_helper.enabled() and tables.peek_table(spec.film) is None:
+        try:
+            ticket = bake_helper.submit(spec.film, spec.wall is not None)
+        except bake_helper.HelperError:
+            ticket = None  # baked in process
+    _idle.clear()
+    _queue.put((material.name, spec, tables.open_cache(), ticket))
+    _ensure_worker()
+    _schedule()
+    return "queued"
+
+
+def sync_all(scene=None, wait: bool = True) -> dict[str, str]:
+    """:func:`sync_material` for every material of the file; {name: outcome}."""
+    return {m.name: sync_material(m, scene, wait) for m in bpy.data.materials if m.node_tree is not None}
+
+
+def _work() -> None:
+    while True:
+        item = _queue.get()
+        if item is None:
+            return
+        name, spec, cache, ticket = item
+        with _lock:
+            stale = _wanted.get(name) != spec.key
+        if stale:
+            if ticket is not None:
+                ticket.cancel()
+        else:
+            baker = bake_helper.baker(ticket, tables.keep_film) if ticket is not None else None
+            try:
+                made = compute(spec, cache, baker)
+            except Exception as exc:  # reported on the main thread
+                made = exc
+            with _lock:
+                _done.append((name, spec, made))
+        if _queue.empty():
+            _idle.set()
+
+
+def _ensure_worker() -> None:
+    global _worker
+    if _worker is None or not _worker.is_alive():
+        _worker = threading.Thread(target=_work, name="thinfilm-eevee", daemon=True)
+        _worker.start()
+
+
+def pending() -> bool:
+    """Whether EEVEE images are queued, being computed or waiting to be written."""
+    with _lock:
+        return bool(_dirty or _done) or not _idle.is_set()
+
+
+def wait_idle(timeout: float = 60.0) -> bool:
+    """Wait until the worker has computed everything queued (tests); the timer still writes."""
+    return _idle.wait(timeout)
+
+
+def _finish() -> None:
+    with _lock:
+        finished, _done[:] = list(_done), []
+    for name, spec, made in finished:
+        material = bpy.data.materials.get(name)
+        with _lock:
+            current = _wanted.get(name) == spec.key
+            if current:
+                _wanted.pop(name, None)
+        if material is None or not current:
+            continue
+        if isinstance(made, Exception):
+            log.error("Thin Film SH: EEVEE film of %r failed: %s", name, made)
+            continue
+        try:
+            _written(material, spec, made)
+        except Exception as exc:  # a timer must never raise
+            log.error("Thin Film SH: writing the EEVEE film of %r failed: %s", name, exc)
+
+
+def _service() -> float | None:
+    """Timer: read the touched materials' specs, queue what changed, write what is done."""
+    with _lock:
+        names = list(_dirty)
+        _dirty.clear()
+    scene = bpy.context.scene
+    for name in names:
+        material = bpy.data.materials.get(name)
+        if material is not None:
+            try:
+                sync_material(material, scene, wait=False)
+            except Exception as exc:  # a timer must never raise
+                log.error("Thin Film SH: EEVEE film of %r: %s", name, exc)
+    _finish()
+    return POLL_S if pending() else None
+
+
+def _schedule() -> None:
+    if not bpy.app.timers.is_registered(_service):
+        bpy.app.timers.register(_service, first_interval=0.0)
+
+
+@bpy.app.handlers.persistent
+def _on_depsgraph(scene, depsgraph) -> None:
+    touched = []
+    for update in depsgraph.updates:
+        found = update.id
+        if isinstance(found, bpy.types.Material):
+            touched.append(getattr(found, "original", found).name)
+    if touched:
+        with _lock:
+            _dirty.update(touched)
+        _schedule()
+
+
+@bpy.app.handlers.persistent
+def _on_load(*_args) -> None:
+    with _lock:
+        _wanted.clear()
+        _dirty.clear()
+        _done.clear()
+    if bpy.app.background:
+        _sync_headless()
+        return
+    with _lock:
+        _dirty.update(m.name for m in bpy.data.materials)
+    _schedule()
+
+
+def _sync_headless() -> None:
+    try:
+        sync_all(wait=True)
+    except Exception as exc:  # a handler must never raise
+        log.error("Thin Film SH: EEVEE films not synced: %s", exc)
+
+
+@bpy.app.handlers.persistent
+def _on_render_pre(*_args) -> None:
+    if threading.current_thread() is threading.main_thread() and bpy.app.background:
+        _sync_headless()
+
+
+_HANDLERS = (
+    ("depsgraph_update_post", _on_depsgraph),
+    ("load_post", _on_load),
+    ("render_pre", _on_render_pre),
+)
+
+
+def register() -> None:
+    """Add the handlers (repeat calls are harmless)."""
+    for name, fn in _HANDLERS:
+        handlers = getattr(bpy.app.handlers, name)
+        if fn not in handlers:
+            handlers.append(fn)
+
+
+def unregister() -> None:
+    """Remove the handlers and the timer; the worker ends after its current item."""
+    global _worker
+    for name, fn in _HANDLERS:
+        handlers = getattr(bpy.app.handlers, name)
+        while fn in handlers:
+            handlers.remove(fn)
+    if bpy.app.timers.is_registered(_service):
+        bpy.app.timers.unregister(_service)
+    if _worker is not None and _worker.is_alive():
+        _queue.put(None)
+    _worker = None
+    with _lock:
+        _wanted.clear()
+        _dirty.clear()
+        _done.clear()

@@ -1,0 +1,312 @@
+"""EEVEE-native films (addon/eevee/): Blender's own EEVEE render shows the film.
+
+Real Blender, real EEVEE renders (``bpy.ops.render.render``, what F12 and ``blender -b -a`` run) of
+tiny frames (32–48 px, one TAA sample) under a uniform white World, read back from EXR files:
+
+- a Principled film on a flat plate seen head-on renders the table's albedo at normal incidence
+  (within 2 ΔE2000), and differs from the same material with the film off;
+- the material's own output and Principled BSDF are untouched; switching the film off restores
+  the material exactly;
+- the packed image survives save and reload; a linked material renders its film and is never
+  rewritten; an appended one keeps it;
+- a keyframed thickness gives different frames in an animation render, each the film at that
+  frame's thickness;
+- an edit is baked on the worker and written in place by the timer;
+- a thin-wall (soap bubble) film lets the background through.
+"""
+
+import pathlib
+import sys
+import tempfile
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+
+from _extension import registered_extension  # noqa: E402
+
+from precompute.colour_difference import delta_e_2000  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+SIZE = 32
+#: The issue's floor for the flat plate at normal incidence (ΔE2000 at the reference's exposure).
+PLATE_LIMIT = 2.0
+
+
+@pytest.fixture(scope="module")
+def ext(bpy):
+    root = pathlib.Path(tempfile.mkdtemp(prefix="tf_eevee_"))
+    with registered_extension(
+        bpy,
+        root,
+        [
+            "addon.eevee.sync",
+            "addon.eevee.source",
+            "addon.eevee.nodes",
+            "addon.tables",
+            "precompute.eevee_table",
+        ],
+    ) as ns:
+        ns.root = root
+        yield ns
+
+
+def _scene(bpy, size=SIZE):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "BLENDER_EEVEE"
+    scene.eevee.taa_render_samples = 1
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    world = bpy.data.worlds.new("white")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    scene.world = world
+    return scene
+
+
+def _camera(bpy, scene, location=(0.0, 0.0, 3.0), rotation=(0.0, 0.0, 0.0), scale=1.0):
+    data = bpy.data.cameras.new("cam")
+    data.type = "ORTHO"
+    data.ortho_scale = scale
+    cam = bpy.data.objects.new("cam", data)
+    cam.location, cam.rotation_euler = location, rotation
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+
+
+def _film_material(bpy, name="film", thickness=300.0, film_ior=2.0, ior=1.5, roughness=0.2):
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = ior
+    bsdf.inputs["Thin Film Thickness"].default_value = thickness
+    bsdf.inputs["Thin Film IOR"].default_value = film_ior
+    return mat
+
+
+def _plate(bpy, scene, mat):
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plate = bpy.context.active_object
+    plate.data.materials.append(mat)
+    _camera(bpy, scene)
+    return plate
+
+
+def _render(bpy, scene, path) -> np.ndarray:
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(path))
+    try:
+        w, h = image.size
+        return np.array(image.pixels[:], dtype=np.float64).reshape(h, w, 4)[::-1, :, :3]
+    finally:
+        bpy.data.images.remove(image)
+
+
+def _snapshot(mat):
+    """Every node of the material but ours: name, type, its inputs' values, and the links."""
+    out = {}
+    for node in mat.node_tree.nodes:
+        if node.get("thinfilm_eevee"):
+            continue
+        values = []
+        for socket in node.inputs:
+            value = getattr(socket, "default_value", None)
+            values.append(tuple(value) if hasattr(value, "__len__") else value)
+        out[node.name] = (node.bl_idname, getattr(node, "target", None), values)
+    links = sorted(
+        (lk.from_node.name, lk.from_socket.identifier, lk.to_node.name, lk.to_socket.identifier)
+        for lk in mat.node_tree.links
+        if not lk.to_node.get("thinfilm_eevee") and not lk.from_node.get("thinfilm_eevee")
+    )
+    return out, links
+
+
+def test_flat_plate_renders_the_tables_colour(bpy, ext, tmp_path):
+    """Head-on, a film plate under a uniform World of 1 returns the film's albedo A(θo = 0): the
+    image's Glossy colour A / E times EEVEE's split sum E. And the film is what makes the
+    colour: the same material with the film off (thickness 0) renders the bare glass."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    assert ext.sync.sync_all(scene)["film"] == "written"
+    film = _render(bpy, scene, tmp_path / "film.exr").reshape(-1, 3).mean(axis=0)
+    spec = ext.source.spec(mat, scene)
+    expected = ext.eevee_table.table_albedo(ext.tables.get_table(spec.film).data)[0, 0]
+    de = float(delta_e_2000(film[None], expected[None], xyz="E")[0])
+    print(f"plate: EEVEE {film}, table {expected}, ΔE2000 {de:.3f}")
+    assert de <= PLATE_LIMIT, (
+        f"EEVEE's plate {film} against the table's albedo at normal incidence {expected}: ΔE2000 {de:.2f} "
+        f"(limit {PLATE_LIMIT}): EEVEE must return our albedo where the split sum does"
+    )
+    mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
+    assert ext.sync.sync_material(mat, scene) == "removed"
+    bare = _render(bpy, scene, tmp_path / "bare.exr").reshape(-1, 3).mean(axis=0)
+    off = float(delta_e_2000(film[None], bare[None], xyz="E")[0])
+    assert off > 5.0, f"film {film} vs film off {bare}: ΔE2000 {off:.2f}; the film must show"
+
+
+def test_outputs_and_principled_untouched_and_restored(bpy, ext):
+    """EEVEE picks the added output (target EEVEE), Cycles the material's own (target All, the
+    Principled film); the Principled BSDF and the links are as before, and switching the film off
+    leaves exactly the original material, with no group or image behind."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    before = _snapshot(mat)
+    groups, images = len(bpy.data.node_groups), len(bpy.data.images)
+    ext.sync.sync_material(mat, scene)
+    tree = mat.node_tree
+    assert tree.get_output_node("EEVEE").name == ext.nodes.NODE_OUTPUT
+    assert tree.get_output_node("CYCLES").name == "Material Output"
+    assert tree.nodes["Material Output"].target == "ALL"
+    assert _snapshot(mat) == before, "the material's own nodes, values and links must not change"
+    assert len(bpy.data.node_groups) == groups + 1 and len(bpy.data.images) == images + 1
+    mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
+    ext.sync.sync_material(mat, scene)
+    assert [n.name for n in tree.nodes] == ["Principled BSDF", "Material Output"]
+    assert tree.get_output_node("EEVEE").name == "Material Output"
+    assert len(bpy.data.node_groups) == groups and len(bpy.data.images) == images
+    mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 300.0
+    before = _snapshot(mat)
+    ext.sync.sync_material(mat, scene)
+    mat.thinfilm_sh.preview_principled = False  # the artist switches the Principled preview off
+    assert ext.sync.sync_material(mat, scene) == "removed"
+    assert _snapshot(mat) == before and len(bpy.data.node_groups) == groups
+
+
+def test_reload_keeps_the_packed_image(bpy, ext, tmp_path):
+    """Saved and reopened, the image is still packed, float, with its key: nothing is re-baked
+    (the sync finds it unchanged) and EEVEE renders the same frame."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    ext.sync.sync_material(mat, scene)
+    first = _render(bpy, scene, tmp_path / "a.exr")
+    path = tmp_path / "film.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    mat = bpy.data.materials["film"]
+    node, _output = ext.nodes.find(mat.node_tree)
+    image = next(n.image for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    assert image.packed_file is not None and image.is_float and image.get("thinfilm_eevee_key")
+    assert ext.sync.sync_material(mat, scene) == "unchanged"
+    again = _render(bpy, scene, tmp_path / "b.exr")
+    assert np.allclose(first, again, atol=1e-4), np.abs(first - again).max()
+
+
+def test_keyframed_thickness_animates(bpy, ext, tmp_path):
+    """``render(animation=True)`` (``blender -b -a``) of a keyframed Thin Film Thickness: the
+    frames differ, and each is the film at that frame's thickness (the same material rendered
+    with the thickness fixed there, within 1 ΔE2000: the table's rows are interpolated)."""
+    scene = _scene(bpy, size=16)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    socket = mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"]
+    for frame, value in ((1, 200.0), (3, 700.0)):
+        socket.default_value = value
+        socket.keyframe_insert("default_value", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.filepath = str(tmp_path / "frame_")
+    bpy.ops.render.render(animation=True)
+    frames = []
+    for frame in (1, 3):
+        image = bpy.data.images.load(str(tmp_path / f"frame_{frame:04d}.exr"))
+        frames.append(np.array(image.pixels[:]).reshape(-1, 4)[:, :3].mean(axis=0))
+        bpy.data.images.remove(image)
+    change = float(delta_e_2000(frames[0][None], frames[1][None], xyz="E")[0])
+    assert change > 5.0, f"frames 1 and 3 {frames}: ΔE2000 {change:.2f}; the film must follow its keys"
+    animation = mat.node_tree.animation_data
+    animation.action = None  # fixed thickness at frame 3's value
+    socket.default_value = 700.0
+    ext.sync.sync_material(mat, scene)
+    still = _render(bpy, scene, tmp_path / "still.exr").reshape(-1, 3).mean(axis=0)
+    de = float(delta_e_2000(frames[1][None], still[None], xyz="E")[0])
+    assert de < 1.0, f"animated frame 3 {frames[1]} vs the film fixed at 700 nm {still}: ΔE2000 {de:.2f}"
+
+
+def test_linked_material_renders_and_is_not_rewritten(bpy, ext, tmp_path):
+    """A material linked from a library brings its group and packed image: EEVEE renders its film
+    in the new file, the sync leaves it alone (read-only); appended, it is local and up to date."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy, name="libfilm")
+    _plate(bpy, scene, mat)
+    ext.sync.sync_material(mat, scene)
+    reference = _render(bpy, scene, tmp_path / "lib.exr")
+    library = tmp_path / "library.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(library))
+    for link in (True, False):
+        scene = _scene(bpy)
+        with bpy.data.libraries.load(str(library), link=link) as (src, dst):
+            dst.materials = ["libfilm"]
+        mat = dst.materials[0]
+        _plate(bpy, scene, mat)
+        assert (mat.library is not None) == link
+        key = ext.sync._current_key(mat)
+        assert key is not None, "the group and image must travel with the material"
+        assert ext.sync.sync_material(mat, scene) == ("read-only" if link else "unchanged")
+        assert ext.sync._current_key(mat) == key
+        found = _render(bpy, scene, tmp_path / f"linked_{link}.exr")
+        assert np.allclose(found, reference, atol=1e-4), (link, np.abs(found - reference).max())
+
+
+def test_edit_is_baked_on_the_worker_and_written_in_place(bpy, ext):
+    """A live edit: the spec is read on the main thread, the table and pixels computed by the
+    worker, and the timer writes them into the same image (no new datablock)."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    ext.sync.sync_material(mat, scene)
+    node, _output = ext.nodes.find(mat.node_tree)
+    image = next(n.image for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    before = np.array(image.pixels[:])
+    mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 450.0
+    assert ext.sync.sync_material(mat, scene, wait=False) == "queued"
+    assert ext.sync.wait_idle(120.0), "the worker must finish the bake"
+    ext.sync._service()  # the timer's tick, on the main thread
+    assert ext.sync._current_key(mat) == ext.source.spec(mat, scene).key
+    after_image = next(n.image for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    assert after_image == image, "the image is rewritten in place"
+    assert not np.allclose(np.array(image.pixels[:]), before), "a new thickness gives new pixels"
+
+
+def test_thin_wall_bubble_lets_the_background_through(bpy, ext, tmp_path):
+    """A Principled soap bubble (IOR 1, Transmission 1, Thin Wall) sheet in front of a red plane:
+    EEVEE shows the plane × the wall's transmittance T plus the wall's reflection (Cycles' thin
+    wall, shading/transmit.py), within 1 ΔE2000 head-on, with the material blended; the film off
+    restores its own render method."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy, name="bubble", thickness=400.0, film_ior=1.33, ior=1.0, roughness=0.05)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    bsdf.inputs["Thin Wall"].default_value = True
+    bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, -1.0))
+    red = bpy.data.materials.new("red")
+    red.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.0, 0.0, 1.0)
+    bpy.context.active_object.data.materials.append(red)
+    _plate(bpy, scene, mat)
+    method = mat.surface_render_method
+    ext.sync.sync_material(mat, scene)
+    assert mat.surface_render_method == "BLENDED"
+    seen = _render(bpy, scene, tmp_path / "bubble.exr").reshape(-1, 3).mean(axis=0)
+    spec = ext.source.spec(mat, scene)
+    made = ext.sync.compute(spec)
+    t = made.pixels[made.rows * made.bands["transmission"], 0, :3]
+    r = made.pixels[0, 0, :3] * ext.eevee_table.eevee_lut_scale(1.0, 0.05)
+    mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
+    ext.sync.sync_material(mat, scene)
+    assert mat.surface_render_method == method
+    bpy.data.objects["Plane.001"].hide_render = True
+    behind = _render(bpy, scene, tmp_path / "behind.exr").reshape(-1, 3).mean(axis=0)
+    expected = behind * t + r
+    de = float(delta_e_2000(seen[None], expected[None], xyz="E")[0])
+    print(f"bubble: EEVEE {seen}, behind {behind} × T {t} + R {r} = {expected}: ΔE2000 {de:.2f}")
+    assert de < 1.0, "the wall must pass the background × T and add its reflection, as the overlay's wall"
+    assert seen[0] > 2.0 * seen[1], f"the red plane must show through the bubble: {seen}"

@@ -1,0 +1,149 @@
+"""The EEVEE film image's maths (precompute/eevee_table.py): EEVEE's split sum and the bands.
+
+EEVEE's Glossy BSDF multiplies its colour by its split-sum LUT E(μ, r) (single-scattering GGX,
+separable Smith, eevee_bxdf_lut); the image divides the film's albedo by it. E is checked against
+an independent brute-force Monte Carlo integral of the same BRDF over light directions (not the
+half-vector quadrature the module uses), and against its closed forms: E = 1 at roughness 0 and
+the white-furnace bound E ≤ 1.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from precompute import bake, eevee_table, film_colour
+from precompute.material import Layer, Material
+from precompute.shading import transmit
+
+
+def _monte_carlo_e(mu: float, roughness: float, n: int = 400_000, seed: int = 7) -> tuple[float, float]:
+    """E by uniform hemisphere sampling of the light: (mean, standard error)."""
+    rng = np.random.default_rng(seed)
+    a2 = roughness**4
+    z = rng.random(n)
+    phi = 2 * np.pi * rng.random(n)
+    r = np.sqrt(1 - z * z)
+    light = np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+    view = np.array([math.sqrt(1 - mu * mu), 0.0, mu])
+    h = light + view
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    nh = h[:, 2]
+    d = a2 / (np.pi * ((1 - nh * nh) + a2 * nh * nh) ** 2)
+
+    def g1(c):
+        return 2 / (1 + np.sqrt(1 + a2 * (1 / (c * c) - 1)))
+
+    f = d * g1(mu) * g1(z) / (4 * mu)  # BRDF × cos θl = D G / (4 μ)
+    values = f * 2 * np.pi  # pdf 1/(2π)
+    return float(values.mean()), float(values.std() / math.sqrt(n))
+
+
+@pytest.mark.parametrize("mu, roughness", [(0.9, 0.5), (0.5, 0.7), (0.3, 0.9), (0.7, 1.0)])
+def test_split_sum_matches_monte_carlo(mu, roughness):
+    """E(μ, r) against an independent Monte Carlo estimate, within 4 standard errors (rough
+    lobes: uniform sampling converges there)."""
+    mean, error = _monte_carlo_e(mu, roughness)
+    found = float(eevee_table.eevee_split_sum(mu, roughness))
+    assert abs(found - mean) < 4 * error + 2e-4, (
+        f"E({mu}, {roughness}) = {found:.5f}, Monte Carlo {mean:.5f} ± {error:.5f}: EEVEE's split sum "
+        "is what the film image divides by"
+    )
+
+
+def test_split_sum_limits():
+    """Roughness 0 reflects everything (E = 1), and no roughness reflects more than the light."""
+    mu = np.linspace(0.05, 1.0, 20)
+    assert np.allclose(eevee_table.eevee_split_sum(mu, 0.0), 1.0, atol=1e-4)
+    for roughness in (0.1, 0.4, 0.8, 1.0):
+        e = eevee_table.eevee_split_sum(mu, roughness)
+        assert np.all(e <= 1.0 + 1e-6) and np.all(e > 0.3), (roughness, e)
+
+
+def test_lut_scale_reads_the_grid_like_eevee():
+    """The bilinear LUT reading equals the exact integral at the grid's nodes and stays within
+    the grid's interpolation error (< 3e-3) between them."""
+    r = 7 / 63  # a roughness node
+    y = np.array([5, 17, 40]) / 63
+    mu = 1 - y * y
+    assert np.allclose(eevee_table.eevee_lut_scale(mu, r), eevee_table.eevee_split_sum(mu, r), atol=1e-9)
+    mu = np.linspace(0.1, 1.0, 17)
+    for roughness in (0.13, 0.42, 0.77):
+        gap = eevee_table.eevee_lut_scale(mu, roughness) - eevee_table.eevee_split_sum(mu, roughness)
+        assert np.max(np.abs(gap)) < 3e-3, (roughness, gap)
+
+
+def test_glossy_colour_times_split_sum_is_the_albedo():
+    rng = np.random.default_rng(3)
+    albedo = rng.random((5, 3)) * 0.3
+    mu = np.array([1.0, 0.8, 0.5, 0.2, 0.05])
+    colour = eevee_table.glossy_colour(albedo, mu, 0.35)
+    back = colour * eevee_table.eevee_lut_scale(mu, 0.35)[:, None]
+    assert np.allclose(back, albedo, rtol=1e-12)
+
+
+def _film(**kw):
+    base = dict(layers=(Layer(1.33, 500.0),), substrate=1.5, roughness=0.3, colour_mode="per_channel")
+    base.update(kw)
+    return Material(**base)
+
+
+def test_table_albedo_is_the_split_sums_entry():
+    """The specular band before the division is the l = 0 entry × √(4π) the overlay's split sum
+    reads (shading/split_sum.shade_split_sum): the same numbers, per view angle."""
+    result = bake.bake(_film(quality={"sh_order": 0}))
+    albedo = eevee_table.table_albedo(result.data)
+    assert albedo.shape == result.data.shape[:2] + (3,)
+    assert np.allclose(albedo, result.data[:, :, 0] * math.sqrt(4 * math.pi))
+    spectral = bake.bake(_film(colour_mode="spectral", quality={"sh_order": 0}))
+    summed = eevee_table.table_albedo(spectral.data)
+    assert np.allclose(summed, spectral.data[:, :, 0].sum(-1) * math.sqrt(4 * math.pi))
+
+
+def test_image_layout_and_bands():
+    """Bands stack in BANDS order, each T rows; pixel (row, column) = the band at (thickness row,
+    view angle); the specular band × E is the albedo; RGBA float32 with alpha 1."""
+    desc = _film(thickness_range_nm=(200.0, 600.0), quality={"sh_order": 0, "thickness_samples": 9})
+    result = bake.bake(desc)
+    made = eevee_table.film_image(result)
+    t, a = result.data.shape[:2]
+    assert made.pixels.shape == (t, a, 4) and made.pixels.dtype == np.float32
+    assert made.rows == t and made.thickness_nm == (200.0, 600.0) and made.bands == {"specular": 0}
+    assert np.all(made.pixels[..., 3] == 1.0)
+    cos_o = np.cos(result.view_angles_rad)
+    back = made.pixels[..., :3] * eevee_table.eevee_lut_scale(cos_o, 0.3)[None, :, None]
+    assert np.allclose(back, eevee_table.table_albedo(result.data), rtol=2e-6, atol=1e-7)
+
+
+def test_wall_bands_follow_the_overlays_wall():
+    """A transparent film's bands: transmission = the wall's T, specular = albedo × S / E, with
+    T and S from shading/transmit.wall at the film's white reflectance (a soap film in air)."""
+    desc = Material(layers=(Layer(1.33, 400.0),), substrate=1.0, roughness=0.1, quality={"sh_order": 0})
+    result = bake.bake(desc)
+    film = film_colour.film_table(result)
+    made = eevee_table.film_image(result, film=film, wall=(transmit.WALL_CYCLES, 1.0))
+    assert made.bands == {"specular": 0, "transmission": 1}
+    cos_o = np.cos(result.view_angles_rad)
+    r = eevee_table.white_reflectance_at(film, cos_o)
+    t, s = transmit.wall(r, cos_o[None, :], transmit.WALL_CYCLES)
+    assert np.allclose(made.pixels[1:2, :, :3], t, atol=1e-6)
+    spec = eevee_table.table_albedo(result.data) * s / eevee_table.eevee_lut_scale(cos_o, 0.1)[None, :, None]
+    assert np.allclose(made.pixels[0:1, :, :3], spec, rtol=1e-5, atol=1e-7)
+    through = made.pixels[1, cos_o > 0.5, :3]  # a soap film lets most light through, short of grazing
+    assert np.all(through < 1.0) and np.all(through > 0.5), through
+
+
+def test_diffuse_band_is_the_weight_under_the_film():
+    """With a diffuse base the band is (total − film) / base per channel: in the per-channel
+    mode that is Cycles' layering weight, the same for every channel, in [0, 1]."""
+    base = (0.6, 0.3, 0.1)
+    film = bake.bake(_film(quality={"sh_order": 0}))
+    full = bake.bake(_film(base_color=base, quality={"sh_order": 0}))
+    made = eevee_table.film_image(film, base_result=full, base_color=base)
+    assert made.bands == {"specular": 0, "diffuse": 1}
+    weight = made.pixels[1, :, :3]
+    assert np.all(weight >= 0.0) and np.all(weight <= 1.0 + 1e-6)
+    assert np.allclose(weight[:, 0], weight[:, 1], atol=1e-6) and np.allclose(
+        weight[:, 1], weight[:, 2], atol=1e-6
+    )
+    assert weight[0, 0] > 0.8  # a weak film over a dielectric: most light reaches the base
