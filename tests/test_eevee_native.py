@@ -47,6 +47,8 @@ def ext(bpy):
             "addon.eevee.nodes",
             "addon.tables",
             "precompute.eevee_table",
+            "addon.viewport",
+            "addon.prefs",
         ],
     ) as ns:
         ns.root = root
@@ -310,3 +312,29 @@ def test_thin_wall_bubble_lets_the_background_through(bpy, ext, tmp_path):
     print(f"bubble: EEVEE {seen}, behind {behind} × T {t} + R {r} = {expected}: ΔE2000 {de:.2f}")
     assert de < 1.0, "the wall must pass the background × T and add its reflection, as the overlay's wall"
     assert seen[0] > 2.0 * seen[1], f"the red plane must show through the bubble: {seen}"
+
+
+def test_overlay_draws_in_rendered_shading_with_eevee_by_preference(bpy, ext):
+    """Solid and Material Preview always; Rendered only with EEVEE (whose film display writes the
+    depth the overlay is tested against, eevee_film_frag) and while the preference is on."""
+    import types
+
+    scene = _scene(bpy)
+
+    def space(kind):
+        return types.SimpleNamespace(shading=types.SimpleNamespace(type=kind))
+
+    drawn = ext.viewport.drawn_in_shading
+    assert drawn(space("SOLID"), scene) and drawn(space("MATERIAL"), scene)
+    assert not drawn(space("WIREFRAME"), scene)
+    assert drawn(space("RENDERED"), scene)
+    if ext.prefs.preferences() is None:  # factory settings dropped the add-on's entry
+        bpy.context.preferences.addons.new().module = "thinfilm_sh"
+    preferences = ext.prefs.preferences()
+    preferences.show_in_rendered = False
+    try:
+        assert not drawn(space("RENDERED"), scene) and drawn(space("SOLID"), scene)
+    finally:
+        preferences.show_in_rendered = True
+    scene.render.engine = "CYCLES"
+    assert not drawn(space("RENDERED"), scene), "Cycles' Rendered view has no depth for the overlay"
