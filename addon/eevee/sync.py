@@ -11,8 +11,9 @@
 - **Headless (``blender -b``, the bpy module):** after a file loads (``load_post``) and before
   each render (``render_pre`` on the main thread: ``bpy.ops.render.render``, ``-f``, ``-a``)
   every film material is synced in place, baking what it needs, so a farm renders the film
-  even from a file saved without it. In the interface, F12's ``render_pre`` runs on the render
-  job's thread and writes nothing: the live path has already.
+  even from a file saved without it (a linked thickness that needs a Cycles bake to find its
+  range is evaluated at load, never inside a render). In the interface, F12's ``render_pre``
+  runs on the render job's thread and writes nothing: the live path has already.
 
 :func:`sync_material` and :func:`sync_all` are the calls the tests and commands use.
 """
@@ -60,16 +61,19 @@ def compute(spec: source.Spec, cache=None, baker=None) -> eevee_table.FilmImage:
     )
 
 
-def _spec_of(material, scene):
-    """(spec or None, True if known): a film being evaluated elsewhere is not known."""
-    with linked.deferring():
-        try:
-            return source.spec(material, scene), True
-        except linked.Pending:
-            return None, False
-        except ValueError as exc:  # the panel and the overlay say why; EEVEE keeps what it had
-            log.info("Thin Film SH: EEVEE film of %r not updated: %s", material.name, exc)
-            return None, False
+def _spec_of(material, scene, defer: bool):
+    """(spec or None, True if known). ``defer``: a linked thickness that needs a Cycles bake is
+    queued (:func:`..linked.deferring`) and the film is not known until it is done."""
+    try:
+        if defer:
+            with linked.deferring():
+                return source.spec(material, scene), True
+        return source.spec(material, scene), True
+    except linked.Pending:
+        return None, False
+    except ValueError as exc:  # the panel and the overlay say why; EEVEE keeps what it had
+        log.info("Thin Film SH: EEVEE film of %r not updated: %s", material.name, exc)
+        return None, False
 
 
 def _current_key(material) -> str | None:
@@ -93,14 +97,15 @@ def _written(material, spec, made) -> None:
     write_seconds.append(time.perf_counter() - t0)
 
 
-def sync_material(material, scene=None, wait: bool = True) -> str:
+def sync_material(material, scene=None, wait: bool = True, defer: bool | None = None) -> str:
     """Bring ``material``'s EEVEE path in step: "removed", "unchanged", "written" (``wait``: baked
     here), "queued" (the worker bakes it), "read-only" (a linked material) or "unknown" (its film
-    cannot be evaluated now). Main thread."""
+    cannot be evaluated now). ``defer`` (default: not ``wait``): a linked thickness that needs a
+    Cycles bake is queued instead of baked here. Main thread."""
     if material.node_tree is None or wiring.is_read_only(material):
         return "read-only"
     scene = scene or bpy.context.scene
-    spec, known = _spec_of(material, scene)
+    spec, known = _spec_of(material, scene, (not wait) if defer is None else defer)
     if not known:
         return "unknown"
     if spec is None:
@@ -132,9 +137,11 @@ def sync_material(material, scene=None, wait: bool = True) -> str:
     return "queued"
 
 
-def sync_all(scene=None, wait: bool = True) -> dict[str, str]:
+def sync_all(scene=None, wait: bool = True, defer: bool | None = None) -> dict[str, str]:
     """:func:`sync_material` for every material of the file; {name: outcome}."""
-    return {m.name: sync_material(m, scene, wait) for m in bpy.data.materials if m.node_tree is not None}
+    return {
+        m.name: sync_material(m, scene, wait, defer) for m in bpy.data.materials if m.node_tree is not None
+    }
 
 
 def _work() -> None:
@@ -204,13 +211,20 @@ def _service() -> float | None:
         names = list(_dirty)
         _dirty.clear()
     scene = bpy.context.scene
+    unknown = []
     for name in names:
         material = bpy.data.materials.get(name)
         if material is not None:
             try:
-                sync_material(material, scene, wait=False)
+                if sync_material(material, scene, wait=False) == "unknown":
+                    unknown.append(name)
             except Exception as exc:  # a timer must never raise
                 log.error("Thin Film SH: EEVEE film of %r: %s", name, exc)
+    if unknown and linked.has_pending():  # a linked thickness's Cycles bake: here, not in a draw
+        for error in linked.run_pending():
+            log.error("Thin Film SH: linked thickness: %s", error)
+        with _lock:
+            _dirty.update(unknown)  # known now: read again at the next tick
     _finish()
     return POLL_S if pending() else None
 
@@ -247,9 +261,9 @@ def _on_load(*_args) -> None:
     _schedule()
 
 
-def _sync_headless() -> None:
+def _sync_headless(defer: bool = False) -> None:
     try:
-        sync_all(wait=True)
+        sync_all(wait=True, defer=defer)
     except Exception as exc:  # a handler must never raise
         log.error("Thin Film SH: EEVEE films not synced: %s", exc)
 
@@ -257,7 +271,7 @@ def _sync_headless() -> None:
 @bpy.app.handlers.persistent
 def _on_render_pre(*_args) -> None:
     if threading.current_thread() is threading.main_thread() and bpy.app.background:
-        _sync_headless()
+        _sync_headless(defer=True)  # no Cycles bake of a linked thickness inside a render
 
 
 _HANDLERS = (
