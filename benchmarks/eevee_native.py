@@ -205,13 +205,17 @@ def _render(scene, path) -> tuple[np.ndarray, float]:
     return _read(path), time.perf_counter() - t0
 
 
-def cycles_image(case: Case, blend, workdir) -> tuple[np.ndarray | None, float]:
+def _key(name: str) -> str:
+    """The cache key of case ``name``: its scene's sizes, samples and Blender's version."""
+    bpy = _bpy()
+    key = json.dumps([name, SIZE, SAMPLES, SCENE_SIZE, SCENE_SAMPLES, bpy.app.version_string, SCENE_VERSION])
+    return f"{name}_{hashlib.sha256(key.encode()).hexdigest()[:12]}"
+
+
+def cycles_image(case: Case, blend, workdir, name: str | None = None) -> tuple[np.ndarray | None, float]:
     """Cycles' render of the case (cached by the case, sizes, samples and Blender): (RGB, s)."""
     bpy = _bpy()
-    key = json.dumps(
-        [case.name, SIZE, SAMPLES, SCENE_SIZE, SCENE_SAMPLES, bpy.app.version_string, SCENE_VERSION]
-    )
-    path = CACHE / f"{case.name}_{hashlib.sha256(key.encode()).hexdigest()[:12]}.npz"
+    path = CACHE / f"{_key(name or case.name)}.npz"
     if path.is_file():
         return np.load(path)["rgb"], 0.0
     bpy.ops.wm.open_mainfile(filepath=str(blend))
@@ -243,6 +247,30 @@ def eevee_image(blend, workdir) -> tuple[np.ndarray, float, dict]:
     _eevee(scene)
     rgb, seconds = _render(scene, pathlib.Path(workdir) / "eevee.exr")
     return rgb, seconds, outcomes
+
+
+def bare_blend(blend, workdir) -> pathlib.Path:
+    """The case's file with every Principled film off (Thin Film Thickness 0, unlinked): the same
+    BSDF without its film, for EEVEE's own floor against Cycles."""
+    bpy = _bpy()
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    for mat in bpy.data.materials:
+        for node in getattr(mat.node_tree, "nodes", ()):
+            socket = (
+                node.inputs.get("Thin Film Thickness")
+                if node.bl_idname == "ShaderNodeBsdfPrincipled"
+                else None
+            )
+            if socket is not None:
+                for link in list(socket.links):
+                    mat.node_tree.links.remove(link)
+                socket.default_value = 0.0
+    return _save(pathlib.Path(workdir) / "bare.blend")
+
+
+def _overlay_cache() -> dict:
+    path = CACHE / "overlay.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
 
 
 def overlay_image(blend, workdir) -> tuple[np.ndarray, float]:
@@ -325,11 +353,25 @@ def compare(case: Case, workdir, overlay: bool, timed: bool) -> dict:
     if ref is not None:
         de = delta_e_2000(ours[mask], ref[mask], xyz="E")
         row.update(mean=float(np.mean(de)), p95=float(np.percentile(de, 95)))
-    if overlay:
+    if case.group != "scenes" and ref is not None:
+        bare = bare_blend(blend, workdir)
+        bare_ref, bare_s = cycles_image(case, bare, workdir, name=case.name + "-bare")
+        bare_ours = eevee_image(bare, workdir)[0]
+        row["cycles_s"] += bare_s
+        row["floor"] = float(np.mean(delta_e_2000(bare_ours[mask], bare_ref[mask], xyz="E")))
+    cached = _overlay_cache().get(_key(case.name))
+    if cached is not None:
+        row.update(cached)
+    elif overlay:
         drawn, overlay_s = overlay_image(blend, workdir)
-        row["overlay_s"] = overlay_s
+        found = {"overlay_s": overlay_s}
         if ref is not None:
-            row["overlay_mean"] = float(np.mean(delta_e_2000(drawn[mask], ref[mask], xyz="E")))
+            found["overlay_mean"] = float(np.mean(delta_e_2000(drawn[mask], ref[mask], xyz="E")))
+        store = _overlay_cache()
+        store[_key(case.name)] = found
+        CACHE.mkdir(parents=True, exist_ok=True)
+        (CACHE / "overlay.json").write_text(json.dumps(store, indent=1))
+        row.update(found)
     if timed:
         row["time_film"], row["time_off"] = frame_times(blend, workdir)
     return row
@@ -397,9 +439,9 @@ def report_lines(rows, seconds: float, command: str) -> list[str]:
         )
     lines += [
         "",
-        "| group | case | EEVEE native mean ΔE2000 | p95 | limit | overlay mean ΔE2000 | EEVEE s "
-        "| overlay s | Cycles s |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| group | case | EEVEE native mean ΔE2000 | p95 | limit | EEVEE's floor (no film) | overlay mean "
+        "ΔE2000 | EEVEE s | overlay s | Cycles s |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         c = r["case"]
@@ -408,7 +450,19 @@ def report_lines(rows, seconds: float, command: str) -> list[str]:
         over = f"{r['overlay_mean']:.2f}" if "overlay_mean" in r else "–"
         over_s = f"{r['overlay_s']:.1f}" if "overlay_s" in r else "–"
         cyc = f"{r['cycles_s']:.0f}" if r["cycles_s"] else "cached"
-        cells = [c.group, c.what, mean, p95, f"{_limit(r):g}", over, f"{r['eevee_s']:.1f}", over_s, cyc]
+        floor = f"{r['floor']:.2f}" if "floor" in r else "–"
+        cells = [
+            c.group,
+            c.what,
+            mean,
+            p95,
+            f"{_limit(r):g}",
+            floor,
+            over,
+            f"{r['eevee_s']:.1f}",
+            over_s,
+            cyc,
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     if timed:
         lines += ["", "| frame time | with film s | film off s | ratio |", "|---|---|---|---|"]
@@ -416,6 +470,42 @@ def report_lines(rows, seconds: float, command: str) -> list[str]:
             ratio = r["time_film"] / r["time_off"]
             lines.append(f"| {r['case'].what} | {r['time_film']:.2f} | {r['time_off']:.2f} | {ratio:.2f}× |")
     return lines
+
+
+def main_thread_costs(runs: int = 7) -> list[dict]:
+    """What an edit costs Blender's main thread, per preset material on a sphere: reading its
+    spec (:func:`addon.eevee.source.spec`) and writing a computed image in place
+    (:func:`addon.eevee.wiring.apply`: copy, update, pack), medians of ``runs``; and the worker's
+    share (table from memory + pixels, :func:`addon.eevee.sync.compute`) for scale."""
+    bpy = _bpy()
+    source = importlib.import_module("thinfilm_sh.addon.eevee.source")
+    sync = importlib.import_module("thinfilm_sh.addon.eevee.sync")
+    wiring = importlib.import_module("thinfilm_sh.addon.eevee.wiring")
+    out = []
+    for preset in ("SOAP_FILM", "OIL_ON_WATER", "ANODISED_TITANIUM", "BEETLE_MULTILAYER"):
+        bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+        bpy.ops.mesh.primitive_uv_sphere_add()
+        mat = bpy.data.materials.new(preset)
+        mat.thinfilm_sh.preset = preset
+        mat.thinfilm_sh.enabled = True
+        bpy.context.active_object.data.materials.append(mat)
+        scene = bpy.context.scene
+        spec = source.spec(mat, scene)
+        made = sync.compute(spec)  # bakes once (or reads the cache): the worker's part
+        wiring.apply(mat, spec, made)  # the first write also makes the nodes
+        read = common.time_runs(lambda: source.spec(mat, scene), runs=runs)  # noqa: B023
+        write = common.time_runs(lambda: wiring.apply(mat, spec, made), runs=runs)  # noqa: B023
+        worker = common.time_runs(lambda: sync.compute(spec), runs=3)  # noqa: B023
+        out.append(
+            dict(
+                preset=preset,
+                size=f"{made.width}×{made.height}",
+                read_ms=1e3 * statistics.median(read),
+                write_ms=1e3 * statistics.median(write),
+                worker_ms=1e3 * statistics.median(worker),
+            )
+        )
+    return out
 
 
 def main(argv=None) -> int:
@@ -426,8 +516,15 @@ def main(argv=None) -> int:
     parser.add_argument("--case", nargs="+", help="only these cases (by name)")
     parser.add_argument("--no-overlay", action="store_true", help="skip the overlay's figures")
     parser.add_argument("--out", default="eevee-native-results.md", help="the report (under docs/)")
+    parser.add_argument(
+        "--main-thread", action="store_true", help="only measure an edit's main-thread costs and print them"
+    )
     args = parser.parse_args(argv)
     _extension()
+    if args.main_thread:
+        for row in main_thread_costs():
+            print(row)
+        return 0
     chosen = [
         c
         for c in cases()

@@ -18,7 +18,8 @@ docs/eevee-native.md.
 
 Bands (rows ``band · T … band · T + T − 1``):
 
-- ``specular``: A / E × S (S the transparent wall's reflection scale, 1 for an opaque film);
+- ``specular``: A × S (S the transparent wall's reflection scale, 1 for an opaque film);
+- ``inverse``: 1/E(θo) (the same in every row), which the group multiplies by;
 - ``diffuse`` (a diffuse base): the base's uniform-light albedo under the film divided by the
   base colour per channel (Cycles' layering weight in the per-channel mode), which the node
   group multiplies by the Base Color socket;
@@ -41,9 +42,11 @@ from .shading import transmit
 
 __all__ = [
     "BANDS",
+    "DIRECTIONS_SIZE",
     "EEVEE_LUT_SIZE",
     "FORMAT_VERSION",
     "FilmImage",
+    "dominant_directions",
     "eevee_lut_scale",
     "eevee_split_sum",
     "film_image",
@@ -53,18 +56,24 @@ __all__ = [
 ]
 
 #: Version of the image's layout and maths: part of the key the add-on stores with an image.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 3
 #: EEVEE's utility LUT is EEVEE_LUT_SIZE² texels (``UTIL_TEX_SIZE``), read with linear filtering.
 EEVEE_LUT_SIZE = 64
 #: EEVEE clamps the LUT's view cosine to [1e-4, 0.9999] when it integrates it.
 LUT_COS_MIN, LUT_COS_MAX = 1e-4, 0.9999
 #: The image's bands, in row order (a band is present only when the film needs it).
-BANDS = ("specular", "diffuse", "transmission")
+BANDS = ("specular", "inverse", "diffuse", "transmission")
 #: Gauss–Legendre nodes over the GGX half-vector CDF and half-plane azimuth nodes of the LUT's
 #: integral: E to < 1e-4 against 4× as many (tests/test_eevee_table.py).
 _XI_NODES, _PHI_NODES = 64, 48
 #: A split sum below this counts as 0 (a view at the horizon): the colour there is not divided.
 MIN_SCALE = 1e-4
+#: The dominant-direction image: (width, height) of its equirect grid. The moment field is
+#: GGX-blurred, smooth at the glossiest level the prefilter keeps; EEVEE reads it bilinearly.
+DIRECTIONS_SIZE = (128, 64)
+#: Squared moment length below which the World is black in the lobe: the reflection direction
+#: itself (then θ' = θo), as shading/split_sum.MOMENT_EPS.
+MOMENT_EPS = 1e-30
 
 
 def _smith_g1(cos_x, a2):
@@ -214,7 +223,8 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
             raise ValueError(f"film table has {r.shape[0]} thickness rows, the bake {t_rows}")
         transmittance, scale = transmit.wall(r, cos_o[None, :], int(wall[0]), float(wall[1]))
         bands = {"specular": albedo * scale, "transmission": transmittance}
-    bands["specular"] = glossy_colour(bands["specular"], cos_o[None, :], roughness)
+    inverse = glossy_colour(np.ones((1, cos_o.size, 3)), cos_o[None, :], roughness)
+    bands["inverse"] = np.broadcast_to(inverse, (t_rows, cos_o.size, 3))
     if base_result is not None:
         base = np.asarray(base_color, dtype=np.float64).reshape(3)
         diffuse = table_albedo(base_result.data) - albedo
@@ -231,3 +241,32 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
         thickness_nm=(float(thick[0]), float(thick[-1])),
         bands={name: i for i, name in enumerate(order)},
     )
+
+
+def dominant_directions(pre, roughness: float, size=DIRECTIONS_SIZE) -> np.ndarray:
+    """The lobe light's mean direction c per reflection direction: (H, W, 4) float32 RGBA, rows
+    bottom first (Blender's pixel order), an equirect grid in Blender's Environment Texture
+    mapping (conventions.md), RGB = (c + 1)/2 (c unit, world frame: stored in [0, 1], as a
+    texture read need not keep negative values), A = 1.
+
+    ``pre``: a :class:`precompute.prefilter.Prefiltered` with moments (its ``rotation`` and
+    ``scale`` applied: the World as it is); c = the prefiltered luminance × direction moment at
+    ``roughness`` in that direction (:func:`.shading.split_sum.lookup`), normalised; where it
+    vanishes, the direction itself.
+    """
+    from .hdri import equirect_directions
+    from .shading.split_sum import lookup
+
+    width, height = int(size[0]), int(size[1])
+    directions = equirect_directions(height, width)
+    if pre is None or pre.moments is None:
+        found = directions
+    else:
+        moment = lookup(pre, directions.reshape(-1, 3), float(roughness), moments=True).reshape(
+            directions.shape
+        )
+        norm2 = np.sum(moment * moment, axis=-1, keepdims=True)
+        found = np.where(norm2 > MOMENT_EPS, moment / np.sqrt(np.maximum(norm2, MOMENT_EPS)), directions)
+    pixels = np.ones((height, width, 4), dtype=np.float32)
+    pixels[..., :3] = 0.5 * (found[::-1] + 1.0)
+    return pixels

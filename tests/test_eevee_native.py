@@ -169,7 +169,10 @@ def test_outputs_and_principled_untouched_and_restored(bpy, ext):
     assert tree.get_output_node("CYCLES").name == "Material Output"
     assert tree.nodes["Material Output"].target == "ALL"
     assert _snapshot(mat) == before, "the material's own nodes, values and links must not change"
-    assert len(bpy.data.node_groups) == groups + 1 and len(bpy.data.images) == images + 1
+    group = ext.nodes.find(tree)[0].node_tree
+    ours = {n.image for n in group.nodes if getattr(n, "image", None) is not None}
+    assert len(ours) == 2, "the film image and the dominant-direction image (the World is analysed)"
+    assert len(bpy.data.node_groups) == groups + 1 and len(bpy.data.images) == images + len(ours)
     mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
     ext.sync.sync_material(mat, scene)
     assert [n.name for n in tree.nodes] == ["Principled BSDF", "Material Output"]
@@ -185,7 +188,8 @@ def test_outputs_and_principled_untouched_and_restored(bpy, ext):
 
 def test_reload_keeps_the_packed_image(bpy, ext, tmp_path):
     """Saved and reopened, the image is still packed, float, with its key: nothing is re-baked
-    (the sync finds it unchanged) and EEVEE renders the same frame."""
+    (the sync finds it unchanged) and EEVEE renders the same frame, with the extension
+    registered or not (a farm that has not installed it)."""
     scene = _scene(bpy)
     mat = _film_material(bpy)
     _plate(bpy, scene, mat)
@@ -197,11 +201,17 @@ def test_reload_keeps_the_packed_image(bpy, ext, tmp_path):
     scene = bpy.context.scene
     mat = bpy.data.materials["film"]
     node, _output = ext.nodes.find(mat.node_tree)
-    image = next(n.image for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    image = ext.nodes.film_image_of(node.node_tree)
     assert image.packed_file is not None and image.is_float and image.get("thinfilm_eevee_key")
     assert ext.sync.sync_material(mat, scene) == "unchanged"
     again = _render(bpy, scene, tmp_path / "b.exr")
     assert np.allclose(first, again, atol=1e-4), np.abs(first - again).max()
+    ext.package.unregister()  # a render farm without the extension: the file holds everything
+    try:
+        bare = _render(bpy, scene, tmp_path / "c.exr")
+    finally:
+        ext.package.register()
+    assert np.allclose(first, bare, atol=1e-4), "the film must render with no extension installed"
 
 
 def test_keyframed_thickness_animates(bpy, ext, tmp_path):
@@ -267,14 +277,14 @@ def test_edit_is_baked_on_the_worker_and_written_in_place(bpy, ext):
     _plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
     node, _output = ext.nodes.find(mat.node_tree)
-    image = next(n.image for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    image = ext.nodes.film_image_of(node.node_tree)
     before = np.array(image.pixels[:])
     mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 450.0
     assert ext.sync.sync_material(mat, scene, wait=False) == "queued"
     assert ext.sync.wait_idle(120.0), "the worker must finish the bake"
     ext.sync._service()  # the timer's tick, on the main thread
-    assert ext.sync._current_key(mat) == ext.source.spec(mat, scene).key
-    after_image = next(n.image for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    assert ext.sync._current_key(mat) == ext.source.spec(mat, scene, ext.sync.world_of(scene)).key
+    after_image = ext.nodes.film_image_of(node.node_tree)
     assert after_image == image, "the image is rewritten in place"
     assert not np.allclose(np.array(image.pixels[:]), before), "a new thickness gives new pixels"
 
@@ -299,9 +309,9 @@ def test_thin_wall_bubble_lets_the_background_through(bpy, ext, tmp_path):
     assert mat.surface_render_method == "BLENDED"
     seen = _render(bpy, scene, tmp_path / "bubble.exr").reshape(-1, 3).mean(axis=0)
     spec = ext.source.spec(mat, scene)
-    made = ext.sync.compute(spec)
+    made, _light = ext.sync.compute(spec)
     t = made.pixels[made.rows * made.bands["transmission"], 0, :3]
-    r = made.pixels[0, 0, :3] * ext.eevee_table.eevee_lut_scale(1.0, 0.05)
+    r = made.pixels[0, 0, :3]  # the wall's reflection A·S head-on (EEVEE multiplies 1/E by E)
     mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
     ext.sync.sync_material(mat, scene)
     assert mat.surface_render_method == method
@@ -338,3 +348,98 @@ def test_overlay_draws_in_rendered_shading_with_eevee_by_preference(bpy, ext):
         preferences.show_in_rendered = True
     scene.render.engine = "CYCLES"
     assert not drawn(space("RENDERED"), scene), "Cycles' Rendered view has no depth for the overlay"
+
+
+@pytest.mark.parametrize("preset", ["ANODISED_TITANIUM", "HEAT_TINTED_STEEL", "BEETLE_MULTILAYER"])
+def test_extension_materials_metals_and_multilayers(bpy, ext, tmp_path, preset):
+    """The extension's own materials go through the same table: a dispersive oxide on measured
+    titanium, an absorbing oxide on iron, a 16-layer stack (spectral mode: the 3×3 matrices'
+    white-light row sums). Head-on under a uniform World each renders its table's albedo within
+    2 ΔE2000; switching the extension off removes the EEVEE path."""
+    scene = _scene(bpy)
+    mat = bpy.data.materials.new(preset.lower())
+    props = mat.thinfilm_sh
+    props.preset = preset
+    props.enabled = True
+    props.vary_thickness = False
+    _plate(bpy, scene, mat)
+    assert ext.sync.sync_material(mat, scene) == "written"
+    seen = _render(bpy, scene, tmp_path / "plate.exr").reshape(-1, 3).mean(axis=0)
+    spec = ext.source.spec(mat, scene)
+    expected = ext.eevee_table.table_albedo(ext.tables.get_table(spec.film).data)[0, 0]
+    de = float(delta_e_2000(seen[None], expected[None], xyz="E")[0])
+    print(f"{preset}: EEVEE {seen}, table {expected}, ΔE2000 {de:.3f}")
+    assert de <= PLATE_LIMIT, f"{preset}: EEVEE {seen} vs the table's albedo {expected}: ΔE2000 {de:.2f}"
+    props.enabled = False
+    assert ext.sync.sync_material(mat, scene) == "removed"
+
+
+def test_extension_noise_thickness_is_built_inside_the_group(bpy, ext, tmp_path):
+    """An extension material whose thickness varies by noise gets the noise as nodes inside its
+    group (Blender's Noise Texture, as *Write to Principled BSDF* writes it), so EEVEE varies the
+    film over the surface; the material's own tree gains only the group and the output."""
+    scene = _scene(bpy)
+    mat = bpy.data.materials.new("oil")
+    props = mat.thinfilm_sh
+    props.preset = "OIL_ON_WATER"
+    props.enabled = True
+    props.thickness_source = "NOISE"
+    props.noise_scale = 4.0
+    _plate(bpy, scene, mat)
+    ext.sync.sync_material(mat, scene)
+    node, _output = ext.nodes.find(mat.node_tree)
+    inside = {n.bl_idname for n in node.node_tree.nodes}
+    assert "ShaderNodeTexNoise" in inside and "ShaderNodeMapRange" in inside
+    assert {n.bl_idname for n in mat.node_tree.nodes} == {
+        "ShaderNodeBsdfPrincipled",
+        "ShaderNodeOutputMaterial",
+        "ShaderNodeGroup",
+    }
+    pixels = _render(bpy, scene, tmp_path / "oil.exr").reshape(-1, 3)
+    spread = float(np.ptp(pixels, axis=0).max())
+    assert spread > 0.02, f"the film must vary over the plate with the noise (max−min {spread:.4f})"
+
+
+def test_the_groups_equirect_lookup_reads_the_directions_image_as_written(bpy, ext, tmp_path):
+    """The dominant-direction image is read in the reflection direction by the group's equirect
+    lookup (nodes.equirect_lookup): Blender must return, for a direction d, the c the image
+    holds for d (precompute.hdri's pixel order and mapping, Blender's Environment Texture
+    convention). An Emission of the lookup at four directions (a Combine XYZ), rendered by
+    EEVEE, against the texel numpy finds for d."""
+    from precompute import hdri, prefilter
+
+    height, width = 64, 128
+    lamp = np.array([0.5, 0.6, 0.62])
+    lamp /= np.linalg.norm(lamp)
+    image = np.full((height, width, 3), 1e-3)
+    image[(hdri.equirect_directions(height, width) @ lamp) > np.cos(np.radians(4.0))] = 300.0
+    pixels = ext.eevee_table.dominant_directions(prefilter.prefilter(image), 0.6)
+    scene = _scene(bpy, size=4)
+    picture = bpy.data.images.new(
+        "directions", pixels.shape[1], pixels.shape[0], alpha=True, float_buffer=True
+    )
+    picture.colorspace_settings.name = "Non-Color"
+    picture.pixels.foreach_set(pixels.reshape(-1))
+    mat = bpy.data.materials.new("probe")
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    direction = tree.nodes.new("ShaderNodeCombineXYZ")
+    found = ext.nodes.equirect_lookup(tree, tree.links, direction.outputs["Vector"], picture, "light")
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(found, emission.inputs["Color"])
+    tree.links.new(emission.outputs["Emission"], tree.nodes["Material Output"].inputs["Surface"])
+    _plate(bpy, scene, mat)
+    top_first = pixels[::-1, :, :3].astype(np.float64)
+    seen_all = []
+    for d in ((0.3, 0.2, 0.93), (-0.7, 0.1, 0.2), (0.1, -0.9, -0.4), (0.5, 0.6, 0.62)):
+        d = np.array(d) / np.linalg.norm(d)
+        for socket, value in zip(direction.inputs, d, strict=True):
+            socket.default_value = float(value)
+        seen = _render(bpy, scene, tmp_path / "probe.exr").reshape(-1, 3).mean(axis=0)
+        rows, columns = top_first.shape[:2]
+        u = 0.5 - np.arctan2(d[1], d[0]) / (2 * np.pi)
+        row = min(int(np.arccos(d[2]) / np.pi * rows), rows - 1)
+        expected = top_first[row, min(int(u * columns), columns - 1)]
+        assert np.allclose(seen, expected, atol=2e-3), (d, seen, expected)  # half-float storage
+        seen_all.append(seen)
+    assert np.ptp(np.array(seen_all), axis=0).max() > 0.5, "different directions read different texels"

@@ -102,17 +102,20 @@ def test_table_albedo_is_the_split_sums_entry():
 
 def test_image_layout_and_bands():
     """Bands stack in BANDS order, each T rows; pixel (row, column) = the band at (thickness row,
-    view angle); the specular band × E is the albedo; RGBA float32 with alpha 1."""
+    view angle); the specular band is the albedo, the inverse band 1/E (so their product is
+    what EEVEE's Glossy needs); RGBA float32 with alpha 1."""
     desc = _film(thickness_range_nm=(200.0, 600.0), quality={"sh_order": 0, "thickness_samples": 9})
     result = bake.bake(desc)
     made = eevee_table.film_image(result)
     t, a = result.data.shape[:2]
-    assert made.pixels.shape == (t, a, 4) and made.pixels.dtype == np.float32
-    assert made.rows == t and made.thickness_nm == (200.0, 600.0) and made.bands == {"specular": 0}
+    assert made.pixels.shape == (2 * t, a, 4) and made.pixels.dtype == np.float32
+    assert made.rows == t and made.thickness_nm == (200.0, 600.0)
+    assert made.bands == {"specular": 0, "inverse": 1}
     assert np.all(made.pixels[..., 3] == 1.0)
     cos_o = np.cos(result.view_angles_rad)
-    back = made.pixels[..., :3] * eevee_table.eevee_lut_scale(cos_o, 0.3)[None, :, None]
-    assert np.allclose(back, eevee_table.table_albedo(result.data), rtol=2e-6, atol=1e-7)
+    assert np.allclose(made.pixels[:t, :, :3], eevee_table.table_albedo(result.data), rtol=2e-6, atol=1e-7)
+    e = eevee_table.eevee_lut_scale(cos_o, 0.3)
+    assert np.allclose(made.pixels[t:, :, :3] * e[None, :, None], 1.0, rtol=2e-6)
 
 
 def test_wall_bands_follow_the_overlays_wall():
@@ -122,14 +125,14 @@ def test_wall_bands_follow_the_overlays_wall():
     result = bake.bake(desc)
     film = film_colour.film_table(result)
     made = eevee_table.film_image(result, film=film, wall=(transmit.WALL_CYCLES, 1.0))
-    assert made.bands == {"specular": 0, "transmission": 1}
+    assert made.bands == {"specular": 0, "inverse": 1, "transmission": 2}
     cos_o = np.cos(result.view_angles_rad)
     r = eevee_table.white_reflectance_at(film, cos_o)
     t, s = transmit.wall(r, cos_o[None, :], transmit.WALL_CYCLES)
-    assert np.allclose(made.pixels[1:2, :, :3], t, atol=1e-6)
-    spec = eevee_table.table_albedo(result.data) * s / eevee_table.eevee_lut_scale(cos_o, 0.1)[None, :, None]
+    assert np.allclose(made.pixels[2:3, :, :3], t, atol=1e-6)
+    spec = eevee_table.table_albedo(result.data) * s
     assert np.allclose(made.pixels[0:1, :, :3], spec, rtol=1e-5, atol=1e-7)
-    through = made.pixels[1, cos_o > 0.5, :3]  # a soap film lets most light through, short of grazing
+    through = made.pixels[2, cos_o > 0.5, :3]  # a soap film lets most light through, short of grazing
     assert np.all(through < 1.0) and np.all(through > 0.5), through
 
 
@@ -140,10 +143,36 @@ def test_diffuse_band_is_the_weight_under_the_film():
     film = bake.bake(_film(quality={"sh_order": 0}))
     full = bake.bake(_film(base_color=base, quality={"sh_order": 0}))
     made = eevee_table.film_image(film, base_result=full, base_color=base)
-    assert made.bands == {"specular": 0, "diffuse": 1}
-    weight = made.pixels[1, :, :3]
+    assert made.bands == {"specular": 0, "inverse": 1, "diffuse": 2}
+    weight = made.pixels[2, :, :3]
     assert np.all(weight >= 0.0) and np.all(weight <= 1.0 + 1e-6)
     assert np.allclose(weight[:, 0], weight[:, 1], atol=1e-6) and np.allclose(
         weight[:, 1], weight[:, 2], atol=1e-6
     )
     assert weight[0, 0] > 0.8  # a weak film over a dielectric: most light reaches the base
+
+
+def test_dominant_directions_point_at_a_lamp():
+    """A black World with one small bright lamp: in every reflection direction whose GGX lobe
+    reaches the lamp, the lobe light's mean direction c is the lamp's; the image is in Blender's
+    pixel order (bottom row first, its Environment Texture mapping) and c is a unit vector. A
+    World without moments gives the reflection direction itself."""
+    from precompute import hdri, prefilter
+
+    height, width = 64, 128
+    image = np.full((height, width, 3), 1e-4)
+    lamp = np.array([0.6, -0.3, 0.74])
+    lamp /= np.linalg.norm(lamp)
+    directions = hdri.equirect_directions(height, width)
+    image[(directions @ lamp) > np.cos(np.radians(3.0))] = 500.0
+    pre = prefilter.prefilter(image)
+    pixels = eevee_table.dominant_directions(pre, 0.3, size=(64, 32))
+    assert pixels.shape == (32, 64, 4)
+    c = 2.0 * pixels[::-1, :, :3] - 1.0  # top row first again, as hdri.equirect_directions; decoded
+    grid = hdri.equirect_directions(32, 64)
+    near = (grid @ lamp) > np.cos(np.radians(20.0))
+    assert near.sum() > 4
+    assert np.all(c[near] @ lamp > 0.99), "near the lamp the mean light direction is the lamp's"
+    assert np.allclose(np.linalg.norm(c, axis=-1), 1.0, atol=1e-5)
+    plain = eevee_table.dominant_directions(None, 0.3, size=(64, 32))
+    assert np.allclose(2.0 * plain[::-1, :, :3] - 1.0, grid, atol=1e-6)

@@ -13,9 +13,13 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-__all__ = ["IMAGE_PREFIX", "KEY", "OWNER", "ensure", "stored_key", "write"]
+from . import nodes
+
+__all__ = ["IMAGE_PREFIX", "KEY", "LIGHT_PREFIX", "OWNER", "ensure", "ensure_light", "stored_key", "write"]
 
 IMAGE_PREFIX = "TF EEVEE · "
+#: The dominant-direction image's name prefix.
+LIGHT_PREFIX = "TF EEVEE Light · "
 #: Custom properties on the image: the key of its content, and a mark that the extension made it.
 KEY = "thinfilm_eevee_key"
 OWNER = "thinfilm_eevee_group"
@@ -27,11 +31,11 @@ def stored_key(image) -> str | None:
 
 
 def _owned(image, group) -> bool:
-    """Whether ``group`` alone uses ``image`` (each of its band textures counts one user): an
-    image shared with a copied material's group is not."""
+    """Whether ``group`` alone uses ``image`` (each of its textures counts one user): an image
+    shared with a copied material's group is not."""
     if image is None or image.library is not None:
         return False
-    mine = sum(1 for n in group.nodes if n.bl_idname == "ShaderNodeTexImage" and n.image == image)
+    mine = sum(1 for n in group.nodes if getattr(n, "image", None) == image)
     return image.users <= mine
 
 
@@ -45,11 +49,23 @@ def _new(name: str, width: int, height: int):
 def ensure(group, material_name: str, width: int, height: int):
     """The image ``group`` reads, made for it when it has none or shares one with another group
     (a copied material), resized to ``width`` × ``height`` when its table's size changed."""
-    current = next(
-        (n.image for n in group.nodes if n.bl_idname == "ShaderNodeTexImage" and n.image is not None), None
-    )
+    current = nodes.film_image_of(group)
     if not _owned(current, group):
         image = _new(IMAGE_PREFIX + material_name, width, height)
+        image[OWNER] = 1
+        return image
+    if tuple(current.size) != (width, height):
+        current.scale(width, height)
+    return current
+
+
+def ensure_light(group, material_name: str, width: int, height: int):
+    """The dominant-direction image of ``group`` (its Environment Texture "light"), made when it
+    has none or shares one, resized when needed."""
+    node = group.nodes.get("light")
+    current = getattr(node, "image", None)
+    if not _owned(current, group):
+        image = _new(LIGHT_PREFIX + material_name, width, height)
         image[OWNER] = 1
         return image
     if tuple(current.size) != (width, height):

@@ -5,12 +5,15 @@ The group (one per material, named ``TF EEVEE Film · <material>``) reads the fi
 thickness and shades with EEVEE's own closures:
 
 - θo = acos |N · I| (Geometry: *Normal*, or the material's own normal link; *Incoming*), mapped
-  to the image's width; the *Thickness* input (nm) mapped through the table's rows to its height
-  (Map Range, clamped), one band of rows per quantity; each band read bilinearly from four
-  *Closest* texels (EEVEE mipmaps *Linear* images by screen derivatives, which would mix rows
-  where the thickness changes fast and columns near normal incidence, where acos is steep);
-- a **Glossy BSDF** (GGX, single scattering) of the *specular* band's colour: EEVEE multiplies it
-  by its split sum, which the band is divided by, so EEVEE returns the film's albedo;
+  to the image's width, and θ' = the half-vector angle of the lobe light's mean direction c
+  (read from the dominant-direction image in the reflection direction, an equirect lookup
+  built of math nodes), where the specular band is read; the *Thickness* input (nm) mapped through the
+  table's rows to its height (Map Range, clamped), one band of rows per quantity; each band
+  read bilinearly from four *Closest* texels (EEVEE mipmaps *Linear* images by screen
+  derivatives, which would mix rows where the thickness changes fast and columns near normal
+  incidence, where acos is steep);
+- a **Glossy BSDF** (GGX, single scattering) of the *specular* band at θ' times the *inverse*
+  band (1/E) at θo: EEVEE multiplies it by its split sum E, so it returns the film's albedo;
 - a **Diffuse BSDF** of *Base Color* × the *diffuse* band (a diffuse base under the film);
 - a **Transparent BSDF** of the *transmission* band (a thin wall: soap bubble, window), or a
   **Refraction BSDF** of it (solid glass).
@@ -36,11 +39,15 @@ __all__ = [
     "NODE_OUTPUT",
     "TAG",
     "Structure",
+    "band_textures",
     "ensure",
+    "equirect_lookup",
+    "film_image_of",
     "find",
     "remove",
     "set_constants",
     "set_image",
+    "set_light",
 ]
 
 #: Names of the two nodes added to a material's tree, and the node groups' name prefix.
@@ -50,7 +57,7 @@ GROUP_PREFIX = "TF EEVEE Film · "
 #: Custom property marking what the extension added (on the two nodes and the group).
 TAG = "thinfilm_eevee"
 #: Version of the group's inside: a group built by another version is rebuilt.
-LAYOUT_VERSION = 2
+LAYOUT_VERSION = 5
 #: The group's inputs.
 IN_THICKNESS, IN_ROUGHNESS, IN_NORMAL, IN_BASE = "Thickness", "Roughness", "Normal", "Base Color"
 
@@ -64,7 +71,7 @@ class Structure:
     "transparent" (a thin wall: Transparent BSDF) or "refraction" (solid glass).
     """
 
-    bands: tuple = ("specular",)
+    bands: tuple = ("specular", "inverse")
     normal: bool = False
     wall: str = ""
 
@@ -107,24 +114,109 @@ def _split(tree, links, value, name: str, y: float):
     return low.outputs[0], weight.outputs[0]
 
 
-def _view_column(tree, normal, links):
-    """The texel column of the view angle, px = acos|N·I| · (A − 1) / (π/2) (node "x",
-    :func:`set_constants`), split into its lower texel and weight."""
-    geometry = _node(tree, "ShaderNodeNewGeometry", "Geometry", -1500, 300)
-    dot = _node(tree, "ShaderNodeVectorMath", "N·I", -1350, 300, operation="DOT_PRODUCT")
-    links.new(normal if normal is not None else geometry.outputs["Normal"], dot.inputs[0])
+def _view_cosine(tree, links, normal, geometry):
+    """cos θo = min(|N·I|, 1)."""
+    dot = _node(tree, "ShaderNodeVectorMath", "N·I", -1650, 500, operation="DOT_PRODUCT")
+    links.new(normal, dot.inputs[0])
     links.new(geometry.outputs["Incoming"], dot.inputs[1])
-    absolute = _math(tree, "ABSOLUTE", "|N·I|", -1200, 300)
+    absolute = _math(tree, "ABSOLUTE", "|N·I|", -1500, 500)
     links.new(dot.outputs["Value"], absolute.inputs[0])
-    clamp = _math(tree, "MINIMUM", "cos θo", -1050, 300)
+    clamp = _math(tree, "MINIMUM", "cos θo", -1350, 500)
     clamp.inputs[1].default_value = 1.0
     links.new(absolute.outputs[0], clamp.inputs[0])
-    angle = _math(tree, "ARCCOSINE", "θo", -900, 300)
-    links.new(clamp.outputs[0], angle.inputs[0])
-    column = _math(tree, "MULTIPLY", "x", -850, 300)
+    return clamp.outputs[0]
+
+
+def _light_cosine(tree, links, normal, geometry, cos_view, light):
+    """cos θ' = √((1 + I·c)/2), c the lobe light's mean direction read from the ``light`` image
+    (:func:`equirect_lookup`, in the reflection direction R = 2(N·I)N − I; stored as (c + 1)/2),
+    mixed with cos θo by the
+    socket value of node "dominant" (0: no World analysed yet, :func:`set_constants`)."""
+    incoming = geometry.outputs["Incoming"]
+    dot = _node(tree, "ShaderNodeVectorMath", "N·I (R)", -1650, 800, operation="DOT_PRODUCT")
+    links.new(normal, dot.inputs[0])
+    links.new(incoming, dot.inputs[1])
+    twice = _node(tree, "ShaderNodeVectorMath", "2(N·I)N", -1500, 800, operation="SCALE")
+    links.new(normal, twice.inputs[0])
+    double = _math(tree, "MULTIPLY", "2 N·I", -1500, 950)
+    links.new(dot.outputs["Value"], double.inputs[0])
+    double.inputs[1].default_value = 2.0
+    links.new(double.outputs[0], twice.inputs["Scale"])
+    reflected = _node(tree, "ShaderNodeVectorMath", "R", -1350, 800, operation="SUBTRACT")
+    links.new(twice.outputs["Vector"], reflected.inputs[0])
+    links.new(incoming, reflected.inputs[1])
+    lookup = equirect_lookup(tree, links, reflected.outputs["Vector"], light, "light", (-1200, 1100))
+    decoded = _node(tree, "ShaderNodeVectorMath", "2t − 1", -1050, 800, operation="MULTIPLY_ADD")
+    links.new(lookup, decoded.inputs[0])
+    decoded.inputs[1].default_value = (2.0, 2.0, 2.0)
+    decoded.inputs[2].default_value = (-1.0, -1.0, -1.0)
+    unit = _node(tree, "ShaderNodeVectorMath", "c", -950, 800, operation="NORMALIZE")
+    links.new(decoded.outputs["Vector"], unit.inputs[0])
+    toward = _node(tree, "ShaderNodeVectorMath", "I·c", -800, 800, operation="DOT_PRODUCT")
+    links.new(incoming, toward.inputs[0])
+    links.new(unit.outputs["Vector"], toward.inputs[1])
+    half = _math(tree, "MULTIPLY_ADD", "(1 + I·c)/2", -650, 800)
+    half.use_clamp = True
+    half.inputs[1].default_value = 0.5
+    half.inputs[2].default_value = 0.5
+    links.new(toward.outputs["Value"], half.inputs[0])
+    root = _math(tree, "SQRT", "cos θ'", -500, 800)
+    links.new(half.outputs[0], root.inputs[0])
+    mix = _node(tree, "ShaderNodeMix", "dominant", -350, 700, data_type="FLOAT")
+    mix.inputs["Factor"].default_value = 0.0
+    links.new(cos_view, mix.inputs["A"])
+    links.new(root.outputs[0], mix.inputs["B"])
+    return mix.outputs["Result"]
+
+
+def equirect_lookup(tree, links, direction, image, name: str, at=(0.0, 0.0)):
+    """The equirect ``image`` in ``direction`` (a vector socket, world space), Blender's
+    Environment Texture mapping (u = ½ − atan2(y, x)/2π, v = ½ + atan2(z, √(x² + y²))/π), read
+    by an Image Texture node ``name`` (*Closest*: the texel, no mipmaps). EEVEE's own Environment
+    Texture node did not follow a linked direction in an object's material here (every
+    direction returned one texel), so the mapping is built from math nodes. Returns the colour."""
+    x, y = at
+    split = _node(tree, "ShaderNodeSeparateXYZ", f"{name} xyz", x, y)
+    links.new(direction, split.inputs["Vector"])
+    azimuth = _math(tree, "ARCTAN2", f"{name} φ", x + 150, y)
+    links.new(split.outputs["Y"], azimuth.inputs[0])
+    links.new(split.outputs["X"], azimuth.inputs[1])
+    u = _math(tree, "MULTIPLY_ADD", f"{name} u", x + 300, y)
+    u.inputs[1].default_value = -0.5 / math.pi
+    u.inputs[2].default_value = 0.5
+    links.new(azimuth.outputs[0], u.inputs[0])
+    flat = _node(tree, "ShaderNodeCombineXYZ", f"{name} xy", x + 150, y - 150)
+    links.new(split.outputs["X"], flat.inputs["X"])
+    links.new(split.outputs["Y"], flat.inputs["Y"])
+    across = _node(tree, "ShaderNodeVectorMath", f"{name} ρ", x + 300, y - 150, operation="LENGTH")
+    links.new(flat.outputs["Vector"], across.inputs[0])
+    elevation = _math(tree, "ARCTAN2", f"{name} ψ", x + 450, y - 150)
+    links.new(split.outputs["Z"], elevation.inputs[0])
+    links.new(across.outputs["Value"], elevation.inputs[1])
+    v = _math(tree, "MULTIPLY_ADD", f"{name} v", x + 600, y - 150)
+    v.inputs[1].default_value = 1.0 / math.pi
+    v.inputs[2].default_value = 0.5
+    links.new(elevation.outputs[0], v.inputs[0])
+    uv = _node(tree, "ShaderNodeCombineXYZ", f"{name} uv", x + 750, y)
+    links.new(u.outputs[0], uv.inputs["X"])
+    links.new(v.outputs[0], uv.inputs["Y"])
+    texture = _node(tree, "ShaderNodeTexImage", name, x + 900, y, interpolation="Closest", extension="EXTEND")
+    texture.image = image
+    links.new(uv.outputs["Vector"], texture.inputs["Vector"])
+    return texture.outputs["Color"]
+
+
+def _columns(tree, links, cosine, tag: str, y: float):
+    """(u0, u1, fx): the two texel columns either side of the angle acos(``cosine``) and the
+    weight; px = θ (A − 1)/(π/2) in node "x ``tag``" (:func:`set_constants`)."""
+    angle = _math(tree, "ARCCOSINE", f"θ {tag}", -1000, y)
+    links.new(cosine, angle.inputs[0])
+    column = _math(tree, "MULTIPLY", f"x {tag}", -850, y)
     links.new(angle.outputs[0], column.inputs[0])
-    low, weight = _split(tree, links, column.outputs[0], "x", 300)
-    return low, weight, geometry
+    low, weight = _split(tree, links, column.outputs[0], f"x {tag}", y)
+    u0 = _offset(tree, links, low, f"u0 {tag}", -450, y)
+    u1 = _offset(tree, links, low, f"u1 {tag}", -450, y - 120)
+    return u0, u1, weight
 
 
 def _texel(tree, links, image, name: str, u, v, x: float, y: float):
@@ -135,7 +227,7 @@ def _texel(tree, links, image, name: str, u, v, x: float, y: float):
     links.new(u, combine.inputs["X"])
     links.new(v, combine.inputs["Y"])
     texture = _node(
-        tree, "ShaderNodeTexImage", f"texel {name}", x + 170, y, interpolation="Closest", extension="EXTEND"
+        tree, "ShaderNodeTexImage", TEXEL + name, x + 170, y, interpolation="Closest", extension="EXTEND"
     )
     texture.image = image
     links.new(combine.outputs["Vector"], texture.inputs["Vector"])
@@ -182,18 +274,25 @@ def _build(group, structure: Structure, image) -> None:
     _interface(group, structure)
     inputs = _node(tree, "NodeGroupInput", "Group Input", -1700, 0)
     output = _node(tree, "NodeGroupOutput", "Group Output", 950, 0)
-    normal = inputs.outputs[IN_NORMAL] if structure.normal else None
-    x0, fx, geometry = _view_column(tree, normal, links)
-    normal = normal if normal is not None else geometry.outputs["Normal"]
-    columns = (_offset(tree, links, x0, "u0", -450, 300), _offset(tree, links, x0, "u1", -450, 150), fx)
+    geometry = _node(tree, "ShaderNodeNewGeometry", "Geometry", -1850, 600)
+    normal = inputs.outputs[IN_NORMAL] if structure.normal else geometry.outputs["Normal"]
+    cos_view = _view_cosine(tree, links, normal, geometry)
+    cos_light = _light_cosine(tree, links, normal, geometry, cos_view, None)
+    view = _columns(tree, links, cos_view, "v", 450)
+    light = _columns(tree, links, cos_light, "l", 250)
     row = _node(tree, "ShaderNodeMapRange", "row", -1050, 0, clamp=True)
     links.new(inputs.outputs[IN_THICKNESS], row.inputs["Value"])
     rows = _split(tree, links, row.outputs["Result"], "y", 0)
     colours = {
-        name: _band_lookup(tree, links, image, i, columns, rows) for i, name in enumerate(structure.bands)
+        name: _band_lookup(tree, links, image, i, light if name == "specular" else view, rows)
+        for i, name in enumerate(structure.bands)
     }
-    glossy = _node(tree, "ShaderNodeBsdfGlossy", "Film", 500, 300, distribution="GGX")
-    links.new(colours["specular"], glossy.inputs["Color"])
+    scaled = _node(tree, "ShaderNodeMix", "A / E", 450, 150, data_type="RGBA", blend_type="MULTIPLY")
+    scaled.inputs["Factor"].default_value = 1.0
+    links.new(colours["specular"], scaled.inputs["A"])
+    links.new(colours["inverse"], scaled.inputs["B"])
+    glossy = _node(tree, "ShaderNodeBsdfGlossy", "Film", 650, 300, distribution="GGX")
+    links.new(scaled.outputs["Result"], glossy.inputs["Color"])
     links.new(inputs.outputs[IN_ROUGHNESS], glossy.inputs["Roughness"])
     links.new(normal, glossy.inputs["Normal"])
     shader = glossy.outputs["BSDF"]
@@ -229,20 +328,23 @@ def _transmission(tree, links, inputs, colour, normal, structure):
     return bsdf.outputs["BSDF"]
 
 
-def set_constants(group, layout, ior: float = 1.0) -> None:
+def set_constants(group, layout, ior: float = 1.0, dominant: bool = False) -> None:
     """Write the image's axes into the group's socket values (no shader recompile):
     ``layout`` is a :class:`precompute.eevee_table.FilmImage` (or anything with its ``width``,
-    ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index.
+    ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index;
+    ``dominant``: read the specular band at the lobe light's angle θ' (a dominant-direction
+    image is set), else at the view angle.
 
     Texel coordinates: the view column px = θo (A − 1)/(π/2), the row py = (d − lo)/(hi − lo)
     (T − 1) (clamped); a texel (i, j) of band b is read at ((i + 0.5)/A, (j + bT + 0.5)/H).
     """
     nodes = group.nodes
     width, height, rows = int(layout.width), int(layout.height), int(layout.rows)
-    nodes["x"].inputs[1].default_value = (width - 1) / (0.5 * math.pi)
-    for name, offset in (("u0", 0.5), ("u1", 1.5)):
-        nodes[name].inputs[1].default_value = 1.0 / width
-        nodes[name].inputs[2].default_value = offset / width
+    for tag in ("v", "l"):
+        nodes[f"x {tag}"].inputs[1].default_value = (width - 1) / (0.5 * math.pi)
+        for name, offset in ((f"u0 {tag}", 0.5), (f"u1 {tag}", 1.5)):
+            nodes[name].inputs[1].default_value = 1.0 / width
+            nodes[name].inputs[2].default_value = offset / width
     lo, hi = layout.thickness_nm
     row = nodes["row"]
     row.inputs["From Min"].default_value = float(lo)
@@ -255,6 +357,7 @@ def set_constants(group, layout, ior: float = 1.0) -> None:
             nodes[name].inputs[1].default_value = 1.0 / height
             nodes[name].inputs[2].default_value = (band * rows + offset) / height
         band += 1
+    nodes["dominant"].inputs["Factor"].default_value = 1.0 if dominant else 0.0
     through = nodes.get("Through")
     if through is not None and "IOR" in through.inputs:
         through.inputs["IOR"].default_value = float(ior)
@@ -310,10 +413,32 @@ def ensure(tree, material_name: str, structure: Structure):
     return node
 
 
+def set_light(group, image) -> None:
+    """Point the group's dominant-direction lookup (Environment Texture "light") at ``image``."""
+    node = group.nodes.get("light")
+    if node is not None and node.image != image:
+        node.image = image
+
+
+#: Name prefix of the band lookups' Image Texture nodes (the film image's readers).
+TEXEL = "texel "
+
+
+def band_textures(group) -> list:
+    """The Image Texture nodes of ``group`` that read the film image (not the dominant-direction
+    lookup, not an image thickness source built inside the group)."""
+    return [n for n in group.nodes if n.bl_idname == "ShaderNodeTexImage" and n.name.startswith(TEXEL)]
+
+
+def film_image_of(group):
+    """The film image ``group`` reads, or None."""
+    return next((n.image for n in band_textures(group) if n.image is not None), None)
+
+
 def set_image(group, image) -> None:
-    """Point every band's Image Texture of ``group`` at ``image``."""
-    for node in group.nodes:
-        if node.bl_idname == "ShaderNodeTexImage" and node.image != image:
+    """Point every band lookup of ``group`` at ``image``."""
+    for node in band_textures(group):
+        if node.image != image:
             node.image = image
 
 

@@ -9,8 +9,10 @@
   animation (F12 on every frame, ``blender -b -a``) reads the right row natively;
 - ``base``: the same film with its diffuse base, and the base colour, when it has one;
 - ``wall``: a transparent film's wall (:func:`..transparency.wall`) and how EEVEE shows it;
-- ``feeds``: what drives the group's inputs: the Principled socket a link or a driver copies, or a
-  constant.
+- ``feeds``: what drives the group's inputs: the Principled socket a link or an F-curve copies,
+  or a constant;
+- ``world``: the analysed World (the overlay's, ``scene_draw.world_lighting``) whose lobe-light
+  directions the film's colour is read at (:func:`precompute.eevee_table.dominant_directions`).
 
 ``Spec.key`` names everything the image depends on: an image holding that key is up to date.
 """
@@ -27,7 +29,7 @@ from ...precompute.shading import transmit
 from .. import description, linked, principled, transparency
 from .nodes import Structure
 
-__all__ = ["Feed", "Spec", "animated_range", "spec"]
+__all__ = ["Feed", "Spec", "WorldRef", "animated_range", "spec"]
 
 #: The Principled inputs the group copies, by group input.
 PRINCIPLED_FEEDS = {
@@ -50,6 +52,17 @@ class Feed:
 
 
 @dataclass(frozen=True)
+class WorldRef:
+    """The World the dominant-direction image is made from: the lighting's ``key`` (content and
+    parameters), its analysed ``environment`` (:class:`precompute.environment.Environment`, the
+    content's frame) and ``matrix`` Q (image direction = Q · world direction, None: identity)."""
+
+    key: str
+    environment: object
+    matrix: object = None
+
+
+@dataclass(frozen=True)
 class Spec:
     """A material's EEVEE film (see the module docstring)."""
 
@@ -61,13 +74,16 @@ class Spec:
     feeds: dict
     ior: float
     principled_node: str | None
+    world: WorldRef | None = None
 
     @property
     def key(self) -> str:
-        """Everything the image depends on."""
+        """Everything the images depend on."""
         parts = [description.description_key(self.film), str(eevee_table.FORMAT_VERSION), repr(self.wall)]
         if self.base is not None:
             parts += [description.description_key(self.base), repr(self.base_color)]
+        if self.world is not None:
+            parts.append(self.world.key)
         return "|".join(parts)
 
 
@@ -142,11 +158,12 @@ def _props_feeds(props, desc: Material) -> dict:
     }
 
 
-def spec(material, scene=None) -> Spec | None:
+def spec(material, scene=None, world: WorldRef | None = None) -> Spec | None:
     """The :class:`Spec` of ``material``, or None when it shows no film. Raises ValueError for a
     film that cannot be evaluated (the panel shows why) and :class:`..linked.Pending` while a
     linked thickness waits for its Cycles bake (inside ``linked.deferring``): nothing is known
-    then, and the caller leaves the material as it is."""
+    then, and the caller leaves the material as it is. ``world``: the World whose lobe light
+    directions the specular band is read at (None: at the view angle)."""
     props = getattr(material, "thinfilm_sh", None)
     own = props is not None and props.enabled
     if not own and principled.linked_thickness_socket(material) is not None and linked.has_pending():
@@ -172,7 +189,11 @@ def spec(material, scene=None) -> Spec | None:
         if desc.base_color
         else None
     )
-    bands = ("specular",) + (("diffuse",) if base is not None else ()) + (("transmission",) if wall else ())
+    bands = (
+        ("specular", "inverse")
+        + (("diffuse",) if base is not None else ())
+        + (("transmission",) if wall else ())
+    )
     return Spec(
         film=film,
         base=base,
@@ -182,4 +203,5 @@ def spec(material, scene=None) -> Spec | None:
         feeds=feeds,
         ior=ior,
         principled_node=node_name,
+        world=world,
     )

@@ -28,7 +28,7 @@ import time
 import bpy
 
 from ...precompute import eevee_table
-from .. import bake_helper, linked, tables
+from .. import bake_helper, linked, scene_draw, tables
 from . import image as film_image_store
 from . import nodes, source, wiring
 
@@ -38,6 +38,10 @@ log = logging.getLogger(__name__)
 
 #: Seconds between the timer's looks while work is queued or running.
 POLL_S = 0.02
+#: Seconds between its looks at the World's analysis while the file has EEVEE films: a new World
+#: (or a Strength or rotation edit) changes their dominant-direction image.
+WORLD_POLL_S = 0.5
+_world_key: str | None = None  # the World analysis the films were last read with
 _queue: queue.Queue = queue.Queue()
 _done: list = []  # (material name, spec, FilmImage | Exception), filled by the worker
 _lock = threading.Lock()
@@ -50,25 +54,47 @@ _idle.set()
 write_seconds: list[float] = []
 
 
-def compute(spec: source.Spec, cache=None, baker=None) -> eevee_table.FilmImage:
-    """The image of ``spec``: its table (:func:`..tables.get_table_with_source`), the diffuse
-    base's and the film table a wall needs, then the pixels. Thread-safe, no bpy."""
+def compute(spec: source.Spec, cache=None, baker=None):
+    """(film image, dominant-direction pixels or None) of ``spec``: its table
+    (:func:`..tables.get_table_with_source`), the diffuse base's and the film table a wall
+    needs, then the pixels; the World's prefilter with moments (computed here the first time:
+    seconds) and the directions at the film's roughness. Thread-safe, no bpy."""
     result = tables.get_table_with_source(spec.film, cache, baker=baker)[0]
     film = tables.get_film(spec.film, result) if spec.wall is not None else None
     base = tables.get_table(spec.base, cache) if spec.base is not None else None
-    return eevee_table.film_image(
+    made = eevee_table.film_image(
         result, film=film, wall=spec.wall, base_result=base, base_color=spec.base_color
     )
+    light = None
+    if spec.world is not None:
+        pre = spec.world.environment.prefiltered_whole
+        if spec.world.matrix is not None:
+            pre = pre.transformed(rotation=spec.world.matrix)
+        light = eevee_table.dominant_directions(pre, float(spec.film.roughness))
+    return made, light
 
 
-def _spec_of(material, scene, defer: bool):
+def world_of(scene) -> source.WorldRef | None:
+    """The scene's World as the overlay analysed it (``scene_draw.world_lighting``): analysed
+    here in background mode, else the last analysis (the viewport's worker makes it), or None."""
+    try:
+        lighting = scene_draw.world_lighting(scene, allow_compute=bpy.app.background)
+    except Exception as exc:  # the film is still written, read at the view angle
+        log.info("Thin Film SH: no World analysis for EEVEE films: %s", exc)
+        return None
+    if lighting is None or lighting.environment is None:
+        return None
+    return source.WorldRef(lighting.key, lighting.environment, lighting.matrix)
+
+
+def _spec_of(material, scene, defer: bool, world):
     """(spec or None, True if known). ``defer``: a linked thickness that needs a Cycles bake is
     queued (:func:`..linked.deferring`) and the film is not known until it is done."""
     try:
         if defer:
             with linked.deferring():
-                return source.spec(material, scene), True
-        return source.spec(material, scene), True
+                return source.spec(material, scene, world), True
+        return source.spec(material, scene, world), True
     except linked.Pending:
         return None, False
     except ValueError as exc:  # the panel and the overlay say why; EEVEE keeps what it had
@@ -77,35 +103,31 @@ def _spec_of(material, scene, defer: bool):
 
 
 def _current_key(material) -> str | None:
+    """The key of the film image ``material``'s group reads (None: no EEVEE path)."""
     node, _output = nodes.find(material.node_tree)
     if node is None or node.node_tree is None:
         return None
-    image = next(
-        (
-            n.image
-            for n in node.node_tree.nodes
-            if n.bl_idname == "ShaderNodeTexImage" and n.image is not None
-        ),
-        None,
-    )
-    return film_image_store.stored_key(image)
+    return film_image_store.stored_key(nodes.film_image_of(node.node_tree))
 
 
 def _written(material, spec, made) -> None:
     t0 = time.perf_counter()
-    wiring.apply(material, spec, made)
+    wiring.apply(material, spec, *made)
     write_seconds.append(time.perf_counter() - t0)
 
 
-def sync_material(material, scene=None, wait: bool = True, defer: bool | None = None) -> str:
+def sync_material(material, scene=None, wait: bool = True, defer: bool | None = None, world=False) -> str:
     """Bring ``material``'s EEVEE path in step: "removed", "unchanged", "written" (``wait``: baked
     here), "queued" (the worker bakes it), "read-only" (a linked material) or "unknown" (its film
     cannot be evaluated now). ``defer`` (default: not ``wait``): a linked thickness that needs a
-    Cycles bake is queued instead of baked here. Main thread."""
+    Cycles bake is queued instead of baked here. ``world``: a :class:`.source.WorldRef` (or None)
+    already read for this scene, else it is read here (:func:`world_of`). Main thread."""
     if material.node_tree is None or wiring.is_read_only(material):
         return "read-only"
     scene = scene or bpy.context.scene
-    spec, known = _spec_of(material, scene, (not wait) if defer is None else defer)
+    if world is False:
+        world = world_of(scene)
+    spec, known = _spec_of(material, scene, (not wait) if defer is None else defer, world)
     if not known:
         return "unknown"
     if spec is None:
@@ -139,8 +161,12 @@ def sync_material(material, scene=None, wait: bool = True, defer: bool | None = 
 
 def sync_all(scene=None, wait: bool = True, defer: bool | None = None) -> dict[str, str]:
     """:func:`sync_material` for every material of the file; {name: outcome}."""
+    scene = scene or bpy.context.scene
+    world = world_of(scene)
     return {
-        m.name: sync_material(m, scene, wait, defer) for m in bpy.data.materials if m.node_tree is not None
+        m.name: sync_material(m, scene, wait, defer, world)
+        for m in bpy.data.materials
+        if m.node_tree is not None
     }
 
 
@@ -211,12 +237,18 @@ def _service() -> float | None:
         names = list(_dirty)
         _dirty.clear()
     scene = bpy.context.scene
+    world = world_of(scene)
+    current = None if world is None else world.key
+    global _world_key
+    if current != _world_key:  # the overlay's worker analysed a new World (no depsgraph update)
+        _world_key = current
+        names = sorted(set(names) | {m.name for m in bpy.data.materials if nodes.find(m.node_tree)[0]})
     unknown = []
     for name in names:
         material = bpy.data.materials.get(name)
         if material is not None:
             try:
-                if sync_material(material, scene, wait=False) == "unknown":
+                if sync_material(material, scene, wait=False, world=world) == "unknown":
                     unknown.append(name)
             except Exception as exc:  # a timer must never raise
                 log.error("Thin Film SH: EEVEE film of %r: %s", name, exc)
@@ -226,7 +258,9 @@ def _service() -> float | None:
         with _lock:
             _dirty.update(unknown)  # known now: read again at the next tick
     _finish()
-    return POLL_S if pending() else None
+    if pending():
+        return POLL_S
+    return WORLD_POLL_S if any(nodes.find(m.node_tree)[0] for m in bpy.data.materials) else None
 
 
 def _schedule() -> None:
@@ -241,6 +275,8 @@ def _on_depsgraph(scene, depsgraph) -> None:
         found = update.id
         if isinstance(found, bpy.types.Material):
             touched.append(getattr(found, "original", found).name)
+        elif isinstance(found, (bpy.types.World, bpy.types.Scene)):
+            _schedule()  # the timer compares the World's analysis with the films' own
     if touched:
         with _lock:
             _dirty.update(touched)

@@ -199,16 +199,23 @@ def restore_settings(material) -> None:
     output[RESTORE] = "{}"
 
 
-def apply(material, spec: Spec, made) -> None:
-    """Write ``made`` (a :class:`precompute.eevee_table.FilmImage`) as ``material``'s EEVEE film
-    for ``spec``, creating or repairing its nodes. Main thread."""
+def apply(material, spec: Spec, made, light=None) -> None:
+    """Write ``made`` (a :class:`precompute.eevee_table.FilmImage`) and ``light`` (the
+    dominant-direction pixels, :func:`precompute.eevee_table.dominant_directions`, or None: read
+    at the view angle) as ``material``'s EEVEE film for ``spec``, creating or repairing its
+    nodes. Main thread."""
     tree = material.node_tree
     node = nodes.ensure(tree, material.name, spec.structure)
     group = node.node_tree
+    if light is not None:
+        height, width = light.shape[:2]
+        directions = film_image_store.ensure_light(group, material.name, width, height)
+        film_image_store.write(directions, light, spec.key)
+        nodes.set_light(group, directions)
     picture = film_image_store.ensure(group, material.name, made.width, made.height)
     film_image_store.write(picture, made.pixels, spec.key)
     nodes.set_image(group, picture)
-    nodes.set_constants(group, made, spec.ior)
+    nodes.set_constants(group, made, spec.ior, dominant=light is not None)
     feed(material, node, spec, getattr(material, "thinfilm_sh", None))
     _group, output = nodes.find(tree)
     _settings(material, output, spec.structure.wall)
@@ -226,9 +233,7 @@ def remove(material) -> bool:
         _drop_curve(tree, name)
     group = nodes.remove(tree)
     if group is not None and group.users == 0 and group.get(nodes.TAG):
-        pictures = {
-            n.image for n in group.nodes if n.bl_idname == "ShaderNodeTexImage" and n.image is not None
-        }
+        pictures = {n.image for n in group.nodes if getattr(n, "image", None) is not None}
         bpy.data.node_groups.remove(group)
         for picture in pictures:
             if picture.users == 0 and picture.get(film_image_store.OWNER) is not None:
