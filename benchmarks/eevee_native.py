@@ -473,8 +473,9 @@ def report_lines(rows, seconds: float, command: str) -> list[str]:
 
 
 def main_thread_costs(runs: int = 7) -> list[dict]:
-    """What an edit costs Blender's main thread, per preset material on a sphere: reading its
-    spec (:func:`addon.eevee.source.spec`) and writing a computed image in place
+    """What an edit costs Blender's main thread, per preset material on a sphere under the studio
+    HDRI: reading its spec (:func:`addon.eevee.source.spec`), the timer's look at the World's
+    analysis (:func:`addon.eevee.sync.world_of`, once per tick) and writing the computed images in place
     (:func:`addon.eevee.wiring.apply`: copy, update, pack), medians of ``runs``; and the worker's
     share (table from memory + pixels, :func:`addon.eevee.sync.compute`) for scale."""
     bpy = _bpy()
@@ -482,25 +483,31 @@ def main_thread_costs(runs: int = 7) -> list[dict]:
     sync = importlib.import_module("thinfilm_sh.addon.eevee.sync")
     wiring = importlib.import_module("thinfilm_sh.addon.eevee.wiring")
     out = []
+    import make_scenes
+
     for preset in ("SOAP_FILM", "OIL_ON_WATER", "ANODISED_TITANIUM", "BEETLE_MULTILAYER"):
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+        make_scenes.studio_world(bpy.context.scene, make_scenes.hdri_path("studio"))
         bpy.ops.mesh.primitive_uv_sphere_add()
         mat = bpy.data.materials.new(preset)
         mat.thinfilm_sh.preset = preset
         mat.thinfilm_sh.enabled = True
         bpy.context.active_object.data.materials.append(mat)
         scene = bpy.context.scene
-        spec = source.spec(mat, scene)
+        world = sync.world_of(scene)
+        spec = source.spec(mat, scene, world)
         made = sync.compute(spec)  # bakes once (or reads the cache): the worker's part
-        wiring.apply(mat, spec, made)  # the first write also makes the nodes
-        read = common.time_runs(lambda: source.spec(mat, scene), runs=runs)  # noqa: B023
-        write = common.time_runs(lambda: wiring.apply(mat, spec, made), runs=runs)  # noqa: B023
+        wiring.apply(mat, spec, *made)  # the first write also makes the nodes
+        read = common.time_runs(lambda: source.spec(mat, scene, world), runs=runs)  # noqa: B023
+        world_s = common.time_runs(lambda: sync.world_of(scene), runs=runs)  # noqa: B023
+        write = common.time_runs(lambda: wiring.apply(mat, spec, *made), runs=runs)  # noqa: B023
         worker = common.time_runs(lambda: sync.compute(spec), runs=3)  # noqa: B023
         out.append(
             dict(
                 preset=preset,
-                size=f"{made.width}×{made.height}",
+                size=f"{made[0].width}×{made[0].height}",
                 read_ms=1e3 * statistics.median(read),
+                world_ms=1e3 * statistics.median(world_s),
                 write_ms=1e3 * statistics.median(write),
                 worker_ms=1e3 * statistics.median(worker),
             )

@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -76,15 +77,23 @@ class Spec:
     principled_node: str | None
     world: WorldRef | None = None
 
-    @property
+    @functools.cached_property
     def key(self) -> str:
-        """Everything the images depend on."""
+        """Everything the images depend on (computed once: a JSON hash of the descriptions)."""
         parts = [description.description_key(self.film), str(eevee_table.FORMAT_VERSION), repr(self.wall)]
         if self.base is not None:
             parts += [description.description_key(self.base), repr(self.base_color)]
         if self.world is not None:
             parts.append(self.world.key)
         return "|".join(parts)
+
+    @functools.cached_property
+    def light_key(self) -> str | None:
+        """What the dominant-direction image depends on: the World and the film's roughness (an
+        edit of the film alone does not rewrite it). None without a World."""
+        if self.world is None:
+            return None
+        return f"{self.world.key}|{float(self.film.roughness)!r}|{eevee_table.FORMAT_VERSION}"
 
 
 def _fcurve_values(tree, path: str, scene) -> list[float] | None:

@@ -210,7 +210,8 @@ def apply(material, spec: Spec, made, light=None) -> None:
     if light is not None:
         height, width = light.shape[:2]
         directions = film_image_store.ensure_light(group, material.name, width, height)
-        film_image_store.write(directions, light, spec.key)
+        if film_image_store.stored_key(directions) != spec.light_key:  # the World or roughness changed
+            film_image_store.write(directions, light, spec.light_key)
         nodes.set_light(group, directions)
     picture = film_image_store.ensure(group, material.name, made.width, made.height)
     film_image_store.write(picture, made.pixels, spec.key)
