@@ -7,6 +7,7 @@ from . import caches, linked, scene_draw, tables, viewport
 from .description import description as _description_now
 from .description import description_key
 from .description import warnings as _warnings_now
+from .eevee import sync as eevee_sync
 from .principled import principled_node
 
 
@@ -101,6 +102,9 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
                 box.label(text=line, icon="ERROR")
         for note in _safe_warnings(mat):
             layout.label(text=note, icon="INFO")
+        native = eevee_sync.status(mat)  # EEVEE-native films (addon/eevee/)
+        if native:
+            layout.label(text=native, icon="SHADING_RENDERED")
 
 
 def material_errors(mat) -> list[str]:

@@ -4,7 +4,8 @@ A checker ground under the *courtyard* HDRI and a sun (shadows), with three film
 Principled film sphere (500 nm, IOR 1.33 on glass, roughness 0.15), the *Soap Film* preset as a
 bubble, and a coated solid glass ball (Principled Transmission 1, IOR 1.5, a 300 nm film). The
 extension (registered from this repository) writes each film's EEVEE output; EEVEE, with its
-ray tracing on (reflections and refraction of the other objects), renders the camera view (``bpy.ops.render.render``, what F12 does), then again with the films' EEVEE paths
+ray tracing on (reflections and refraction of the other objects), renders the camera view
+(``bpy.ops.render.render``, what F12 does), then again with the films' EEVEE paths
 removed. Writes ``docs/images/eevee-native-showcase.png`` (left: films, right: off).
 
 Run: ``.venv/bin/python scripts/make_eevee_native_images.py [--size W H] [--samples N]``.

@@ -32,7 +32,17 @@ from .. import bake_helper, linked, scene_draw, tables
 from . import image as film_image_store
 from . import nodes, source, wiring
 
-__all__ = ["compute", "pending", "register", "sync_all", "sync_material", "unregister", "wait_idle"]
+__all__ = [
+    "compute",
+    "pending",
+    "register",
+    "status",
+    "sync_all",
+    "sync_material",
+    "unregister",
+    "wait_idle",
+    "world_of",
+]
 
 log = logging.getLogger(__name__)
 
@@ -157,6 +167,21 @@ def sync_material(material, scene=None, wait: bool = True, defer: bool | None = 
     _ensure_worker()
     _schedule()
     return "queued"
+
+
+def status(material) -> str:
+    """One line for the material panel: whether EEVEE renders this material's film itself ("" when
+    it has no EEVEE path)."""
+    node, _output = nodes.find(getattr(material, "node_tree", None))
+    if node is None:
+        return ""
+    if material.library is not None:
+        return f"EEVEE renders this film (from the library {material.library.name!r})"
+    with _lock:
+        waiting = material.name in _wanted or material.name in _dirty
+    if waiting:
+        return "EEVEE's film is being updated (the last one is shown meanwhile)"
+    return "EEVEE renders this film itself (F12, Rendered view, blender -b -a)"
 
 
 def sync_all(scene=None, wait: bool = True, defer: bool | None = None) -> dict[str, str]:
