@@ -46,31 +46,29 @@ def _new(name: str, width: int, height: int):
     return image
 
 
-def ensure(group, material_name: str, width: int, height: int):
-    """The image ``group`` reads, made for it when it has none or shares one with another group
-    (a copied material), resized to ``width`` × ``height`` when its table's size changed."""
-    current = nodes.film_image_of(group)
+def _ensure(current, group, name: str, width: int, height: int):
+    """``current`` when ``group`` alone uses it (resized to ``width`` × ``height`` when needed),
+    else a new image ``name`` of that size."""
     if not _owned(current, group):
-        image = _new(IMAGE_PREFIX + material_name, width, height)
+        image = _new(name, width, height)
         image[OWNER] = 1
         return image
     if tuple(current.size) != (width, height):
         current.scale(width, height)
     return current
+
+
+def ensure(group, material_name: str, width: int, height: int):
+    """The film image ``group`` reads, made for it when it has none or shares one with another
+    group (a copied material), resized to ``width`` × ``height`` when its table's size changed."""
+    return _ensure(nodes.film_image_of(group), group, IMAGE_PREFIX + material_name, width, height)
 
 
 def ensure_light(group, material_name: str, width: int, height: int):
-    """The dominant-direction image of ``group`` (its Environment Texture "light"), made when it
-    has none or shares one, resized when needed."""
-    node = group.nodes.get("light")
-    current = getattr(node, "image", None)
-    if not _owned(current, group):
-        image = _new(LIGHT_PREFIX + material_name, width, height)
-        image[OWNER] = 1
-        return image
-    if tuple(current.size) != (width, height):
-        current.scale(width, height)
-    return current
+    """The dominant-direction image of ``group`` (its lookup "light"), made when it has none or
+    shares one, resized when needed."""
+    current = getattr(group.nodes.get("light"), "image", None)
+    return _ensure(current, group, LIGHT_PREFIX + material_name, width, height)
 
 
 def write(image, pixels: np.ndarray, key: str) -> None:
