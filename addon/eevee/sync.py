@@ -27,7 +27,7 @@ import time
 
 import bpy
 
-from ...precompute import eevee_table
+from ...precompute import eevee_table, prefilter
 from .. import bake_helper, linked, scene_draw, tables
 from . import image as film_image_store
 from . import nodes, source, wiring
@@ -77,11 +77,32 @@ def compute(spec: source.Spec, cache=None, baker=None):
     )
     light = None
     if spec.world is not None:
-        pre = spec.world.environment.prefiltered_whole
+        pre = _moments(spec.world.environment)
         if spec.world.matrix is not None:
             pre = pre.transformed(rotation=spec.world.matrix)
         light = eevee_table.dominant_directions(pre, float(spec.film.roughness))
     return made, light
+
+
+#: Width of the prefilter the directions are read from when the overlay has not computed its own:
+#: 0.4 s for the studio HDRI against 1.05 s at the overlay's 512, directions within 1° (p95).
+MOMENTS_WIDTH = 256
+_moment_cache: list = []  # [(environment, Prefiltered)], the last two Worlds
+
+
+def _moments(environment):
+    """A prefilter with moments of ``environment``'s panorama: the overlay's whole-World one when
+    it exists, else one of :data:`MOMENTS_WIDTH` (kept for the last two Worlds)."""
+    if "prefiltered_whole" in environment.__dict__:  # functools.cached_property, computed
+        return environment.prefiltered_whole
+    with _lock:
+        for env, pre in _moment_cache:
+            if env is environment:
+                return pre
+    pre = prefilter.prefilter(environment.panorama, width=MOMENTS_WIDTH)
+    with _lock:
+        _moment_cache[:] = [(environment, pre), *_moment_cache[:1]]
+    return pre
 
 
 def world_of(scene) -> source.WorldRef | None:
@@ -366,3 +387,4 @@ def unregister() -> None:
         _wanted.clear()
         _dirty.clear()
         _done.clear()
+        _moment_cache.clear()
