@@ -443,3 +443,25 @@ def test_the_groups_equirect_lookup_reads_the_directions_image_as_written(bpy, e
         assert np.allclose(seen, expected, atol=2e-3), (d, seen, expected)  # half-float storage
         seen_all.append(seen)
     assert np.ptp(np.array(seen_all), axis=0).max() > 0.5, "different directions read different texels"
+
+
+def test_a_copied_material_gets_its_own_group_and_image_at_its_edit(bpy, ext):
+    """Material → Copy shares the original's group and image; editing the copy's film gives it
+    its own (the original's image keeps its key), and removing the copy's film leaves the
+    original's group and image in place."""
+    scene = _scene(bpy)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    ext.sync.sync_material(mat, scene)
+    group = ext.nodes.find(mat.node_tree)[0].node_tree
+    key = ext.sync._current_key(mat)
+    twin = mat.copy()
+    assert ext.nodes.find(twin.node_tree)[0].node_tree == group
+    twin.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 650.0
+    assert ext.sync.sync_material(twin, scene) == "written"
+    own = ext.nodes.find(twin.node_tree)[0].node_tree
+    assert own != group and ext.nodes.film_image_of(own) != ext.nodes.film_image_of(group)
+    assert ext.sync._current_key(mat) == key, "the original's image must not be rewritten"
+    twin.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
+    assert ext.sync.sync_material(twin, scene) == "removed"
+    assert ext.nodes.find(mat.node_tree)[0].node_tree == group and ext.sync._current_key(mat) == key
