@@ -176,3 +176,12 @@ def test_dominant_directions_point_at_a_lamp():
     assert np.allclose(np.linalg.norm(c, axis=-1), 1.0, atol=1e-5)
     plain = eevee_table.dominant_directions(None, 0.3, size=(64, 32))
     assert np.allclose(2.0 * plain[::-1, :, :3] - 1.0, grid, atol=1e-6)
+
+
+def test_dominant_weight_ramps_with_roughness():
+    """Glossy films are read at the view angle, rough ones at the lobe light's angle, linearly
+    between (the measured ramp, eevee_table.DOMINANT_RAMP)."""
+    lo, hi = eevee_table.DOMINANT_RAMP
+    assert eevee_table.dominant_weight(0.0) == 0.0 and eevee_table.dominant_weight(lo) == 0.0
+    assert eevee_table.dominant_weight(hi) == 1.0 and eevee_table.dominant_weight(1.0) == 1.0
+    assert eevee_table.dominant_weight(0.5 * (lo + hi)) == pytest.approx(0.5)

@@ -335,12 +335,12 @@ def _put(socket, value) -> None:
         socket.default_value = value
 
 
-def set_constants(group, layout, ior: float = 1.0, dominant: bool = False) -> None:
+def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0) -> None:
     """Write the image's axes into the group's socket values (no shader recompile):
     ``layout`` is a :class:`precompute.eevee_table.FilmImage` (or anything with its ``width``,
     ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index;
-    ``dominant``: read the specular band at the lobe light's angle θ' (a dominant-direction
-    image is set), else at the view angle.
+    ``dominant``: how much the specular band is read at the lobe light's angle θ' rather than
+    the view angle (0: no dominant-direction image is set).
 
     Texel coordinates: the view column px = θo (A − 1)/(π/2), the row py = (d − lo)/(hi − lo)
     (T − 1) (clamped); a texel (i, j) of band b is read at ((i + 0.5)/A, (j + bT + 0.5)/H).
@@ -364,7 +364,7 @@ def set_constants(group, layout, ior: float = 1.0, dominant: bool = False) -> No
             _put(nodes[name].inputs[1], 1.0 / height)
             _put(nodes[name].inputs[2], (band * rows + offset) / height)
         band += 1
-    _put(nodes["dominant"].inputs["Factor"], 1.0 if dominant else 0.0)
+    _put(nodes["dominant"].inputs["Factor"], float(dominant))
     through = nodes.get("Through")
     if through is not None and "IOR" in through.inputs:
         _put(through.inputs["IOR"], float(ior))

@@ -212,5 +212,5 @@ def spec(material, scene=None, world: WorldRef | None = None) -> Spec | None:
         feeds=feeds,
         ior=ior,
         principled_node=node_name,
-        world=world,
+        world=world if eevee_table.dominant_weight(film.roughness) > 0.0 else None,
     )

@@ -20,6 +20,7 @@ import json
 
 import bpy
 
+from ...precompute import eevee_table
 from .. import thickness_nodes
 from . import image as film_image_store
 from . import nodes
@@ -216,7 +217,8 @@ def apply(material, spec: Spec, made, light=None) -> None:
     picture = film_image_store.ensure(group, material.name, made.width, made.height)
     film_image_store.write(picture, made.pixels, spec.key)
     nodes.set_image(group, picture)
-    nodes.set_constants(group, made, spec.ior, dominant=light is not None)
+    weight = eevee_table.dominant_weight(spec.film.roughness) if light is not None else 0.0
+    nodes.set_constants(group, made, spec.ior, dominant=weight)
     feed(material, node, spec, getattr(material, "thinfilm_sh", None))
     _group, output = nodes.find(tree)
     _settings(material, output, spec.structure.wall)
