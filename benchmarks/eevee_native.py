@@ -59,7 +59,6 @@ SCENE_SIZE, SCENE_SAMPLES = (160, 120), 128
 EEVEE_SAMPLES = 32
 #: Version of the cases' scenes, part of the Cycles cache key.
 SCENE_VERSION = 1
-#: 2: a bare film on IOR 1 takes the film's index (bare_blend).
 CODE_PATHS = ("precompute", "addon", "benchmarks")
 
 
@@ -356,7 +355,9 @@ def compare(case: Case, workdir, overlay: bool, timed: bool) -> dict:
         row.update(mean=float(np.mean(de)), p95=float(np.percentile(de, 95)))
     if case.group != "scenes" and ref is not None:
         bare = bare_blend(blend, workdir)
-        bare_ref, bare_s = cycles_image(case, bare, workdir, name=case.name + "-bare2")
+        bare_ref, bare_s = cycles_image(
+            case, bare, workdir, name=case.name + "-bare2"
+        )  # 2: IOR 1 → the film's
         bare_ours = eevee_image(bare, workdir)[0]
         row["cycles_s"] += bare_s
         row["floor"] = float(np.mean(delta_e_2000(bare_ours[mask], bare_ref[mask], xyz="E")))
