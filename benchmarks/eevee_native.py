@@ -286,8 +286,9 @@ def overlay_image(blend, workdir) -> tuple[np.ndarray, float]:
 
 
 def film_mask(blend, workdir) -> np.ndarray:
-    """The pixels the film objects cover (alpha of an EEVEE render of them alone on a transparent
-    film), one pixel of silhouette left out."""
+    """The pixels the film objects cover (alpha of a Workbench render of them alone on a
+    transparent film: opaque whatever their material, so a bubble or a window counts), one pixel
+    of silhouette left out."""
     bpy = _bpy()
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     films = {
@@ -301,8 +302,8 @@ def film_mask(blend, workdir) -> np.ndarray:
                 s.material is not None and s.material.name in films for s in obj.material_slots
             )
     scene = bpy.context.scene
-    _eevee(scene)
-    scene.eevee.taa_render_samples = 1
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.render_aa = "OFF"
     scene.render.film_transparent = True
     path = pathlib.Path(workdir) / "mask.exr"
     scene.render.image_settings.file_format = "OPEN_EXR"
