@@ -354,7 +354,7 @@ def compare(case: Case, workdir, overlay: bool, timed: bool) -> dict:
     if ref is not None:
         de = delta_e_2000(ours[mask], ref[mask], xyz="E")
         row.update(mean=float(np.mean(de)), p95=float(np.percentile(de, 95)))
-    if case.group != "scenes" and ref is not None:
+    if ref is not None:
         bare = bare_blend(blend, workdir)
         bare_ref, bare_s = cycles_image(
             case, bare, workdir, name=case.name + "-bare2"
