@@ -105,11 +105,13 @@ def _moments(environment):
     return pre
 
 
-def world_of(scene) -> source.WorldRef | None:
+def world_of(scene, compute: bool | None = None) -> source.WorldRef | None:
     """The scene's World as the overlay analysed it (``scene_draw.world_lighting``): analysed
-    here in background mode, else the last analysis (the viewport's worker makes it), or None."""
+    here when ``compute`` (default: in background mode), else the last analysis (the viewport's
+    worker makes it), or None."""
     try:
-        lighting = scene_draw.world_lighting(scene, allow_compute=bpy.app.background)
+        allow = bpy.app.background if compute is None else compute
+        lighting = scene_draw.world_lighting(scene, allow_compute=allow)
     except Exception as exc:  # the film is still written, read at the view angle
         log.info("Thin Film SH: no World analysis for EEVEE films: %s", exc)
         return None
@@ -205,10 +207,12 @@ def status(material) -> str:
     return "EEVEE renders this film itself (F12, Rendered view, blender -b -a)"
 
 
-def sync_all(scene=None, wait: bool = True, defer: bool | None = None) -> dict[str, str]:
-    """:func:`sync_material` for every material of the file; {name: outcome}."""
+def sync_all(scene=None, wait: bool = True, defer: bool | None = None, world=False) -> dict[str, str]:
+    """:func:`sync_material` for every material of the file; {name: outcome}. ``world``: as for
+    :func:`sync_material` (False: read here, :func:`world_of`)."""
     scene = scene or bpy.context.scene
-    world = world_of(scene)
+    if world is False:
+        world = world_of(scene)
     return {
         m.name: sync_material(m, scene, wait, defer, world)
         for m in bpy.data.materials
@@ -343,17 +347,31 @@ def _on_load(*_args) -> None:
     _schedule()
 
 
-def _sync_headless(defer: bool = False) -> None:
+_headless_busy = False  # a headless sync is running: a render it starts (a World panorama) waits
+
+
+def _sync_headless(inside_render: bool = False) -> None:
+    """Sync every film material in place (background mode). ``inside_render`` (``render_pre``):
+    nothing that renders itself, a linked thickness's Cycles bake or a procedural World's
+    panorama, is started (the World analysed at load is used)."""
+    global _headless_busy
+    if _headless_busy:
+        return  # a render started by the sync itself
+    _headless_busy = True
     try:
-        sync_all(wait=True, defer=defer)
+        scene = bpy.context.scene
+        world = world_of(scene, compute=not inside_render)
+        sync_all(scene, wait=True, defer=inside_render, world=world)
     except Exception as exc:  # a handler must never raise
         log.error("Thin Film SH: EEVEE films not synced: %s", exc)
+    finally:
+        _headless_busy = False
 
 
 @bpy.app.handlers.persistent
 def _on_render_pre(*_args) -> None:
     if threading.current_thread() is threading.main_thread() and bpy.app.background:
-        _sync_headless(defer=True)  # no Cycles bake of a linked thickness inside a render
+        _sync_headless(inside_render=True)
 
 
 _HANDLERS = (
