@@ -28,7 +28,7 @@ import time
 import bpy
 
 from ...precompute import eevee_table, prefilter
-from .. import bake_helper, linked, scene_draw, tables
+from .. import bake_helper, caches, linked, scene_draw, tables
 from . import image as film_image_store
 from . import nodes, source, wiring
 
@@ -87,7 +87,8 @@ def compute(spec: source.Spec, cache=None, baker=None):
 #: Width of the prefilter the directions are read from when the overlay has not computed its own:
 #: 0.4 s for the studio HDRI against 1.05 s at the overlay's 512, directions within 1° (p95).
 MOMENTS_WIDTH = 256
-_moment_cache: list = []  # [(environment, Prefiltered)], the last two Worlds
+#: (environment, Prefiltered) by the environment's id, the last two Worlds (see :mod:`..caches`).
+MOMENTS = caches.register("eevee_moments", caches.LRU(2), scope=caches.FILE)
 
 
 def _moments(environment):
@@ -95,13 +96,11 @@ def _moments(environment):
     it exists, else one of :data:`MOMENTS_WIDTH` (kept for the last two Worlds)."""
     if "prefiltered_whole" in environment.__dict__:  # functools.cached_property, computed
         return environment.prefiltered_whole
-    with _lock:
-        for env, pre in _moment_cache:
-            if env is environment:
-                return pre
+    found = MOMENTS.get(id(environment))
+    if found is not None and found[0] is environment:
+        return found[1]
     pre = prefilter.prefilter(environment.panorama, width=MOMENTS_WIDTH)
-    with _lock:
-        _moment_cache[:] = [(environment, pre), *_moment_cache[:1]]
+    MOMENTS[id(environment)] = (environment, pre)
     return pre
 
 
@@ -405,4 +404,3 @@ def unregister() -> None:
         _wanted.clear()
         _dirty.clear()
         _done.clear()
-        _moment_cache.clear()
