@@ -7,13 +7,21 @@ Everything here is Blender glue. The physics lives in ``precompute/`` (which nev
 import bpy
 from bpy.props import PointerProperty
 
-from . import bake_helper, caches, eevee, gltf, headless, ops, panorama_helper, prefs, props, ui, viewport
+from . import caches
+from .bakes import bake_helper
+from .drawing import viewport
+from .eevee import sync as eevee_films  # not `eevee`: that is the room's package
+from .headless import headless as commands  # not `headless`: that is the room's package
+from .materials import gltf, props
+from .ui import ops, prefs
+from .ui import ui as panels  # not `ui`: that is the room's package
+from .world import panorama_helper
 
 #: The glTF add-on looks these names up on enabled add-ons (KHR_materials_iridescence, :mod:`.gltf`).
 glTF2ExportUserExtension = gltf.ExportUserExtension
 glTF2ImportUserExtension = gltf.ImportUserExtension
 
-classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classes)
+classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *panels.classes)
 
 # ----------------------------------------------------------------------------------------------
 # HOOKS for other parts of the add-on (viewport draw handler, command line, ...).
@@ -23,7 +31,7 @@ classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *ui.classe
 # reverse order BEFORE them. Both calls must be harmless when repeated (register() is called
 # twice by the tests). To add one: import it above and append it to the tuple.
 # ----------------------------------------------------------------------------------------------
-modules: tuple = (panorama_helper, bake_helper, viewport, headless, eevee)  # eevee: EEVEE-native films
+modules: tuple = (panorama_helper, bake_helper, viewport, commands, eevee_films)
 
 #: Name of the per-material settings: ``material.thinfilm_sh``.
 MATERIAL_PROPERTY = "thinfilm_sh"

@@ -48,7 +48,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
 - ``eevee_moments`` — ``eevee.sync.MOMENTS``: a World's GGX prefilter with moments at 256
-  texels across (``precompute.prefilter.Prefiltered``), for the EEVEE films' dominant-direction
+  texels across (``precompute.world.prefilter.Prefiltered``), for the EEVEE films' dominant-direction
   images when the overlay has not computed its own, by the id of the World's analysed
   ``Environment`` (kept with it, checked by identity); LRU of 2; filled by ``eevee.sync.compute``
   on its worker (or inline headless); FILE.
@@ -62,19 +62,20 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   when the geometry or the thickness's inputs change; GPU table textures and film textures by
   description key; the entry each material (by ``session_uid``) was last drawn with, drawn
   again while its new table bakes (``scene_draw.Caches.previous``, LRU of ``TABLE_CACHE_SIZE``);
-  lighting uniform buffers by (World key, l_max, roughness, lamps); the
-  World's lighting (``scene_draw.WorldLighting``: its SH, the analysed panorama, the prefilters
-  on the GPU) for the current World key only; the analysed World contents
-  (``world_analysis.Analysed``: SH, panorama, lamps, prefilter arrays) by
-  ``world.world_parts``' content key, an LRU of ``scene_draw.CONTENT_CACHE_SIZE`` (3), filled
+  lighting uniform buffers by (World lighting key, l_max, roughness, lamps), those of another
+  World lighting dropped when it changes; LRUs of ``scene_draw.BATCH_CACHE_SIZE`` (256),
+  ``TABLE_CACHE_SIZE`` and ``FILM_CACHE_SIZE`` (32, as ``tables.LRU_SIZE``) and
+  ``LIGHTING_CACHE_SIZE`` (64) entries, or what the last frame used if more (so a long session
+  of edits cannot grow them, and a large frame does not rebuild every frame); filled by
+  ``scene_draw.collect``; FILE.
+- ``world_lighting`` — ``world_state.STATE``: the World's lighting for the draw, the world
+  room's state: the current World's lighting (``world_analysis.WorldLighting``: its SH, the
+  analysed panorama, the prefilters on the GPU) for the current World key only; the analysed
+  World contents (``world_analysis.Analysed``: SH, panorama, lamps, prefilter arrays) by
+  ``world_params.world_parts``' content key, an LRU of ``world_state.CONTENT_CACHE_SIZE`` (3), filled
   by ``world_job``'s worker (the LRU is thread-safe; a result for a file loaded since is
-  dropped by ``Caches.generation``) and by ``scene_draw.world_lighting`` in headless renders;
-  LRUs of ``scene_draw.BATCH_CACHE_SIZE`` (256), ``TABLE_CACHE_SIZE`` and ``FILM_CACHE_SIZE``
-  (32, as ``tables.LRU_SIZE``) and ``LIGHTING_CACHE_SIZE`` (64) entries, or what the last
-  frame used if more (so a long session of edits cannot grow them, and a large frame does not
-  rebuild every frame); lightings are
-  also pruned to the current World on each World change; filled by ``scene_draw.collect`` and
-  ``scene_draw.world_lighting``; FILE.
+  dropped by ``WorldState.generation``) and by ``world_state.world_lighting`` in headless
+  renders; what the draw asked for (a content to analyse, prefilters to compute); FILE.
 - ``radiance_grids`` — ``radiance_grids.GRIDS``: constant-thickness films' outgoing-radiance
   grids on the GPU (``gpu.resources.RadianceGridTexture``, 4.5–9 MiB each) by (description key,
   World key, l_max, roughness, lamps), with the worker's queue (at most

@@ -17,7 +17,11 @@ import tempfile
 import threading
 import time
 
-__all__ = ["STOP_WAIT_S", "ChildProcess", "HelperSlot"]
+__all__ = ["PACKAGE_ROOT", "STOP_WAIT_S", "ChildProcess", "HelperSlot"]
+
+#: The extension package's folder (the parent of ``addon/``): each helper's script is given it,
+#: to import the extension's own files from.
+PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 #: How long :meth:`ChildProcess.stop` lets the helper exit on its own (stdin closed) before
 #: killing it.

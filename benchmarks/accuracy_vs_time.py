@@ -9,9 +9,9 @@ Every configuration changes ONE knob of the default (auto) plan: SH order 1–12
 count, view-angle (θo) samples, thickness samples (2-D tables), the half-vector quadrature of
 the kernel, storage precision (float32 vs half), and the colour mode (3×3 spectral — the
 default —, Cycles' per-channel film, and a three-wavelength "RGB film" as real-time engines do).
-Each is baked and shaded with :func:`precompute.render.shade_sh` (what the GLSL does per pixel)
+Each is baked and shaded with :func:`precompute.output.render.shade_sh` (what the GLSL does per pixel)
 on a 40×40 sphere under Blender's ``studio`` and ``courtyard`` HDRIs, and compared with
-:func:`precompute.render.shade_reference` (no SH: the exact spectral BRDF integrated against
+:func:`precompute.output.render.shade_reference` (no SH: the exact spectral BRDF integrated against
 the environment map by half-vector quadrature) in CIEDE2000 after a common exposure
 normalisation (the reference's 95th-percentile luminance over the sphere → 0.8).
 
@@ -32,10 +32,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from precompute import bake, cli, effects, hdri, render, table_io
-from precompute.colour_difference import delta_e_2000
-from precompute.material import AUTO, Layer, Material, Quality
+from precompute.bakes import bake, planner
+from precompute.bakes import kernel as bake_kernel
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.commands import cli
+from precompute.effects import plan_text, plans
+from precompute.materials.material import AUTO, Layer, Material, Quality
+from precompute.output import render
 from precompute.shading import sh_sum
+from precompute.tables import table_io
+from precompute.world import hdri
 
 from . import common
 
@@ -170,7 +176,7 @@ def config_material(cfg: Config, scene: Scene) -> Material:
     two_d = cfg.thickness_samples is not None
     if two_d:
         base = base.with_(thickness_range_nm=THICKNESS_RANGE)
-    p = bake.plan(base)
+    p = planner.plan(base)
     q = Quality(
         sh_order=cfg.sh_order if cfg.sh_order is not None else p.sh_order,
         view_samples=cfg.views if cfg.views is not None else p.view_samples,
@@ -194,7 +200,7 @@ def bake_config(cfg: Config, scene: Scene, cold_start: bool = True):
     if cfg.colour == "rgb3":
         patches["spectral_quadrature"] = rgb3_quadrature
     if cfg.quadrature is not None:
-        original = bake.microfacet_kernel
+        original = bake_kernel.microfacet_kernel
         nt, nphi = cfg.quadrature
 
         def kernel(roughness, l_max, views, degree, _o=original, _nt=nt, _np=nphi):
@@ -472,7 +478,7 @@ def report(res: dict, command: str) -> str:
         "- **Test**: `bake.bake` of the configuration, then `render.shade_sh` (the GLSL's numpy twin:",
         "  view-aligned frame, zyz SH rotation of the World's SH windowed by `render.lighting_window`,",
         "  linear table lookup, Σ M_i L_i).",
-        "- **Configurations**: the default is each scene's `bake.plan` (all auto: SH order from the",
+        "- **Configurations**: the default is each scene's `planner.plan` (all auto: SH order from the",
         "  lobe-truncation rule — see the *SH order* column —, 32 view angles below roughness 0.5 and",
         "  16 above, 48 wavelengths, 96×48 half-vector nodes, float32,",
         "  3×3 spectral, a 1-D table because the scene's thickness is constant). Every other row",
@@ -545,8 +551,8 @@ def report(res: dict, command: str) -> str:
         orders = "/".join(map(str, r["orders"]))
         lines.append(
             f"| {r['cfg'].name} | {orders} | {tuple(r['example_shape'])} |"
-            f" {common.fmt_bytes(int(r['bytes32']))}"
-            f" | {common.fmt_bytes(int(r['bytes16']))} | {r['fetched']:.0f} | {r['mads']:.0f}"
+            f" {plan_text.fmt_bytes(int(r['bytes32']))}"
+            f" | {plan_text.fmt_bytes(int(r['bytes16']))} | {r['fetched']:.0f} | {r['mads']:.0f}"
             f" | {common.fmt_seconds(r['cold'])} | {common.fmt_seconds(r['warm'])} | **{r['mean']:.2f}** |"
             f" {r['p95']:.2f} | " + " | ".join(f"{r['by_roughness'][x]:.2f}" for x in roughs) + " |"
         )
@@ -600,7 +606,7 @@ def what_this_shows(res: dict) -> list[str]:
         + " The error is dominated by the SH truncation of the glossy lobe and of the lighting:"
         " every other knob at its default is far below it."
     )
-    top = effects.MAX_ORDER
+    top = plans.MAX_ORDER
     if f"SH order {top}" in by and max(base["orders"]) == top and min(base["orders"]) < top:
         l8 = by[f"SH order {top}"]
         diff = [x for x in roughs if abs(l8["by_roughness"][x] - base["by_roughness"][x]) > 0.05]
@@ -721,7 +727,7 @@ def main(argv=None) -> None:
         cmd = [sys.executable, "-m", "benchmarks.accuracy_vs_time", *(sys.argv[1:] if argv is None else argv)]
         os.execve(sys.executable, cmd, env)
     start = time.perf_counter()
-    bake.plan(Material())  # load CMF tables etc. before any timing
+    planner.plan(Material())  # load CMF tables etc. before any timing
     if args.quick:
         res = run(quick_scenes(), quick_configs(), sphere=16)
         print(report(res, ".venv/bin/python -m benchmarks.accuracy_vs_time --quick"))

@@ -8,9 +8,9 @@ viewport bakes it (``policy.drawn_material``: order 0), with its film table. Per
 warm bakes of films whose thickness range grows by 0.5 nm each (every value changes, the
 kernel is reused), median wall time from the request to the table (and film table) in hand:
 
-- *thread*: ``precompute.bake.bake`` and ``film_colour.film_table`` on a worker thread of this
+- *thread*: ``precompute.bakes.bake.bake`` and ``film_colour.film_table`` on a worker thread of this
   process, as the viewport baked before the helper;
-- *helper*: ``addon.bake_helper.bake`` (the worker waits on the pipe; the helper bakes);
+- *helper*: ``addon.bakes.bake_helper.bake`` (the worker waits on the pipe; the helper bakes);
 
 while the main thread (a) sleeps, (b) runs a pure-Python loop (an add-on's or a panel's Python:
 it holds the interpreter's lock), (c) redraws the soap bubble again and again (the loop's
@@ -31,6 +31,7 @@ from pathlib import Path
 
 from benchmarks import common
 from benchmarks import latency as replay
+from precompute.effects import plan_text
 
 #: Bakes per condition.
 BAKES = 12
@@ -39,7 +40,7 @@ BAKES = 12
 def _materials(ext, count: int, start: int):
     """``count`` soap films as the viewport bakes them, each a new table."""
     package = ext.package.__name__
-    material = sys.modules[f"{package}.precompute.material"]
+    material = sys.modules[f"{package}.precompute.materials.material"]
     policy = sys.modules[f"{package}.precompute.shading.policy"]
     base = policy.drawn_material(material.preset("soap_film"))
     out = []
@@ -52,8 +53,8 @@ def _materials(ext, count: int, start: int):
 
 def _in_thread(ext):
     package = ext.package.__name__
-    bake = sys.modules[f"{package}.precompute.bake"]
-    film_colour = sys.modules[f"{package}.precompute.film_colour"]
+    bake = sys.modules[f"{package}.precompute.bakes.bake"]
+    film_colour = sys.modules[f"{package}.precompute.colour.film_colour"]
 
     def run(desc):
         film_colour.film_table(bake.bake(desc))
@@ -135,7 +136,7 @@ def report(rows, draw_ms: float, helper_info: dict, started: str, wall_s: float)
         "",
         f"One redraw of the scene (median, main thread alone): {draw_ms:.1f} ms. The helper:",
         f"ready {helper_info.get('start_s', float('nan')):.2f} s after it was started, "
-        f"{common.fmt_bytes(rss) if rss else 'n/a'} resident after the run.",
+        f"{plan_text.fmt_bytes(rss) if rss else 'n/a'} resident after the run.",
         "",
         "*Idle* is the baseline. *Python* is a main thread busy with Python code (another add-on, a",
         "panel's `draw`): it holds the interpreter's lock, which the thread's bake needs between its",

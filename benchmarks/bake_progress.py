@@ -5,7 +5,7 @@ Usage (from the repository root)::
     .venv/bin/python -m benchmarks.bake_progress        # → docs/bake-progress.md
 
 Issue 20 asks that progress move in steps of ≤ 10 % and that Esc cancel within 0.5 s. A bake
-is cancelled at its next progress report (:mod:`precompute.progress`), so the wait is at most
+is cancelled at its next progress report (:mod:`precompute.bakes.progress`), so the wait is at most
 the longest gap between two reports. For each preset at its default quality, cold (kernel
 caches cleared) and warm, this records the number of reports, the longest gap in wall-clock
 seconds and in CPU seconds of the process (all threads: the work itself, which the machine's
@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from precompute import bake
-from precompute.material import PRESETS
+from precompute.bakes import bake
+from precompute.materials.material import PRESETS
 
 from . import common
 

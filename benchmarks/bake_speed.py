@@ -11,12 +11,12 @@ table over θo × thickness: ≤ 150 ms median on 2 cores; the brute-force baker
 
 For each preset with a thickness range, at its default (all ``"auto"``) quality:
 
-- *cold*: :func:`precompute.bake.bake` after clearing the kernel caches (and any u-degree hint)
+- *cold*: :func:`precompute.bakes.bake.bake` after clearing the kernel caches (and any u-degree hint)
   (median of 3; the process is already warm otherwise: CMF tables loaded, imports done);
 - *warm*: after one bake of the preset, 11 re-bakes, each of a slightly changed film (odd
   changes scale the film index by 1 + 0.002·i, even ones shift the thickness range by 0.5·i nm),
   so nothing but the microfacet kernel can be reused; median;
-- *reference*: :func:`precompute.bake_reference.bake_reference` on the same material with the same plan
+- *reference*: :func:`precompute.bakes.bake_reference.bake_reference` on the same material with the same plan
   (same SH order, view angles, wavelengths and half-vector quadrature nodes), timed on the
   last (thickest) 3 rows of the thickness axis and scaled by T/3. Linearity is checked by timing 1 row
   (the same material at constant thickness) against 3 rows. The fast table's last 3 rows are
@@ -35,9 +35,10 @@ import time
 
 import numpy as np
 
-from precompute import bake
-from precompute.bake_reference import bake_reference
-from precompute.material import Layer, Quality, preset
+from precompute.bakes import bake, kernel, planner
+from precompute.bakes.bake_reference import bake_reference
+from precompute.effects import plan_text
+from precompute.materials.material import Layer, Quality, preset
 from precompute.optics import reflectance_sweep
 
 from . import common
@@ -71,7 +72,7 @@ def changed_film(material, i: int):
     return material.with_(thickness_range_nm=(lo + 0.5 * i, hi + 0.5 * i))
 
 
-def pinned(material, p: bake.Plan, thickness_samples: int | None = None):
+def pinned(material, p: planner.Plan, thickness_samples: int | None = None):
     """``material`` with its plan written out explicitly (so a subset keeps every other choice)."""
     return material.with_(
         quality=Quality(
@@ -87,7 +88,7 @@ def pinned(material, p: bake.Plan, thickness_samples: int | None = None):
 
 def measure_preset(name: str) -> dict:
     m = preset(name)
-    p = bake.plan(m)
+    p = planner.plan(m)
     row = {"name": name, "plan": p}
 
     # Cold: no kernel (and no degree hint, in bakers that keep one).
@@ -107,9 +108,9 @@ def measure_preset(name: str) -> dict:
     warm, parts, hits, shapes, degrees, errors, hit_times = [], [], 0, set(), [], [], []
     for i in range(1, CHANGES + 1):
         mi = changed_film(m, i)
-        before = bake.microfacet_kernel.cache_info()
+        before = kernel.microfacet_kernel.cache_info()
         t, r = common.time_once(lambda mi=mi: bake.bake(mi))
-        after = bake.microfacet_kernel.cache_info()
+        after = kernel.microfacet_kernel.cache_info()
         hits += after.misses == before.misses
         warm.append(t)
         parts.append(r.timings_s)
@@ -136,7 +137,7 @@ def measure_preset(name: str) -> dict:
     sub1 = pinned(m, p).with_(
         thickness_range_nm=None, layers=(Layer(m.layers[0].index, float(axis[-3])),) + m.layers[1:]
     )
-    assert bake.plan(sub3).wavelength_count == p.wavelength_count
+    assert planner.plan(sub3).wavelength_count == p.wavelength_count
     ones, threes, ones_cpu, threes_cpu = [], [], [], []
     for _ in range(REF_REPEATS):  # alternate, so load changes hit both alike
         t, c, ref1 = common.time_once_cpu(lambda: bake_reference(sub1))
@@ -156,8 +157,8 @@ def measure_preset(name: str) -> dict:
     row["ref_full"] = t3 * p.thickness_samples / 3
     # Row-independent work the brute-force loop repeats per row: transfer_samples per view.
     alpha = float(bake.brdf.alpha_from_roughness(m.roughness))
-    cos_os = bake.view_cosines(p.view_samples)
-    t_ts, _ = common.time_once(lambda: [bake.transfer_samples(float(c), alpha, p.sh_order) for c in cos_os])
+    cos_os = kernel.view_cosines(p.view_samples)
+    t_ts, _ = common.time_once(lambda: [kernel.transfer_samples(float(c), alpha, p.sh_order) for c in cos_os])
     row["transfer_per_row"] = t_ts
     row["ref_full_hoisted"] = row["ref_full"] - (p.thickness_samples - 1) * t_ts
     print(
@@ -204,15 +205,15 @@ def warm_breakdown(name: str = "soap_film") -> dict:
     (what a bake that knew its degree would still have to evaluate).
     """
     m = preset(name)
-    p = bake.plan(m)
+    p = planner.plan(m)
     wl, _ = bake.spectral_quadrature(p.wavelength_count, m.colour_space, m.illuminant, m.colour_mode)
-    sets, _ = bake.thickness_sets(m, p.thickness_samples)
+    sets, _ = planner.thickness_sets(m, p.thickness_samples)
     degree = bake.bake(m).u_nodes
-    nodes = bake.u_nodes(degree)
+    nodes = kernel.u_nodes(degree)
     idx = m.indices()
     method = bake._method(m)
     t_nodes = common.median_time(lambda: reflectance_sweep(idx, sets, wl, nodes, method=method), runs=7)
-    t_search = common.median_time(lambda: bake.choose_u_degree(idx, sets, wl, method), runs=7)
+    t_search = common.median_time(lambda: planner.choose_u_degree(idx, sets, wl, method), runs=7)
     return {
         "name": name,
         "T": sets.shape[0],
@@ -230,7 +231,8 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         "Generated by `.venv/bin/python -m benchmarks.bake_speed` (from the repository root);",
         f"all rows measured side by side in one process (`time.perf_counter`). This run took {total:.0f} s.",
         "",
-        "These are `precompute.bake` of the presets as written (what `python -m precompute bake` makes).",
+        "These are `precompute.bakes.bake` of the presets as written"
+        " (what `python -m precompute bake` makes).",
         "The viewport and the headless render bake a glossy film without a diffuse base (roughness ≤ 0.2:",
         "soap_film, oil_on_water) at SH order 0, the only entry its split sum reads",
         "(`policy.drawn_material`; tests/test_policy.py checks the entry is equal): the edit latencies",
@@ -248,7 +250,8 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         "",
         "## Method",
         "",
-        '- Presets with a thickness range, default quality (every choice `"auto"`, resolved by `bake.plan`).',
+        '- Presets with a thickness range, default quality (every choice `"auto"`,'
+        " resolved by `planner.plan`).",
         "- **Cold**: `bake.bake` after `microfacet_kernel.cache_clear()`, `diffuse_kernel.cache_clear()` and",
         f"  any u-degree hint; median of {COLD_RUNS}. (Imports and CMF tables are already loaded.)",
         f"- **Warm re-bake**: after one bake of the preset, {CHANGES} bakes of changed films, median. Change"
@@ -267,8 +270,8 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         "  column is t(3 rows) / (3 · t(1 row)), each the median of 2 runs alternating 1 and 3 rows, the"
         " 1-row run being the same material at constant",
         "  thickness = the first of those 3 rows.",
-        "- **Equal error**: both bakers use identical quadrature nodes (the same `bake.plan`: SH order,",
-        f"  view angles and wavelength grid; the same {bake.N_THETA}×{bake.N_PHI} half-vector rule from",
+        "- **Equal error**: both bakers use identical quadrature nodes (the same `planner.plan`: SH order,",
+        f"  view angles and wavelength grid; the same {kernel.N_THETA}×{kernel.N_PHI} half-vector rule from",
         "  `half_vector_nodes`), so they share the quadrature error against the exact integral and differ",
         "  only by the fast baker's Chebyshev interpolation of R(u). *rel. diff* = max |fast − ref| /",
         "  max |ref| over the 3 compared rows (the tests require ≤ 1e-4).",
@@ -281,7 +284,7 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
     ]
     for r in rows:
         lines.append(
-            f"| {r['name']} | {tuple(r['shape'])} | {common.fmt_bytes(r['bytes'])} |"
+            f"| {r['name']} | {tuple(r['shape'])} | {plan_text.fmt_bytes(r['bytes'])} |"
             f" {r['plan'].wavelength_count}"
             f" | {r['u_nodes']} × 8 | {common.fmt_seconds(r['cold'])} | **{common.fmt_seconds(r['warm'])}**"
             f" | {'yes' if r['warm'] <= TARGET_S else '**no**'} | {r['kernel_hits']}/{CHANGES}"
@@ -355,7 +358,7 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
                 f" {d[0]} (those bakes: {', '.join(common.fmt_seconds(r['warm_all'][i]) for i in other)};"
                 f" the first one with a new count recomputes the kernel). With {d[0]} nodes the accepted"
                 f" interpolation errors were {min(errs):.1e}…{max(errs):.1e} against U_TOLERANCE ="
-                f" {bake.U_TOLERANCE:g}: the film sits at the edge of the tolerance, so small changes flip"
+                f" {planner.U_TOLERANCE:g}: the film sits at the edge of the tolerance, so small changes flip"
                 " the node count"
             )
     lines += [
@@ -378,7 +381,7 @@ def report(rows: list[dict], breakdown: dict, single: dict, total: float) -> str
         f" (relative difference between the two tables ≤ {max(r['rel_diff'] for r in rows):.1e}); the ≥ 100×"
         f" criterion holds {'for every preset' if min(ratios) >= 100 else 'only for some presets'}."
         f" The reference loop recomputes the row-independent `transfer_samples` (SH basis at"
-        f" {bake.N_THETA * bake.N_PHI} nodes) for every row; even with that hoisted out, it would be"
+        f" {kernel.N_THETA * kernel.N_PHI} nodes) for every row; even with that hoisted out, it would be"
         f" {min(hoisted):.0f}× to {max(hoisted):.0f}× slower. With one BLAS thread the ratio is"
         f" {min(ratios1):.0f}× to {max(ratios1):.0f}×.",
         "- Linearity of the reference in rows, t(3 rows) / 3·t(1 row): wall "
@@ -440,17 +443,25 @@ COLD_BEFORE_REV = "dcb75cb"
 #: the GGX albedo table — stays), printed as JSON.
 _COLD_CHILD = r"""
 import json, sys, time
-from precompute import bake, brdf
-from precompute.material import FALLBACK, preset
-cases = json.loads(sys.argv[1])
-def clear():
-    for f in (bake.microfacet_kernel, bake.diffuse_kernel, brdf.ggx_E, brdf.ggx_E_avg):
-        f.cache_clear()
+from precompute import brdf
+try:  # the layout since issue 35
+    from precompute.bakes import bake, kernel, sh_order
+    from precompute.materials.material import preset
+except ImportError:  # a flat precompute/ (COLD_BEFORE_REV); old names spelled apart, as they were
+    import importlib
+    bake = importlib.import_module("precompute" + ".bake")
+    preset = importlib.import_module("precompute" + ".material").preset
+    kernel = bake
     try:
         from precompute import sh_order
-        sh_order._band_energies.cache_clear()
     except ImportError:
-        pass
+        sh_order = None
+cases = json.loads(sys.argv[1])
+def clear():
+    for f in (kernel.microfacet_kernel, kernel.diffuse_kernel, brdf.ggx_E, brdf.ggx_E_avg):
+        f.cache_clear()
+    if sh_order is not None:
+        sh_order._band_energies.cache_clear()
 t0 = time.perf_counter()
 bake.bake(preset("soap_film").with_(roughness=0.77))  # process warm-up: imports, tables, nodes
 first = time.perf_counter() - t0
@@ -602,7 +613,7 @@ COLD_NOTES = (
     " (the same sums in another order).",
     "- Films drawn by the split sum alone read only the l = 0 entry; `bake.bake` with"
     " `Quality(sh_order=0)` bakes just that, but choosing it needs the draw's knowledge of the World"
-    " (a prefiltered World must be there), which lives in addon/tables.py (not changed here).",
+    " (a prefiltered World must be there), which lives in addon/bakes/tables.py (not changed here).",
 )
 COLD_BEGIN = "<!-- cold-bakes:begin -->"
 COLD_END = "<!-- cold-bakes:end -->"
@@ -636,7 +647,7 @@ def main(argv=None) -> None:
         print("\n".join(cold_report(cold)))
         print(f"wrote {write_cold_section(cold)} in {time.perf_counter() - start:.1f} s")
         return
-    bake.plan(preset("soap_film"))  # load CMFs etc. outside any timing
+    planner.plan(preset("soap_film"))  # load CMFs etc. outside any timing
     if args.child_json:
         rows = [measure_preset(name) for name in PRESETS]
         print(json.dumps({r["name"]: {k: r[k] for k in CHILD_FIELDS} for r in rows}))

@@ -1,7 +1,7 @@
 """Helpers shared by the benchmarks: machine description, median timing, doc output.
 
 Nothing here is timed itself; the benchmarks import it so that every report states the
-machine in the same words. Colour errors come from ``precompute.colour_difference``.
+machine in the same words. Colour errors come from ``precompute.colour.colour_difference``.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: The add-on's GPU layer, module by module (addon/gpu/).
-GPU_MODULES = ("context", "shaders", "resources", "mesh", "draw")
+GPU_MODULES = ("context", "layout", "shaders", "resources", "mesh", "draw")
 
 
 def gpu_layer(package: str):
@@ -202,29 +202,21 @@ def fmt_rate(per_second: float) -> str:
     return f"{per_second / 1e3:.1f} k/s"
 
 
-def fmt_bytes(count: int) -> str:
-    if count >= 1 << 20:
-        return f"{count / (1 << 20):.2f} MiB"
-    if count >= 1 << 10:
-        return f"{count / (1 << 10):.1f} KiB"
-    return f"{count} B"
-
-
 # ----------------------------------------------------------------------------------------------
 # Bake caches (benchmarks clear them to time cold bakes; nothing in precompute/ is modified)
 # ----------------------------------------------------------------------------------------------
 def clear_bake_caches() -> None:
     """Forget what a new material or roughness must compute: the microfacet/diffuse kernels, the
     GGX albedo, the SH order's lobe (and the u-degree hint, in bakers that keep one)."""
-    from precompute import bake
+    from precompute.bakes import bake, kernel
 
-    bake.microfacet_kernel.cache_clear()
-    bake.diffuse_kernel.cache_clear()
+    kernel.microfacet_kernel.cache_clear()
+    kernel.diffuse_kernel.cache_clear()
     bake.brdf.ggx_E.cache_clear()
     bake.brdf.ggx_E_avg.cache_clear()
     getattr(bake, "_DEGREE_HINT", {}).clear()
     try:
-        from precompute import sh_order
+        from precompute.bakes import sh_order
     except ImportError:  # a baker from before the order table
         return
     sh_order._band_energies.cache_clear()

@@ -7,7 +7,7 @@ World, a camera; Base Color black, so only the film shows). Cycles renders the f
 headless command renders the same file in-process (``thinfilm_headless.py FILE render``: the
 draw collection, bake, lamps, prefilter and GLSL shader of the add-on, anti-aliased with the
 scene's pixel filter). ΔE2000 between the two EXRs over the sphere, one pixel of silhouette left
-out (``precompute.colour_difference.delta_e_2000``, route "E").
+out (``precompute.colour.colour_difference.delta_e_2000``, route "E").
 
 Cycles' renders are cached in ``benchmarks/.cache/cycles_compare/`` by the case, size, sample
 count and Blender version, so a rerun renders only the headless frames.
@@ -29,8 +29,8 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute import image_io, render
-from precompute.colour_difference import delta_e_2000, exposure_scale
+from precompute.colour.colour_difference import delta_e_2000, exposure_scale
+from precompute.output import image_io, render
 
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "tests"))
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "scripts"))
@@ -202,7 +202,8 @@ def main(argv=None) -> int:
         f"{samples} samples, no denoising, its default Blackman–Harris 1.5 px pixel filter. **Ours**: the",
         "extension's headless command on the same file, in-process (`scripts/thinfilm_headless.py FILE",
         "render`): the add-on's draw collection, table bake, World lamps, prefilter and GLSL shader on",
-        "Mesa llvmpipe, drawn 4× larger and filtered with the scene's pixel filter (addon/headless.py).",
+        "Mesa llvmpipe, drawn 4× larger and filtered with the scene's pixel filter "
+        "(addon/headless/render.py).",
         "The Principled film is previewed in the Cycles-matching colour mode (Cycles' film pipeline,",
         "docs/white-furnace.md). ΔE2000 between the two EXRs over the sphere, one pixel of silhouette",
         "left out, at a common exposure (the reference's p95 luminance at 0.8). Cycles' own noise at",

@@ -42,8 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from benchmarks import common
-from precompute import image_io, render
-from precompute.colour_difference import delta_e_2000, exposure_scale
+from precompute.colour.colour_difference import delta_e_2000, exposure_scale
+from precompute.output import image_io, render
 
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "tests"))
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "scripts"))
@@ -160,7 +160,7 @@ def _scene_case(name):
         bpy = _bpy()
         made = make_scenes.make_scene(name, pathlib.Path(path).parent / "made", resolution=SCENE_SIZE)
         bpy.ops.wm.open_mainfile(filepath=str(made))
-        principled = importlib.import_module("thinfilm_sh.addon.principled")
+        principled = importlib.import_module("thinfilm_sh.addon.materials.principled")
         for mat in bpy.data.materials:
             props = getattr(mat, "thinfilm_sh", None)
             if props is not None and props.enabled and len(props.layers) == 1:
@@ -249,9 +249,15 @@ def eevee_image(blend, workdir) -> tuple[np.ndarray, float, dict]:
     return rgb, seconds, outcomes
 
 
+#: A substrate IOR this close to 1 is a free film (a bubble on air): its film-off floor takes the
+#: film's index, else the bare surface would vanish in both engines and the floor say nothing.
+FREE_FILM_IOR = 1.001
+
+
 def bare_blend(blend, workdir) -> pathlib.Path:
     """The case's file with every Principled film off (Thin Film Thickness 0, unlinked): the same
-    BSDF without its film, for EEVEE's own floor against Cycles."""
+    BSDF without its film, for EEVEE's own floor against Cycles. A free film's IOR-1 substrate
+    takes the film's index (:data:`FREE_FILM_IOR`)."""
     bpy = _bpy()
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     for mat in bpy.data.materials:
@@ -265,6 +271,9 @@ def bare_blend(blend, workdir) -> pathlib.Path:
                 for link in list(socket.links):
                     mat.node_tree.links.remove(link)
                 socket.default_value = 0.0
+                ior, film_ior = node.inputs["IOR"], node.inputs["Thin Film IOR"]
+                if not ior.links and ior.default_value < FREE_FILM_IOR and not film_ior.links:
+                    ior.default_value = film_ior.default_value
     return _save(pathlib.Path(workdir) / "bare.blend")
 
 
@@ -294,7 +303,7 @@ def film_mask(blend, workdir) -> np.ndarray:
     films = {
         m.name
         for m in bpy.data.materials
-        if importlib.import_module("thinfilm_sh.addon.description").description(m)
+        if importlib.import_module("thinfilm_sh.addon.materials.description").description(m)
     }
     for obj in bpy.data.objects:
         if obj.type == "MESH":

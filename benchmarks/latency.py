@@ -87,8 +87,19 @@ class Extension:
         sys.path.insert(0, str(self.root))
         self.package = importlib.import_module(EXTENSION_ID)
         self.package.register()
-        for name in ("scene_draw", "viewport", "tables", "prefs", "caches", "description", "bake_helper"):
-            setattr(self, name, importlib.import_module(f"{EXTENSION_ID}.addon.{name}"))
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.drawing.viewport",
+            "addon.bakes.tables",
+            "addon.ui.prefs",
+            "addon.caches",
+            "addon.materials.description",
+            "addon.bakes.bake_helper",
+            "addon.bakes.radiance_grids",
+            "addon.drawing.shader_warmup",
+            "addon.bakes.bake_jobs",
+        ):
+            setattr(self, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
         self.gpu = common.gpu_layer(EXTENSION_ID)
         self.gpu.context.ensure_gpu_context()
         self.cache_dir = self.root / "cache"
@@ -175,9 +186,8 @@ class Loop:
 
         self.ext, self.bpy, self.scene = ext, bpy, scene
         self.vp = ext.viewport
-        package = self.vp.__name__.rpartition(".")[0]
-        self.grids = importlib.import_module(f"{package}.radiance_grids")
-        self.warmup = warmup = importlib.import_module(f"{package}.shader_warmup")
+        self.grids = ext.radiance_grids
+        self.warmup = warmup = ext.shader_warmup
         #: Every timer the add-on registers: the viewport's service, the shader compile step,
         #: the radiance grids' poll; each fires when due, as Blender's event loop runs them.
         self.timers = (self.vp._service, warmup.step, self.grids._poll)
@@ -301,7 +311,7 @@ class Loop:
                 self.dues[fn] = time.perf_counter()
 
     def busy(self) -> bool:
-        return bool(self.vp._running) or self.grids.busy()
+        return self.ext.bake_jobs.BAKES.busy() or self.grids.busy()
 
     def run(self, until: float) -> bool:
         """Process events until idle or ``until`` (perf_counter); True when idle."""
@@ -335,7 +345,7 @@ class Loop:
                 else:
                     time.sleep(0.01)
                 self._timer_check()
-            if previous is not None and np.array_equal(previous, image) and not self.vp._pending:
+            if previous is not None and np.array_equal(previous, image) and not self.ext.bake_jobs.pending():
                 return image
             previous = image
         raise RuntimeError("the viewport did not settle")

@@ -40,7 +40,7 @@ TIO2 = {"cauchy": [2.30, 0.045, 0.0]}
 
 
 def _stack_media(count: int = 10):
-    from precompute.material import Material
+    from precompute.materials.material import Material
 
     layers = tuple((1.38 if i % 2 == 0 else TIO2, 110.0 if i % 2 == 0 else 60.0) for i in range(count))
     m = Material(layers=layers, substrate=1.52)
@@ -49,7 +49,7 @@ def _stack_media(count: int = 10):
 
 def cases():
     """(label, path, indices, thickness sets (T, L), method, layers)."""
-    from precompute.material import Material
+    from precompute.materials.material import Material
 
     soap = [1.0, 1.33, 1.0]
     ti = Material(layers=((TIO2, 75.0),), substrate={"metal": "titanium"}).indices()

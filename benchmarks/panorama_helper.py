@@ -1,6 +1,6 @@
 """The panorama helper process (issue 16): start-up, memory, the main thread's hand-over, renders.
 
-A procedural World's Cycles panorama is rendered by a helper process (``addon/panorama_helper.py``)
+A procedural World's Cycles panorama is rendered by a helper process (``addon/world/panorama_helper.py``)
 so that Blender's main thread only writes the World to a .blend and sends its path. Measured here
 with the add-on's own code (real bpy, a Sky Texture World):
 
@@ -51,7 +51,7 @@ def _extension():
     package.register()
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     package.register()
-    return package, importlib.import_module(f"{EXTENSION_ID}.addon.panorama_helper")
+    return package, importlib.import_module(f"{EXTENSION_ID}.addon.world.panorama_helper")
 
 
 def sky_world(bpy, name: str = "Sky"):
@@ -82,7 +82,7 @@ def measure(helper=None) -> dict:
     start = time.perf_counter()
     helper.warm()
     found["popen_ms"] = _ms(time.perf_counter() - start)
-    process = helper._process
+    process = helper.SLOT.current()  # the session's helper (helper_process.HelperSlot)
     if process is None or not process.ready.wait(helper.START_TIMEOUT_S) or process.ready_s is None:
         raise RuntimeError(f"the helper did not start: {helper.info()}")
     found["ready_s"] = process.ready_s
@@ -131,7 +131,8 @@ def section(found: dict) -> list[str]:
         HEADING,
         "",
         "A procedural World's panorama is rendered by one long-lived helper process "
-        "(`addon/panorama_helper.py`, `addon/panorama_process.py`), started at the viewport's first "
+        "(`addon/world/panorama_helper.py`, `addon/world/panorama_process.py`), started at the "
+        "viewport's first "
         "World read; the main thread writes the World to a private .blend and sends its path, a "
         "worker thread waits for the float32 panorama and analyses it. Measured by "
         f"`benchmarks/panorama_helper.py` (a Sky Texture World, medians of {WRITES} writes and "

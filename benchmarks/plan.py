@@ -3,13 +3,13 @@
 Usage (from the repository root)::
 
     .venv/bin/python -m benchmarks.plan               # → docs/effect-plan.md
-    .venv/bin/python -m benchmarks.plan --calibrate   # fits precompute.effects.TIME_MODEL, prints it
+    .venv/bin/python -m benchmarks.plan --calibrate   # fits cost_model.TIME_MODEL, prints it
 
 The scene (``SCENE``): 12 materials — the six presets, an equal copy of one, plain constant-
 thickness films (one of them twice), a film on gold, a film over a diffuse base and a rough
 per-channel (Principled-like) film. Two runs of the same materials:
 
-- *planned*: what :func:`precompute.effects.scene_plan` asks for — each unique table baked
+- *planned*: what :func:`precompute.effects.plans.scene_plan` asks for — each unique table baked
   once at its automatic quality (equal materials share one), drawn with the variant its table
   needs (l_max from the table, the thickness attribute only on varying films);
 - *all on*: every material forced to the highest SH order (12), a 64-row thickness axis (its own range, or
@@ -38,23 +38,26 @@ from pathlib import Path
 
 import numpy as np
 
-from precompute import bake, effects, hdri, sh
-from precompute.material import PRESETS, Layer, Material, Quality
+from precompute.bakes import bake, kernel, planner, sh_order
+from precompute.effects import cost_model, plan_text, plans
+from precompute.materials.material import PRESETS, Layer, Material, Quality
+from precompute.sh import projection
+from precompute.world import hdri
 
 from . import common
 
 EXTENSION_ID = "thinfilm_sh"
 WIDTH, HEIGHT = 960, 540
 FRAMES = 7
-ALL_ON = {"sh_order": effects.MAX_ORDER, "thickness_samples": 64, "wavelength_count": 256, "view_samples": 64}
+ALL_ON = {"sh_order": plans.MAX_ORDER, "thickness_samples": 64, "wavelength_count": 256, "view_samples": 64}
 
 
 def _clear_all_caches() -> None:
     """Forget every cache a bake fills: microfacet/diffuse kernels, GGX albedo tables, u hints."""
     from precompute import brdf
 
-    bake.microfacet_kernel.cache_clear()
-    bake.diffuse_kernel.cache_clear()
+    kernel.microfacet_kernel.cache_clear()
+    kernel.diffuse_kernel.cache_clear()
     getattr(bake, "_DEGREE_HINT", {}).clear()  # older bakes remembered the u degree
     brdf.ggx_E.cache_clear()
     brdf.ggx_E_avg.cache_clear()
@@ -113,7 +116,7 @@ def bake_all(materials: dict[str, Material], share: bool) -> dict:
     wall = cpu = 0.0
     for name in sorted(materials):
         m = materials[name]
-        key = effects.bake.table_key(m)
+        key = planner.table_key(m)
         if share and key in done:
             results[name] = done[key]
             seconds[name] = 0.0
@@ -248,15 +251,15 @@ def empty_frame(gd, shaders) -> float:
 
 def world_orders() -> list[tuple[str, int, np.ndarray]]:
     """(name, content order, tails) for Blender's studio lights and two smooth synthetic Worlds."""
-    from precompute import cli
+    from precompute.commands import cli
 
     out = []
     for path in sorted(cli.studiolight("studio").parent.glob("*.exr")):
         image = hdri.read_equirect(path)
         while image.shape[1] > 512:
             image = hdri.downsample(image, 2)
-        c = sh.project_equirect(image, 8)
-        out.append((f"`{path.stem}` HDRI", effects.world_content_order(c)[0], effects.world_tails(c)))
+        c = projection.project_equirect(image, 8)
+        out.append((f"`{path.stem}` HDRI", plans.world_content_order(c)[0], plans.world_tails(c)))
     h, w = 64, 128
     el = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
     z = np.repeat(np.sin(el)[:, None], w, axis=1)[..., None]
@@ -264,21 +267,21 @@ def world_orders() -> list[tuple[str, int, np.ndarray]]:
         ("uniform colour", np.ones((h, w, 3)) * np.array([0.2, 0.3, 0.4])),
         ("sky gradient 0.5 + 0.4 z", (0.5 + 0.4 * z) * np.array([0.6, 0.8, 1.0])),
     ):
-        c = sh.project_equirect(image, 8)
-        out.append((name, effects.world_content_order(c)[0], effects.world_tails(c)))
+        c = projection.project_equirect(image, 8)
+        out.append((name, plans.world_content_order(c)[0], plans.world_tails(c)))
     return out
 
 
 def world_coefficients():
     """Blender's studio HDRI projected to l = 8 (the World of the benchmark scene)."""
-    from precompute import cli
+    from precompute.commands import cli
 
     image = hdri.read_equirect(cli.studiolight("studio"))
-    return sh.project_equirect(image, 8)
+    return projection.project_equirect(image, 8)
 
 
 # ----------------------------------------------------------------------------------------------
-# Calibration of precompute.effects.TIME_MODEL
+# Calibration of precompute.effects.cost_model.TIME_MODEL
 # ----------------------------------------------------------------------------------------------
 def _calibration_materials() -> list[Material]:
     out = []
@@ -311,20 +314,20 @@ def _calibration_materials() -> list[Material]:
 def calibration_rows(materials=None, repeats: int = 1) -> list[dict]:
     """CPU seconds and :func:`effects.bake_features` of cold and warm bakes of ``materials``."""
     rows = []
-    ladder = bake.U_DEGREE_LADDER
+    ladder = planner.U_DEGREE_LADDER
     bake.bake(Material(quality=Quality(sh_order=2, view_samples=4, wavelength_count=32)))  # warm-up
     for m in materials or _calibration_materials():
         best = {}
         for _ in range(repeats):  # the fastest of the repeats: the least disturbed by other load
             _clear_all_caches()
-            p = bake.plan(m)  # resolved before timing: the order kernel is timed on its own
+            p = planner.plan(m)  # resolved before timing: the order kernel is timed on its own
             for cold in (True, False):
                 wall, cpu, result = common.time_once_cpu(lambda m=m: bake.bake(m))
                 if cold in best and best[cold]["cpu"] <= cpu:
                     continue
                 degree = result.u_nodes
                 tried = ladder[: ladder.index(degree) + 1]  # the search starts at the bottom
-                features = effects.bake_features(
+                features = cost_model.bake_features(
                     m, p, degree, tried, result.wavelengths_nm.size, kernel_cold=cold, order_kernel_cold=False
                 )
                 best[cold] = {"material": m, "cold": cold, "wall": wall, "cpu": cpu, "features": features}
@@ -333,11 +336,11 @@ def calibration_rows(materials=None, repeats: int = 1) -> list[dict]:
 
 
 def calibrate(repeats: int = 2) -> dict:
-    """Fit :data:`precompute.effects.TIME_MODEL` (non-negative least squares, relative error)."""
+    """Fit :data:`precompute.effects.cost_model.TIME_MODEL` (non-negative least squares, relative error)."""
     from scipy.optimize import nnls
 
     rows = calibration_rows(repeats=repeats)
-    names = [n for n in effects.TIME_MODEL if n != "sh_order"]
+    names = [n for n in cost_model.TIME_MODEL if n != "sh_order"]
     x = np.array([[r["features"][n] for n in names] for r in rows])
     y = np.array([r["cpu"] for r in rows])
     scale = 1.0 / np.maximum(y, 1e-3)
@@ -346,7 +349,7 @@ def calibrate(repeats: int = 2) -> dict:
     model["contract"] = max(model["contract"], 5e-10)  # ≪ the other stages: floor at BLAS speed
     order = []
     for r in (0.123, 0.456, 0.789):
-        order.append(common.time_once_cpu(lambda r=r: bake.auto_sh_order(Material(roughness=r)))[1])
+        order.append(common.time_once_cpu(lambda r=r: sh_order.auto_sh_order(Material(roughness=r)))[1])
     model["sh_order"] = float(f"{statistics.median(order):.3g}")
     predicted = x @ coef
     ratio = y / np.maximum(predicted, 1e-9)
@@ -363,23 +366,15 @@ def calibrate(repeats: int = 2) -> dict:
 def estimate(materials: dict[str, Material], share: bool) -> float:
     """Estimated seconds for baking ``materials`` from cold caches (kernels shared by the cache)."""
     if share:
-        return effects.scene_plan(materials).bake_seconds
+        return plans.scene_plan(materials).bake_seconds
     seen, orders, total = set(), set(), 0.0
     for name in sorted(materials):
-        mp = effects.material_plan(materials[name])
+        mp = plans.material_plan(materials[name])
         cold = mp.kernel_key not in seen
         order_cold = float(mp.material.roughness) not in orders
         seen.add(mp.kernel_key)
         orders.add(float(mp.material.roughness))
-        total += effects.bake_time_breakdown(
-            mp.material,
-            mp.plan,
-            mp.u_degree,
-            mp.u_tried,
-            mp.wavelength_nodes,
-            kernel_cold=cold,
-            order_kernel_cold=order_cold,
-        )["total"]
+        total += mp.bake_time(kernel_cold=cold, order_kernel_cold=order_cold)["total"]
     return total
 
 
@@ -388,7 +383,7 @@ def run() -> dict:
     everything = {name: all_on(m) for name, m in scene.items()}
     world = world_coefficients()
     _clear_all_caches()
-    splan = effects.scene_plan(scene, world)
+    splan = plans.scene_plan(scene, world)
     planned_estimate = estimate(scene, share=True)
     _clear_all_caches()
     allon_estimate = estimate(everything, share=False)
@@ -447,7 +442,7 @@ def _row(label: str, planned, allon, fmt) -> str:
 
 
 def report(res: dict) -> str:
-    sp: effects.ScenePlan = res["plan"]
+    sp: plans.ScenePlan = res["plan"]
     planned, allon = res["planned"], res["allon"]
     fp, fa, empty = res["frames"]
     est_p, est_a = res["estimates"]
@@ -455,11 +450,11 @@ def report(res: dict) -> str:
         "# Effect plan: simulate only what each scene calls for",
         "",
         "Generated by `.venv/bin/python -m benchmarks.plan` (benchmarks/plan.py); the prose around the",
-        "numbers is in that script too. The API is `precompute/effects.py`.",
+        "numbers is in that script too. The API is `precompute/effects/`.",
         "",
         "## What is planned",
         "",
-        "For each material, `effects.material_plan(material)` derives from its settings which effects",
+        "For each material, `plans.material_plan(material)` derives from its settings which effects",
         "are on, and each effect switches on only its code and table dimensions:",
         "",
         "| effect | on when | what it switches on (precompute / shader) |",
@@ -504,7 +499,7 @@ def report(res: dict) -> str:
         " one table (one bake, one texture). A microfacet kernel (cached by roughness, order, view count,"
         " u nodes) is charged to the first table that needs it; tables already in memory or in the disk"
         " cache (`TableCache`, kept across sessions) cost nothing. The World's SH order is the smallest"
-        f" l ≤ 8 whose band-energy tail Σ_{{l' > l}} |c_l'|² is below {100 * effects.WORLD_TAIL:g} % of the"
+        f" l ≤ 8 whose band-energy tail Σ_{{l' > l}} |c_l'|² is below {100 * plans.WORLD_TAIL:g} % of the"
         " total (unwindowed coefficients), but never below the highest order a visible material uses.",
         "",
         "Printed by `python -m precompute plan --preset …` (one material), `blender -b file.blend -c"
@@ -530,16 +525,17 @@ def report(res: dict) -> str:
         "",
         "| term | units | seconds per unit |",
         "|---|---|---|",
-        "| fixed | 1 per bake | " + f"{effects.TIME_MODEL['fixed']:.3g} |",
+        "| fixed | 1 per bake | " + f"{cost_model.TIME_MODEL['fixed']:.3g} |",
         "| reflectance | [Σ_tried min(T, 4) · (8d + 7(d+1)) + T · 8d] · W · (layers + 1) | "
-        + f"{effects.TIME_MODEL['reflectance']:.3g} |",
+        + f"{cost_model.TIME_MODEL['reflectance']:.3g} |",
         "| kernel_views / kernel_coeffs / kernel_nodes (cold) | A, A·(L+1)², A·8d | "
-        + f"{effects.TIME_MODEL['kernel_views']:.3g} / {effects.TIME_MODEL['kernel_coeffs']:.3g} /"
-        f" {effects.TIME_MODEL['kernel_nodes']:.3g} |",
-        "| multiscatter (cold) | A + 32 GGX albedo views | " + f"{effects.TIME_MODEL['multiscatter']:.3g} |",
-        "| contract | T·U·W·9 + A·K·U·T·9 (+ diffuse) | " + f"{effects.TIME_MODEL['contract']:.3g} |",
+        + f"{cost_model.TIME_MODEL['kernel_views']:.3g} / {cost_model.TIME_MODEL['kernel_coeffs']:.3g} /"
+        f" {cost_model.TIME_MODEL['kernel_nodes']:.3g} |",
+        "| multiscatter (cold) | A + 32 GGX albedo views | "
+        + f"{cost_model.TIME_MODEL['multiscatter']:.3g} |",
+        "| contract | T·U·W·9 + A·K·U·T·9 (+ diffuse) | " + f"{cost_model.TIME_MODEL['contract']:.3g} |",
         "| sh_order | 1 per new roughness with an automatic order | "
-        + f"{effects.TIME_MODEL['sh_order']:.3g} |",
+        + f"{cost_model.TIME_MODEL['sh_order']:.3g} |",
         "",
         "The u-node degree d (the search climbs from the bottom of the ladder on 4 probe rows, then"
         " evaluates every row once) is estimated as the smallest ladder step ≥ 6 + OPD / 300 nm."
@@ -551,10 +547,10 @@ def report(res: dict) -> str:
         *common.machine_lines(),
         f"- Renderer: {res['renderer']}, {WIDTH}×{HEIGHT} off-screen, RGBA32F",
         "",
-        f"*All on*: every material forced to SH order {effects.MAX_ORDER}, a 64-row thickness axis"
+        f"*All on*: every material forced to SH order {plans.MAX_ORDER}, a 64-row thickness axis"
         " (its range, or 0.5–1.5× its thickness), 256 wavelengths, 64 view angles, the film as a"
         " two-layer stack (an extra 50 nm layer of the substrate's own index under it — optically"
-        f" identical, but the transfer recursion runs), no sharing; drawn with l_max {effects.MAX_ORDER}"
+        f" identical, but the transfer recursion runs), no sharing; drawn with l_max {plans.MAX_ORDER}"
         " and the thickness attribute everywhere. Both runs bake from cleared kernel caches (a new"
         " session); within a run the kernel cache works as usual. Frames: median of"
         f" {FRAMES} after a warm-up frame that compiles the variants, the two scenes drawn alternately;"
@@ -568,8 +564,9 @@ def report(res: dict) -> str:
     for name, mp in sp.materials.items():
         first = sp.tables[mp.key][0]
         lines.append(
-            f"| {name} | {effects.effect_summary(mp)} | {'×'.join(map(str, mp.table_shape))} |"
-            f" {common.fmt_bytes(mp.table_bytes)} | {mp.plan.sh_order} | {sp.bake_seconds_each[name]:.2f} s |"
+            f"| {name} | {plan_text.effect_summary(mp)} | {'×'.join(map(str, mp.table_shape))} |"
+            f" {plan_text.fmt_bytes(mp.table_bytes)} | {mp.plan.sh_order}"
+            f" | {sp.bake_seconds_each[name]:.2f} s |"
             f" {planned['seconds'][name]:.2f} s | {first if first != name else ''} |"
         )
     lines += [
@@ -598,8 +595,8 @@ def report(res: dict) -> str:
         _row("bake time, wall", planned["wall"], allon["wall"], _secs),
         _row("bake time, CPU", planned["cpu"], allon["cpu"], _secs),
         _row("bake time, estimated (effects model)", est_p, est_a, _secs),
-        _row("table bytes (float32)", res["planned_bytes"], res["allon_bytes"], common.fmt_bytes),
-        _row("GPU texture bytes", fp["texture_bytes"], fa["texture_bytes"], common.fmt_bytes),
+        _row("table bytes (float32)", res["planned_bytes"], res["allon_bytes"], plan_text.fmt_bytes),
+        _row("GPU texture bytes", fp["texture_bytes"], fa["texture_bytes"], plan_text.fmt_bytes),
         f"| textures / shader variants | {fp['textures']} / {len(fp['variants'])} | {fa['textures']} /"
         f" {len(fa['variants'])} | |",
         f"| frame time (median of {FRAMES}) | {fp['median'] * 1e3:.0f} ms | {fa['median'] * 1e3:.0f} ms |"
@@ -622,7 +619,7 @@ def report(res: dict) -> str:
         " exact.",
         "- A measured bake near 0 s: its kernel (roughness, view count, u nodes) was already computed for"
         " an earlier material; the estimate sees such sharing only when it predicts the same u degree.",
-        f"- Frame: the automatic SH order is {effects.MAX_ORDER} for every roughness below 0.7"
+        f"- Frame: the automatic SH order is {plans.MAX_ORDER} for every roughness below 0.7"
         " (`auto_sh_order`'s 10 % lobe truncation target), so most planned variants already run at the"
         " top order; the per-pixel saving comes from the 1-D tables (2 taps instead of 4), rough"
         " per-channel films (lower orders, 3 floats per coefficient) and smaller textures. The SH"

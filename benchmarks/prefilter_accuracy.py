@@ -19,8 +19,9 @@ import numpy as np
 
 from benchmarks import common
 from benchmarks.world_latency import BEFORE, prefilter_at, studio_512
-from precompute import constants, prefilter
+from precompute import constants
 from precompute.shading.policy import ROUGHNESS_LEVELS
+from precompute.world import prefilter
 
 REFERENCE_SAMPLES = (32, 16)
 NOTE = (

@@ -3,7 +3,7 @@
 Three scenes (issue 18), each built once in bpy and rendered twice — by Cycles (CPU, box pixel
 filter) and by the extension's headless ``render`` (the GLSL path on whatever OpenGL is present,
 rendered at 2× and box-averaged to Cycles' pixel filter) — and compared by mean ΔE2000 over the
-sphere (``precompute.colour_difference.delta_e_2000``, ``"E"`` white, as
+sphere (``precompute.colour.colour_difference.delta_e_2000``, ``"E"`` white, as
 benchmarks/cycles_compare.py):
 
 - ``sun``: an opaque film sphere (Principled, Base Color black: the film's specular layer only)
@@ -33,9 +33,10 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute import hdri, image_io, render
-from precompute.cli import studiolight
-from precompute.colour_difference import delta_e_2000
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.commands.cli import studiolight
+from precompute.output import image_io, render
+from precompute.world import hdri
 from tests._cycles_scenes import DISTANCE, FOV_DEG, cycles_settings, object_mask
 
 DOCS = pathlib.Path(common.ROOT) / "docs"
@@ -178,7 +179,7 @@ def our_frame(ext, scene, size: int) -> tuple[np.ndarray, dict]:
     """The headless ``render`` command's frame (2× and box-averaged), and its summary."""
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "ours.png"
-        summary = ext.headless.render_scene(scene, str(out), size * SUPERSAMPLE, size * SUPERSAMPLE)
+        summary = ext.render.render_scene(scene, str(out), size * SUPERSAMPLE, size * SUPERSAMPLE)
         image = hdri.read_equirect(out.with_suffix(".exr"))[..., :3]
     return render.box_downsample(image, SUPERSAMPLE), summary
 
@@ -249,11 +250,11 @@ def time_lights(ext, cases=TIMED, size: int = 256, frames: int = 5) -> list[dict
         scene = build_scene(case, size)
         with tempfile.TemporaryDirectory() as tmp:
             out = pathlib.Path(tmp) / "t.png"
-            ext.headless.render_scene(scene, str(out), size, size, background=False)  # warm-up: bake, compile
+            ext.render.render_scene(scene, str(out), size, size, background=False)  # warm-up: bake, compile
             times = []
             for _ in range(frames):
                 t0 = time.perf_counter()
-                ext.headless.render_scene(scene, str(out), size, size, background=False)
+                ext.render.render_scene(scene, str(out), size, size, background=False)
                 times.append(time.perf_counter() - t0)
         rows.append({"lights": count, "kind": kind, "ms": 1000.0 * float(np.median(times))})
     return rows
@@ -263,8 +264,9 @@ def area_accuracy(samples=(2, 3, 4, 6), roughnesses=(0.1, 0.2, 0.3, 0.6), distan
     """The sampled rectangle against a 160 × 160 grid (numpy, precompute.shading.lights): mean
     relative per-pixel error over 300 points of a plane lit by a 1 × 0.6 m light, uniform and
     lobe-following cells, per roughness, distance and cells per axis."""
-    from precompute import bake, film_colour
-    from precompute.material import Layer, Material, Quality
+    from precompute.bakes import bake
+    from precompute.colour import film_colour
+    from precompute.materials.material import Layer, Material, Quality
     from precompute.shading import lights as light_shading
     from precompute.shading import policy
 
@@ -452,7 +454,7 @@ def main(argv=None) -> int:
     parser.add_argument("--no-area", action="store_true", help="skip the area-light sampling table")
     parser.add_argument("--report", default=str(DOCS / "scene-lights.md"))
     args = parser.parse_args(argv)
-    from benchmarks.viewport import Extension
+    from benchmarks.viewport.scene import Extension
 
     ext = Extension()
     rows = []

@@ -6,9 +6,9 @@ Usage (from the repository root)::
     .venv/bin/python -m benchmarks.sh_projection --irradiance-doc # errors  → docs/sh-irradiance.md
     .venv/bin/python -m benchmarks.sh_projection --all            # both
 
-Timings: :func:`precompute.sh.project_equirect` of a 2048×1024 RGB HDRI (Blender's
+Timings: :func:`precompute.sh.projection.project_equirect` of a 2048×1024 RGB HDRI (Blender's
 ``studio.exr`` studiolight, 1024×512, upsampled 2× by pixel repetition) at l_max 2, 4, 8, and
-:func:`precompute.sh.rotation` at l_max 8; median of ≥ 5 runs of ``time.perf_counter``.
+:func:`precompute.sh.rotations.rotation` at l_max 8; median of ≥ 5 runs of ``time.perf_counter``.
 
 Irradiance: for every studiolight, brute-force E(n) = Σ_pixels L max(0, n·ω) dω at 200
 Fibonacci normals against the SH irradiance Σ Â_l L_lm Y_lm(n) at l_max 2 and 8
@@ -27,7 +27,8 @@ import time
 import numpy as np
 
 from benchmarks.common import cpu_model
-from precompute import hdri, sh
+from precompute.sh import projection, rotations, zonal
+from precompute.world import hdri
 from tests._sh_irradiance import (
     DOWNSAMPLE_FACTOR,
     N_NORMALS,
@@ -51,7 +52,7 @@ def point_light_truncation_error(l_max: int, nodes: int = 4000) -> tuple[float, 
     """
     x, w = np.polynomial.legendre.leggauss(nodes)
     exact = np.maximum(0.0, x)
-    a_hat = sh.clamped_cosine_zh(l_max)
+    a_hat = zonal.clamped_cosine_zh(l_max)
     l = np.arange(l_max + 1)
     approx = np.polynomial.legendre.legvander(x, l_max) @ (a_hat * (2 * l + 1) / (4.0 * np.pi))
     err = np.abs(approx - exact)
@@ -113,11 +114,11 @@ def run_benchmark() -> str:
         "|---|---:|",
     ]
     for l_max in (2, 4, 8):
-        t = _median_time(lambda l_max=l_max: sh.project_equirect(image, l_max))
+        t = _median_time(lambda l_max=l_max: projection.project_equirect(image, l_max))
         lines.append(f"| `project_equirect` 2048×1024×3, l_max = {l_max} | {1e3 * t:.1f} ms |")
-    t = _median_time(lambda: sh.rotation(8, rot), runs=21)
+    t = _median_time(lambda: rotations.rotation(8, rot), runs=21)
     lines.append(f"| `rotation(8, R)` (general R, Ivanic–Ruedenberg) | {1e3 * t:.2f} ms |")
-    t = _median_time(lambda: sh.rotation_z(8, 0.7), runs=21)
+    t = _median_time(lambda: rotations.rotation_z(8, 0.7), runs=21)
     lines.append(f"| `rotation_z(8, α)` (z fast path) | {1e3 * t:.3f} ms |")
     lines += [
         "",
@@ -170,7 +171,8 @@ def irradiance_doc() -> str:
             "## Method",
             "",
             "- Every `*.exr` in `<bpy>/5.2/datafiles/studiolights/world/`, read with",
-            f"  `precompute.hdri.read_equirect` and downsampled ×{DOWNSAMPLE_FACTOR} (1024×512 → 256×128)",
+            f"  `precompute.world.hdri.read_equirect` and downsampled ×{DOWNSAMPLE_FACTOR}"
+            " (1024×512 → 256×128)",
             "  with the solid-angle-conserving box filter (`hdri.downsample`). Brute force at full size",
             "  would need a 200 × 524 288 cosine matrix; the downsampling changes the brute-force",
             "  irradiance by ≤ 0.4 % (sunrise.exr; < 0.15 % for the others) and both sides use the same",

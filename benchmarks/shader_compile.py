@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 from . import common
-from . import viewport as vp
+from .viewport.scene import Extension
 
 # Cold compiles: Mesa's on-disk shader cache would hand back a variant compiled by an earlier run
 # (set before bpy creates its GL context).
@@ -88,7 +88,7 @@ def run(names=None, per_pixel: bool = True, log=print) -> dict:
 
     from precompute.shading.variant import stand_in
 
-    ext = vp.Extension()
+    ext = Extension()
     made = _make_scenes_module().make_scenes(tempfile.mkdtemp(prefix="tf_compile_"), names=names)
     rows = []
     done: dict = {}
@@ -123,7 +123,7 @@ def report(res: dict) -> str:
         "First compile of every shader variant the sample scenes draw, cold, each in a fresh",
         "`ShaderCache` (`python -m benchmarks.shader_compile`). *drawn*: what the product draws;",
         "*stand-in*: what the viewport draws while that variant compiles at idle",
-        "(`variant.stand_in`, addon/shader_warmup.py); *per-pixel SH (before)*: the variant a",
+        "(`variant.stand_in`, addon/drawing/shader_warmup.py); *per-pixel SH (before)*: the variant a",
         "radiance-grid variant replaces, which the viewport compiled in its draw callback before.",
         "A variant several scenes draw is compiled once: its rows repeat that figure.",
         "",

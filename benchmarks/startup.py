@@ -120,7 +120,7 @@ def main(argv=None) -> int:
         f"({'within' if med <= 0.3 else 'over'} the bound on this machine).",
         "",
         "Before issue 20, registering imported colour-science, and with it two ColourUsageWarnings",
-        "printed at every start. The colour tables now ship as data (`precompute/colour_tables.py`).",
+        "printed at every start. The colour tables now ship as data (`precompute/colour/colour_tables.py`).",
         f"`import colour` alone, in the same fresh processes: median "
         f"{statistics.median(colour_import):.3f} s "
         f"(min {min(colour_import):.3f} s, max {max(colour_import):.3f} s).",

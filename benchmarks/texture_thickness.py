@@ -1,9 +1,9 @@
 """A thickness that varies through a texture: the extension's headless frame against Cycles.
 
 Two scenes, each built by script in bpy and rendered twice — by Cycles (CPU, box filter) and by
-the extension's headless ``render`` (:func:`addon.headless.render_scene`, the viewport's shader
+the extension's headless ``render`` (:func:`addon.headless.render.render_scene`, the viewport's shader
 on Mesa) — and compared by mean ΔE2000 over the sphere
-(``precompute.colour_difference.delta_e_2000``, route ``"E"``), in the Cycles-matching
+(``precompute.colour.colour_difference.delta_e_2000``, route ``"E"``), in the Cycles-matching
 (per-channel) colour mode a Principled BSDF is previewed in, at the default quality:
 
 - ``noise``: an opaque film sphere (Base Color black, IOR 1.5, film IOR 1.33) whose Thin Film
@@ -30,9 +30,10 @@ import time
 
 import numpy as np
 
-from precompute import hdri, image_io, render
-from precompute.cli import studiolight
-from precompute.colour_difference import delta_e_2000
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.commands.cli import studiolight
+from precompute.output import image_io, render
+from precompute.world import hdri
 from tests._cycles_scenes import DISTANCE, FOV_DEG, cycles_settings, object_mask
 from tests._extension import EXTENSION_ID, linked_extension
 
@@ -158,9 +159,9 @@ def run_case(bpy, package, name, size, samples, folder):
     bpy.ops.render.render(write_still=True)
     t_cycles = time.perf_counter() - t0
     ref = hdri.read_equirect(scene.render.filepath)
-    headless = sys.modules[f"{EXTENSION_ID}.addon.headless"]
+    render_module = sys.modules[f"{EXTENSION_ID}.addon.headless.render"]
     t0 = time.perf_counter()
-    result = headless.render_scene(scene, folder / f"{name}-ours.png", size, size, background=True)
+    result = render_module.render_scene(scene, folder / f"{name}-ours.png", size, size, background=True)
     t_ours = time.perf_counter() - t0
     ours = hdri.read_equirect(result["exr"])
     mask = object_mask(render.sphere_view(size, size, DISTANCE, FOV_DEG))
@@ -211,12 +212,13 @@ def main(argv=None) -> int:
         "",
         "Two spheres whose film thickness varies through a texture, each rendered by Cycles (CPU,",
         f"{args.samples} samples, box filter, one bounce) and by the extension's headless frame",
-        "(`addon/headless.render_scene`: the viewport's shader on Mesa llvmpipe, default quality, the",
+        "(`addon/headless/render.py`, `render_scene`: the viewport's shader on Mesa llvmpipe, default "
+        "quality, the",
         "Cycles-matching per-channel colour mode of a Principled preview), "
         f"{args.size}×{args.size} pixels, under bpy's",
         f"`{HDRI}` studio light, roughness {args.roughness:g}. ΔE2000 (route E) over the sphere, its edge",
         "pixel eroded. The extension evaluates the linked thickness per face corner",
-        "(`addon/linked.py`): the Noise Texture by a Cycles bake of the linked value, the glTF",
+        "(`addon/thickness/linked.py`): the Noise Texture by a Cycles bake of the linked value, the glTF",
         "import graph (Image → Separate Color G → Mix) directly in numpy.",
         "",
         "| Scene | mean ΔE2000 | 95th pct | limit | Cycles | ours (incl. bake) |",
@@ -248,7 +250,8 @@ def main(argv=None) -> int:
         "Thickness* for `iridescenceThicknessTexture`, but reads the draft key `iridescenceThickness`",
         "instead of the spec's `iridescenceThicknessMaximum` (every such file gets 400 nm), and sets",
         "neither `iridescenceIor` nor `iridescenceFactor` when a thickness texture is present. With the",
-        "extension enabled, its import hook (`addon/gltf.py`, `glTF2ImportUserExtension`) writes the",
+        "extension enabled, its import hook (`addon/materials/gltf.py`, `glTF2ImportUserExtension`) "
+        "writes the",
         "file's values into the nodes the importer left and keeps them in the material's custom",
         "property `KHR_materials_iridescence`; a file imported without the extension keeps the",
         "importer's losses (re-import it). The preview does not apply `iridescenceFactor` (Cycles",

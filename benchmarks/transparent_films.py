@@ -32,8 +32,8 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute import image_io, render
-from precompute.colour_difference import delta_e_2000
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.output import image_io, render
 
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "tests"))
 sys.path.insert(0, str(pathlib.Path(common.ROOT) / "scripts"))

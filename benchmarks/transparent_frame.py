@@ -25,8 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import common
-from precompute import bake, film_colour, sh
-from precompute.material import Quality, preset
+from precompute.bakes import bake
+from precompute.colour import film_colour
+from precompute.materials.material import Quality, preset
+from precompute.sh import projection
 
 EXTENSION_ID = "thinfilm_sh"
 SIZE = 512
@@ -90,7 +92,7 @@ def measure(repeats: int) -> dict:
     result = bake.bake(material)
     h, w = 32, 64
     img = 0.4 + 0.3 * np.random.default_rng(1).random((h, w, 3))
-    lighting = gd.resources.Lighting.from_sh(sh.project_equirect(img, 8), 8, material.roughness)
+    lighting = gd.resources.Lighting.from_sh(projection.project_equirect(img, 8), 8, material.roughness)
     table = gd.resources.TableTexture.from_result(result)
     film = gd.resources.FilmTexture.from_film(film_colour.film_table(result))
     batch = _sphere(gd)

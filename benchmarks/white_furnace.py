@@ -4,17 +4,17 @@ For each configuration Cycles renders a mirror-smooth Principled BSDF sphere wit
 (thickness varying across the sphere) under a uniform white World, orthographic camera, a box
 pixel filter of 0.01 px (tests/_cycles_scenes.py ``white_furnace_render``); a second render reads
 back each pixel's cos θ and thickness. Ours is the film's reflectance of white light at those
-(θ, d) (``precompute.film_colour.white_reflectance``) in:
+(θ, d) (``precompute.colour.film_colour.white_reflectance``) in:
 
 - *Cycles-matching*: the product's per-channel colour mode (Cycles' Fourier-space film,
-  precompute/film_channels.py) — the acceptance column (issue 22: mean ΔE2000 ≤ 0.3);
+  precompute/colour/film_channels.py) — the acceptance column (issue 22: mean ΔE2000 ≤ 0.3);
 - *exact optics, Cycles' sensitivities*: the exact Airy film (all orders) integrated against the
   same channel sensitivities — what the per-channel mode does for stacks Cycles cannot express;
 - *spectral mode*: the 3×3 mode's white response (E white, Bradford to the working space);
 - *before issue 22*: the per-channel mode as it was (exact optics through the spectral mode's
   E-white matrix, clamped).
 
-ΔE2000 over the sphere's pixels (``precompute.colour_difference.delta_e_2000``, route "E", the
+ΔE2000 over the sphere's pixels (``precompute.colour.colour_difference.delta_e_2000``, route "E", the
 reference's p95 luminance at 0.8). Cycles' renders are cached in ``benchmarks/.cache/`` by their
 parameters and the Blender version, so a rerun renders nothing it has rendered before.
 
@@ -33,9 +33,9 @@ import time
 import numpy as np
 
 from benchmarks import common
-from precompute import film_colour, spectra
-from precompute.colour_difference import delta_e_2000
-from precompute.material import Layer, Material
+from precompute.colour import film_colour, rgb_spaces, spectra
+from precompute.colour.colour_difference import delta_e_2000
+from precompute.materials.material import Layer, Material
 from precompute.optics import reflectance
 
 CACHE = pathlib.Path(common.ROOT) / "benchmarks" / ".cache" / "white_furnace"
@@ -127,8 +127,8 @@ def compare(config, size: int, samples: int) -> dict:
     ours = {
         "cycles_matching": film_colour.white_reflectance(per_channel, t, c),
         "spectral": film_colour.white_reflectance(spectral, t, c),
-        "exact_sensitivities": _exact(per_channel, t, c, spectra.channel_weights(wl), wl),
-        "before": _exact(per_channel, t, c, spectra.xyz_weights(wl) @ spectra.xyz_to_rgb_matrix().T, wl),
+        "exact_sensitivities": _exact(per_channel, t, c, rgb_spaces.channel_weights(wl), wl),
+        "before": _exact(per_channel, t, c, spectra.xyz_weights(wl) @ rgb_spaces.xyz_to_rgb_matrix().T, wl),
     }
     row = {"name": config[0], "config": config, "pixels": int(mask.sum()), "cycles_s": seconds}
     for key, img in ours.items():
@@ -170,13 +170,13 @@ def main(argv=None) -> int:
         f"{args.samples} spp with a 0.01 px box pixel filter: every pixel is the film's reflectance of",
         "white light, F_rgb(θ), at its own angle (a second render reads back each pixel's cos θ = N·I",
         "and thickness; the thickness varies linearly across the sphere over the range given). Ours is",
-        "`precompute.film_colour.white_reflectance` at those (θ, d). ΔE2000 over the sphere's pixels",
+        "`precompute.colour.film_colour.white_reflectance` at those (θ, d). ΔE2000 over the sphere's pixels",
         '(route "E", the reference\'s p95 luminance at 0.8), mean / p95 / max. Columns:',
         "",
         "- **Cycles-matching**: the per-channel colour mode — Cycles' film pipeline (Belcour & Barla's",
         "  Airy series to m = 3 in Fourier space of the channel sensitivities, the CIE 1931 CMFs through",
         "  Blender's XYZ → scene-linear matrix without adaptation, each channel normalised to white,",
-        "  clamped; precompute/film_channels.py). Issue 22's acceptance: mean ≤ "
+        "  clamped; precompute/colour/film_channels.py). Issue 22's acceptance: mean ≤ "
         f"{LIMIT:g} per configuration.",
         "- *exact, Cycles' sensitivities*: the exact film (every order) integrated against the same",
         "  sensitivities: the per-channel mode's path for stacks Cycles' model cannot express.",

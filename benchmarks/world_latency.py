@@ -33,8 +33,8 @@ import time
 import numpy as np
 
 from benchmarks import common, panorama_helper
-from precompute import hdri, lamps, prefilter
-from precompute.cli import studiolight
+from precompute.commands.cli import studiolight
+from precompute.world import hdri, lamps, prefilter
 
 BEFORE = "f46d98a"
 
@@ -84,8 +84,9 @@ class Replay:
 
     def __init__(self, ext, bpy):
         self.ext, self.bpy = ext, bpy
-        self.viewport = importlib.import_module(f"{ext.package.__name__}.addon.viewport")
-        self.world_job = importlib.import_module(f"{ext.package.__name__}.addon.world_job")
+        self.viewport = importlib.import_module(f"{ext.package.__name__}.addon.drawing.viewport")
+        self.world_job = importlib.import_module(f"{ext.package.__name__}.addon.world.world_job")
+        self.world_state = importlib.import_module(f"{ext.package.__name__}.addon.world.world_state")
         self.viewport._tag_redraw = lambda: None  # no windows in this process
         self.profile = None  # a cProfile.Profile to find a slow draw (--profile)
 
@@ -153,7 +154,7 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
     film_sphere(bpy, scene)
     replay = Replay(ext, bpy)
     rows = []
-    first = replay.until_ready(lambda items: ext.scene_draw.CACHES.world is not None)  # first open
+    first = replay.until_ready(lambda items: replay.world_state.current() is not None)  # first open
     replay.draw(allow_bake=True)  # the table (not timed), then the prefilter the film reads
     replay.until_ready(lambda items: bool(items) and items[0].prefiltered is not None)
     rows.append((f"{kind}: first open (World only)", first))
@@ -194,7 +195,8 @@ def run_scene(ext, kind: str) -> list[tuple[str, dict]]:
 
 
 def prefilter_at(rev: str):
-    """``rev``'s precompute/prefilter.py as a module (imported beside this one)."""
+    """``rev``'s prefilter module (prefilter.py of the flat precompute/ before issue 35) as a
+    module, imported beside this one against today's precompute."""
     source = subprocess.run(
         ["git", "show", f"{rev}:precompute/prefilter.py"],
         cwd=common.ROOT,
@@ -203,7 +205,8 @@ def prefilter_at(rev: str):
         check=True,
     ).stdout
     source = source.replace(
-        "from . import brdf, constants, hdri", "from precompute import brdf, constants, hdri"
+        "from . import brdf, constants, hdri",
+        "from precompute import brdf, constants\nfrom precompute.world import hdri",
     )
     source = source.replace("from .shading", "from precompute.shading")
     path = tempfile.NamedTemporaryFile("w", suffix=".py", delete=False)
@@ -322,11 +325,11 @@ def main(argv=None) -> int:
     parser.add_argument("--before", default=BEFORE, help="git revision of the prefilter to compare with")
     parser.add_argument("--no-doc", action="store_true", help="print, do not write docs/world-latency.md")
     args = parser.parse_args(argv)
-    from benchmarks.viewport import Extension
+    from benchmarks.viewport.scene import Extension
 
     ext = Extension()
     rows = run_scene(ext, "hdri") + run_scene(ext, "sky")
-    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.panorama_helper"))
+    helper = panorama_helper.measure(importlib.import_module("thinfilm_sh.addon.world.panorama_helper"))
     pre = prefilter_before_after(args.before)
     text = report(rows, pre, helper)
     print(text)

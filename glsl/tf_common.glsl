@@ -14,6 +14,7 @@
  * the variant's defines):
  *   TF_GIMBAL_SIN      below this sin(beta) the z-y-z split is a single z-rotation
  *   TF_TANGENT_EPS     below this |v - n (n.v)| the view is taken as parallel to n (float32)
+ *   TF_DIVISION_FLOOR  the floor of a divisor or a squared length: 0/0 stays finite
  *   TF_MIN_COS, TF_MIN_ALPHA, TF_MAX_LAMPS, TF_LAMP_LEVEL, TF_GRAZING(x),
  *   TF_LADDER_ROUGHNESS(x), TF_LADDER_POSITION(r)   (see policy.py)
  */
@@ -34,13 +35,13 @@ float tf_clamp_cos(float c)
 vec3 tf_safe_normalize(vec3 v, vec3 fallback)
 {
   float len2 = dot(v, v);
-  return (len2 > 1e-30) ? v * inversesqrt(len2) : fallback;
+  return (len2 > TF_DIVISION_FLOOR) ? v * inversesqrt(len2) : fallback;
 }
 
 vec2 tf_safe_normalize2(vec2 v, vec2 fallback)
 {
   float len2 = dot(v, v);
-  return (len2 > 1e-30) ? v * inversesqrt(len2) : fallback;
+  return (len2 > TF_DIVISION_FLOOR) ? v * inversesqrt(len2) : fallback;
 }
 
 /* sRGB OETF (IEC 61966-2-1) of a value already clamped to [0, 1]. */

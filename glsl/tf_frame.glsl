@@ -29,7 +29,7 @@ TFFrame tf_view_aligned_frame(vec3 n, vec3 v)
   t.z = v.z * dot(n.xy, n.xy) - n.z * dot(n.xy, v.xy);
   float tl = length(t);
   if (!(tl > TF_TANGENT_EPS)) {
-    vec3 helper = (abs(n.x) < 0.9) ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+    vec3 helper = (abs(n.x) < TF_HELPER_AXIS_MAX) ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
     t = helper - n * dot(n, helper);
   }
   f.x = normalize(t);

@@ -1,4 +1,5 @@
 #include "tf_common.glsl"
+#include "tf_brdf.glsl"
 #include "tf_frame.glsl"
 #include "tf_table.glsl"
 
@@ -10,8 +11,7 @@
  * layer, the multiple-scattering factor (resources.FilmTexture); with TF_FILM_UBO the same
  * texels come from the uniform buffer tf_film_data (resources.FILM), as TF_TABLE_UBO for the
  * table. Interpolated in full float32 like tf_table.
- * Each lamp: D G2 F(v.h) / (4 cos theta_o) x power (Walter et al. 2007; height-correlated
- * Smith G2, Heitz 2014), as brdf.D_ggx and brdf.G2_smith_height_correlated.
+ * Each lamp: D G2 F(v.h) / (4 cos theta_o) x power (tf_ggx_weight, tf_brdf.glsl).
  */
 
 #ifdef TF_FILM_UBO
@@ -52,21 +52,31 @@ vec3 tf_film_at(float u, TFLerp r, int layer)
 #endif
 }
 
-/* Smith Lambda for GGX with alpha^2 = a2 (brdf.lambda_ggx). */
-float tf_lambda_ggx(float c, float a2)
+/* The film's reflectance at u = v.h lit by e: the 3x3 matrices' rows dotted with e (spectral),
+ * or the per-channel reflectance times e. */
+vec3 tf_film_response(float u, TFLerp r, vec3 e)
 {
-  c = clamp(c, TF_MIN_COS, 1.0);
-  return 0.5 * (sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)) - 1.0);
+#ifdef TF_SPECTRAL
+  return vec3(dot(tf_film_at(u, r, 0), e), dot(tf_film_at(u, r, 1), e), dot(tf_film_at(u, r, 2), e));
+#else
+  return tf_film_at(u, r, 0) * e;
+#endif
+}
+
+/* The multiple-scattering factor at the view (the film texture's last layer). */
+vec3 tf_film_multiscatter(float cos_o, TFLerp r)
+{
+#ifdef TF_SPECTRAL
+  return tf_film_at(cos_o, r, 3);
+#else
+  return tf_film_at(cos_o, r, 1);
+#endif
 }
 
 vec3 tf_shade_lamps(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
 {
   int count = int(tf_lighting.lamps[0].x);
-  float rr = clamp(roughness, 0.0, 1.0);
-  float alpha = max(rr * rr, TF_MIN_ALPHA);
-  float a2 = alpha * alpha;
-  float cos_o = clamp(f.cos_o, TF_MIN_COS, 1.0);
-  float lambda_o = tf_lambda_ggx(cos_o, a2);
+  TFGgxView g = tf_ggx_view(roughness, f.cos_o);
   vec3 sum = vec3(0.0);
   for (int k = 0; k < TF_MAX_LAMPS; k++) {
     if (k >= count) {
@@ -80,20 +90,9 @@ vec3 tf_shade_lamps(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)
     vec3 p = tf_lighting.lamps[2 + 2 * k].rgb;
     vec3 h = tf_safe_normalize(v + l, n);
     float nh = clamp(dot(n, h), 0.0, 1.0);
-    float t = nh * nh * (a2 - 1.0) + 1.0;
-    float d = (nh > 0.0) ? a2 / (TF_PI * t * t) : 0.0;
-    float weight = d / ((1.0 + tf_lambda_ggx(cos_i, a2) + lambda_o) * 4.0 * cos_o);
+    float weight = tf_ggx_weight(nh, g.a2, cos_i, g);
     float u = clamp(dot(v, h), 0.0, 1.0);
-#ifdef TF_SPECTRAL
-    vec3 rgb = vec3(dot(tf_film_at(u, r, 0), p), dot(tf_film_at(u, r, 1), p), dot(tf_film_at(u, r, 2), p));
-#else
-    vec3 rgb = tf_film_at(u, r, 0) * p;
-#endif
-    sum += weight * rgb;
+    sum += weight * tf_film_response(u, r, p);
   }
-#ifdef TF_SPECTRAL
-  return sum * tf_film_at(cos_o, r, 3);
-#else
-  return sum * tf_film_at(cos_o, r, 1);
-#endif
+  return sum * tf_film_multiscatter(g.cos_o, r);
 }

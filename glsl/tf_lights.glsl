@@ -1,4 +1,5 @@
 #include "tf_common.glsl"
+#include "tf_brdf.glsl"
 #include "tf_frame.glsl"
 #include "tf_lamps.glsl"
 
@@ -6,16 +7,19 @@
  *
  * numpy counterpart: shading.lights.shade (samples: lights.light_samples, weight:
  * lights.sample_weight). Lights in the uniform buffer tf_lights (layout: addon/gpu/resources.py
- * LIGHTS, packing: lights.Lights.pack): [5k] position, kind; [5k+1] direction (-Z), radius;
+ * LIGHTS, packing: lights.Lights.pack; TF_LIGHT_VEC4 = 5 vec4s a light): [5k] position, kind;
+ * [5k+1] direction (-Z), radius;
  * [5k+2] energy (sun E, point/spot I, area L), cos_half_spot | tan_half_spread;
  * [5k+3] axis_u, spot_smooth | normalize_spread; [5k+4] axis_v, ellipse.
- * Film reflectance from tf_film_at (tf_lamps.glsl). Each sample: D_alpha' G2 F(v.h) / (4 cos_o)
- * x E_perp, alpha'^2 = alpha^2 + rho^2 (the sample's footprint, lights.footprint).
+ * Film reflectance from tf_film_response (tf_lamps.glsl). Each sample: D_alpha' G2 F(v.h) /
+ * (4 cos_o) x E_perp (tf_ggx_weight, tf_brdf.glsl), alpha'^2 = alpha^2 + rho^2 (the sample's
+ * footprint, lights.footprint).
  * No shadows from other objects.
  */
 
-/* TF_LIGHT_SUN / _POINT / _SPOT / _AREA and TF_MIN_LIGHT_DISTANCE: policy.LIGHT_KINDS and
- * policy.MIN_LIGHT_DISTANCE. */
+/* TF_LIGHT_SUN / _POINT / _SPOT / _AREA, TF_MIN_LIGHT_DISTANCE, TF_AREA_MIN_AXIS,
+ * TF_AREA_MAX_WIDTH and TF_AREA_UNIFORM_WIDTH: policy.LIGHT_KINDS, policy.MIN_LIGHT_DISTANCE,
+ * policy.AREA_MIN_AXIS, policy.AREA_MAX_WIDTH and policy.AREA_UNIFORM_WIDTH. */
 
 /* lights.spot_attenuation: smoothstep of (cos - cos_half) * smooth. */
 float tf_spot_attenuation(float cos_axis, float cos_half, float smooth_inv)
@@ -56,7 +60,7 @@ vec2 tf_area_cell(int i, int j, bool ellipse)
 }
 
 /* One sample: lights.sample_weight times the film at its half vector times e. */
-vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, float a2, float lambda_o, float cos_o)
+vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, TFGgxView g)
 {
   float cos_i = dot(n, l);
   if (cos_i <= 0.0) {
@@ -64,25 +68,16 @@ vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, float
   }
   vec3 h = tf_safe_normalize(v + l, n);
   float nh = clamp(dot(n, h), 0.0, 1.0);
-  float w2 = a2 + rho2;
-  float t = nh * nh * (w2 - 1.0) + 1.0;
-  float d = w2 / (TF_PI * t * t);
-  float weight = d / ((1.0 + tf_lambda_ggx(cos_i, a2) + lambda_o) * 4.0 * cos_o);
+  float weight = tf_ggx_weight(nh, g.a2 + rho2, cos_i, g);
   float u = clamp(dot(v, h), 0.0, 1.0);
-#ifdef TF_SPECTRAL
-  vec3 rgb = vec3(dot(tf_film_at(u, r, 0), e), dot(tf_film_at(u, r, 1), e), dot(tf_film_at(u, r, 2), e));
-#else
-  vec3 rgb = tf_film_at(u, r, 0) * e;
-#endif
-  return weight * rgb;
+  return weight * tf_film_response(u, r, e);
 }
 
 /* lights.lobe_cells: S + 1 cell edges along one axis, equal shares of a Cauchy (c, w) on [-1/2, 1/2]. */
 void tf_lobe_edges(float c, float w, out float edges[TF_AREA_SAMPLES + 1])
 {
-  /* lights.AREA_MAX_WIDTH: c and w bounded to 100 light sizes (float32 keeps c + w tan to 1e-5) */
-  c = clamp(c, -100.0, 100.0);
-  w = clamp(w, TF_AREA_MIN_WIDTH, 100.0);
+  c = clamp(c, -TF_AREA_MAX_WIDTH, TF_AREA_MAX_WIDTH);
+  w = clamp(w, TF_AREA_MIN_WIDTH, TF_AREA_MAX_WIDTH);
   float lo = atan((-0.5 - c) / w);
   float hi = atan((0.5 - c) / w);
   edges[0] = -0.5;
@@ -93,17 +88,17 @@ void tf_lobe_edges(float c, float w, out float edges[TF_AREA_SAMPLES + 1])
 }
 
 /* One area light: lights._area_samples with lights.area_lobe (rectangles) or the concentric grid. */
-vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a2, float lambda_o, float cos_o)
+vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, TFGgxView g)
 {
-  vec4 s0 = tf_lights.light[5 * k];
-  vec4 s1 = tf_lights.light[5 * k + 1];
-  vec4 s2 = tf_lights.light[5 * k + 2];
-  vec4 s3 = tf_lights.light[5 * k + 3];
-  vec4 s4 = tf_lights.light[5 * k + 4];
+  vec4 s0 = tf_lights.light[TF_LIGHT_VEC4 * k];
+  vec4 s1 = tf_lights.light[TF_LIGHT_VEC4 * k + 1];
+  vec4 s2 = tf_lights.light[TF_LIGHT_VEC4 * k + 2];
+  vec4 s3 = tf_lights.light[TF_LIGHT_VEC4 * k + 3];
+  vec4 s4 = tf_lights.light[TF_LIGHT_VEC4 * k + 4];
   vec3 axis = s1.xyz;
   bool ellipse = s4.w > 0.5;
-  float len_u = max(length(s3.xyz), 1e-12);
-  float len_v = max(length(s4.xyz), 1e-12);
+  float len_u = max(length(s3.xyz), TF_AREA_MIN_AXIS);
+  float len_v = max(length(s4.xyz), TF_AREA_MIN_AXIS);
   float size = length(s3.xyz) * length(s4.xyz);
   /* lights.area_lobe: the mirror ray meets the light's plane */
   vec3 refl = 2.0 * dot(n, v) * n - v;
@@ -114,8 +109,8 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a
   bool meets = facing > TF_MIN_COS;
   float cu = meets ? dot(hit, s3.xyz) / (len_u * len_u) : 0.0;
   float cv = meets ? dot(hit, s4.xyz) / (len_v * len_v) : 0.0;
-  float wu = meets ? TF_AREA_LOBE_SCALE * alpha * t / (safe * len_u) : 1e6;
-  float wv = meets ? TF_AREA_LOBE_SCALE * alpha * t / (safe * len_v) : 1e6;
+  float wu = meets ? TF_AREA_LOBE_SCALE * g.alpha * t / (safe * len_u) : TF_AREA_UNIFORM_WIDTH;
+  float wv = meets ? TF_AREA_LOBE_SCALE * g.alpha * t / (safe * len_v) : TF_AREA_UNIFORM_WIDTH;
   float eu[TF_AREA_SAMPLES + 1];
   float ev[TF_AREA_SAMPLES + 1];
   tf_lobe_edges(cu, wu, eu);
@@ -142,7 +137,7 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a
       }
       float omega = cell * cos_l / d2;
       float scale = omega * tf_spread_attenuation(cos_l, s2.w, s3.w);
-      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * omega, a2, lambda_o, cos_o);
+      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * omega, g);
     }
   }
   return sum;
@@ -151,24 +146,20 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, float alpha, float a
 vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughness)
 {
   int count = int(tf_lights.count.x);
-  float rr = clamp(roughness, 0.0, 1.0);
-  float alpha = max(rr * rr, TF_MIN_ALPHA);
-  float a2 = alpha * alpha;
-  float cos_o = clamp(f.cos_o, TF_MIN_COS, 1.0);
-  float lambda_o = tf_lambda_ggx(cos_o, a2);
+  TFGgxView g = tf_ggx_view(roughness, f.cos_o);
   vec3 sum = vec3(0.0);
   for (int k = 0; k < TF_MAX_LIGHTS; k++) {
     if (k >= count) {
       break;
     }
-    vec4 s0 = tf_lights.light[5 * k];
-    vec4 s1 = tf_lights.light[5 * k + 1];
-    vec4 s2 = tf_lights.light[5 * k + 2];
+    vec4 s0 = tf_lights.light[TF_LIGHT_VEC4 * k];
+    vec4 s1 = tf_lights.light[TF_LIGHT_VEC4 * k + 1];
+    vec4 s2 = tf_lights.light[TF_LIGHT_VEC4 * k + 2];
     int kind = int(s0.w + 0.5);
     vec3 axis = s1.xyz;
     if (kind == TF_LIGHT_SUN) {
       float s = sin(s1.w);
-      sum += tf_light_sample(r, n, v, -axis, s2.rgb, 0.25 * s * s, a2, lambda_o, cos_o);
+      sum += tf_light_sample(r, n, v, -axis, s2.rgb, 0.25 * s * s, g);
     }
     else if (kind == TF_LIGHT_POINT || kind == TF_LIGHT_SPOT) {
       vec3 to = s0.xyz - p;
@@ -177,17 +168,13 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
       vec3 l = to * inversesqrt(d2);
       float scale = 1.0 / d2;
       if (kind == TF_LIGHT_SPOT) {
-        scale *= tf_spot_attenuation(-dot(l, axis), s2.w, tf_lights.light[5 * k + 3].w);
+        scale *= tf_spot_attenuation(-dot(l, axis), s2.w, tf_lights.light[TF_LIGHT_VEC4 * k + 3].w);
       }
-      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, a2, lambda_o, cos_o);
+      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, g);
     }
     else if (kind == TF_LIGHT_AREA) {
-      sum += tf_area_light(k, r, p, n, v, alpha, a2, lambda_o, cos_o);
+      sum += tf_area_light(k, r, p, n, v, g);
     }
   }
-#ifdef TF_SPECTRAL
-  return sum * tf_film_at(cos_o, r, 3);
-#else
-  return sum * tf_film_at(cos_o, r, 1);
-#endif
+  return sum * tf_film_multiscatter(g.cos_o, r);
 }

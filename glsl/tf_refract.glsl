@@ -23,7 +23,7 @@ void tf_solid_exit_ray(vec3 p, vec3 n, vec3 v, vec3 c, float eta, out vec3 exit_
   exit_point = p + chord * inner;
   vec3 n2 = tf_safe_normalize(exit_point - c, inner);
   vec3 out_dir = refract(inner, -n2, e);
-  dir = (dot(out_dir, out_dir) < 1e-12) ? inner : normalize(out_dir);
+  dir = (dot(out_dir, out_dir) < TF_TIR_EPS) ? inner : normalize(out_dir);
 }
 
 /* The texel of tf_behind under world point q, and q's depth; false off the picture or behind the

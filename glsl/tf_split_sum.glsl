@@ -43,7 +43,7 @@ vec3 tf_prefiltered_lookup(vec3 d_world, float roughness, out vec3 moment, out f
   float r1 = TF_LADDER_ROUGHNESS(x1);
   float a4 = r0 * r0 * r0 * r0;
   float b4 = r1 * r1 * r1 * r1;
-  float w = clamp((r * r * r * r - a4) / max(b4 - a4, 1e-30), 0.0, 1.0);
+  float w = clamp((r * r * r * r - a4) / max(b4 - a4, TF_DIVISION_FLOOR), 0.0, 1.0);
   /* slice centres at (k + 0.5) / depth: z between slices lo and lo + 1 with weight w */
   float z = (float(lo) + w + 0.5) / float(depth);
   /* shading.lamps.lamp_weight: levels from TF_LAMP_LEVEL on hold the World without its lamps, which
@@ -74,7 +74,7 @@ vec3 tf_shade_split_sum_at(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness,
    * same angle, but llvmpipe's acos is off by 1.6e-4 of the peak in the per-pixel test.) */
 #ifdef TF_MOMENT
   float m2 = dot(moment, moment);
-  if (m2 > 1e-30) {
+  if (m2 > TF_MOMENT_EPS) {
     float c2 = clamp(0.5 * (1.0 + dot(v, moment) * inversesqrt(m2)), 0.0, 1.0);
     r = tf_table_at_theta(r, atan(sqrt(1.0 - c2), sqrt(c2)));
   }

@@ -24,8 +24,8 @@ float tf_fresnel_dielectric(float cos_i, float eta)
     return 1.0;
   }
   float g = sqrt(g2);
-  float a = (g - c) / max(g + c, 1e-30);
-  float b = (c * (g + c) - 1.0) / max(c * (g - c) + 1.0, 1e-30);
+  float a = (g - c) / max(g + c, TF_DIVISION_FLOOR);
+  float b = (c * (g + c) - 1.0) / max(c * (g - c) + 1.0, TF_DIVISION_FLOOR);
   return clamp(0.5 * a * a * (1.0 + b * b), 0.0, 1.0);
 }
 

@@ -11,6 +11,12 @@ Conventions used throughout (see ``docs/conventions.md``):
   (time dependence e^{-iωt});
 - angles given as cosines in [0, 1];
 - arrays broadcast, with the wavelength on the last axis.
+
+One subpackage per entity (docs/ARCHITECTURE.md): ``optics`` (thin-film optics), ``materials``,
+``colour``, ``sh`` (spherical harmonics), ``bakes``, ``tables`` (tables on disk), ``world`` (the
+World's lighting), ``effects`` (the effect plan), ``output`` (reference renders and image files),
+``commands`` (the command line) and ``shading`` (the shader's numpy mirror); ``brdf`` (GGX,
+Smith, multiple scattering) and ``constants`` sit here.
 """
 
-__all__ = ["brdf", "optics", "sh", "spectra"]
+__all__ = ["bakes", "brdf", "colour", "materials", "optics", "sh", "shading"]

@@ -22,9 +22,9 @@ import functools
 import numpy as np
 
 from . import _checks, constants
+from .bakes.progress import checkpoint
+from .bakes.quadrature import unit_gauss_legendre
 from .optics.fresnel import fresnel_dielectric
-from .progress import checkpoint
-from .quadrature import unit_gauss_legendre
 
 
 def alpha_from_roughness(roughness) -> np.ndarray:

@@ -6,7 +6,7 @@ The extension needs a handful of published tables: the CIE 1931 2° colour-match
 the CIE illuminants it offers (D65, A, E, FL1–FL12), Mallett & Yuksel's (2019) sRGB spectral
 basis, and the white points and XYZ → RGB matrices of its three working spaces. They are copied
 here from colour-science (the version pinned in requirements-dev.txt), every number written as
-the shortest decimal that reads back to the same float64, so :mod:`precompute.colour_tables`
+the shortest decimal that reads back to the same float64, so :mod:`precompute.colour.colour_tables`
 returns exactly colour-science's arrays (tests/test_colour_tables.py checks it) and the
 extension no longer needs colour-science at run time.
 """
@@ -22,7 +22,7 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from precompute import colour_tables  # noqa: E402
+from precompute.colour import colour_tables  # noqa: E402
 
 HEADER = (
     "# {what}\n"
@@ -44,7 +44,7 @@ def _write(name: str, what: str, source: str, columns: list[str], rows) -> None:
 
 
 def main() -> int:
-    """Write every table of :mod:`precompute.colour_tables` from the installed colour-science."""
+    """Write every table of :mod:`precompute.colour.colour_tables` from the installed colour-science."""
     colour_tables.DATA_DIR.mkdir(parents=True, exist_ok=True)
     cmfs = colour.MSDS_CMFS[colour_tables.CMFS_NAME]
     _write(

@@ -11,7 +11,7 @@ Builds every scene of ``sample_scenes/make_scenes.py`` in a temporary folder, th
 - ``docs/images/<scene>.png``: the headless render at 320×240;
 - ``docs/images/<scene>_cycles.png``: Cycles (CPU, 128 samples, no denoising) of the same file at
   320×240: the Principled scene as it is, the extension's single-film materials after
-  ``addon.principled.write_back_to_principled`` (Cycles has one film of constant thickness: a
+  ``addon.materials.principled.write_back_to_principled`` (Cycles has one film of constant thickness: a
   varying film is written at the middle of its range); a multilayer has no Cycles equivalent;
 - ``docs/sample-scenes.md``: the pictures side by side and the commands.
 
@@ -77,9 +77,10 @@ def extension():
     return headless_script().register_extension()
 
 
-def addon_module(name: str):
+def addon_module(dotted: str):
+    """The extension's module ``dotted`` ("addon.headless.headless"), the extension registered first."""
     extension()
-    return importlib.import_module(f"{EXTENSION_ID}.addon.{name}")
+    return importlib.import_module(f"{EXTENSION_ID}.{dotted}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -100,7 +101,7 @@ def read_exr(path, channels="RGB") -> np.ndarray:
 
 def srgb8(linear, exposure: float = 0.0) -> np.ndarray:
     """8-bit sRGB of scene-linear RGB ("Standard" view), as the headless PNG."""
-    from precompute.image_io import srgb_encode
+    from precompute.output.image_io import srgb_encode
 
     return np.clip(np.rint(srgb_encode(linear, exposure) * 255.0), 0, 255).astype(np.uint8)
 
@@ -150,7 +151,7 @@ def headless_render(out_png, size, background: bool = True) -> tuple[np.ndarray,
     """The open file's camera view with the thin-film shader (PNG + EXR); (linear RGB, result)."""
     import bpy
 
-    result = addon_module("headless").render_scene(
+    result = addon_module("addon.headless.render").render_scene(
         bpy.context.scene, str(out_png), size[0], size[1], background=background
     )
     return read_exr(result["exr"]), result
@@ -175,7 +176,7 @@ def cycles_render(out_exr, size, samples: int = CYCLES_SAMPLES, transparent: boo
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     # The file's own Cycles pixel filter (Blackman–Harris 1.5 px by default): the headless frame
-    # applies the same one to its 4× supersampled frame (addon/headless.py).
+    # applies the same one to its 4× supersampled frame (addon/headless/render.py).
     scene.render.film_transparent = transparent
     scene.render.use_compositing = False
     scene.render.use_sequencer = False
@@ -195,7 +196,7 @@ def delta_e_vs_cycles(workdir, size=COMPARE_SIZE, samples=COMPARE_SAMPLES, label
     Over the pixels Cycles shows fully covered by objects (alpha of a transparent-film render),
     one pixel of silhouette eroded; both at a common exposure (reference p95 luminance 0.8).
     """
-    from precompute.colour_difference import delta_e_2000
+    from precompute.colour.colour_difference import delta_e_2000
 
     workdir = pathlib.Path(workdir)
     ours, _ = headless_render(workdir / f"ours{label}.png", size, background=False)
@@ -237,7 +238,7 @@ def cycles_equivalent() -> tuple[bool, list[str]]:
     """Prepare the open file for Cycles: (possible?, notes). Single films are written back."""
     import bpy
 
-    principled = addon_module("principled")
+    principled = addon_module("addon.materials.principled")
     notes = []
     for mat in film_materials(bpy):
         if len(mat.thinfilm_sh.layers) > 1:
@@ -271,7 +272,7 @@ for Cycles interop), each with a camera, a World lit by one of Blender's studio-
 where it makes sense, a ground plane. Left: the extension's headless render (the viewport
 shader drawn off-screen over Blender's Solid drawing of the other objects, with the World as
 background); right: Cycles of the same file. The extension's materials are rendered by Cycles
-after *Write to Principled* (`addon.principled.write_back_to_principled`). Cycles has a single
+after *Write to Principled* (`addon.materials.principled.write_back_to_principled`). Cycles has a single
 film of constant thickness, so a varying film shows its middle thickness there, and a 16-layer
 stack has no Cycles equivalent. The preview draws the film's reflection only: what lies behind
 a transparent film (the soap bubble, the water, the glass) is not drawn through it, and the
@@ -298,7 +299,7 @@ compiling shaders; the 320×240 picture that follows reuses them.
 
 The `principled_film` file rendered both ways at {cmp_w}×{cmp_h} (Cycles {cmp_spp} samples), mean
 (95th percentile) ΔE2000 over the sphere, one pixel of silhouette left out, at a common exposure
-(`precompute.colour_difference.delta_e_2000`):
+(`precompute.colour.colour_difference.delta_e_2000`):
 
 | Roughness | mean ΔE2000 | p95 |
 |---|---|---|

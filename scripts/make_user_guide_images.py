@@ -2,7 +2,7 @@
 
     .venv/bin/python scripts/make_user_guide_images.py        # → docs/images/guide-*.png
 
-Every picture is the extension's headless render (``addon.headless.render_scene``, what
+Every picture is the extension's headless render (``addon.headless.render.render_scene``, what
 ``blender -b file.blend --command thinfilm_sh render`` does) of a scene this script builds from
 an empty file, one step of the guide's walkthrough each, at 320×240 on whatever OpenGL bpy
 finds (Mesa llvmpipe here). The last one is made with the *Show Thin Film Overlay* preference
@@ -73,7 +73,7 @@ def render(stem: str, tmp: pathlib.Path) -> dict:
 def main() -> int:
     """Build and render every step, then the overlay-off picture."""
     refs.extension()
-    prefs = refs.addon_module("prefs")
+    prefs = refs.addon_module("addon.ui.prefs")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         for stem, what, changes in STEPS:

@@ -1,12 +1,12 @@
-"""Print ``precompute.sh_order.ORDER_BREAKPOINTS``: the automatic SH order's steps in roughness.
+"""Print ``precompute.bakes.sh_order.ORDER_BREAKPOINTS``: the automatic SH order's steps in roughness.
 
 Usage (from the repository root)::
 
     .venv/bin/python scripts/sh_order_table.py
 
-Scans :func:`precompute.sh_order.criterion_order` (the band-16 lobe truncation criterion) over
+Scans :func:`precompute.bakes.sh_order.criterion_order` (the band-16 lobe truncation criterion) over
 roughness [0, 1] every 0.002 and bisects each change of order to 1e-9 (≈ 20 s on two cores).
-Paste the output into ``precompute/sh_order.py``; tests/test_sh_order.py checks the table
+Paste the output into ``precompute/bakes/sh_order.py``; tests/test_sh_order.py checks the table
 against the criterion on a grid five times finer and on both sides of every breakpoint.
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from precompute import sh_order  # noqa: E402
+from precompute.bakes import sh_order  # noqa: E402
 
 
 def main() -> None:

@@ -15,7 +15,7 @@ and, for a folder of files, a batch render of every .blend in it (sorted by name
 
 It opens the file, registers the extension from this repository (imported as ``thinfilm_sh``
 through a symlink in a temporary folder, as Blender imports an installed extension), runs
-``addon.headless.main`` with the remaining arguments and exits with its code (batch: 0 when
+``addon.headless.headless.main`` with the remaining arguments and exits with its code (batch: 0 when
 every file rendered, else 1). Baked tables go to the add-on's table cache: ``--cache-dir DIR``
 (every command takes it), else ``$THINFILM_SH_CACHE``, else the private per-user
 ``~/.cache/thinfilm_sh`` (``$XDG_CACHE_HOME/thinfilm_sh``); see docs/cache.md.
@@ -41,7 +41,7 @@ Run 'thinfilm_headless.py FILE.blend COMMAND --help' for a command's options."""
 
 
 def options_parser():
-    """The commands' argparse parser (addon/cli_args.py) without importing Blender or opening a
+    """The commands' argparse parser (addon/headless/cli_args.py) without importing Blender or opening a
     file: the package and its ``addon`` subpackage are stood in for by bare modules, so their
     ``__init__`` (which imports bpy) does not run. Only for ``--help``: the process ends after."""
     import types
@@ -51,7 +51,7 @@ def options_parser():
             module = types.ModuleType(name)
             module.__path__ = [str(path)]
             sys.modules[name] = module
-    return importlib.import_module(f"{EXTENSION_ID}.addon.cli_args").parser()
+    return importlib.import_module(f"{EXTENSION_ID}.addon.headless.cli_args").parser()
 
 
 def register_extension():
@@ -76,7 +76,7 @@ def open_blend(path) -> None:
 
 
 def headless():
-    return importlib.import_module(f"{EXTENSION_ID}.addon.headless")
+    return importlib.import_module(f"{EXTENSION_ID}.addon.headless.headless")
 
 
 def run_file(blend, argv) -> int:

@@ -3,13 +3,13 @@
 The same sphere rendered by Cycles (a Principled BSDF with Thin Film Thickness / IOR, Base Color
 black, so only the film's specular layer shows), by the product's three numpy paths (split sum,
 SH, combined) and by our brute force (``render.shade_reference``). The camera matches
-``precompute.render.sphere_view`` exactly (pinhole on −y looking at +y, 32° field of view, sphere
+``precompute.output.render.sphere_view`` exactly (pinhole on −y looking at +y, 32° field of view, sphere
 of radius 1 at the origin).
 
-Used by tests/test_cycles_parity.py, tests/test_glossy.py and ``benchmarks.cycles_compare``
+Used by tests/parity/test_cycles_parity.py, tests/parity/test_glossy.py and ``benchmarks.cycles_compare``
 (docs/cycles-comparison.md). It lives in tests/ because the tests never import benchmarks/.
 
-:func:`white_furnace_render` is the white furnace of the colour pipeline (tests/test_cycles_parity.py,
+:func:`white_furnace_render` is the white furnace of the colour pipeline (tests/parity/test_cycles_parity.py,
 ``benchmarks.white_furnace``): a mirror-smooth Principled film under a uniform white World, seen by
 an orthographic camera, so each pixel is the film's F_rgb(θ), with each pixel's cos θ and film
 thickness read back from a second render.
@@ -23,10 +23,13 @@ import tempfile
 
 import numpy as np
 
-from precompute import bake, film_colour, hdri, lamps, prefilter, render
-from precompute.material import Layer, Material
+from precompute.bakes import bake
+from precompute.colour import film_colour
+from precompute.materials.material import Layer, Material
+from precompute.output import render
 from precompute.shading import lamps as lamp_shading
 from precompute.shading import policy, sh_sum, split_sum
+from precompute.world import hdri, lamps, prefilter
 
 SIZE = 64
 FOV_DEG = 32.0
@@ -50,6 +53,19 @@ def cycles_settings(scene, samples: int, *, size=None, bounces: int = 1, pixel_f
         scene.render.resolution_percentage = 100
 
 
+def film_material(bpy, name, thickness_nm, film_ior, base_ior, roughness):
+    """A new material whose Principled BSDF is a black dielectric of IOR ``base_ior`` under a thin
+    film (``thickness_nm`` nm, ``film_ior``) at ``roughness``: the film alone."""
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = base_ior
+    bsdf.inputs["Thin Film Thickness"].default_value = thickness_nm
+    bsdf.inputs["Thin Film IOR"].default_value = film_ior
+    return mat
+
+
 def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, samples=256, size=SIZE):
     """Render the sphere with Cycles (CPU) and return the scene-linear RGB image (top row first)."""
     import bpy  # Blender as a module: only the Cycles side needs it (our renders are pure numpy)
@@ -69,14 +85,7 @@ def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, sample
     bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
-    mat = bpy.data.materials.new("film")
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness
-    bsdf.inputs["IOR"].default_value = base_ior
-    bsdf.inputs["Thin Film Thickness"].default_value = thickness_nm
-    bsdf.inputs["Thin Film IOR"].default_value = film_ior
-    sphere.data.materials.append(mat)
+    sphere.data.materials.append(film_material(bpy, "film", thickness_nm, film_ior, base_ior, roughness))
     cam_data = bpy.data.cameras.new("cam")
     cam_data.angle = math.radians(FOV_DEG)
     cam = bpy.data.objects.new("cam", cam_data)
@@ -99,7 +108,7 @@ SPHERE_SCENE_VERSION = 1
 
 def studiolight_path(name: str) -> pathlib.Path:
     """bpy's studio-light HDRI ``name`` (courtyard, forest, studio, sunset, …)."""
-    from precompute.cli import studiolight
+    from precompute.commands.cli import studiolight
 
     return pathlib.Path(studiolight(name))
 

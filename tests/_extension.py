@@ -34,7 +34,7 @@ def linked_extension(root: Path, *, unregister: bool = True):
 
 
 #: The add-on's GPU layer, module by module (addon/gpu/).
-GPU_MODULES = ("context", "shaders", "resources", "mesh", "draw")
+GPU_MODULES = ("context", "layout", "shaders", "resources", "mesh", "draw")
 #: The reference rotation of the shading library: generic loops, compiled by tests only.
 REFERENCE_ROTATION = REPO / "tests" / "glsl" / "tf_sh_rotate_loops.glsl"
 
@@ -59,9 +59,9 @@ def set_cache_preference(bpy, prefs, cache_dir) -> None:
 @contextlib.contextmanager
 def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = True, gpu: bool = False):
     """The extension imported from ``root`` and registered, as a namespace: ``package``,
-    ``cache_dir`` (``root/cache``) and each of ``modules`` ("addon.headless", "precompute.bake",
-    "addon.gpu.draw", …) under its last name. ``cache_preference``: the Cache Directory
-    preference set to ``cache_dir``, else only the add-on's preferences entry made; ``gpu``: a
+    ``cache_dir`` (``root/cache``) and each of ``modules`` ("addon.headless.headless",
+    "precompute.bakes.bake", "addon.gpu.draw", …) under its last name. ``cache_preference``: the
+    Cache Directory preference set to ``cache_dir``, else only the add-on's preferences entry made; ``gpu``: a
     GPU context ensured. On exit the preferences entry is removed and the package forgotten."""
     import types
 
@@ -73,7 +73,7 @@ def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = T
             for dotted in modules:
                 setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             if cache_preference:
-                prefs = importlib.import_module(f"{EXTENSION_ID}.addon.prefs")
+                prefs = importlib.import_module(f"{EXTENSION_ID}.addon.ui.prefs")
                 set_cache_preference(bpy, prefs, ns.cache_dir)
             elif addons.get(EXTENSION_ID) is None:
                 addons.new().module = EXTENSION_ID
@@ -87,22 +87,30 @@ def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = T
 
 
 def assert_helper_ends_with_stdin_and_unregister(package, helper, timeout: float) -> None:
-    """A helper process module (``addon.panorama_helper``, ``addon.bake_helper``): its process
+    """A helper process module (``addon.world.panorama_helper``, ``addon.bakes.bake_helper``): its process
     exits on its own when its stdin closes (what its parent's death does), and the package's
     ``unregister`` leaves no process behind (exited and reaped: no orphan, no zombie)."""
+    name = helper.__name__.rpartition(".")[2]
     helper.warm()
     process = helper.SLOT.process
-    assert process.ready.wait(timeout) and process.alive()
+    assert process.ready.wait(timeout), f"the {name} process did not say it was ready in {timeout:.0f} s"
+    assert process.alive(), f"the {name} process died after starting"
     process.proc.stdin.close()
-    assert process.proc.wait(timeout) == 0
+    code = process.proc.wait(timeout)
+    assert code == 0, f"the {name} process exited {code} when its stdin closed (its parent died): must be 0"
     helper.stop()
 
     helper.warm()
     pid = helper.process_id()
-    assert pid is not None and helper.SLOT.process.ready.wait(timeout)
+    assert pid is not None, f"warm() started no {name} process"
+    assert helper.SLOT.process.ready.wait(timeout), (
+        f"the second {name} process was not ready in {timeout:.0f} s"
+    )
     package.unregister()
     try:
-        assert helper.process_id() is None
-        assert not os.path.exists(f"/proc/{pid}")
+        assert helper.process_id() is None, f"unregister left the {name} process in its slot"
+        assert not os.path.exists(f"/proc/{pid}"), (
+            f"unregister left the {name} process {pid} (orphan or zombie)"
+        )
     finally:
         package.register()

@@ -2,7 +2,7 @@
 
 For every studiolight (found in the bpy wheel without importing bpy), brute-force
 E(n) = Σ_pixels L max(0, n·ω) dω at 200 Fibonacci normals against the SH irradiance
-Σ Â_l L_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001). Used by tests/test_sh_hdri.py (the gate at
+Σ Â_l L_lm Y_lm(n) (Ramamoorthi & Hanrahan 2001). Used by tests/sh/test_sh_hdri.py (the gate at
 l_max = 8) and ``benchmarks.sh_projection --irradiance-doc`` (docs/sh-irradiance.md). It lives in
 tests/ because the tests never import benchmarks/.
 """
@@ -15,8 +15,9 @@ import os
 
 import numpy as np
 
-from precompute import hdri, sh
-from precompute.colour_difference import LUMINANCE_REC709
+from precompute.colour.colour_difference import LUMINANCE_REC709
+from precompute.sh import harmonics, projection, zonal
+from precompute.world import hdri
 
 #: Normals at which irradiance is compared (Fibonacci sphere): 200 samples spaced ~14° apart,
 #: finer than the ~20° (π/l for l = 8) scale on which an l_max = 8 irradiance varies.
@@ -65,8 +66,8 @@ def irradiance_errors(image: np.ndarray, l_max: int, normals: np.ndarray) -> dic
         ``rejected_pixels``: NaN/Inf pixels skipped by the projection.
     """
     brute = hdri.irradiance_brute_force(np.nan_to_num(image, nan=0.0, posinf=0.0, neginf=0.0), normals)
-    coeffs, info = sh.project_equirect(image, l_max, return_info=True)
-    approx = sh.evaluate(sh.irradiance_coefficients(coeffs), normals)
+    coeffs, info = projection.project_equirect(image, l_max, return_info=True)
+    approx = harmonics.evaluate(zonal.irradiance_coefficients(coeffs), normals)
     diff = np.abs(approx - brute)
     lum_diff = np.abs((approx - brute) @ LUMINANCE_REC709)
     lum = brute @ LUMINANCE_REC709

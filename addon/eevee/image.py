@@ -3,7 +3,7 @@
 One image per film group (:mod:`.nodes`), named ``TF EEVEE · <material>``: float RGBA,
 *Non-Color*, packed as OpenEXR (float pixels survive a save and reload), with the key of what
 it holds (:data:`KEY`) as a custom property, so an unchanged film is never rewritten and a
-reopened file needs no bake. The pixels come from :func:`precompute.eevee_table.film_image`,
+reopened file needs no bake. The pixels come from :func:`precompute.bakes.eevee_table.film_image`,
 computed off the main thread; :func:`write` only copies them in (``foreach_set``), updates and
 packs: milliseconds for the largest table (docs/eevee-native.md).
 """

@@ -1,7 +1,7 @@
 """The film's node group for EEVEE and its place in the material: an EEVEE-only Material Output.
 
 The group (one per material, named ``TF EEVEE Film · <material>``) reads the film's image
-(:mod:`.image`, :func:`precompute.eevee_table.film_image`) at the pixel's view angle and film
+(:mod:`.image`, :func:`precompute.bakes.eevee_table.film_image`) at the pixel's view angle and film
 thickness and shades with EEVEE's own closures:
 
 - θo = acos |N · I| (Geometry: *Normal*, or the material's own normal link; *Incoming*), mapped
@@ -66,7 +66,7 @@ IN_THICKNESS, IN_ROUGHNESS, IN_NORMAL, IN_BASE = "Thickness", "Roughness", "Norm
 class Structure:
     """What the group is made of; equal structures differ only in socket values.
 
-    ``bands``: the image's bands in row order (precompute.eevee_table.BANDS); ``normal``: the
+    ``bands``: the image's bands in row order (precompute.bakes.eevee_table.BANDS); ``normal``: the
     group has a *Normal* input (the material's own normal is linked); ``wall``: "" (opaque),
     "transparent" (a thin wall: Transparent BSDF) or "refraction" (solid glass).
     """
@@ -337,7 +337,7 @@ def _put(socket, value) -> None:
 
 def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0) -> None:
     """Write the image's axes into the group's socket values (no shader recompile):
-    ``layout`` is a :class:`precompute.eevee_table.FilmImage` (or anything with its ``width``,
+    ``layout`` is a :class:`precompute.bakes.eevee_table.FilmImage` (or anything with its ``width``,
     ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index;
     ``dominant``: how much the specular band is read at the lobe light's angle θ' rather than
     the view angle (0: no dominant-direction image is set).

@@ -12,7 +12,7 @@
 - ``feeds``: what drives the group's inputs: the Principled socket a link or an F-curve copies,
   or a constant;
 - ``world``: the analysed World (the overlay's, ``scene_draw.world_lighting``) whose lobe-light
-  directions the film's colour is read at (:func:`precompute.eevee_table.dominant_directions`).
+  directions the film's colour is read at (:func:`precompute.bakes.eevee_table.dominant_directions`).
 
 ``Spec.key`` names everything the image depends on: an image holding that key is up to date.
 """
@@ -24,10 +24,11 @@ import functools
 import math
 from dataclasses import dataclass
 
-from ...precompute import eevee_table
-from ...precompute.material import Material
+from ...precompute.bakes import eevee_table
+from ...precompute.materials.material import Material
 from ...precompute.shading import transmit
-from .. import description, linked, principled, transparency
+from ..materials import description, principled, transparency
+from ..thickness import linked
 from .nodes import Structure
 
 __all__ = ["Feed", "Spec", "WorldRef", "animated_range", "spec"]
@@ -55,7 +56,7 @@ class Feed:
 @dataclass(frozen=True)
 class WorldRef:
     """The World the dominant-direction image is made from: the lighting's ``key`` (content and
-    parameters), its analysed ``environment`` (:class:`precompute.environment.Environment`, the
+    parameters), its analysed ``environment`` (:class:`precompute.world.environment.Environment`, the
     content's frame) and ``matrix`` Q (image direction = Q · world direction, None: identity)."""
 
     key: str

@@ -2,9 +2,10 @@
 
 - **Live (the interface):** ``depsgraph_update_post`` notes the materials an update touched;
   a timer reads their :class:`.source.Spec` on the main thread and, where the image's key
-  differs, hands the spec to one worker thread, which gets the table (memory, disk cache, or a
+  differs, queues the spec for one worker (a job on the lane :data:`WORK`,
+  :mod:`..workers`), which gets the table (memory, disk cache, or a
   bake: in the bake helper process when it is on, :mod:`..bake_helper`) and computes the
-  pixels (:func:`precompute.eevee_table.film_image`). The timer then writes them (:mod:`.wiring`:
+  pixels (:func:`precompute.bakes.eevee_table.film_image`). The timer then writes them (:mod:`.wiring`:
   a copy, an update, a pack). A newer edit of the same material replaces a queued one; the
   EEVEE film shows its last image until then. A film that is switched off loses its EEVEE path
   at once.
@@ -21,14 +22,17 @@
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 
 import bpy
 
-from ...precompute import eevee_table, prefilter
-from .. import bake_helper, caches, linked, scene_draw, tables
+from ...precompute.bakes import eevee_table
+from ...precompute.world import prefilter
+from .. import caches, workers
+from ..bakes import bake_helper, tables
+from ..thickness import linked
+from ..world import world_state
 from . import image as film_image_store
 from . import nodes, source, wiring
 
@@ -52,13 +56,16 @@ POLL_S = 0.02
 #: (or a Strength or rotation edit) changes their dominant-direction image.
 WORLD_POLL_S = 0.5
 _world_key: str | None = None  # the World analysis the films were last read with
-_queue: queue.Queue = queue.Queue()
+#: The EEVEE films' background work: one worker job (key :data:`_WORKER`) that drains
+#: :data:`_queue`. Its lock guards the dictionaries below (never held while the worker computes).
+WORK = workers.Lane("EEVEE film")
+_WORKER = "worker"
+_queue: dict = {}  # material name → (spec, cache, helper ticket): the newest edit per material
 _done: list = []  # (material name, spec, FilmImage | Exception), filled by the worker
-_lock = threading.Lock()
+_lock = WORK.lock
 _wanted: dict[str, str] = {}  # material name → the spec key it wants now
 _dirty: set[str] = set()  # materials an update touched: the timer reads their spec
-_worker: threading.Thread | None = None
-_idle = threading.Event()
+_idle = threading.Event()  # set while nothing is queued or computed (the tests wait on it)
 _idle.set()
 #: Main-thread seconds spent writing each image (the tests and the benchmark read it).
 write_seconds: list[float] = []
@@ -110,7 +117,7 @@ def world_of(scene, compute: bool | None = None) -> source.WorldRef | None:
     worker makes it), or None."""
     try:
         allow = bpy.app.background if compute is None else compute
-        lighting = scene_draw.world_lighting(scene, allow_compute=allow)
+        lighting = world_state.world_lighting(scene, allow_compute=allow)
     except Exception as exc:  # the film is still written, read at the view angle
         log.info("Thin Film SH: no World analysis for EEVEE films: %s", exc)
         return None
@@ -184,9 +191,14 @@ def sync_material(material, scene=None, wait: bool = True, defer: bool | None = 
             ticket = bake_helper.submit(spec.film, spec.wall is not None)
         except bake_helper.HelperError:
             ticket = None  # baked in process
-    _idle.clear()
-    _queue.put((material.name, spec, tables.open_cache(), ticket))
-    _ensure_worker()
+    with _lock:
+        _idle.clear()
+        replaced = _queue.pop(material.name, None)
+        _queue[material.name] = (spec, tables.open_cache(), ticket)
+        if _WORKER not in WORK.running:
+            WORK.start(workers.Job(_WORKER, _work))
+    if replaced is not None and replaced[2] is not None:
+        replaced[2].cancel()  # the helper stops the superseded bake
     _schedule()
     return "queued"
 
@@ -220,39 +232,34 @@ def sync_all(scene=None, wait: bool = True, defer: bool | None = None, world=Fal
 
 
 def _work() -> None:
+    """The worker (a job on :data:`WORK`, one at a time): compute the queued films one after the
+    other until none is left; the timer writes each (:func:`_finish`)."""
     while True:
-        item = _queue.get()
-        if item is None:
-            return
-        name, spec, cache, ticket = item
         with _lock:
+            if not _queue:  # off the running jobs now, in the step that finds the queue empty
+                WORK.running.pop(_WORKER, None)  # this job: only one is ever started at a time
+                _idle.set()
+                return
+            name = next(iter(_queue))
+            spec, cache, ticket = _queue.pop(name)
             stale = _wanted.get(name) != spec.key
         if stale:
             if ticket is not None:
                 ticket.cancel()
-        else:
-            baker = bake_helper.baker(ticket, tables.keep_film) if ticket is not None else None
-            try:
-                made = compute(spec, cache, baker)
-            except Exception as exc:  # reported on the main thread
-                made = exc
-            with _lock:
-                _done.append((name, spec, made))
-        if _queue.empty():
-            _idle.set()
-
-
-def _ensure_worker() -> None:
-    global _worker
-    if _worker is None or not _worker.is_alive():
-        _worker = threading.Thread(target=_work, name="thinfilm-eevee", daemon=True)
-        _worker.start()
+            continue
+        baker = bake_helper.baker(ticket, tables.keep_film) if ticket is not None else None
+        try:
+            made = compute(spec, cache, baker)
+        except Exception as exc:  # reported on the main thread
+            made = exc
+        with _lock:
+            _done.append((name, spec, made))
 
 
 def pending() -> bool:
     """Whether EEVEE images are queued, being computed or waiting to be written."""
     with _lock:
-        return bool(_dirty or _done) or not _idle.is_set()
+        return bool(_dirty or _done or _queue) or not _idle.is_set()
 
 
 def wait_idle(timeout: float = 60.0) -> bool:
@@ -390,17 +397,14 @@ def register() -> None:
 
 def unregister() -> None:
     """Remove the handlers and the timer; the worker ends after its current item."""
-    global _worker
     for name, fn in _HANDLERS:
         handlers = getattr(bpy.app.handlers, name)
         while fn in handlers:
             handlers.remove(fn)
     if bpy.app.timers.is_registered(_service):
         bpy.app.timers.unregister(_service)
-    if _worker is not None and _worker.is_alive():
-        _queue.put(None)
-    _worker = None
     with _lock:
+        _queue.clear()
         _wanted.clear()
         _dirty.clear()
         _done.clear()

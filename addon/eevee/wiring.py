@@ -20,8 +20,8 @@ import json
 
 import bpy
 
-from ...precompute import eevee_table
-from .. import thickness_nodes
+from ...precompute.bakes import eevee_table
+from ..thickness import thickness_nodes
 from . import image as film_image_store
 from . import nodes
 from .source import Spec
@@ -201,8 +201,8 @@ def restore_settings(material) -> None:
 
 
 def apply(material, spec: Spec, made, light=None) -> None:
-    """Write ``made`` (a :class:`precompute.eevee_table.FilmImage`) and ``light`` (the
-    dominant-direction pixels, :func:`precompute.eevee_table.dominant_directions`, or None: read
+    """Write ``made`` (a :class:`precompute.bakes.eevee_table.FilmImage`) and ``light`` (the
+    dominant-direction pixels, :func:`precompute.bakes.eevee_table.dominant_directions`, or None: read
     at the view angle) as ``material``'s EEVEE film for ``spec``, creating or repairing its
     nodes. Main thread."""
     tree = material.node_tree

@@ -1,4 +1,4 @@
-"""The add-on's GPU layer: ``bpy``/``gpu`` glue only, no scene logic (addon/scene_draw.py decides
+"""The add-on's GPU layer: ``bpy``/``gpu`` glue only, no scene logic (addon/drawing/scene_draw.py decides
 what to draw; callers hand in arrays, matrices and baked tables).
 
 - ``context``: whether drawing works now; a GPU context in background mode.

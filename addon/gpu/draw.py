@@ -2,7 +2,7 @@
 
 :func:`prepare_draw` is the CPU half of a frame (variants, uniform buffers, grouping),
 :func:`submit` the GPU half (state, binds, draw calls); :func:`draw_items` is both. Items are
-made by addon/scene_draw.py (or tests): a :class:`.mesh.MeshBatch`, a model matrix, a
+made by addon/drawing/scene_draw.py (or tests): a :class:`.mesh.MeshBatch`, a model matrix, a
 :class:`.resources.TableTexture` and :class:`.resources.Lighting`, optionally a
 :class:`.resources.PrefilterTexture` and :class:`.resources.FilmTexture`.
 """
@@ -18,7 +18,7 @@ import numpy as np
 
 from ...precompute.shading.transmit import WALL_SOLID
 from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
-from . import resources
+from . import layout, resources
 from .context import ensure_gpu_context
 from .mesh import MeshBatch
 from .resources import EnvironmentTexture, UniformCache
@@ -44,13 +44,13 @@ def is_orthographic(projection_matrix) -> bool:
 
 
 def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.ndarray:
-    """:data:`.resources.VIEW` content, flat float32."""
+    """:data:`.layout.VIEW` content, flat float32."""
     view, proj = _matrix(view_matrix), _matrix(projection_matrix)
     vp = proj @ view
     inv_view = np.linalg.inv(view)
     ortho = is_orthographic(proj)
     toward_viewer = inv_view[:3, 2] / max(np.linalg.norm(inv_view[:3, 2]), 1e-30)
-    return resources.VIEW.pack(
+    return layout.VIEW.pack(
         view_proj=_columns(vp),
         inv_view_proj=_columns(np.linalg.inv(vp)),
         camera=[*inv_view[:3, 3], 1.0 if ortho else 0.0],
@@ -62,7 +62,7 @@ def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.n
 def object_uniforms(
     model_matrix, roughness: float = 0.0, sh_weight: float = 1.0, wall: tuple = (0.0, 1.0)
 ) -> np.ndarray:
-    """:data:`.resources.OBJECT` content, flat float32: model matrix, normal matrix (inverse
+    """:data:`.layout.OBJECT` content, flat float32: model matrix, normal matrix (inverse
     transpose of its 3×3), material parameters (roughness, SH weight and a transparent film's
     ``wall``: its mode and relative index, precompute.shading.transmit)."""
     model = _matrix(model_matrix)
@@ -73,7 +73,7 @@ def object_uniforms(
         normal3 = np.linalg.pinv(m3).T
     normal = np.eye(4)
     normal[:3, :3] = normal3
-    return resources.OBJECT.pack(
+    return layout.OBJECT.pack(
         model=_columns(model),
         normal=_columns(normal),
         material=[float(roughness), float(sh_weight), float(wall[0]), float(wall[1])],
@@ -107,7 +107,7 @@ UNIFORMS = UniformCache()
 
 
 def view_ubo(view_matrix, projection_matrix, exposure: float = 0.0, uniforms=None):
-    """The :data:`.resources.VIEW` buffer of a view (from :class:`.resources.UniformCache`: reused
+    """The :data:`.layout.VIEW` buffer of a view (from :class:`.resources.UniformCache`: reused
     while unchanged)."""
     uniforms = UNIFORMS if uniforms is None else uniforms
     view, proj = _matrix(view_matrix), _matrix(projection_matrix)
@@ -312,23 +312,31 @@ def prepare_draw(
 
 
 def _bind_group(shader, group: DrawGroup) -> None:
-    """Bind what a group's draws read: lighting, table, prefilter, film, lights, grid."""
-    shader.uniform_block(resources.LIGHTING.name, group.lighting)
-    if group.variant.table_ubo:
-        shader.uniform_block(resources.TABLE.name, group.table)
-    else:
-        shader.uniform_sampler(resources.TABLE_SAMPLER.name, group.table)
-    if group.prefiltered is not None:
-        shader.uniform_sampler(resources.PREFILTERED_SAMPLER.name, group.prefiltered)
-    if group.film is not None:
-        if group.variant.film_ubo:
-            shader.uniform_block(resources.FILM.name, group.film)
+    """Bind what a group's draws read: lighting, table, prefilter, film, lights, grid (each that
+    the group has), a table or film from its uniform buffer where the variant reads it there."""
+    binds = (
+        (layout.LIGHTING, group.lighting),
+        (layout.TABLE if group.variant.table_ubo else layout.TABLE_SAMPLER, group.table),
+        (layout.PREFILTERED_SAMPLER, group.prefiltered),
+        (layout.FILM if group.variant.film_ubo else layout.FILM_SAMPLER, group.film),
+        (layout.LIGHTS, group.lights),
+        (layout.RADIANCE_GRID_SAMPLER, group.grid),
+    )
+    for resource, value in binds:
+        if value is None:
+            continue
+        if isinstance(resource, layout.Block):
+            shader.uniform_block(resource.name, value)
         else:
-            shader.uniform_sampler(resources.FILM_SAMPLER.name, group.film)
-    if group.lights is not None:
-        shader.uniform_block(resources.LIGHTS.name, group.lights)
-    if group.grid is not None:
-        shader.uniform_sampler(resources.RADIANCE_GRID_SAMPLER.name, group.grid)
+            shader.uniform_sampler(resource.name, value)
+
+
+def _opaque_state(depth_write: bool) -> None:
+    """Depth test LESS_EQUAL (writing depth when ``depth_write``), no face culling, no blending."""
+    gpu.state.depth_test_set("LESS_EQUAL")
+    gpu.state.depth_mask_set(depth_write)
+    gpu.state.face_culling_set("NONE")
+    gpu.state.blend_set("NONE")
 
 
 def submit(prepared: PreparedDraw) -> None:
@@ -343,10 +351,7 @@ def submit(prepared: PreparedDraw) -> None:
         return
     saved = _SavedState()
     try:
-        gpu.state.depth_test_set("LESS_EQUAL")
-        gpu.state.depth_mask_set(True)
-        gpu.state.face_culling_set("NONE")
-        gpu.state.blend_set("NONE")
+        _opaque_state(depth_write=True)
         shader = None
         state = ("NONE", "NONE")
         for group in prepared.groups:
@@ -358,34 +363,22 @@ def submit(prepared: PreparedDraw) -> None:
             if group.shader is not shader:
                 shader = group.shader
                 shader.bind()
-                shader.uniform_block(resources.VIEW.name, prepared.view)
+                shader.uniform_block(layout.VIEW.name, prepared.view)
                 if group.variant.display_lut:
-                    shader.uniform_sampler(resources.DISPLAY_LUT_SAMPLER.name, prepared.display_lut)
+                    shader.uniform_sampler(layout.DISPLAY_LUT_SAMPLER.name, prepared.display_lut)
                 if group.variant.refract:
-                    shader.uniform_block(resources.BEHIND.name, prepared.behind.ubo)
-                    shader.uniform_sampler(resources.BEHIND_SAMPLER.name, prepared.behind.texture)
+                    shader.uniform_block(layout.BEHIND.name, prepared.behind.ubo)
+                    shader.uniform_sampler(layout.BEHIND_SAMPLER.name, prepared.behind.texture)
             _bind_group(shader, group)
             for batch, object_ubo in group.draws:
-                shader.uniform_block(resources.OBJECT.name, object_ubo)
+                shader.uniform_block(layout.OBJECT.name, object_ubo)
                 batch.draw(shader)
     finally:
         gpu.state.face_culling_set("NONE")
         saved.restore()
 
 
-def draw_items(
-    items,
-    view_matrix,
-    projection_matrix,
-    *,
-    display_srgb: bool,
-    exposure: float = 0.0,
-    shaders=None,
-    uniforms=None,
-    display_lut=None,
-    compile_now: bool = True,
-    behind=None,
-):
+def draw_items(items, view_matrix, projection_matrix, **options):
     """Draw thin-film items into the bound framebuffer, depth-tested, and restore the GPU state.
 
     ``items``: objects with ``.batch`` (:class:`.mesh.MeshBatch` or a GPUBatch),
@@ -399,22 +392,10 @@ def draw_items(
     passes over what the framebuffer holds). ``display_lut``: the scene's view transform
     (:class:`.resources.DisplayLUTTexture`). ``compile_now`` False: uncompiled variants are drawn
     by their stand-in (:func:`prepare_draw`). ``behind``: the scene behind that solid glass
-    refracts (:func:`prepare_draw`). :func:`prepare_draw` then :func:`submit`; see there.
+    refracts (:func:`prepare_draw`). ``options``: :func:`prepare_draw`'s (``display_srgb``
+    is required). :func:`prepare_draw` then :func:`submit`; see there.
     """
-    submit(
-        prepare_draw(
-            items,
-            view_matrix,
-            projection_matrix,
-            display_srgb=display_srgb,
-            exposure=exposure,
-            shaders=shaders,
-            uniforms=uniforms,
-            display_lut=display_lut,
-            compile_now=compile_now,
-            behind=behind,
-        )
-    )
+    submit(prepare_draw(items, view_matrix, projection_matrix, **options))
 
 
 @functools.cache
@@ -447,13 +428,10 @@ def draw_background(
     view = view_ubo(view_matrix, projection_matrix, exposure)
     saved = _SavedState()
     try:
-        gpu.state.depth_test_set("LESS_EQUAL")
-        gpu.state.depth_mask_set(False)
-        gpu.state.face_culling_set("NONE")
-        gpu.state.blend_set("NONE")
+        _opaque_state(depth_write=False)
         shader.bind()
-        shader.uniform_block(resources.VIEW.name, view)
-        shader.uniform_sampler(resources.ENVIRONMENT_SAMPLER.name, environment.texture)
+        shader.uniform_block(layout.VIEW.name, view)
+        shader.uniform_sampler(layout.ENVIRONMENT_SAMPLER.name, environment.texture)
         _fullscreen_triangle().draw(shader)
     finally:
         saved.restore()

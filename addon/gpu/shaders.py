@@ -7,7 +7,7 @@ not resolve them). The variant's switches and the shading rules are ``#define``s
 (:meth:`precompute.shading.variant.Variant.defines`); the generated code comes from
 precompute/shading/codegen.py. :func:`mesh_shader_info` turns a :class:`Variant` into its
 ``GPUShaderCreateInfo`` (the only place that does); :class:`ShaderCache` compiles each variant
-once. Slots, structs and resource names are those of :mod:`.resources`.
+once. Slots, structs and resource names are those of :mod:`.layout`.
 """
 
 from __future__ import annotations
@@ -19,9 +19,10 @@ from pathlib import Path
 
 import gpu
 
+from ...precompute.shading import policy
 from ...precompute.shading.codegen import X90_GENERATED, banded_source, define_block
 from ...precompute.shading.variant import Variant
-from . import resources
+from . import layout
 from .context import ensure_gpu_context
 
 #: The product's chunks.
@@ -119,8 +120,8 @@ def shading_library(l_max: int, *, reference_rotation: Path | None = None, grid:
 
 
 def _declare(info, resource) -> None:
-    """Declare a :class:`.resources.Block` or :class:`.resources.Sampler` on a create-info."""
-    if isinstance(resource, resources.Block):
+    """Declare a :class:`.layout.Block` or :class:`.layout.Sampler` on a create-info."""
+    if isinstance(resource, layout.Block):
         info.uniform_buf(resource.slot, resource.struct, resource.name)
     else:
         info.sampler(resource.slot, resource.type, resource.name)
@@ -130,26 +131,26 @@ def declare_shading_resources(info, variant: Variant) -> None:
     """Defines (:meth:`Variant.defines`: the variant's switches and the shading rules), types, the
     lighting buffer and the table (sampler, or buffer with ``table_ubo``) that
     :func:`shading_library` uses."""
-    if not 0 <= variant.l_max <= resources.MAX_L:
-        raise ValueError(f"l_max must lie in 0…{resources.MAX_L}, got {variant.l_max}")
+    if not 0 <= variant.l_max <= layout.MAX_L:
+        raise ValueError(f"l_max must lie in 0…{layout.MAX_L}, got {variant.l_max}")
     for name, value in variant.defines():
         info.define(name, value)
     if variant.split_sum:
-        _declare(info, resources.PREFILTERED_SAMPLER)
+        _declare(info, layout.PREFILTERED_SAMPLER)
     if variant.film:
-        _declare(info, resources.FILM if variant.film_ubo else resources.FILM_SAMPLER)
+        _declare(info, layout.FILM if variant.film_ubo else layout.FILM_SAMPLER)
     if variant.lights:
-        _declare(info, resources.LIGHTS)
+        _declare(info, layout.LIGHTS)
     if variant.display_lut:
-        _declare(info, resources.DISPLAY_LUT_SAMPLER)
+        _declare(info, layout.DISPLAY_LUT_SAMPLER)
     if variant.grid:
-        _declare(info, resources.RADIANCE_GRID_SAMPLER)
+        _declare(info, layout.RADIANCE_GRID_SAMPLER)
     if variant.refract:
-        _declare(info, resources.BEHIND)
-        _declare(info, resources.BEHIND_SAMPLER)
-    info.typedef_source(resources.TYPEDEFS)
-    _declare(info, resources.LIGHTING)
-    _declare(info, resources.TABLE if variant.table_ubo else resources.TABLE_SAMPLER)
+        _declare(info, layout.BEHIND)
+        _declare(info, layout.BEHIND_SAMPLER)
+    info.typedef_source(layout.TYPEDEFS)
+    _declare(info, layout.LIGHTING)
+    _declare(info, layout.TABLE if variant.table_ubo else layout.TABLE_SAMPLER)
 
 
 def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
@@ -157,8 +158,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     create-info until it is compiled."""
     info = gpu.types.GPUShaderCreateInfo()
     declare_shading_resources(info, variant)
-    _declare(info, resources.VIEW)
-    _declare(info, resources.OBJECT)
+    _declare(info, layout.VIEW)
+    _declare(info, layout.OBJECT)
     info.vertex_in(0, "VEC3", "pos")
     info.vertex_in(1, "VEC3", "nor")
     iface = gpu.types.GPUStageInterfaceInfo("tf_mesh_iface")
@@ -192,9 +193,11 @@ def background_shader_info(display: bool):
     info = gpu.types.GPUShaderCreateInfo()
     if display:
         info.define("TF_DISPLAY_SRGB", "1")
-    info.typedef_source(resources.TYPEDEFS)
-    _declare(info, resources.VIEW)
-    _declare(info, resources.ENVIRONMENT_SAMPLER)
+    for name, value in policy.glsl_defines():  # tf_common.glsl's guards
+        info.define(name, value)
+    info.typedef_source(layout.TYPEDEFS)
+    _declare(info, layout.VIEW)
+    _declare(info, layout.ENVIRONMENT_SAMPLER)
     info.vertex_in(0, "VEC2", "pos")
     iface = gpu.types.GPUStageInterfaceInfo("tf_background_iface")
     iface.smooth("VEC2", "tf_ndc")

@@ -3,7 +3,7 @@
 Usage (from the repository root)::
 
     .venv/bin/python -m benchmarks.gpu_frame prepare OUTDIR
-        # with bpy: the benchmark scenes of benchmarks/viewport.py → OUTDIR (every shader variant,
+        # with bpy: the benchmark scenes of benchmarks/viewport/ → OUTDIR (every shader variant,
         # uniform buffer, texture and mesh a frame draws; about 30 MiB)
     .venv/bin/python -m benchmarks.gpu_frame check OUTDIR
         # with bpy: this harness's pictures against gpu.draw.draw_items on the same OpenGL
@@ -17,7 +17,7 @@ Usage (from the repository root)::
         # → docs/gpu-frame.md; --extra merges further measure runs (other sizes, a few cases) into
         # docs/gpu-frame.json first, which ``report docs/gpu-frame.json`` then rebuilds from
 
-Why: the viewport benchmark (benchmarks/viewport.py, docs/performance.md) runs inside bpy, and
+Why: the viewport benchmark (benchmarks/viewport/, docs/performance.md) runs inside bpy, and
 the only OpenGL here is Mesa's llvmpipe. The GPU machine lent to some tasks cannot run bpy (its
 wheel is far over what can be carried there, and it has Python 3.12 only), so ``prepare`` takes
 everything a frame of ours needs out of the real extension, and ``measure`` draws it again with
@@ -39,7 +39,7 @@ nothing but numpy and moderngl:
   as a 3-D texture), the view and object uniform buffers as ``prepare_draw`` fills them, the draws
   in the order and grouping ``prepare_draw`` gives them, and each mesh as ``MeshBatch.from_arrays``
   receives it (stored as its distinct vertices and the map back, rebuilt bit for bit).
-- *Scenes* (benchmarks/viewport.py's, the same World, film and tori): ``sweep``, 10 tori with
+- *Scenes* (benchmarks/viewport/'s, the same World, film and tori): ``sweep``, 10 tori with
   100 k triangles at l = 2, 5, 8, 12, each film as SH only, combined (split sum + SH) and split
   sum only (``viewport.roughness_cases``), with the World's lamps shaded per light direction
   (the product's default) and with the films' "World Lamps" off; ``grid``, 1 torus with 1.00 M

@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[2]
 #: Frame size of the timed frames and of the pictures that ``check`` compares.
 RESOLUTION = (1920, 1080)
 CHECK_SIZE = (480, 270)
-#: The scenes: (objects, triangles), l_max values, film cases, World lamps (viewport.py's constants
+#: The scenes: (objects, triangles), l_max values, film cases, World lamps (viewport/config.py's constants
 #: are read in ``prepare``; these must agree with them and are checked there).
 SCENES = {
     "sweep": {"layout": (10, 100_000), "l_max": (2, 5, 8, 12), "cases": ("sh", "combined", "split")},

@@ -224,7 +224,7 @@ class Harness:
             ("table", 3, 0),
             ("film", 4, 4),
             ("prefiltered", None, 3),
-            ("grid", None, 6),  # gpu.resources.RADIANCE_GRID_SAMPLER
+            ("grid", None, 6),  # gpu.layout.RADIANCE_GRID_SAMPLER
         ):
             res = g.get(role)
             if res is None:

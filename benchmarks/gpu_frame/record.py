@@ -362,7 +362,7 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
             mat = bpy.data.materials.get(f"Film auto {case}")
             if mat is None:
                 mat = bpy.data.materials.new(f"Film auto {case}")
-                scene.ext.props.fill_from_material(mat.thinfilm_sh, vp.FILM.with_(roughness=rough))
+                scene.ext.conversion.fill_from_material(mat.thinfilm_sh, vp.FILM.with_(roughness=rough))
                 mat.thinfilm_sh.sh_order = "AUTO"
                 mat.thinfilm_sh.enabled = True
             for obj in scene.objects:

@@ -80,7 +80,7 @@ def report(res: dict) -> str:
         f"- **Rounds**: {res['warmup']} warm-up frames per case, then {res['rounds']} rounds over the"
         " cases of one scene, every case once per round, the order reversed every other round; medians"
         " (10th–90th percentile in the JSON). `clear` = the clear alone.",
-        "- **Scenes** (benchmarks/viewport.py's): Blender's `studio` HDRI as the World, the 400 nm film of"
+        "- **Scenes** (benchmarks/viewport/'s): Blender's `studio` HDRI as the World, the 400 nm film of"
         " n = 1.33 on glass (spectral, constant thickness); *SH only*, *combined* (split sum + SH) and"
         " *split only* are the same film at the roughness of `viewport.roughness_cases()`; *lamps* = the"
         " World's lamps shaded per light direction (the product's default), *no lamps* = the films'"

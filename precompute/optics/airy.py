@@ -103,14 +103,19 @@ def _phasor(
     return zr, zi if imaginary else None, None if lossless else zr * zr + zi * zi
 
 
-def airy_film_reflectance(media, thickness, wavelengths_nm, cos_theta, polarization: str) -> np.ndarray:
-    """Reflectance of a single film, shape broadcast of (…, A, W); polarisation "s"/"p"/"unpolarized"."""
+def _film_wavenumbers(media, cos_theta) -> tuple:
+    """(n0, n1, n2, q0, q1, q2) of a single film: the three indices (1, W) and their normal
+    wavenumbers q = N cos θ in each medium (A, W), from the ambient's cos θ (A,)."""
     n0, n1, n2 = (m[None, :] for m in media)
     cos0 = cos_theta[:, None]
     s2 = n0.real**2 * (1.0 - cos0 * cos0)
     q0 = n0.real * cos0 + 0j
-    q1 = normal_wavenumber(n1, s2)
-    q2 = normal_wavenumber(n2, s2)
+    return n0, n1, n2, q0, normal_wavenumber(n1, s2), normal_wavenumber(n2, s2)
+
+
+def airy_film_reflectance(media, thickness, wavelengths_nm, cos_theta, polarization: str) -> np.ndarray:
+    """Reflectance of a single film, shape broadcast of (…, A, W); polarisation "s"/"p"/"unpolarized"."""
+    n0, n1, n2, q0, q1, q2 = _film_wavenumbers(media, cos_theta)
     pols = ("s", "p") if polarization == "unpolarized" else (polarization,)
     terms = [
         _airy_terms(interface_amplitudes(n0, n1, q0, q1, pol), interface_amplitudes(n1, n2, q1, q2, pol))
@@ -134,12 +139,7 @@ def incoherent_film_reflectance(media, wavelengths_nm, cos_theta) -> np.ndarray:
     if any(np.any(m.imag != 0) for m in media[:2]):
         raise ValueError("incoherent_film_reflectance needs a lossless ambient and film (k = 0)")
     out = 0.0
-    n0, n1, n2 = (m[None, :] for m in media)
-    cos0 = cos_theta[:, None]
-    s2 = n0.real**2 * (1.0 - cos0 * cos0)
-    q0 = n0.real * cos0 + 0j
-    q1 = normal_wavenumber(n1, s2)
-    q2 = normal_wavenumber(n2, s2)
+    n0, n1, n2, q0, q1, q2 = _film_wavenumbers(media, cos_theta)
     for pol in ("s", "p"):
         r01 = np.abs(interface_amplitudes(n0, n1, q0, q1, pol)) ** 2
         r12 = np.abs(interface_amplitudes(n1, n2, q1, q2, pol)) ** 2

@@ -4,8 +4,8 @@ Blender's metal is the F82-tint model: F0 = Base Color, and the reflectance at c
 (:data:`F82_COS`) is Specular Tint × Schlick(F0, 1/7). :func:`conductor_from_rgb` turns that
 into a tabulated complex index (Gulbrandsen's fit per channel, placed at
 :data:`RGB_WAVELENGTHS_NM`): how the spectral colour mode sees such a metal. (The
-Cycles-matching mode evaluates the F82-tint model itself: precompute/film_channels.py.)
-``precompute.conductors`` re-exports everything here.
+Cycles-matching mode evaluates the F82-tint model itself: precompute/colour/film_channels.py.)
+``precompute.materials.conductors`` re-exports everything here.
 
 References
 ----------

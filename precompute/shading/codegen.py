@@ -8,7 +8,7 @@
 - :func:`define_block`: ``#define`` lines, as the library's own switch ``TF_X90_GENERATED``.
 - :func:`operation_counts`: the multiply-adds, texel fetches and uniform loads one pixel of a
   :class:`~precompute.shading.variant.Variant` costs, counted in the generated source where there
-  is one; the effect plan reports them (precompute/effects.py).
+  is one; the effect plan reports them (precompute/effects/).
 
 Pure Python and numpy: the add-on (addon/gpu/shaders.py) joins these with the chunks of glsl/.
 """
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..material import MAX_SH_ORDER
+from ..materials.material import MAX_SH_ORDER
 from . import policy
 from .sh_rotation import x_rotation_bands
 from .variant import Variant

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .policy import GIMBAL_SIN
+from .policy import GIMBAL_SIN, HELPER_AXIS_MAX
 
 #: |v − n (n·v)| below which the view is taken as parallel to n, in float64 (the GLSL, in
 #: float32, uses policy.TANGENT_EPS).
@@ -26,7 +26,9 @@ def view_aligned_frame(normals, views) -> np.ndarray:
     v = np.asarray(views, dtype=float)
     t = v - n * np.sum(n * v, axis=-1, keepdims=True)
     tl = np.linalg.norm(t, axis=-1, keepdims=True)
-    helper = np.where(np.abs(n[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    helper = np.where(
+        np.abs(n[..., :1]) < HELPER_AXIS_MAX, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    )
     fallback = helper - n * np.sum(n * helper, axis=-1, keepdims=True)
     t = np.where(tl > TANGENT_EPS_F64, t, fallback)
     x = t / np.linalg.norm(t, axis=-1, keepdims=True)

@@ -1,8 +1,8 @@
 """The World's lamps shaded per light direction (numpy twin of glsl/tf_lamps.glsl).
 
-Each lamp (precompute.lamps.extract) is a directional light shaded with the exact microfacet
+Each lamp (precompute.world.lamps.extract) is a directional light shaded with the exact microfacet
 BRDF, D G₂ F(ωo·h) / (4 cos θo), with the film's reflectance F at that light's half-vector
-(precompute.film_colour.film_table), times the multiple-scattering factor at the view angle.
+(precompute.colour.film_colour.film_table), times the multiple-scattering factor at the view angle.
 The split sum's sharpest levels keep the lamps in the image (policy.LAMP_LEVEL): the analytic
 lamps take the rest (:func:`lamp_weight`; the split sum's level blend of it:
 split_sum.lamp_weight_at).
@@ -67,22 +67,32 @@ def film_at(film, table, rows, u) -> np.ndarray:
     return (1 - t_w) * lo + t_w * hi
 
 
+def lit_pixels(film, count: int, roughness: float, normals, views, thickness_position=None) -> tuple:
+    """What a light loop needs of its pixels once (the shader's prologue of tf_shade_lamps and
+    tf_shade_lights): (normals (N, 3), views (N, 3), GGX α, the film's thickness rows
+    (:func:`thickness_lerp`), cos θo clamped to [MIN_COS, 1]); α and what follows are None when
+    there is nothing to shade (``count`` lights or no pixel)."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    if count == 0 or n.shape[0] == 0:
+        return n, v, None, None, None
+    alpha = float(brdf.alpha_from_roughness(roughness))
+    rows = thickness_lerp(film, thickness_position, n.shape[0])
+    return n, v, alpha, rows, np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
+
+
 def shade(film, lamps, roughness: float, normals, views, thickness_position=None) -> np.ndarray:
     """Σ_k D G₂ F(ωo·h_k) / (4 cos θo) × power_k × multiscatter(cos θo): (N, 3), mirrored by tf_lamps.glsl.
 
-    ``film``: a :class:`precompute.film_colour.FilmTable`; ``lamps``: a
-    :class:`precompute.lamps.Lamps`. ``thickness_position`` in [0, 1] along the film table's
+    ``film``: a :class:`precompute.colour.film_colour.FilmTable`; ``lamps``: a
+    :class:`precompute.world.lamps.Lamps`. ``thickness_position`` in [0, 1] along the film table's
     thickness rows (None: the first). F is interpolated linearly in u and thickness, like the
     shader.
     """
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    n, v, alpha, rows, cos_o = lit_pixels(film, lamps.count, roughness, normals, views, thickness_position)
     out = np.zeros((n.shape[0], 3))
-    if lamps.count == 0 or n.shape[0] == 0:
+    if alpha is None:
         return out
-    alpha = float(brdf.alpha_from_roughness(roughness))
-    rows = thickness_lerp(film, thickness_position, n.shape[0])
-    cos_o = np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
     for d, p in zip(lamps.directions, lamps.power, strict=True):
         cos_i = n @ d
         h = v + d

@@ -41,14 +41,12 @@ import numpy as np
 
 from .. import brdf
 from . import policy
-from .lamps import film_at, thickness_lerp
-from .policy import MIN_COS
+from .lamps import film_at, lit_pixels
+from .policy import LIGHT_VEC4, MIN_COS
 
 #: Light kinds as the shader stores them (``tf_lights.light[5k].w``; policy.LIGHT_KINDS).
 KINDS = dict(policy.LIGHT_KINDS)
 SUN, POINT, SPOT, AREA = (KINDS[k] for k in ("SUN", "POINT", "SPOT", "AREA"))
-#: Vec4s per light in the TFLights buffer (addon/gpu/resources.py LIGHTS).
-LIGHT_VEC4 = 5
 #: A hard spot edge (blend 0): the smoothstep's inverse width, finite in float32.
 SPOT_HARD = 1e30
 #: Nearest distance to a light's centre or sample the shaders divide by (policy).
@@ -301,8 +299,8 @@ def lobe_cells(centre, width, samples: int):
     together exactly the light's extent. A wide lobe (width ≫ 1) gives a uniform grid.
     """
     # bounded so that float32 keeps c + w tan(·) to ~1e-5 (a lobe that wide is uniform anyway)
-    c = np.clip(np.asarray(centre, dtype=np.float64), -AREA_MAX_WIDTH, AREA_MAX_WIDTH)[:, None]
-    w = np.clip(np.asarray(width, dtype=np.float64), policy.AREA_MIN_WIDTH, AREA_MAX_WIDTH)[:, None]
+    c = np.clip(np.asarray(centre, dtype=np.float64), -policy.AREA_MAX_WIDTH, policy.AREA_MAX_WIDTH)[:, None]
+    w = np.clip(np.asarray(width, dtype=np.float64), policy.AREA_MIN_WIDTH, policy.AREA_MAX_WIDTH)[:, None]
     lo = np.arctan((-0.5 - c) / w)
     hi = np.arctan((0.5 - c) / w)
     t = np.arange(int(samples) + 1) / int(samples)
@@ -330,19 +328,16 @@ def area_lobe(lights: Lights, k: int, positions, normals, views, alpha: float):
     hit = p + t[:, None] * r - lights.position[k]
     out = []
     for ax in (lights.axis_u[k], lights.axis_v[k]):
-        size = max(float(np.linalg.norm(ax)), 1e-12)
+        size = max(float(np.linalg.norm(ax)), policy.AREA_MIN_AXIS)
         centre = (hit @ ax) / (size * size)
         width = policy.AREA_LOBE_SCALE * alpha * t / (safe * size)
         out.append(
-            (np.where(facing > MIN_COS, centre, 0.0), np.where(facing > MIN_COS, width, UNIFORM_WIDTH))
+            (
+                np.where(facing > MIN_COS, centre, 0.0),
+                np.where(facing > MIN_COS, width, policy.AREA_UNIFORM_WIDTH),
+            )
         )
     return out[0][0], out[1][0], out[0][1], out[1][1]
-
-
-#: A lobe width that makes :func:`lobe_cells` uniform (the ray misses the light's plane).
-UNIFORM_WIDTH = 1e6
-#: Bound of a lobe's centre and width in light sizes (:func:`lobe_cells`): float32 precision.
-AREA_MAX_WIDTH = 100.0
 
 
 def _area_samples(lights: Lights, k: int, p: np.ndarray, lobe):
@@ -392,18 +387,14 @@ def shade(
     """Σ_lights Σ_samples D_α' G₂ F(ωo·h) / (4 cos θo) × E⊥ × multiscatter(cos θo): (N, 3).
 
     Mirrored by tf_lights.glsl ``tf_shade_lights``. ``film``: a
-    :class:`precompute.film_colour.FilmTable`; ``positions``, ``normals``, ``views`` (N, 3),
+    :class:`precompute.colour.film_colour.FilmTable`; ``positions``, ``normals``, ``views`` (N, 3),
     world space, normals facing the viewer; ``thickness_position`` in [0, 1] along the film
     table's rows (None: the first), as shading.lamps.shade.
     """
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
+    n, v, alpha, t, cos_o = lit_pixels(film, lights.count, roughness, normals, views, thickness_position)
     out = np.zeros((n.shape[0], 3))
-    if lights.count == 0 or n.shape[0] == 0:
+    if alpha is None:
         return out
-    alpha = float(brdf.alpha_from_roughness(roughness))
-    t = thickness_lerp(film, thickness_position, n.shape[0])
-    cos_o = np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
     for k in range(lights.count):
         lobe = area_lobe(lights, k, positions, n, v, alpha) if lights.kind[k] == AREA else None
         for l, e, rho2 in light_samples(lights, k, positions, lobe):

@@ -9,7 +9,7 @@ tf_radiance_grid.glsl unchanged) is the single-scattering integral itself,
     L(n, v) = ms(θo) Σ_s w_s F(u_s) L_env(ω_s),
 
 over GGX half-vector quadrature nodes (:func:`precompute.brdf.ggx_importance_grid`, the measure
-of :func:`precompute.render.shade_reference`): F the film's reflectance at each node's u = v·h
+of :func:`precompute.output.render.shade_reference`): F the film's reflectance at each node's u = v·h
 (per channel, or its 3×3 matrix), ms the multiple-scattering factor the bake applies, L_env the
 World's panorama (the lamps lifted out when they are shaded per direction). The film's colour
 thus changes across the lobe as it does in Cycles (docs/tuning.md#lobe-grid).
@@ -32,7 +32,7 @@ BLOCK_LOOKUPS = 2_000_000
 
 def _lookup(flat: np.ndarray, height: int, width: int, d: np.ndarray) -> np.ndarray:
     """Bilinear lookup of a flattened equirect panorama at unit directions ``d`` (N, 3), the
-    mapping of :func:`precompute.hdri.equirect_lookup` (wrap in u, rows clamped), in float32."""
+    mapping of :func:`precompute.world.hdri.equirect_lookup` (wrap in u, rows clamped), in float32."""
     x = (0.5 - np.arctan2(d[:, 1], d[:, 0]) / (2.0 * np.pi)) * width - 0.5
     y = np.arccos(np.clip(d[:, 2], -1.0, 1.0)) / np.pi * height - 0.5
     x0, y0 = np.floor(x), np.floor(y)
@@ -72,7 +72,7 @@ def build(
 
     Parameters
     ----------
-    film : precompute.film_colour.FilmTable
+    film : precompute.colour.film_colour.FilmTable
         The film's reflectance F(u) and multiple-scattering factor (thickness row 0).
     roughness : float
         Blender roughness r (GGX α = r²).

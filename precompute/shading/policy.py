@@ -14,7 +14,8 @@ import dataclasses
 
 import numpy as np
 
-from .. import constants, sh
+from .. import constants
+from ..sh import windows
 
 # ----------------------------------------------------------------------------------------------
 # Split sum and SH
@@ -54,7 +55,7 @@ WINDOW_WIDTH_PER_ROUGHNESS = 0.9
 def lighting_window(l_max: int, roughness: float) -> np.ndarray:
     """Per-coefficient factors applied to the World's SH for a material of this roughness."""
     r = min(max(float(roughness), 0.0), 1.0)
-    return sh.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
+    return windows.window(l_max, "lanczos", (l_max + 1.0) * (1.0 + WINDOW_WIDTH_PER_ROUGHNESS * r))
 
 
 def windowed_lighting(coeffs, l_max: int, roughness: float) -> np.ndarray:
@@ -201,11 +202,20 @@ AREA_SAMPLES = 4
 #: ray's hit (docs/scene-lights.md#area-samples), never narrower than AREA_MIN_WIDTH of the light.
 AREA_LOBE_SCALE = 2.0
 AREA_MIN_WIDTH = 1e-3
+#: A lobe's centre and width are bounded to this many light sizes: float32 keeps c + w tan(·) to
+#: 1e-5 there, and a wider lobe is uniform over the light anyway.
+AREA_MAX_WIDTH = 100.0
+#: The lobe width that makes the cells uniform: the mirror ray misses the light's plane.
+AREA_UNIFORM_WIDTH = 1e6
+#: Shortest axis of an area light the shaders divide by (a degenerate, zero-size light).
+AREA_MIN_AXIS = 1e-12
 #: Nearest distance to a light's centre or sample the shaders divide by: a 10⁵ W point light at
 #: 0.1 mm gives 8·10¹⁴ W/m², far inside float32.
 MIN_LIGHT_DISTANCE = 1e-4
 #: The light kinds as the TFLights buffer stores them (shading/lights.py).
 LIGHT_KINDS = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
+#: Vec4s per light in the TFLights buffer (addon/gpu/resources.py LIGHTS, lights.Lights.pack).
+LIGHT_VEC4 = 5
 
 # ----------------------------------------------------------------------------------------------
 # Transparent films (shading/transmit.py)
@@ -258,6 +268,18 @@ TANGENT_EPS = 1e-6
 #: X(±90°) entries below this are structural zeros (noise ≤ 3e-16, the least true entry 2⁻⁷): the
 #: generated code skips them (docs/tuning.md#x90-generated).
 X90_ZERO = 1e-9
+#: Floor of a divisor, or of a squared length before a normalisation: keeps 0/0 finite; every value
+#: the shading divides by in float32 is orders of magnitude above it.
+DIVISION_FLOOR = 1e-30
+#: Squared length below which the prefilter's direction moment counts as vanished (a black World
+#: in the lobe): the split sum keeps the view angle (float32, as DIVISION_FLOOR).
+MOMENT_EPS = DIVISION_FLOOR
+#: The view-aligned frame's helper axis, for a view along the normal, is x unless the normal's
+#: |x| reaches this (then y): any bound well inside (0, 1) keeps the helper far from parallel.
+HELPER_AXIS_MAX = 0.9
+#: Squared length of solid glass's exit direction below which it counts as totally internally
+#: reflected (GLSL's refract() returns 0 there; numpy's exit ray is 0 to rounding).
+TIR_EPS = 1e-12
 
 # ----------------------------------------------------------------------------------------------
 # Devices
@@ -270,7 +292,7 @@ TABLE_UBO_DEVICES = ("SOFTWARE",)
 # ----------------------------------------------------------------------------------------------
 # Display
 # ----------------------------------------------------------------------------------------------
-#: Lattice points per axis of the viewport's display LUT (precompute/display_lut.py): the
+#: Lattice points per axis of the viewport's display LUT (precompute/colour/display_lut.py): the
 #: trilinear error against OCIO (docs/tuning.md#display-lut).
 DISPLAY_LUT_SIZE = 65
 #: The LUT shaper's offset a in log2(x + a): resolves the sRGB toe (docs/tuning.md#display-lut).
@@ -309,10 +331,12 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
 
     - ``TF_MAX_LAMPS``, ``TF_LAMP_LEVEL``: :data:`MAX_LAMPS`, :data:`LAMP_LEVEL`;
     - ``TF_MAX_LIGHTS``, ``TF_AREA_SAMPLES``, ``TF_AREA_LOBE_SCALE``, ``TF_AREA_MIN_WIDTH``,
-      ``TF_MIN_LIGHT_DISTANCE``, ``TF_LIGHT_<KIND>``: the light objects' rules (:data:`MAX_LIGHTS`
-      … :data:`LIGHT_KINDS`);
+      ``TF_AREA_MAX_WIDTH``, ``TF_AREA_UNIFORM_WIDTH``, ``TF_AREA_MIN_AXIS``,
+      ``TF_MIN_LIGHT_DISTANCE``, ``TF_LIGHT_<KIND>``, ``TF_LIGHT_VEC4``: the light objects' rules
+      (:data:`MAX_LIGHTS` … :data:`LIGHT_KINDS`) and their buffer's stride (:data:`LIGHT_VEC4`);
     - ``TF_WALL_SCALE_MAX``, ``TF_WALL_GUARD``: :data:`WALL_SCALE_MAX`, :data:`WALL_GUARD`;
-    - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``: the guards;
+    - ``TF_MIN_COS``, ``TF_MIN_ALPHA``, ``TF_GIMBAL_SIN``, ``TF_TANGENT_EPS``,
+      ``TF_DIVISION_FLOOR``, ``TF_MOMENT_EPS``, ``TF_HELPER_AXIS_MAX``, ``TF_TIR_EPS``: the guards;
     - ``TF_GRAZING(x)`` = x^GRAZING_EXPONENT (:func:`effective_roughness`);
     - ``TF_LADDER_ROUGHNESS(x)`` = x^LEVEL_EXPONENT, the roughness of the level at position x =
       k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
@@ -331,13 +355,21 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
         ("TF_MIN_LIGHT_DISTANCE", glsl_float(MIN_LIGHT_DISTANCE)),
         ("TF_AREA_LOBE_SCALE", glsl_float(AREA_LOBE_SCALE)),
         ("TF_AREA_MIN_WIDTH", glsl_float(AREA_MIN_WIDTH)),
+        ("TF_AREA_MAX_WIDTH", glsl_float(AREA_MAX_WIDTH)),
+        ("TF_AREA_UNIFORM_WIDTH", glsl_float(AREA_UNIFORM_WIDTH)),
+        ("TF_AREA_MIN_AXIS", glsl_float(AREA_MIN_AXIS)),
         *((f"TF_LIGHT_{kind}", str(code)) for kind, code in LIGHT_KINDS.items()),
+        ("TF_LIGHT_VEC4", str(int(LIGHT_VEC4))),
         ("TF_WALL_SCALE_MAX", glsl_float(WALL_SCALE_MAX)),
         ("TF_WALL_GUARD", glsl_float(WALL_GUARD)),
         ("TF_MIN_COS", glsl_float(MIN_COS)),
         ("TF_MIN_ALPHA", glsl_float(MIN_ALPHA)),
         ("TF_GIMBAL_SIN", glsl_float(GIMBAL_SIN)),
         ("TF_TANGENT_EPS", glsl_float(TANGENT_EPS)),
+        ("TF_DIVISION_FLOOR", glsl_float(DIVISION_FLOOR)),
+        ("TF_MOMENT_EPS", glsl_float(MOMENT_EPS)),
+        ("TF_HELPER_AXIS_MAX", glsl_float(HELPER_AXIS_MAX)),
+        ("TF_TIR_EPS", glsl_float(TIR_EPS)),
         ("TF_GRAZING(x)", glsl_power("x", GRAZING_EXPONENT)),
         ("TF_LADDER_ROUGHNESS(x)", glsl_power("x", LEVEL_EXPONENT)),
         ("TF_LADDER_POSITION(r)", glsl_power("r", 1.0 / LEVEL_EXPONENT)),

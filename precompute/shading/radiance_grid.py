@@ -32,8 +32,8 @@ import threading
 
 import numpy as np
 
-from .. import bake
-from ..progress import checkpoint
+from ..bakes import bake, kernel
+from ..bakes.progress import checkpoint
 from .policy import GRID_AZIMUTHS, grid_shape
 from .sh_rotation import apply_bands, local_coefficients, rotate_z_batch, x_rotation_bands
 from .table import lookup as table_lookup
@@ -103,7 +103,7 @@ def folded_table(result: bake.BakeResult, count: int) -> np.ndarray:
     C_out = C_in = 3 with zeros off the diagonal. Thickness row 0 (a constant thickness).
     """
     l_max = result.sh_order
-    kept = bake.coefficient_indices(l_max)
+    kept = kernel.coefficient_indices(l_max)
     rotations = _view_rotations(int(count), l_max)[:, kept]  # (T, K_kept, K)
     m = table_lookup(result.data[:1], np.cos(view_angles(count)))  # (T, K_kept, 3[, 3])
     if m.ndim == 3:  # per channel → diagonal 3×3
@@ -160,7 +160,7 @@ def build(result: bake.BakeResult, world_coeffs, shape=None) -> np.ndarray:
     (Σ_q (Z B)_q E_q = Σ_q B_q (Zᵀ E)_q, Zᵀ = Z(+ψ)), so the grid is, per output channel, one
     (Ψ·T, 3K) × (3K, H·W) float32 product written straight into the texture's layout: ≈ 0.9 G
     multiply-adds at l = 12 in all (float32 sums of 3K terms: ~1e-7 of the peak, below the
-    texture's own rounding). A :func:`~precompute.progress.checkpoint` after each step (≲ 20 ms)
+    texture's own rounding). A :func:`~precompute.bakes.progress.checkpoint` after each step (≲ 20 ms)
     lets a superseded build stop.
     """
     w, h, t, p = _check_shape(grid_shape(result.data.shape[1]) if shape is None else shape)

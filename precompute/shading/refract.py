@@ -46,6 +46,7 @@ from .policy import (
     REFRACT_REFINE,
     REFRACT_STEPS,
     REFRACT_THICKNESS,
+    TIR_EPS,
     WALL_GUARD,
 )
 
@@ -82,7 +83,7 @@ def exit_ray(points, normals, views, centre, eta: float) -> tuple[np.ndarray, np
     exit_point = p + chord * inner
     n2 = _unit(exit_point - c, inner)
     out = refract(inner, -n2, eta)
-    tir = np.sum(out * out, axis=-1, keepdims=True) < 1e-12
+    tir = np.sum(out * out, axis=-1, keepdims=True) < TIR_EPS
     return exit_point, np.where(tir, inner, _unit(out, inner))
 
 

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .. import sh
+from ..sh import rotations
 from .frame import zyz_from_frame
 
 
@@ -43,7 +43,7 @@ def x_rotation_bands(l_max: int, sign: int) -> tuple[np.ndarray, ...]:
     """Band blocks of the SH rotation for Rx(sign · 90°): constants the shader keeps in its UBO."""
     t = sign * 0.5 * np.pi
     rx = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(t), -math.sin(t)], [0.0, math.sin(t), math.cos(t)]])
-    return tuple(sh.rotation_bands(l_max, rx))
+    return tuple(rotations.rotation_bands(l_max, rx))
 
 
 def apply_bands(bands, coeffs) -> np.ndarray:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import bake
+from ..bakes import bake, kernel
 from .frame import view_aligned_frame
 from .sh_rotation import local_coefficients
 from .table import lookup, thickness_position
@@ -20,7 +20,7 @@ def shade_sh(result: bake.BakeResult, world_coeffs, normals, views, thickness_nm
     l_max = result.sh_order
     frames = view_aligned_frame(normals, views)
     local = local_coefficients(np.asarray(world_coeffs, dtype=float), frames, l_max)
-    kept = local[..., bake.coefficient_indices(l_max), :]  # (…, K, 3)
+    kept = local[..., kernel.coefficient_indices(l_max), :]  # (…, K, 3)
     cos_o = np.sum(frames[..., 2, :] * np.asarray(views), axis=-1)
     m = lookup(result.data, cos_o, thickness_position(result, thickness_nm))
     if m.ndim == kept.ndim + 1:  # spectral: 3×3 per coefficient

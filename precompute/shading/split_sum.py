@@ -1,7 +1,7 @@
 """Split-sum image-based lighting and the product's combined shading (numpy twin of
 glsl/tf_split_sum.glsl).
 
-The World prefiltered by the GGX lobe at a ladder of roughness levels (precompute.prefilter) is
+The World prefiltered by the GGX lobe at a ladder of roughness levels (precompute.world.prefilter) is
 looked up in the reflection direction and multiplied by the film's directional albedo, the l = 0
 table entry × √(4π) (Karis 2013). The albedo is read at the half-vector angle of the lobe's
 light-weighted mean direction (:func:`dominant_cosine`) where policy.uses_moment says so.
@@ -20,15 +20,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..hdri import equirect_lookup
+from ..world.hdri import equirect_lookup
 from . import lamps as lamp_shading
-from .policy import effective_roughness, sh_weight, uses_moment
+from .policy import DIVISION_FLOOR, MOMENT_EPS, effective_roughness, sh_weight, uses_moment
 from .sh_sum import shade_sh
 from .table import lookup as table_lookup
 from .table import thickness_position
-
-#: Squared length below which a direction moment counts as vanished (as tf_split_sum.glsl, float32).
-MOMENT_EPS = 1e-30
 
 
 def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
@@ -42,7 +39,7 @@ def level_blend(roughness, level_roughness) -> tuple[np.ndarray, np.ndarray]:
     r = np.clip(np.asarray(roughness, dtype=float), levels[0], levels[-1])
     lo = np.clip(np.searchsorted(levels, r, side="right") - 1, 0, levels.size - 2)
     a4, b4 = levels[lo] ** 4, levels[lo + 1] ** 4
-    return lo, np.clip((r**4 - a4) / np.maximum(b4 - a4, 1e-30), 0.0, 1.0)
+    return lo, np.clip((r**4 - a4) / np.maximum(b4 - a4, DIVISION_FLOOR), 0.0, 1.0)
 
 
 def _blend(pre, directions: np.ndarray, roughness, stacks) -> list[np.ndarray]:
@@ -92,7 +89,7 @@ def lamp_weight_at(pre, roughness) -> np.ndarray:
 def lookup(pre, directions: np.ndarray, roughness, moments: bool = False) -> np.ndarray:
     """Prefiltered radiance in ``directions`` at per-pixel ``roughness`` (α²-matched level blend).
 
-    ``pre``: a :class:`precompute.prefilter.Prefiltered`. ``moments=True`` reads the luminance ×
+    ``pre``: a :class:`precompute.world.prefilter.Prefiltered`. ``moments=True`` reads the luminance ×
     direction moments instead (same blend).
     """
     found = _blend(pre, directions, roughness, [pre.moments if moments else pre.levels])[0]
@@ -151,8 +148,8 @@ def shade_combined(
 ) -> np.ndarray:
     """The product's shading: split sum for glossy films, SH for rough ones, blended by roughness.
 
-    With ``lamps`` (:class:`precompute.lamps.Lamps`) and ``film``
-    (:func:`precompute.film_colour.film_table`) the World's lamps are added, shaded per light
+    With ``lamps`` (:class:`precompute.world.lamps.Lamps`) and ``film``
+    (:func:`precompute.colour.film_colour.film_table`) the World's lamps are added, shaded per light
     direction (:func:`precompute.shading.lamps.shade`); ``world_coeffs`` and ``pre`` from
     ``prefilter(…, lamp_mask=…)``. The SH half sees the World without its lamps (weight 1); the
     split-sum half keeps them in its sharpest levels (:func:`lamp_weight_at`). The split sum reads

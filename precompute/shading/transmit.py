@@ -5,7 +5,7 @@ A film drawn as a *wall* (a soap bubble, a thin sheet of coated glass, a Princip
 by the wall's transmittance T, and reflects R·L. The draw composites with two blend passes over
 what is already in the frame: multiply by T, then add R·L (addon/gpu/draw.py). Both factors come
 from the film's reflectance r(u) per channel at the view cosine u = n·v
-(:class:`precompute.film_colour.FilmTable`: Cycles' per-channel film in the per-channel mode,
+(:class:`precompute.colour.film_colour.FilmTable`: Cycles' per-channel film in the per-channel mode,
 the row sums of the 3×3 matrices, white light E, in the spectral mode), evaluated once at the
 macro view angle, as Cycles' thin wall does. The film is lossless (no absorption in a layer
 and a real substrate): what it does not reflect it transmits, r + t = 1 per channel.
@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from .lamps import film_at, thickness_lerp
-from .policy import MIN_COS, WALL_GUARD, WALL_SCALE_MAX
+from .policy import DIVISION_FLOOR, MIN_COS, WALL_GUARD, WALL_SCALE_MAX
 
 #: The extension's physical wall: the film on the front of a sheet of relative index η.
 WALL_SHEET = 0
@@ -64,8 +64,8 @@ def fresnel_dielectric(cos_i, eta) -> np.ndarray:
     eta = float(eta)
     g2 = eta * eta - 1.0 + c * c
     g = np.sqrt(np.maximum(g2, 0.0))
-    a = (g - c) / np.maximum(g + c, 1e-30)
-    b = (c * (g + c) - 1.0) / np.maximum(c * (g - c) + 1.0, 1e-30)
+    a = (g - c) / np.maximum(g + c, DIVISION_FLOOR)
+    b = (c * (g + c) - 1.0) / np.maximum(c * (g - c) + 1.0, DIVISION_FLOOR)
     return np.where(g2 > 0.0, np.clip(0.5 * a * a * (1.0 + b * b), 0.0, 1.0), 1.0)
 
 
@@ -97,7 +97,7 @@ def white_reflectance(film, rows, u) -> np.ndarray:
 def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=None):
     """(T, S), each (N, 3), of a wall at unit ``normals`` and view directions ``views`` (the
     normal faces the viewer, as in the shader); ``film``: a
-    :class:`precompute.film_colour.FilmTable`. Mirrored by tf_wall (glsl/tf_transmit.glsl)."""
+    :class:`precompute.colour.film_colour.FilmTable`. Mirrored by tf_wall (glsl/tf_transmit.glsl)."""
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
     cos_v = np.clip(np.abs(np.sum(n * v, axis=-1)), 0.0, 1.0)

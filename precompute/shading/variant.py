@@ -2,7 +2,7 @@
 
 A :class:`Variant` names every switch of the shading library (each a ``#define``); the add-on
 compiles one shader per variant (addon/gpu/shaders.py ``ShaderCache``) and the effect plan
-(precompute/effects.py) costs the same variant (codegen.operation_counts).
+(precompute/effects/) costs the same variant (codegen.operation_counts).
 :func:`choose_variant` turns the facts of one draw item (its table, mesh, World and film) into
 it, for the draw and for the plan alike.
 """

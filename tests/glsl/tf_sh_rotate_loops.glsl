@@ -4,7 +4,7 @@
  *
  * Not part of the product (tests/ is not shipped): addon/gpu/shaders.py joins it only when asked
  * (shading_library(..., reference_rotation=<this file>), a library without TF_X90_GENERATED, in
- * which tf_shade_at calls tf_local_coefficients at every order). tests/test_gpu_draw.py checks it
+ * which tf_shade_at calls tf_local_coefficients at every order). tests/drawing/test_gpu_draw.py checks it
  * against numpy like the generated code; benchmarks.gpu_frame times it ("sh-loops" cases).
  *
  * numpy counterpart: shading.sh_rotation.rotate_z_batch, apply_bands, local_coefficients.

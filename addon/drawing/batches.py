@@ -1,0 +1,121 @@
+"""Batches: a mesh's triangles of one material slot on the GPU, with its thickness per corner.
+
+:func:`slot_batch` builds the :class:`BatchEntry` of an (object, material slot): positions,
+normals and, for a film whose thickness varies, the thickness parameter per corner
+(:func:`batch_thickness`: from the extension's source, :mod:`..thickness.thickness`, Blender's
+Noise Texture or a linked Principled thickness, :mod:`..thickness.linked`).
+:func:`thickness_source` is what the batches' thickness is made of, part of their signature: a
+change rebuilds them. :mod:`.scene_draw` keeps the batches (``CACHES.batches``) and decides when
+to build one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..gpu.mesh import MeshBatch, mesh_arrays
+from ..materials.principled import linked_thickness_socket
+from ..thickness import linked
+from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
+
+__all__ = ["BatchEntry", "batch_thickness", "slot_batch", "thickness_source"]
+
+
+@dataclass
+class BatchEntry:
+    """One (object, material slot, instance)'s batch and what it was built from.
+
+    ``signature``: the mesh's name and sizes, whether the material's thickness varies and its
+    :func:`.thickness.thickness_inputs` (a different signature rebuilds the batch; nothing else
+    of the material is in the batch, so a roughness drag rebuilds none);
+    ``thickness``: the per-vertex thickness parameters uploaded (float32, one per corner; None
+    for a constant thickness), kept to be read back; ``notes``: what the build found wrong
+    (NaN thickness values, a missing attribute), repeated in every frame's messages.
+    """
+
+    signature: tuple
+    batch: MeshBatch | None
+    thickness: np.ndarray | None = None
+    notes: tuple = ()
+
+
+def thickness_source(bpy_material, props, desc):
+    """(the batches' thickness key, (material, socket) of a linked Principled thickness or None):
+    the extension's source settings, or the linked graph's content (an edit rebuilds batches)."""
+    if not desc.varies:
+        return None, None
+    if props is not None:
+        return thickness_inputs(props), None
+    socket = linked_thickness_socket(bpy_material)
+    if socket is None:
+        return None, None
+    return ("LINKED", linked.tree_key(socket), desc.thickness_range_nm), (bpy_material, socket)
+
+
+def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
+    """(per-corner thickness parameter or None, notes, whether a bake is awaited) of a batch:
+    from the extension's source (``props``; BLENDER_NOISE: :func:`.linked.noise_parameters`),
+    or from the link into a Principled BSDF's Thin Film Thickness
+    (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`)."""
+    notes = []
+    if not desc.varies:
+        return None, notes, False
+    try:
+        if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
+            thickness, nan_count = linked.noise_parameters(obj_eval, mesh, props.id_data)
+        elif props is not None and props.enabled:
+            thickness, nan_count = thickness_field(obj_eval, mesh, props)
+        elif linked_source is not None:
+            thickness, nan_count = linked.corner_parameters(
+                obj_eval, mesh, *linked_source, desc.thickness_range_nm
+            )
+        else:
+            return None, notes, False
+    except linked.Pending as exc:  # built again on the next frame, after the timer's bake
+        notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
+        return None, notes, True
+    except ValueError as exc:
+        notes.append(f"{name}: {exc}; using the middle of the thickness range")
+        return None, notes, False
+    if nan_count:
+        notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
+    return thickness, notes, False
+
+
+def slot_batch(
+    name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None
+) -> BatchEntry:
+    """The batch of the triangles of material slot ``slot`` (None if it has none).
+
+    ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
+    material is not refreshed when an add-on property changes), or None; ``name``: the object's;
+    ``linked_source``: (material, Thin Film Thickness socket) of a Principled BSDF whose
+    thickness is linked, or None.
+    """
+    arrays = mesh_arrays(mesh)
+    if arrays is None:
+        return BatchEntry(signature, None)
+    positions, normals, triangles, _ = arrays
+    if len(obj_eval.material_slots) > 1:
+        tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)  # an array copy, not per item
+        poly_mat = np.zeros(len(mesh.polygons), dtype=np.int32)
+        attr = mesh.attributes.get("material_index")  # absent: every face uses slot 0
+        if attr is not None and attr.domain == "FACE" and attr.data_type == "INT":
+            attr.data.foreach_get("value", poly_mat)
+        triangles = triangles[poly_mat[tri_poly] == slot]
+    if triangles.shape[0] == 0:
+        return BatchEntry(signature, None)
+    thickness, notes, waiting = batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
+    if desc.varies and thickness is None:
+        thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
+    if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
+        thickness = np.nan_to_num(
+            np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
+        )
+    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    if waiting:
+        signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
+    return BatchEntry(signature, batch, thickness, tuple(notes))

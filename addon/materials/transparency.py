@@ -1,0 +1,66 @@
+"""Which films let what lies behind them through, and as which wall (precompute.shading.transmit).
+
+- The extension's settings (*Transparency*): *Automatic* sees through a film on air (the soap
+  film preset: substrate = ambient, no diffuse base), a free-standing film, T = 1 − R; *Thin
+  Sheet* sees through any film on a dielectric substrate as a thin sheet of it (a window);
+  *Opaque* never.
+- A Principled BSDF with *Transmission Weight* ≥ 0.5 (previewed as 1, like the reflection) and
+  *Thin Wall* on: Cycles' thin wall (the film on both faces, the slab series of
+  ``bsdf_thin_glass_fresnel``); without *Thin Wall* (solid glass, water) solid glass of its IOR:
+  the World seen through the ray's exit from a sphere of that glass (docs/transparent-films.md).
+
+:func:`wall` gives the draw item's ``wall`` = (mode, η), or None for an opaque film.
+"""
+
+from __future__ import annotations
+
+from ...precompute.shading import transmit
+from .principled import SOCKET_METALLIC, SOCKET_THIN_WALL, SOCKET_TRANSMISSION, principled_node
+
+__all__ = ["wall"]
+
+
+def _real_index(value) -> float | None:
+    """A constant real index as a float, else None (dispersive, absorbing or metal substrates)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
+def _extension_wall(props, desc) -> tuple | None:
+    choice = getattr(props, "transparency", "AUTO")
+    substrate = _real_index(desc.substrate)
+    if choice == "OPAQUE" or substrate is None or desc.base_color is not None:
+        return None
+    eta = substrate / float(desc.ambient)
+    if choice == "SHEET":
+        return (transmit.WALL_SHEET, eta)
+    return (transmit.WALL_SHEET, 1.0) if abs(eta - 1.0) < 1e-6 else None
+
+
+def _input(node, name: str, default):
+    socket = node.inputs.get(name)
+    return default if socket is None else socket.default_value
+
+
+def _principled_wall(bpy_material, desc) -> tuple | None:
+    node = principled_node(bpy_material)
+    substrate = _real_index(desc.substrate)
+    if node is None or substrate is None or desc.base_color is not None:
+        return None
+    if float(_input(node, SOCKET_METALLIC, 0.0)) > 0.5 or float(_input(node, SOCKET_TRANSMISSION, 0.0)) < 0.5:
+        return None
+    if bool(_input(node, SOCKET_THIN_WALL, False)):
+        return (transmit.WALL_CYCLES, 1.0)
+    return (transmit.WALL_SOLID, substrate / float(desc.ambient))
+
+
+def wall(bpy_material, desc) -> tuple | None:
+    """(mode, η) of the material's wall (:mod:`precompute.shading.transmit`), or None when the film
+    is opaque. ``desc``: the material's description (:func:`.description.description`)."""
+    if desc is None:
+        return None
+    props = getattr(bpy_material, "thinfilm_sh", None)
+    if props is not None and props.enabled:
+        return _extension_wall(props, desc)
+    return _principled_wall(bpy_material, desc)

@@ -1,0 +1,236 @@
+"""The direct evaluation of a linked thickness: numpy mirrors of Blender's shader nodes.
+
+The nodes in :data:`DIRECT_NODES` — Value, Image Texture at a UV map (Non-Color or linear float
+pixels, Linear or Closest, Repeat or Extend), Map Range (linear), Math (the common operations),
+Mix (float, or colour Mix), Separate Color (RGB), Reroute — are evaluated per face corner
+exactly as Blender's SVM nodes compute them (:func:`link_values`); any other node raises
+:class:`Unsupported`, and :mod:`.linked` bakes the link with Cycles instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["DIRECT_NODES", "Unsupported", "link_values"]
+
+#: Node types evaluated directly (exact numpy mirrors of Blender's SVM nodes); anything else is baked.
+DIRECT_NODES = (
+    "ShaderNodeValue",
+    "ShaderNodeTexImage",
+    "ShaderNodeMapRange",
+    "ShaderNodeMath",
+    "ShaderNodeMix",
+    "ShaderNodeSeparateColor",
+    "NodeReroute",
+)
+#: Image colour spaces whose pixels Blender reads unchanged (so numpy sees what Cycles sees).
+_RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear CIE-XYZ E", "Raw"}
+
+
+class Unsupported(Exception):
+    """A node the direct evaluator does not mirror: the caller bakes with Cycles instead."""
+
+
+class _Context:
+    """What the direct evaluator reads from the mesh: corner count, UV maps, notes on resolution."""
+
+    def __init__(self, mesh):
+        self.mesh = mesh
+        self.n = len(mesh.loops)
+        self.notes: list[str] = []
+
+    def uv(self, name: str) -> np.ndarray:
+        layer = self.mesh.uv_layers.get(name) if name else None
+        layers = self.mesh.uv_layers
+        if layer is None and not name:
+            layer = next((u for u in layers if u.active_render), None) or layers.active
+        if layer is None:
+            raise ValueError(
+                f"mesh {self.mesh.name!r} has no UV map {name or '(active)'} for the thickness image"
+            )
+        uv = np.empty(2 * self.n, dtype=np.float32)
+        layer.data.foreach_get("uv", uv)
+        return uv.reshape(-1, 2).astype(np.float64)
+
+
+def _as_float(value: np.ndarray) -> np.ndarray:
+    if value.ndim == 2:  # Blender's colour → float conversion is the luminance: not mirrored
+        raise Unsupported("colour to float conversion")
+    return value
+
+
+def _as_colour(value: np.ndarray) -> np.ndarray:
+    return value if value.ndim == 2 else np.repeat(value[:, None], 3, axis=1)
+
+
+def _input(node, key, ctx) -> np.ndarray:
+    """The value reaching input ``key`` (name or identifier) of ``node``, per corner."""
+    socket = next((s for s in node.inputs if s.identifier == key), None) or node.inputs[key]
+    if socket.is_linked:
+        link = socket.links[0]
+        if not link.is_valid or link.is_muted:
+            raise Unsupported("a muted or invalid link")
+        return _output(link.from_node, link.from_socket, ctx)
+    value = socket.default_value
+    if hasattr(value, "__len__"):
+        return np.broadcast_to(np.asarray(tuple(value)[:3], dtype=np.float64), (ctx.n, 3))
+    return np.full(ctx.n, float(value))
+
+
+def _output(node, socket, ctx) -> np.ndarray:
+    """The value of ``node``'s output ``socket`` per corner (float (N,) or colour (N, 3))."""
+    if node.mute:
+        raise Unsupported("a muted node")
+    handler = _HANDLERS.get(node.bl_idname)
+    if handler is None:
+        raise Unsupported(node.bl_idname)
+    return handler(node, socket, ctx)
+
+
+def _value_node(node, socket, ctx):
+    return np.full(ctx.n, float(node.outputs[0].default_value))
+
+
+def _reroute(node, socket, ctx):
+    return _input(node, node.inputs[0].identifier, ctx)
+
+
+def _image_node(node, socket, ctx):
+    """Blender's Image Texture at a UV map: pixel centres at (i + ½)/W, bilinear or closest."""
+    image = node.image
+    if image is None:
+        return np.zeros(ctx.n) if socket.identifier == "Alpha" else np.zeros((ctx.n, 3))
+    if node.inputs["Vector"].is_linked:
+        vector = node.inputs["Vector"].links[0].from_node
+        if vector.bl_idname != "ShaderNodeUVMap":
+            raise Unsupported("an image texture at mapped coordinates")
+        uv = ctx.uv(vector.uv_map)
+    else:
+        uv = ctx.uv("")
+    if node.projection != "FLAT" or node.interpolation not in {"Linear", "Closest"}:
+        raise Unsupported(f"image projection {node.projection} / {node.interpolation}")
+    if node.extension not in {"REPEAT", "EXTEND"} or image.source not in {"FILE", "GENERATED"}:
+        raise Unsupported(f"image extension {node.extension} / source {image.source}")
+    space = image.colorspace_settings.name
+    if space not in _RAW_SPACES and not (image.is_float and space.startswith("Linear")):
+        raise Unsupported(f"image colour space {space}")
+    width, height, channels = int(image.size[0]), int(image.size[1]), int(image.channels)
+    if width * height == 0 or channels == 0:
+        raise ValueError(f"image {image.name!r} has no pixels (is its file missing?)")
+    pixels = np.empty(width * height * channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    pixels = pixels.reshape(height, width, channels).astype(np.float64)
+    ctx.notes.append(f"image {image.name!r} {width}×{height}")
+    sampled = _sample(pixels, uv, node.interpolation == "Closest", node.extension == "REPEAT")
+    if socket.identifier == "Alpha":
+        return sampled[:, 3] if channels == 4 else np.ones(ctx.n)
+    rgb = sampled[:, :3] if channels >= 3 else np.repeat(sampled[:, :1], 3, axis=1)
+    return rgb
+
+
+def _sample(pixels: np.ndarray, uv: np.ndarray, closest: bool, repeat: bool) -> np.ndarray:
+    """Pixels (H, W, C), row 0 at the bottom, at UVs (N, 2): bilinear between pixel centres."""
+    height, width = pixels.shape[:2]
+
+    def wrap(i, size):
+        return i % size if repeat else np.clip(i, 0, size - 1)
+
+    x, y = uv[:, 0] * width, uv[:, 1] * height
+    if closest:
+        return pixels[wrap(np.floor(y).astype(np.int64), height), wrap(np.floor(x).astype(np.int64), width)]
+    x, y = x - 0.5, y - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+    xa, xb, ya, yb = wrap(x0, width), wrap(x0 + 1, width), wrap(y0, height), wrap(y0 + 1, height)
+    return (
+        pixels[ya, xa] * (1 - fx) * (1 - fy)
+        + pixels[ya, xb] * fx * (1 - fy)
+        + pixels[yb, xa] * (1 - fx) * fy
+        + pixels[yb, xb] * fx * fy
+    )
+
+
+def _map_range(node, socket, ctx):
+    """Map Range (float, linear): (v − from_min)/(from_max − from_min) onto [to_min, to_max]."""
+    if node.data_type != "FLOAT" or node.interpolation_type != "LINEAR":
+        raise Unsupported(f"Map Range {node.data_type}/{node.interpolation_type}")
+    value = _as_float(_input(node, "Value", ctx))
+    f0, f1 = _as_float(_input(node, "From Min", ctx)), _as_float(_input(node, "From Max", ctx))
+    t0, t1 = _as_float(_input(node, "To Min", ctx)), _as_float(_input(node, "To Max", ctx))
+    span = f1 - f0
+    factor = np.divide(value - f0, span, out=np.zeros_like(value), where=span != 0.0)  # Blender: 0
+    result = t0 + factor * (t1 - t0)
+    if node.clamp:
+        result = np.clip(result, np.minimum(t0, t1), np.maximum(t0, t1))
+    return result
+
+
+def _safe_divide(a, b):
+    return np.divide(a, b, out=np.zeros_like(a), where=b != 0.0)
+
+
+_MATH = {
+    "ADD": lambda a, b, c: a + b,
+    "SUBTRACT": lambda a, b, c: a - b,
+    "MULTIPLY": lambda a, b, c: a * b,
+    "DIVIDE": lambda a, b, c: _safe_divide(a, b),
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
+    "MINIMUM": lambda a, b, c: np.minimum(a, b),
+    "MAXIMUM": lambda a, b, c: np.maximum(a, b),
+    "ABSOLUTE": lambda a, b, c: np.abs(a),
+    "LESS_THAN": lambda a, b, c: (a < b).astype(np.float64),
+    "GREATER_THAN": lambda a, b, c: (a > b).astype(np.float64),
+}
+
+
+def _math(node, socket, ctx):
+    """Math: the operations in :data:`_MATH`, with Blender's safe division (x/0 = 0) and clamp."""
+    operation = _MATH.get(node.operation)
+    if operation is None:
+        raise Unsupported(f"Math {node.operation}")
+    a, b, c = (_as_float(_input(node, node.inputs[i].identifier, ctx)) for i in range(3))
+    result = operation(a, b, c)
+    return np.clip(result, 0.0, 1.0) if node.use_clamp else result
+
+
+def _mix(node, socket, ctx):
+    """Mix: float, or colour with blend Mix: a + f·(b − a), the factor clamped when asked."""
+    if node.data_type == "FLOAT":
+        a, b = _as_float(_input(node, "A_Float", ctx)), _as_float(_input(node, "B_Float", ctx))
+    elif node.data_type == "RGBA" and node.blend_type == "MIX" and not node.clamp_result:
+        a, b = _as_colour(_input(node, "A_Color", ctx)), _as_colour(_input(node, "B_Color", ctx))
+    else:
+        raise Unsupported(f"Mix {node.data_type}/{getattr(node, 'blend_type', '')}")
+    factor = _as_float(_input(node, "Factor_Float", ctx))
+    if node.clamp_factor:
+        factor = np.clip(factor, 0.0, 1.0)
+    if a.ndim == 2:
+        factor = factor[:, None]
+    return a + factor * (b - a)
+
+
+def _separate_colour(node, socket, ctx):
+    if node.mode != "RGB":
+        raise Unsupported(f"Separate Color {node.mode}")
+    colour = _as_colour(_input(node, "Color", ctx))
+    return colour[:, {"Red": 0, "Green": 1, "Blue": 2}[socket.identifier]]
+
+
+_HANDLERS = {
+    "ShaderNodeValue": _value_node,
+    "NodeReroute": _reroute,
+    "ShaderNodeTexImage": _image_node,
+    "ShaderNodeMapRange": _map_range,
+    "ShaderNodeMath": _math,
+    "ShaderNodeMix": _mix,
+    "ShaderNodeSeparateColor": _separate_colour,
+}
+
+
+def link_values(mesh, socket) -> tuple[np.ndarray, list[str], int]:
+    """(the value linked into ``socket`` per face corner of ``mesh``, what it was sampled from,
+    the corner count); raises :class:`Unsupported` for a node it does not mirror."""
+    ctx = _Context(mesh)
+    link = socket.links[0]
+    return _as_float(_output(link.from_node, link.from_socket, ctx)), ctx.notes, ctx.n

@@ -1,0 +1,183 @@
+"""The numpy mirror of the shader, listed once: which numpy function mirrors which GLSL function.
+
+:data:`MIRROR` is the one list. ``tests/test_mirror.py`` checks that every numpy name imports and
+that every GLSL function is defined in the chunk named (or in the generated code), and that
+docs/ARCHITECTURE.md holds :func:`markdown_table` between its two ``mirror table`` markers
+(``scripts/mirror_table.py`` writes it there). The per-pixel tests (tests/test_gpu_draw.py and
+its neighbours) draw the GLSL on Mesa and compare it with these numpy functions.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Mirror(NamedTuple):
+    """One row: numpy functions (dotted, below ``precompute``) and the GLSL that mirrors them.
+
+    ``chunk`` is a file of ``glsl/``, ``"generated"`` (:func:`.codegen.banded_source`) or
+    ``"defines"`` (the ``#define`` lines a variant is compiled with); ``glsl`` the functions
+    defined there (empty for defines). The notes are what the table says beside the names.
+    """
+
+    numpy: tuple[str, ...]
+    chunk: str
+    glsl: tuple[str, ...]
+    numpy_note: str = ""
+    glsl_note: str = ""
+
+
+#: Every numpy function the shader mirrors, with its GLSL.
+MIRROR = (
+    Mirror(
+        ("brdf.alpha_from_roughness", "brdf.D_ggx", "brdf.lambda_ggx", "brdf.G2_smith_height_correlated"),
+        "tf_brdf.glsl",
+        ("tf_alpha_from_roughness", "tf_d_ggx", "tf_lambda_ggx", "tf_ggx_view", "tf_ggx_weight"),
+        glsl_note="GGX D and Smith written once, for the lamps and the lights",
+    ),
+    Mirror(
+        ("shading.frame.view_aligned_frame", "shading.frame.zyz_from_frame"),
+        "tf_frame.glsl",
+        ("tf_view_aligned_frame", "tf_zyz_from_frame"),
+    ),
+    Mirror(
+        ("shading.sh_rotation.local_coefficients",),
+        "tf_sh_rotate.glsl",
+        ("tf_local_coefficients_direct",),
+        numpy_note="z-y-z, X(±90°) band blocks",
+        glsl_note="l_max ≤ 2, straight from the frame rows; l_max ≥ 3: the generated `tf_banded_sum`",
+    ),
+    Mirror(
+        ("shading.table.lerp_index", "shading.table.lookup", "shading.table.thickness_position"),
+        "tf_table.glsl",
+        ("tf_lerp_index", "tf_table_lerp", "tf_table_fetch"),
+    ),
+    Mirror(("shading.sh_sum.shade_sh",), "tf_shade.glsl", ("tf_shade_at",)),
+    Mirror(
+        (
+            "shading.split_sum.shade_split_sum",
+            "shading.split_sum.shade_combined",
+            "shading.split_sum.level_blend",
+            "shading.split_sum.dominant_cosine",
+        ),
+        "tf_split_sum.glsl",
+        ("tf_prefiltered_lookup", "tf_shade_split_sum_at", "tf_shade_combined"),
+    ),
+    Mirror(
+        ("shading.lamps.shade", "shading.lamps.lit_pixels"),
+        "tf_lamps.glsl",
+        ("tf_shade_lamps", "tf_film_at", "tf_film_response", "tf_film_multiscatter"),
+    ),
+    Mirror(
+        (
+            "shading.transmit.wall",
+            "shading.transmit.white_reflectance",
+            "shading.transmit.shade",
+            "shading.transmit.fresnel_dielectric",
+            "shading.transmit.solid_exit",
+        ),
+        "tf_transmit.glsl",
+        ("tf_wall", "tf_film_white", "tf_fresnel_dielectric", "tf_solid_exit"),
+        numpy_note="a transparent film's T and S; [transparent-films.md](transparent-films.md)",
+        glsl_note="`TF_TRANSMIT`",
+    ),
+    Mirror(
+        ("shading.refract.exit_ray", "shading.refract.march", "shading.refract.seen"),
+        "tf_refract.glsl",
+        ("tf_solid_exit_ray", "tf_refract_march"),
+        numpy_note="solid glass refracting the scene behind: the ray through the glass, "
+        "its screen-space march",
+        glsl_note="`TF_REFRACT`; `tf_refracted` in `tf_main_frag.glsl`",
+    ),
+    Mirror(
+        ("shading.radiance_grid.lookup", "shading.radiance_grid.coordinates"),
+        "tf_radiance_grid.glsl",
+        ("tf_shade_grid",),
+        numpy_note="the grid itself: `radiance_grid.build`, exact at its nodes; in the split-sum/SH "
+        "hand-over `lobe_grid.build`, the exact film lobe integrated against the World's panorama",
+        glsl_note="`TF_RADIANCE_GRID`: `tf_shade_at` reads the grid instead of the SH sum",
+    ),
+    Mirror(
+        (
+            "shading.lights.shade",
+            "shading.lights.light_samples",
+            "shading.lights.area_lobe",
+            "shading.lights.lobe_cells",
+            "shading.lights.sample_weight",
+            "shading.lights.spot_attenuation",
+            "shading.lights.spread_attenuation",
+        ),
+        "tf_lights.glsl",
+        (
+            "tf_shade_lights",
+            "tf_area_light",
+            "tf_lobe_edges",
+            "tf_light_sample",
+            "tf_spot_attenuation",
+            "tf_spread_attenuation",
+        ),
+    ),
+    Mirror(
+        ("colour.display_lut.shaper", "colour.display_lut.apply"),
+        "tf_display.glsl",
+        ("tf_display_shaper", "tf_display_lut_apply"),
+        glsl_note="`TF_DISPLAY_LUT`",
+    ),
+    Mirror(
+        ("shading.codegen.banded_source", "shading.codegen.operation_counts"),
+        "generated",
+        ("tf_banded_sum",),
+        numpy_note="all generated GLSL, and the operation counts of the effect plan",
+    ),
+    Mirror(
+        ("shading.policy.glsl_defines",),
+        "defines",
+        (),
+        numpy_note="every shading rule, each with one line of why",
+        glsl_note="the `TF_` rules: `TF_MIN_COS`, `TF_MAX_LAMPS`, `TF_AREA_MAX_WIDTH`, …",
+    ),
+    Mirror(
+        ("shading.variant.Variant", "shading.variant.choose_variant"),
+        "defines",
+        (),
+        glsl_note="the variant switches: `TF_L_MAX`, `TF_SPECTRAL`, `TF_SPLIT_SUM`, `TF_LAMPS`, "
+        "`TF_LIGHTS`, `TF_TRANSMIT`, `TF_RADIANCE_GRID`, …",
+    ),
+)
+
+#: The lines around the table in docs/ARCHITECTURE.md.
+BEGIN = "<!-- mirror table: precompute/shading/mirror.py (scripts/mirror_table.py writes it) -->"
+END = "<!-- end of the mirror table -->"
+
+
+def _names(names) -> str:
+    return ", ".join(f"`{name}`" for name in names)
+
+
+def _with_note(text: str, note: str) -> str:
+    return f"{text} ({note})" if note else text
+
+
+def markdown_table(rows=MIRROR) -> str:
+    """The mirror as the Markdown table docs/ARCHITECTURE.md shows (no trailing newline)."""
+    lines = ["| numpy (below `precompute`) | GLSL |", "|---|---|"]
+    for row in rows:
+        if row.chunk == "defines":
+            glsl = "the `#define`s"
+        elif row.chunk == "generated":
+            glsl = f"generated: {_names(row.glsl)}"
+        else:
+            glsl = f"`{row.chunk}`: {_names(row.glsl)}"
+        lines.append(
+            f"| {_with_note(_names(row.numpy), row.numpy_note)} | {_with_note(glsl, row.glsl_note)} |"
+        )
+    return "\n".join(lines)
+
+
+def replace_table(text: str, rows=MIRROR) -> str:
+    """``text`` (docs/ARCHITECTURE.md) with the lines between :data:`BEGIN` and :data:`END` replaced
+    by :func:`markdown_table`; ``ValueError`` when a marker is missing."""
+    start, end = text.find(BEGIN), text.find(END)
+    if start < 0 or end < start:
+        raise ValueError(f"the mirror table's markers are missing: {BEGIN!r} … {END!r}")
+    return text[: start + len(BEGIN)] + "\n" + markdown_table(rows) + "\n" + text[end:]

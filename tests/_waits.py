@@ -1,0 +1,73 @@
+"""Waiting on the add-on's worker threads, timers and helper processes in tests.
+
+A test waits on the event it asserts, never on time: :func:`wait_for` polls the asserted state
+itself (a thread left ``_running``, a grid is built, a helper's pipe ended) and fails only when
+that never happens within :data:`EVENT_TIMEOUT_S`, a deadline no correct run comes near even on
+a loaded two-core machine (a tiny table bakes in well under a second there). Where the add-on
+exposes an Event, wait on the Event (``event.wait(EVENT_TIMEOUT_S)``) and assert its result.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+#: Longest wait for an event that a correct run produces in seconds at most: only a hang or a
+#: lost wake-up reaches it.
+EVENT_TIMEOUT_S = 300.0
+#: Between two looks at the polled state.
+POLL_S = 0.005
+
+
+def wait_for(predicate, what: str, timeout: float = EVENT_TIMEOUT_S) -> None:
+    """Return once ``predicate()`` is true; fail naming ``what`` if it is not after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, f"waited {timeout:.0f} s for {what}: it never happened"
+        time.sleep(POLL_S)
+
+
+class CueRecorder(threading.Event):
+    """A worker's "finished" event that records, at each ``set``, whether the worker was still
+    listed as running (``still_running()``).
+
+    The add-on's timers read such an event and the running list without a lock: a worker that
+    left the list before setting the event can be seen by a tick as neither running nor
+    finished; the tick then stops the timer and the redraw with the worker's result never comes.
+    ``seen == [True]`` says the order is the safe one.
+    """
+
+    def __init__(self, still_running):
+        super().__init__()
+        self.still_running = still_running
+        self.seen: list[bool] = []
+
+    def set(self):
+        self.seen.append(bool(self.still_running()))
+        super().set()
+
+
+#: How long a call checked by :func:`finishes` may take: far above any refusal of bad input (each
+#: takes milliseconds, seconds under load) and far below what the regressions it catches take (a
+#: 293 s bake on an invalid value, 10^10 channel names, reading /dev/zero, a FIFO never opened).
+HANG_DEADLINE_S = 30.0
+
+
+def finishes(call, seconds: float = HANG_DEADLINE_S):
+    """``(result, exception)`` of ``call()`` run in a daemon thread; the test fails if it is still
+    running after ``seconds`` (a hang, or a long bake on an invalid value)."""
+    box = {}
+
+    def run():
+        try:
+            box["result"] = call()
+        except BaseException as exc:  # noqa: BLE001 - handed back to the test
+            box["exc"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), (
+        f"still running after {seconds:.0f} s: a hang, where bad input must be refused"
+    )
+    return box.get("result"), box.get("exc")

@@ -1,0 +1,138 @@
+"""Solid glass refracting the scene behind it, drawn on the GPU (glsl/tf_refract.glsl,
+``TF_REFRACT``) against its numpy twin (precompute/shading/refract.py), per pixel.
+
+A flat tilted glass quad whose object origin lies behind it (the sphere the exit ray assumes),
+over a scene-behind texture: a wall 3 units behind the origin with a smooth colour pattern, its
+top rows empty (the World along the exit ray is seen there).
+"""
+
+import numpy as np
+import pytest
+from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item, baked, rotation, unit, world_sh
+
+from precompute.colour import film_colour
+from precompute.output import render
+from precompute.shading import policy, refract, split_sum, transmit
+from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
+from precompute.world import prefilter
+
+pytestmark = pytest.mark.blender
+
+#: The quad's plane in object space (its origin 0.6 behind it).
+QUAD_Y = -0.6
+
+
+def behind_scene():
+    """(colour (H, W, 3), depth (H, W)) of the scene behind, top row first: a wall at y = 3 with a
+    smooth pattern, nothing in the top eighth of the picture, a near ledge in its bottom third."""
+    u = (np.arange(SIZE) + 0.5) / SIZE
+    uu, vv = np.meshgrid(u, u[::-1])
+    colour = np.stack([0.2 + 0.6 * uu, 0.3 + 0.5 * vv, 0.5 + 0.3 * np.sin(6 * uu) * np.cos(5 * vv)], -1)
+    depth = np.full((SIZE, SIZE), 3.0 + DISTANCE)
+    depth[: SIZE // 8] = np.inf
+    depth[-SIZE // 3 :] = 2.5  # a near ledge: the glass's mirror rays meet it
+    return colour, depth
+
+
+def quad_item(gd, table, lighting):
+    """A 2×2 quad at local y = QUAD_Y, tilted 35° about x and 25° about z."""
+    positions = np.array([[-1, QUAD_Y, -1], [1, QUAD_Y, -1], [1, QUAD_Y, 1], [-1, QUAD_Y, 1]], np.float32)
+    batch = gd.mesh.MeshBatch.from_arrays(
+        positions, np.tile([0.0, -1.0, 0.0], (4, 1)), [[0, 1, 2], [0, 2, 3]]
+    )
+    return Item(batch, table, lighting, rotation(0, 35.0) @ rotation(2, 25.0))
+
+
+def quad_hits(model):
+    """(inside mask, points, normals towards the viewer, views) of the pixels seeing the quad."""
+    rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
+    cam = np.array([0.0, -DISTANCE, 0.0])
+    m3 = model[:3, :3]
+    normal = unit(np.linalg.inv(m3).T @ np.array([0.0, -1.0, 0.0]))
+    anchor = m3 @ np.array([0.0, QUAD_Y, 0.0])
+    t = ((anchor - cam) @ normal) / (rays @ normal)
+    hit = cam + t[..., None] * rays
+    local = hit @ np.linalg.inv(m3).T
+    inside = (np.abs(local[..., 0]) < 0.97) & (np.abs(local[..., 2]) < 0.97) & (t > 0)
+    views = unit(cam - hit[inside])
+    n = np.broadcast_to(normal, views.shape)
+    n = np.where(np.sum(n * views, -1, keepdims=True) < 0, -n, n)
+    return inside, hit[inside], n, views
+
+
+def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
+    result = baked(8, "spectral", False)  # roughness 0.15: the scene's mirror weighs 0.25
+    world, img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 8, result.material.roughness)
+    full = prefilter.prefilter(img, width=64)
+    levels, moments = full.resampled(64), full.resampled_moments(64)
+    pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
+    film = film_colour.film_table(result)
+    item = quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
+    item.roughness, item.sh_weight = result.material.roughness, 0.0
+    item.film = gd.resources.FilmTexture.from_film(film)
+    item.wall = (transmit.WALL_SOLID, 1.5)
+    colour, depth = behind_scene()
+    behind = gd.resources.BehindTexture.from_image(colour, depth)
+    groups = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False, behind=behind).groups
+    assert [(g.variant.transmit, g.variant.refract) for g in groups] == [
+        (TRANSMIT_MULTIPLY, True),
+        (TRANSMIT_ADD, True),
+    ] * 2
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, behind=behind)
+
+    inside, points, n, views = quad_hits(item.model_matrix)
+    t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
+    exit_points, dirs = refract.exit_ray(points, n, views, item.model_matrix[:3, 3], 1.5)
+    inv_view = np.linalg.inv(VIEW)
+    hit, rows, cols = refract.march(
+        exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    )
+    seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
+    glint = (
+        t
+        * (1.0 - np.sqrt(t))
+        * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
+    )
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
+    # the scene mirrored in place of the World where the mirror ray meets it
+    mirror = -views + 2.0 * np.sum(n * views, -1, keepdims=True) * n
+    m_hit, m_rows, m_cols = refract.march(
+        points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    )
+    world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
+    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m)
+    weight = refract.mirror_weight(item.roughness)
+    expected = np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0)
+    err = np.abs(image[inside][:, :3] - expected).max(axis=-1) / np.max(expected)
+    print(
+        f"refracted glass: {inside.sum()} px, {hit.mean():.0%} hit the scene behind; error median "
+        f"{np.median(err):.1e}, 99th percentile {np.percentile(err, 99):.1e}, max {err.max():.1e} of the peak"
+    )
+    print(f"mirror rays meeting the scene: {m_hit.mean():.0%}, weight {weight}")
+    assert inside.sum() > 300 and 0.3 < hit.mean() < 0.98  # both the scene and the World are seen
+    assert m_hit.mean() > 0.05 and weight > 0.0  # the mirror of the scene is exercised
+    # float32 on the GPU may pick the neighbouring texel at a texel's edge: one texel of the
+    # pattern is ≤ 0.6 / SIZE ≈ 0.01 of the peak
+    assert np.median(err) < 1e-4 and np.percentile(err, 99) < 2e-2 and err.max() < 5e-2
+    assert np.allclose(image[inside][:, 3], 1.0, atol=1e-6)  # the glass replaces what is behind
+    # the refracted picture is not the picture straight behind
+    straight = colour[np.nonzero(inside)]
+    assert np.median(np.abs(seen[hit] - straight[hit])) > 0.02
+
+
+def test_the_scene_behind_is_placed_in_the_widened_window_and_checked(gd):
+    """BehindTexture.screen maps the headless frame's widened window (filter pad) to the
+    overscanned background pass (margin): its pixel pad + i is the picture's pixel margin + i; a
+    colour and depth of different sizes are refused, naming both shapes."""
+    width, height, pad, margin = 40, 30, 3, 10
+    sx, sy, ox, oy = gd.resources.BehindTexture.screen(width, height, pad, margin)
+    for i in (0, 17, width - 1):
+        x = (pad + i + 0.5) / (width + 2 * pad)
+        assert (x * sx + ox) * (width + 2 * margin) == pytest.approx(margin + i + 0.5)
+    y = (pad + height - 0.5) / (height + 2 * pad)
+    assert (y * sy + oy) * (height + 2 * margin) == pytest.approx(margin + height - 0.5)
+    assert gd.resources.BehindTexture.screen(width, height, 0) == (1.0, 1.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match=r"colour \(H, W, 3\) and depth \(H, W\).*\(8, 8, 3\).*\(8, 9\)"):
+        gd.resources.BehindTexture.from_image(np.zeros((8, 8, 3)), np.zeros((8, 9)))

@@ -1,0 +1,171 @@
+"""Transparent films drawn on the GPU (glsl/tf_transmit.glsl, addon/gpu/draw.py's blend passes).
+
+A wall is drawn over what the framebuffer holds: multiply by T, then add S·R·L, with alpha
+1 − (1 − alpha behind)·mean(T). Checked per pixel against precompute.shading.transmit and
+sh_sum.shade_sh on a tilted quad, and as a closed bubble (two walls) on a sphere.
+"""
+
+import numpy as np
+import pytest
+from test_gpu_draw import (
+    DISTANCE,
+    FOV,
+    PROJ,
+    SIZE,
+    VIEW,
+    Item,
+    baked,
+    erode,
+    quad_pixels,
+    tilted_quad_item,
+    uv_sphere_mesh,
+    world_sh,
+)
+
+from precompute.colour import film_colour
+from precompute.output import render
+from precompute.shading import sh_sum, transmit
+from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
+
+pytestmark = pytest.mark.blender
+
+BEHIND = (0.3, 0.55, 0.8)
+
+
+def behind(alpha):
+    """A depth_from hook filling the frame with the BEHIND colour and ``alpha``."""
+
+    def fill(_offscreen):
+        import gpu
+
+        gpu.state.active_framebuffer_get().clear(color=(*BEHIND, alpha))
+
+    return fill
+
+
+@pytest.mark.parametrize(
+    "colour_mode, wall, film_ubo",
+    [
+        ("spectral", (transmit.WALL_SHEET, 1.0), True),
+        ("per_channel", (transmit.WALL_CYCLES, 1.0), True),
+        ("per_channel", (transmit.WALL_SHEET, 1.5), False),
+    ],
+)
+def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo):
+    result = baked(5, colour_mode, False)
+    table = gd.resources.TableTexture.from_result(result)
+    world, _img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    film = film_colour.film_table(result)
+    item = tilted_quad_item(gd, table, lighting)
+    item.film = gd.resources.FilmTexture.from_film(film)
+    if not film_ubo:
+        import dataclasses
+
+        item.film = dataclasses.replace(item.film, ubo=None)
+    item.wall = wall
+    groups = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    assert [(g.cull, g.blend, g.variant.transmit) for g in groups] == [
+        ("FRONT", "MULTIPLY", TRANSMIT_MULTIPLY),
+        ("FRONT", "ADDITIVE_PREMULT", TRANSMIT_ADD),
+        ("BACK", "MULTIPLY", TRANSMIT_MULTIPLY),
+        ("BACK", "ADDITIVE_PREMULT", TRANSMIT_ADD),
+    ]
+    for alpha in (0.0, 1.0):
+        image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(alpha))
+        inside, n, views = quad_pixels(item.model_matrix)
+        t, s = transmit.shade(film, n, views, wall[0], wall[1])
+        reflected = s * sh_sum.shade_sh(result, lighting.coefficients, n, views)
+        expected = transmit.composite(np.array(BEHIND), reflected, t)
+        err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+        print(f"wall {colour_mode} {wall}: {err:.1e} of the peak; T mean {t.mean():.3f}")
+        assert inside.sum() > 300 and err < 1e-4, err
+        expected_alpha = 1.0 - (1.0 - alpha) * t.mean(axis=-1)
+        assert np.max(np.abs(image[inside][:, 3] - expected_alpha)) < 1e-5
+        assert np.allclose(image[erode(erode(~inside))][:, :3], BEHIND)  # nothing drawn off the quad
+    # the behind colour is seen through the film: T > 0.5 on every channel
+    assert np.all(t > 0.5)
+
+
+def test_closed_bubble_shows_both_walls(gd, bpy):
+    """A sphere as a bubble: through the middle two walls, T_back·T_front·B + …; never below
+    (1 − R_max)² of the background per channel at normal incidence, and brighter than opaque."""
+    mesh = uv_sphere_mesh(bpy, name="tf_bubble")
+    positions, normals, tris, _ = gd.mesh.mesh_arrays(mesh)
+    bpy.data.meshes.remove(mesh)
+    result = baked(5, "per_channel", False)
+    world, _img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    film = film_colour.film_table(result)
+    item = Item(gd.mesh.MeshBatch.from_arrays(positions, normals, tris), None, lighting)
+    item.table = gd.resources.TableTexture.from_result(result)
+    item.film = gd.resources.FilmTexture.from_film(film)
+    item.wall = (transmit.WALL_SHEET, 1.0)
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
+    item.wall = None
+    opaque = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
+    view = render.sphere_view(SIZE, SIZE, DISTANCE, FOV)
+    inner = erode(erode(view.mask))
+    # numpy: front wall at the sphere's near hit, back wall at its far hit (normal towards the viewer)
+    cam = np.array([0.0, -DISTANCE, 0.0])
+    rays = view.rays[inner]
+    b = rays @ cam
+    far = -b + np.sqrt(np.maximum(b * b - (cam @ cam - 1.0), 0.0))
+    back_n = -(cam + far[:, None] * rays)
+    v_back = -rays
+    front_n, v_front = view.normals[inner], view.views[inner]
+    t_back, s_back = transmit.shade(film, back_n, v_back, transmit.WALL_SHEET, 1.0)
+    t_front, s_front = transmit.shade(film, front_n, v_front, transmit.WALL_SHEET, 1.0)
+    r_back = s_back * sh_sum.shade_sh(result, lighting.coefficients, back_n, v_back)
+    r_front = s_front * sh_sum.shade_sh(result, lighting.coefficients, front_n, v_front)
+    expected = transmit.composite(transmit.composite(np.array(BEHIND), r_back, t_back), r_front, t_front)
+    rel = np.abs(image[inner][:, :3] - expected) / np.max(expected)
+    print(f"bubble: median {np.median(rel):.1e}, max {np.max(rel):.1e} of the peak")
+    assert np.median(rel) < 2e-3 and np.max(rel) < 5e-2
+    alpha = 1.0 - t_back.mean(-1) * t_front.mean(-1)
+    assert np.median(np.abs(image[inner][:, 3] - alpha)) < 2e-3
+    # the background shows through: far more of it than behind the opaque film
+    assert np.all(image[inner][:, :3] >= 0.8 * np.array(BEHIND))
+    assert np.mean(image[inner][:, :3]) > np.mean(opaque[inner][:, :3]) + 0.2
+
+
+def test_solid_glass_shows_the_world_along_the_exit_ray(gd):
+    """WALL_SOLID with the split sum: what is behind is replaced by T × the prefiltered World at
+    roughness 0 along transmit.solid_exit, plus the film's reflection (split only, weight 0)."""
+    import dataclasses
+
+    from precompute.shading import policy, split_sum
+    from precompute.world import prefilter
+
+    result = baked(5, "spectral", False)
+    table = gd.resources.TableTexture.from_result(result)
+    world, img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    full = prefilter.prefilter(img, width=64)
+    levels, moments = full.resampled(64), full.resampled_moments(64)
+    pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
+    film = film_colour.film_table(result)
+    item = tilted_quad_item(gd, table, lighting)
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
+    item.roughness, item.sh_weight = result.material.roughness, 0.0
+    item.film = gd.resources.FilmTexture.from_film(film)
+    item.wall = (transmit.WALL_SOLID, 1.5)
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
+    inside, n, views = quad_pixels(item.model_matrix)
+    t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
+    exit_dirs = transmit.solid_exit(n, views, 1.5)
+    seen = split_sum.lookup(pre, exit_dirs, np.zeros(len(n)))
+    glint = (
+        t
+        * (1.0 - np.sqrt(t))
+        * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
+    )
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
+    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    print(f"solid glass: {err:.1e} of the peak")
+    assert inside.sum() > 300 and err < 1e-3, err
+    assert np.allclose(image[inside][:, 3], 1.0, atol=1e-6)  # opaque: the glass replaces what is behind
+    # the exit ray is bent: a straight view through would see other parts of the World
+    straight = split_sum.lookup(pre, -views, np.zeros(len(n)))
+    assert np.max(np.abs(seen - straight)) > 0.02
+    assert dataclasses.is_dataclass(pre)

@@ -1,0 +1,423 @@
+"""A Principled BSDF whose Thin Film Thickness is linked (issue 21): evaluated over the surface.
+
+Real bpy, the repository imported as the extension (tests/_extension.py). The direct numpy
+evaluation (Value, Image Texture, Separate Color, Mix, Map Range, Math) is checked against the
+image's own pixels and against Blender's Cycles bake of the same link; a Noise Texture is baked,
+cached by the node tree's content, and re-baked when its scale changes.
+"""
+
+import importlib
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+from _extension import EXTENSION_ID  # noqa: E402
+
+#: Cycles bakes the Emission into a float colour attribute: float32 storage of values in nm.
+BAKE_TOLERANCE_NM = 1e-3
+
+
+@pytest.fixture
+def tf(bpy, package, tmp_path):
+    """A fresh empty file with the extension registered; its modules as attributes."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    package.register()
+    names = (
+        "addon.materials.description",
+        "addon.thickness.linked",
+        "addon.drawing.scene_draw",
+        "addon.bakes.tables",
+        "addon.ui.prefs",
+        "addon.headless.headless",
+        "addon.materials.principled",
+        "addon.ui.ui",
+    )
+    mods = {n.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{n}") for n in names}
+    entry = bpy.context.preferences.addons.new()
+    entry.module = EXTENSION_ID
+    mods["prefs"].preferences().cache_dir = str(tmp_path / "cache")
+    mods["tables"].clear_memory_cache()
+    mods["linked"].FIELDS.clear()
+    try:
+        yield type("TF", (), mods)
+    finally:
+        bpy.context.preferences.addons.remove(entry)
+        package.unregister()
+        mods["tables"].clear_memory_cache()
+
+
+def _fast(tf, mat):
+    """A tiny table: the tests check thicknesses, not colours."""
+    node = tf.principled.principled_node(mat)
+    node.inputs["Roughness"].default_value = 0.5
+    return node
+
+
+def _sphere(bpy, mat, name="Sphere"):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12)
+    obj = bpy.context.active_object
+    obj.name = name
+    obj.data.materials.append(mat)
+    return obj
+
+
+def _principled(bpy, name="Linked"):
+    mat = bpy.data.materials.new(name)
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    node.inputs["Transmission Weight"].default_value = 1.0
+    return mat, node
+
+
+def _noise_material(bpy, scale=5.0):
+    """Noise Texture → Map Range 150–850 nm → Thin Film Thickness (socket value 0)."""
+    mat, node = _principled(bpy, "Noise")
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.name = "Noise"
+    noise.inputs["Scale"].default_value = scale
+    ranged = nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value = 150.0
+    ranged.inputs["To Max"].default_value = 850.0
+    links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    links.new(ranged.outputs["Result"], node.inputs["Thin Film Thickness"])
+    node.inputs["Thin Film Thickness"].default_value = 0.0
+    return mat
+
+
+def _grid_with_pixel_centre_uvs(bpy, width, height):
+    """A flat grid with one vertex per pixel, its UV at that pixel's centre ((i + ½)/W, (j + ½)/H)."""
+    verts = [(i, j, 0.0) for j in range(height) for i in range(width)]
+    faces = [
+        (j * width + i, j * width + i + 1, (j + 1) * width + i + 1, (j + 1) * width + i)
+        for j in range(height - 1)
+        for i in range(width - 1)
+    ]
+    mesh = bpy.data.meshes.new("Grid")
+    mesh.from_pydata(verts, [], faces)
+    uv = mesh.uv_layers.new(name="UVMap")
+    corner_vertex = np.array([loop.vertex_index for loop in mesh.loops])
+    centres = np.array([((i + 0.5) / width, (j + 0.5) / height) for (i, j, _) in verts])
+    uv.data.foreach_set("uv", centres[corner_vertex].ravel().astype(np.float32))
+    obj = bpy.data.objects.new("Grid", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj, corner_vertex
+
+
+def _batch_thickness_nm(bpy, tf, obj_name):
+    items, messages = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    entry = tf.scene_draw.batch_entry(obj_name)
+    assert entry is not None and entry.thickness is not None, messages
+    return entry, messages
+
+
+def test_linked_constant_equals_the_unlinked_value(bpy, tf):
+    """A Value node of 420 nm into Thin Film Thickness describes exactly what 420 nm typed into
+    the socket describes: the same table key, no range (a constant), the same panel line."""
+    plain, plain_node = _principled(bpy, "Plain")
+    plain_node.inputs["Thin Film Thickness"].default_value = 420.0
+    mat, node = _principled(bpy, "Linked")
+    node.inputs["Thin Film Thickness"].default_value = 0.0  # the link decides, not this
+    value = mat.node_tree.nodes.new("ShaderNodeValue")
+    value.outputs[0].default_value = 420.0
+    mat.node_tree.links.new(value.outputs[0], node.inputs["Thin Film Thickness"])
+    _sphere(bpy, mat)
+    linked_desc = tf.description.description(mat)
+    plain_desc = tf.description.description(plain)
+    assert linked_desc is not None and linked_desc.thickness_range_nm is None
+    assert linked_desc.layers[0].thickness_nm == pytest.approx(420.0, abs=0.01)
+    assert tf.description.description_key(linked_desc) == tf.description.description_key(plain_desc)
+    notes = tf.description.warnings(mat)
+    assert any("evaluated directly" in n and "face corners" in n for n in notes), notes
+
+
+def test_image_driven_thickness_reproduces_the_image_at_the_vertices(bpy, tf):
+    """Blender's glTF import graph (Image → Separate Color G → Mix(min, max)): the thickness at
+    each vertex is min + G·(max − min) of the pixel the vertex's UV sits on; Cycles' bake of the
+    same link agrees with the direct evaluation."""
+    width, height, lo, hi = 6, 5, 120.0, 780.0
+    rng = np.random.default_rng(3)
+    green = rng.uniform(0.0, 1.0, (height, width))
+    image = bpy.data.images.new("thick", width, height, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    rgba = np.zeros((height, width, 4), dtype=np.float32)
+    rgba[..., 1], rgba[..., 0], rgba[..., 3] = green, 1.0 - green, 1.0  # red must not leak in
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
+    mat, node = _principled(bpy, "Image")
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    sep = nodes.new("ShaderNodeSeparateColor")
+    mix = nodes.new("ShaderNodeMix")
+    vmin, vmax = nodes.new("ShaderNodeValue"), nodes.new("ShaderNodeValue")
+    vmin.outputs[0].default_value, vmax.outputs[0].default_value = lo, hi
+    links.new(tex.outputs["Color"], sep.inputs["Color"])
+    links.new(sep.outputs["Green"], mix.inputs["Factor"])
+    links.new(vmin.outputs[0], mix.inputs["A"])
+    links.new(vmax.outputs[0], mix.inputs["B"])
+    links.new(mix.outputs["Result"], node.inputs["Thin Film Thickness"])
+    node.inputs["Thin Film Thickness"].default_value = 0.0
+    obj, corner_vertex = _grid_with_pixel_centre_uvs(bpy, width, height)
+    obj.data.materials.append(mat)
+
+    desc = tf.description.description(mat)
+    assert desc.thickness_range_nm is not None
+    t0, t1 = desc.thickness_range_nm
+    assert t0 == pytest.approx(lo + (hi - lo) * green.min(), abs=0.02)
+    assert t1 == pytest.approx(hi - (hi - lo) * (1 - green.max()), abs=0.02)
+    entry, _ = _batch_thickness_nm(bpy, tf, "Grid")
+    drawn = t0 + entry.thickness.astype(np.float64) * (t1 - t0)
+    expected = (lo + (hi - lo) * green.ravel())[corner_vertex]
+    assert np.max(np.abs(drawn - expected)) < 0.05  # float32 parameter over a 660 nm range
+
+    socket = node.inputs["Thin Film Thickness"]
+    baked = tf.linked._bake(obj, mat, socket)
+    direct = tf.linked.evaluate(obj, obj.data, mat, socket)
+    assert not direct.baked and baked.baked
+    assert np.max(np.abs(baked.values - direct.values)) < BAKE_TOLERANCE_NM * hi
+    assert np.max(np.abs(direct.values - expected)) < 1e-4
+    assert "6×5" in direct.how
+
+
+def test_noise_thickness_is_baked_once_and_rebaked_when_its_scale_changes(bpy, tf):
+    """A Noise Texture is baked with Cycles; asking again (the description, the warnings, a
+    frame) reuses the bake; a new noise scale bakes again and the field changes."""
+    mat = _noise_material(bpy, scale=5.0)
+    _sphere(bpy, mat)
+    stats = tf.linked.STATS
+    before = stats["bakes"]
+    desc = tf.description.description(mat)
+    assert stats["bakes"] == before + 1
+    lo, hi = desc.thickness_range_nm
+    assert 150.0 <= lo < hi <= 850.0 and hi - lo > 100.0  # Blender's noise spans much of [0, 1]
+    tf.description.description(mat)
+    notes = tf.description.warnings(mat)
+    entry, _ = _batch_thickness_nm(bpy, tf, "Sphere")
+    first = entry.thickness.copy()
+    assert stats["bakes"] == before + 1, "cached: the same tree and mesh bake once"
+    assert any("baked with Cycles" in n for n in notes), notes
+
+    mat.node_tree.nodes["Noise"].inputs["Scale"].default_value = 9.0
+    desc2 = tf.description.description(mat)
+    assert stats["bakes"] == before + 2, "a new noise scale re-bakes"
+    entry2, _ = _batch_thickness_nm(bpy, tf, "Sphere")
+    assert entry2.thickness.shape == first.shape and not np.allclose(entry2.thickness, first, atol=1e-3)
+    assert desc2.thickness_range_nm != desc.thickness_range_nm
+    assert stats["bakes"] == before + 2
+
+
+def test_the_draw_callback_never_bakes_it_queues(bpy, tf):
+    """Inside ``deferring`` (the viewport's draw) a field that needs a bake is queued and the
+    material is not drawn yet, with a message; ``run_pending`` (the timer) bakes it."""
+    mat = _noise_material(bpy)
+    _sphere(bpy, mat)
+    before = tf.linked.STATS["bakes"]
+    with tf.linked.deferring():
+        assert tf.description.description(mat) is None
+        notes = tf.description.warnings(mat)
+    assert tf.linked.STATS["bakes"] == before and tf.linked.has_pending()
+    assert any("being baked" in n for n in notes), notes
+    assert tf.linked.run_pending() == []
+    assert tf.linked.STATS["bakes"] == before + 1 and not tf.linked.has_pending()
+    with tf.linked.deferring():
+        assert tf.description.description(mat).varies
+
+
+def test_the_material_panel_never_bakes_it_queues(bpy, tf):
+    """The panel's lines (drawn inside Blender's draw) queue a needed bake, like the viewport."""
+    mat = _noise_material(bpy)
+    _sphere(bpy, mat)
+    before = tf.linked.STATS["bakes"]
+    notes = tf.ui.warnings(mat)
+    assert tf.ui.description(mat) is None and tf.linked.STATS["bakes"] == before
+    assert tf.linked.has_pending() and any("being baked" in n for n in notes), notes
+    tf.linked.run_pending()
+    assert any("baked with Cycles" in n for n in tf.ui.warnings(mat))
+
+
+def test_a_thickness_that_cannot_be_evaluated_says_so_in_panel_and_plan(bpy, tf, capsys):
+    """An image at a UV map the mesh lacks: the material is drawn as the magenta fallback with
+    the reason in the panel's warnings and as an ``error:`` of ``plan``, never silently nothing."""
+    mat, node = _principled(bpy, "NoUV")
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.new("t", 4, 4, float_buffer=True)
+    tex.image.colorspace_settings.name = "Non-Color"
+    uvmap = mat.node_tree.nodes.new("ShaderNodeUVMap")
+    uvmap.uv_map = "Missing"
+    mat.node_tree.links.new(uvmap.outputs["UV"], tex.inputs["Vector"])
+    mat.node_tree.links.new(tex.outputs["Alpha"], node.inputs["Thin Film Thickness"])
+    _sphere(bpy, mat)
+    with pytest.raises(ValueError, match="no UV map"):
+        tf.description.description(mat)
+    notes = tf.description.warnings(mat)
+    assert any("no UV map" in n and "magenta" in n for n in notes), notes
+    items, messages = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert any(item.fallback for item in items) and any("no UV map" in m for m in messages)
+    tf.headless.main(["plan"])
+    captured = capsys.readouterr()
+    assert "error:" in captured.err and "no UV map" in captured.err
+
+
+def test_plan_says_what_drives_a_linked_thickness(bpy, tf, capsys):
+    mat = _noise_material(bpy)
+    _sphere(bpy, mat)
+    assert tf.headless.main(["plan"]) == 0
+    out = capsys.readouterr().out
+    assert "baked with Cycles at" in out and "face corners" in out and "Noise" in out
+
+
+# ----------------------------------------------------------------------------------------------
+# The extension's Blender Noise source, written back to the Principled BSDF as nodes
+# ----------------------------------------------------------------------------------------------
+def _blender_noise_material(bpy, lo=200.0, hi=700.0):
+    mat = bpy.data.materials.new("Oil")
+    settings = mat.thinfilm_sh
+    settings.preset = "SOAP_FILM"
+    settings.enabled = True
+    settings.vary_thickness = True
+    settings.thickness_min_nm, settings.thickness_max_nm = lo, hi
+    settings.thickness_source = "BLENDER_NOISE"
+    settings.noise_scale, settings.noise_seed = 4.0, 3
+    settings.sh_order, settings.view_samples, settings.wavelength_count = "2", 4, 32
+    settings.thickness_samples = 4
+    return mat
+
+
+def test_write_back_of_blender_noise_is_the_node_graph_the_preview_draws(bpy, tf):
+    """The Blender Noise source is previewed from a Cycles bake of Blender's Noise Texture; write-
+    back links that same graph (Noise Texture → Map Range min–max) into Thin Film Thickness, and
+    the Principled preview of the written material reads back the same thickness per corner."""
+    lo, hi = 200.0, 700.0
+    mat = _blender_noise_material(bpy, lo, hi)
+    _sphere(bpy, mat)
+    entry, messages = _batch_thickness_nm(bpy, tf, "Sphere")
+    preview_nm = lo + entry.thickness.astype(np.float64) * (hi - lo)
+    assert np.ptp(preview_nm) > 100.0, messages  # it varies
+
+    notes = tf.principled.write_back_to_principled(mat)
+    node = tf.principled.principled_node(mat)
+    socket = node.inputs["Thin Film Thickness"]
+    assert socket.is_linked and socket.links[0].from_node.bl_idname == "ShaderNodeMapRange"
+    ranged = socket.links[0].from_node
+    assert (ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value) == (lo, hi)
+    noise = ranged.inputs["Value"].links[0].from_node
+    assert noise.bl_idname == "ShaderNodeTexNoise" and noise.inputs["Scale"].default_value == 4.0
+    assert not any("middle" in n for n in notes), notes
+    tf.principled.write_back_to_principled(mat)  # writing again replaces, never duplicates
+    assert sum(n.bl_idname == "ShaderNodeTexNoise" for n in mat.node_tree.nodes) == 1
+
+    mat.thinfilm_sh.enabled = False
+    field = tf.linked.evaluate(bpy.data.objects["Sphere"], bpy.data.objects["Sphere"].data, mat, socket)
+    assert field.baked
+    assert np.max(np.abs(field.values - preview_nm)) < 0.05  # float32 parameter over 500 nm
+
+
+def _render_centre(bpy, mat, size=48, samples=8):
+    """Cycles render of a sphere with ``mat`` under a white World; the central pixels (near
+    normal incidence, where a constant film has one colour)."""
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("white")
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+    if scene.camera is None:
+        camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+        scene.collection.objects.link(camera)
+        camera.location = (0.0, -4.0, 0.0)
+        camera.rotation_euler = (np.pi / 2, 0.0, 0.0)
+        camera.data.angle = np.radians(32.0)
+        scene.camera = camera
+    sphere = bpy.data.objects["Sphere"]
+    sphere.data.materials[0] = mat
+    scene.render.filepath = "/tmp/tfsh_write_back_render.exr"
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(scene.render.filepath, check_existing=False)
+    pixels = np.empty(size * size * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    bpy.data.images.remove(image)
+    rgb = pixels.reshape(size, size, 4)[..., :3]
+    c = size // 2
+    return rgb[c - 6 : c + 6, c - 6 : c + 6].reshape(-1, 3)
+
+
+def test_cycles_render_of_the_written_back_noise_varies(bpy, tf):
+    """Cycles renders the written-back graph with a varying colour where a film of one thickness
+    (the same material with the link removed) has one colour."""
+    mat = _blender_noise_material(bpy)
+    _sphere(bpy, mat)
+    tf.principled.write_back_to_principled(mat)
+    mat.thinfilm_sh.enabled = False
+    node = tf.principled.principled_node(mat)
+    node.inputs["Transmission Weight"].default_value = 0.0  # opaque, black base: the film alone
+    node.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node.inputs["Roughness"].default_value = 0.0
+    constant = mat.copy()
+    socket = tf.principled.principled_node(constant).inputs["Thin Film Thickness"]
+    constant.node_tree.links.remove(socket.links[0])
+    chroma = [np.std(np.diff(_render_centre(bpy, m), axis=1), axis=0).max() for m in (mat, constant)]
+    assert chroma[0] > 4 * chroma[1], chroma
+
+
+@pytest.mark.parametrize(
+    "graph",
+    ["map_range", "map_range_clamped", "math_chain", "mix_colour", "reroute_value"],
+)
+def test_direct_evaluation_equals_cycles_bake_of_the_same_link(bpy, tf, graph):
+    """Each node the direct evaluator mirrors gives what Cycles computes for the same link."""
+    width, height = 5, 4
+    rng = np.random.default_rng(7)
+    image = bpy.data.images.new("img", width, height, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(rng.uniform(-0.2, 1.2, width * height * 4).astype(np.float32))
+    mat, node = _principled(bpy, graph)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    sep = nodes.new("ShaderNodeSeparateColor")
+    links.new(tex.outputs["Color"], sep.inputs["Color"])
+    value = sep.outputs["Blue"]
+    if graph.startswith("map_range"):
+        ranged = nodes.new("ShaderNodeMapRange")
+        ranged.clamp = graph.endswith("clamped")
+        for name, v in (("From Min", 0.1), ("From Max", 0.9), ("To Min", 100.0), ("To Max", 900.0)):
+            ranged.inputs[name].default_value = v
+        links.new(value, ranged.inputs["Value"])
+        value = ranged.outputs["Result"]
+    elif graph == "math_chain":
+        for op, b in (("MULTIPLY", 300.0), ("ADD", 200.0), ("MAXIMUM", 150.0), ("DIVIDE", 0.5)):
+            math_node = nodes.new("ShaderNodeMath")
+            math_node.operation = op
+            math_node.inputs[1].default_value = b
+            links.new(value, math_node.inputs[0])
+            value = math_node.outputs[0]
+    elif graph == "mix_colour":
+        mix = nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        by_id = {s.identifier: s for s in (*mix.inputs, *mix.outputs)}
+        by_id["A_Color"].default_value = (100.0, 200.0, 300.0, 1.0)
+        by_id["B_Color"].default_value = (800.0, 700.0, 600.0, 1.0)
+        links.new(sep.outputs["Red"], by_id["Factor_Float"])
+        sep2 = nodes.new("ShaderNodeSeparateColor")
+        links.new(by_id["Result_Color"], sep2.inputs["Color"])
+        value = sep2.outputs["Green"]
+    else:
+        constant = nodes.new("ShaderNodeValue")
+        constant.outputs[0].default_value = 333.0
+        reroute = nodes.new("NodeReroute")
+        links.new(constant.outputs[0], reroute.inputs[0])
+        value = reroute.outputs[0]
+    links.new(value, node.inputs["Thin Film Thickness"])
+    obj, _ = _grid_with_pixel_centre_uvs(bpy, width, height)
+    obj.data.materials.append(mat)
+    socket = node.inputs["Thin Film Thickness"]
+    direct = tf.linked.evaluate(obj, obj.data, mat, socket)
+    baked = tf.linked._bake(obj, mat, socket)
+    assert not direct.baked
+    np.testing.assert_allclose(direct.values, baked.values, atol=BAKE_TOLERANCE_NM * 1000)

@@ -1,0 +1,65 @@
+"""Fixtures of the viewport tests: the extension registered once per file, an empty scene per test.
+
+test_live.py defines its own ``tf``/``scene`` (a start-up file with a 3D viewport, other
+modules); the plain helpers (``film``, ``grid``, ``collect``, ``redraw``) are those of
+test_viewport_state.py, which the other files here import from it.
+"""
+
+import importlib
+import types
+
+import pytest
+from _extension import EXTENSION_ID, gpu_layer, linked_extension
+
+
+@pytest.fixture(scope="module")
+def tf(bpy, tmp_path_factory):
+    """The extension, registered once for the module, with a private table cache."""
+    root = tmp_path_factory.mktemp("extension")
+    with linked_extension(root) as package:
+        package.register()
+        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
+        for dotted in (
+            "addon.drawing.scene_draw",
+            "addon.drawing.viewport",
+            "addon.drawing.lights",
+            "addon.materials.props",
+            "addon.ui.prefs",
+            "addon.ui.ui",
+            "addon.bakes.tables",
+            "addon.bakes.bake_jobs",
+            "addon.thickness.thickness",
+            "addon.world.panorama",
+            "addon.world.world",
+            "addon.world.world_state",
+            "addon.workers",
+            "precompute.bakes.bake",
+            "precompute.bakes.planner",
+            "precompute.bakes.kernel",
+            "precompute.tables.table_io",
+            "precompute.tables.atomic_write",
+            "precompute.tables.table_cache",
+        ):
+            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
+        ns.gpu = gpu_layer()
+        addons = bpy.context.preferences.addons
+        if addons.get(EXTENSION_ID) is None:
+            addons.new().module = EXTENSION_ID
+        ns.gpu.context.ensure_gpu_context()
+        try:
+            yield ns
+        finally:
+            entry = addons.get(EXTENSION_ID)
+            if entry is not None:
+                addons.remove(entry)
+
+
+@pytest.fixture
+def scene(bpy, tf):
+    """An empty file (no World: nothing to render for the lighting), the caches emptied."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    tf.package.register()
+    tf.prefs.preferences().cache_dir = tf.cache_dir
+    tf.tables.clear_caches()  # memory, remembered failures and the disk cache
+    tf.scene_draw.CACHES.clear()
+    return bpy.context.scene
