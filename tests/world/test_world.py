@@ -530,7 +530,7 @@ def test_cache_returns_the_same_result_until_the_world_changes(
     cache = {}
     first = world_mod.world_sh(scene, L_MAX, cache=cache)
     work = []
-    for name in ("_image_pixels", "_project_image", "read_world"):
+    for name in ("image_pixels", "project_image", "read_world"):
         real = getattr(world_mod, name)
         monkeypatch.setattr(world_mod, name, lambda *a, _n=name, _f=real, **k: work.append(_n) or _f(*a, **k))
     start = time.perf_counter()
