@@ -80,6 +80,7 @@ LONGEST_FIRST = (
     "world/test_live_world.py",
     "viewport/test_radiance_grid_viewport.py",
     "viewport/test_bake_helper.py",
+    "eevee/test_eevee_native.py",  # 53 s alone at load 2 (14 EEVEE final renders)
 )
 
 

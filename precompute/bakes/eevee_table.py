@@ -270,8 +270,8 @@ def dominant_directions(pre, roughness: float, size=DIRECTIONS_SIZE) -> np.ndarr
     ``roughness`` in that direction (:func:`precompute.shading.split_sum.lookup`), normalised; where it
     vanishes, the direction itself.
     """
-    from ..world.hdri import equirect_directions
     from ..shading.split_sum import lookup
+    from ..world.hdri import equirect_directions
 
     width, height = int(size[0]), int(size[1])
     directions = equirect_directions(height, width)
