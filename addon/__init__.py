@@ -10,6 +10,7 @@ from bpy.props import PointerProperty
 from . import caches
 from .bakes import bake_helper
 from .drawing import viewport
+from .eevee import sync as eevee_films  # not `eevee`: that is the room's package
 from .headless import headless as commands  # not `headless`: that is the room's package
 from .materials import gltf, props
 from .ui import ops, prefs
@@ -30,7 +31,7 @@ classes = (prefs.ThinFilmSHPreferences, *props.classes, *ops.classes, *panels.cl
 # reverse order BEFORE them. Both calls must be harmless when repeated (register() is called
 # twice by the tests). To add one: import it above and append it to the tuple.
 # ----------------------------------------------------------------------------------------------
-modules: tuple = (panorama_helper, bake_helper, viewport, commands)
+modules: tuple = (panorama_helper, bake_helper, viewport, commands, eevee_films)
 
 #: Name of the per-material settings: ``material.thinfilm_sh``.
 MATERIAL_PROPERTY = "thinfilm_sh"

@@ -47,6 +47,11 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.
+- ``eevee_moments`` — ``eevee.sync.MOMENTS``: a World's GGX prefilter with moments at 256
+  texels across (``precompute.world.prefilter.Prefiltered``), for the EEVEE films' dominant-direction
+  images when the overlay has not computed its own, by the id of the World's analysed
+  ``Environment`` (kept with it, checked by identity); LRU of 2; filled by ``eevee.sync.compute``
+  on its worker (or inline headless); FILE.
 - ``plans`` — ``ui._PLANS``: the Plan panel's ``effects.MaterialPlan`` by description key; LRU
   of ``ui._PLAN_MEMO_SIZE`` (64); filled by ``ui.plan_for``; SESSION.
 - ``plan_orders_seen`` — ``ui._ORDERS_SEEN``: roughness values whose automatic SH order has been

@@ -17,6 +17,8 @@ lane                                jobs                           its own sched
 ``bakes.radiance_grids.GRIDS.work`` outgoing-radiance grids        one worker drains a queue of at most
                                                                    ``QUEUE_SIZE``, newest first
 ``drawing.display.LUT_WORK``        the viewport's display LUT     one per display settings
+``eevee.sync.WORK``                 the EEVEE films' images        one worker drains a queue, the newest
+                                    (tables and pixels)            edit per material
 =================================== ============================== ====================================
 
 Work that must run on Blender's main thread but not inside a draw is :class:`Deferred`: queued

@@ -53,6 +53,19 @@ def cycles_settings(scene, samples: int, *, size=None, bounces: int = 1, pixel_f
         scene.render.resolution_percentage = 100
 
 
+def film_material(bpy, name, thickness_nm, film_ior, base_ior, roughness):
+    """A new material whose Principled BSDF is a black dielectric of IOR ``base_ior`` under a thin
+    film (``thickness_nm`` nm, ``film_ior``) at ``roughness``: the film alone."""
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["IOR"].default_value = base_ior
+    bsdf.inputs["Thin Film Thickness"].default_value = thickness_nm
+    bsdf.inputs["Thin Film IOR"].default_value = film_ior
+    return mat
+
+
 def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, samples=256, size=SIZE):
     """Render the sphere with Cycles (CPU) and return the scene-linear RGB image (top row first)."""
     import bpy  # Blender as a module: only the Cycles side needs it (our renders are pure numpy)
@@ -72,14 +85,7 @@ def cycles_render(hdri_path, thickness_nm, film_ior, base_ior, roughness, sample
     bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
-    mat = bpy.data.materials.new("film")
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness
-    bsdf.inputs["IOR"].default_value = base_ior
-    bsdf.inputs["Thin Film Thickness"].default_value = thickness_nm
-    bsdf.inputs["Thin Film IOR"].default_value = film_ior
-    sphere.data.materials.append(mat)
+    sphere.data.materials.append(film_material(bpy, "film", thickness_nm, film_ior, base_ior, roughness))
     cam_data = bpy.data.cameras.new("cam")
     cam_data.angle = math.radians(FOV_DEG)
     cam = bpy.data.objects.new("cam", cam_data)

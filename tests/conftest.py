@@ -2,7 +2,7 @@
 the order in which the two workers get the test files, the repository root as a plain folder.
 
 The tests live in feature folders (optics/, sh/, parity/, world/, bake/, viewport/, drawing/,
-headless/, extension/); each folder's conftest.py holds the fixtures its files share. The helpers
+headless/, extension/, eevee/); each folder's conftest.py holds the fixtures its files share. The helpers
 shared across folders are modules in tests/ (on pythonpath): _extension.py, _waits.py,
 _cycles_scenes.py, _sh_irradiance.py.
 """
@@ -80,6 +80,7 @@ LONGEST_FIRST = (
     "world/test_live_world.py",
     "viewport/test_radiance_grid_viewport.py",
     "viewport/test_bake_helper.py",
+    "eevee/test_eevee_native.py",  # 53 s alone at load 2 (14 EEVEE final renders)
 )
 
 

@@ -7,8 +7,9 @@ small Cycles panorama for procedural worlds — and analysed on a worker,
 :mod:`..world.world_job`, while the old lighting is drawn; a Strength or Mapping rotation edit
 needs neither; a Principled BSDF's linked Thin Film Thickness that needs a Cycles bake,
 :mod:`..thickness.linked`, is baked by the timer on the main thread, where Blender's bakes must
-run). Works in Solid and Material Preview shading; the viewport's depth buffer masks the objects
-against the scene.
+run). Works in Solid and Material Preview shading, and in Rendered shading with EEVEE
+(:func:`drawn_in_shading`, a preference); the viewport's depth buffer masks the objects against
+the scene.
 
 A bake that fails is remembered with its error by description key (:func:`.tables.failure`)
 and not queued again until the material's description changes (or Clear Cache, or a
@@ -58,6 +59,9 @@ from . import display, scene_draw, shader_warmup
 log = logging.getLogger(__name__)
 
 SHADING_TYPES = {"SOLID", "MATERIAL"}
+#: Render engines whose Rendered shading the overlay is drawn over (the *Overlay in Rendered
+#: Shading* preference): EEVEE writes the depth the overlay is tested against.
+RENDERED_ENGINES = {"BLENDER_EEVEE"}
 _handle = None
 _world_stale = False
 #: The messages of the last frame drawn (scene_draw.collect's), shown in the viewport header.
@@ -71,6 +75,15 @@ def shown_in(space) -> bool:
     """Whether the overlay is drawn in the 3D viewport ``space``: the preference is on and the
     viewport's own toggle is not off."""
     return prefs.overlay_enabled() and space.as_pointer() not in HIDDEN_IN
+
+
+def drawn_in_shading(space, scene) -> bool:
+    """Whether the overlay draws in the 3D viewport ``space``'s shading: Solid and Material
+    Preview, and Rendered with EEVEE while the *Overlay in Rendered Shading* preference is on."""
+    kind = space.shading.type
+    if kind in SHADING_TYPES:
+        return True
+    return kind == "RENDERED" and scene.render.engine in RENDERED_ENGINES and prefs.overlay_in_rendered()
 
 
 def set_shown_in(space, shown: bool) -> None:
@@ -146,7 +159,7 @@ def draw_callback() -> None:
     global _world_stale
     context = bpy.context
     space = context.space_data
-    if space is None or space.type != "VIEW_3D" or space.shading.type not in SHADING_TYPES:
+    if space is None or space.type != "VIEW_3D" or not drawn_in_shading(space, context.scene):
         return
     if not shown_in(space):
         return

@@ -149,6 +149,13 @@ def overlay_enabled(context=None) -> bool:
     return bool(prefs.show_overlay) if prefs is not None else True
 
 
+def overlay_in_rendered(context=None) -> bool:
+    """The *Overlay in Rendered Shading* preference (True while the preferences are not there):
+    the overlay is also drawn in Rendered shading when the engine is EEVEE (addon/drawing/viewport.py)."""
+    prefs = preferences(context)
+    return bool(prefs.show_in_rendered) if prefs is not None else True
+
+
 def render_helper_enabled(context=None) -> bool:
     """The *Render Procedural Worlds in a Helper Process* preference (True while the preferences
     are not there; :mod:`.panorama_helper`)."""
@@ -173,6 +180,14 @@ class ThinFilmSHPreferences(AddonPreferences):
         description="Draw thin films over the 3D viewports and in headless renders. Off: nothing "
         "is drawn or baked in the background (each viewport also has its own switch in its "
         "Overlays popover)",
+        default=True,
+    )
+
+    show_in_rendered: BoolProperty(
+        name="Overlay in Rendered Shading (EEVEE)",
+        description="Also draw the thin-film overlay in Rendered shading when the render engine is "
+        "EEVEE, over EEVEE's own (native) film and depth-tested against EEVEE's depth. Off: "
+        "Rendered shading shows EEVEE's native film alone",
         default=True,
     )
 
@@ -214,6 +229,7 @@ class ThinFilmSHPreferences(AddonPreferences):
         layout = self.layout
         layout.use_property_split = True
         layout.prop(self, "show_overlay")
+        layout.prop(self, "show_in_rendered")
         layout.prop(self, "use_render_helper")
         layout.prop(self, "use_bake_helper")
         layout.prop(self, "cache_dir")

@@ -7,6 +7,7 @@ from .. import caches
 from ..bakes import tables
 from ..drawing import lights as scene_lights
 from ..drawing import scene_draw, viewport
+from ..eevee import sync as eevee_sync
 from ..materials.description import description as _description_now
 from ..materials.description import description_key
 from ..materials.description import warnings as _warnings_now
@@ -113,6 +114,9 @@ class THINFILM_PT_material(_MaterialPanel, Panel):
                 box.label(text=line, icon="ERROR")
         for note in _safe_warnings(mat):
             layout.label(text=note, icon="INFO")
+        native = eevee_sync.status(mat)  # EEVEE-native films (addon/eevee/)
+        if native:
+            layout.label(text=native, icon="SHADING_RENDERED")
 
 
 def material_errors(mat) -> list[str]:
