@@ -168,6 +168,20 @@ def _props_feeds(props, desc: Material) -> dict:
     }
 
 
+def may_show_film(material) -> bool:
+    """Whether ``material`` may have a film for EEVEE, read cheaply (no bake, no linked
+    thickness evaluated): the extension's film enabled, a Principled BSDF's Thin Film Thickness
+    linked or above 0. False means :func:`spec` is None: the World need not be read for it."""
+    props = getattr(material, "thinfilm_sh", None)
+    if props is not None and props.enabled:
+        return True
+    node = principled.principled_node(material)
+    if node is None or principled.SOCKET_THICKNESS not in node.inputs:
+        return False
+    socket = node.inputs[principled.SOCKET_THICKNESS]
+    return socket.is_linked or socket.default_value > 0.0
+
+
 def spec(material, scene=None, world: WorldRef | None = None) -> Spec | None:
     """The :class:`Spec` of ``material``, or None when it shows no film. Raises ValueError for a
     film that cannot be evaluated (the panel shows why) and :class:`..linked.Pending` while a

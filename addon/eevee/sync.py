@@ -222,13 +222,19 @@ def sync_all(scene=None, wait: bool = True, defer: bool | None = None, world=Fal
     """:func:`sync_material` for every material of the file; {name: outcome}. ``world``: as for
     :func:`sync_material` (False: read here, :func:`world_of`)."""
     scene = scene or bpy.context.scene
+    materials = [m for m in bpy.data.materials if m.node_tree is not None]
     if world is False:
-        world = world_of(scene)
-    return {
-        m.name: sync_material(m, scene, wait, defer, world)
-        for m in bpy.data.materials
-        if m.node_tree is not None
-    }
+        world = world_of(scene) if _has_films(materials) else None
+    return {m.name: sync_material(m, scene, wait, defer, world) for m in materials}
+
+
+def _has_films(materials) -> bool:
+    """Whether any of ``materials`` has a film to write or an EEVEE path to keep: only then is
+    the World read (and a procedural one rendered); a file without films loads without it."""
+    return any(
+        m.node_tree is not None and (source.may_show_film(m) or nodes.find(m.node_tree)[0] is not None)
+        for m in materials
+    )
 
 
 def _work() -> None:
@@ -366,7 +372,7 @@ def _sync_headless(inside_render: bool = False) -> None:
     _headless_busy = True
     try:
         scene = bpy.context.scene
-        world = world_of(scene, compute=not inside_render)
+        world = world_of(scene, compute=not inside_render) if _has_films(bpy.data.materials) else None
         sync_all(scene, wait=True, defer=inside_render, world=world)
     except Exception as exc:  # a handler must never raise
         log.error("Thin Film SH: EEVEE films not synced: %s", exc)

@@ -343,7 +343,10 @@ def test_script_renders_a_file_in_a_subprocess(cli_blend, tmp_path):
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert out.is_file() and out.with_suffix(".exr").is_file()
-    assert len(list((cache / "thinfilm_sh_tables").glob("*.exr"))) == 1  # both films share one table
+    tables = sorted(p.name for p in (cache / "thinfilm_sh_tables").glob("*.exr"))
+    # both films share one table, and their EEVEE path (synced when the file loads, issue 33)
+    # one more: its film is the glossy lobe alone (addon/eevee/source.py)
+    assert len(tables) == 2, f"tables written to the THINFILM_SH_CACHE folder: {tables}"
     image = read_exr(out.with_suffix(".exr"))
     assert image.shape == (36, 48, 3) and np.isfinite(image).all() and image.max() > 0.0
 
@@ -691,8 +694,12 @@ def test_register_unregister_cycles_leave_nothing_behind(bpy, tf, capfd):
             handle = headless._cli_handle
             package.register()  # twice must not register anything twice
             assert headless._cli_handle is handle is not None
-            assert len(_ours(bpy.app.handlers.load_post)) == 1, f"cycle {cycle}"
-            assert len(_ours(bpy.app.handlers.depsgraph_update_post)) == 1, f"cycle {cycle}"
+            for name in ("load_post", "depsgraph_update_post"):
+                mine = _ours(getattr(bpy.app.handlers, name))
+                # one per module that registers one (the viewport, the EEVEE films), none twice
+                assert len(mine) == len({(h.__module__, h.__name__) for h in mine}) >= 1, (
+                    f"cycle {cycle}: {name} holds {[f'{h.__module__}.{h.__name__}' for h in mine]}"
+                )
             assert all(c.is_registered for c in addon.classes)
             assert hasattr(bpy.types.Material, "thinfilm_sh")
     finally:
