@@ -12,7 +12,6 @@ benchmarks/viewport/ and docs/performance.md).
 
 from __future__ import annotations
 
-import importlib
 import types
 
 import numpy as np
@@ -20,7 +19,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, gpu_layer, linked_extension  # noqa: E402
+from _extension import gpu_layer, registered_extension  # noqa: E402
 
 from precompute.bakes import bake  # noqa: E402
 from precompute.materials.material import Layer, Material, Quality  # noqa: E402
@@ -34,30 +33,17 @@ from precompute.shading.variant import Variant  # noqa: E402
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package)
-        ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
+    modules = (
+        "addon",
+        "addon.drawing.scene_draw",
+        "addon.materials.props",
+        "addon.materials.conversion",
+        "addon.ui.prefs",
+    )
+    with registered_extension(bpy, root, modules, cache_preference=True, gpu=True) as ns:
+        ns.cache_dir = str(ns.cache_dir)
         ns.gpu = gpu_layer()
-        for dotted in (
-            "addon.drawing.scene_draw",
-            "addon.materials.props",
-            "addon.materials.conversion",
-            "addon.ui.prefs",
-        ):
-            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        ns.cache_dir = str(root / "cache")
-        ns.prefs.preferences().cache_dir = ns.cache_dir
-        ns.gpu.context.ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
+        yield ns
 
 
 FILM = Material(

@@ -14,14 +14,13 @@ from __future__ import annotations
 import importlib
 import math
 import re
-import types
 
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import EXTENSION_ID, linked_extension  # noqa: E402
+from _extension import EXTENSION_ID, registered_extension  # noqa: E402
 from _waits import EVENT_TIMEOUT_S, wait_for  # noqa: E402
 
 #: Longest wait for a worker thread to stop (a safety net, not a timing: the tests assert that it
@@ -50,34 +49,24 @@ BARE_NAMES = {
 def tf(bpy, tmp_path_factory):
     """The extension registered once for the module, with a private table cache."""
     root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"), root=root)
-        ns.addon = importlib.import_module(f"{EXTENSION_ID}.addon")
-        for dotted in (
-            "addon.materials.props",
-            "addon.ui.prefs",
-            "addon.ui.ops",
-            "addon.ui.ui",
-            "addon.bakes.tables",
-            "addon.drawing.viewport",
-            "addon.headless.headless",
-            "addon.headless.render",
-            "addon.drawing.scene_draw",
-            "addon.bakes.bake_jobs",
-            "addon.world.world_state",
-        ):
-            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
+    modules = (
+        "addon",
+        "addon.materials.props",
+        "addon.ui.prefs",
+        "addon.ui.ops",
+        "addon.ui.ui",
+        "addon.bakes.tables",
+        "addon.drawing.viewport",
+        "addon.headless.headless",
+        "addon.headless.render",
+        "addon.drawing.scene_draw",
+        "addon.bakes.bake_jobs",
+        "addon.world.world_state",
+    )
+    with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
+        ns.cache_dir = str(ns.cache_dir)
+        ns.root = root
+        yield ns
 
 
 @pytest.fixture

@@ -5,53 +5,39 @@ modules); the plain helpers (``film``, ``grid``, ``collect``, ``redraw``) are th
 test_viewport_state.py, which the other files here import from it.
 """
 
-import importlib
-import types
-
 import pytest
-from _extension import EXTENSION_ID, gpu_layer, linked_extension
+from _extension import gpu_layer, registered_extension
 
 
 @pytest.fixture(scope="module")
 def tf(bpy, tmp_path_factory):
     """The extension, registered once for the module, with a private table cache."""
     root = tmp_path_factory.mktemp("extension")
-    with linked_extension(root) as package:
-        package.register()
-        ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
-        for dotted in (
-            "addon.drawing.scene_draw",
-            "addon.drawing.viewport",
-            "addon.drawing.lights",
-            "addon.materials.props",
-            "addon.ui.prefs",
-            "addon.ui.ui",
-            "addon.bakes.tables",
-            "addon.bakes.bake_jobs",
-            "addon.thickness.thickness",
-            "addon.world.panorama",
-            "addon.world.world",
-            "addon.world.world_state",
-            "addon.workers",
-            "precompute.bakes.bake",
-            "precompute.bakes.planner",
-            "precompute.bakes.kernel",
-            "precompute.tables.table_io",
-            "precompute.tables.atomic_write",
-            "precompute.tables.table_cache",
-        ):
-            setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
+    modules = (
+        "addon.drawing.scene_draw",
+        "addon.drawing.viewport",
+        "addon.drawing.lights",
+        "addon.materials.props",
+        "addon.ui.prefs",
+        "addon.ui.ui",
+        "addon.bakes.tables",
+        "addon.bakes.bake_jobs",
+        "addon.thickness.thickness",
+        "addon.world.panorama",
+        "addon.world.world",
+        "addon.world.world_state",
+        "addon.workers",
+        "precompute.bakes.bake",
+        "precompute.bakes.planner",
+        "precompute.bakes.kernel",
+        "precompute.tables.table_io",
+        "precompute.tables.atomic_write",
+        "precompute.tables.table_cache",
+    )
+    with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
+        ns.cache_dir = str(ns.cache_dir)
         ns.gpu = gpu_layer()
-        addons = bpy.context.preferences.addons
-        if addons.get(EXTENSION_ID) is None:
-            addons.new().module = EXTENSION_ID
-        ns.gpu.context.ensure_gpu_context()
-        try:
-            yield ns
-        finally:
-            entry = addons.get(EXTENSION_ID)
-            if entry is not None:
-                addons.remove(entry)
+        yield ns
 
 
 @pytest.fixture
