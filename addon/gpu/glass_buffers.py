@@ -26,7 +26,7 @@ from ...precompute.shading.transmit import WALL_SOLID
 from . import layout
 from .draw import _batch_of, _matrix, object_uniforms, read_framebuffer, view_ubo
 from .resources import float_buffer
-from .shaders import chunk_order, declare_mesh_inputs, join_chunks
+from .shaders import glass_shader_info
 
 #: The glass buffers' passes: (name, the faces culled).
 PASSES = (("front", "BACK"), ("back", "FRONT"))
@@ -38,19 +38,9 @@ def glass_shader():
     """The glass buffers' shader (compiled once): tf_main_vert.glsl, then tf_glass_frag.glsl."""
     global _SHADER
     if _SHADER is None:
-        from ...precompute.shading.policy import glsl_defines
-
-        info = gpu.types.GPUShaderCreateInfo()
-        for name, value in glsl_defines():
-            info.define(name, value)
-        info.typedef_source(layout.TYPEDEFS)
-        iface = declare_mesh_inputs(info, "tf_glass_iface")
-        info.vertex_out(iface)
-        info.fragment_out(0, "VEC4", "tf_frag_color")
-        info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
-        info.fragment_source(join_chunks(chunk_order(["tf_glass_frag.glsl"])))
+        info, iface = glass_shader_info()
         _SHADER = gpu.shader.create_from_info(info)
-        del iface
+        del iface  # kept until the shader is compiled
     return _SHADER
 
 

@@ -199,6 +199,21 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     return info, iface
 
 
+def glass_shader_info():
+    """(create-info, stage interface) of the glass buffers' shader (:mod:`.glass_buffers`):
+    tf_main_vert.glsl, then tf_glass_frag.glsl (a face's normal and depth, no shading)."""
+    info = gpu.types.GPUShaderCreateInfo()
+    for name, value in policy.glsl_defines():
+        info.define(name, value)
+    info.typedef_source(layout.TYPEDEFS)
+    iface = declare_mesh_inputs(info, "tf_glass_iface")
+    info.vertex_out(iface)
+    info.fragment_out(0, "VEC4", "tf_frag_color")
+    info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
+    info.fragment_source(join_chunks(chunk_order(["tf_glass_frag.glsl"])))
+    return info, iface
+
+
 def background_shader_info(display: bool):
     """(create-info, stage interface) of the environment background shader."""
     info = gpu.types.GPUShaderCreateInfo()
