@@ -539,8 +539,8 @@ def report(res: dict) -> str:
         "",
         "The u-node degree d (the search climbs from the bottom of the ladder on 4 probe rows, then"
         " evaluates every row once) is estimated as the smallest ladder step ≥ 6 + OPD / 300 nm."
-        " tests/test_effects.py checks the estimate against measured CPU time within 3× (after dividing"
-        " out a common machine factor, itself within 5×).",
+        " benchmarks/bake_estimate.py measures the estimate against CPU time (docs/bake-estimate.md:"
+        " within 3× after dividing out a common machine factor, itself within 5×).",
         "",
         "## Benchmark: a 12-material scene, planned vs everything switched on",
         "",
@@ -654,7 +654,8 @@ def report(res: dict) -> str:
         " ::test_precompute_cli_plan_prints_the_material_plan,"
         " ::test_plan_panel_is_registered_and_shows_the_active_materials_plan |",
         "| the bake-time estimate is calibrated |"
-        " tests/test_effects.py::test_estimated_bake_time_is_within_3x_of_the_measured_time |",
+        " benchmarks/bake_estimate.py (docs/bake-estimate.md); structure:"
+        " tests/bake/test_effects.py::test_bake_time_estimate_follows_the_bakes_work |",
         "",
         "## Known gap",
         "",

