@@ -11,6 +11,7 @@ import os
 from pathlib import Path
 
 import pytest
+from _why import reason
 from hypothesis import HealthCheck, settings
 
 settings.register_profile(
@@ -53,6 +54,15 @@ class _RepositoryRootIsNotATestPackage:
         if path == self.root and (path / "__init__.py").is_file():
             return pytest.Dir.from_parent(parent, path=path)
         return None
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failed test's report gets a section saying why the check matters (tests/_why.py)."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed and call.when == "call":
+        report.sections.append(("why this test matters", reason(item)))
 
 
 def pytest_configure(config):

@@ -26,6 +26,8 @@ def defined_functions(source: str) -> set:
 
 @pytest.mark.parametrize("row", mirror.MIRROR, ids=lambda row: row.chunk + ":" + row.numpy[0])
 def test_every_numpy_name_imports(row):
+    """Every numpy function the GLSL mirror table names exists: the table that pairs shader code with its
+    reference cannot point at nothing."""
     for name in row.numpy:
         module, _, attribute = f"precompute.{name}".rpartition(".")
         assert hasattr(importlib.import_module(module), attribute), (

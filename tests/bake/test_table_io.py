@@ -113,6 +113,8 @@ def test_layout_last_axis_channels_then_width_then_flattened_height(tmp_path):
 
 
 def test_many_channels_sort_numerically(tmp_path):
+    """A table with over 99 channels keeps its channel order: names sort numerically (c007 before c100), or
+    coefficients would be read into the wrong slots."""
     data = rng_table((2, 120))
     path = write_table(tmp_path / "t.exr", data, {})
     names = sorted(OpenEXR.File(str(path), separate_channels=True).channels())
@@ -136,6 +138,7 @@ def test_kind_round_trip_and_check(tmp_path):
 
 
 def test_table_is_immutable(table_file):
+    """A table read from the cache cannot be changed in place: it is shared between materials and threads."""
     table = read_table(table_file[0])
     assert not table.data.flags.writeable
     with pytest.raises(ValueError):
@@ -145,6 +148,8 @@ def test_table_is_immutable(table_file):
 
 
 def test_overwrite_replaces_contents(tmp_path):
+    """Writing a table over an older file replaces its data and header completely; no stale attribute
+    survives to mislabel the new table."""
     path = tmp_path / "t.exr"
     write_table(path, np.zeros((2, 3)), {"v": 1})
     write_table(path, np.ones((4, 2)), {"v": 2})
@@ -279,6 +284,8 @@ def test_missing_file_names_the_path(tmp_path):
 
 @pytest.mark.parametrize("cut", ["half", "header", "last_byte", "empty"])
 def test_truncated_file_is_refused(table_file, cut):
+    """A truncated cache file (a killed write, a full disk) is refused with an error naming the file, never
+    read as a wrong table."""
     path, _ = table_file
     raw = path.read_bytes()
     keep = {"half": len(raw) // 2, "header": 40, "last_byte": len(raw) - 1, "empty": 0}[cut]
@@ -289,6 +296,8 @@ def test_truncated_file_is_refused(table_file, cut):
 
 @pytest.mark.parametrize("magic", [False, True])
 def test_garbage_bytes_are_refused(tmp_path, magic):
+    """Random bytes, even behind OpenEXR's magic number, are refused with an error naming the file: a corrupt
+    cache entry cannot crash Blender."""
     garbage = np.random.default_rng(7).integers(0, 256, 5000, dtype=np.uint8).tobytes()
     path = tmp_path / "garbage.exr"
     path.write_bytes((b"\x76\x2f\x31\x01" if magic else b"") + garbage)
@@ -334,6 +343,7 @@ def test_wrong_header_attribute_is_named(table_file, tmp_path, header, message):
 
 
 def test_unsupported_format_version(table_file, tmp_path):
+    """A table written by a newer format is refused with both versions named, not misread by this reader."""
     bad = rewrite(table_file[0], tmp_path / "bad.exr", header={"thinfilm_sh/format_version": 2})
     with pytest.raises(TableError, match=r"unsupported format version 2; this reader supports version 1"):
         read_table(bad)
@@ -359,6 +369,9 @@ def test_edited_attributes_fail_the_hash(table_file, tmp_path):
 
 
 def test_nan_pixel_is_refused(table_file, tmp_path):
+    """A NaN in a stored table is refused (with the count) before it reaches the shader, where it would paint
+    the film black or white."""
+
     def poison(chans):
         chans["c00"][0, 0] = np.nan
         return chans
@@ -369,6 +382,9 @@ def test_nan_pixel_is_refused(table_file, tmp_path):
 
 
 def test_wrong_channel_names(table_file, tmp_path):
+    """Channels that do not match the header's shape are refused: the data could not be laid out as the
+    shader expects."""
+
     def rename(chans):
         chans["X"] = chans.pop("c08")
         return chans
@@ -491,6 +507,8 @@ def test_cache_concurrent_writers_of_one_key(tmp_path):
 
 
 def test_default_cache_dir_env(tmp_path, monkeypatch):
+    """The cache folder follows THINFILM_SH_CACHE, then XDG_CACHE_HOME (docs/cache.md), so pipelines can
+    place the cache where their farm expects it."""
     monkeypatch.setenv("THINFILM_SH_CACHE", str(tmp_path / "override"))
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert default_cache_dir() == tmp_path / "override"

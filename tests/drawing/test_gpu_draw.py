@@ -258,6 +258,8 @@ def check_against_numpy(gd, l_max, colour_mode, thickness, generated):
 
 
 def test_print_agreement():
+    """Prints the GLSL-vs-numpy agreement collected by the draw tests above (reported for the docs; the
+    asserts are in those tests)."""
     if AGREEMENT:
         lines = [
             f"  l={k[0]} {k[1]:11s} {k[2]:24s} {k[3]:9s} max {v[0]:.2e} median {v[1]:.2e}"

@@ -180,6 +180,8 @@ def test_a_turned_and_scaled_world_reads_the_content_grid():
 
 
 def test_build_refuses_bad_input():
+    """The radiance grid refuses World coefficients, grid shapes and lookups of the wrong shape with the
+    argument named, not a numpy broadcast error."""
     result = rough_table(0.3)
     with pytest.raises(ValueError, match="world_coeffs"):
         radiance_grid.build(result, np.zeros((4, 3)))
@@ -193,6 +195,8 @@ def test_build_refuses_bad_input():
 # Variant rules
 # ----------------------------------------------------------------------------------------------
 def test_grid_variant_rules():
+    """The shader reads the radiance grid only where it is valid: constant thickness with an SH half; split-
+    sum-only, varying-thickness and low-order films are drawn per pixel."""
     base = dict(l_max=12, spectral=True, thickness_rows=1, has_thickness=False, display=False)
     # a rough film (SH alone) and a medium one (split + SH) with a grid read it
     assert choose_variant(**base, prefiltered=False, sh_weight=1.0, grid=True).grid

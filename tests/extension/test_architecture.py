@@ -130,6 +130,8 @@ def test_the_product_has_no_import_cycle():
 
 
 def test_precompute_never_imports_blender():
+    """precompute/ imports neither bpy nor Blender's modules, so it runs in helper processes, CI without
+    Blender and the command line."""
     _, external = import_graph()
     offenders = {
         name: sorted(pkgs & BLENDER)

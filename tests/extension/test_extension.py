@@ -52,6 +52,8 @@ def _valid_tags() -> str:
 
 
 def test_manifest_passes_blenders_validator():
+    """Blender's own `extension validate` accepts the manifest and package: what the extensions platform runs
+    before listing it."""
     result = _blender_ext("validate", "--valid-tags", _valid_tags(), str(REPO))
     assert result.returncode == 0, result.stdout + result.stderr
     assert "Success" in result.stdout

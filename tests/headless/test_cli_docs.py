@@ -58,6 +58,8 @@ def _options(parser) -> set[str]:
 
 
 def test_precompute_options_are_documented():
+    """Every option of the precompute command line appears in docs/cli.md, so the reference never lags the
+    tool."""
     from precompute.commands.cli import build_parser
 
     text = DOC.read_text(encoding="utf-8")
@@ -104,6 +106,8 @@ def tf(bpy, tmp_path_factory):
 
 @pytest.mark.blender
 def test_headless_options_are_documented(tf):
+    """Every option of Blender's `-c thinfilm_sh` commands appears in docs/cli.md, so the reference never
+    lags the tool."""
     text = DOC.read_text(encoding="utf-8")
     missing = sorted(o for o in _options(tf.cli_args.parser()) if f"`{o}" not in text)
     assert not missing, f"docs/cli.md does not document {missing}"

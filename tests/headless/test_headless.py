@@ -555,6 +555,8 @@ def test_depth_masking_by_an_opaque_cube(bpy, tf, fresh, tmp_path):
 # Clear messages and a sane picture for broken input
 # ----------------------------------------------------------------------------------------------
 def test_missing_hdri_file(bpy, tf, fresh, tmp_path):
+    """A World whose HDRI file is missing renders anyway, and the message names the missing file: a batch
+    render does not die on one broken path."""
     scene = fresh
     missing = tmp_path / "gone" / "missing_sky.exr"
     hdri_world(bpy, scene, missing)
@@ -594,6 +596,8 @@ def test_corrupt_cache_file_is_rebaked(bpy, tf, fresh, tmp_path, caplog):
 
 
 def test_object_without_faces(bpy, tf, fresh, tmp_path):
+    """A film material on a mesh without faces (points only) is skipped with a message while the other
+    objects still render."""
     scene = fresh
     white_world(bpy, scene)
     mat = film(bpy, "Film", thickness_nm=350.0, roughness=PLAIN_ROUGHNESS)
@@ -611,6 +615,8 @@ def test_object_without_faces(bpy, tf, fresh, tmp_path):
 
 
 def test_nan_thickness_from_python(bpy, tf, fresh, tmp_path):
+    """A NaN thickness set from Python is reported by material name and that object is left out, while the
+    good film beside it renders."""
     scene = fresh
     white_world(bpy, scene)
     bad = film(bpy, "Bad Film", thickness_nm=350.0, roughness=PLAIN_ROUGHNESS)
@@ -629,6 +635,8 @@ def test_nan_thickness_from_python(bpy, tf, fresh, tmp_path):
 
 @pytest.mark.parametrize("case", ["no world", "world without nodes"])
 def test_world_without_nodes(bpy, tf, fresh, tmp_path, case):
+    """A scene without a World, or a World without nodes, renders, with a message naming the World,
+    instead of failing the batch."""
     scene = fresh
     if case == "no world":
         scene.world = None

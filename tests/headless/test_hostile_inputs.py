@@ -381,6 +381,9 @@ def test_an_internal_error_is_one_line_and_a_log(tmp_path, capsys, monkeypatch):
 
 
 def test_interrupt_is_exit_130(tmp_path, capsys, monkeypatch):
+    """Ctrl-C during a bake ends the command with exit code 130 and says so, as shells and farm managers
+    expect."""
+
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
@@ -406,6 +409,7 @@ def test_interrupt_is_exit_130(tmp_path, capsys, monkeypatch):
     ],
 )
 def test_image_size_limits(value, ok):
+    """--size accepts the documented range and refuses anything else with the option named."""
     if ok:
         assert cli_support.image_size("--size", value) == value
     else:
@@ -417,6 +421,7 @@ def test_image_size_limits(value, ok):
     ("value", "ok"), [(0.0, True), (-64.0, True), (64.0, True), (64.5, False), (NAN, False), (1e308, False)]
 )
 def test_exposure_limits(value, ok):
+    """--exposure accepts finite values in the documented range and refuses the rest with the option named."""
     if ok:
         assert cli_support.exposure("--exposure", value) == value
     else:
@@ -444,6 +449,8 @@ NAMES = [
 
 @pytest.mark.parametrize(("names", "expected"), NAMES, ids=[",".join(n)[:30] for n, _ in NAMES])
 def test_unique_file_names(names, expected):
+    """Output names of materials are unique even when names differ only in case or in characters a file
+    system cannot hold, and stable under reordering: no render overwrites another."""
     found = cli_support.unique_file_names(names)
     assert found == expected
     assert len({f.casefold() for f in found.values()}) == len(names)
@@ -451,6 +458,8 @@ def test_unique_file_names(names, expected):
 
 
 def test_validate_limits_are_stated():
+    """The validation limits are the ones docs/hostile-input.md states (index ≤ 1000, thickness ≤ 100 µm,
+    360–830 nm)."""
     assert validate.MAX_INDEX_N == 1000.0 and validate.MAX_THICKNESS_NM == 100_000.0
     assert validate.VISIBLE_GRID_NM[0] == 360.0 and validate.VISIBLE_GRID_NM[-1] == 830.0
 

@@ -35,6 +35,8 @@ def cycles_filter(kind: str, width: float, x):
 @pytest.mark.parametrize("kind", pixel_filter.FILTERS)
 @pytest.mark.parametrize("width", [0.5, 1.0, 1.5, 2.7])
 def test_filters_are_cycles_definitions(kind, width):
+    """Our pixel filters equal Cycles' definitions (box, Gaussian, Blackman–Harris) and vanish beyond their
+    radius, so edges match Cycles' anti-aliasing."""
     x = np.linspace(-5.0, 5.0, 2001)
     np.testing.assert_allclose(
         pixel_filter.filter_weight(kind, width, x), cycles_filter(kind, width, x), atol=1e-15
@@ -101,6 +103,7 @@ def test_a_constant_frame_stays_constant_and_an_edge_is_anti_aliased():
 
 
 def test_bad_arguments_are_named():
+    """The pixel filter refuses an unknown kind, a zero width or a bad factor with that argument named."""
     with pytest.raises(ValueError, match="kind"):
         pixel_filter.radius("MITCHELL", 1.0)
     with pytest.raises(ValueError, match="width"):

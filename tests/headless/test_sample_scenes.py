@@ -138,6 +138,8 @@ def _saturation(rgb) -> np.ndarray:
 
 # ----------------------------------------------------------------------------------------------
 def test_scene_files(bpy, tf, scenes):
+    """The sample .blend files exist, stay small, and open with their camera, size and an absolute HDRI path
+    that resolves: the README's main command depends on them."""
     for name, blend in scenes.items():
         assert blend.is_file() and blend.stat().st_size < 4_000_000, name
     tf.refs.open_blend(scenes["soap_bubble"])
@@ -175,6 +177,8 @@ def test_scene_files(bpy, tf, scenes):
 
 
 def test_hdri_dir_option(bpy, tf, tmp_path):
+    """make_scenes' --hdri-dir points the scenes' Worlds at the given folder (absolute path), for studios
+    that keep HDRIs elsewhere."""
     hdris = tmp_path / "hdris"
     hdris.mkdir()
     (hdris / "courtyard.exr").write_bytes(tf.make_scenes.hdri_path("courtyard").read_bytes())
@@ -207,6 +211,8 @@ def test_scene_renders_finite_and_coloured(renders, name):
 
 @pytest.mark.parametrize("name", list(SATURATED))
 def test_scene_matches_reference_image(renders, name):
+    """Each sample scene renders like its committed reference image (within a stated tolerance): a regression
+    in the render pipeline shows here."""
     reference = REFERENCE_DIR / f"{name}.png"
     if not reference.is_file():
         pytest.fail(
@@ -225,6 +231,8 @@ def test_scene_matches_reference_image(renders, name):
 
 
 def test_principled_scene_matches_cycles(tf, scenes, tmp_path):
+    """The Principled thin-film sample scene matches Cycles' own render within the mean ΔE2000 limit: our
+    film is Blender's film, as artists see it in Cycles."""
     figures = tf.refs.principled_vs_cycles(scenes["principled_film"], tmp_path, (0.5, 0.15))
     assert tf.refs.COMPARE_SAMPLES == CYCLES_SAMPLES
     (mean_05, p95_05), (mean_015, p95_015) = figures[0.5], figures[0.15]

@@ -94,6 +94,7 @@ def test_smooth_limit_albedo_is_the_film_reflectance():
 
 
 def test_bad_roughness_raises():
+    """A roughness outside [0, 1] or NaN is refused with the parameter named, never turned into a NaN BRDF."""
     for bad in (-0.1, 1.5, float("nan")):
         with pytest.raises(ValueError, match="roughness"):
             brdf.alpha_from_roughness(bad)

@@ -30,6 +30,8 @@ def _riemann_xyz(lam, values, cmf_table=None, areas=None):
 
 @pytest.mark.parametrize("name", FLUORESCENT)
 def test_fluorescent_xyz_is_reproduced(name):
+    """A spiky fluorescent illuminant, fitted as smooth cosines plus lines, keeps its CIE XYZ to rounding:
+    the light's colour is exact."""
     lam, values = _table(name)
     fit = composite.fit_composite(lam, values, n_smooth=16)
     assert fit.n_smooth <= 16
@@ -84,6 +86,7 @@ def test_mercury_lines_are_found_in_fl2():
 
 
 def test_daylight_is_smooth():
+    """D65 has few spikes and its fit reproduces its XYZ: smooth daylight is not cut into false lines."""
     lam, values = _table("D65")
     spikes = composite.detect_spikes(lam, values)
     # "Few": measured 3 (the 420, 735 and 740 nm bumps, 0.05–0.08 of the peak above the
@@ -99,6 +102,8 @@ def test_daylight_is_smooth():
 
 
 def test_synthetic_lines_are_recovered():
+    """Known lines on a smooth band are found at their wavelengths with their power: the line detector is
+    exact where the truth is known."""
     # A broad band plus two lines folded into 5 nm samples, as the CIE tabulates lamps.
     lam = np.arange(380.0, 781.0, 5.0)
     smooth = 20.0 + 15.0 * np.exp(-0.5 * ((lam - 560.0) / 60.0) ** 2)
@@ -191,6 +196,7 @@ GOOD_VALUES = np.ones(GOOD_LAM.size)
     ],
 )
 def test_fit_rejects_bad_input(args, kwargs, name):
+    """The composite fit refuses bad spectra and counts with the argument named."""
     with pytest.raises(ValueError, match=name):
         composite.fit_composite(*args, **kwargs)
 

@@ -127,6 +127,8 @@ def test_tables_are_read_only_and_cached():
     ],
 )
 def test_published_spot_values(name, wavelength_nm, n, k):
+    """Tabulated metal n, k equal the published values at their own wavelengths: the data was copied
+    faithfully."""
     N = metal_index(name, wavelength_nm)
     assert N.real == pytest.approx(n, abs=1e-12) and N.imag == pytest.approx(k, abs=1e-12)
 
@@ -148,6 +150,7 @@ def test_each_csv_header_names_its_source(name):
 
 
 def test_module_never_imports_bpy():
+    """The metals module stays pure numpy (no bpy import), so bakes run outside Blender."""
     source = metals.__file__
     with open(source, encoding="utf-8") as fh:
         assert not re.search(r"^\s*(import|from)\s+bpy\b", fh.read(), flags=re.MULTILINE)
@@ -159,6 +162,8 @@ def test_module_never_imports_bpy():
 
 
 def test_gold_is_yellow():
+    """Gold reflects > 95 % at 700 nm and < 45 % at 450 nm, as Johnson & Christy and McPeak measured: our
+    gold looks like gold."""
     # Gold reflects red almost totally and absorbs blue (interband edge near 2.4 eV ≈ 520 nm).
     # Johnson & Christy 1972 give R(700) = 0.971, R(450) = 0.408; McPeak et al. 2015 (ACS Photonics 2,
     # 326) give R(700) = 0.980, R(450) = 0.390 from their tabulated n, k.
@@ -183,6 +188,8 @@ def test_aluminium_is_bright_across_the_visible():
 
 
 def test_copper_is_reddish():
+    """Copper reflects red ≥ 0.3 more than blue-green (its interband edge near 590 nm), as measured: our
+    copper looks like copper."""
     # Copper's interband edge (≈ 2.1 eV ≈ 590 nm) separates ≈ 0.6 reflectance in the blue-green from
     # ≈ 0.95 in the red. Johnson & Christy 1972: R(500) = 0.578, R(650) = 0.935; McPeak et al. 2015:
     # R(500) = 0.622, R(650) = 0.973.

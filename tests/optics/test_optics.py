@@ -66,6 +66,8 @@ def stacks(draw):
 
 @given(stacks())
 def test_reflectance_matches_tmm_package(case):
+    """Our thin-film reflectance equals the independent tmm package for each stack, angle and polarisation:
+    the core physics is right."""
     indices, d, wl, cos, pol = case
     ours = reflectance(indices, d, wl, cos, pol)
     ref = tmm_reference(indices, d, wl, cos, pol)
@@ -187,6 +189,8 @@ def test_a_sweep_over_evenly_spaced_rows_equals_one_call_per_row(indices):
 
 
 def test_dispersion_models():
+    """Dispersion models give the published indices (Malitson's fused silica at 587.6 nm), and a model or its
+    sampled array give the same reflectance."""
     # Malitson (1965): fused silica n = 1.4585 at the helium d line, 587.6 nm.
     assert FUSED_SILICA.index([587.56])[0].real == pytest.approx(1.4585, abs=1e-4)
     cauchy = CauchyIndex(1.5, 0.004)
@@ -252,6 +256,8 @@ def test_bad_input_raises_value_error_naming_the_parameter(kwargs, match):
 
 
 def test_extreme_inputs_stay_finite():
+    """Extreme thicknesses, grazing angles and strong absorbers give finite reflectances within [0, 1]: no
+    NaN reaches a table."""
     wl = np.linspace(360, 830, 40)
     cos = np.array([0.0, 1e-9, 1e-4, 0.5, 1.0])
     for indices, d in [

@@ -38,6 +38,7 @@ def test_cell_edges_of_an_inclusive_grid_are_trapezoid_cells():
 
 @pytest.mark.parametrize("count", [0, -3, 2.5, True, "8"])
 def test_grid_rejects_bad_count(count):
+    """A wavelength grid with a bad count is refused with the argument named."""
     with pytest.raises(ValueError, match="count"):
         spectra.wavelength_grid(count)
 
@@ -150,6 +151,8 @@ def _cie_chromaticity(name):
     ],
 )
 def test_illuminant_chromaticities_match_cie(name, xy):
+    """Our illuminant spectra have the CIE's published chromaticities (1e-4): the white point of every colour
+    we make is right."""
     np.testing.assert_allclose(_cie_chromaticity(name), xy, atol=1e-4)
 
 
@@ -196,6 +199,8 @@ def test_rgb_to_rgb_composes_and_keeps_white(source, target):
 
 
 def test_rec709_green_primary_chromaticity():
+    """Rec.709 green taken to XYZ(E) and adapted back to D65 lands on the BT.709 primary: the adaptation and
+    primaries are composed in the right order."""
     # Rec.709 pure green, taken to XYZ(E) and adapted back to D65, must sit on the BT.709
     # green primary (0.30, 0.60): checks that the adaptation and the primaries are composed
     # in the right order (an order swap moves it by > 1e-3).
@@ -256,6 +261,8 @@ def test_xyz_e_to_rgb_matches_blender(space):
 
 
 def test_blender_matrices_explained():
+    """Blender's OCIO matrices are explained by colour-science (XYZ → RGB) and Bradford(E → D65) to their
+    printed decimals: our spectral colour uses Blender's conventions."""
     e_to_d65, d65_to_rgb = _blender_matrices()
     # The XYZ(D65) → RGB matrices are colour's to the 7 printed decimals (rounding ≤ 5e-8).
     for space, name in (("Linear Rec.709", "ITU-R BT.709"), ("Linear Rec.2020", "ITU-R BT.2020")):

@@ -100,6 +100,7 @@ def test_nan_and_inf_pixels_are_never_lamps():
 
 
 def test_bad_arguments_are_named():
+    """Lamp extraction refuses a bad threshold, lamp count or image shape with the argument named."""
     with pytest.raises(ValueError, match="threshold"):
         lamps.extract(sky(), threshold=0.0)
     with pytest.raises(ValueError, match="max_lamps"):

@@ -120,6 +120,7 @@ def test_sh_render_converges_to_ground_truth_for_a_rough_film():
 
 
 def test_images_write(tmp_path):
+    """PNG and EXR writers produce valid files; an EXR reads back the written values (float32)."""
     img = np.linspace(0, 1, 4 * 5 * 3).reshape(4, 5, 3)
     image_io.write_png(tmp_path / "a.png", image_io.srgb_encode(img))
     assert (tmp_path / "a.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -468,6 +468,8 @@ def test_missing_and_unreadable_images_fall_back_with_a_warning(bpy, world_mod, 
 
 
 def test_srgb_png_is_linearised(bpy, world_mod, scene, tmp_path):
+    """An 8-bit sRGB PNG World is linearised before projection, as Blender does: the lighting is not too
+    bright in the shadows."""
     height, width = 64, 128
     grid = np.linspace(0.0, 1.0, height * width * 3).reshape(height, width, 3)
     srgb = np.roll(grid, 5, axis=1).astype(np.float32)
@@ -506,6 +508,8 @@ def test_srgb_conversion_agrees_with_cycles(bpy, world_mod, panorama_mod, scene,
 
 
 def test_colour_space_changes_key(bpy, world_mod, world_key_mod, scene):
+    """Changing the working colour space changes the World's cache key and its stated space: no lighting from
+    another space is reused."""
     world = bpy.data.worlds.new("Plain")
     scene.world = world
     before = world_key_mod.world_key(scene)
