@@ -155,7 +155,7 @@ def section(found: dict) -> list[str]:
         "",
         f"The helper's panorama {'equals' if found['equal'] else 'differs from'} the in-process "
         "render bit for bit (the same `panorama.render_world_panorama`, samples and seed; "
-        "`tests/test_panorama_helper.py` checks it). A helper that cannot start, exits or takes "
+        "`tests/world/test_panorama_helper.py` checks it). A helper that cannot start, exits or takes "
         "longer than 60 s is given up for the session (one logged error) and procedural Worlds are "
         "rendered on the main thread as before; so are files whose working colour space is not "
         "Linear Rec.709 (the helper's factory start-up), and everything when the preference "

@@ -631,26 +631,29 @@ def report(res: dict) -> str:
         "| requirement | test |",
         "|---|---|",
         "| a scene without an enabled material bakes nothing and draws nothing |"
-        " tests/test_effects.py::test_a_scene_without_an_enabled_film_bakes_and_draws_nothing (plain,"
+        " tests/bake/test_effects.py::test_a_scene_without_an_enabled_film_bakes_and_draws_nothing (plain,"
         " disabled and hidden film materials: `scene_draw.collect` returns no items, `bake_count` unchanged)"
         " and ::test_an_empty_scene_plans_nothing |",
         "| a constant-thickness film yields a 1-D table |"
-        " tests/test_effects.py::test_constant_thickness_gives_a_1d_table_and_the_1d_shader |",
+        " tests/bake/test_effects.py::test_constant_thickness_gives_a_1d_table_and_the_1d_shader |",
         "| a non-dispersive film never evaluates a dispersion model |"
-        " tests/test_effects.py::test_plain_numbers_are_constant_indices_and_no_dispersion_model_runs"
+        " tests/bake/test_effects.py::test_plain_numbers_are_constant_indices_and_no_dispersion_model_runs"
         " (Cauchy/Sellmeier/tabulated/metal `index` patched to raise during the bake) and"
         " ::test_a_dispersive_film_does_evaluate_its_model (the patch is live) |",
         "| a single film never runs the general stack code |"
-        " tests/test_effects.py::test_a_single_film_never_runs_the_general_stack_code (4 variants, Rouard's"
+        " tests/bake/test_effects.py::test_a_single_film_never_runs_the_general_stack_code (4 variants,"
+        " Rouard's"
         " recursion patched to raise) and ::test_a_two_layer_stack_runs_the_stack_code |",
         "| changing an unrelated property triggers no re-bake; equal settings share one table |"
-        " tests/test_addon_materials.py::test_equal_settings_share_one_bake_and_only_relevant_changes_rebake"
+        " tests/extension/test_addon_materials.py::"
+        "test_equal_settings_share_one_bake_and_only_relevant_changes_rebake"
         " (existing) |",
         "| changing thickness re-bakes only that material |"
-        " tests/test_effects.py::test_changing_one_films_thickness_rebakes_only_that_material (two different"
+        " tests/bake/test_effects.py::test_changing_one_films_thickness_rebakes_only_that_material (two"
+        " different"
         " films through `scene_draw.collect`: exactly one bake, the other's texture object untouched) |",
         "| the plan is printed with effects and reasons |"
-        " tests/test_effects.py::test_thinfilm_sh_plan_prints_effects_and_reasons,"
+        " tests/bake/test_effects.py::test_thinfilm_sh_plan_prints_effects_and_reasons,"
         " ::test_precompute_cli_plan_prints_the_material_plan,"
         " ::test_plan_panel_is_registered_and_shows_the_active_materials_plan |",
         "| the bake-time estimate is calibrated |"
@@ -663,7 +666,7 @@ def report(res: dict) -> str:
         " bare substrate's (tested), but `bake.bake` still sends it through `reflectance_sweep` (the Airy"
         " formula at d = 0 and the u-node search) instead of its no-layer path; zero-thickness layers inside"
         " a stack are likewise kept by `reflectance_sweep`. Marked `xfail` in"
-        " tests/test_effects.py::test_zero_thickness_film_takes_the_bare_interface_path.",
+        " tests/bake/test_effects.py::test_zero_thickness_film_takes_the_bare_interface_path.",
     ]
     return "\n".join(lines)
 

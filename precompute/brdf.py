@@ -200,7 +200,7 @@ def ggx_albedo(cos_o, alpha: float) -> np.ndarray:
     arrays built from 1-D factors: u = sinθh cosφh sinθo + cosθh cosθo, cosθi = 2u cosθh − cosθo,
     and only φh ∈ (0, π) with doubled weights — ωo lies in the xz-plane, so the integrand is even
     in φh and the midpoints come in mirror pairs. Equal to the general path to rounding
-    (tests/test_brdf.py), ≈ 15× less work.
+    (tests/optics/test_brdf.py), ≈ 15× less work.
     """
     co = np.clip(np.atleast_1d(np.asarray(cos_o, dtype=float)), constants.MIN_COS, 1.0)
     s, ws = unit_gauss_legendre(E_THETA)

@@ -7,7 +7,7 @@ the CIE illuminants it offers (D65, A, E, FL1–FL12), Mallett & Yuksel's (2019)
 basis, and the white points and XYZ → RGB matrices of its three working spaces. They are copied
 here from colour-science (the version pinned in requirements-dev.txt), every number written as
 the shortest decimal that reads back to the same float64, so :mod:`precompute.colour.colour_tables`
-returns exactly colour-science's arrays (tests/test_colour_tables.py checks it) and the
+returns exactly colour-science's arrays (tests/optics/test_colour_tables.py checks it) and the
 extension no longer needs colour-science at run time.
 """
 

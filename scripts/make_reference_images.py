@@ -7,7 +7,7 @@
 Builds every scene of ``sample_scenes/make_scenes.py`` in a temporary folder, then writes
 
 - ``tests/data/reference/<scene>.png``: the headless render at 96×72 (8-bit sRGB, "Standard"
-  view), what ``tests/test_sample_scenes.py`` compares against;
+  view), what ``tests/headless/test_sample_scenes.py`` compares against;
 - ``docs/images/<scene>.png``: the headless render at 320×240;
 - ``docs/images/<scene>_cycles.png``: Cycles (CPU, 128 samples, no denoising) of the same file at
   320×240: the Principled scene as it is, the extension's single-film materials after
@@ -305,7 +305,7 @@ The `principled_film` file rendered both ways at {cmp_w}×{cmp_h} (Cycles {cmp_s
 |---|---|---|
 {delta_e}
 
-`tests/test_sample_scenes.py` asserts a mean ≤ 3 at the file's roughness 0.5; 0.15 is reported
+`tests/headless/test_sample_scenes.py` asserts a mean ≤ 3 at the file's roughness 0.5; 0.15 is reported
 only. With SH order ≤ 8 most of the error was in the outer ring of the sphere (grazing views)
 and the interior agreed to about ΔE 1.2–1.5.
 
@@ -343,7 +343,7 @@ Regenerate these pictures, this page and the test references (`tests/data/refere
 {regenerate}
 ```
 
-`tests/test_sample_scenes.py` renders every scene at 96×72 and compares it with its reference:
+`tests/headless/test_sample_scenes.py` renders every scene at 96×72 and compares it with its reference:
 mean absolute difference ≤ 2/255 and 99th percentile ≤ 12/255 (llvmpipe and other GPUs round
 differently, mostly on silhouettes).
 """

@@ -6,7 +6,7 @@ Usage (from the repository root)::
 
 Scans :func:`precompute.bakes.sh_order.criterion_order` (the band-16 lobe truncation criterion) over
 roughness [0, 1] every 0.002 and bisects each change of order to 1e-9 (≈ 20 s on two cores).
-Paste the output into ``precompute/bakes/sh_order.py``; tests/test_sh_order.py checks the table
+Paste the output into ``precompute/bakes/sh_order.py``; tests/sh/test_sh_order.py checks the table
 against the criterion on a grid five times finer and on both sides of every breakpoint.
 """
 

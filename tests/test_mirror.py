@@ -1,7 +1,7 @@
 """The numpy ↔ GLSL mirror is one list (precompute/shading/mirror.py): every name on it exists on
 both sides, and docs/ARCHITECTURE.md shows exactly that list.
 
-Pure Python: the GLSL is read as text (tests/test_gpu_draw.py and its neighbours run it).
+Pure Python: the GLSL is read as text (tests/drawing/test_gpu_draw.py and its neighbours run it).
 """
 
 import importlib

@@ -26,7 +26,7 @@ Failures never lose a table: a helper that cannot start, dies, or stays silent f
 worker thread as before. A bake's own error (an invalid material) comes back as the exception
 it raised, recorded by the viewport as before. The preference *Bake in a Helper Process*
 (:func:`.prefs.bake_helper_enabled`) or ``THINFILM_SH_BAKE_HELPER=0`` turns it off (the tests
-do, except tests/test_bake_helper.py). Headless renders, the Bake button and the command line
+do, except tests/viewport/test_bake_helper.py). Headless renders, the Bake button and the command line
 bake in process (nothing to draw meanwhile).
 """
 

@@ -9,7 +9,7 @@ framing functions below, which need nothing but the standard library)::
 imports :mod:`precompute` from it under a private package name (nothing of the add-on, no bpy):
 the very :func:`precompute.bakes.bake.bake` and :func:`precompute.colour.film_colour.film_table` the add-on
 runs in process, so a table baked here equals the one baked there bit for bit
-(tests/test_bake_helper.py). Its caches (microfacet kernels, quadrature nodes, albedo weights)
+(tests/viewport/test_bake_helper.py). Its caches (microfacet kernels, quadrature nodes, albedo weights)
 stay warm between requests, and while it waits it computes the kernels of the u-degree rungs
 next to the last bake's (:func:`warm_neighbours`).
 

@@ -12,5 +12,5 @@ what to draw; callers hand in arrays, matrices and baked tables).
   rendering and read-back.
 
 The per-pixel maths is in ``glsl/`` and mirrors precompute/shading/ (``sh_sum.shade_sh`` and the
-rest); tests/test_gpu_draw.py checks one against the other pixel by pixel.
+rest); tests/drawing/test_gpu_draw.py checks one against the other pixel by pixel.
 """

@@ -6,7 +6,7 @@ split sum prefilters (:mod:`.scene_draw`).
 The panorama camera sits at the origin with rotation Euler (90°, 0, −90°): Blender's panorama
 camera looks along its −Z axis with +Y up, so this turns its view to world +X with +Z up and
 the rendered equirect then follows the Environment Texture convention (image centre = +X,
-u = ¼ = +Y). ``tests/test_world.py`` proves it against direct projection.
+u = ¼ = +Y). ``tests/world/test_world.py`` proves it against direct projection.
 """
 
 from __future__ import annotations

@@ -269,7 +269,7 @@ def _python_section(res: dict) -> list[str]:
         f" {sum(r['ubo_allocations'] for r in all_rows)} uniform buffers allocated and"
         f" {sum(r['ubo_uploads'] for r in all_rows)} updated (`scene_draw.CACHES.stats`,"
         " `gpu.shaders.SHADERS.compile_count`, `gpu.draw.UNIFORMS.stats`);"
-        " tests/test_viewport_perf_invariants.py checks each of these properties.",
+        " tests/drawing/test_viewport_perf_invariants.py checks each of these properties.",
     ]
     if any("baseline" in r for r in all_rows):
         out += [

@@ -294,7 +294,7 @@ def clamp_film_rgb(rgb, colour_mode: str):
 #: Interpolation tolerance of the per-channel film in u (relative to its peak): Cycles' film
 #: reads its sensitivity table with linear interpolation, so R(u) has kinks of ≈ 1e-4 where
 #: the OPD crosses a table entry, and Chebyshev interpolation stalls there. 1e-3 keeps the
-#: table within the per-channel bake's accuracy (tests/test_bake.py).
+#: table within the per-channel bake's accuracy (tests/bake/test_bake.py).
 U_TOLERANCE_CHANNELS = 1e-3
 
 

@@ -1,7 +1,7 @@
 """The brute-force reference bake: the exact film at every quadrature node, no factorisation.
 
 :func:`bake_reference` uses the same plan and quadrature nodes as :func:`.bake.bake`, so the
-two differ only by the factorisation (tests/test_bake.py checks the difference;
+two differ only by the factorisation (tests/bake/test_bake.py checks the difference;
 benchmarks/bake_speed.py times both). Slow by design; never used by the product's draw.
 """
 

@@ -6,7 +6,7 @@ loses at most ``target`` (10 %) of its L2 norm when truncated at l_max; the orde
 smallest l_max in 2…:data:`~precompute.materials.material.MAX_SH_ORDER` that meets it. It depends on the
 roughness alone, so the orders it picks are a step function of the roughness, tabulated in
 :data:`ORDER_BREAKPOINTS` (by :func:`order_breakpoints`, ``scripts/sh_order_table.py``):
-planning reads the table and computes nothing; ``tests/test_sh_order.py`` checks that the
+planning reads the table and computes nothing; ``tests/sh/test_sh_order.py`` checks that the
 table and the criterion pick the same order on a fine roughness grid and on both sides of every
 breakpoint.
 

@@ -15,7 +15,7 @@ computed with them (``xyz``):
 - ``"E"``: the extension's own matrix, ``spectra.rgb_to_xyz_matrix("Linear Rec.709")`` (XYZ with an
   equal-energy white, docs/conventions.md), the exposure from its Y. Lab's white stays D65, so
   RGB (1, 1, 1) is not Lab-neutral on this route. Used for every comparison with Cycles
-  (``benchmarks.cycles_compare``, tests/test_cycles_parity.py, scripts/make_reference_images.py).
+  (``benchmarks.cycles_compare``, tests/parity/test_cycles_parity.py, scripts/make_reference_images.py).
 
 References
 ----------

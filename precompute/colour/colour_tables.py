@@ -8,7 +8,7 @@
 
 The files are copies of colour-science 0.4.7's tables (``scripts/export_colour_tables.py``
 writes them, each number as the shortest decimal that reads back to the same float64), so the
-arrays here are exactly colour-science's (``tests/test_colour_tables.py``) and the extension
+arrays here are exactly colour-science's (``tests/optics/test_colour_tables.py``) and the extension
 needs no colour-science at run time: a bake reads a few kB of text instead of importing a
 9 MB package (2–4 s, and warnings printed at every Blender start). Each table is read once,
 returned read-only.

@@ -364,7 +364,7 @@ def detect_spikes(
     if np.any(spike) and not np.all(spike):
         # Under a line, bridge linearly between the nearest non-spike samples. (The opening
         # itself is biased high by one sample's rise on a slope: 4 % of a line's power on the
-        # flank of a 60 nm band in tests/test_composite.py; the bridge is exact on slopes.)
+        # flank of a 60 nm band in tests/optics/test_composite.py; the bridge is exact on slopes.)
         bridge = np.interp(lam[spike], lam[~spike], vals[~spike])
         residual[spike] = np.minimum(vals[spike], bridge)
     widths = np.diff(_table_cells(lam))
@@ -393,7 +393,7 @@ def fit_composite(
        D65 (ripple and sub-threshold peaks a 16-term series cannot follow). The constraint
        is three Lagrange multipliers in the KKT system; it does not overfit the design
        observer: the CIE 1964 10° XYZ of the constrained fits is within 7e-4 (FL) and
-       1.2e-3 (D65) of the table's (tests/test_composite.py).
+       1.2e-3 (D65) of the table's (tests/optics/test_composite.py).
 
     Parameters
     ----------

@@ -113,7 +113,7 @@ def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
     every thickness (:func:`_film_rows`). Either way one albedo integral's geometry is shared
     by every row's multiple-scattering factor (:func:`_multiscatter`). Equal to the per-row
     :func:`film_rgb_matrices` and :func:`brdf.directional_albedo` to float rounding (swept) or
-    the interpolation's tolerance (tests/test_live.py). The viewport computes it on the bake's
+    the interpolation's tolerance (tests/viewport/test_live.py). The viewport computes it on the bake's
     worker (:func:`addon.bakes.tables.get_film`), never in a draw.
     """
     spectral = np.asarray(result.data).ndim == 5
@@ -147,7 +147,7 @@ def film_table_of(material, samples: int = FILM_SAMPLES) -> FilmTable:
     """The :func:`film_table` that :func:`bake.bake` of ``material`` will have, computed without
     the bake: its thickness rows are the bake's plan's (:func:`bake.active_stack`), so the
     viewport computes it on a second thread beside the bake (equal to the result's to float
-    rounding: tests/test_live.py)."""
+    rounding: tests/viewport/test_live.py)."""
     m = planner.table_material(material)
     _indices, _sets, axis = planner.active_stack(m, planner.plan(m).thickness_samples)
     return _film_table(m, axis, m.colour_mode != "per_channel", samples)

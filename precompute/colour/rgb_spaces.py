@@ -103,7 +103,7 @@ def xyz_to_rgb_matrix(space: str = DEFAULT_SPACE) -> np.ndarray:
     while its Rec.709/2020 matrices use xy (0.3127, 0.3290); the two D65s differ by 2e-4 in Z,
     so Blender's own composite maps E white to (1.00016, 0.99998, 0.99976). We keep the
     self-consistent white (so flat → 1 exactly); the matrices agree with Blender's to 1.3e-4
-    relative to their largest entry (tested in ``tests/test_spectra.py``).
+    relative to their largest entry (tested in ``tests/optics/test_spectra.py``).
 
     Parameters
     ----------
@@ -154,7 +154,7 @@ def scene_linear_matrix(space: str = DEFAULT_SPACE) -> np.ndarray:
     white is D65); ACEScg adds a Bradford adaptation from D65 to the ACES white. Cycles'
     ``ColorSpaceManager::get_xyz_to_scene_linear_rgb`` derives the matrix from the config's
     ``aces_interchange`` role (or its ``XYZ`` role); the result agrees with this one to 1e-6
-    (tests/test_spectra.py, against PyOpenColorIO with Blender's config). Unlike
+    (tests/optics/test_spectra.py, against PyOpenColorIO with Blender's config). Unlike
     :func:`xyz_to_rgb_matrix` there is no adaptation from E: a flat spectrum is not white.
     ``space`` and the result (rgb = M @ xyz, 3×3) are as in :func:`xyz_to_rgb_matrix`.
 

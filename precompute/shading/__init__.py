@@ -5,6 +5,6 @@ docs/ARCHITECTURE.md and checked by tests/test_mirror.py). ``policy`` holds ever
 and emits them as the shaders' ``#define``s; ``variant`` decides which shader a draw compiles;
 ``codegen`` generates the band-by-band GLSL and counts its operations. The brute-force ground
 truth these are checked against (no SH) is :func:`precompute.output.render.shade_reference`;
-tests/test_gpu_draw.py runs the GLSL per pixel against these functions.
+tests/drawing/test_gpu_draw.py runs the GLSL per pixel against these functions.
 This package imports nothing on import: take the modules you need.
 """

@@ -2,7 +2,7 @@
 
 Sun, point, spot and area lights, converted to the radiometric quantities Cycles uses
 (:func:`light_from_blender`, facts from Cycles' ``scene/light.cpp`` and ``kernel/light/*.h``
-verified against Cycles renders in tests/test_scene_lights.py), and shaded with the exact
+verified against Cycles renders in tests/parity/test_scene_lights.py), and shaded with the exact
 microfacet BRDF and the film's reflectance at each sample's own half vector, as the World's
 lamps are (shading/lamps.py): D G₂ F(ωo·h) / (4 cos θo) × E⊥ per sample, times the
 multiple-scattering factor at the view angle.

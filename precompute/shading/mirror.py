@@ -3,7 +3,7 @@
 :data:`MIRROR` is the one list. ``tests/test_mirror.py`` checks that every numpy name imports and
 that every GLSL function is defined in the chunk named (or in the generated code), and that
 docs/ARCHITECTURE.md holds :func:`markdown_table` between its two ``mirror table`` markers
-(``scripts/mirror_table.py`` writes it there). The per-pixel tests (tests/test_gpu_draw.py and
+(``scripts/mirror_table.py`` writes it there). The per-pixel tests (tests/drawing/test_gpu_draw.py and
 its neighbours) draw the GLSL on Mesa and compare it with these numpy functions.
 """
 

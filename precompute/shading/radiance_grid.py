@@ -16,7 +16,7 @@ n = sin θo e1 + cos θo r and the view v = sin 2θo e1 + cos 2θo r; the view-a
 (n, v) has rows x = cos θo e1 − sin θo r, y = e2, z = n, i.e. frame = Ry(θo)ᵀ Gᵀ. So the pixel's
 local SH is D(Ry(θo)ᵀ) · D(Gᵀ) L: the second factor is one rotation per (r, ψ) (49 k), the first
 twelve fixed matrices folded into the table (:func:`build`). Each node equals
-:func:`.sh_sum.shade_sh` at its (n, v) (tests/test_radiance_grid.py).
+:func:`.sh_sum.shade_sh` at its (n, v) (tests/drawing/test_radiance_grid.py).
 
 References
 ----------

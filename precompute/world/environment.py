@@ -18,7 +18,7 @@ A prefilter costs seconds, so neither is computed by :func:`analyse_world`: each
 first time a drawn material reads it, then kept (addon/drawing/scene_draw.py asks only for those its
 glossy materials read). Without lamps the two are one and the same.
 
-Every watt is kept: rest + lamps = the panorama, in power and in SH (tests/test_environment.py).
+Every watt is kept: rest + lamps = the panorama, in power and in SH (tests/sh/test_environment.py).
 Pure numpy; never imports ``bpy``.
 """
 
