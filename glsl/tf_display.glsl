@@ -1,7 +1,7 @@
 #include "tf_common.glsl"
 
 /* tf_display.glsl: the scene's display transform (view, look, display, gamma) through the LUT
- * baked from OCIO on the CPU (addon/display.py).
+ * baked from OCIO on the CPU (addon/drawing/display.py).
  *
  * numpy counterpart: precompute.display_lut.apply (shaper, then the eight corners of the cell
  * fetched and interpolated: no hardware filtering, so both agree to float32 rounding).

@@ -1,5 +1,5 @@
 """Recording what the extension draws (bpy): create-info stand-ins, the capture of uploads and
-meshes, the manifest writer, and the benchmark scenes of benchmarks/viewport.py case by case."""
+meshes, the manifest writer, and the benchmark scenes of benchmarks/viewport/ case by case."""
 
 from __future__ import annotations
 
@@ -404,7 +404,7 @@ def _automatic_frames(scene, size, scene_name: str, spec: dict):
 
 
 def _frames(scene, size):
-    """The scene's cases: (meta, items, view, projection), as benchmarks/viewport.py draws them."""
+    """The scene's cases: (meta, items, view, projection), as benchmarks/viewport/ draws them."""
     rough = vp.roughness_cases()
     for scene_name, spec in SCENES.items():
         if scene_name in LAMPS_ON_ONLY:
