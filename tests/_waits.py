@@ -27,6 +27,17 @@ def wait_for(predicate, what: str, timeout: float = EVENT_TIMEOUT_S) -> None:
         time.sleep(POLL_S)
 
 
+def viewport_lanes_idle(viewport) -> bool:
+    """True when none of the viewport timer's workers runs: bakes, the World's analysis, the
+    display LUT (``addon.drawing.viewport``'s lanes). A test that asserts the timer's *last* tick
+    waits on this: one tick can start a World or display job beside the bake it waited for."""
+    return (
+        not viewport.bake_jobs.BAKES.running
+        and not viewport.world_job.busy()
+        and not viewport.display.baking()
+    )
+
+
 class CueRecorder(threading.Event):
     """A worker's "finished" event that records, at each ``set``, whether the worker was still
     listed as running (``still_running()``).

@@ -23,7 +23,7 @@ import types
 import numpy as np
 import pytest
 from _extension import EXTENSION_ID, registered_extension
-from _waits import EVENT_TIMEOUT_S, CueRecorder, wait_for
+from _waits import EVENT_TIMEOUT_S, CueRecorder, viewport_lanes_idle, wait_for
 
 #: The camera of the off-screen draws: at −y, looking at the sheet in the xz-plane.
 VIEW = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, -4.0], [0, 0, 0, 1]], dtype=float)
@@ -300,7 +300,7 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     film(bpy, scene)
     frame(bpy, tf)  # queues the bake
     vp._service()
-    wait_for(lambda: not bj.BAKES.running, "the bake")
+    wait_for(lambda: viewport_lanes_idle(vp), "the bake (and any World or display job it started beside)")
     assert bake_cue.seen == [True], (
         f"the bake's worker set its redraw cue with running={bake_cue.seen}: it must set it before "
         "it leaves the running list, or a timer tick in between stops the timer and the redraw is lost"
