@@ -402,7 +402,8 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     assert "baking 1 film" in vp.activity()
     assert bj.cancel_all() == 1
     wait_for(lambda: not bj.BAKES.running, "the cancelled bake's worker to stop")
-    assert vp.activity() == "", f"the header still shows {vp.activity()!r} after the bake stopped"
+    # The header's bake part; a World analysis the same ticks started may still show beside it.
+    assert "baking" not in vp.activity(), f"the header still shows {vp.activity()!r} after the bake stopped"
     assert tf.tables.peek_table(desc) is None
     assert tf.bake_jobs.description_key(desc) not in tf.tables.FAILURES
 
