@@ -318,7 +318,7 @@ def _service() -> float | None:
     if current != _world_key or lit != _lights_signature:  # a new World analysis or a light edit
         _world_key, _lights_signature = current, lit
         names = sorted(set(names) | {m.name for m in bpy.data.materials if nodes.find(m.node_tree)[0]})
-    lights = light_objects.SceneLights(scene)
+    lights = light_objects.SceneLights(scene) if names else None  # read once for them all
     unknown = []
     for name in names:
         material = bpy.data.materials.get(name)

@@ -514,3 +514,32 @@ def test_a_light_object_added_moved_or_switched_off_rewrites_the_light_image(bpy
     _live_tick(bpy, ext)
     c, share = _lobe_light(bpy, ext, mat)
     assert share.max() < 1e-5 and np.allclose(c, alone_c, atol=1e-5), "a dark sun changes nothing"
+
+
+def test_a_glossy_film_under_a_sun_weighs_it_against_the_world(bpy, ext):
+    """At roughness 0.05 the World alone would not be read at θ' (the ramp's weight is 0), but
+    with a light object the World still weighs against it: away from the sun's highlight (more
+    than 30° from it) the white World holds the lobe (share < 0.01), at the sun it is the sun's
+    (share > 0.95). Without the World in the weighting GGX's long tails would give the sun the
+    whole sphere of directions."""
+    import mathutils
+
+    from precompute.world import hdri
+
+    scene = _scene(bpy)
+    mat = _film_material(bpy, roughness=0.05)
+    _plate(bpy, scene, mat)
+    data = bpy.data.lights.new("sun", "SUN")
+    data.energy, data.angle = 20.0, math.radians(1.0)
+    sun = bpy.data.objects.new("sun", data)
+    scene.collection.objects.link(sun)
+    sun.rotation_euler = (0.3, -0.4, 0.0)
+    bpy.context.view_layer.update()
+    assert ext.sync.sync_material(mat, scene) == "written"
+    c, share = _lobe_light(bpy, ext, mat)
+    toward = np.array(mathutils.Euler((0.3, -0.4, 0.0)).to_matrix() @ mathutils.Vector((0.0, 0.0, 1.0)))
+    grid = hdri.equirect_directions(*share.shape)
+    cosine = grid @ toward
+    assert share[cosine < np.cos(np.radians(30.0))].max() < 0.01, "away from the sun the World holds the lobe"
+    nearest = np.unravel_index(np.argmax(cosine), cosine.shape)
+    assert share[nearest] > 0.95 and c[nearest] @ toward > np.cos(np.radians(1.0))
