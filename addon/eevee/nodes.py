@@ -57,7 +57,7 @@ GROUP_PREFIX = "TF EEVEE Film · "
 #: Custom property marking what the extension added (on the two nodes and the group).
 TAG = "thinfilm_eevee"
 #: Version of the group's inside: a group built by another version is rebuilt.
-LAYOUT_VERSION = 5
+LAYOUT_VERSION = 6
 #: The group's inputs.
 IN_THICKNESS, IN_ROUGHNESS, IN_NORMAL, IN_BASE = "Thickness", "Roughness", "Normal", "Base Color"
 
@@ -129,9 +129,10 @@ def _view_cosine(tree, links, normal, geometry):
 
 def _light_cosine(tree, links, normal, geometry, cos_view, light):
     """cos θ' = √((1 + I·c)/2), c the lobe light's mean direction read from the ``light`` image
-    (:func:`equirect_lookup`, in the reflection direction R = 2(N·I)N − I; stored as (c + 1)/2),
-    mixed with cos θo by the
-    socket value of node "dominant" (0: no World analysed yet, :func:`set_constants`)."""
+    (:func:`equirect_lookup`, in the reflection direction R = 2(N·I)N − I; stored as (ℓc + 1)/2,
+    ℓ = 0.5 + 0.5 s, s the light objects' share of the lobe's light), mixed with cos θo by the
+    weight d + (1 − d) s, d the socket values of node "light weight" (0: no World analysed
+    yet, :func:`set_constants`): a light object's highlight is read at its half vector."""
     incoming = geometry.outputs["Incoming"]
     dot = _node(tree, "ShaderNodeVectorMath", "N·I (R)", -1650, 800, operation="DOT_PRODUCT")
     links.new(normal, dot.inputs[0])
@@ -152,6 +153,17 @@ def _light_cosine(tree, links, normal, geometry, cos_view, light):
     decoded.inputs[2].default_value = (-1.0, -1.0, -1.0)
     unit = _node(tree, "ShaderNodeVectorMath", "c", -950, 800, operation="NORMALIZE")
     links.new(decoded.outputs["Vector"], unit.inputs[0])
+    length = _node(tree, "ShaderNodeVectorMath", "ℓ", -950, 950, operation="LENGTH")
+    links.new(decoded.outputs["Vector"], length.inputs[0])
+    share = _math(tree, "MULTIPLY_ADD", "s = 2ℓ − 1", -800, 950)
+    share.use_clamp = True
+    share.inputs[1].default_value = 2.0
+    share.inputs[2].default_value = -1.0
+    links.new(length.outputs["Value"], share.inputs[0])
+    weight = _math(tree, "MULTIPLY_ADD", "light weight", -650, 950)
+    weight.inputs[1].default_value = 1.0
+    weight.inputs[2].default_value = 0.0
+    links.new(share.outputs[0], weight.inputs[0])
     toward = _node(tree, "ShaderNodeVectorMath", "I·c", -800, 800, operation="DOT_PRODUCT")
     links.new(incoming, toward.inputs[0])
     links.new(unit.outputs["Vector"], toward.inputs[1])
@@ -163,7 +175,7 @@ def _light_cosine(tree, links, normal, geometry, cos_view, light):
     root = _math(tree, "SQRT", "cos θ'", -500, 800)
     links.new(half.outputs[0], root.inputs[0])
     mix = _node(tree, "ShaderNodeMix", "dominant", -350, 700, data_type="FLOAT")
-    mix.inputs["Factor"].default_value = 0.0
+    links.new(weight.outputs[0], mix.inputs["Factor"])
     links.new(cos_view, mix.inputs["A"])
     links.new(root.outputs[0], mix.inputs["B"])
     return mix.outputs["Result"]
@@ -335,12 +347,14 @@ def _put(socket, value) -> None:
         socket.default_value = value
 
 
-def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0) -> None:
+def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0, lit: bool = False) -> None:
     """Write the image's axes into the group's socket values (no shader recompile):
     ``layout`` is a :class:`precompute.bakes.eevee_table.FilmImage` (or anything with its ``width``,
     ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index;
     ``dominant``: how much the specular band is read at the lobe light's angle θ' rather than
-    the view angle (0: no dominant-direction image is set).
+    the view angle where the World alone lights it (0: no dominant-direction image is set); the
+    light objects' share s raises it to d + (1 − d) s where ``lit`` (a direction image is set;
+    without one the share is not read).
 
     Texel coordinates: the view column px = θo (A − 1)/(π/2), the row py = (d − lo)/(hi − lo)
     (T − 1) (clamped); a texel (i, j) of band b is read at ((i + 0.5)/A, (j + bT + 0.5)/H).
@@ -364,7 +378,8 @@ def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0) -> Non
             _put(nodes[name].inputs[1], 1.0 / height)
             _put(nodes[name].inputs[2], (band * rows + offset) / height)
         band += 1
-    _put(nodes["dominant"].inputs["Factor"], float(dominant))
+    _put(nodes["light weight"].inputs[1], 1.0 - float(dominant) if lit else 0.0)  # s (1 − d) + d
+    _put(nodes["light weight"].inputs[2], float(dominant))
     through = nodes.get("Through")
     if through is not None and "IOR" in through.inputs:
         _put(through.inputs["IOR"], float(ior))

@@ -12,7 +12,9 @@
 - ``feeds``: what drives the group's inputs: the Principled socket a link or an F-curve copies,
   or a constant;
 - ``world``: the analysed World (the overlay's, ``scene_draw.world_lighting``) whose lobe-light
-  directions the film's colour is read at (:func:`precompute.bakes.eevee_table.dominant_directions`).
+  directions the film's colour is read at (:func:`precompute.bakes.eevee_table.dominant_directions`);
+- ``lights``: the scene's light objects as the film sees them (:mod:`.lights`), folded into
+  those directions.
 
 ``Spec.key`` names everything the image depends on: an image holding that key is up to date.
 """
@@ -29,6 +31,7 @@ from ...precompute.materials.material import Material
 from ...precompute.shading import transmit
 from ..materials import description, principled, transparency
 from ..thickness import linked
+from . import lights as light_objects
 from .nodes import Structure
 
 __all__ = ["Feed", "Spec", "WorldRef", "animated_range", "spec"]
@@ -57,11 +60,14 @@ class Feed:
 class WorldRef:
     """The World the dominant-direction image is made from: the lighting's ``key`` (content and
     parameters), its analysed ``environment`` (:class:`precompute.world.environment.Environment`, the
-    content's frame) and ``matrix`` Q (image direction = Q · world direction, None: identity)."""
+    content's frame), ``matrix`` Q (image direction = Q · world direction, None: identity) and
+    ``scale``, the World's radiance over the content's (its Strength), which weighs it against
+    the light objects."""
 
     key: str
     environment: object
     matrix: object = None
+    scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,8 @@ class Spec:
     ior: float
     principled_node: str | None
     world: WorldRef | None = None
+    lights: object = None
+    lights_key: str = "no lights"
 
     @functools.cached_property
     def key(self) -> str:
@@ -86,15 +94,18 @@ class Spec:
             parts += [description.description_key(self.base), repr(self.base_color)]
         if self.world is not None:
             parts.append(self.world.key)
+        if self.lights is not None:
+            parts.append(self.lights_key)
         return "|".join(parts)
 
     @functools.cached_property
     def light_key(self) -> str | None:
-        """What the dominant-direction image depends on: the World and the film's roughness (an
-        edit of the film alone does not rewrite it). None without a World."""
-        if self.world is None:
+        """What the dominant-direction image depends on: the World, the light objects and the
+        film's roughness (an edit of the film alone does not rewrite it). None without either."""
+        if self.world is None and self.lights is None:
             return None
-        return f"{self.world.key}|{float(self.film.roughness)!r}|{eevee_table.FORMAT_VERSION}"
+        world = "no World" if self.world is None else self.world.key
+        return f"{world}|{self.lights_key}|{float(self.film.roughness)!r}|{eevee_table.FORMAT_VERSION}"
 
 
 def _fcurve_values(tree, path: str, scene) -> list[float] | None:
@@ -182,12 +193,13 @@ def may_show_film(material) -> bool:
     return socket.is_linked or socket.default_value > 0.0
 
 
-def spec(material, scene=None, world: WorldRef | None = None) -> Spec | None:
+def spec(material, scene=None, world: WorldRef | None = None, lights=None) -> Spec | None:
     """The :class:`Spec` of ``material``, or None when it shows no film. Raises ValueError for a
     film that cannot be evaluated (the panel shows why) and :class:`..linked.Pending` while a
     linked thickness waits for its Cycles bake (inside ``linked.deferring``): nothing is known
     then, and the caller leaves the material as it is. ``world``: the World whose lobe light
-    directions the specular band is read at (None: at the view angle)."""
+    directions the specular band is read at (None: at the view angle); ``lights``: the light
+    objects as the film sees them (:class:`precompute.bakes.eevee_table.LobeLights`, None: none)."""
     props = getattr(material, "thinfilm_sh", None)
     own = props is not None and props.enabled
     if not own and principled.linked_thickness_socket(material) is not None and linked.has_pending():
@@ -227,5 +239,8 @@ def spec(material, scene=None, world: WorldRef | None = None) -> Spec | None:
         feeds=feeds,
         ior=ior,
         principled_node=node_name,
-        world=world if eevee_table.dominant_weight(film.roughness) > 0.0 else None,
+        # the World weighs against the light objects even where it is not read at θ' itself
+        world=world if eevee_table.dominant_weight(film.roughness) > 0.0 or lights is not None else None,
+        lights=lights,
+        lights_key=light_objects.key(lights),
     )

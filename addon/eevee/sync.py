@@ -34,6 +34,7 @@ from ..bakes import bake_helper, tables
 from ..thickness import linked
 from ..world import world_state
 from . import image as film_image_store
+from . import lights as light_objects
 from . import nodes, source, wiring
 
 __all__ = [
@@ -56,6 +57,7 @@ POLL_S = 0.02
 #: (or a Strength or rotation edit) changes their dominant-direction image.
 WORLD_POLL_S = 0.5
 _world_key: str | None = None  # the World analysis the films were last read with
+_lights_signature: tuple | None = None  # the light objects they were last read with (.lights)
 #: The EEVEE films' background work: one worker job (key :data:`_WORKER`) that drains
 #: :data:`_queue`. Its lock guards the dictionaries below (never held while the worker computes).
 WORK = workers.Lane("EEVEE film")
@@ -82,12 +84,13 @@ def compute(spec: source.Spec, cache=None, baker=None):
     made = eevee_table.film_image(
         result, film=film, wall=spec.wall, base_result=base, base_color=spec.base_color
     )
-    light = None
+    light, pre = None, None
     if spec.world is not None:
         pre = _moments(spec.world.environment)
-        if spec.world.matrix is not None:
-            pre = pre.transformed(rotation=spec.world.matrix)
-        light = eevee_table.dominant_directions(pre, float(spec.film.roughness))
+        if spec.world.matrix is not None or spec.world.scale != 1.0:
+            pre = pre.transformed(rotation=spec.world.matrix, scale=spec.world.scale)
+    if pre is not None or spec.lights is not None:
+        light = eevee_table.dominant_directions(pre, float(spec.film.roughness), lights=spec.lights)
     return made, light
 
 
@@ -123,17 +126,24 @@ def world_of(scene, compute: bool | None = None) -> source.WorldRef | None:
         return None
     if lighting is None or lighting.environment is None:
         return None
-    return source.WorldRef(lighting.key, lighting.environment, lighting.matrix)
+    scale = 1.0 if lighting.scale is None else float(lighting.scale)
+    return source.WorldRef(lighting.key, lighting.environment, lighting.matrix, scale)
 
 
-def _spec_of(material, scene, defer: bool, world):
+def _spec_of(material, scene, defer: bool, world, lights):
     """(spec or None, True if known). ``defer``: a linked thickness that needs a Cycles bake is
-    queued (:func:`..linked.deferring`) and the film is not known until it is done."""
+    queued (:func:`..linked.deferring`) and the film is not known until it is done. ``world``
+    (False) and ``lights`` (None) are read here when not given."""
+    if world is False:
+        world = world_of(scene)
+    if lights is None:
+        lights = light_objects.SceneLights(scene)
+    lights = lights.for_material(material) if source.may_show_film(material) else None
     try:
         if defer:
             with linked.deferring():
-                return source.spec(material, scene, world), True
-        return source.spec(material, scene, world), True
+                return source.spec(material, scene, world, lights), True
+        return source.spec(material, scene, world, lights), True
     except linked.Pending:
         return None, False
     except ValueError as exc:  # the panel and the overlay say why; EEVEE keeps what it had
@@ -155,18 +165,19 @@ def _written(material, spec, made) -> None:
     write_seconds.append(time.perf_counter() - t0)
 
 
-def sync_material(material, scene=None, wait: bool = True, defer: bool | None = None, world=False) -> str:
+def sync_material(
+    material, scene=None, wait: bool = True, defer: bool | None = None, world=False, lights=None
+) -> str:
     """Bring ``material``'s EEVEE path in step: "removed", "unchanged", "written" (``wait``: baked
     here), "queued" (the worker bakes it), "read-only" (a linked material) or "unknown" (its film
     cannot be evaluated now). ``defer`` (default: not ``wait``): a linked thickness that needs a
     Cycles bake is queued instead of baked here. ``world``: a :class:`.source.WorldRef` (or None)
-    already read for this scene, else it is read here (:func:`world_of`). Main thread."""
+    already read for this scene, else it is read here (:func:`world_of`); ``lights``: the scene's
+    :class:`.lights.SceneLights` already read (None: read here). Main thread."""
     if material.node_tree is None or wiring.is_read_only(material):
         return "read-only"
     scene = scene or bpy.context.scene
-    if world is False:
-        world = world_of(scene)
-    spec, known = _spec_of(material, scene, (not wait) if defer is None else defer, world)
+    spec, known = _spec_of(material, scene, (not wait) if defer is None else defer, world, lights)
     if not known:
         return "unknown"
     if spec is None:
@@ -225,7 +236,8 @@ def sync_all(scene=None, wait: bool = True, defer: bool | None = None, world=Fal
     materials = [m for m in bpy.data.materials if m.node_tree is not None]
     if world is False:
         world = world_of(scene) if _has_films(materials) else None
-    return {m.name: sync_material(m, scene, wait, defer, world) for m in materials}
+    lights = light_objects.SceneLights(scene)
+    return {m.name: sync_material(m, scene, wait, defer, world, lights) for m in materials}
 
 
 def _has_films(materials) -> bool:
@@ -301,16 +313,18 @@ def _service() -> float | None:
     scene = bpy.context.scene
     world = world_of(scene)
     current = None if world is None else world.key
-    global _world_key
-    if current != _world_key:  # the overlay's worker analysed a new World (no depsgraph update)
-        _world_key = current
+    global _world_key, _lights_signature
+    lit = light_objects.signature(scene)
+    if current != _world_key or lit != _lights_signature:  # a new World analysis or a light edit
+        _world_key, _lights_signature = current, lit
         names = sorted(set(names) | {m.name for m in bpy.data.materials if nodes.find(m.node_tree)[0]})
+    lights = light_objects.SceneLights(scene) if names else None  # read once for them all
     unknown = []
     for name in names:
         material = bpy.data.materials.get(name)
         if material is not None:
             try:
-                if sync_material(material, scene, wait=False, world=world) == "unknown":
+                if sync_material(material, scene, wait=False, world=world, lights=lights) == "unknown":
                     unknown.append(name)
             except Exception as exc:  # a timer must never raise
                 log.error("Thin Film SH: EEVEE film of %r: %s", name, exc)
@@ -337,8 +351,13 @@ def _on_depsgraph(scene, depsgraph) -> None:
         found = update.id
         if isinstance(found, bpy.types.Material):
             touched.append(getattr(found, "original", found).name)
-        elif isinstance(found, (bpy.types.World, bpy.types.Scene)):
-            _schedule()  # the timer compares the World's analysis with the films' own
+        elif isinstance(found, (bpy.types.World, bpy.types.Scene, bpy.types.Light)):
+            _schedule()  # the timer compares the World's analysis and the lights with the films' own
+        elif isinstance(found, bpy.types.Object):
+            if found.type == "LIGHT":
+                _schedule()
+            elif update.is_updated_transform:  # a film's object moved: its lights' directions
+                touched += [s.material.name for s in found.material_slots if s.material is not None]
     if touched:
         with _lock:
             _dirty.update(touched)
@@ -372,6 +391,8 @@ def _sync_headless(inside_render: bool = False) -> None:
     _headless_busy = True
     try:
         scene = bpy.context.scene
+        if not inside_render and bpy.context.view_layer is not None:
+            bpy.context.view_layer.update()  # objects' matrix_world: a file saved unevaluated has none
         world = world_of(scene, compute=not inside_render) if _has_films(bpy.data.materials) else None
         sync_all(scene, wait=True, defer=inside_render, world=world)
     except Exception as exc:  # a handler must never raise

@@ -218,7 +218,7 @@ def apply(material, spec: Spec, made, light=None) -> None:
     film_image_store.write(picture, made.pixels, spec.key)
     nodes.set_image(group, picture)
     weight = eevee_table.dominant_weight(spec.film.roughness) if light is not None else 0.0
-    nodes.set_constants(group, made, spec.ior, dominant=weight)
+    nodes.set_constants(group, made, spec.ior, dominant=weight, lit=light is not None)
     feed(material, node, spec, getattr(material, "thinfilm_sh", None))
     _group, output = nodes.find(tree)
     _settings(material, output, spec.structure.wall)

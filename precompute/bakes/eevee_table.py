@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import brdf
 from ..shading import transmit
 
 __all__ = [
@@ -46,18 +47,22 @@ __all__ = [
     "EEVEE_LUT_SIZE",
     "FORMAT_VERSION",
     "FilmImage",
+    "LobeLights",
     "dominant_directions",
+    "decode_directions",
     "dominant_weight",
     "eevee_lut_scale",
     "eevee_split_sum",
     "film_image",
     "glossy_colour",
+    "light_moments",
+    "lobe_norm",
     "table_albedo",
     "white_reflectance_at",
 ]
 
 #: Version of the image's layout and maths: part of the key the add-on stores with an image.
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 #: EEVEE's utility LUT is EEVEE_LUT_SIZE² texels (``UTIL_TEX_SIZE``), read with linear filtering.
 EEVEE_LUT_SIZE = 64
 #: EEVEE clamps the LUT's view cosine to [1e-4, 0.9999] when it integrates it.
@@ -83,6 +88,12 @@ DOMINANT_RAMP = (0.15, 0.3)
 #: Squared moment length below which the World is black in the lobe: the reflection direction
 #: itself (then θ' = θo), as shading/split_sum.MOMENT_EPS.
 MOMENT_EPS = 1e-30
+#: Length of the stored direction where the light objects hold none of the lobe's light; where
+#: they hold all of it, 1: the length encodes their share s as 0.5 + 0.5 s (:func:`dominant_directions`).
+SHARE_FLOOR = 0.5
+#: Midpoints over the GGX half-vector CDF of :func:`lobe_norm` (the kink at θh = 45° makes
+#: Gauss–Legendre no better): Z to < 1e-4 against 8× as many.
+_NORM_NODES = 2048
 
 
 def _smith_g1(cos_x, a2):
@@ -259,30 +270,130 @@ def dominant_weight(roughness: float) -> float:
     return float(min(1.0, max(0.0, (float(roughness) - lo) / (hi - lo))))
 
 
-def dominant_directions(pre, roughness: float, size=DIRECTIONS_SIZE) -> np.ndarray:
+@dataclass(frozen=True)
+class LobeLights:
+    """Light objects as the lobe light's moment sees them from one point (the film's centre):
+    K samples, each ``direction`` (K, 3) unit, towards the light, world frame; ``luminance``
+    (K,) the Rec.709 luminance of its irradiance E⊥ on a plane facing it (W/m², what
+    :func:`precompute.shading.lights.light_samples` gives: a sun's E, a point or spot light's
+    I/d² times its cone, an area light's cells); ``rho2`` (K,) the footprint widening its GGX
+    lobe (:func:`precompute.shading.lights.footprint`)."""
+
+    direction: np.ndarray
+    luminance: np.ndarray
+    rho2: np.ndarray
+
+    @classmethod
+    def empty(cls) -> LobeLights:
+        """No lights."""
+        return cls(np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+
+    @property
+    def count(self) -> int:
+        """K, the number of samples."""
+        return int(self.luminance.shape[0])
+
+
+@functools.lru_cache(maxsize=64)
+def lobe_norm(alpha: float) -> float:
+    """Z(α) = ∫ D(h)/4 (r·l)₊ dl with n = v = r: the prefilter's normalisation of its GGX lobe
+    over reflected directions l (precompute.world.prefilter weighs each sample by n·l over their
+    sum). With dl = 4 cos θh dωh it is the mean of (2 cos²θh − 1)₊ over GGX's half-vector CDF."""
+    a2 = max(float(alpha), 1e-7) ** 2
+    xi = (np.arange(_NORM_NODES) + 0.5) / _NORM_NODES
+    cos2 = (1.0 - xi) / (1.0 + (a2 - 1.0) * xi)
+    return float(np.mean(np.maximum(2.0 * cos2 - 1.0, 0.0)))
+
+
+def _lobe(r: np.ndarray, light: np.ndarray, alpha: float) -> np.ndarray:
+    """The prefilter's lobe D_α(h)(r·l)₊ / (4 Z(α)) at reflection directions ``r`` (N, 3) for one
+    direction ``light`` (3,) (n = v = r, so n·h = l·h)."""
+    h = r + light[None, :]
+    h_norm = np.linalg.norm(h, axis=-1)
+    cos_h = np.where(h_norm > 1e-12, (h @ light) / np.maximum(h_norm, 1e-12), 0.0)
+    return brdf.D_ggx(cos_h, alpha) * np.maximum(r @ light, 0.0) / (4.0 * lobe_norm(alpha))
+
+
+def light_moments(
+    directions, roughness: float, lights: LobeLights, level_roughness=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(moment (N, 3), luminance (N,)) of ``lights`` in the prefilter's units at reflection
+    ``directions`` (N, 3): Σ Y_k k(r, l_k) l_k and Σ Y_k k(r, l_k), k the prefilter's lobe
+    D_α'(h)(r·l)₊ / (4 Z(α')) (n = v = r, :func:`lobe_norm`) with each sample's α'² = α² + ρ²
+    (a source's size widens the highlight as the overlay's lights do). α = roughness², or, given
+    the prefilter's ``level_roughness``, the two levels' lobes blended as its lookup blends them
+    (:func:`precompute.shading.split_sum.level_blend`), so a light weighs against the World as
+    the same light painted into the panorama would. A sample of irradiance E⊥ is radiance
+    integrated over its solid angle: it adds to the prefiltered luminance (∫ Y k dl) what a
+    small patch of the panorama with that irradiance adds."""
+    from ..shading.split_sum import level_blend
+
+    r = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    if level_roughness is None:
+        lobes = [(float(roughness) ** 2, 1.0)]
+    else:
+        levels = np.asarray(level_roughness, dtype=np.float64)
+        lo, frac = level_blend(np.asarray(float(roughness)), levels)
+        lo, frac = int(lo), float(frac)
+        lobes = [(levels[lo] ** 2, 1.0 - frac), (levels[lo + 1] ** 2, frac)]
+    moment, total = np.zeros(r.shape), np.zeros(r.shape[0])
+    for l, y, rho2 in zip(lights.direction, lights.luminance, lights.rho2, strict=True):
+        if not (np.isfinite(y) and y > 0.0):
+            continue
+        l = np.asarray(l, dtype=np.float64)
+        k = sum(w * _lobe(r, l, math.sqrt(max(a, 1e-7) ** 2 + float(rho2))) for a, w in lobes if w > 0.0)
+        total += float(y) * k
+        moment += float(y) * k[:, None] * l[None, :]
+    return moment, total
+
+
+def dominant_directions(
+    pre, roughness: float, size=DIRECTIONS_SIZE, lights: LobeLights | None = None
+) -> np.ndarray:
     """The lobe light's mean direction c per reflection direction: (H, W, 4) float32 RGBA, rows
     bottom first (Blender's pixel order), an equirect grid in Blender's Environment Texture
-    mapping (conventions.md), RGB = (c + 1)/2 (c unit, world frame: stored in [0, 1], as a
-    texture read need not keep negative values), A = 1.
+    mapping (conventions.md), RGB = (ℓ c + 1)/2 (c unit, world frame: stored in [0, 1], as a
+    texture read need not keep negative values), A = 1. ℓ = 0.5 + 0.5 s (:data:`SHARE_FLOOR`),
+    s the light objects' share of the lobe's luminance: the group reads the film at θ' with
+    the weight dominant + (1 − dominant) s (a light object's highlight is always read at its
+    half vector; EEVEE shades it per light, with no prefilter's n = v = r).
 
     ``pre``: a :class:`precompute.world.prefilter.Prefiltered` with moments (its ``rotation`` and
-    ``scale`` applied: the World as it is); c = the prefiltered luminance × direction moment at
-    ``roughness`` in that direction (:func:`precompute.shading.split_sum.lookup`), normalised; where it
-    vanishes, the direction itself.
+    ``scale`` applied: the World as it is) or None; ``lights``: :class:`LobeLights` or None.
+    c = the World's prefiltered luminance × direction moment at ``roughness`` in that direction
+    (:func:`precompute.shading.split_sum.lookup`) plus the lights' (:func:`light_moments`),
+    normalised; where it vanishes, the direction itself.
     """
     from ..shading.split_sum import lookup
     from ..world.hdri import equirect_directions
+    from ..world.prefilter import LUMINANCE
 
     width, height = int(size[0]), int(size[1])
     directions = equirect_directions(height, width)
-    if pre is None or pre.moments is None:
-        found = directions
-    else:
-        moment = lookup(pre, directions.reshape(-1, 3), float(roughness), moments=True).reshape(
-            directions.shape
-        )
-        norm2 = np.sum(moment * moment, axis=-1, keepdims=True)
-        found = np.where(norm2 > MOMENT_EPS, moment / np.sqrt(np.maximum(norm2, MOMENT_EPS)), directions)
+    flat = directions.reshape(-1, 3)
+    moment = np.zeros(flat.shape)
+    world_y = np.zeros(flat.shape[0])
+    if pre is not None and pre.moments is not None:
+        moment = lookup(pre, flat, float(roughness), moments=True)
+        world_y = np.maximum(lookup(pre, flat, float(roughness)) @ np.asarray(LUMINANCE), 0.0)
+    share = np.zeros(flat.shape[0])
+    if lights is not None and lights.count:
+        levels = None if pre is None else pre.roughness
+        light_m, light_y = light_moments(flat, roughness, lights, level_roughness=levels)
+        moment = moment + light_m
+        both = world_y + light_y
+        share = np.where(both > 0.0, light_y / np.where(both > 0.0, both, 1.0), 0.0)
+    norm2 = np.sum(moment * moment, axis=-1, keepdims=True)
+    found = np.where(norm2 > MOMENT_EPS, moment / np.sqrt(np.maximum(norm2, MOMENT_EPS)), flat)
+    found = found * (SHARE_FLOOR + (1.0 - SHARE_FLOOR) * np.clip(share, 0.0, 1.0))[:, None]
     pixels = np.ones((height, width, 4), dtype=np.float32)
-    pixels[..., :3] = 0.5 * (found[::-1] + 1.0)
+    pixels[..., :3] = 0.5 * (found.reshape(directions.shape)[::-1] + 1.0)
     return pixels
+
+
+def decode_directions(pixels) -> tuple[np.ndarray, np.ndarray]:
+    """(c (H, W, 3) unit, s (H, W)) of a :func:`dominant_directions` image, rows as stored."""
+    v = 2.0 * np.asarray(pixels, dtype=np.float64)[..., :3] - 1.0
+    length = np.linalg.norm(v, axis=-1)
+    c = v / np.maximum(length, 1e-12)[..., None]
+    return c, np.clip((length - SHARE_FLOOR) / (1.0 - SHARE_FLOOR), 0.0, 1.0)

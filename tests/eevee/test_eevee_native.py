@@ -15,6 +15,7 @@ tiny frames (32–48 px, one TAA sample) under a uniform white World, read back 
 - a thin-wall (soap bubble) film lets the background through.
 """
 
+import math
 import pathlib
 import tempfile
 
@@ -432,7 +433,8 @@ def test_the_groups_equirect_lookup_reads_the_directions_image_as_written(bpy, e
         expected = top_first[row, min(int(u * columns), columns - 1)]
         assert np.allclose(seen, expected, atol=2e-3), (d, seen, expected)  # half-float storage
         seen_all.append(seen)
-    assert np.ptp(np.array(seen_all), axis=0).max() > 0.5, "different directions read different texels"
+    # without light objects c is stored at length 0.5 (share 0): texels span [0.25, 0.75]
+    assert np.ptp(np.array(seen_all), axis=0).max() > 0.25, "different directions read different texels"
 
 
 def test_a_copied_material_gets_its_own_group_and_image_at_its_edit(bpy, ext):
@@ -455,3 +457,89 @@ def test_a_copied_material_gets_its_own_group_and_image_at_its_edit(bpy, ext):
     twin.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
     assert ext.sync.sync_material(twin, scene) == "removed"
     assert ext.nodes.find(mat.node_tree)[0].node_tree == group and ext.sync._current_key(mat) == key
+
+
+def _lobe_light(bpy, ext, mat):
+    """(c (H, W, 3), share (H, W)) of the material's dominant-direction image, top row first
+    (as precompute.world.hdri.equirect_directions)."""
+    image = ext.nodes.find(mat.node_tree)[0].node_tree.nodes["light"].image
+    width, height = image.size
+    pixels = np.array(image.pixels[:], dtype=np.float64).reshape(height, width, 4)[::-1]
+    return ext.eevee_table.decode_directions(pixels)
+
+
+def _live_tick(bpy, ext):
+    """What the interface does after an edit: the depsgraph update (its handler notes it), the
+    timer's tick (reads the specs, queues the changed ones for the worker), the worker's end
+    (waited on), the timer's next tick (writes)."""
+    bpy.context.view_layer.update()
+    ext.sync._service()
+    assert ext.sync.wait_idle(120.0), "the worker must finish the light image"
+    ext.sync._service()
+
+
+def test_a_light_object_added_moved_or_switched_off_rewrites_the_light_image(bpy, ext):
+    """The lobe light follows the light objects on the live path: adding a sun of 20 W/m² over
+    the uniform white World (radiance 1) points the material's direction image at the sun in
+    every reflection direction within 8° of it (its GGX lobe at roughness 0.2 holds ≥ 60× the
+    World's light there: within 1°, share > 0.95); turning the sun moves them with it; a sun
+    of 0 W/m² leaves the image as the World alone made it."""
+    import mathutils
+
+    from precompute.world import hdri
+
+    scene = _scene(bpy)
+    mat = _film_material(bpy)
+    _plate(bpy, scene, mat)
+    ext.sync.sync_material(mat, scene)
+    alone_c, alone_share = _lobe_light(bpy, ext, mat)
+    assert alone_share.max() < 1e-5, "no light objects yet: the World alone"
+    data = bpy.data.lights.new("sun", "SUN")
+    data.energy, data.angle = 20.0, math.radians(1.0)
+    sun = bpy.data.objects.new("sun", data)
+    scene.collection.objects.link(sun)
+    grid = hdri.equirect_directions(*alone_share.shape)
+    for rotation in ((0.5, 0.2, 0.3), (-0.9, 0.4, 2.0)):
+        sun.rotation_euler = rotation
+        _live_tick(bpy, ext)
+        toward = mathutils.Euler(rotation).to_matrix() @ mathutils.Vector((0.0, 0.0, 1.0))
+        toward = np.array(toward)  # the sun shines along its −Z: the film sees it along its +Z
+        c, share = _lobe_light(bpy, ext, mat)
+        near = grid @ toward > np.cos(np.radians(8.0))
+        assert near.sum() >= 4
+        worst = np.degrees(np.arccos(np.clip(c[near] @ toward, -1.0, 1.0))).max()
+        assert worst < 1.0, f"sun turned to {rotation}: the lobe light is {worst:.2f}° off the sun"
+        assert share[near].min() > 0.95, f"the sun's share near it: {share[near].min():.3f}"
+    data.energy = 0.0
+    _live_tick(bpy, ext)
+    c, share = _lobe_light(bpy, ext, mat)
+    assert share.max() < 1e-5 and np.allclose(c, alone_c, atol=1e-5), "a dark sun changes nothing"
+
+
+def test_a_glossy_film_under_a_sun_weighs_it_against_the_world(bpy, ext):
+    """At roughness 0.05 the World alone would not be read at θ' (the ramp's weight is 0), but
+    with a light object the World still weighs against it: away from the sun's highlight (more
+    than 30° from it) the white World holds the lobe (share < 0.01), at the sun it is the sun's
+    (share > 0.95). Without the World in the weighting GGX's long tails would give the sun the
+    whole sphere of directions."""
+    import mathutils
+
+    from precompute.world import hdri
+
+    scene = _scene(bpy)
+    mat = _film_material(bpy, roughness=0.05)
+    _plate(bpy, scene, mat)
+    data = bpy.data.lights.new("sun", "SUN")
+    data.energy, data.angle = 20.0, math.radians(1.0)
+    sun = bpy.data.objects.new("sun", data)
+    scene.collection.objects.link(sun)
+    sun.rotation_euler = (0.3, -0.4, 0.0)
+    bpy.context.view_layer.update()
+    assert ext.sync.sync_material(mat, scene) == "written"
+    c, share = _lobe_light(bpy, ext, mat)
+    toward = np.array(mathutils.Euler((0.3, -0.4, 0.0)).to_matrix() @ mathutils.Vector((0.0, 0.0, 1.0)))
+    grid = hdri.equirect_directions(*share.shape)
+    cosine = grid @ toward
+    assert share[cosine < np.cos(np.radians(30.0))].max() < 0.01, "away from the sun the World holds the lobe"
+    nearest = np.unravel_index(np.argmax(cosine), cosine.shape)
+    assert share[nearest] > 0.95 and c[nearest] @ toward > np.cos(np.radians(1.0))

@@ -156,8 +156,9 @@ def test_diffuse_band_is_the_weight_under_the_film():
 def test_dominant_directions_point_at_a_lamp():
     """A black World with one small bright lamp: in every reflection direction whose GGX lobe
     reaches the lamp, the lobe light's mean direction c is the lamp's; the image is in Blender's
-    pixel order (bottom row first, its Environment Texture mapping) and c is a unit vector. A
-    World without moments gives the reflection direction itself."""
+    pixel order (bottom row first, its Environment Texture mapping) and, without light objects,
+    stores c at length 0.5 (their share 0). A World without moments gives the reflection
+    direction itself."""
     from precompute.world import hdri, prefilter
 
     height, width = 64, 128
@@ -169,14 +170,16 @@ def test_dominant_directions_point_at_a_lamp():
     pre = prefilter.prefilter(image)
     pixels = eevee_table.dominant_directions(pre, 0.3, size=(64, 32))
     assert pixels.shape == (32, 64, 4)
-    c = 2.0 * pixels[::-1, :, :3] - 1.0  # top row first again, as hdri.equirect_directions; decoded
+    raw = 2.0 * pixels[::-1, :, :3] - 1.0  # top row first again, as hdri.equirect_directions
+    c, share = eevee_table.decode_directions(pixels[::-1])
     grid = hdri.equirect_directions(32, 64)
     near = (grid @ lamp) > np.cos(np.radians(20.0))
     assert near.sum() > 4
     assert np.all(c[near] @ lamp > 0.99), "near the lamp the mean light direction is the lamp's"
-    assert np.allclose(np.linalg.norm(c, axis=-1), 1.0, atol=1e-5)
+    assert np.allclose(np.linalg.norm(raw, axis=-1), eevee_table.SHARE_FLOOR, atol=1e-5)
+    assert share.max() < 1e-5
     plain = eevee_table.dominant_directions(None, 0.3, size=(64, 32))
-    assert np.allclose(2.0 * plain[::-1, :, :3] - 1.0, grid, atol=1e-6)
+    assert np.allclose(eevee_table.decode_directions(plain[::-1])[0], grid, atol=1e-6)
 
 
 def test_dominant_weight_ramps_with_roughness():
@@ -186,3 +189,84 @@ def test_dominant_weight_ramps_with_roughness():
     assert eevee_table.dominant_weight(0.0) == 0.0 and eevee_table.dominant_weight(lo) == 0.0
     assert eevee_table.dominant_weight(hi) == 1.0 and eevee_table.dominant_weight(1.0) == 1.0
     assert eevee_table.dominant_weight(0.5 * (lo + hi)) == pytest.approx(0.5)
+
+
+def _sun_scene(sun, world_radiance=1e-3, irradiance=4.0, roughness=0.3, height=64, width=128):
+    """A uniform dim World's prefilter and one sun of ``irradiance`` (W/m², luminance) at ``sun``."""
+    from precompute.world import prefilter
+
+    pre = prefilter.prefilter(np.full((height, width, 3), world_radiance))
+    lights = eevee_table.LobeLights(np.array([sun]), np.array([irradiance]), np.array([1e-5]))
+    return pre, lights
+
+
+def test_a_sun_dominating_a_dim_world_is_the_lobe_light_everywhere_it_reaches():
+    """A sun of 4 W/m² over a uniform World of 0.001 W/(m² sr), roughness 0.3: wherever the
+    film's reflection direction is within 45° of the sun (its GGX lobe still holds ≥ 80× the
+    World's light there: D at θh = 22.5°), the stored direction is the sun's within 1° and the
+    lights' share of the lobe is over 0.98; opposite the sun the World alone lights the lobe
+    (share < 0.01) and c is the reflection direction (a uniform World's mean light direction,
+    within 1°)."""
+    from precompute.world import hdri
+
+    sun = np.array([0.4, -0.5, 0.77])
+    sun /= np.linalg.norm(sun)
+    pre, lights = _sun_scene(sun)
+    pixels = eevee_table.dominant_directions(pre, 0.3, size=(64, 32), lights=lights)
+    c, share = eevee_table.decode_directions(pixels[::-1])  # top row first, as equirect_directions
+    grid = hdri.equirect_directions(32, 64)
+    near = grid @ sun > np.cos(np.radians(45.0))
+    far = grid @ sun < np.cos(np.radians(150.0))
+    assert near.sum() > 30 and far.sum() > 20
+    worst = np.degrees(np.arccos(np.clip(c[near] @ sun, -1.0, 1.0))).max()
+    assert worst < 1.0, f"within 45° of the sun the lobe light must be the sun: worst {worst:.3f}°"
+    assert share[near].min() > 0.98, f"the sun's share there: min {share[near].min():.4f}"
+    assert share[far].max() < 0.01, f"opposite the sun the World lights the lobe: {share[far].max():.4f}"
+    off = np.degrees(np.arccos(np.clip(np.sum(c[far] * grid[far], axis=-1), -1.0, 1.0))).max()
+    assert off < 1.0, f"a uniform World's lobe light is the reflection direction: worst {off:.3f}°"
+
+
+def test_a_zero_power_light_changes_nothing():
+    """A light that brings no light (0 W, or no light at all) leaves the image as the World alone
+    makes it: every pixel within 1e-7 (the same arithmetic: exact up to float32 storage), share 0."""
+    sun = np.array([0.0, 0.6, 0.8])
+    pre, _lights = _sun_scene(sun)
+    alone = eevee_table.dominant_directions(pre, 0.3, size=(64, 32))
+    dark = eevee_table.LobeLights(np.array([sun]), np.array([0.0]), np.array([1e-5]))
+    with_dark = eevee_table.dominant_directions(pre, 0.3, size=(64, 32), lights=dark)
+    assert np.allclose(with_dark, alone, rtol=0.0, atol=1e-7)
+    empty = eevee_table.dominant_directions(pre, 0.3, size=(64, 32), lights=eevee_table.LobeLights.empty())
+    assert np.allclose(empty, alone, rtol=0.0, atol=1e-7)
+    assert eevee_table.decode_directions(alone)[1].max() < 1e-6, "no lights: share 0 everywhere"
+
+
+@pytest.mark.parametrize("roughness", [0.3, 0.5])
+def test_a_light_weighs_as_the_same_light_painted_into_the_world(roughness):
+    """The lights' weight against the World: a light of irradiance E must add to the lobe's
+    luminance what a 3° patch of the panorama with the same irradiance adds to the World's
+    prefilter (an independent computation: precompute.world.prefilter's filtered importance
+    sampling of an image, and its level blend). Compared in the reflection direction of the
+    patch, where the lobe holds it: within 10%. (Further out, 10–30°, the prefilter's tails of a
+    small patch come out 1.2–3.5× lower than the lobe's integral: its coarse mip reads; the
+    lights' lobe is the exact one.)"""
+    from precompute.shading.split_sum import lookup
+    from precompute.world import hdri, prefilter
+
+    height, width = 256, 512
+    sun = np.array([0.5, -0.6, 0.62])
+    sun /= np.linalg.norm(sun)
+    directions = hdri.equirect_directions(height, width)
+    patch = directions @ sun > np.cos(np.radians(3.0))
+    theta = (np.arange(height) + 0.5) / height * np.pi
+    solid = (np.pi / height) * (2.0 * np.pi / width) * np.sin(theta)[:, None] * np.ones((1, width))
+    image = np.zeros((height, width, 3))
+    image[patch] = 200.0
+    irradiance = 200.0 * solid[patch].sum()  # the patch's radiance × its solid angle (W/m²)
+    pre = prefilter.prefilter(image)
+    painted = float(lookup(pre, sun[None], roughness)[0] @ np.asarray(prefilter.LUMINANCE))
+    footprint = np.sin(np.radians(3.0)) ** 2 / 4.0  # the patch's size, as lights.footprint
+    lights = eevee_table.LobeLights(sun[None], np.array([irradiance]), np.array([footprint]))
+    _moment, ours = eevee_table.light_moments(sun[None], roughness, lights, level_roughness=pre.roughness)
+    assert ours[0] == pytest.approx(painted, rel=0.10), (
+        f"light {ours[0]:.3f} vs the same light in the World's prefilter {painted:.3f} (E {irradiance:.3f})"
+    )
