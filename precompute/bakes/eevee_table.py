@@ -70,7 +70,7 @@ LUT_COS_MIN, LUT_COS_MAX = 1e-4, 0.9999
 #: The image's bands, in row order (a band is present only when the film needs it).
 BANDS = ("specular", "inverse", "diffuse", "transmission")
 #: Gauss–Legendre nodes over the GGX half-vector CDF and half-plane azimuth nodes of the LUT's
-#: integral: E to < 1e-4 against 4× as many (tests/test_eevee_table.py).
+#: integral: E to < 1e-4 against 4× as many (tests/eevee/test_eevee_table.py).
 _XI_NODES, _PHI_NODES = 64, 48
 #: A split sum below this counts as 0 (a view at the horizon): the colour there is not divided.
 MIN_SCALE = 1e-4
