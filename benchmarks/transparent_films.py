@@ -344,9 +344,11 @@ NOTES = """\
 of the scene (`render --engine`, default EEVEE). EEVEE's pass is lit by the World's lamps as sun
 lights (addon/headless/background_lamps.py: under this studio HDRI, a lamp of 616 in a panorama
 of mean 0.55, EEVEE's own World lighting lit the checker ground 5.1× brighter than Cycles; the
-lamps as suns 0.98×), and transparent films cast no EEVEE shadow there (EEVEE's is opaque). A
-run with `--engine CYCLES` renders the pass with Cycles instead: the comparison is then of the
-films alone. The bubble's background is the HDRI alone, the same in every engine.
+lamps as suns 0.98×); thin transparent films cast no EEVEE shadow there, solid glass casts the
+suns' shadow as a straight shadow ray through it carries their light, 1 − F(θ) per face
+(`background_lamps.glass_shadows`; EEVEE's opaque shadow measured worse). A run with
+`--engine CYCLES` renders the pass with Cycles instead: the comparison is then of the films
+alone. The bubble's background is the HDRI alone, the same in every engine.
 
 **Solid glass** (ball, cube, wine glass; a 300 nm film of 1.33 on glass of 1.5, roughness 0.05)
 leaves through its real mesh: its nearest front and back faces per pixel (the glass buffers),
@@ -362,9 +364,12 @@ rest of its upper and lower halves: they add up to the mean.
 30× in the first references (a reflection chosen with probability F ≈ 0.03 carries 1/F of the
 lamp's 400 and is clamped), so the references are rendered with the clamps off
 (`SCENE_VERSION` 2). Not in our frame: Cycles' caustics on the ground (a ball brightens the
-ground beside its foot to 1.15–1.25× and shades a band to 0.72–0.85×), a concave glass's far
+ground beside its foot to 1.15–1.25×), a concave glass's far
 wall (a wine glass is taken as its nearest front and back faces), light inside the glass after
-more than one reflection.
+more than one reflection. The ground where the cube and the wine glass's foot stand on it
+(their bottom faces coplanar with it) is dark in Cycles: a probe (a 6 × 6 × 2 glass block, IOR
+1.5, roughness 0.05, on a white ground under a uniform sky, 64 spp) lights the ground under it
+0.040 in contact and 0.351 with a 0.02 gap; our pass lights it as through glass with a gap.
 
 *Cycles s* is 0 for a cached render: the 1024-spp ones took 876 s (glass) and 353 s (bubble) on
 this machine at a load average of 6–8.

@@ -21,7 +21,10 @@ the pass renders and restored after it (:func:`world_lamps_as_suns`):
   each sun carrying its group's power (RGB) as its irradiance, along its power-weighted mean
   direction, with the angle of a disc of its group's solid angle; they cast shadows (the
   camera-invisible films still cast theirs);
-- EEVEE's own sun extraction is turned off (*Sun Threshold* raised above any radiance).
+- EEVEE's own sun extraction is turned off (*Sun Threshold* raised above any radiance);
+- solid glass casts the suns' shadow as a straight shadow ray through glass carries their
+  light, 1 − F(θ) through each face (:func:`glass_shadows`): EEVEE's opaque shadow measured
+  worse against Cycles (docs/transparent-films.md#figures).
 
 The sum keeps the World's power (the suns take exactly what the World lost:
 tests/headless/test_background_lamps.py). It applies
@@ -191,3 +194,76 @@ def world_lamps_as_suns(scene, panorama):
         if source is not None:
             tree.links.new(source, colour)
         world.sun_threshold = saved_threshold
+
+
+def _glass_shadow_material(bpy, eta: float):
+    """A material whose shadow lets through 1 − F(θ) at each of its faces: F the Fresnel reflectance
+    at relative index ``eta`` of the light's incidence θ on the face (EEVEE's shadow pass sees along
+    the light: its Incoming is the light's direction), the same index on faces seen from inside
+    (the light goes straight through: across parallel faces this is the refracted ray's loss).
+    Transparent shadows (``use_transparent_shadow``): a shadow map texel is let through with
+    probability 1 − F per face, converged over the render's samples."""
+    mat = bpy.data.materials.new(f"thinfilm_glass_shadow_{eta:.4f}")
+    if mat.node_tree is None:  # before Blender 5.0
+        mat.use_nodes = True
+    mat.use_transparent_shadow = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    clear = tree.nodes.new("ShaderNodeBsdfTransparent")
+    dark = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    dark.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    fresnel = tree.nodes.new("ShaderNodeFresnel")
+    side = tree.nodes.new("ShaderNodeNewGeometry")
+    index = tree.nodes.new("ShaderNodeMix")  # the Fresnel node takes 1/IOR on back faces: undo it
+    index.data_type = "FLOAT"
+    index.inputs["A"].default_value = float(eta)
+    index.inputs["B"].default_value = 1.0 / float(eta)
+    links = tree.links
+    links.new(side.outputs["Backfacing"], index.inputs["Factor"])
+    links.new(index.outputs["Result"], fresnel.inputs["IOR"])
+    import os
+
+    if os.environ.get("TF_GLASS_SHADOW") == "opaque":
+        mix.inputs[0].default_value = 1.0
+    else:
+        links.new(fresnel.outputs[0], mix.inputs[0])
+    links.new(clear.outputs[0], mix.inputs[1])
+    links.new(dark.outputs[0], mix.inputs[2])
+    links.new(mix.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+@contextlib.contextmanager
+def glass_shadows(glass):
+    """While inside: the solid glass objects ``glass`` ({object name: relative index η}) cast the
+    shadow a lamp's light sees through glass as Cycles' next-event estimation lights it from a
+    straight shadow ray: 1 − F(θ) through each face (:func:`_glass_shadow_material` on every
+    material slot, linked to the object); their materials restored after. For EEVEE's background
+    pass, where the objects are hidden from the camera: the suns of :func:`world_lamps_as_suns`
+    are shadowed, the World's smooth part (EEVEE's probe, unshadowed) still lights what is
+    under the glass."""
+    import bpy
+
+    made, saved = {}, []
+    try:
+        for name, eta in sorted(dict(glass).items()):
+            obj = bpy.data.objects.get(name)
+            if obj is None or not eta > 0.0 or not obj.material_slots:
+                continue
+            key = round(float(eta), 4)
+            if key not in made:
+                made[key] = _glass_shadow_material(bpy, key)
+            for slot in obj.material_slots:
+                link = slot.link
+                slot.link = "OBJECT"
+                saved.append((slot, link, slot.material))
+                slot.material = made[key]
+        yield len(saved)
+    finally:
+        for slot, link, material in reversed(saved):
+            slot.material = material
+            slot.link = link
+        for mat in made.values():
+            bpy.data.materials.remove(mat)

@@ -38,6 +38,7 @@ from .background import (
     behind_texture,
     composite,
     film_layers,
+    glass_indices,
     refraction_margin,
     render_background,
     view_depth,
@@ -243,6 +244,7 @@ def render_scene(
             transparent=not background,
             margin=refraction_margin(items, width, height),
             world=lighting.background() if lighting is not None else None,
+            glass=glass_indices(items),
         )
         rgba, nonfinite = _films_over(
             behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages
