@@ -59,17 +59,18 @@ def set_cache_preference(bpy, prefs, cache_dir) -> None:
 @contextlib.contextmanager
 def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = True, gpu: bool = False):
     """The extension imported from ``root`` and registered, as a namespace: ``package``,
-    ``cache_dir`` (``root/cache``) and each of ``modules`` ("addon.headless.headless",
-    "precompute.bakes.bake", "addon.gpu.draw", …) under its last name. ``cache_preference``: the
-    Cache Directory preference set to ``cache_dir``, else only the add-on's preferences entry made; ``gpu``: a
-    GPU context ensured. On exit the preferences entry is removed and the package forgotten."""
+    ``cache_dir`` (``root/cache`` as a string, what the Cache Directory preference holds) and each
+    of ``modules`` ("addon.headless.headless", "precompute.bakes.bake", …) under its last name.
+    ``cache_preference``: the Cache Directory preference set to ``cache_dir``, else only the
+    add-on's preferences entry made; ``gpu``: a GPU context ensured and ``gpu`` the GPU layer
+    (:func:`gpu_layer`). On exit the preferences entry is removed and the package forgotten."""
     import types
 
     with linked_extension(root) as package:
         addons = bpy.context.preferences.addons
         try:
             package.register()
-            ns = types.SimpleNamespace(package=package, cache_dir=root / "cache")
+            ns = types.SimpleNamespace(package=package, cache_dir=str(root / "cache"))
             for dotted in modules:
                 setattr(ns, dotted.rpartition(".")[2], importlib.import_module(f"{EXTENSION_ID}.{dotted}"))
             if cache_preference:
@@ -78,7 +79,8 @@ def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = T
             elif addons.get(EXTENSION_ID) is None:
                 addons.new().module = EXTENSION_ID
             if gpu:
-                importlib.import_module(f"{EXTENSION_ID}.addon.gpu.context").ensure_gpu_context()
+                ns.gpu = gpu_layer()
+                ns.gpu.context.ensure_gpu_context()
             yield ns
         finally:
             entry = addons.get(EXTENSION_ID)

@@ -19,7 +19,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import gpu_layer, registered_extension  # noqa: E402
+from _extension import registered_extension  # noqa: E402
 
 from precompute.bakes import bake  # noqa: E402
 from precompute.materials.material import Layer, Material, Quality  # noqa: E402
@@ -41,8 +41,6 @@ def tf(bpy, tmp_path_factory):
         "addon.ui.prefs",
     )
     with registered_extension(bpy, root, modules, cache_preference=True, gpu=True) as ns:
-        ns.cache_dir = str(ns.cache_dir)
-        ns.gpu = gpu_layer()
         yield ns
 
 

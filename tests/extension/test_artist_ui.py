@@ -64,7 +64,6 @@ def tf(bpy, tmp_path_factory):
         "addon.world.world_state",
     )
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
-        ns.cache_dir = str(ns.cache_dir)
         ns.root = root
         yield ns
 

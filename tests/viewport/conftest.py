@@ -6,7 +6,7 @@ test_viewport_state.py, which the other files here import from it.
 """
 
 import pytest
-from _extension import gpu_layer, registered_extension
+from _extension import registered_extension
 
 
 @pytest.fixture(scope="module")
@@ -35,8 +35,6 @@ def tf(bpy, tmp_path_factory):
         "precompute.tables.table_cache",
     )
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
-        ns.cache_dir = str(ns.cache_dir)
-        ns.gpu = gpu_layer()
         yield ns
 
 

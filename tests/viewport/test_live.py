@@ -149,7 +149,6 @@ def tf(bpy, tmp_path_factory):
     modules += ["precompute.bakes.bake", "precompute.colour.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
     with registered_extension(bpy, root, modules, cache_preference=False, gpu=True) as ns:
-        ns.cache_dir = str(ns.cache_dir)
         yield ns
 
 
