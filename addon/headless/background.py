@@ -303,9 +303,8 @@ def wall_objects(items) -> set:
 
 def glass_indices(items) -> dict:
     """{object name: relative index η} of the solid glass items (:func:`render_background`'s
-    ``glass``): under EEVEE they cast the lamps' shadow through glass. Against Cycles
-    (docs/transparent-films.md#figures): the ground around the glass ball 3.35 → 3.11 mean
-    ΔE2000, the ball 3.93, the cube 8.21 → 8.20, the wine glass 24.08 → 23.78."""
+    ``glass``): under EEVEE they cast the lamps' shadow through glass. Against Cycles, the
+    ground around the glass ball 3.35 → 3.11 mean ΔE2000 (docs/transparent-films.md#figures)."""
     return {item.name.split("/")[0]: float(item.wall[1]) for item in solid_glass(items)}
 
 

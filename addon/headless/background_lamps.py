@@ -223,12 +223,7 @@ def _glass_shadow_material(bpy, eta: float):
     links = tree.links
     links.new(side.outputs["Backfacing"], index.inputs["Factor"])
     links.new(index.outputs["Result"], fresnel.inputs["IOR"])
-    import os
-
-    if os.environ.get("TF_GLASS_SHADOW") == "opaque":
-        mix.inputs[0].default_value = 1.0
-    else:
-        links.new(fresnel.outputs[0], mix.inputs[0])
+    links.new(fresnel.outputs[0], mix.inputs[0])
     links.new(clear.outputs[0], mix.inputs[1])
     links.new(dark.outputs[0], mix.inputs[2])
     links.new(mix.outputs[0], out.inputs["Surface"])
