@@ -58,6 +58,26 @@ class CueRecorder(threading.Event):
         super().set()
 
 
+class RedrawLog(list):
+    """A stand-in for the viewport's ``_tag_redraw`` that records, at each redraw, how many
+    times the watched :class:`CueRecorder` had been set by then.
+
+    The timer tick that starts a job may itself take that job's cue (a quick bake beside a slow
+    World read): the redraw that shows the result is then that tick's, not the next one's. A
+    test asserts ``log.after_cue()``: the last redraw followed the cue, whichever tick made it.
+    """
+
+    def __init__(self, cue: CueRecorder | None = None):
+        super().__init__()
+        self.cue = cue
+
+    def __call__(self):
+        self.append(len(self.cue.seen) if self.cue is not None else 0)
+
+    def after_cue(self) -> bool:
+        return bool(self) and self[-1] >= 1
+
+
 #: How long a call checked by :func:`finishes` may take: far above any refusal of bad input (each
 #: takes milliseconds, seconds under load) and far below what the regressions it catches take (a
 #: 293 s bake on an invalid value, 10^10 channel names, reading /dev/zero, a FIFO never opened).

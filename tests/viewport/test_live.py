@@ -23,7 +23,7 @@ import types
 import numpy as np
 import pytest
 from _extension import EXTENSION_ID, registered_extension
-from _waits import EVENT_TIMEOUT_S, CueRecorder, viewport_lanes_idle, wait_for
+from _waits import EVENT_TIMEOUT_S, CueRecorder, RedrawLog, viewport_lanes_idle, wait_for
 
 #: The camera of the off-screen draws: at −y, looking at the sheet in the xz-plane.
 VIEW = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, -4.0], [0, 0, 0, 1]], dtype=float)
@@ -292,20 +292,22 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     even when nothing else runs any more (no stalled edit waiting for an unrelated redraw)."""
     vp = tf.viewport
     bj = tf.bake_jobs
-    redraws = []
-    monkeypatch.setattr(vp, "_tag_redraw", lambda: redraws.append(1))
     bake_cue = CueRecorder(lambda: bj.BAKES.running)
     monkeypatch.setattr(bj.BAKES, "_finished", bake_cue)
+    redraws = RedrawLog(bake_cue)
+    monkeypatch.setattr(vp, "_tag_redraw", redraws)
     film(bpy, scene)
     frame(bpy, tf)  # queues the bake
+    redraws.clear()
     vp._service()
     wait_for(lambda: viewport_lanes_idle(vp), "the bake (and any World or display job it started beside)")
     assert bake_cue.seen == [True], (
         f"the bake's worker set its redraw cue with running={bake_cue.seen}: it must set it before "
         "it leaves the running list, or a timer tick in between stops the timer and the redraw is lost"
     )
-    redraws.clear()
-    assert vp._service() is None and redraws == [1], f"redraws asked for after the bake ended: {redraws}"
+    assert vp._service() is None and redraws.after_cue(), (
+        f"cues set at each redraw since the bake started: {redraws} (the last must follow the cue)"
+    )
 
     img = bpy.data.images.new("Sky", 32, 16, float_buffer=True, alpha=False)
     img.pixels.foreach_set(np.full(32 * 16 * 4, 0.5, dtype=np.float32))
@@ -319,15 +321,18 @@ def test_a_finished_bake_and_a_finished_world_update_ask_for_a_redraw(bpy, tf, s
     assert tf.world_job.busy()
     world_cue = CueRecorder(lambda: tf.world_job.WORK.running)
     monkeypatch.setattr(tf.world_job.WORK, "_finished", world_cue)
+    redraws.cue = world_cue
+    redraws.clear()
     vp._service()  # reads it here, analyses it on a worker
     wait_for(lambda: not tf.world_job.busy(), "the World's analysis")
     assert world_cue.seen == [True], (
         f"the World's worker set its redraw cue with running={world_cue.seen}: it must set it "
         "before it leaves the running list (the same lost redraw as the bake's)"
     )
-    redraws.clear()
-    # the job ended: the tick after redraws
-    assert vp._service() is None and redraws == [1], f"redraws after the World's analysis: {redraws}"
+    # the job ended: this tick redraws, unless the tick that started it already took its cue
+    assert vp._service() is None and redraws.after_cue(), (
+        f"cues set at each redraw since the World's analysis started: {redraws}"
+    )
     assert vp.activity() == ""
 
 
