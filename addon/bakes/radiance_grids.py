@@ -119,10 +119,10 @@ def _work(job: _Worker) -> None:
             log.error("Thin Film SH: radiance grid failed: %s", exc)
             grid = None
         with GRIDS.lock:
+            GRIDS.work.mark_finished()  # the cue before it stops looking busy: _poll never sees neither
             GRIDS.running = None
             if grid is not None:
                 _keep_built(key, grid)
-        GRIDS.work.mark_finished()
 
 
 def _poll() -> float | None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import importlib
 import math
 import re
+import threading
 
 import numpy as np
 import pytest
@@ -381,7 +382,28 @@ def test_a_principled_film_preview_can_be_switched_off_per_material(bpy, tf, sce
 # ----------------------------------------------------------------------------------------------
 # Background work
 # ----------------------------------------------------------------------------------------------
-def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
+class HeldBake:
+    """``precompute.bakes.bake.bake`` held at its start until :meth:`open`: a test reads a bake's
+    running state (header, cancel) while it surely runs, however fast the bake or slow the
+    test's thread (a 0.2 s bake could end before a loaded main thread looked)."""
+
+    def __init__(self, monkeypatch):
+        self.module = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
+        self.real = self.module.bake
+        self.started = threading.Event()
+        self.opened = threading.Event()
+        monkeypatch.setattr(self.module, "bake", self)
+
+    def __call__(self, material, progress=None):
+        self.started.set()
+        assert self.opened.wait(EVENT_TIMEOUT_S), "the held bake was never let go"
+        return self.real(material, progress)
+
+    def open(self):
+        self.opened.set()
+
+
+def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene, monkeypatch):
     """A queued viewport bake shows in the header's activity; Cancel stops its worker, which
     caches nothing and is not remembered as a failure."""
     vp = tf.viewport
@@ -391,15 +413,18 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene):
     vp._service()
     assert not bj.BAKES.running, f"a bake started with nothing queued: {list(bj.BAKES.running)}"
     mat = film(bpy)
-    mat.thinfilm_sh.sh_order = "AUTO"  # a default-quality bake: seconds, so it is still running
+    mat.thinfilm_sh.sh_order = "AUTO"
     mat.thinfilm_sh.view_samples = 0
     mat.thinfilm_sh.roughness = 0.123  # a kernel no other test has cached
     desc = tf.ui.description(mat)
+    held = HeldBake(monkeypatch)
     bj.want(desc)
     vp._service()  # starts the worker thread
+    assert held.started.wait(EVENT_TIMEOUT_S), "the viewport's bake never started (in this process)"
     assert bj.BAKES.running
     assert "baking 1 film" in vp.activity()
     assert bj.cancel_all() == 1
+    held.open()  # the real bake stops at its first checkpoint
     wait_for(lambda: not bj.BAKES.running, "the cancelled bake's worker to stop")
     # The header's bake part; a World analysis the same ticks started may still show beside it.
     assert "baking" not in vp.activity(), f"the header still shows {vp.activity()!r} after the bake stopped"
@@ -434,15 +459,18 @@ def test_a_finished_viewport_bake_asks_for_a_redraw(bpy, tf, scene, monkeypatch)
     assert tf.tables.peek_table(desc) is not None
 
 
-def test_a_cancelled_modal_bake_stops_its_worker_and_caches_nothing(bpy, tf, scene):
+def test_a_cancelled_modal_bake_stops_its_worker_and_caches_nothing(bpy, tf, scene, monkeypatch):
     """The Bake button's job (what Esc cancels): stops, no result, no error, nothing cached."""
     mat = film(bpy)
     mat.thinfilm_sh.sh_order = "AUTO"
     mat.thinfilm_sh.view_samples = 0
     mat.thinfilm_sh.roughness = 0.321
     desc = tf.ui.description(mat)
+    held = HeldBake(monkeypatch)
     job = tf.ops.BakeJob(desc, tf.tables.open_cache()).start()
-    job.cancel()
+    assert held.started.wait(EVENT_TIMEOUT_S), "the Bake button's bake never started"
+    job.cancel()  # mid-run: the real bake stops at its first checkpoint
+    held.open()
     job.join(EVENT_TIMEOUT_S)
     assert job.done.is_set(), f"the cancelled bake's worker did not end in {EVENT_TIMEOUT_S:.0f} s"
     assert job.cancelled

@@ -57,17 +57,26 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     assert built_on == [threading.main_thread()]
     rg.GRIDS.clear()
     built_on.clear()
+    gate = threading.Event()  # the worker holds here until the "still building" state is checked
+    recording = rg.radiance_grid.build
+
+    def held(*args, **kwargs):
+        assert gate.wait(EVENT_TIMEOUT_S), "the gate was never opened"
+        return recording(*args, **kwargs)
+
+    monkeypatch.setattr(rg.radiance_grid, "build", held)  # before collect: it binds the build
     # the viewport: no build on this thread, the per-pixel SH meanwhile
-    cue = CueRecorder(lambda: rg._WORKER in rg.GRIDS.work.running)
+    cue = CueRecorder(rg.busy)  # what _poll reads beside the cue (GRIDS.lock is reentrant)
     monkeypatch.setattr(rg.GRIDS.work, "_finished", cue)
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is None and item.grid_pending and rg.busy() and "tabulating" in rg.activity()
     assert bpy.app.timers.is_registered(rg._poll)
+    gate.set()
     wait_idle(rg)
     assert built_on and all(t is not threading.main_thread() for t in built_on)
     assert rg.GRIDS.work.finished(), "the worker ended without the timer's cue for a redraw"
     assert cue.seen == [True], (
-        f"the grid worker set its cue with running={cue.seen}: set after it stopped running, a "
+        f"the grid worker set its cue with busy()={cue.seen}: set after it stopped looking busy, a "
         "timer tick in between sees neither and stops, and the redraw with the grid never comes"
     )
     rg._poll()
