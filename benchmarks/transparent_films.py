@@ -443,6 +443,7 @@ def main(argv=None) -> int:
             rows.append(row)
             if args.dump:
                 keep = {k: row[k] for k in ("ours", "cycles", "delta_e")}
+                pathlib.Path(args.dump).mkdir(parents=True, exist_ok=True)
                 np.savez_compressed(pathlib.Path(args.dump) / f"{name}_{args.engine}.npz", **keep)
     import thinfilm_headless
 
