@@ -58,6 +58,27 @@ class CueRecorder(threading.Event):
         super().set()
 
 
+class HeldCall:
+    """``owner.name`` (a bake, a grid build) held at its start until :meth:`open`, so a test reads
+    a worker's running state (busy, header, cancel) while it surely runs, however fast the work
+    or slow the test's thread. :attr:`entered` is set when a worker reached it; the work then
+    runs as it was (``owner.name`` at construction: another test wrapper too)."""
+
+    def __init__(self, owner, name: str, monkeypatch):
+        self.real = getattr(owner, name)
+        self.entered = threading.Event()
+        self.opened = threading.Event()
+        monkeypatch.setattr(owner, name, self)
+
+    def __call__(self, *args, **kwargs):
+        self.entered.set()
+        assert self.opened.wait(EVENT_TIMEOUT_S), "the held call was never let go"
+        return self.real(*args, **kwargs)
+
+    def open(self):
+        self.opened.set()
+
+
 class RedrawLog(list):
     """A stand-in for the viewport's ``_tag_redraw`` that records, at each redraw, how many
     times the watched :class:`CueRecorder` had been set by then.
@@ -67,12 +88,12 @@ class RedrawLog(list):
     test asserts ``log.after_cue()``: the last redraw followed the cue, whichever tick made it.
     """
 
-    def __init__(self, cue: CueRecorder | None = None):
+    def __init__(self, cue: CueRecorder):
         super().__init__()
         self.cue = cue
 
     def __call__(self):
-        self.append(len(self.cue.seen) if self.cue is not None else 0)
+        self.append(len(self.cue.seen))
 
     def after_cue(self) -> bool:
         return bool(self) and self[-1] >= 1

@@ -14,7 +14,6 @@ from __future__ import annotations
 import importlib
 import math
 import re
-import threading
 
 import numpy as np
 import pytest
@@ -22,7 +21,7 @@ import pytest
 pytestmark = pytest.mark.blender
 
 from _extension import EXTENSION_ID, registered_extension  # noqa: E402
-from _waits import EVENT_TIMEOUT_S, CueRecorder, RedrawLog, viewport_lanes_idle, wait_for  # noqa: E402
+from _waits import EVENT_TIMEOUT_S, CueRecorder, HeldCall, RedrawLog, viewport_lanes_idle, wait_for  # noqa: E402
 
 #: Longest wait for a worker thread to stop (a safety net, not a timing: the tests assert that it
 #: stopped, and precompute's tests that it stops at its next checkpoint).
@@ -382,27 +381,6 @@ def test_a_principled_film_preview_can_be_switched_off_per_material(bpy, tf, sce
 # ----------------------------------------------------------------------------------------------
 # Background work
 # ----------------------------------------------------------------------------------------------
-class HeldBake:
-    """``precompute.bakes.bake.bake`` held at its start until :meth:`open`: a test reads a bake's
-    running state (header, cancel) while it surely runs, however fast the bake or slow the
-    test's thread (a 0.2 s bake could end before a loaded main thread looked)."""
-
-    def __init__(self, monkeypatch):
-        self.module = importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake")
-        self.real = self.module.bake
-        self.started = threading.Event()
-        self.opened = threading.Event()
-        monkeypatch.setattr(self.module, "bake", self)
-
-    def __call__(self, material, progress=None):
-        self.started.set()
-        assert self.opened.wait(EVENT_TIMEOUT_S), "the held bake was never let go"
-        return self.real(material, progress)
-
-    def open(self):
-        self.opened.set()
-
-
 def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene, monkeypatch):
     """A queued viewport bake shows in the header's activity; Cancel stops its worker, which
     caches nothing and is not remembered as a failure."""
@@ -417,10 +395,10 @@ def test_viewport_bakes_show_progress_and_stop_when_cancelled(bpy, tf, scene, mo
     mat.thinfilm_sh.view_samples = 0
     mat.thinfilm_sh.roughness = 0.123  # a kernel no other test has cached
     desc = tf.ui.description(mat)
-    held = HeldBake(monkeypatch)
+    held = HeldCall(importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake"), "bake", monkeypatch)
     bj.want(desc)
     vp._service()  # starts the worker thread
-    assert held.started.wait(EVENT_TIMEOUT_S), "the viewport's bake never started (in this process)"
+    assert held.entered.wait(EVENT_TIMEOUT_S), "the viewport's bake never started (in this process)"
     assert bj.BAKES.running
     assert "baking 1 film" in vp.activity()
     assert bj.cancel_all() == 1
@@ -466,9 +444,9 @@ def test_a_cancelled_modal_bake_stops_its_worker_and_caches_nothing(bpy, tf, sce
     mat.thinfilm_sh.view_samples = 0
     mat.thinfilm_sh.roughness = 0.321
     desc = tf.ui.description(mat)
-    held = HeldBake(monkeypatch)
+    held = HeldCall(importlib.import_module(f"{EXTENSION_ID}.precompute.bakes.bake"), "bake", monkeypatch)
     job = tf.ops.BakeJob(desc, tf.tables.open_cache()).start()
-    assert held.started.wait(EVENT_TIMEOUT_S), "the Bake button's bake never started"
+    assert held.entered.wait(EVENT_TIMEOUT_S), "the Bake button's bake never started"
     job.cancel()  # mid-run: the real bake stops at its first checkpoint
     held.open()
     job.join(EVENT_TIMEOUT_S)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import threading
 
 import pytest
-from _waits import EVENT_TIMEOUT_S, CueRecorder, wait_for
+from _waits import EVENT_TIMEOUT_S, CueRecorder, HeldCall, wait_for
 from test_viewport_state import collect, film
 from test_viewport_state import grid as quad_grid
 
@@ -57,21 +57,16 @@ def test_viewport_asks_the_worker_and_draws_the_grid_when_built(bpy, tf, scene, 
     assert built_on == [threading.main_thread()]
     rg.GRIDS.clear()
     built_on.clear()
-    gate = threading.Event()  # the worker holds here until the "still building" state is checked
-    recording = rg.radiance_grid.build
-
-    def held(*args, **kwargs):
-        assert gate.wait(EVENT_TIMEOUT_S), "the gate was never opened"
-        return recording(*args, **kwargs)
-
-    monkeypatch.setattr(rg.radiance_grid, "build", held)  # before collect: it binds the build
+    # the worker holds here until the "still building" state is checked; patched before
+    # collect, which binds the build
+    gate = HeldCall(rg.radiance_grid, "build", monkeypatch)
     # the viewport: no build on this thread, the per-pixel SH meanwhile
     cue = CueRecorder(rg.busy)  # what _poll reads beside the cue (GRIDS.lock is reentrant)
     monkeypatch.setattr(rg.GRIDS.work, "_finished", cue)
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is None and item.grid_pending and rg.busy() and "tabulating" in rg.activity()
     assert bpy.app.timers.is_registered(rg._poll)
-    gate.set()
+    gate.open()
     wait_idle(rg)
     assert built_on and all(t is not threading.main_thread() for t in built_on)
     assert rg.GRIDS.work.finished(), "the worker ended without the timer's cue for a redraw"
