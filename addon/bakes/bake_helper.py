@@ -311,14 +311,21 @@ def submit(desc: Material, film: bool, grid: dict | None = None) -> Ticket:
     written to a pipe (≈ 0.1 ms), so the main thread may call it (the depsgraph handler does: a
     worker thread would wait for the lock the next draw holds). Whether the helper is to be used
     is the caller's to ask (:func:`enabled` reads the preferences: main thread). Raises
-    :class:`HelperError` when the helper is given up, not running or cannot take it."""
+    :class:`HelperError` when the helper is given up, not running or cannot take it; one that
+    cannot take it (its pipe broke: it died as the bake was sent) is given up here, as a bake it
+    failed would be, so the caller's in-process bake is the last until the add-on restarts."""
     if SLOT.given_up:
         raise HelperError(SLOT.given_up)
     SLOT.warm()
     process = SLOT.current()
     if process is None:
         raise HelperError("is not running")
-    return Ticket(process, desc, film, grid)
+    try:
+        return Ticket(process, desc, film, grid)
+    except HelperError as exc:
+        STATS["failed"] += 1
+        SLOT.give_up(str(exc))
+        raise
 
 
 def bake(desc: Material, film: bool, progress=None):

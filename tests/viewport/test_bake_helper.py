@@ -206,9 +206,10 @@ def silent_command(tf):
     return lambda: [sys.executable, "-c", code]
 
 
-@pytest.mark.parametrize("how", ["unstartable", "exits", "killed", "silent"])
+@pytest.mark.parametrize("how", ["unstartable", "exits", "dies as sent", "killed", "silent"])
 def test_a_failing_helper_falls_back_to_an_in_process_bake(bpy, tf, scene, helper, monkeypatch, caplog, how):
     given_up = helper.STATS["given_up"]
+    real_send = helper._Process.send
     if how == "unstartable":
         monkeypatch.setattr(helper, "command", lambda: [os.path.join(os.sep, "nonexistent", "python")])
     elif how == "exits":
@@ -216,8 +217,16 @@ def test_a_failing_helper_falls_back_to_an_in_process_bake(bpy, tf, scene, helpe
     elif how == "silent":
         monkeypatch.setattr(helper, "command", silent_command(tf))
         monkeypatch.setattr(helper, "SILENCE_S", 1.0)
+    elif how == "dies as sent":  # its pipe breaks under the bake (CI: an exiting helper)
+
+        def die_then_send(self, message):
+            if message[0] == "bake":
+                self.proc.kill()
+                self.proc.wait()
+            real_send(self, message)
+
+        monkeypatch.setattr(helper._Process, "send", die_then_send)
     else:  # killed as soon as the bake is handed over
-        real_send = helper._Process.send
 
         def send_then_kill(self, message):
             real_send(self, message)
