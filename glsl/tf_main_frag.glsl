@@ -120,10 +120,14 @@ void main()
 #ifdef TF_TRANSMIT /* a transparent film's wall (tf_transmit.glsl, shading.transmit.shade) */
   TFFrame fw = tf_view_aligned_frame(n, v);
   vec3 wall_t, wall_s;
+  vec3 tint = tf_object.glass.yzw; /* the transmission tint: Principled Base Color, else 1 */
   tf_wall(fw.cos_o, tf_table_lerp(fw.cos_o, fw.sin_o, thickness01), tf_object.material.z,
-          tf_object.material.w, wall_t, wall_s);
-  float wall_mean = dot(wall_t, vec3(1.0 / 3.0));
+          tf_object.material.w, tint, wall_t, wall_s);
+  /* solid glass tints what passes in and out (sqrt(tint) each, Cycles); its wall_t stays (1 - r)^2 */
+  vec3 through = (tf_object.material.z > 1.5) ? tint : vec3(1.0);
+  float wall_mean = dot(wall_t * through, vec3(1.0 / 3.0));
 #if TF_TRANSMIT == 1 /* the multiply pass: what is behind times T; alpha times mean(T) */
+  wall_t *= through;
 #if defined(TF_SPLIT_SUM) || defined(TF_REFRACT)
   if (tf_object.material.z > 1.5) { /* solid glass: what the exit ray sees replaces it */
     wall_t = vec3(0.0);
@@ -163,9 +167,9 @@ void main()
     vec2 cosines;
     vec3 seen = tf_refracted(n, v, cosines);
     vec3 r_out = tf_glass_back_r(cosines.y, r_wall, tf_object.material.w, tf_glass_own());
-    rgb += t_in * (vec3(1.0) - r_out) * seen;
+    rgb += through * t_in * (vec3(1.0) - r_out) * seen;
 #ifdef TF_SPLIT_SUM
-    rgb += tf_glass_glint(n, v, t_in, r_wall);
+    rgb += through * tf_glass_glint(n, v, t_in, r_wall);
     rgb = max(rgb + tf_scene_mirror(n, v, wall_t), vec3(0.0));
 #endif
     wall_mean = 0.0;
@@ -174,9 +178,9 @@ void main()
   if (tf_object.material.z > 1.5) { /* solid glass: T times the World along the exit ray */
     vec3 unused_moment;
     float unused_weight;
-    rgb += wall_t * tf_prefiltered_lookup(tf_solid_exit(n, v, tf_object.material.w), 0.0,
-                                          unused_moment, unused_weight);
-    rgb += tf_solid_glint(n, v, wall_t);
+    rgb += through * wall_t *
+           tf_prefiltered_lookup(tf_solid_exit(n, v, tf_object.material.w), 0.0, unused_moment, unused_weight);
+    rgb += through * tf_solid_glint(n, v, wall_t);
     wall_mean = 0.0;
   }
 #endif

@@ -8,7 +8,9 @@
  * macro view angle. Wall mode (tf_object.material.z) and the sheet's relative index eta
  * (tf_object.material.w): shading.transmit.WALL_SHEET (0):
  *   Rb = Fresnel(u, eta), T = (1 - r)(1 - Rb) / (1 - r Rb), S = 1 + (1 - r)^2 Rb / ((1 - r Rb) r);
- * WALL_CYCLES (1, Cycles' thin wall): T = (1 - r) / (1 + r), S = 2 / (1 + r);
+ * WALL_CYCLES (1, Cycles' thin wall) with the transmission tint (tf_object.glass.yzw, a Principled
+ * BSDF's Base Color; 1 untinted) absorbed c = tint^(1 / cos theta_t) per pass (tf_tint_pass):
+ *   T = c (1 - r)^2 / (1 - (c r)^2), S = 1 + T c (c = 1: T = (1 - r) / (1 + r), S = 2 / (1 + r));
  * WALL_SOLID (2, solid glass of index eta): T = (1 - r)^2, S = 1, and what is behind is replaced by
  * the scene behind refracted (TF_REFRACT, tf_refract.glsl), else the World seen along
  * tf_solid_exit (with TF_SPLIT_SUM: the prefiltered World's sharpest level).
@@ -41,8 +43,22 @@ vec3 tf_film_white(float u, TFLerp r)
 #endif
 }
 
-/* T and S of the wall at view cosine cos_v (shading.transmit.wall). */
-void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 s)
+/* The share of light a thin wall of index eta tinted tint lets through in one pass at the outside
+ * cosine cos_v: tint^(1 / cos theta_t), 0 where the light cannot enter (shading.transmit.tint_pass). */
+vec3 tf_tint_pass(vec3 tint, float cos_v, float eta)
+{
+  float c = clamp(cos_v, 0.0, 1.0);
+  float e = max(eta, TF_WALL_GUARD);
+  float cos_t = sqrt(max(1.0 - (1.0 - c * c) / (e * e), 0.0));
+  if (cos_t <= 0.0) {
+    return vec3(0.0);
+  }
+  return pow(clamp(tint, vec3(0.0), vec3(1.0)), vec3(1.0 / max(cos_t, TF_WALL_GUARD)));
+}
+
+/* T and S of the wall at view cosine cos_v (shading.transmit.wall); tint: the transmission tint
+ * (solid glass's T stays untinted: the caller tints what passes through). */
+void tf_wall(float cos_v, TFLerp r, float mode, float eta, vec3 tint, out vec3 t, out vec3 s)
 {
   float u = clamp(cos_v, 0.0, 1.0);
   vec3 refl = clamp(tf_film_white(u, r), vec3(0.0), vec3(1.0));
@@ -52,8 +68,10 @@ void tf_wall(float cos_v, TFLerp r, float mode, float eta, out vec3 t, out vec3 
     return;
   }
   if (mode > 0.5) {
-    t = (vec3(1.0) - refl) / (vec3(1.0) + refl);
-    s = vec3(2.0) / (vec3(1.0) + refl);
+    vec3 c = tf_tint_pass(tint, u, eta);
+    vec3 one_minus = vec3(1.0) - refl;
+    t = c * one_minus * one_minus / max(vec3(1.0) - c * c * refl * refl, vec3(TF_WALL_GUARD));
+    s = vec3(1.0) + t * c;
     return;
   }
   float rb = tf_fresnel_dielectric(max(u, TF_MIN_COS), eta);

@@ -154,10 +154,11 @@ def _wall(material, desc) -> tuple[tuple | None, str, float]:
     found = transparency.wall(material, desc)
     if found is None:
         return None, "", 1.0
-    mode, eta = found
+    mode, eta = found[:2]
+    wall = (int(mode), float(eta), *(float(c) for c in found[2:5]))  # a Principled wall's tint with it
     if int(mode) == transmit.WALL_SOLID:
-        return (int(mode), float(eta)), "refraction", float(eta)
-    return (int(mode), float(eta)), "transparent", 1.0
+        return wall, "refraction", float(eta)
+    return wall, "transparent", 1.0
 
 
 def _principled_feeds(material) -> tuple[dict, bool, str | None]:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
-from ...precompute.shading.transmit import WALL_SOLID
+from ...precompute.shading.transmit import WALL_SOLID, wall_tint
 from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
 from . import layout, resources
 from .context import ensure_gpu_context
@@ -64,8 +64,10 @@ def object_uniforms(
 ) -> np.ndarray:
     """:data:`.layout.OBJECT` content, flat float32: model matrix, normal matrix (inverse
     transpose of its 3×3), material parameters (roughness, SH weight and a transparent film's
-    ``wall``: its mode and relative index, precompute.shading.transmit) and solid glass's id in
-    the glass buffers (−1: none, its exit through the sphere about its origin)."""
+    ``wall``: its mode and relative index, precompute.shading.transmit), solid glass's id in
+    the glass buffers (−1: none, its exit through the sphere about its origin) and the wall's
+    transmission tint (``wall``'s last three entries, :func:`~precompute.shading.transmit.wall_tint`;
+    1 without)."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:
@@ -78,7 +80,7 @@ def object_uniforms(
         model=_columns(model),
         normal=_columns(normal),
         material=[float(roughness), float(sh_weight), float(wall[0]), float(wall[1])],
-        glass=[float(glass), 0.0, 0.0, 0.0],
+        glass=[float(glass), *(float(c) for c in wall_tint(wall))],
     ).reshape(-1)
 
 

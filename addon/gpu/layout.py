@@ -182,7 +182,12 @@ OBJECT = Block(
         Member("model", 4, "model matrix, columns"),
         Member("normal", 4, "normal matrix (inverse transpose of the model's 3x3), columns"),
         Member("material", None, "x: roughness, y: SH weight of the split-sum blend, z, w: wall mode, eta"),
-        Member("glass", None, "x: solid glass's id in the glass buffers (TF_REFRACT), -1 where none"),
+        Member(
+            "glass",
+            None,
+            "x: solid glass's id in the glass buffers (TF_REFRACT), -1 where none; "
+            "yzw: the wall's transmission tint (Principled Base Color), 1 where none",
+        ),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).

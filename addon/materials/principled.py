@@ -294,9 +294,10 @@ def write_back_to_principled(bpy_material) -> list[str]:
     (:func:`.thickness_nodes.build`: Noise Texture / Image / Attribute → Map Range min–max,
     replacing an earlier write), so Cycles renders the variation. Thin Film IOR the top
     layer's n at 550 nm; a dielectric substrate sets IOR (Transmission 1 unless the diffuse base
-    is on, which sets Base Color; Thin Wall where the preview draws a wall: a film on air, a
-    *Thin Sheet*), a conductor sets Metallic 1 with Base Color = its normal-
-    incidence reflectance and Specular Tint = its F82 tint, both integrated from the spectrum.
+    is on, which sets Base Color; else Base Color white, as Cycles tints the transmission by it;
+    Thin Wall where the preview draws a wall: a film on air, a *Thin Sheet*), a conductor sets
+    Metallic 1 with Base Color = its normal-incidence reflectance and Specular Tint = its F82
+    tint, both integrated from the spectrum.
     Cycles has one film: a multilayer writes only its top layer (with a warning).
     """
     props = bpy_material.thinfilm_sh
@@ -341,6 +342,9 @@ def write_back_to_principled(bpy_material) -> list[str]:
             _set_socket(node, SOCKET_TRANSMISSION, 0.0, notes)
         else:
             _set_socket(node, SOCKET_TRANSMISSION, 1.0, notes)
+            # Cycles tints the Principled transmission by Base Color (Blender's default 0.8: a
+            # window letting 0.8 through); the preview's glass is untinted.
+            _set_socket(node, SOCKET_BASE_COLOR, (1.0, 1.0, 1.0, 1.0), notes)
         _write_thin_wall(node, props, desc, substrate.real)
     _set_socket(node, SOCKET_ROUGHNESS, float(desc.roughness), notes)
     if desc.ambient != 1.0:

@@ -6,7 +6,8 @@
   *Opaque* never.
 - A Principled BSDF with *Transmission Weight* ≥ 0.5 (previewed as 1, like the reflection) and
   *Thin Wall* on: Cycles' thin wall (the film on both faces, the slab series of
-  ``bsdf_thin_glass_fresnel``); without *Thin Wall* (solid glass, water) solid glass of its IOR:
+  ``bsdf_thin_glass_fresnel``), its transmission tinted by *Base Color* as Cycles does; without
+  *Thin Wall* (solid glass, water) solid glass of its IOR, tinted the same way:
   the World seen through the ray's exit from a sphere of that glass (docs/transparent-films.md).
 
 :func:`wall` gives the draw item's ``wall`` = (mode, η), or None for an opaque film.
@@ -15,7 +16,13 @@
 from __future__ import annotations
 
 from ...precompute.shading import transmit
-from .principled import SOCKET_METALLIC, SOCKET_THIN_WALL, SOCKET_TRANSMISSION, principled_node
+from .principled import (
+    SOCKET_BASE_COLOR,
+    SOCKET_METALLIC,
+    SOCKET_THIN_WALL,
+    SOCKET_TRANSMISSION,
+    principled_node,
+)
 
 __all__ = ["wall"]
 
@@ -50,14 +57,19 @@ def _principled_wall(bpy_material, desc) -> tuple | None:
         return None
     if float(_input(node, SOCKET_METALLIC, 0.0)) > 0.5 or float(_input(node, SOCKET_TRANSMISSION, 0.0)) < 0.5:
         return None
+    eta = substrate / float(desc.ambient)
+    tint = tuple(min(1.0, max(0.0, float(c))) for c in tuple(_input(node, SOCKET_BASE_COLOR, (1.0,) * 4))[:3])
     if bool(_input(node, SOCKET_THIN_WALL, False)):
-        return (transmit.WALL_CYCLES, 1.0)
-    return (transmit.WALL_SOLID, substrate / float(desc.ambient))
+        return (transmit.WALL_CYCLES, eta, *tint)
+    return (transmit.WALL_SOLID, eta, *tint)
 
 
 def wall(bpy_material, desc) -> tuple | None:
     """(mode, η) of the material's wall (:mod:`precompute.shading.transmit`), or None when the film
-    is opaque. ``desc``: the material's description (:func:`.description.description`)."""
+    is opaque; a Principled BSDF's wall adds its transmission tint, (mode, η, r, g, b): its
+    *Base Color* (unlinked value), which Cycles multiplies its transmission by (Blender's default
+    0.8 lets 0.8 through a thin wall at normal incidence, 0.8 through solid glass in and out).
+    ``desc``: the material's description (:func:`.description.description`)."""
     if desc is None:
         return None
     props = getattr(bpy_material, "thinfilm_sh", None)

@@ -226,7 +226,7 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
 
     ``result``: the :class:`precompute.bakes.bake.BakeResult` of the film without a diffuse base (any
     SH order: entry 0 does not depend on it). ``base_result``: the bake of the same film with its
-    diffuse base ``base_color`` (RGB), or None. ``wall``: (mode, η) of a transparent film
+    diffuse base ``base_color`` (RGB), or None. ``wall``: (mode, η[, tint r, g, b]) of a transparent film
     (:mod:`precompute.shading.transmit`), with ``film`` its :class:`~precompute.colour.film_colour.FilmTable`;
     None for an opaque film.
     """
@@ -241,7 +241,10 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
         r = white_reflectance_at(film, cos_o)
         if r.shape[0] != t_rows:
             raise ValueError(f"film table has {r.shape[0]} thickness rows, the bake {t_rows}")
-        transmittance, scale = transmit.wall(r, cos_o[None, :], int(wall[0]), float(wall[1]))
+        tint = transmit.wall_tint(wall) if len(wall) >= 5 else None
+        transmittance, scale = transmit.wall(r, cos_o[None, :], int(wall[0]), float(wall[1]), tint)
+        if int(wall[0]) == transmit.WALL_SOLID and tint is not None:
+            transmittance = transmittance * tint  # √tint in and √tint out (Cycles' glass)
         bands = {"specular": albedo * scale, "transmission": transmittance}
     inverse = glossy_colour(np.ones((1, cos_o.size, 3)), cos_o[None, :], roughness)
     bands["inverse"] = np.broadcast_to(inverse, (t_rows, cos_o.size, 3))

@@ -34,6 +34,14 @@ Two walls (``mode``):
   :func:`solid_exit` (the ray through a sphere of that glass), read from the prefiltered World's
   sharpest level where the draw has one (the split sum), else seen straight through.
 
+**Tint** (a Principled BSDF's *Base Color*: Cycles tints its transmission by it; the extension's
+own walls are untinted, tint 1). Cycles' thin wall takes it as the sheet's transmittance at
+normal incidence and absorbs c = tint^(1 / cos θ_t) per pass (Beer–Lambert at the angle inside
+the sheet of index η): T = c (1 − r)² / (1 − (c r)²), R = r + T c r, so S = 1 + T c
+(:func:`tint_pass`; c = 1 gives the untinted wall). Solid glass tints each refraction by √tint:
+what passes in and out again (the scene or World behind, the glints) is times the tint; its
+T = (1 − r)² from :func:`wall` stays untinted, the draw applies the tint (:func:`wall_tint`).
+
 The reflection is the film's shaded reflection (the baked table: r per microfacet) times the
 scale S = R / r per channel, capped at :data:`.policy.WALL_SCALE_MAX` where r → 0; exact for a
 smooth film, where the half vector is the normal. In the spectral mode T and S are per channel
@@ -69,15 +77,40 @@ def fresnel_dielectric(cos_i, eta) -> np.ndarray:
     return np.where(g2 > 0.0, np.clip(0.5 * a * a * (1.0 + b * b), 0.0, 1.0), 1.0)
 
 
-def wall(r, cos_v, mode: int, eta: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def wall_tint(wall) -> np.ndarray:
+    """The transmission tint (3,) of a draw item's ``wall`` (mode, η[, r, g, b]): its last three
+    entries, 1 where it has none (the extension's own walls)."""
+    values = tuple(wall or ())
+    return np.asarray(values[2:5] if len(values) >= 5 else (1.0, 1.0, 1.0), dtype=np.float64)
+
+
+def tint_pass(tint, cos_v, eta: float) -> np.ndarray:
+    """c (…, 3): the share of light a thin wall of index ``eta`` tinted ``tint`` (its transmittance
+    at normal incidence) lets through in one pass at the outside cosine ``cos_v`` (…):
+    tint^(1 / cos θ_t), θ_t the angle inside (Cycles' ``bsdf_thin_glass_fresnel``); 0 where
+    the light cannot enter (cos θ_t = 0). As tf_tint_pass."""
+    c = np.clip(np.asarray(cos_v, dtype=np.float64), 0.0, 1.0)
+    eta = max(float(eta), WALL_GUARD)
+    cos_t = np.sqrt(np.maximum(1.0 - (1.0 - c * c) / (eta * eta), 0.0))[..., None]
+    tint = np.clip(np.asarray(tint, dtype=np.float64), 0.0, 1.0)
+    return np.where(cos_t > 0.0, tint ** (1.0 / np.maximum(cos_t, WALL_GUARD)), 0.0)
+
+
+def wall(r, cos_v, mode: int, eta: float = 1.0, tint=None) -> tuple[np.ndarray, np.ndarray]:
     """(T, S): the wall's transmittance and reflection scale per channel from the film's
     reflectance ``r`` (…, 3) at the view cosine ``cos_v`` (…), for ``mode`` (:data:`WALL_SHEET`
-    with relative index ``eta``, or :data:`WALL_CYCLES`). See the module's docstring."""
+    with relative index ``eta``, or :data:`WALL_CYCLES`) and a transmission ``tint`` (3,), Cycles'
+    thin wall's (:func:`tint_pass`; None: untinted; solid glass's T stays untinted). See the
+    module's docstring."""
     r = np.clip(np.asarray(r, dtype=np.float64), 0.0, 1.0)
     if int(mode) == WALL_SOLID:
         return (1.0 - r) ** 2, np.ones_like(r)
     if int(mode) == WALL_CYCLES:
-        return (1.0 - r) / (1.0 + r), 2.0 / (1.0 + r)
+        if tint is None:
+            return (1.0 - r) / (1.0 + r), 2.0 / (1.0 + r)
+        c = tint_pass(tint, cos_v, eta)
+        t = c * (1.0 - r) ** 2 / np.maximum(1.0 - (c * r) ** 2, WALL_GUARD)
+        return t, 1.0 + t * c
     rb = fresnel_dielectric(np.clip(np.asarray(cos_v, dtype=np.float64), MIN_COS, 1.0), eta)[..., None]
     denominator = np.maximum(1.0 - r * rb, WALL_GUARD)
     t = (1.0 - r) * (1.0 - rb) / denominator
@@ -94,7 +127,7 @@ def white_reflectance(film, rows, u) -> np.ndarray:
     return f.sum(axis=-1) if film.spectral else f
 
 
-def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=None):
+def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=None, tint=None):
     """(T, S), each (N, 3), of a wall at unit ``normals`` and view directions ``views`` (the
     normal faces the viewer, as in the shader); ``film``: a
     :class:`precompute.colour.film_colour.FilmTable`. Mirrored by tf_wall (glsl/tf_transmit.glsl)."""
@@ -102,7 +135,7 @@ def shade(film, normals, views, mode: int, eta: float = 1.0, thickness_position=
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
     cos_v = np.clip(np.abs(np.sum(n * v, axis=-1)), 0.0, 1.0)
     rows = thickness_lerp(film, thickness_position, n.shape[0])
-    return wall(white_reflectance(film, rows, cos_v), cos_v, mode, eta)
+    return wall(white_reflectance(film, rows, cos_v), cos_v, mode, eta, tint)
 
 
 def solid_exit(normals, views, eta: float) -> np.ndarray:

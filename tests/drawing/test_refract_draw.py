@@ -101,10 +101,15 @@ def with_scene_mirror(expected, surface, scene, pre, roughness, t):
     return np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0), m_hit, weight
 
 
-def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
+@pytest.mark.parametrize("tint", [None, (0.8, 0.5, 0.2)])
+def test_solid_glass_refracts_the_scene_behind_like_numpy(gd, tint):
+    """…and with a Principled Base Color ``tint``: what passed in and out (the scene or World
+    refracted, the glints) times the tint (√tint each way, Cycles' glass); the reflections not."""
     result, lighting, pre, film = glass_lighting(gd, "spectral")  # the scene's mirror weighs 0.25
     item = quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
     colour, depth, behind = as_solid_glass(gd, item, result, pre, film)
+    item.wall = (*item.wall, *(tint or ()))
+    through = transmit.wall_tint(item.wall)
     groups = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False, behind=behind).groups
     assert [(g.variant.transmit, g.variant.refract) for g in groups] == [
         (TRANSMIT_MULTIPLY, True),
@@ -125,14 +130,15 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd):
         * (1.0 - np.sqrt(t))
         * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
     )
-    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + through * (t * seen + glint)
     expected, m_hit, weight = with_scene_mirror(
         expected, (points, n, views), (colour, depth), pre, item.roughness, t
     )
     err = np.abs(image[inside][:, :3] - expected).max(axis=-1) / np.max(expected)
     print(
-        f"refracted glass: {inside.sum()} px, {hit.mean():.0%} hit the scene behind; error median "
-        f"{np.median(err):.1e}, 99th percentile {np.percentile(err, 99):.1e}, max {err.max():.1e} of the peak"
+        f"refracted glass (tint {tint}): {inside.sum()} px, {hit.mean():.0%} hit the scene behind; "
+        f"error median {np.median(err):.1e}, 99th percentile {np.percentile(err, 99):.1e}, "
+        f"max {err.max():.1e} of the peak"
     )
     print(f"mirror rays meeting the scene: {m_hit.mean():.0%}, weight {weight}")
     assert inside.sum() > 300 and 0.3 < hit.mean() < 0.98  # both the scene and the World are seen

@@ -49,6 +49,7 @@ def behind(alpha):
         ("spectral", (transmit.WALL_SHEET, 1.0), True),
         ("per_channel", (transmit.WALL_CYCLES, 1.0), True),
         ("per_channel", (transmit.WALL_SHEET, 1.5), False),
+        ("per_channel", (transmit.WALL_CYCLES, 1.45, 0.8, 0.5, 0.2), True),  # a Base Color tint
     ],
 )
 def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo):
@@ -74,7 +75,8 @@ def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo):
     for alpha in (0.0, 1.0):
         image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(alpha))
         inside, n, views = quad_pixels(item.model_matrix)
-        t, s = transmit.shade(film, n, views, wall[0], wall[1])
+        tint = transmit.wall_tint(wall) if len(wall) >= 5 else None
+        t, s = transmit.shade(film, n, views, wall[0], wall[1], tint=tint)
         reflected = s * sh_sum.shade_sh(result, lighting.coefficients, n, views)
         expected = transmit.composite(np.array(BEHIND), reflected, t)
         err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
@@ -83,8 +85,8 @@ def test_wall_composites_like_numpy_per_pixel(gd, colour_mode, wall, film_ubo):
         expected_alpha = 1.0 - (1.0 - alpha) * t.mean(axis=-1)
         assert np.max(np.abs(image[inside][:, 3] - expected_alpha)) < 1e-5
         assert np.allclose(image[erode(erode(~inside))][:, :3], BEHIND)  # nothing drawn off the quad
-    # the behind colour is seen through the film: T > 0.5 on every channel
-    assert np.all(t > 0.5)
+    # the behind colour is seen through the film: T > 0.5 on every channel (less the tint)
+    assert np.all(t > 0.5 * (transmit.wall_tint(wall) ** 2))
 
 
 def test_closed_bubble_shows_both_walls(gd, bpy):
@@ -129,9 +131,11 @@ def test_closed_bubble_shows_both_walls(gd, bpy):
     assert np.mean(image[inner][:, :3]) > np.mean(opaque[inner][:, :3]) + 0.2
 
 
-def test_solid_glass_shows_the_world_along_the_exit_ray(gd):
+@pytest.mark.parametrize("tint", [None, (0.8, 0.5, 0.2)])
+def test_solid_glass_shows_the_world_along_the_exit_ray(gd, tint):
     """WALL_SOLID with the split sum: what is behind is replaced by T × the prefiltered World at
-    roughness 0 along transmit.solid_exit, plus the film's reflection (split only, weight 0)."""
+    roughness 0 along transmit.solid_exit, plus the film's reflection (split only, weight 0);
+    a Base Color ``tint`` multiplies what passed in and out (√tint each way, Cycles' glass)."""
     import dataclasses
 
     from precompute.shading import policy, split_sum
@@ -149,7 +153,7 @@ def test_solid_glass_shows_the_world_along_the_exit_ray(gd):
     item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
     item.roughness, item.sh_weight = result.material.roughness, 0.0
     item.film = gd.resources.FilmTexture.from_film(film)
-    item.wall = (transmit.WALL_SOLID, 1.5)
+    item.wall = (transmit.WALL_SOLID, 1.5, *(tint or ()))
     image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
     inside, n, views = quad_pixels(item.model_matrix)
     t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
@@ -160,7 +164,8 @@ def test_solid_glass_shows_the_world_along_the_exit_ray(gd):
         * (1.0 - np.sqrt(t))
         * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
     )
-    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
+    through = transmit.wall_tint(item.wall)
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + through * (t * seen + glint)
     err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
     print(f"solid glass: {err:.1e} of the peak")
     assert inside.sum() > 300 and err < 1e-3, err

@@ -135,6 +135,20 @@ def test_wall_bands_follow_the_overlays_wall():
     assert np.allclose(made.pixels[0:1, :, :3], spec, rtol=1e-5, atol=1e-7)
     through = made.pixels[2, cos_o > 0.5, :3]  # a soap film lets most light through, short of grazing
     assert np.all(through < 1.0) and np.all(through > 0.5), through
+    # a Principled Base Color tint (Cycles' thin wall absorbs it per pass), and solid glass's
+    # tint in and out on its transmission band
+    tint = np.array([0.8, 0.5, 0.2])
+    tinted = eevee_table.film_image(result, film=film, wall=(transmit.WALL_CYCLES, 1.0, *tint))
+    t_tint, s_tint = transmit.wall(r, cos_o[None, :], transmit.WALL_CYCLES, 1.0, tint)
+    assert np.allclose(tinted.pixels[2:3, :, :3], t_tint, atol=1e-6)
+    assert np.allclose(
+        tinted.pixels[0:1, :, :3], eevee_table.table_albedo(result.data) * s_tint, rtol=1e-5, atol=1e-7
+    )
+    front = cos_o > 0.5
+    assert np.all(tinted.pixels[2, front, 2] < tinted.pixels[2, front, 0])  # blue absorbed most
+    solid = eevee_table.film_image(result, film=film, wall=(transmit.WALL_SOLID, 1.5, *tint))
+    t_solid, _ = transmit.wall(r, cos_o[None, :], transmit.WALL_SOLID, 1.5)
+    assert np.allclose(solid.pixels[2:3, :, :3], t_solid * tint, atol=1e-6)
 
 
 def test_diffuse_band_is_the_weight_under_the_film():

@@ -317,6 +317,9 @@ def test_write_back_round_trips_through_the_principled_bsdf(bpy, principled_mod,
     settings.enabled = False
     back = description_mod.description(mat)
     assert back.base_color is None and node.inputs["Transmission Weight"].default_value == 1.0
+    # Cycles tints the transmission by Base Color: the diffuse base's (0.1, 0.2, 0.3) written
+    # before (or Blender's default 0.8) would tint the glass the preview shows clear.
+    assert tuple(node.inputs["Base Color"].default_value) == (1.0, 1.0, 1.0, 1.0)
     lo, hi = props_desc.thickness_range_nm or (settings.thickness_min_nm, settings.thickness_max_nm)
     assert back.layers[0].thickness_nm == pytest.approx(0.5 * (lo + hi))
 

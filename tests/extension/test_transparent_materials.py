@@ -56,10 +56,10 @@ def test_extension_settings_choose_the_wall(bpy, ext):
     assert _wall(ext, _film(bpy, "SOAP_FILM", diffuse_base=True)) is None
 
 
-def _principled(bpy, transmission: float, thin_wall: bool, ior: float = 1.0):
+def _principled(bpy, transmission: float, thin_wall: bool, ior: float = 1.0, base=(1.0, 1.0, 1.0)):
     mat = bpy.data.materials.new("principled")
     bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf.inputs["Base Color"].default_value = (*base, 1.0)
     bsdf.inputs["IOR"].default_value = ior
     bsdf.inputs["Transmission Weight"].default_value = transmission
     bsdf.inputs["Thin Wall"].default_value = thin_wall
@@ -69,10 +69,14 @@ def _principled(bpy, transmission: float, thin_wall: bool, ior: float = 1.0):
 
 
 def test_principled_thin_wall_is_cycles_slab_series(bpy, ext):
-    assert _wall(ext, _principled(bpy, 1.0, True)) == (transmit.WALL_CYCLES, 1.0)
-    mode, eta = _wall(ext, _principled(bpy, 1.0, False, 1.5))  # solid glass of its IOR
-    assert mode == transmit.WALL_SOLID and eta == pytest.approx(1.5)
+    assert _wall(ext, _principled(bpy, 1.0, True)) == (transmit.WALL_CYCLES, 1.0, 1.0, 1.0, 1.0)
+    mode, eta, *tint = _wall(ext, _principled(bpy, 1.0, False, 1.5))  # solid glass of its IOR
+    assert mode == transmit.WALL_SOLID and eta == pytest.approx(1.5) and tint == [1.0, 1.0, 1.0]
     assert _wall(ext, _principled(bpy, 0.2, True)) is None  # previewed as Transmission 0
+    # Cycles tints the transmission by Base Color (Blender's default 0.8): the wall carries it
+    mode, eta, *tint = _wall(ext, _principled(bpy, 1.0, True, 1.45, base=(0.8, 0.5, 0.2)))
+    assert mode == transmit.WALL_CYCLES and eta == pytest.approx(1.45)
+    assert tint == pytest.approx([0.8, 0.5, 0.2])
 
 
 def test_write_back_sets_thin_wall_for_a_film_on_air(bpy, ext):

@@ -85,6 +85,32 @@ def test_cycles_thin_wall_conserves_energy_and_sums_the_slab_series():
     assert np.allclose((s * r)[:-1], (r + series_t * r)[:-1], atol=1e-9)
 
 
+def test_a_tinted_cycles_thin_wall_absorbs_per_pass_and_reduces_to_the_untinted_one():
+    """Base Color as Cycles' thin wall takes it: c = tint^(1 / cos θ_t) per pass through the
+    sheet, the series t1 c t2 Σ (c r2)^(2k) and r1 + t' c r2; tint 1 gives the untinted wall."""
+    r = np.linspace(0.0, 0.9, 10)[:, None] * np.ones(3)
+    cos_v = np.linspace(1.0, 0.2, 10)
+    tint = np.array([0.8, 0.5, 0.2])
+    eta = 1.5
+    t, s = transmit.wall(r, cos_v, transmit.WALL_CYCLES, eta, tint)
+    cos_t = np.sqrt(1.0 - (1.0 - cos_v**2) / eta**2)
+    c = tint[None, :] ** (1.0 / cos_t[:, None])
+    k = np.arange(200)[:, None, None]
+    series_t = np.sum(c * (1 - r) ** 2 * (c * r) ** (2 * k), axis=0)
+    assert np.allclose(t, series_t, atol=1e-12)
+    assert np.allclose(s * r, r + series_t * c * r, atol=1e-12)
+    assert np.all(t + s * r < 1.0 - 1e-3)  # the tint absorbs: less than the lossless wall's 1
+    assert np.allclose(t[0], tint, atol=1e-12)  # r = 0 at normal incidence: the tint alone
+    t1, s1 = transmit.wall(r, cos_v, transmit.WALL_CYCLES, eta, np.ones(3))
+    t0, s0 = transmit.wall(r, cos_v, transmit.WALL_CYCLES)
+    assert np.allclose(t1, t0, atol=1e-12) and np.allclose(s1, s0, atol=1e-12)
+    # a bubble (η = 1) at grazing: the path through the sheet grows as 1 / cos θ
+    grazing = transmit.tint_pass(tint, np.array([1.0, 0.5]), 1.0)
+    assert np.allclose(grazing, [tint, tint**2], atol=1e-12)
+    assert np.allclose(transmit.wall_tint((transmit.WALL_SOLID, 1.5)), 1.0)
+    assert np.allclose(transmit.wall_tint((transmit.WALL_SOLID, 1.5, 0.1, 0.2, 0.3)), [0.1, 0.2, 0.3])
+
+
 def test_sheet_of_glass_conserves_energy_where_not_capped():
     material = film_material("spectral", 140.0, substrate=1.52)
     r = film_colour.white_reflectance(material, np.array([100.0, 200.0, 300.0])[:, None], COS[None, :])
