@@ -11,8 +11,8 @@ Builds every scene of ``sample_scenes/make_scenes.py`` in a temporary folder, th
 - ``docs/images/<scene>.png``: the headless render at 320×240;
 - ``docs/images/<scene>_cycles.png``: Cycles (CPU, 128 samples, no denoising) of the same file at
   320×240: the Principled scene as it is, the extension's single-film materials after
-  ``addon.materials.principled.write_back_to_principled`` (Cycles has one film of constant thickness: a
-  varying film is written at the middle of its range); a multilayer has no Cycles equivalent;
+  ``addon.materials.principled.write_back_to_principled`` (a varying thickness written as nodes); a
+  multilayer has no Cycles equivalent (Cycles has one film);
 - ``docs/sample-scenes.md``: the pictures side by side and the commands.
 
 The helpers (:func:`headless_render`, :func:`cycles_render`, :func:`object_mask`) are also used
@@ -272,11 +272,13 @@ for Cycles interop), each with a camera, a World lit by one of Blender's studio-
 where it makes sense, a ground plane. Left: the extension's headless render (the viewport
 shader drawn off-screen over Blender's Solid drawing of the other objects, with the World as
 background); right: Cycles of the same file. The extension's materials are rendered by Cycles
-after *Write to Principled* (`addon.materials.principled.write_back_to_principled`). Cycles has a single
-film of constant thickness, so a varying film shows its middle thickness there, and a 16-layer
-stack has no Cycles equivalent. The preview draws the film's reflection only: what lies behind
-a transparent film (the soap bubble, the water, the glass) is not drawn through it, and the
-ground is Blender's flat Solid grey rather than a shaded surface.
+after *Write to Principled* (`addon.materials.principled.write_back_to_principled`): a varying
+thickness is written as nodes (the preview's value noise as Blender's Noise Texture, the same
+range in another pattern), a transparent film as *Transmission* 1 with a white *Base Color*
+(Cycles tints what passes through by it), and a 16-layer stack has no Cycles equivalent (Cycles
+has a single film). The headless pictures draw a transparent film over what lies behind it (the
+soap bubble, the window); the ground is Blender's flat Solid grey rather than a shaded surface
+(`render --engine EEVEE` renders the rest of the scene with EEVEE instead).
 
 | Scene | Thin Film SH (headless) | Cycles | |
 |---|---|---|---|
