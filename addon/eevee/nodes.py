@@ -57,7 +57,7 @@ GROUP_PREFIX = "TF EEVEE Film · "
 #: Custom property marking what the extension added (on the two nodes and the group).
 TAG = "thinfilm_eevee"
 #: Version of the group's inside: a group built by another version is rebuilt.
-LAYOUT_VERSION = 6
+LAYOUT_VERSION = 7
 #: The group's inputs.
 IN_THICKNESS, IN_ROUGHNESS, IN_NORMAL, IN_BASE = "Thickness", "Roughness", "Normal", "Base Color"
 
@@ -294,7 +294,10 @@ def _build(group, structure: Structure, image) -> None:
     light = _columns(tree, links, cos_light, "l", 250)
     row = _node(tree, "ShaderNodeMapRange", "row", -1050, 0, clamp=True)
     links.new(inputs.outputs[IN_THICKNESS], row.inputs["Value"])
-    rows = _split(tree, links, row.outputs["Result"], "y", 0)
+    row_value = row.outputs["Result"]
+    if structure.wall:  # EEVEE's transparent shadows evaluate the wall: there at the middle row
+        row_value = _shadow_row(tree, links, row_value)
+    rows = _split(tree, links, row_value, "y", 0)
     colours = {
         name: _band_lookup(tree, links, image, i, light if name == "specular" else view, rows)
         for i, name in enumerate(structure.bands)
@@ -316,6 +319,20 @@ def _build(group, structure: Structure, image) -> None:
             shader = add.outputs["Shader"]
     links.new(shader, output.inputs["BSDF"])
     group[TAG + "_structure"] = structure.key()
+
+
+def _shadow_row(tree, links, row_value):
+    """The thickness row a wall is read at: its own for the camera and reflections, the middle row
+    for shadow rays (*Light Path → Is Shadow Ray*). EEVEE evaluates a transparent wall's nodes for
+    every shadow-map sample (the material's *Transparent Shadows*); with the row a constant there,
+    its compiler drops the thickness source (a Noise Texture: half the soap bubble scene's
+    frame) from the shadow pass. A film lets nearly the same through at any thickness (T = 1 − R),
+    so the shadow barely changes."""
+    path = _node(tree, "ShaderNodeLightPath", "Light Path", -1050, 350)
+    shadow = _node(tree, "ShaderNodeMix", "shadow row", -870, 150, data_type="FLOAT")
+    links.new(path.outputs["Is Shadow Ray"], shadow.inputs["Factor"])
+    links.new(row_value, shadow.inputs["A"])
+    return shadow.outputs["Result"]
 
 
 def _diffuse(tree, links, inputs, colour, normal, structure):
@@ -372,6 +389,8 @@ def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0, lit: b
     _put(row.inputs["From Max"], float(hi) if hi > lo else float(lo) + 1.0)
     _put(row.inputs["To Min"], 0.0)
     _put(row.inputs["To Max"], float(rows - 1))
+    if "shadow row" in nodes:
+        _put(nodes["shadow row"].inputs["B"], 0.5 * float(rows - 1))
     band = 0
     while f"v0 {band}" in nodes:
         for name, offset in ((f"v0 {band}", 0.5), (f"v1 {band}", 1.5)):

@@ -543,3 +543,55 @@ def test_a_glossy_film_under_a_sun_weighs_it_against_the_world(bpy, ext):
     assert share[cosine < np.cos(np.radians(30.0))].max() < 0.01, "away from the sun the World holds the lobe"
     nearest = np.unravel_index(np.argmax(cosine), cosine.shape)
     assert share[nearest] > 0.95 and c[nearest] @ toward > np.cos(np.radians(1.0))
+
+
+def test_a_walls_shadow_reads_its_middle_thickness(bpy, ext, tmp_path):
+    """EEVEE evaluates a transparent wall's nodes in its shadow pass (*Transparent Shadows*): the
+    group reads the middle thickness row for shadow rays, so the thickness source drops out of
+    that pass (a noise source was half the soap bubble scene's frame time). A thin-wall film of
+    index 2.5 whose thickness runs 0–60 nm across the plate (T ≈ 1 to ≈ 0.35) over a sunlit
+    ground, the plate hidden from the camera: its shadow is even across; with the switch cut,
+    the gradient shows."""
+    scene = _scene(bpy)
+    scene.eevee.taa_render_samples = 16
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.02, 0.02, 0.02, 1.0)
+    bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -1.0))
+    bpy.context.active_object.data.materials.append(bpy.data.materials.new("ground"))
+    sun = bpy.data.lights.new("sun", "SUN")
+    sun.energy, sun.angle = 3.0, 0.0
+    scene.collection.objects.link(bpy.data.objects.new("sun", sun))
+    mat = _film_material(bpy, name="wall", thickness=30.0, film_ior=2.5, ior=1.0, roughness=0.05)
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    bsdf.inputs["Thin Wall"].default_value = True
+    coords, split = nt.nodes.new("ShaderNodeTexCoord"), nt.nodes.new("ShaderNodeSeparateXYZ")
+    remap = nt.nodes.new("ShaderNodeMapRange")
+    for name, value in (("From Min", -2.0), ("From Max", 2.0), ("To Min", 0.0), ("To Max", 60.0)):
+        remap.inputs[name].default_value = value
+    nt.links.new(coords.outputs["Object"], split.inputs[0])
+    nt.links.new(split.outputs["X"], remap.inputs["Value"])
+    nt.links.new(remap.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
+    plate = _plate(bpy, scene, mat)
+    plate.visible_camera = False
+    _camera(bpy, scene, scale=3.0)
+    ext.sync.sync_material(mat, scene)
+    group = ext.nodes.find(mat.node_tree)[0].node_tree
+
+    def sides(name):
+        """(right − left) / mean of the shadow's outer thirds, and the mean."""
+        pixels = _render(bpy, scene, tmp_path / f"{name}.exr")[..., 1]
+        third = pixels.shape[1] // 3
+        left, right = pixels[:, :third].mean(), pixels[:, -third:].mean()
+        return float((right - left) / pixels.mean()), float(pixels.mean())
+
+    even, lit = sides("switched")
+    switch = group.nodes["shadow row"].inputs["Factor"]
+    for link in list(switch.links):
+        group.links.remove(link)
+    switch.default_value = 0.0  # shadow rays read the pixel's own row: the gradient
+    graded, _ = sides("cut")
+    print(f"shadow's right − left / mean: {even:+.4f} switched, {graded:+.4f} cut; ground {lit:.3f}")
+    assert 0.3 < lit < 3.5, "the ground must be lit through the wall (a film lets light through)"
+    assert abs(graded) > 0.1 and abs(even) < 0.25 * abs(graded), (even, graded)
