@@ -290,15 +290,22 @@ def _furnace_scene(size: int, samples: int):
     bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128, radius=1.0)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
+    ortho_camera(scene, 2.05)
+    return scene, world, sphere
+
+
+def ortho_camera(scene, scale: float) -> None:
+    """An orthographic camera at y = −5 looking along +y, ``scale`` wide: the scene's camera."""
+    import bpy
+
     cam_data = bpy.data.cameras.new("cam")
     cam_data.type = "ORTHO"
-    cam_data.ortho_scale = 2.05
+    cam_data.ortho_scale = scale
     cam = bpy.data.objects.new("cam", cam_data)
     cam.location = (0.0, -5.0, 0.0)
     cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    return scene, world, sphere
 
 
 def _thickness_socket(nt, thickness_range):

@@ -45,14 +45,7 @@ def _plate_render(bpy, angle_deg: float, tint, samples: int = 512) -> np.ndarray
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["Thin Wall"].default_value = True
     plate.data.materials.append(mat)
-    cam_data = bpy.data.cameras.new("cam")
-    cam_data.type = "ORTHO"
-    cam_data.ortho_scale = 0.5
-    cam = bpy.data.objects.new("cam", cam_data)
-    cam.location = (0.0, -5.0, 0.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    cc.ortho_camera(scene, 0.5)
     with tempfile.TemporaryDirectory() as tmp:
         path = pathlib.Path(tmp) / "plate.exr"
         scene.render.filepath = str(path)
