@@ -241,9 +241,9 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
         r = white_reflectance_at(film, cos_o)
         if r.shape[0] != t_rows:
             raise ValueError(f"film table has {r.shape[0]} thickness rows, the bake {t_rows}")
-        tint = transmit.wall_tint(wall) if len(wall) >= 5 else None
+        tint = transmit.wall_tint(wall)  # 1 for the extension's own walls
         transmittance, scale = transmit.wall(r, cos_o[None, :], int(wall[0]), float(wall[1]), tint)
-        if int(wall[0]) == transmit.WALL_SOLID and tint is not None:
+        if int(wall[0]) == transmit.WALL_SOLID:
             transmittance = transmittance * tint  # √tint in and √tint out (Cycles' glass)
         bands = {"specular": albedo * scale, "transmission": transmittance}
     inverse = glossy_colour(np.ones((1, cos_o.size, 3)), cos_o[None, :], roughness)
