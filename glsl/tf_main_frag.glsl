@@ -11,7 +11,8 @@
  * A transparent film (TF_TRANSMIT, tf_transmit.glsl) is drawn in two blend passes: pass 1 writes
  * (T, mean T) for a multiply blend, pass 2 (S R L, 1 - mean T) for an additive one
  * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
- * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl).
+ * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl). A closed
+ * thin wall's far side adds its reflections inside (tf_wall_inside, shading.bubble; TF_SPLIT_SUM).
  * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_refract.glsl (TF_REFRACT) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
@@ -26,6 +27,52 @@ vec3 tf_solid_glint(vec3 n, vec3 v, vec3 wall_t)
   vec3 r = vec3(1.0) - sqrt(max(wall_t, vec3(0.0)));
   return wall_t * r *
          tf_prefiltered_lookup(tf_solid_internal(n, v, tf_object.material.w), 0.0, unused_moment, unused_weight);
+}
+#endif
+
+#if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 && defined(TF_SPLIT_SUM)
+/* A thin wall's thickness parameter at world point p: the mesh's linear fit (shading.bubble.world_fit). */
+float tf_inside_thickness(vec3 p)
+{
+#ifdef TF_VARY_THICKNESS
+  return clamp(dot(tf_object.fit.xyz, p) + tf_object.fit.w, 0.0, 1.0);
+#else
+  return 0.0;
+#endif
+}
+
+/* A closed thin wall's far side (shading.bubble.inside_reflections): its reflection along
+ * reflect(-v, n) leaves through the wall it meets next (exit_t, T2) and is reflected on inside,
+ * TF_INSIDE_ORDERS times: returns sum_k (R2..Rk) T(k+1) L(d_k), L the World prefiltered at the film's
+ * roughness; exit_t 1 and nothing more where the ray does not enter the sphere. */
+vec3 tf_wall_inside(vec3 n, vec3 v, out vec3 exit_t)
+{
+  vec3 p = tf_world_pos;
+  vec3 d = reflect(-v, n);
+  vec3 centre = tf_object.model[3].xyz;
+  vec3 tint = tf_object.glass.yzw;
+  float mode = tf_object.material.z;
+  float eta = tf_object.material.w;
+  float cos_hit;
+  tf_inside_step(p, d, centre, cos_hit);
+  exit_t = vec3(1.0);
+  if (cos_hit <= 0.0) {
+    return vec3(0.0);
+  }
+  vec3 refl, t_next;
+  tf_wall_rt(cos_hit, tf_inside_thickness(p), mode, eta, tint, refl, exit_t);
+  vec3 carried = vec3(1.0);
+  vec3 extra = vec3(0.0);
+  for (int k = 0; k < TF_INSIDE_ORDERS; k++) {
+    vec3 along = d;
+    carried *= refl;
+    tf_inside_step(p, d, centre, cos_hit);
+    tf_wall_rt(cos_hit, tf_inside_thickness(p), mode, eta, tint, refl, t_next);
+    vec3 unused_moment;
+    float unused_weight;
+    extra += carried * t_next * tf_prefiltered_lookup(along, tf_object.material.x, unused_moment, unused_weight);
+  }
+  return extra;
 }
 #endif
 
@@ -160,6 +207,16 @@ void main()
 #endif
 #if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 /* the add pass: R L; alpha plus 1 - mean(T) */
   rgb *= wall_s;
+#ifdef TF_SPLIT_SUM
+  /* a closed thin wall's far side (its normal turned from the viewer): on through the next wall,
+   * and reflected on inside (shading.bubble) */
+  if (tf_object.material.z < 1.5 && tf_object.inside.x > 0.5 && dot(tf_world_nor, v) < 0.0) {
+    vec3 exit_t, r_far, unused_t;
+    vec3 extra = tf_wall_inside(n, v, exit_t);
+    tf_wall_rt(fw.cos_o, thickness01, tf_object.material.z, tf_object.material.w, tint, r_far, unused_t);
+    rgb = rgb * exit_t + r_far * extra;
+  }
+#endif
 #ifdef TF_REFRACT
   if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
     TFLerp r_wall = tf_table_lerp(fw.cos_o, fw.sin_o, thickness01);

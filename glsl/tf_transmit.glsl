@@ -106,3 +106,27 @@ vec3 tf_solid_exit(vec3 n, vec3 v, float eta)
   vec3 w = tf_safe_normalize(ci * v - n, vec3(0.0));
   return tf_safe_normalize(-cos(deviation) * v + sin(deviation) * w, -v);
 }
+
+/* One hit of a ray inside the sphere about centre through p (shading.bubble.inside_path): from p
+ * along d (into the sphere) across the chord to the next point, d reflected there about the
+ * sphere's normal; cos_hit: the cosine met there (0 where d does not enter: p stays). */
+void tf_inside_step(inout vec3 p, inout vec3 d, vec3 centre, out float cos_hit)
+{
+  float chord = max(-2.0 * dot(p - centre, d), 0.0);
+  p += chord * d;
+  vec3 n = tf_safe_normalize(p - centre, -d);
+  float dn = dot(d, n);
+  cos_hit = (chord > 0.0) ? clamp(dn, 0.0, 1.0) : 0.0;
+  d -= 2.0 * dn * n;
+}
+
+/* A thin wall's reflectance R = S r and transmittance T at cosine u where its thickness parameter
+ * is t01 (shading.bubble.inside_reflections' wall_at). */
+void tf_wall_rt(float u, float t01, float mode, float eta, vec3 tint, out vec3 refl, out vec3 t)
+{
+  float c = clamp(u, 0.0, 1.0);
+  TFLerp r = tf_table_lerp(c, sqrt(max(1.0 - c * c, 0.0)), t01);
+  vec3 s;
+  tf_wall(c, r, mode, eta, tint, t, s);
+  refl = s * clamp(tf_film_white(c, r), vec3(0.0), vec3(1.0));
+}

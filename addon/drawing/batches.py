@@ -27,9 +27,10 @@ __all__ = ["BatchEntry", "batch_thickness", "slot_batch", "thickness_source"]
 class BatchEntry:
     """One (object, material slot, instance)'s batch and what it was built from.
 
-    ``signature``: the mesh's name and sizes, whether the material's thickness varies and its
-    :func:`.thickness.thickness_inputs` (a different signature rebuilds the batch; nothing else
-    of the material is in the batch, so a roughness drag rebuilds none);
+    ``signature``: the mesh's name and sizes, whether the material's thickness varies, its
+    :func:`.thickness.thickness_inputs` and whether it is a transparent film's (a different
+    signature rebuilds the batch; nothing else of the material is in the batch, so a roughness
+    drag rebuilds none);
     ``thickness``: the per-vertex thickness parameters uploaded (float32, one per corner; None
     for a constant thickness), kept to be read back; ``notes``: what the build found wrong
     (NaN thickness values, a missing attribute), repeated in every frame's messages.
@@ -85,9 +86,10 @@ def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
 
 
 def slot_batch(
-    name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None
+    name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None, wall: bool = False
 ) -> BatchEntry:
-    """The batch of the triangles of material slot ``slot`` (None if it has none).
+    """The batch of the triangles of material slot ``slot`` (None if it has none); ``wall``: a
+    transparent film's, which reads whether the slot's triangles close (MeshBatch.inside).
 
     ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
     material is not refreshed when an add-on property changes), or None; ``name``: the object's;
@@ -115,7 +117,7 @@ def slot_batch(
         thickness = np.nan_to_num(
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
-    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness)
+    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness, wall=wall)
     if waiting:
         signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))

@@ -525,6 +525,7 @@ def collect(
                 len(mesh.loops),
                 entry.desc.varies,
                 entry.thickness_key,
+                entry.wall is not None,
             )
             cached = CACHES.batches.get(key)
             if cached is None or cached.signature != signature or original.name in CACHES.dirty:
@@ -538,6 +539,7 @@ def collect(
                     entry.desc,
                     signature,
                     entry.linked_source,
+                    wall=entry.wall is not None,
                 )
                 CACHES.batches[key] = cached
                 CACHES.stats["batch_builds"] += cached.batch is not None

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
+from ...precompute.shading.bubble import Inside, world_fit
 from ...precompute.shading.transmit import WALL_SOLID, wall_tint
 from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
 from . import layout, resources
@@ -60,14 +61,20 @@ def view_uniforms(view_matrix, projection_matrix, exposure: float = 0.0) -> np.n
 
 
 def object_uniforms(
-    model_matrix, roughness: float = 0.0, sh_weight: float = 1.0, wall: tuple = (0.0, 1.0), glass: int = -1
+    model_matrix,
+    roughness: float = 0.0,
+    sh_weight: float = 1.0,
+    wall: tuple = (0.0, 1.0),
+    glass: int = -1,
+    inside: Inside | None = None,
 ) -> np.ndarray:
     """:data:`.layout.OBJECT` content, flat float32: model matrix, normal matrix (inverse
     transpose of its 3×3), material parameters (roughness, SH weight and a transparent film's
     ``wall``: its mode and relative index, precompute.shading.transmit), solid glass's id in
-    the glass buffers (−1: none, its exit through the sphere about its origin) and the wall's
+    the glass buffers (−1: none, its exit through the sphere about its origin), the wall's
     transmission tint (``wall``'s last three entries, :func:`~precompute.shading.transmit.wall_tint`;
-    1 without)."""
+    1 without) and what a closed wall's reflections inside read (``inside``, the mesh's
+    :class:`~precompute.shading.bubble.Inside`; None: none drawn)."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:
@@ -81,6 +88,8 @@ def object_uniforms(
         normal=_columns(normal),
         material=[float(roughness), float(sh_weight), float(wall[0]), float(wall[1])],
         glass=[float(glass), *(float(c) for c in wall_tint(wall))],
+        fit=world_fit(inside.fit, model) if inside is not None else [0.0] * 4,
+        inside=[float(inside is not None and inside.closed), 0.0, 0.0, 0.0],
     ).reshape(-1)
 
 
@@ -203,9 +212,10 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
     wall = tuple(float(x) for x in item.wall) if variant.transmit else (0.0, 1.0)
     model = _matrix(item.model_matrix)
     glass = behind.ids.get(id(item), -1) if variant.refract else -1
+    inside = getattr(item.batch, "inside", None) if variant.transmit == TRANSMIT_ADD else None
     object_ubo = uniforms.get(
-        ("object", model.tobytes(), roughness, weight, wall, glass),
-        lambda: object_uniforms(model, roughness, weight, wall, glass),
+        ("object", model.tobytes(), roughness, weight, wall, glass, inside),
+        lambda: object_uniforms(model, roughness, weight, wall, glass, inside),
     )
     table_data = table.ubo if variant.table_ubo else table.texture
     film_data = (film.ubo if variant.film_ubo else film.texture) if variant.film else None

@@ -188,6 +188,13 @@ OBJECT = Block(
             "x: solid glass's id in the glass buffers (TF_REFRACT), -1 where none; "
             "yzw: the wall's transmission tint (Principled Base Color), 1 where none",
         ),
+        Member(
+            "fit",
+            None,
+            "a thin wall's thickness parameter as fit.xyz . p + fit.w over world positions p, the "
+            "mesh's least-squares fit (shading.bubble.world_fit); 0 for a constant thickness",
+        ),
+        Member("inside", None, "x: 1 where a closed thin wall draws its reflections inside (shading.bubble)"),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).

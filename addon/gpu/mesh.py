@@ -7,21 +7,28 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
+from ...precompute.shading.bubble import Inside, mesh_inside
 from .context import ensure_gpu_context
 
 
 @dataclass
 class MeshBatch:
-    """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1])."""
+    """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1]).
+
+    ``inside``: a transparent film's mesh, whether it is closed and its thickness's linear fit
+    (:func:`precompute.shading.bubble.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
+    None: no reflections inside are drawn."""
 
     batch: gpu.types.GPUBatch
     vertex_count: int
     triangle_count: int
     has_thickness: bool
+    inside: Inside | None = None
 
     @classmethod
-    def from_arrays(cls, positions, normals, indices, thickness=None) -> MeshBatch | None:
-        """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness.
+    def from_arrays(cls, positions, normals, indices, thickness=None, wall: bool = False) -> MeshBatch | None:
+        """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness;
+        ``wall``: a transparent film's, with its :attr:`inside` (a pass over its edges).
 
         Everything is converted to float32 / int32. Returns None for an empty mesh.
         """
@@ -51,7 +58,8 @@ class MeshBatch:
             vbo.attr_fill("thickness", th)
         ibo = gpu.types.GPUIndexBuf(type="TRIS", seq=idx)
         batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
-        return cls(batch, pos.shape[0], idx.shape[0], th is not None)
+        inside = mesh_inside(pos, idx, th) if wall else None
+        return cls(batch, pos.shape[0], idx.shape[0], th is not None, inside)
 
 
 def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):

@@ -82,6 +82,15 @@ MIRROR = (
         glsl_note="`TF_TRANSMIT`",
     ),
     Mirror(
+        ("shading.bubble.inside_path", "shading.bubble.inside_reflections", "shading.bubble.world_fit"),
+        "tf_transmit.glsl",
+        ("tf_inside_step", "tf_wall_rt"),
+        numpy_note="a closed thin wall's reflections inside: the path on the sphere, each hit's "
+        "wall at its own thickness",
+        glsl_note="`TF_TRANSMIT` = 2 with `TF_SPLIT_SUM`; `tf_wall_inside`, `tf_inside_thickness` "
+        "in `tf_main_frag.glsl`",
+    ),
+    Mirror(
         ("shading.refract.exit_ray", "shading.refract.march", "shading.refract.seen"),
         "tf_refract.glsl",
         ("tf_solid_exit_ray", "tf_refract_march"),
