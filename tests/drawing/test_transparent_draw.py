@@ -131,6 +131,25 @@ def test_closed_bubble_shows_both_walls(gd, bpy):
     assert np.mean(image[inner][:, :3]) > np.mean(opaque[inner][:, :3]) + 0.2
 
 
+def glossy_item(gd, result, make_item):
+    """(item, prefilter, film table): ``make_item(table, lighting)`` lit by world_sh() through a
+    64-wide prefilter with its moments, split sum only (SH weight 0), with ``result``'s film."""
+    from precompute.shading import policy
+    from precompute.world import prefilter
+
+    world, img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
+    full = prefilter.prefilter(img, width=64)
+    levels, moments = full.resampled(64), full.resampled_moments(64)
+    pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
+    film = film_colour.film_table(result)
+    item = make_item(gd.resources.TableTexture.from_result(result), lighting)
+    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
+    item.roughness, item.sh_weight = result.material.roughness, 0.0
+    item.film = gd.resources.FilmTexture.from_film(film)
+    return item, pre, film
+
+
 @pytest.mark.parametrize("tint", [None, (0.8, 0.5, 0.2)])
 def test_solid_glass_shows_the_world_along_the_exit_ray(gd, tint):
     """WALL_SOLID with the split sum: what is behind is replaced by T × the prefiltered World at
@@ -138,21 +157,10 @@ def test_solid_glass_shows_the_world_along_the_exit_ray(gd, tint):
     a Base Color ``tint`` multiplies what passed in and out (√tint each way, Cycles' glass)."""
     import dataclasses
 
-    from precompute.shading import policy, split_sum
-    from precompute.world import prefilter
+    from precompute.shading import split_sum
 
     result = baked(5, "spectral", False)
-    table = gd.resources.TableTexture.from_result(result)
-    world, img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
-    full = prefilter.prefilter(img, width=64)
-    levels, moments = full.resampled(64), full.resampled_moments(64)
-    pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
-    film = film_colour.film_table(result)
-    item = tilted_quad_item(gd, table, lighting)
-    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
-    item.roughness, item.sh_weight = result.material.roughness, 0.0
-    item.film = gd.resources.FilmTexture.from_film(film)
+    item, pre, film = glossy_item(gd, result, lambda table, lighting: tilted_quad_item(gd, table, lighting))
     item.wall = (transmit.WALL_SOLID, 1.5, *(tint or ()))
     image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
     inside, n, views = quad_pixels(item.model_matrix)
@@ -183,8 +191,7 @@ def test_a_closed_bubbles_far_wall_reflects_on_inside(gd, bpy):
     without equals numpy's T_front·(S₁r₁L(d₁)(T₂ − 1) + R₁·extra) per pixel."""
     import dataclasses
 
-    from precompute.shading import bubble, policy, split_sum
-    from precompute.world import prefilter
+    from precompute.shading import bubble, split_sum
 
     mesh = uv_sphere_mesh(bpy, name="tf_bubble_inside")
     positions, normals, tris, _ = gd.mesh.mesh_arrays(mesh)
@@ -193,16 +200,7 @@ def test_a_closed_bubbles_far_wall_reflects_on_inside(gd, bpy):
     batch = gd.mesh.MeshBatch.from_arrays(positions, normals, tris, parameter, wall=True)
     assert batch.inside.closed and np.allclose(batch.inside.fit, (0.5, 0.0, 0.0, 0.5), atol=1e-5)
     result = baked(5, "per_channel", True)
-    world, img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(world, 5, result.material.roughness)
-    full = prefilter.prefilter(img, width=64)
-    levels, moments = full.resampled(64), full.resampled_moments(64)
-    pre = prefilter.Prefiltered(tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments))
-    film = film_colour.film_table(result)
-    item = Item(batch, gd.resources.TableTexture.from_result(result), lighting)
-    item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
-    item.roughness, item.sh_weight = result.material.roughness, 0.0
-    item.film = gd.resources.FilmTexture.from_film(film)
+    item, pre, film = glossy_item(gd, result, lambda table, lighting: Item(batch, table, lighting))
     item.wall = (transmit.WALL_CYCLES, 1.0)
     image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
     item.batch = dataclasses.replace(batch, inside=None)
