@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import pathlib
 import platform
 import statistics
 import time
@@ -130,6 +131,21 @@ def git_describe(paths=("precompute",)) -> str:
     if dirty:
         return f"git {head} ({names} {'has' if len(paths) == 1 else 'have'} uncommitted changes or new files)"
     return f"git {head}, {names} clean"
+
+
+def source_digest(paths=("addon", "precompute", "glsl")) -> str:
+    """A digest of the product's source as it is on disk (every .py, .glsl and .toml under
+    ``paths``, committed or not): a cache of the product's own output keyed by it is recomputed
+    after any change to the code."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for folder in paths:
+        for path in sorted(pathlib.Path(ROOT, folder).rglob("*")):
+            if path.suffix in (".py", ".glsl", ".toml") and "__pycache__" not in path.parts:
+                digest.update(str(path.relative_to(ROOT)).encode())
+                digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 #: Recorded when the benchmark starts, so the report names the code that was measured.

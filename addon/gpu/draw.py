@@ -89,7 +89,7 @@ def object_uniforms(
         material=[float(roughness), float(sh_weight), float(wall[0]), float(wall[1])],
         glass=[float(glass), *(float(c) for c in wall_tint(wall))],
         fit=world_fit(inside.fit, model) if inside is not None else [0.0] * 4,
-        inside=[float(inside is not None and inside.closed), 0.0, 0.0, 0.0],
+        inside=[float(inside is not None and inside.drawn), 0.0, 0.0, 0.0],
     ).reshape(-1)
 
 

@@ -194,7 +194,11 @@ OBJECT = Block(
             "a thin wall's thickness parameter as fit.xyz . p + fit.w over world positions p, the "
             "mesh's least-squares fit (shading.bubble.world_fit); 0 for a constant thickness",
         ),
-        Member("inside", None, "x: 1 where a closed thin wall draws its reflections inside (shading.bubble)"),
+        Member(
+            "inside",
+            None,
+            "x: 1 where a closed thin wall draws its reflections inside (shading.bubble.Inside.drawn)",
+        ),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).

@@ -227,6 +227,9 @@ WALL_SCALE_MAX = 16.0
 #: lamps' arcs after two and three reflections in a bubble: 2.70 → 1.37 mean ΔE2000 against
 #: Cycles in a numpy trace; a fourth reflection would take 0.04 more, docs/transparent-films.md).
 INSIDE_ORDERS = 2
+#: The share of a wall's thickness variance its linear fit must explain (R²) for the reflections
+#: inside to be drawn (shading.bubble.Inside.drawn): the benchmark's Map Range 1, a noise ≈ 0.
+INSIDE_MIN_EXPLAINED = 0.5
 #: Smallest reflectance and denominator a wall's formulas divide by (r → 0, r·R_b → 1).
 WALL_GUARD = 1e-6
 #: Solid glass's screen-space refraction (shading/refract.py, glsl/tf_refract.glsl): the exit ray

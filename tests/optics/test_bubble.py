@@ -187,11 +187,15 @@ def test_mesh_inside_tells_closed_from_open_and_fits_a_linear_thickness():
     positions, tris = sphere_mesh()
     thickness = 0.2 + 0.3 * positions[:, 0] - 0.1 * positions[:, 2]
     inside = bubble.mesh_inside(positions, tris, thickness)
-    assert inside.closed
+    assert inside.closed and inside.drawn and inside.explained > 1.0 - 1e-9
     assert np.allclose(inside.fit, (0.3, 0.0, -0.1, 0.2), atol=1e-6)
     hemisphere = bubble.mesh_inside(*sphere_mesh(keep=lambda c: c[:, 2] > 0.0))
     assert not hemisphere.closed and hemisphere.fit == (0.0, 0.0, 0.0, 0.0)
     assert not bubble.mesh_inside(np.zeros((0, 3)), np.zeros((0, 3), int)).closed
+    # a fin on one of the sphere's edges: that edge is shared by three triangles, not closed
+    fin = np.concatenate([positions, positions[tris[0, :2]], [[0.0, 0.0, 3.0]]])
+    n = len(positions)
+    assert not bubble.mesh_inside(fin, np.concatenate([tris, [[n, n + 1, n + 2]]])).closed
     # a NaN-free constant thickness fits its value; too few values fall back to their mean
     assert np.allclose(
         bubble.mesh_inside(positions, tris, np.full(len(positions), 0.4)).fit, (0, 0, 0, 0.4), atol=1e-9
@@ -208,3 +212,17 @@ def test_world_fit_moves_with_the_object():
     world = local @ a.T + model[:3, 3]
     w = bubble.world_fit(fit, model)
     assert np.allclose(world @ w[:3] + w[3], local @ fit[:3] + fit[3], atol=1e-12)
+
+
+def test_a_noise_thickness_is_not_drawn_inside():
+    """A thickness the linear fit cannot follow (a noise) leaves the reflections inside out: the
+    other hits' thickness is not known (Inside.drawn)."""
+    positions, tris = sphere_mesh()
+    rng = np.random.default_rng(4)
+    welded = np.unique(positions.round(6), axis=0, return_inverse=True)[1].reshape(-1)
+    noise = rng.uniform(0.0, 1.0, welded.max() + 1)[welded]  # one value per vertex, as a noise
+    inside = bubble.mesh_inside(positions, tris, noise)
+    assert inside.closed and inside.explained < 0.1 and not inside.drawn
+    # a gradient under a little noise is still followed
+    ramp = bubble.mesh_inside(positions, tris, 0.5 + 0.4 * positions[:, 0] + 0.05 * (noise - 0.5))
+    assert ramp.drawn and ramp.explained > 0.9
