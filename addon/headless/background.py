@@ -139,7 +139,8 @@ def render_background(
 ) -> Background:
     """Render ``scene`` through its camera with ``engine`` (:data:`ENGINES`) at ``width`` ×
     ``height``, the objects named in ``hidden`` invisible to the camera, those in ``shadowless``
-    casting no shadow either (transparent films, :func:`wall_objects`); see the module.
+    casting no shadow either (transparent films, :func:`wall_objects`; not with Cycles, which
+    traces light through them: their shadows and caustics on the ground); see the module.
 
     ``transparent``: the World is left out of the picture (film transparent; it still lights).
     ``margin``: render that many pixels more on each side (the camera widened, its pixels
@@ -158,7 +159,9 @@ def render_background(
     layer = bpy.context.view_layer
     objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
     glass = dict(glass or {}) if engine == "EEVEE" else {}
-    shadowless = set(shadowless) - set(glass)
+    # Cycles traces the light through a film's own material (its shadow and caustics): only the
+    # rasterisers' opaque shadow of a film is wrong (wall_objects)
+    shadowless = set() if engine == "CYCLES" else set(shadowless) - set(glass)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="thinfilm_sh_bg_") as folder:
         path = pathlib.Path(folder) / "background.exr"
@@ -294,10 +297,11 @@ def _back_film(item):
 def wall_objects(items) -> set:
     """The objects of transparent films (:func:`.gpu.draw.is_wall`): hidden from the background
     pass's camera, they cast no shadow in it either (solid glass under EEVEE casts the lamps'
-    shadow through glass instead: :func:`glass_indices`). EEVEE's shadow of a glass ball or a
-    bubble is that of an opaque object; Cycles' lets most light through, bent into caustics. The
-    glass benchmark (docs/transparent-films.md#figures): mean ΔE2000 over the ball 4.50 with
-    EEVEE's opaque shadows, 3.93 without; over the ground around it 5.11 and 3.35."""
+    shadow through glass instead: :func:`glass_indices`; a Cycles pass keeps every film's shadow,
+    :func:`render_background`). EEVEE's shadow of a glass ball or a bubble is that of an opaque
+    object; Cycles' lets most light through, bent into caustics. The glass benchmark
+    (docs/transparent-films.md#figures): mean ΔE2000 over the ball 4.50 with EEVEE's opaque
+    shadows, 3.93 without; over the ground around it 5.11 and 3.35."""
     return {item.name.split("/")[0] for item in items if is_wall(item)}
 
 
