@@ -12,7 +12,7 @@
  * (T, mean T) for a multiply blend, pass 2 (S R L, 1 - mean T) for an additive one
  * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
  * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl). A closed
- * thin wall's far side adds its reflections inside (tf_wall_inside, shading.bubble; TF_SPLIT_SUM).
+ * thin wall's far side adds its reflections inside (tf_wall_inside, shading.transmit; TF_SPLIT_SUM).
  * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_refract.glsl (TF_REFRACT) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
@@ -31,7 +31,7 @@ vec3 tf_solid_glint(vec3 n, vec3 v, vec3 wall_t)
 #endif
 
 #if defined(TF_TRANSMIT) && TF_TRANSMIT == 2 && defined(TF_SPLIT_SUM)
-/* A thin wall's thickness parameter at world point p: the mesh's linear fit (shading.bubble.world_fit). */
+/* A thin wall's thickness parameter at world point p: the mesh's linear fit (shading.transmit.world_fit). */
 float tf_inside_thickness(vec3 p)
 {
 #ifdef TF_VARY_THICKNESS
@@ -41,7 +41,7 @@ float tf_inside_thickness(vec3 p)
 #endif
 }
 
-/* A closed thin wall's far side (shading.bubble.inside_reflections): its reflection along
+/* A closed thin wall's far side (shading.transmit.inside_reflections): its reflection along
  * reflect(-v, n) leaves through the wall it meets next (exit_t, T2) and is reflected on inside,
  * TF_INSIDE_ORDERS times: returns sum_k (R2..Rk) T(k+1) L(d_k), L the World prefiltered at the film's
  * roughness; exit_t 1 and nothing more where the ray does not enter the sphere. */
@@ -209,7 +209,7 @@ void main()
   rgb *= wall_s;
 #ifdef TF_SPLIT_SUM
   /* a closed thin wall's far side (its normal turned from the viewer): on through the next wall,
-   * and reflected on inside (shading.bubble) */
+   * and reflected on inside (shading.transmit) */
   if (tf_object.material.z < 1.5 && tf_object.inside.x > 0.5 && dot(tf_world_nor, v) < 0.0) {
     vec3 exit_t, r_far, unused_t;
     vec3 extra = tf_wall_inside(n, v, exit_t);

@@ -107,7 +107,7 @@ vec3 tf_solid_exit(vec3 n, vec3 v, float eta)
   return tf_safe_normalize(-cos(deviation) * v + sin(deviation) * w, -v);
 }
 
-/* One hit of a ray inside the sphere about centre through p (shading.bubble.inside_path): from p
+/* One hit of a ray inside the sphere about centre through p (shading.transmit.inside_path): from p
  * along d (into the sphere) across the chord to the next point, d reflected there about the
  * sphere's normal; cos_hit: the cosine met there (0 where d does not enter: p stays). */
 void tf_inside_step(inout vec3 p, inout vec3 d, vec3 centre, out float cos_hit)
@@ -121,7 +121,7 @@ void tf_inside_step(inout vec3 p, inout vec3 d, vec3 centre, out float cos_hit)
 }
 
 /* A thin wall's reflectance R = S r and transmittance T at cosine u where its thickness parameter
- * is t01 (shading.bubble.inside_reflections' wall_at). */
+ * is t01 (shading.transmit.inside_reflections' wall_at). */
 void tf_wall_rt(float u, float t01, float mode, float eta, vec3 tint, out vec3 refl, out vec3 t)
 {
   float c = clamp(u, 0.0, 1.0);

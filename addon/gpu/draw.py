@@ -16,8 +16,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
-from ...precompute.shading.bubble import Inside, world_fit
-from ...precompute.shading.transmit import WALL_SOLID, wall_tint
+from ...precompute.shading.transmit import WALL_SOLID, Inside, wall_tint, world_fit
 from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
 from . import layout, resources
 from .context import ensure_gpu_context
@@ -74,7 +73,7 @@ def object_uniforms(
     the glass buffers (−1: none, its exit through the sphere about its origin), the wall's
     transmission tint (``wall``'s last three entries, :func:`~precompute.shading.transmit.wall_tint`;
     1 without) and what a closed wall's reflections inside read (``inside``, the mesh's
-    :class:`~precompute.shading.bubble.Inside`; None: none drawn)."""
+    :class:`~precompute.shading.transmit.Inside`; None: none drawn)."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:

@@ -192,12 +192,12 @@ OBJECT = Block(
             "fit",
             None,
             "a thin wall's thickness parameter as fit.xyz . p + fit.w over world positions p, the "
-            "mesh's least-squares fit (shading.bubble.world_fit); 0 for a constant thickness",
+            "mesh's least-squares fit (shading.transmit.world_fit); 0 for a constant thickness",
         ),
         Member(
             "inside",
             None,
-            "x: 1 where a closed thin wall draws its reflections inside (shading.bubble.Inside.drawn)",
+            "x: 1 where a closed thin wall draws its reflections inside (shading.transmit.Inside.drawn)",
         ),
     ),
 )

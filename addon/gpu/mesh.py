@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import gpu
 import numpy as np
 
-from ...precompute.shading.bubble import Inside, mesh_inside
+from ...precompute.shading.transmit import Inside, mesh_inside
 from .context import ensure_gpu_context
 
 
@@ -16,7 +16,7 @@ class MeshBatch:
     """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1]).
 
     ``inside``: a transparent film's mesh, whether it is closed and its thickness's linear fit
-    (:func:`precompute.shading.bubble.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
+    (:func:`precompute.shading.transmit.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
     None: no reflections inside are drawn."""
 
     batch: gpu.types.GPUBatch

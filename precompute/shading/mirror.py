@@ -82,7 +82,7 @@ MIRROR = (
         glsl_note="`TF_TRANSMIT`",
     ),
     Mirror(
-        ("shading.bubble.inside_path", "shading.bubble.inside_reflections", "shading.bubble.world_fit"),
+        ("shading.transmit.inside_path", "shading.transmit.inside_reflections", "shading.transmit.world_fit"),
         "tf_transmit.glsl",
         ("tf_inside_step", "tf_wall_rt"),
         numpy_note="a closed thin wall's reflections inside: the path on the sphere, each hit's "

@@ -223,12 +223,12 @@ LIGHT_VEC4 = 5
 #: Cap of a sheet's reflection scale R / r where the film barely reflects (an AR coating over a
 #: reflecting back face: S ≈ 9 at r = 0.5 %); the cap only guards r → 0 (docs/transparent-films.md).
 WALL_SCALE_MAX = 16.0
-#: Reflections inside a closed thin wall drawn after the far wall's own (shading.bubble): 2 (the
-#: lamps' arcs after two and three reflections in a bubble: 2.70 → 1.37 mean ΔE2000 against
-#: Cycles in a numpy trace; a fourth reflection would take 0.04 more, docs/transparent-films.md).
+#: Reflections inside a closed thin wall drawn after the far wall's own (shading.transmit): 2 (the
+#: lamps' arcs after two and three reflections in a bubble: 2.70 → 1.36 mean ΔE2000 against
+#: Cycles, benchmarks.transparent_films; a fourth reflection would take 0.04 more, in a numpy trace).
 INSIDE_ORDERS = 2
 #: The share of a wall's thickness variance its linear fit must explain (R²) for the reflections
-#: inside to be drawn (shading.bubble.Inside.drawn): the benchmark's Map Range 1, a noise ≈ 0.
+#: inside to be drawn (shading.transmit.Inside.drawn): the benchmark's Map Range 1, a noise ≈ 0.
 INSIDE_MIN_EXPLAINED = 0.5
 #: Smallest reflectance and denominator a wall's formulas divide by (r → 0, r·R_b → 1).
 WALL_GUARD = 1e-6

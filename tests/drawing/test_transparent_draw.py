@@ -187,11 +187,11 @@ def test_solid_glass_shows_the_world_along_the_exit_ray(gd, tint):
 def test_a_closed_bubbles_far_wall_reflects_on_inside(gd, bpy):
     """A closed thin wall with the split sum and a thickness varying across it: the far wall's
     reflection leaves through the wall it meets next and is reflected on inside
-    (shading.bubble, tf_wall_inside). The draw with the reflections inside minus the draw
+    (shading.transmit.inside_reflections, tf_wall_inside). The draw with the reflections inside minus the draw
     without equals numpy's T_front·(S₁r₁L(d₁)(T₂ − 1) + R₁·extra) per pixel."""
     import dataclasses
 
-    from precompute.shading import bubble, split_sum
+    from precompute.shading import split_sum
 
     mesh = uv_sphere_mesh(bpy, name="tf_bubble_inside")
     positions, normals, tris, _ = gd.mesh.mesh_arrays(mesh)
@@ -205,7 +205,7 @@ def test_a_closed_bubbles_far_wall_reflects_on_inside(gd, bpy):
     image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
     item.batch = dataclasses.replace(batch, inside=None)
     without = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
-    item.batch = dataclasses.replace(batch, inside=bubble.Inside(False, batch.inside.fit))
+    item.batch = dataclasses.replace(batch, inside=transmit.Inside(False, batch.inside.fit))
     open_mesh = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, depth_from=behind(0.0))
     assert np.array_equal(open_mesh, without)  # an open mesh has no inside
 
@@ -226,7 +226,7 @@ def test_a_closed_bubbles_far_wall_reflects_on_inside(gd, bpy):
     r_far = s_back * np.clip(transmit.white_reflectance(film, rows, cos_back), 0.0, 1.0)
     reflected = s_back * split_sum.shade_split_sum(result, pre, back_n, v_back, lo + back_param * (hi - lo))
     roughness = np.full(len(rays), result.material.roughness)
-    exit_t, extra = bubble.inside_reflections(
+    exit_t, extra = transmit.inside_reflections(
         film,
         p_back,
         back_n,

@@ -1,4 +1,4 @@
-"""A closed thin wall's reflections inside (precompute.shading.bubble).
+"""A closed thin wall's reflections inside (precompute.shading.transmit: inside a bubble).
 
 The path inside is checked against an independent ray–sphere intersection (the quadratic), the
 reflections against energy in a white furnace (a lossless wall met at one angle lets out
@@ -11,7 +11,7 @@ import pytest
 
 from precompute.colour import film_colour
 from precompute.materials.material import Layer, Material
-from precompute.shading import bubble, policy, transmit
+from precompute.shading import policy, transmit
 
 
 def sphere_mesh(rings=12, segments=24, keep=None):
@@ -73,7 +73,7 @@ def test_the_path_follows_an_independent_ray_sphere_trace():
     centre = np.array([0.3, -0.2, 0.5])
     p, n, v = far_wall(centre=centre, radius=1.7)
     d = -v + 2.0 * np.sum(v * n, -1, keepdims=True) * n
-    hits = bubble.inside_path(p, d, centre, orders=4)
+    hits = transmit.inside_path(p, d, centre, orders=4)
     q, e = p, d
     for hit_p, hit_d, hit_cos in hits:
         oc = q - centre
@@ -94,7 +94,7 @@ def test_a_white_furnace_keeps_all_but_the_last_reflection(mode):
     """Constant thickness, radiance 1: T₂ + R₂T₃ + R₂R₃T₄ = 1 − R³ for a lossless wall (R + T = 1)."""
     f = film()
     p, n, v = far_wall()
-    exit_t, extra = bubble.inside_reflections(
+    exit_t, extra = transmit.inside_reflections(
         f, p, n, v, np.zeros(3), None, mode, 1.0, None, lambda d: np.ones((len(d), 3))
     )
     cos = np.sum(v * n, -1)
@@ -105,7 +105,7 @@ def test_a_white_furnace_keeps_all_but_the_last_reflection(mode):
     assert np.allclose(exit_t + extra, 1.0 - big_r ** (policy.INSIDE_ORDERS + 1), atol=1e-9)
     assert np.all(extra.sum(-1) > 0.0) and np.all(exit_t.sum(-1) < 3.0)
     # a tint absorbs at every pass: less comes out
-    tinted_t, tinted_extra = bubble.inside_reflections(
+    tinted_t, tinted_extra = transmit.inside_reflections(
         f,
         p,
         n,
@@ -126,7 +126,7 @@ def test_each_hit_reads_its_own_thickness():
     p, n, v = far_wall()
     fit = np.array([0.5, 0.0, 0.0, 0.5])  # parameter (x + 1) / 2
     seen = []
-    exit_t, extra = bubble.inside_reflections(
+    exit_t, extra = transmit.inside_reflections(
         f,
         p,
         n,
@@ -138,7 +138,7 @@ def test_each_hit_reads_its_own_thickness():
         None,
         lambda d: seen.append(d) or np.ones((len(d), 3)),
     )
-    hits = bubble.inside_path(p, -v + 2.0 * np.sum(v * n, -1, keepdims=True) * n, np.zeros(3))
+    hits = transmit.inside_path(p, -v + 2.0 * np.sum(v * n, -1, keepdims=True) * n, np.zeros(3))
 
     def wall(point, cos):
         rows = transmit.thickness_lerp(f, (point[:, 0] + 1.0) / 2.0, len(point))
@@ -150,7 +150,7 @@ def test_each_hit_reads_its_own_thickness():
     assert np.allclose(extra, r2 * t3 + r2 * r3 * t4, atol=1e-12)
     assert np.allclose(seen[0], hits[0][1]) and np.allclose(seen[1], hits[1][1])
     # a constant thickness (the middle) gives another answer: the thickness at the hits matters
-    flat = bubble.inside_reflections(
+    flat = transmit.inside_reflections(
         f,
         p,
         n,
@@ -168,7 +168,7 @@ def test_each_hit_reads_its_own_thickness():
 def test_a_near_wall_lets_its_reflection_leave():
     p, n, v = far_wall()
     near = -p  # the opposite points, normals outward there (towards a viewer on the other side)
-    exit_t, extra = bubble.inside_reflections(
+    exit_t, extra = transmit.inside_reflections(
         film(),
         near,
         -n,
@@ -186,19 +186,19 @@ def test_a_near_wall_lets_its_reflection_leave():
 def test_mesh_inside_tells_closed_from_open_and_fits_a_linear_thickness():
     positions, tris = sphere_mesh()
     thickness = 0.2 + 0.3 * positions[:, 0] - 0.1 * positions[:, 2]
-    inside = bubble.mesh_inside(positions, tris, thickness)
+    inside = transmit.mesh_inside(positions, tris, thickness)
     assert inside.closed and inside.drawn and inside.explained > 1.0 - 1e-9
     assert np.allclose(inside.fit, (0.3, 0.0, -0.1, 0.2), atol=1e-6)
-    hemisphere = bubble.mesh_inside(*sphere_mesh(keep=lambda c: c[:, 2] > 0.0))
+    hemisphere = transmit.mesh_inside(*sphere_mesh(keep=lambda c: c[:, 2] > 0.0))
     assert not hemisphere.closed and hemisphere.fit == (0.0, 0.0, 0.0, 0.0)
-    assert not bubble.mesh_inside(np.zeros((0, 3)), np.zeros((0, 3), int)).closed
+    assert not transmit.mesh_inside(np.zeros((0, 3)), np.zeros((0, 3), int)).closed
     # a fin on one of the sphere's edges: that edge is shared by three triangles, not closed
     fin = np.concatenate([positions, positions[tris[0, :2]], [[0.0, 0.0, 3.0]]])
     n = len(positions)
-    assert not bubble.mesh_inside(fin, np.concatenate([tris, [[n, n + 1, n + 2]]])).closed
+    assert not transmit.mesh_inside(fin, np.concatenate([tris, [[n, n + 1, n + 2]]])).closed
     # a NaN-free constant thickness fits its value; too few values fall back to their mean
     assert np.allclose(
-        bubble.mesh_inside(positions, tris, np.full(len(positions), 0.4)).fit, (0, 0, 0, 0.4), atol=1e-9
+        transmit.mesh_inside(positions, tris, np.full(len(positions), 0.4)).fit, (0, 0, 0, 0.4), atol=1e-9
     )
 
 
@@ -210,7 +210,7 @@ def test_world_fit_moves_with_the_object():
     model[:3, :3], model[:3, 3] = a, (1.0, -2.0, 0.5)
     local = rng.normal(size=(50, 3))
     world = local @ a.T + model[:3, 3]
-    w = bubble.world_fit(fit, model)
+    w = transmit.world_fit(fit, model)
     assert np.allclose(world @ w[:3] + w[3], local @ fit[:3] + fit[3], atol=1e-12)
 
 
@@ -221,8 +221,8 @@ def test_a_noise_thickness_is_not_drawn_inside():
     rng = np.random.default_rng(4)
     welded = np.unique(positions.round(6), axis=0, return_inverse=True)[1].reshape(-1)
     noise = rng.uniform(0.0, 1.0, welded.max() + 1)[welded]  # one value per vertex, as a noise
-    inside = bubble.mesh_inside(positions, tris, noise)
+    inside = transmit.mesh_inside(positions, tris, noise)
     assert inside.closed and inside.explained < 0.1 and not inside.drawn
     # a gradient under a little noise is still followed
-    ramp = bubble.mesh_inside(positions, tris, 0.5 + 0.4 * positions[:, 0] + 0.05 * (noise - 0.5))
+    ramp = transmit.mesh_inside(positions, tris, 0.5 + 0.4 * positions[:, 0] + 0.05 * (noise - 0.5))
     assert ramp.drawn and ramp.explained > 0.9
