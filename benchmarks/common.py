@@ -6,6 +6,7 @@ machine in the same words. Colour errors come from ``precompute.colour.colour_di
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import pathlib
@@ -133,10 +134,11 @@ def git_describe(paths=("precompute",)) -> str:
     return f"git {head}, {names} clean"
 
 
+@functools.cache
 def source_digest(paths=("addon", "precompute", "glsl")) -> str:
     """A digest of the product's source as it is on disk (every .py, .glsl and .toml under
-    ``paths``, committed or not): a cache of the product's own output keyed by it is recomputed
-    after any change to the code."""
+    ``paths``, committed or not) when first asked, read once per run like :data:`CODE_VERSION`:
+    a cache of the product's own output keyed by it is recomputed after any change to the code."""
     import hashlib
 
     digest = hashlib.sha256()

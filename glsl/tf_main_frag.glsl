@@ -168,8 +168,8 @@ void main()
   TFFrame fw = tf_view_aligned_frame(n, v);
   vec3 wall_t, wall_s;
   vec3 tint = tf_object.glass.yzw; /* the transmission tint: Principled Base Color, else 1 */
-  tf_wall(fw.cos_o, tf_table_lerp(fw.cos_o, fw.sin_o, thickness01), tf_object.material.z,
-          tf_object.material.w, tint, wall_t, wall_s);
+  TFLerp r_wall = tf_table_lerp(fw.cos_o, fw.sin_o, thickness01);
+  tf_wall(fw.cos_o, r_wall, tf_object.material.z, tf_object.material.w, tint, wall_t, wall_s);
   /* solid glass tints what passes in and out (sqrt(tint) each, Cycles); its wall_t stays (1 - r)^2 */
   vec3 through = (tf_object.material.z > 1.5) ? tint : vec3(1.0);
   float wall_mean = dot(wall_t * through, vec3(1.0 / 3.0));
@@ -211,15 +211,14 @@ void main()
   /* a closed thin wall's far side (its normal turned from the viewer): on through the next wall,
    * and reflected on inside (shading.transmit) */
   if (tf_object.material.z < 1.5 && tf_object.inside.x > 0.5 && dot(tf_world_nor, v) < 0.0) {
-    vec3 exit_t, r_far, unused_t;
+    vec3 exit_t;
     vec3 extra = tf_wall_inside(n, v, exit_t);
-    tf_wall_rt(fw.cos_o, thickness01, tf_object.material.z, tf_object.material.w, tint, r_far, unused_t);
+    vec3 r_far = wall_s * clamp(tf_film_white(fw.cos_o, r_wall), vec3(0.0), vec3(1.0)); /* R = S r */
     rgb = rgb * exit_t + r_far * extra;
   }
 #endif
 #ifdef TF_REFRACT
   if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
-    TFLerp r_wall = tf_table_lerp(fw.cos_o, fw.sin_o, thickness01);
     vec3 t_in = sqrt(max(wall_t, vec3(0.0))); /* wall_t = (1 - r)^2 */
     vec2 cosines;
     vec3 seen = tf_refracted(n, v, cosines);

@@ -28,7 +28,7 @@ class BatchEntry:
     """One (object, material slot, instance)'s batch and what it was built from.
 
     ``signature``: the mesh's name and sizes, whether the material's thickness varies, its
-    :func:`.thickness.thickness_inputs` and whether it is a transparent film's (a different
+    :func:`.thickness.thickness_inputs` and whether it is a thin transparent wall's (a different
     signature rebuilds the batch; nothing else of the material is in the batch, so a roughness
     drag rebuilds none);
     ``thickness``: the per-vertex thickness parameters uploaded (float32, one per corner; None
@@ -89,7 +89,7 @@ def slot_batch(
     name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None, wall: bool = False
 ) -> BatchEntry:
     """The batch of the triangles of material slot ``slot`` (None if it has none); ``wall``: a
-    transparent film's, which reads whether the slot's triangles close (MeshBatch.inside).
+    thin transparent wall's, which reads whether the slot's triangles close (MeshBatch.inside).
 
     ``props``: the ORIGINAL material's ``thinfilm_sh`` settings (Blender's evaluated copy of a
     material is not refreshed when an add-on property changes), or None; ``name``: the object's;

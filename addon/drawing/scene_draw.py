@@ -43,6 +43,7 @@ import numpy as np
 
 from ...precompute.materials.material import FALLBACK
 from ...precompute.shading import policy
+from ...precompute.shading.transmit import WALL_SOLID
 from .. import caches
 from ..bakes import bake_asks, bake_jobs, radiance_grids, tables
 from ..bakes.bake_asks import material_identity
@@ -519,13 +520,14 @@ def collect(
                 continue
             key = (original.name, slot_index, inst.is_instance and inst.persistent_id[0])
             mesh = obj_eval.data
+            thin_wall = entry.wall is not None and int(entry.wall[0]) != WALL_SOLID  # may have an inside
             signature = (
                 mesh.name,
                 len(mesh.vertices),
                 len(mesh.loops),
                 entry.desc.varies,
                 entry.thickness_key,
-                entry.wall is not None,
+                thin_wall,
             )
             cached = CACHES.batches.get(key)
             if cached is None or cached.signature != signature or original.name in CACHES.dirty:
@@ -539,7 +541,7 @@ def collect(
                     entry.desc,
                     signature,
                     entry.linked_source,
-                    wall=entry.wall is not None,
+                    wall=thin_wall,
                 )
                 CACHES.batches[key] = cached
                 CACHES.stats["batch_builds"] += cached.batch is not None

@@ -211,7 +211,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
     wall = tuple(float(x) for x in item.wall) if variant.transmit else (0.0, 1.0)
     model = _matrix(item.model_matrix)
     glass = behind.ids.get(id(item), -1) if variant.refract else -1
-    inside = getattr(item.batch, "inside", None) if variant.transmit == TRANSMIT_ADD else None
+    inside = getattr(item.batch, "inside", None) if variant.transmit else None  # both passes: one buffer
     object_ubo = uniforms.get(
         ("object", model.tobytes(), roughness, weight, wall, glass, inside),
         lambda: object_uniforms(model, roughness, weight, wall, glass, inside),

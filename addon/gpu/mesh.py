@@ -15,7 +15,7 @@ from .context import ensure_gpu_context
 class MeshBatch:
     """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1]).
 
-    ``inside``: a transparent film's mesh, whether it is closed and its thickness's linear fit
+    ``inside``: a thin transparent wall's mesh, whether it is closed and its thickness's linear fit
     (:func:`precompute.shading.transmit.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
     None: no reflections inside are drawn."""
 
@@ -28,7 +28,7 @@ class MeshBatch:
     @classmethod
     def from_arrays(cls, positions, normals, indices, thickness=None, wall: bool = False) -> MeshBatch | None:
         """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness;
-        ``wall``: a transparent film's, with its :attr:`inside` (a pass over its edges).
+        ``wall``: a thin transparent wall's, with its :attr:`inside` (a pass over its edges).
 
         Everything is converted to float32 / int32. Returns None for an empty mesh.
         """
