@@ -9,8 +9,9 @@
  * window's [0, 1] coordinates to its uv. tf_solid_exit_ray: the ray refracted in at the shaded
  * point, across the sphere about the object's origin through that point, and out;
  * tf_refract_march: that ray sampled at depths growing by TF_REFRACT_GROWTH from
- * TF_REFRACT_FIRST x the exit point's depth, the first crossing of the depth behind bisected
- * TF_REFRACT_REFINE times, accepted within TF_REFRACT_THICKNESS x its depth; a ray that leaves
+ * TF_REFRACT_FIRST x the exit point's depth (nearest texels), the first crossing of the depth behind
+ * bisected TF_REFRACT_REFINE times against the depth between texel centres (tf_behind_depth_at),
+ * accepted within TF_REFRACT_THICKNESS x its depth, its colour bilinear there; a ray that leaves
  * the picture takes the texel of its last sample inside (TF_REFRACT_EDGE); false where it hits
  * nothing (the caller reads the World along it). tf_glass_exit: the exit through the real mesh
  * (the glass buffers, below).
@@ -29,21 +30,86 @@ void tf_solid_exit_ray(vec3 p, vec3 n, vec3 v, vec3 c, float eta, out vec3 exit_
   dir = (dot(out_dir, out_dir) < TF_TIR_EPS) ? inner : normalize(out_dir);
 }
 
-/* The texel of tf_behind under world point q, and q's depth; false off the picture or behind the
- * camera. */
-bool tf_refract_sample(vec3 q, out ivec2 texel, out float depth_q)
+/* uv of world point q in tf_behind and q's depth; false behind the camera. */
+bool tf_refract_uv(vec3 q, out vec2 uv, out float depth_q)
 {
   mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
   vec4 clip = view_proj * vec4(q, 1.0);
   depth_q = dot(tf_view.camera.xyz - q, tf_view.view_dir.xyz);
-  if (clip.w <= 0.0 || depth_q <= 0.0) {
-    return false;
-  }
-  vec2 uv = (clip.xy / clip.w * 0.5 + 0.5) * tf_behind_view.screen.xy + tf_behind_view.screen.zw;
+  uv = (clip.xy / max(abs(clip.w), TF_DIVISION_FLOOR) * sign(clip.w) * 0.5 + 0.5) * tf_behind_view.screen.xy +
+       tf_behind_view.screen.zw;
+  return clip.w > 0.0 && depth_q > 0.0;
+}
+
+/* The texel of tf_behind under world point q, and q's depth; false off the picture or behind the
+ * camera. */
+bool tf_refract_sample(vec3 q, out ivec2 texel, out float depth_q)
+{
+  vec2 uv;
+  bool ahead = tf_refract_uv(q, uv, depth_q);
   vec2 size = tf_behind_view.size.xy;
   vec2 cell = floor(uv * size);
   texel = ivec2(clamp(cell, vec2(0.0), size - 1.0));
-  return all(greaterThanEqual(cell, vec2(0.0))) && all(lessThan(cell, size));
+  return ahead && all(greaterThanEqual(cell, vec2(0.0))) && all(lessThan(cell, size));
+}
+
+/* The four texels of tf_behind around uv (edge texels held beyond the picture) and the weights
+ * between them (shading.refract.bilinear). */
+void tf_behind_corners(vec2 uv, out ivec2 lo, out ivec2 hi, out vec2 f)
+{
+  vec2 size = tf_behind_view.size.xy;
+  vec2 p = uv * size - 0.5;
+  vec2 base = floor(p);
+  f = p - base;
+  lo = ivec2(clamp(base, vec2(0.0), size - 1.0));
+  hi = ivec2(clamp(base + 1.0, vec2(0.0), size - 1.0));
+}
+
+/* The depth behind at uv (shading.refract._Scene.surface): where the four texels around it hold one
+ * surface (depths within 1 + TF_REFRACT_THICKNESS of each other), between their centres, bilinear
+ * in 1 / depth (exact for a plane); else the nearest texel's, uv moved to its centre (its colour
+ * then read unmixed across the edge). */
+float tf_behind_depth_at(inout vec2 uv)
+{
+  ivec2 lo, hi;
+  vec2 f;
+  tf_behind_corners(uv, lo, hi, f);
+  vec4 d = vec4(texelFetch(tf_behind, lo, 0).a, texelFetch(tf_behind, ivec2(hi.x, lo.y), 0).a,
+                texelFetch(tf_behind, ivec2(lo.x, hi.y), 0).a, texelFetch(tf_behind, hi, 0).a);
+  float d_min = min(min(d.x, d.y), min(d.z, d.w));
+  float d_max = max(max(d.x, d.y), max(d.z, d.w));
+  if (d_max > (1.0 + TF_REFRACT_THICKNESS) * d_min) {
+    vec2 size = tf_behind_view.size.xy;
+    vec2 cell = clamp(floor(uv * size), vec2(0.0), size - 1.0);
+    uv = (cell + 0.5) / size;
+    return texelFetch(tf_behind, ivec2(cell), 0).a;
+  }
+  if (d_min >= TF_REFRACT_FAR) {
+    return TF_REFRACT_FAR;
+  }
+  vec4 inv = vec4(1.0) / max(d, vec4(TF_DIVISION_FLOOR));
+  return 1.0 / mix(mix(inv.x, inv.y, f.x), mix(inv.z, inv.w, f.x), f.y);
+}
+
+/* The colour behind at uv, bilinear between texel centres. */
+vec3 tf_behind_colour_at(vec2 uv)
+{
+  ivec2 lo, hi;
+  vec2 f;
+  tf_behind_corners(uv, lo, hi, f);
+  return mix(mix(texelFetch(tf_behind, lo, 0).rgb, texelFetch(tf_behind, ivec2(hi.x, lo.y), 0).rgb, f.x),
+             mix(texelFetch(tf_behind, ivec2(lo.x, hi.y), 0).rgb, texelFetch(tf_behind, hi, 0).rgb, f.x), f.y);
+}
+
+/* Whether the ray o + s w passes behind the scene at s against the depth between texel centres
+ * (tf_behind_depth_at): its uv and how far behind, relative to its depth. */
+bool tf_refract_surface(vec3 o, vec3 w, float s, out vec2 uv, out float gap)
+{
+  float depth_q;
+  tf_refract_uv(o + s * w, uv, depth_q);
+  float depth_behind = tf_behind_depth_at(uv);
+  gap = (depth_q - depth_behind) / max(depth_q, TF_WALL_GUARD);
+  return gap >= 0.0;
 }
 
 /* Whether the ray o + s w passes behind the scene at s (its texel, false off the picture). */
@@ -84,21 +150,20 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     last = texel;
     if (behind && !prev_behind) {
       float lo = prev_s, hi = s;
+      vec2 uv;
       for (int j = 0; j < TF_REFRACT_REFINE; j++) {
         float mid = 0.5 * (lo + hi);
-        ivec2 t_mid;
         float g_mid;
-        bool in_mid;
-        if (tf_refract_behind(o, w, mid, t_mid, g_mid, in_mid)) {
+        if (tf_refract_surface(o, w, mid, uv, g_mid)) {
           hi = mid;
         }
         else {
           lo = mid;
         }
       }
-      tf_refract_behind(o, w, hi, texel, gap, inside);
+      tf_refract_surface(o, w, hi, uv, gap);
       if (gap <= TF_REFRACT_THICKNESS) {
-        colour = texelFetch(tf_behind, texel, 0).rgb;
+        colour = tf_behind_colour_at(uv);
         return true;
       }
     }

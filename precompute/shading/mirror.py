@@ -91,11 +91,16 @@ MIRROR = (
         "in `tf_main_frag.glsl`",
     ),
     Mirror(
-        ("shading.refract.exit_ray", "shading.refract.march", "shading.refract.seen"),
+        (
+            "shading.refract.exit_ray",
+            "shading.refract.march",
+            "shading.refract.seen",
+            "shading.refract.bilinear",
+        ),
         "tf_refract.glsl",
-        ("tf_solid_exit_ray", "tf_refract_march"),
+        ("tf_solid_exit_ray", "tf_refract_march", "tf_behind_depth_at", "tf_behind_colour_at"),
         numpy_note="solid glass refracting the scene behind: the ray through the glass, "
-        "its screen-space march",
+        "its screen-space march, the hit's depth and colour between texel centres",
         glsl_note="`TF_REFRACT`; `tf_refracted` in `tf_main_frag.glsl`",
     ),
     Mirror(

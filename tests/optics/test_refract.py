@@ -3,7 +3,8 @@
 Physics and properties: the exit ray of a glass sphere against an independent ray trace (Snell's
 law at both interfaces, angles from the geometry); glass of index 1 shows the picture behind
 unshifted; a ball of glass inverts a far picture behind it, as a ball lens; a ray that leaves the
-picture sees nothing; an occluder in front of the ray's path is not taken for a hit.
+picture sees nothing; an occluder in front of the ray's path is not taken for a hit; a ray meets
+a receding floor where the floor is, to a few hundredths of a texel.
 """
 
 import numpy as np
@@ -107,7 +108,7 @@ def test_glass_of_index_one_shows_the_picture_unshifted():
     hit, rows, cols = refract.march(p2, d, wall_depth(rays, eye, 6.0), vp, eye, vd, (1, 1, 0, 0))
     want_rows, want_cols = np.nonzero(mask)
     assert hit.all()
-    assert np.array_equal(rows, want_rows) and np.array_equal(cols, want_cols)
+    assert np.array_equal(np.floor(rows), want_rows) and np.array_equal(np.floor(cols), want_cols)
 
 
 def test_a_ball_of_glass_inverts_the_picture_behind_it():
@@ -164,8 +165,50 @@ def test_an_occluder_in_front_of_the_path_is_not_a_hit():
     depth[40:56, 40:56] = 1.0  # a near square, 1 unit from the camera
     origin = np.array([[-0.8, 0.0, 0.0]])  # left of it, heading right and away: behind it, then out
     hit, rows, cols = refract.march(origin, unit([[0.3, 1.0, 0.0]]), depth, vp, eye, vd, (1, 1, 0, 0))
-    assert hit[0] and depth[rows[0], cols[0]] == pytest.approx(10.0)
+    assert hit[0] and depth[int(rows[0]), int(cols[0])] == pytest.approx(10.0)
     assert cols[0] > 56  # seen to the right of the square, where the ray meets the wall
+
+
+def floor_depth(rays, eye, z_floor):
+    """Depth (along the camera axis) of a floor z = z_floor seen by each pixel, inf above its
+    horizon."""
+    s = np.where(rays[..., 2] < 0.0, (z_floor - eye[2]) / np.minimum(rays[..., 2], -1e-12), np.inf)
+    return s * rays[..., 1]  # the camera looks along +y: depth = s (ray · axis)
+
+
+def test_a_ray_meets_a_receding_floor_where_the_floor_is():
+    """Rays from above the floor, going down and away, see the floor where they cross its plane
+    (an independent ray–plane intersection), to a few hundredths of a texel on average and with
+    no bias toward the camera: the depth between texel centres is bilinear in 1 / depth (exact
+    for a plane), and the hit keeps its place inside the texel. The nearest texel's depth alone,
+    a staircase, put the hit 0.23 texel nearer on average (the glass ball's refracted floor
+    misplaced by up to 0.7 pixel)."""
+    vp, eye, vd, rays = camera()
+    depth = floor_depth(rays, eye, -1.0)
+    rng = np.random.default_rng(3)
+    origins = np.stack(
+        [rng.uniform(-0.6, 0.6, 400), rng.uniform(-0.5, 0.5, 400), rng.uniform(-0.3, 0.3, 400)], -1
+    )
+    dirs = unit(
+        np.stack([rng.uniform(-0.2, 0.2, 400), rng.uniform(0.6, 1.0, 400), rng.uniform(-0.6, -0.25, 400)], -1)
+    )
+    hit, rows, cols = refract.march(origins, dirs, depth, vp, eye, vd, (1, 1, 0, 0), edge=False)
+    s = (-1.0 - origins[:, 2]) / dirs[:, 2]
+    q = origins + s[:, None] * dirs
+    clip = np.c_[q, np.ones(len(q))] @ vp.T
+    uv = clip[:, :2] / clip[:, 3:] * 0.5 + 0.5
+    want_rows, want_cols = SIZE * (1.0 - uv[:, 1]), SIZE * uv[:, 0]
+    inside = (uv >= 0.0).all(axis=1) & (uv < 1.0).all(axis=1)
+    assert hit[inside].mean() > 0.95 and inside.sum() > 200
+    m = hit & inside
+    d_row, d_col = rows[m] - want_rows[m], cols[m] - want_cols[m]
+    assert abs(np.mean(d_row)) < 0.05 and abs(np.mean(d_col)) < 0.05
+    assert np.mean(np.abs(d_row)) < 0.1 and np.mean(np.abs(d_col)) < 0.1
+    # and the colour seen there is the picture's, bilinear between texel centres: a ramp reads true
+    ramp = np.broadcast_to((np.arange(SIZE) + 0.5)[:, None, None], (SIZE, SIZE, 3))
+    seen = refract.seen(hit[m], rows[m], cols[m], ramp, np.zeros((m.sum(), 3)))
+    inner = (rows[m] > 0.5) & (rows[m] < SIZE - 0.5)
+    assert np.max(np.abs(seen[inner, 0] - rows[m][inner])) < 1e-9
 
 
 @pytest.mark.parametrize("eta", [1.33, 1.5])
