@@ -110,20 +110,32 @@ vec3 tf_refracted(vec3 n, vec3 v, out vec2 cosines)
 
 #if defined(TF_REFRACT) && defined(TF_SPLIT_SUM)
 /* Solid glass's one reflection inside (shading.transmit.solid_glint): in through the film (t_in),
- * reflected by it from inside at the first face met, out through it at the next, times the World
- * along that ray (tf_glass_exit with reflect_first). */
+ * reflected by it from inside at the first face met, out through it at the next, times what the
+ * ray that leaves sees (tf_glass_exit with reflect_first): the scene behind where it leaves
+ * through the real mesh and meets the scene (tf_refract_march), else the World along it. None
+ * where the first face reflects totally: the refracted ray already takes that path. */
 vec3 tf_glass_glint(vec3 n, vec3 v, vec3 t_in, TFLerp r)
 {
   vec3 exit_point, dir;
   vec2 cosines;
   int own = tf_glass_own();
   float eta = tf_object.material.w;
-  if (!tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, eta, own, true, exit_point, dir, cosines)) {
+  bool through_mesh = tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, eta, own, true, exit_point, dir,
+                                    cosines);
+  float cos_first = clamp(cosines.x, 0.0, 1.0);
+  if (through_mesh && eta * eta * (1.0 - cos_first * cos_first) >= 1.0) {
+    return vec3(0.0); /* reflected totally at the first face: the refracted ray (tf_refracted) follows it */
+  }
+  vec3 inside = tf_glass_back_r(cosines.x, r, eta, own) * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own));
+  vec3 seen;
+  if (through_mesh && tf_refract_march(exit_point, dir, seen)) {
+    return t_in * inside * seen;
+  }
+  if (!through_mesh) {
     dir = tf_solid_internal(n, v, eta);
   }
   vec3 unused_moment;
   float unused_weight;
-  vec3 inside = tf_glass_back_r(cosines.x, r, eta, own) * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own));
   return t_in * inside * tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
 }
 

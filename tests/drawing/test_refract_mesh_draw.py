@@ -4,7 +4,9 @@ glsl/tf_refract.glsl ``tf_glass_exit``) against its numpy twin (precompute/shadi
 
 A turned glass cube (flat faces: total internal reflection at its sides) over the scene-behind
 texture of tests/drawing/test_refract_draw.py: its glass buffers are drawn on the GPU and checked against
-the cube's exact faces, then the drawn colour against numpy's from the same buffers.
+the cube's exact faces, then the drawn colour against numpy's from the same buffers; the
+glints (one reflection inside) see the scene behind where their ray meets it, as the refracted
+ray does.
 """
 
 import numpy as np
@@ -151,9 +153,11 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape)
     exit_points, dirs, found, cosines = refract.mesh_exit(points, n, views, centre, 1.5, 0, *args)
     hit, rows, cols = refract.march(exit_points, dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
     seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
-    _gp, glint_dirs, _gf, glint_cos = refract.mesh_exit(
+    glint_points, glint_dirs, glint_found, glint_cos = refract.mesh_exit(
         points, n, views, centre, 1.5, 0, *args, reflect_first=True
     )
+    g_hit, g_rows, g_cols = refract.march(glint_points, glint_dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
+    g_hit &= glint_found  # the glint sees the scene where it leaves through the real mesh
     lerp = lamps.thickness_lerp(film, None, len(n))
 
     def back(c):
@@ -161,7 +165,12 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape)
 
     t_in = np.sqrt(t)
     bounced = back(glint_cos[:, 0]) * (1.0 - back(glint_cos[:, 1]))
-    glint = t_in * bounced * split_sum.lookup(pre, glint_dirs, np.zeros(len(n)))
+    # a first face that reflects totally is the refracted ray's own path: no glint there
+    bounced[1.5**2 * (1.0 - glint_cos[:, 0] ** 2) >= 1.0] = 0.0
+    glint_seen = refract.seen(
+        g_hit, g_rows, g_cols, colour, split_sum.lookup(pre, glint_dirs, np.zeros(len(n)))
+    )
+    glint = t_in * bounced * glint_seen
     expected = (
         s * split_sum.shade_split_sum(result, pre, n, views) + t_in * (1.0 - back(cosines[:, 1])) * seen
     )
@@ -175,6 +184,7 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape)
         f" {np.percentile(err, 95):.1e}, max {err.max():.1e} of the peak"
     )
     assert inside.sum() > 300 and found.mean() > 0.95
+    assert g_hit.mean() > 0.05  # glints that see the scene behind are exercised
     if shape == "pair":  # the far cube shows beside the near one and behind it
         near_only, _n = nearest_hits(model, rays, eye, "cube")
         far = Box(model[:3, 3] + model[:3, :3] @ PAIR_OFFSET, [HALF] * 3, turn())
