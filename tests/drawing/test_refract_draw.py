@@ -105,7 +105,7 @@ def with_scene_mirror(expected, surface, scene, pre, roughness, t):
 def test_solid_glass_refracts_the_scene_behind_like_numpy(gd, tint):
     """…and with a Principled Base Color ``tint``: what passed in and out (the scene or World
     refracted, the glints) times the tint (√tint each way, Cycles' glass); the reflections not."""
-    result, lighting, pre, film = glass_lighting(gd, "spectral")  # the scene's mirror weighs 0.25
+    result, lighting, pre, film = glass_lighting(gd, "spectral")  # the scene's mirror weighs 0.7
     item = quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
     colour, depth, behind = as_solid_glass(gd, item, result, pre, film)
     item.wall = (*item.wall, *(tint or ()))
