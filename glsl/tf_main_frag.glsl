@@ -87,11 +87,11 @@ int tf_glass_own()
  * the real mesh, tf_glass_exit, else the sphere about the origin) hits it, else the World along
  * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
  * the pixel; cosines: inside the glass at the first face and the face it leaves through. */
-vec3 tf_refracted(vec3 n, vec3 v, out vec2 cosines)
+vec3 tf_refracted(vec3 n, vec3 v, TFLerp r, out vec2 cosines)
 {
-  vec3 exit_point, dir, colour;
-  tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), false,
-                exit_point, dir, cosines);
+  vec3 exit_point, dir, colour, unused_carried;
+  tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), 0, r,
+                exit_point, dir, cosines, unused_carried);
   if (tf_refract_march(exit_point, dir, colour)) {
     return colour;
   }
@@ -109,34 +109,36 @@ vec3 tf_refracted(vec3 n, vec3 v, out vec2 cosines)
 #endif
 
 #if defined(TF_REFRACT) && defined(TF_SPLIT_SUM)
-/* Solid glass's one reflection inside (shading.transmit.solid_glint): in through the film (t_in),
- * reflected by it from inside at the first face met, out through it at the next, times what the
- * ray that leaves sees (tf_glass_exit with reflect_first): the scene behind where it leaves
- * through the real mesh and meets the scene (tf_refract_march), else the World along it. None
- * where the first face reflects totally: the refracted ray already takes that path. */
+/* Solid glass's reflections inside, the glints (shading.transmit.solid_glint for one): in through
+ * the film (t_in), reflected back inside by it at the first k faces the ray could leave through
+ * (k = 1 .. TF_GLASS_ORDERS; faces that reflect totally do so on every path), out through it at
+ * the next, times what the ray that leaves sees: the scene behind where it meets it
+ * (tf_refract_march), else the World along it (tf_glass_exit with k reflections). Where the
+ * buffers do not hold the object, the sphere's one reflection inside (tf_solid_internal) stands
+ * in, seeing the World. */
 vec3 tf_glass_glint(vec3 n, vec3 v, vec3 t_in, TFLerp r)
 {
-  vec3 exit_point, dir;
-  vec2 cosines;
   int own = tf_glass_own();
   float eta = tf_object.material.w;
-  bool through_mesh = tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, eta, own, true, exit_point, dir,
-                                    cosines);
-  float cos_first = clamp(cosines.x, 0.0, 1.0);
-  if (through_mesh && eta * eta * (1.0 - cos_first * cos_first) >= 1.0) {
-    return vec3(0.0); /* reflected totally at the first face: the refracted ray (tf_refracted) follows it */
-  }
-  vec3 inside = tf_glass_back_r(cosines.x, r, eta, own) * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own));
-  vec3 seen;
-  if (through_mesh && tf_refract_march(exit_point, dir, seen)) {
-    return t_in * inside * seen;
-  }
-  if (!through_mesh) {
-    dir = tf_solid_internal(n, v, eta);
-  }
   vec3 unused_moment;
   float unused_weight;
-  return t_in * inside * tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+  vec3 total = vec3(0.0);
+  for (int k = 1; k <= TF_GLASS_ORDERS; k++) {
+    vec3 exit_point, dir, carried;
+    vec2 cosines;
+    if (!tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, eta, own, k, r, exit_point, dir, cosines,
+                       carried)) {
+      vec3 r_in = tf_glass_back_r(cosines.x, r, eta, own);
+      return t_in * r_in * (vec3(1.0) - r_in) *
+             tf_prefiltered_lookup(tf_solid_internal(n, v, eta), 0.0, unused_moment, unused_weight);
+    }
+    vec3 seen;
+    if (!tf_refract_march(exit_point, dir, seen)) {
+      seen = tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+    }
+    total += carried * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own)) * seen;
+  }
+  return t_in * total;
 }
 
 /* Smooth solid glass reflects the scene behind where its mirror ray meets it, in place of the
@@ -233,7 +235,7 @@ void main()
   if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
     vec3 t_in = sqrt(max(wall_t, vec3(0.0))); /* wall_t = (1 - r)^2 */
     vec2 cosines;
-    vec3 seen = tf_refracted(n, v, cosines);
+    vec3 seen = tf_refracted(n, v, r_wall, cosines);
     vec3 r_out = tf_glass_back_r(cosines.y, r_wall, tf_object.material.w, tf_glass_own());
     rgb += through * t_in * (vec3(1.0) - r_out) * seen;
 #ifdef TF_SPLIT_SUM

@@ -291,59 +291,6 @@ float tf_inner_cosine(float cos_outside, float eta)
   return sqrt(max(1.0 - (1.0 - c * c) / (e * e), 0.0));
 }
 
-/* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
- * (normal n) and leaving object own through its real faces (shading.refract.mesh_exit), total
- * internal reflections followed up to TF_GLASS_BOUNCES faces; reflect_first: the first face
- * reflects (the glints); cosines: inside the glass at the first face met and at the face it
- * leaves through (1 where it never leaves). False where the buffers do not hold the object (the
- * sphere about c stands in, tf_solid_exit_ray; both cosines its cos theta_t). */
-bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, bool reflect_first,
-                   out vec3 exit_point, out vec3 dir, out vec2 cosines)
-{
-  float e = max(eta, TF_WALL_GUARD);
-  cosines = vec2(tf_inner_cosine(dot(n, v), e));
-  if (own < 0 || tf_glass_id_at(p) != own) { /* the object is not in the buffers at its entry */
-    tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
-    return false;
-  }
-  vec3 d = tf_safe_normalize(refract(-v, n, 1.0 / e), -v);
-  float reach = TF_GLASS_REACH * max(length(p - c), TF_WALL_GUARD);
-  vec3 o = p;
-  bool first = true;
-  float cos_first = 1.0;
-  for (int bounce = 0; bounce < TF_GLASS_BOUNCES; bounce++) {
-    float s;
-    bool through_back;
-    vec3 face_n;
-    if (!tf_glass_march(o, d, reach, own, s, through_back, face_n)) {
-      if (bounce == 0) {
-        tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
-        return false;
-      }
-      break;
-    }
-    o = o + s * d;
-    float cos_face = abs(dot(d, face_n));
-    if (first) {
-      cos_first = cos_face;
-    }
-    vec3 out_dir = refract(d, -face_n, e);
-    bool tir = dot(out_dir, out_dir) < TF_TIR_EPS;
-    if (!tir && !(reflect_first && first)) {
-      exit_point = o;
-      dir = tf_safe_normalize(out_dir, d);
-      cosines = vec2(cos_first, cos_face);
-      return true;
-    }
-    d = tf_safe_normalize(d - 2.0 * dot(d, face_n) * face_n, d);
-    first = false;
-  }
-  exit_point = o;
-  dir = d;
-  cosines = vec2(cos_first, 1.0);
-  return true;
-}
-
 /* The film's reflectance seen from inside solid glass of index eta at cos_inside
  * (shading.transmit.back_reflectance): Cycles' back face from row own of tf_glass_film (u uniform
  * 0..1, .a = 1 where the row holds one; linear in u), else the front film at the Snell-related
@@ -366,3 +313,65 @@ vec3 tf_glass_back_r(float cos_inside, TFLerp r, float eta, int own)
   }
   return clamp(tf_film_white(sqrt(max(1.0 - s2, 0.0)), r), vec3(0.0), vec3(1.0));
 }
+
+/* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
+ * (normal n) and leaving object own through its real faces (shading.refract.mesh_exit), total
+ * internal reflections followed up to TF_GLASS_BOUNCES faces; reflections: the first that many
+ * faces it could leave through reflect it instead (the glints), carried the product of the film's
+ * reflectance from inside there (tf_glass_back_r with r); cosines: inside the glass at the first
+ * face met and at the face it leaves through (1 where it never leaves). False where the buffers
+ * do not hold the object (the sphere about c stands in, tf_solid_exit_ray; both cosines its
+ * cos theta_t). */
+bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, int reflections, TFLerp r,
+                   out vec3 exit_point, out vec3 dir, out vec2 cosines, out vec3 carried)
+{
+  float e = max(eta, TF_WALL_GUARD);
+  cosines = vec2(tf_inner_cosine(dot(n, v), e));
+  carried = vec3(1.0);
+  if (own < 0 || tf_glass_id_at(p) != own) { /* the object is not in the buffers at its entry */
+    tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
+    return false;
+  }
+  vec3 d = tf_safe_normalize(refract(-v, n, 1.0 / e), -v);
+  float reach = TF_GLASS_REACH * max(length(p - c), TF_WALL_GUARD);
+  vec3 o = p;
+  bool first = true;
+  float cos_first = 1.0;
+  int chosen = 0;
+  for (int bounce = 0; bounce < TF_GLASS_BOUNCES; bounce++) {
+    float s;
+    bool through_back;
+    vec3 face_n;
+    if (!tf_glass_march(o, d, reach, own, s, through_back, face_n)) {
+      if (bounce == 0) {
+        tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
+        return false;
+      }
+      break;
+    }
+    o = o + s * d;
+    float cos_face = abs(dot(d, face_n));
+    if (first) {
+      cos_first = cos_face;
+    }
+    vec3 out_dir = refract(d, -face_n, e);
+    bool tir = dot(out_dir, out_dir) < TF_TIR_EPS;
+    if (!tir && chosen >= reflections) {
+      exit_point = o;
+      dir = tf_safe_normalize(out_dir, d);
+      cosines = vec2(cos_first, cos_face);
+      return true;
+    }
+    if (!tir) { /* reflected by choice: a glint's path */
+      carried *= tf_glass_back_r(cos_face, r, eta, own);
+      chosen++;
+    }
+    d = tf_safe_normalize(d - 2.0 * dot(d, face_n) * face_n, d);
+    first = false;
+  }
+  exit_point = o;
+  dir = d;
+  cosines = vec2(cos_first, 1.0);
+  return true;
+}
+

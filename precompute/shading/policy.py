@@ -280,6 +280,12 @@ GLASS_REACH = 4.0
 GLASS_REFINE = 6
 GLASS_SLACK = 1e-4
 GLASS_BOUNCES = 8
+#: Solid glass's glints: the paths that the film reflects back inside 1 … GLASS_ORDERS times
+#: before they leave (glsl/tf_main_frag.glsl tf_glass_glint; faces that reflect totally do so on
+#: every path). Near a ball's rim the film reflects most of the light back inside (its inner angle
+#: nears the critical one): Cycles' transmission there was 2–3× ours in the median with one. The
+#: benchmark's ball over a Cycles pass: 3.12 with 1, 2.98 with 4 (docs/transparent-films.md).
+GLASS_ORDERS = 4
 #: With the glass buffers solid glass draws only its nearest front face: a fragment more than this
 #: × its depth behind the front buffer's face is inside the glass (a wine glass's far wall, seen
 #: through its near one), and is left out (docs/tuning.md#glass-buffers).
@@ -403,7 +409,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       :data:`REFRACT_EDGE`; ``TF_REFRACT_FAR``: :data:`REFRACT_FAR`;
     - ``TF_GLASS_STEPS``, ``TF_GLASS_REACH``, ``TF_GLASS_REFINE``, ``TF_GLASS_SLACK``,
       ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``: the exit through the real mesh
-      (:data:`GLASS_STEPS` …).
+      (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints (:data:`GLASS_ORDERS`).
     """
     return (
         *_defines(
@@ -455,5 +461,6 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "GLASS_SLACK",
             "GLASS_BOUNCES",
             "GLASS_FRONT_SLACK",
+            "GLASS_ORDERS",
         ),
     )

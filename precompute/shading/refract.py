@@ -340,22 +340,26 @@ def mesh_exit(
     camera,
     view_dir,
     screen=(1.0, 1.0, 0.0, 0.0),
-    reflect_first: bool = False,
+    reflections: int = 0,
 ):
-    """(exit points (N, 3), exit directions (N, 3), found (N,), cosines (N, 2)): rays from the
-    viewer entering glass of index ``eta`` at ``points`` (unit ``normals`` facing the viewer) and
-    leaving the object ``own`` through its real surface, read from the glass buffers ``front`` and
-    ``back`` (see :func:`glass_texel`; the object's nearest front and back faces per pixel).
+    """(exit points (N, 3), exit directions (N, 3), found (N,), cosines (N, 2 + reflections)):
+    rays from the viewer entering glass of index ``eta`` at ``points`` (unit ``normals`` facing
+    the viewer) and leaving the object ``own`` through its real surface, read from the glass
+    buffers ``front`` and ``back`` (see :func:`glass_texel`; the object's nearest front and back
+    faces per pixel).
 
     The inner ray is marched until it leaves the object (:func:`_march_inside`, over
     GLASS_REACH × ‖p − centre‖), refracted out at the face it crosses (its buffer's normal); under
     total internal reflection it is reflected and marched again, up to GLASS_BOUNCES faces, then
-    goes on straight. ``reflect_first``: the first face reflects (the glints' one reflection
-    inside). ``cosines``: the cosine inside the glass at the first face met and at the face the
-    ray leaves through (1 where it never leaves), for the film's reflectance from inside
-    (:func:`.transmit.back_reflectance`). Where the first march finds no face (the object is not
-    in the back buffer at the entry's pixel, or no exit within reach) ``found`` is False and the
-    sphere about ``centre`` stands in (:func:`exit_ray`; both cosines its cos θₜ)."""
+    goes on straight. ``reflections``: the first that many faces the ray could leave through
+    reflect it instead (the glints: the light the film reflects back inside, once or more; faces
+    that reflect totally do so anyway and are not counted). ``cosines``: the cosine inside the
+    glass at the first face met, at the face the ray leaves through (1 where it never leaves),
+    then at each face that reflected it by choice (NaN where it met no more), for the film's
+    reflectance from inside (:func:`.transmit.back_reflectance`). Where the first march finds no
+    face (the object is not in the back buffer at the entry's pixel, or no exit within reach)
+    ``found`` is False and the sphere about ``centre`` stands in (:func:`exit_ray`; every cosine
+    its cos θₜ)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
@@ -371,6 +375,8 @@ def mesh_exit(
     any_found = np.zeros(count, dtype=bool)
     cos_first = np.ones(count)
     cos_last = np.ones(count)
+    forced = np.zeros(count, dtype=np.int64)
+    cos_forced = np.full((count, int(reflections)), np.nan)
     _o, _b, row, col, on_picture = glass.outside(p, own)
     present = (glass.back[0][row, col] == own) & on_picture  # the object is in the buffers at its entry
     for bounce in range(GLASS_BOUNCES):
@@ -385,7 +391,11 @@ def mesh_exit(
         cos_first = np.where(live & first, cos_face, cos_first)
         out = refract(d, -face_n, e)
         tir = np.sum(out * out, axis=-1) < 1e-12
-        bounce_here = tir | (reflect_first & first)
+        chosen = live & ~tir & (forced < reflections)  # reflected by choice: a glint's path
+        for k in range(int(reflections)):
+            cos_forced[:, k] = np.where(chosen & (forced == k), cos_face, cos_forced[:, k])
+        forced += chosen
+        bounce_here = tir | chosen
         mirrored = _unit(d - 2.0 * np.sum(d * face_n, -1, keepdims=True) * face_n, d)
         leave = live & ~bounce_here
         cos_last = np.where(leave, cos_face, cos_last)
@@ -395,7 +405,8 @@ def mesh_exit(
         first &= ~live
     sphere_point, sphere_dir = exit_ray(p, n, v, c, e)
     cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
-    cosines = np.where(any_found[:, None], np.stack([cos_first, cos_last], -1), cos_t[:, None])
+    traced = np.concatenate([np.stack([cos_first, cos_last], -1), cos_forced], axis=-1)
+    cosines = np.where(any_found[:, None], traced, cos_t[:, None])
     return (
         np.where(any_found[:, None], o, sphere_point),
         np.where(any_found[:, None], d, sphere_dir),

@@ -98,7 +98,7 @@ def test_the_mesh_exit_of_a_cube_follows_its_faces_and_total_internal_reflection
 
 
 def test_the_reflected_glint_ray_leaves_a_sphere_as_one_reflection_inside():
-    """``reflect_first``: reflected at the far side, out through the next: transmit.solid_internal."""
+    """``reflections`` 1: reflected at the far side, out through the next: transmit.solid_internal."""
     from precompute.shading import transmit
 
     vp, eye, vd, rays = camera()
@@ -107,7 +107,7 @@ def test_the_reflected_glint_ray_leaves_a_sphere_as_one_reflection_inside():
     _m, p, n, v = sphere_hits(rays, eye, centre, 1.0)
     keep = np.sum(n * v, -1) > 0.5
     _q, d, found, _cos = refract.mesh_exit(
-        p, n, v, centre, 1.5, 0, front, back, vp, eye, vd, reflect_first=True
+        p, n, v, centre, 1.5, 0, front, back, vp, eye, vd, reflections=1
     )
     assert found[keep].all()
     err = np.linalg.norm(d - transmit.solid_internal(n, v, 1.5), axis=-1)[keep]
