@@ -318,7 +318,8 @@ vec3 tf_glass_back_r(float cos_inside, TFLerp r, float eta, int own)
  * (normal n) and leaving object own through its real faces (shading.refract.mesh_exit), total
  * internal reflections followed up to TF_GLASS_BOUNCES faces; reflections: the first that many
  * faces it could leave through reflect it instead (the glints), carried the product of the film's
- * reflectance from inside there (tf_glass_back_r with r); cosines: inside the glass at the first
+ * reflectance from inside there (tf_glass_back_r with r; 0 where such a path does not leave within
+ * TF_GLASS_BOUNCES faces); cosines: inside the glass at the first
  * face met and at the face it leaves through (1 where it never leaves). False where the buffers
  * do not hold the object (the sphere about c stands in, tf_solid_exit_ray; both cosines its
  * cos theta_t). */
@@ -372,6 +373,9 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, int refle
   exit_point = o;
   dir = d;
   cosines = vec2(cos_first, 1.0);
+  if (reflections > 0) {
+    carried = vec3(0.0); /* a glint's path that does not leave within TF_GLASS_BOUNCES faces: none */
+  }
   return true;
 }
 

@@ -354,7 +354,8 @@ def mesh_exit(
     goes on straight. ``reflections``: the first that many faces the ray could leave through
     reflect it instead (the glints: the light the film reflects back inside, once or more; faces
     that reflect totally do so anyway and are not counted). ``cosines``: the cosine inside the
-    glass at the first face met, at the face the ray leaves through (1 where it never leaves),
+    glass at the first face met, at the face the ray leaves through (1 where it never leaves;
+    NaN there with ``reflections``: a glint that never leaves carries nothing),
     then at each face that reflected it by choice (NaN where it met no more), for the film's
     reflectance from inside (:func:`.transmit.back_reflectance`). Where the first march finds no
     face (the object is not in the back buffer at the entry's pixel, or no exit within reach)
@@ -371,6 +372,7 @@ def mesh_exit(
     o = p.copy()
     count = p.shape[0]
     done = np.zeros(count, dtype=bool)
+    left = np.zeros(count, dtype=bool)
     first = np.ones(count, dtype=bool)
     any_found = np.zeros(count, dtype=bool)
     cos_first = np.ones(count)
@@ -402,9 +404,12 @@ def mesh_exit(
         o = np.where(live[:, None], q, o)
         d = np.where(leave[:, None], _unit(out, d), np.where(live[:, None], mirrored, d))
         done |= leave | ~found
+        left |= leave
         first &= ~live
     sphere_point, sphere_dir = exit_ray(p, n, v, c, e)
     cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
+    if reflections:  # a glint's path that does not leave within GLASS_BOUNCES faces: none
+        cos_last = np.where(left, cos_last, np.nan)
     traced = np.concatenate([np.stack([cos_first, cos_last], -1), cos_forced], axis=-1)
     cosines = np.where(any_found[:, None], traced, cos_t[:, None])
     return (

@@ -106,9 +106,7 @@ def test_the_reflected_glint_ray_leaves_a_sphere_as_one_reflection_inside():
     front, back = sphere_buffers(rays, eye, vd, centre, 1.0)
     _m, p, n, v = sphere_hits(rays, eye, centre, 1.0)
     keep = np.sum(n * v, -1) > 0.5
-    _q, d, found, _cos = refract.mesh_exit(
-        p, n, v, centre, 1.5, 0, front, back, vp, eye, vd, reflections=1
-    )
+    _q, d, found, _cos = refract.mesh_exit(p, n, v, centre, 1.5, 0, front, back, vp, eye, vd, reflections=1)
     assert found[keep].all()
     err = np.linalg.norm(d - transmit.solid_internal(n, v, 1.5), axis=-1)[keep]
     # two faces' normals, each a texel's (~0.03 rad apart at this sphere's 35-pixel radius), and
