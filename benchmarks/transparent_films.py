@@ -351,16 +351,16 @@ NOTES = """\
 of the scene (`render --engine`, default EEVEE). EEVEE's pass is lit by the World's lamps as sun
 lights (addon/headless/background_lamps.py: under this studio HDRI, a lamp of 616 in a panorama
 of mean 0.55, EEVEE's own World lighting lit the checker ground 5.1× brighter than Cycles; the
-lamps as suns 0.98×); thin transparent films cast no EEVEE shadow there, solid glass casts the
-suns' shadow as a straight shadow ray through it carries their light, 1 − F(θ) per face
-(`background_lamps.glass_shadows`; EEVEE's opaque shadow measured worse). A run with
+lamps as suns 0.98×); thin transparent films cast no EEVEE shadow there, solid glass casts
+EEVEE's opaque shadow and the suns' light through and off it is traced through its mesh and put
+back (addon/headless/caustics.py: its shadow and caustics on the ground). A run with
 `--engine CYCLES` renders the pass with Cycles instead: the comparison is then of the films
 alone. The bubble's background is the HDRI alone, the same in every engine.
 
 **Solid glass** (ball, cube, wine glass; a 300 nm film of 1.33 on glass of 1.5, roughness 0.05)
 leaves through its real mesh: its nearest front and back faces per pixel (the glass buffers),
 total internal reflection followed, refracted over the background pass's depth (overscanned on
-each side; a ray leaving the picture sees its edge), one internal reflection (the lamps' glints)
+each side; a ray leaving the picture sees its edge), up to four reflections inside (the glints)
 and the ground mirrored (docs/transparent-films.md#solid-glass-refraction). The film seen from
 inside is Cycles' back-face film (its index divided by the glass's). *glints*, *rim*, *upper*,
 *lower*: the mean ΔE2000 over the object's pixels contributed by its glints (either picture's

@@ -22,13 +22,16 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from ...precompute.optics.caustics import GlassOptics, plain_glass
 from ...precompute.output import pixel_filter
 from ...precompute.shading.policy import REFRACT_MAX_SIDE, REFRACT_OVERSCAN
 from ...precompute.shading.transmit import WALL_SOLID
 from ..gpu.draw import is_wall, render_offscreen
 from ..gpu.glass_buffers import film_texture, render_glass_buffers, solid_glass
 from ..gpu.resources import BehindTexture
+from . import caustics
 from .background_lamps import glass_shadows, world_lamps_as_suns
+from .caustics import back_film
 
 #: ``--engine`` → Blender's render engine identifier.
 ENGINES = {"EEVEE": "BLENDER_EEVEE", "WORKBENCH": "BLENDER_WORKBENCH", "CYCLES": "CYCLES"}
@@ -68,8 +71,9 @@ def _changed(pairs):
                 pass
 
 
-def _read_layers(path) -> tuple[np.ndarray, np.ndarray]:
-    """(RGBA, Z) of a multilayer EXR Blender wrote (OpenEXR where installed, else OpenImageIO)."""
+def _read_layers(path, extra: bool = False) -> tuple:
+    """(RGBA, Z) of a multilayer EXR Blender wrote (OpenEXR where installed, else OpenImageIO);
+    with ``extra`` also (world normals, diffuse colour), each (H, W, 3)."""
     try:
         import OpenEXR
     except ImportError:
@@ -103,7 +107,11 @@ def _read_layers(path) -> tuple[np.ndarray, np.ndarray]:
         raise OSError(f"{path}: no {suffix} channel in the background pass ({sorted(channels)})")
 
     rgba = np.stack([find(f"Combined.{c}") for c in "RGBA"], axis=-1)
-    return rgba, find("Depth.Z")
+    if not extra:
+        return rgba, find("Depth.Z")
+    normals = np.stack([find(f"Normal.{c}") for c in "XYZ"], axis=-1)
+    albedo = np.stack([find(f"Diffuse Color.{c}") for c in "RGB"], axis=-1)
+    return rgba, find("Depth.Z"), normals, albedo
 
 
 def _overscan(scene, width: int, height: int, margin: int) -> list:
@@ -136,6 +144,7 @@ def render_background(
     margin: int = 0,
     world=None,
     glass=None,
+    messages=None,
 ) -> Background:
     """Render ``scene`` through its camera with ``engine`` (:data:`ENGINES`) at ``width`` ×
     ``height``, the objects named in ``hidden`` invisible to the camera, those in ``shadowless``
@@ -149,6 +158,11 @@ def render_background(
     ``world``: the World's panorama (radiance, world frame, top row first) or None; with EEVEE its
     lamps light the pass as sun lights (:func:`.background_lamps.world_lamps_as_suns`), as Cycles
     lights it, where None leaves EEVEE's own World lighting.
+    ``glass``: {object name: relative index η or :class:`~precompute.optics.caustics.GlassOptics`}
+    of solid glass (:func:`.caustics.glass_optics`), EEVEE only: where every
+    light is a sun (:func:`.caustics.applies`) it casts EEVEE's opaque shadow and the suns' light
+    through and off it is traced and added (:func:`.caustics.sun_caustics`, its note appended to
+    ``messages``); else the straight shadow through glass, 1 − F per face.
     """
     import time
 
@@ -159,6 +173,8 @@ def render_background(
     layer = bpy.context.view_layer
     objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
     glass = dict(glass or {}) if engine == "EEVEE" else {}
+    optics = {name: v if isinstance(v, GlassOptics) else plain_glass(float(v)) for name, v in glass.items()}
+    etas = {name: o.eta for name, o in optics.items()}
     # Cycles traces the light through a film's own material (its shadow and caustics): only the
     # rasterisers' opaque shadow of a film is wrong (wall_objects)
     shadowless = set() if engine == "CYCLES" else set(shadowless) - set(glass)
@@ -182,10 +198,22 @@ def render_background(
             *((obj, "visible_camera", False) for obj in objects),
             *((obj, "visible_shadow", False) for obj in objects if obj.name in shadowless),
         ]
+        caustic = bool(etas) and caustics.applies(scene)
+        if caustic:
+            changes += [(layer, "use_pass_normal", True), (layer, "use_pass_diffuse_color", True)]
         suns = world_lamps_as_suns(scene, world if engine == "EEVEE" else None)
-        with _changed(changes), suns, glass_shadows(glass):
+        with _changed(changes), suns, glass_shadows(etas, opaque=caustic):
             bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
-        rgba, z = _read_layers(path)
+            if caustic:
+                rgba, z, normals, albedo = _read_layers(path, extra=True)
+                depth = np.where(z >= FAR, np.inf, z)
+                light = caustics.sun_caustics(
+                    scene, optics, depth, normals, albedo, skip=shadowless, messages=messages
+                )
+                rgba = rgba.copy()
+                rgba[..., :3] += light * np.clip(rgba[..., 3:4], 0.0, 1.0)
+            else:
+                rgba, z = _read_layers(path)
     depth = np.where(z >= FAR, np.inf, z)
     m = margin if depth.shape == (height + 2 * margin, width + 2 * margin) else 0  # a panorama: none
     crop = (slice(m, m + height), slice(m, m + width))
@@ -272,7 +300,7 @@ def film_layers(items, view, proj, width: int, height: int, behind=None):
         if buffers is not None:
             behind.front, behind.back = buffers.textures()
             behind.ids = buffers.ids
-            behind.film = film_texture([_back_film(item) for item in solid_glass(items)])
+            behind.film = film_texture([back_film(item) for item in solid_glass(items)])
     black, depth = render_offscreen(items, view, proj, width, height, with_depth=True, behind=behind)
     if not any(is_wall(item) for item in items):
         return black, None, depth
@@ -283,33 +311,16 @@ def film_layers(items, view, proj, width: int, height: int, behind=None):
     return black, transmit, np.minimum(depth, wall_depth)
 
 
-def _back_film(item):
-    """Cycles' back-face film of a solid glass draw item (``object/material``), from its Blender
-    material (:func:`precompute.shading.transmit.cycles_back_table`), or None."""
-    from ...precompute.shading.transmit import cycles_back_table
-    from ..materials.description import description
-
-    material = bpy.data.materials.get(str(getattr(item, "name", "")).split("/", 1)[-1])
-    desc = description(material) if material is not None else None
-    return cycles_back_table(desc) if desc is not None else None
-
-
 def wall_objects(items) -> set:
     """The objects of transparent films (:func:`.gpu.draw.is_wall`): hidden from the background
     pass's camera, they cast no shadow in it either (solid glass under EEVEE casts the lamps'
-    shadow through glass instead: :func:`glass_indices`; a Cycles pass keeps every film's shadow,
+    shadow through glass instead, :func:`render_background`'s ``glass``; a Cycles pass keeps
+    every film's shadow,
     :func:`render_background`). EEVEE's shadow of a glass ball or a bubble is that of an opaque
     object; Cycles' lets most light through, bent into caustics. The glass benchmark
     (docs/transparent-films.md#figures): mean ΔE2000 over the ball 4.50 with EEVEE's opaque
     shadows, 3.93 without; over the ground around it 5.11 and 3.35."""
     return {item.name.split("/")[0] for item in items if is_wall(item)}
-
-
-def glass_indices(items) -> dict:
-    """{object name: relative index η} of the solid glass items (:func:`render_background`'s
-    ``glass``): under EEVEE they cast the lamps' shadow through glass. Against Cycles, the
-    ground around the glass ball 3.35 → 3.11 mean ΔE2000 (docs/transparent-films.md#figures)."""
-    return {item.name.split("/")[0]: float(item.wall[1]) for item in solid_glass(items)}
 
 
 def refraction_margin(items, width: int, height: int) -> int:

@@ -22,9 +22,10 @@ the pass renders and restored after it (:func:`world_lamps_as_suns`):
   direction, with the angle of a disc of its group's solid angle; they cast shadows (the
   camera-invisible films still cast theirs);
 - EEVEE's own sun extraction is turned off (*Sun Threshold* raised above any radiance);
-- solid glass casts the suns' shadow as a straight shadow ray through glass carries their
-  light, 1 − F(θ) through each face (:func:`glass_shadows`): EEVEE's opaque shadow measured
-  worse against Cycles (docs/transparent-films.md#figures).
+- solid glass casts an opaque shadow, and the suns' light through and off it is traced and put
+  back after the render (:mod:`.caustics`), where every light is a sun; else the shadow a
+  straight shadow ray through glass carries, 1 − F(θ) through each face (:func:`glass_shadows`;
+  EEVEE's opaque shadow alone measured worse against Cycles, docs/transparent-films.md#figures).
 
 The sum keeps the World's power (the suns take exactly what the World lost:
 tests/headless/test_background_lamps.py). It applies
@@ -196,6 +197,21 @@ def world_lamps_as_suns(scene, panorama):
         world.sun_threshold = saved_threshold
 
 
+def _dark_material(bpy, name: str, transparent_shadow: bool):
+    """A new material ``name`` whose nodes are a black diffuse BSDF and the output: (material,
+    its node tree, the output node, the diffuse node)."""
+    mat = bpy.data.materials.new(name)
+    if mat.node_tree is None:  # before Blender 5.0
+        mat.use_nodes = True
+    mat.use_transparent_shadow = transparent_shadow
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    dark = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    dark.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    return mat, tree, out, dark
+
+
 def _glass_shadow_material(bpy, eta: float):
     """A material whose shadow lets through 1 − F(θ) at each of its faces: F the Fresnel reflectance
     at relative index ``eta`` of the light's incidence θ on the face (EEVEE's shadow pass sees along
@@ -203,16 +219,8 @@ def _glass_shadow_material(bpy, eta: float):
     (the light goes straight through: across parallel faces this is the refracted ray's loss).
     Transparent shadows (``use_transparent_shadow``): a shadow map texel is let through with
     probability 1 − F per face, converged over the render's samples."""
-    mat = bpy.data.materials.new(f"thinfilm_glass_shadow_{eta:.4f}")
-    if mat.node_tree is None:  # before Blender 5.0
-        mat.use_nodes = True
-    mat.use_transparent_shadow = True
-    tree = mat.node_tree
-    tree.nodes.clear()
-    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    mat, tree, out, dark = _dark_material(bpy, f"thinfilm_glass_shadow_{eta:.4f}", True)
     clear = tree.nodes.new("ShaderNodeBsdfTransparent")
-    dark = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    dark.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     mix = tree.nodes.new("ShaderNodeMixShader")
     fresnel = tree.nodes.new("ShaderNodeFresnel")
     side = tree.nodes.new("ShaderNodeNewGeometry")
@@ -230,15 +238,23 @@ def _glass_shadow_material(bpy, eta: float):
     return mat
 
 
+def _opaque_shadow_material(bpy):
+    """A material whose shadow is opaque: black diffuse, no transparent shadow."""
+    mat, tree, out, dark = _dark_material(bpy, "thinfilm_glass_shadow_opaque", False)
+    tree.links.new(dark.outputs[0], out.inputs["Surface"])
+    return mat
+
+
 @contextlib.contextmanager
-def glass_shadows(glass):
+def glass_shadows(glass, opaque: bool = False):
     """While inside: the solid glass objects ``glass`` ({object name: relative index η}) cast the
     shadow a lamp's light sees through glass as Cycles' next-event estimation lights it from a
     straight shadow ray: 1 − F(θ) through each face (:func:`_glass_shadow_material` on every
     material slot, linked to the object); their materials restored after. For EEVEE's background
     pass, where the objects are hidden from the camera: the suns of :func:`world_lamps_as_suns`
     are shadowed, the World's smooth part (EEVEE's probe, unshadowed) still lights what is
-    under the glass."""
+    under the glass. ``opaque``: an opaque shadow instead, where the light through the glass is
+    traced (:mod:`.caustics`)."""
     import bpy
 
     made, saved = {}, []
@@ -247,9 +263,9 @@ def glass_shadows(glass):
             obj = bpy.data.objects.get(name)
             if obj is None or not eta > 0.0 or not obj.material_slots:
                 continue
-            key = round(float(eta), 4)
+            key = "opaque" if opaque else round(float(eta), 4)
             if key not in made:
-                made[key] = _glass_shadow_material(bpy, key)
+                made[key] = _opaque_shadow_material(bpy) if opaque else _glass_shadow_material(bpy, key)
             for slot in obj.material_slots:
                 link = slot.link
                 slot.link = "OBJECT"

@@ -38,12 +38,12 @@ from .background import (
     behind_texture,
     composite,
     film_layers,
-    glass_indices,
     refraction_margin,
     render_background,
     view_depth,
     wall_objects,
 )
+from .caustics import glass_optics
 
 #: The message of a render made while the *Show Thin Film Overlay* preference is off.
 OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
@@ -244,7 +244,8 @@ def render_scene(
             transparent=not background,
             margin=refraction_margin(items, width, height),
             world=lighting.background() if lighting is not None else None,
-            glass=glass_indices(items),
+            glass=glass_optics(items),
+            messages=messages,
         )
         rgba, nonfinite = _films_over(
             behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages

@@ -290,6 +290,24 @@ GLASS_ORDERS = 4
 #: × its depth behind the front buffer's face is inside the glass (a wine glass's far wall, seen
 #: through its near one), and is left out (docs/tuning.md#glass-buffers).
 GLASS_FRONT_SLACK = 1e-3
+#: Solid glass's shadow and caustics in EEVEE's background pass (precompute/optics/caustics.py):
+#: each sun's photons on a CAUSTIC_GRID² grid over the glass's bounding sphere; a cell of four
+#: photons spread over its image on the receiver unless it is wider than CAUSTIC_MAX_EXTENT
+#: pixels (its corners parted: another path), by up to CAUSTIC_MAX_SUB² sub-points; a photon counts
+#: on a pixel whose depth is within CAUSTIC_DEPTH_SLACK × its own; photons below CAUSTIC_MIN_FLUX ×
+#: the brightest are dropped (docs/transparent-films.md#the-background-pass-eevee-lit-like-cycles).
+CAUSTIC_GRID = 160
+CAUSTIC_MAX_EXTENT = 24.0
+CAUSTIC_MAX_SUB = 32
+CAUSTIC_DEPTH_SLACK = 0.05
+CAUSTIC_MIN_FLUX = 1e-4
+#: Directions per sun (its centre, the rest on a ring: caustics.disc_directions), for the soft
+#: edges of a sun of finite size; 1: its centre alone.
+CAUSTIC_DISC_SAMPLES = 1
+#: Film reflections on one photon's path (off the glass outside, or back inside): each starts a
+#: branch; a wine glass's thin walls cross 8 faces, and with every reflection followed its photons
+#: took over 11 minutes.
+CAUSTIC_REFLECTIONS = 1
 #: EEVEE's background pass lights the scene with the World's radiance above this × its mean
 #: luminance lifted out into sun lights (addon/headless/background_lamps.py): the benchmark's checker
 #: ground against Cycles 1.15× at 32 (the lamps' own threshold, lamps.THRESHOLD), 1.04× at 8,
