@@ -8,6 +8,13 @@ The rays are Blender's: ``mathutils.bvhtree`` over each glass object's evaluated
 corner normals interpolated at the hit) and over the other mesh instances the render shows (thin
 films, which the pass lets the light through, left out).
 
+Cycles finds a caustic from the diffuse surface it lands on and, by its *Filter Glossy*
+(``scene.cycles.blur_glossy``, 1 by default), draws the glass rough on those paths, the rougher
+the more grazing the light lands: each sun's photons are traced smooth first, for where and how
+steeply each lands, then again meeting the glass at GGX microfacets of that roughness, and
+their light is averaged into a density (:func:`precompute.optics.caustics.blur_roughness`);
+with the filter off the caustic is the smooth glass's, sharp.
+
 Only sun lights: :func:`applies` says whether a scene's lights are all suns (the World's lamps
 are, :mod:`.background_lamps`); otherwise the pass keeps the straight shadow through glass
 (1 − F per face) and no caustics.
@@ -21,7 +28,7 @@ import time
 import numpy as np
 
 from ...precompute.optics import caustics
-from ...precompute.shading.policy import CAUSTIC_GRID
+from ...precompute.shading.policy import CAUSTIC_GRID, CAUSTIC_SMOOTH
 from ...precompute.shading.transmit import back_reflectance, white_reflectance
 
 
@@ -34,10 +41,11 @@ def applies(scene) -> bool:
     )
 
 
-def glass_optics(items) -> dict:
+def glass_optics(items, messages=None) -> dict:
     """{object name: :class:`~precompute.optics.caustics.GlassOptics`} of the solid glass draw
     items: their relative index and film, from outside (the film table's first thickness row)
-    and from inside (Cycles' back-face film where it applies, as the draw's glints)."""
+    and from inside (Cycles' back-face film where it applies, as the draw's glints). A film
+    that cannot be tabulated leaves the bare glass, with a line in ``messages``."""
     from ...precompute.shading.lamps import thickness_lerp
     from ..bakes import tables
     from ..gpu.glass_buffers import solid_glass
@@ -48,7 +56,7 @@ def glass_optics(items) -> dict:
         if name in out:
             continue
         eta = float(item.wall[1])
-        film = _film_table(item, tables)
+        film = _film_table(item, tables, messages)
         if film is None:
             out[name] = caustics.plain_glass(eta)
             continue
@@ -85,13 +93,15 @@ def back_film(item):
     return cycles_back_table(desc) if desc is not None else None
 
 
-def _film_table(item, tables):
+def _film_table(item, tables, messages=None):
     desc = _description(item)
     if desc is None:
         return None
     try:
         return tables.get_film(desc, None)
-    except Exception:  # a film that cannot be tabulated: the bare dielectric
+    except Exception as exc:  # a film that cannot be tabulated: the bare dielectric
+        if messages is not None:
+            messages.append(f"caustics: {item.name}: film not tabulated ({exc}); traced as bare glass")
         return None
 
 
@@ -184,28 +194,30 @@ def _casts(meshes: list, receivers: _Receivers):
     """(cast_outside, cast_inside) for :func:`precompute.optics.caustics.trace` over the glass
     ``meshes`` and the ``receivers``."""
 
-    def first(bvh, o, d):
+    def first(bvh, o, d, normals=None):
         index = np.full(len(o), -1)
         dist = np.full(len(o), np.inf)
         if bvh is None:
             return index, dist
         cast = bvh.ray_cast
         for i, (origin, direction) in enumerate(zip(o.tolist(), d.tolist(), strict=True)):
-            _loc, _normal, k, t = cast(origin, direction)
+            _loc, normal, k, t = cast(origin, direction)
             if k is not None:
                 index[i], dist[i] = k, t
+                if normals is not None:
+                    normals[i] = normal
         return index, dist
 
     def outside(o, d):
         m = len(o)
-        rec_index, nearest = first(receivers.bvh, o, d)
+        normals = np.zeros((m, 3))  # a receiver's face normal, for the landing cosine
+        rec_index, nearest = first(receivers.bvh, o, d, normals)
         glass, tri = np.full(m, -1), np.full(m, -1)
         for g, mesh in enumerate(meshes):
             index, dist = first(mesh.bvh, o, d)
             closer = dist < nearest
             glass[closer], tri[closer], nearest[closer] = g, index[closer], dist[closer]
         points = o + np.where(np.isfinite(nearest), nearest, 0.0)[:, None] * d
-        normals = np.zeros((m, 3))
         for g, mesh in enumerate(meshes):
             sel = glass == g
             if np.any(sel):
@@ -226,6 +238,14 @@ def _casts(meshes: list, receivers: _Receivers):
     return outside, inside
 
 
+def filter_glossy(scene) -> float:
+    """The scene's Cycles *Filter Glossy* (``cycles.blur_glossy``; Blender's default 1 where the
+    scene has no Cycles settings), the roughness Cycles gives glass on its caustic paths."""
+    settings = getattr(scene, "cycles", None)
+    value = getattr(settings, "blur_glossy", 1.0) if settings is not None else 1.0
+    return max(float(value), 0.0)
+
+
 def pass_camera(scene, depsgraph, width: int, height: int) -> caustics.Camera:
     """The scene camera as the pass renders it now (its overscan applied), ``width`` × ``height``."""
     cam = scene.camera
@@ -243,6 +263,23 @@ def pass_camera(scene, depsgraph, width: int, height: int) -> caustics.Camera:
     )
 
 
+def _glass_meshes(scene, glass: dict, depsgraph, messages) -> tuple[list, list]:
+    """(names, :class:`_GlassMesh` es) of the glass objects that are meshes with faces."""
+    names, meshes = [], []
+    for name in sorted(glass):
+        obj = scene.objects.get(name)
+        if obj is None or obj.type != "MESH":
+            continue
+        try:
+            meshes.append(_GlassMesh(obj, depsgraph))
+        except ValueError as exc:
+            if messages is not None:
+                messages.append(f"caustics: {exc}")
+            continue
+        names.append(name)
+    return names, meshes
+
+
 def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=None) -> np.ndarray:
     """The radiance (H, W, 3) that the scene's suns bring through (and off) the solid glass
     ``glass`` ({object name: GlassOptics}) to the pass's pixels: ``depth`` (H, W, along the
@@ -256,18 +293,7 @@ def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=N
     depsgraph = bpy.context.evaluated_depsgraph_get()
     h, w = depth.shape
     camera = pass_camera(scene, depsgraph, w, h)
-    names, meshes = [], []
-    for name in sorted(glass):
-        obj = scene.objects.get(name)
-        if obj is None or obj.type != "MESH":
-            continue
-        try:
-            meshes.append(_GlassMesh(obj, depsgraph))
-        except ValueError as exc:
-            if messages is not None:
-                messages.append(f"caustics: {exc}")
-            continue
-        names.append(name)
+    names, meshes = _glass_meshes(scene, glass, depsgraph, messages)
     flux = np.zeros((h, w, 3))
     if not meshes:
         return flux
@@ -278,22 +304,37 @@ def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=N
         for obj in scene.objects
         if obj.type == "LIGHT" and obj.data.type == "SUN" and not obj.hide_render and obj.data.energy > 0.0
     ]
+    blur = filter_glossy(scene)
+    rough = [np.zeros((h, w, 3)) for _ in meshes]
     photons = 0
-    for sun in suns:
+    for s, sun in enumerate(suns):
         centre = np.array(sun.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0)))
         irradiance = float(sun.data.energy) * np.array(sun.data.color, dtype=np.float64)
         directions = caustics.disc_directions(centre, float(sun.data.angle))
-        for towards, mesh in itertools.product(directions, meshes):
+        for (k, towards), (m, mesh) in itertools.product(enumerate(directions), enumerate(meshes)):
             origins, direction, area = caustics.photon_grid(mesh.centre, mesh.radius, towards, CAUSTIC_GRID)
             power = np.broadcast_to(irradiance * area / len(directions), origins.shape)
-            records = caustics.trace(origins, direction, power, optics, outside, inside, mesh.radius)
-            flux += caustics.splat(records, CAUSTIC_GRID, camera, depth)
+            alpha = 0.0
+            if blur > 0.0:  # each photon as rough as Cycles makes the glass from where it lands
+                sharp = caustics.trace(origins, direction, power, optics, outside, inside, mesh.radius)
+                alpha = caustics.photon_roughness(sharp.landing, centre, blur)
+            records = caustics.trace(
+                origins, direction, power, optics, outside, inside, mesh.radius, alpha, seed=(s, k, m)
+            )
+            if blur > 0.0:
+                rough[m] += caustics.splat(records, CAUSTIC_GRID, camera, depth, cells=False)
+            else:
+                flux += caustics.splat(records, CAUSTIC_GRID, camera, depth)
             photons += len(origins)
+    for mesh, light in zip(meshes, rough, strict=True):
+        if np.any(light):
+            sigma = CAUSTIC_SMOOTH * caustics.projected_radius(camera, mesh.centre, mesh.radius)
+            flux += caustics.smooth(light, depth, sigma)
     area = caustics.footprint(camera, depth, normals)
     radiance = np.where(np.isfinite(area)[..., None], albedo * flux / (np.pi * area[..., None]), 0.0)
     if messages is not None:
         messages.append(
             f"caustics: {len(suns)} suns × {len(meshes)} glass objects, {photons} photons, "
-            f"{time.perf_counter() - t0:.1f} s"
+            f"Filter Glossy {blur:g}, {time.perf_counter() - t0:.1f} s"
         )
     return radiance

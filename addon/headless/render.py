@@ -244,7 +244,7 @@ def render_scene(
             transparent=not background,
             margin=refraction_margin(items, width, height),
             world=lighting.background() if lighting is not None else None,
-            glass=glass_optics(items),
+            glass=glass_optics(items, messages),
             messages=messages,
         )
         rgba, nonfinite = _films_over(

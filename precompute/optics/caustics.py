@@ -39,7 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..brdf import lambda_ggx
 from ..shading.policy import (
+    CAUSTIC_BOUNCES,
     CAUSTIC_DEPTH_SLACK,
     CAUSTIC_DISC_SAMPLES,
     CAUSTIC_GRID,
@@ -47,14 +49,14 @@ from ..shading.policy import (
     CAUSTIC_MAX_SUB,
     CAUSTIC_MIN_FLUX,
     CAUSTIC_REFLECTIONS,
-    GLASS_BOUNCES,
 )
 from ..shading.refract import refract
 from ..shading.transmit import fresnel_dielectric
 
-#: Path events, each a base-4 digit of a photon's path key: into the glass, reflected off its
+#: Path events, each a base-4 digit of a photon's path key (its first digit never 0, so every
+#: sequence is its own key): reflected totally inside, into the glass, reflected off its
 #: outside, reflected by the film inside.
-ENTER, REFLECT_OUT, REFLECT_IN = 1, 2, 3
+TOTAL, ENTER, REFLECT_OUT, REFLECT_IN = 0, 1, 2, 3
 #: Casts: what an outside ray met (:func:`trace`'s ``cast_outside``).
 MISS = -1
 
@@ -131,12 +133,85 @@ def _reflect(d, n):
     return d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n
 
 
+def blur_roughness(cos_receiver, blur_glossy: float) -> float:
+    """Cycles' *Filter Glossy* (``scene.cycles.blur_glossy``, 1 by default): after a bounce of
+    pdf p every later BSDF is at least as rough as α = ½ √(1 − p / blur_glossy) (Cycles'
+    ``surface_shader_prepare_closures``). A caustic is found from the diffuse receiver, p =
+    cos θ / π, so Cycles draws the glass rough on its caustic paths: α 0.41 (cos 1) to 0.5
+    (grazing) at the default. 0 where the filter is off (``blur_glossy`` 0)."""
+    if not blur_glossy > 0.0:
+        return np.zeros(np.shape(cos_receiver)) if np.ndim(cos_receiver) else 0.0
+    p = np.maximum(np.asarray(cos_receiver, dtype=np.float64), 0.0) / np.pi / float(blur_glossy)
+    alpha = np.where(p < 1.0, 0.5 * np.sqrt(np.maximum(1.0 - p, 0.0)), 0.0)
+    return alpha if alpha.ndim else float(alpha)
+
+
+def photon_roughness(landing, towards_light, blur_glossy: float) -> np.ndarray:
+    """Each photon's roughness (N,) under Cycles' Filter Glossy: :func:`blur_roughness` at its
+    landing cosine (:attr:`Records.landing` of a smooth trace); a photon that did not land takes
+    the sun's height as its cosine (the receiver taken as level ground)."""
+    cos = np.asarray(landing, dtype=np.float64)
+    cos = np.where(np.isfinite(cos), cos, max(float(np.asarray(towards_light)[2]), 0.0))
+    return np.asarray(blur_roughness(cos, blur_glossy), dtype=np.float64).reshape(cos.shape)
+
+
+def microfacets(n, view, alpha, rng, valid, tries: int = 8):
+    """GGX microfacet normals (M, 3) about the unit normals ``n`` (M, 3) of roughness ``alpha``
+    (one, or one per row; 0: the normal itself) as the unit directions ``view`` (M, 3; on n's
+    side) see them: the distribution of visible
+    normals, D(m) max(0, v · m) G1(v) / (v · n), drawn by Heitz's (2018) sampling of the stretched
+    hemisphere. A draw that ``valid(rows, m)`` (bool per row) refuses is drawn again, up to
+    ``tries`` times, then the normal itself stands."""
+    n = np.asarray(n, dtype=np.float64)
+    out = n.copy()
+    rough = np.broadcast_to(np.asarray(alpha, dtype=np.float64), (len(n),))
+    view = np.asarray(view, dtype=np.float64)
+    todo = np.flatnonzero(rough > 0.0)
+    for _ in range(tries):
+        if todo.size == 0:
+            break
+        a = rough[todo][:, None]
+        stretch = np.concatenate([a, a, np.ones_like(a)], axis=-1)
+        nn = n[todo]
+        helper = np.where(np.abs(nn[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+        ex = np.cross(nn, helper)
+        ex /= np.linalg.norm(ex, axis=-1, keepdims=True)
+        ey = np.cross(nn, ex)
+        v = view[todo]
+        local = np.stack([np.sum(v * ex, -1), np.sum(v * ey, -1), np.maximum(np.sum(v * nn, -1), 1e-6)], -1)
+        vh = local * stretch
+        vh /= np.linalg.norm(vh, axis=-1, keepdims=True)
+        length = np.hypot(vh[:, 0], vh[:, 1])
+        t1 = np.where(
+            length[:, None] > 1e-12,
+            np.stack([-vh[:, 1], vh[:, 0], np.zeros_like(length)], -1) / np.maximum(length, 1e-12)[:, None],
+            np.array([[1.0, 0.0, 0.0]]),
+        )
+        t2 = np.cross(vh, t1)
+        r, phi = np.sqrt(rng.random(todo.size)), 2.0 * np.pi * rng.random(todo.size)
+        p1, p2 = r * np.cos(phi), r * np.sin(phi)
+        s = 0.5 * (1.0 + vh[:, 2])
+        p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+        p3 = np.sqrt(np.maximum(1.0 - p1 * p1 - p2 * p2, 0.0))
+        nh = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * vh
+        ml = nh * stretch
+        ml[:, 2] = np.maximum(ml[:, 2], 0.0)
+        ml /= np.linalg.norm(ml, axis=-1, keepdims=True)
+        m = ml[:, :1] * ex + ml[:, 1:2] * ey + ml[:, 2:3] * nn
+        ok = np.asarray(valid(todo, m), dtype=bool)
+        out[todo[ok]] = m[ok]
+        todo = todo[~ok]
+    return out
+
+
 @dataclass
 class Records:
     """Where a sun's photons ended on receivers: per path key, photon index (M,), hit point
-    (M, 3), flux (M, 3) and receiver id (M,)."""
+    (M, 3), flux (M, 3) and receiver id (M,); ``landing`` (N,): each photon's cosine to the
+    receiver's normal where it first landed (NaN where it did not)."""
 
     paths: dict
+    landing: np.ndarray | None = None
 
     def add(self, key, photon, point, flux, receiver):
         """Record photons (arrays as :func:`trace` holds them) under their path keys."""
@@ -152,7 +227,54 @@ class Records:
         }
 
 
-def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale: float = 1.0):
+def masking(cos_view, cos_out, alpha) -> np.ndarray:
+    """The weight of a direction drawn through a visible normal (:func:`microfacets`): Smith's
+    height-correlated G2 / G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)), the cosines to the surface's
+    normal (absolute). Single scattering: the light the facets shadow is lost, as on Cycles'
+    blurred glass, whose energy compensation is set before the blur (its roughness then ≈ 0)."""
+    lv = lambda_ggx(np.abs(cos_view), alpha)
+    return (1.0 + lv) / (1.0 + lv + lambda_ggx(np.abs(cos_out), alpha))
+
+
+def _entering(d, n, eta):
+    """A microfacet test for rays ``d`` meeting glass from outside at macro normals ``n``: the
+    facet faces the ray, its reflection leaves the surface and its refraction enters it."""
+
+    def valid(rows, m):
+        dd, nn = d[rows], n[rows]
+        faces = np.sum(dd * m, axis=-1) < 0.0
+        up = np.sum(_reflect(dd, m) * nn, axis=-1) > 0.0
+        down = np.sum(refract(dd, m, 1.0 / eta) * nn, axis=-1) < 0.0
+        return faces & up & down
+
+    return valid
+
+
+def _leaving(d, n, eta):
+    """The same from inside (``n`` outward, the facets drawn about −n): the facet faces the ray,
+    its reflection stays inside and its refraction, where there is one, leaves."""
+
+    def valid(rows, inward):
+        dd, nn, m = d[rows], n[rows], -inward
+        c = np.sum(dd * m, axis=-1)
+        total = eta * eta * (1.0 - c * c) >= 1.0
+        stays = np.sum(_reflect(dd, m) * nn, axis=-1) < 0.0
+        leaves = total | (np.sum(refract(dd, -m, eta) * nn, axis=-1) > 0.0)
+        return (c > 0.0) & stays & leaves
+
+    return valid
+
+
+def _weights(alpha, macro, d, *outgoing):
+    """:func:`masking` (M, 1) of each ``outgoing`` direction (M, 3) of rays ``d`` at the surface's
+    ``macro`` normals; ones for smooth glass."""
+    if not np.any(alpha > 0.0):
+        return tuple(np.ones((len(d), 1)) for _ in outgoing)
+    cv = np.sum(d * macro, axis=-1)
+    return tuple(masking(cv, np.sum(o * macro, axis=-1), alpha)[:, None] for o in outgoing)
+
+
+def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale=1.0, alpha=0.0, seed=0):
     """Follow photons from ``origins`` (N, 3) along ``direction`` (3,), each carrying ``flux``
     (N, 3), through the solid glass objects ``glasses`` (list of :class:`GlassOptics`); see the
     module. The casts are the caller's:
@@ -163,8 +285,10 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale: f
       glass ``g`` meets its surface.
 
     ``scale``: the scene's size (the glass's radius), for the step off a surface. Photons that
-    meet a receiver before any glass are not recorded (the pass lights them). Returns
-    :class:`Records`."""
+    meet a receiver before any glass are not recorded (the pass lights them); ``cast_outside``'s
+    normals at a receiver are its own, for :attr:`Records.landing`. ``alpha``: the glass drawn
+    rough (GGX, :func:`blur_roughness`; one, or one per photon), each photon meeting each face at
+    a microfacet drawn from ``seed``'s generator; 0: smooth. Returns :class:`Records`."""
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     n_rays = o.shape[0]
     d = np.broadcast_to(np.asarray(direction, dtype=np.float64), o.shape).copy()
@@ -176,8 +300,10 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale: f
     faces = np.zeros(n_rays, dtype=np.int64)
     orders = np.zeros(n_rays, dtype=np.int64)
     eps = 1e-5 * float(scale)
-    records = Records({})
-    for _ in range(4 * (GLASS_BOUNCES + CAUSTIC_REFLECTIONS + 2)):
+    rng = np.random.default_rng(seed)
+    rough = np.broadcast_to(np.asarray(alpha, dtype=np.float64), (n_rays,))
+    records = Records({}, np.full(n_rays, np.nan))
+    for _ in range(4 * (CAUSTIC_BOUNCES + CAUSTIC_REFLECTIONS + 2)):
         if photon.size == 0:
             break
         nxt = []
@@ -189,37 +315,69 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale: f
             if np.any(seen):
                 s = idx[seen]
                 records.add(key[s], photon[s], p[seen], f[s], rec[seen])
+                first = np.isnan(records.landing[photon[s]])
+                records.landing[photon[s][first]] = np.abs(np.sum(d[s] * nrm[seen], axis=-1))[first]
             for gi in np.unique(g[g >= 0]):
                 sel = g == gi
                 s = idx[sel]
                 optics = glasses[int(gi)]
                 dd, nn, pp = d[s], nrm[sel], p[sel]
+                a = rough[photon[s]]
+                if np.any(a > 0.0):
+                    nn = microfacets(nn, -dd, a, rng, _entering(dd, nrm[sel], optics.eta))
                 c = np.clip(-np.sum(dd * nn, axis=-1), 0.0, 1.0)
                 r = np.clip(optics.front(c), 0.0, 1.0)
-                inward = refract(dd, nn, 1.0 / optics.eta)
+                inward, outward = refract(dd, nn, 1.0 / optics.eta), _reflect(dd, nn)
+                wi, wo = _weights(a, nrm[sel], dd, inward, outward)
                 ks, od = key[s] * 4, orders[s]
-                nxt.append((pp, inward, f[s] * (1.0 - r), photon[s], ks + ENTER, int(gi), 0, od))
-                nxt.append((pp, _reflect(dd, nn), f[s] * r, photon[s], ks + REFLECT_OUT, -1, 0, od + 1))
+                nxt.append((pp, inward, f[s] * (1.0 - r) * wi, photon[s], ks + ENTER, int(gi), 0, od))
+                nxt.append((pp, outward, f[s] * r * wo, photon[s], ks + REFLECT_OUT, -1, 0, od + 1))
         for gi in np.unique(inside[inside >= 0]):
             idx = np.flatnonzero(inside == gi)
             optics = glasses[int(gi)]
             hit, p, nrm = cast_inside(int(gi), o[idx] + eps * d[idx], d[idx])
             idx, p, nrm = idx[hit], p[hit], nrm[hit]
-            dd = d[idx]
+            dd, macro = d[idx], nrm
+            a = rough[photon[idx]]
+            if np.any(a > 0.0):
+                nrm = -microfacets(-nrm, -dd, a, rng, _leaving(dd, nrm, optics.eta))
             c = np.clip(np.sum(dd * nrm, axis=-1), 0.0, 1.0)
             total = optics.eta * optics.eta * (1.0 - c * c) >= 1.0
             mirrored = _reflect(dd, nrm)
+            leaving = refract(dd, -nrm, optics.eta)
+            wl, wm = _weights(a, macro, dd, leaving, mirrored)
             t = idx[total]
-            nxt.append((p[total], mirrored[total], f[t], photon[t], key[t], int(gi), faces[t] + 1, orders[t]))
+            nxt.append(
+                (
+                    p[total],
+                    mirrored[total],
+                    f[t] * wm[total],
+                    photon[t],
+                    key[t] * 4 + TOTAL,
+                    int(gi),
+                    faces[t] + 1,
+                    orders[t],
+                )
+            )
             e = idx[~total]
             rb = np.clip(optics.back(c[~total]), 0.0, 1.0)
-            leaving = refract(dd[~total], -nrm[~total], optics.eta)
-            nxt.append((p[~total], leaving, f[e] * (1.0 - rb), photon[e], key[e], -1, 0, orders[e]))
+            nxt.append(
+                (
+                    p[~total],
+                    leaving[~total],
+                    f[e] * (1.0 - rb) * wl[~total],
+                    photon[e],
+                    key[e],
+                    -1,
+                    0,
+                    orders[e],
+                )
+            )
             nxt.append(
                 (
                     p[~total],
                     mirrored[~total],
-                    f[e] * rb,
+                    f[e] * rb * wm[~total],
                     photon[e],
                     key[e] * 4 + REFLECT_IN,
                     int(gi),
@@ -232,7 +390,7 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale: f
             m = len(ph)
             fc = np.broadcast_to(fc, (m,))
             od = np.broadcast_to(od, (m,))
-            keep = (np.max(ff, axis=-1) > floor) & (fc <= GLASS_BOUNCES) & (od <= CAUSTIC_REFLECTIONS)
+            keep = (np.max(ff, axis=-1) > floor) & (fc <= CAUSTIC_BOUNCES) & (od <= CAUSTIC_REFLECTIONS)
             if np.any(keep):
                 parts.append(
                     (
@@ -276,6 +434,14 @@ class Camera:
         cols = (clip[:, 0] / w + 1.0) * 0.5 * self.width
         rows = (1.0 - clip[:, 1] / w) * 0.5 * self.height
         return rows, cols, -cam[:, 2]
+
+
+def projected_radius(camera: Camera, centre, radius: float) -> float:
+    """The pixels a sphere of ``radius`` about ``centre`` spans from its middle on the picture
+    (its half height, roughly), at least one."""
+    _, _, z = camera.project(np.asarray(centre, dtype=np.float64)[None])
+    scale = 0.5 * camera.height * abs(float(camera.projection[1, 1])) * float(radius)
+    return max(scale if camera.ortho else scale / max(float(z[0]), 1e-9), 1.0)
 
 
 def footprint(camera: Camera, depth, normals) -> np.ndarray:
@@ -332,11 +498,12 @@ def _deposit(acc, camera, depth, points, flux):
             acc[..., c] += np.bincount(flat, weights=flux[sel, c] * share, minlength=h * w).reshape(h, w)
 
 
-def splat(records: Records, n: int, camera: Camera, depth) -> np.ndarray:
+def splat(records: Records, n: int, camera: Camera, depth, cells: bool = True) -> np.ndarray:
     """The flux (H, W, 3) the photons of ``records`` (from an n × n :func:`photon_grid`) bring to
     each pixel of the pass (``depth``: its depth along the camera axis), by caustic cells (see the
     module); photons on surfaces the camera does not see there (depth off by more than
-    ``CAUSTIC_DEPTH_SLACK``) are left out."""
+    ``CAUSTIC_DEPTH_SLACK``) are left out. ``cells`` False: each photon at its own point (rough
+    glass's photons, whose neighbours scatter apart; :func:`smooth` then)."""
     h, w = depth.shape
     acc = np.zeros((h, w, 3))
     pending, count = [], 0
@@ -359,6 +526,9 @@ def splat(records: Records, n: int, camera: Camera, depth) -> np.ndarray:
             count = 0
 
     for _key, (photon, point, flux, receiver) in records.arrays().items():
+        if not cells:
+            deposit(point, flux)
+            continue
         grid_p = np.full((n * n, 3), np.nan)
         grid_f = np.zeros((n * n, 3))
         grid_r = np.full(n * n, -1)
@@ -402,3 +572,31 @@ def splat(records: Records, n: int, camera: Camera, depth) -> np.ndarray:
             deposit(pts.reshape(-1, 3), fl.reshape(-1, 3))
     deposit(np.zeros((0, 3)), np.zeros((0, 3)), flush=True)
     return acc
+
+
+def smooth(flux, depth, sigma: float) -> np.ndarray:
+    """``flux`` (H, W, 3) averaged by a Gaussian of ``sigma`` pixels over the pixels that see
+    something (finite ``depth``; the others stay 0): rough glass's scattered photons become a
+    density. The total is kept where the World is not within reach."""
+    if not sigma > 0.0:
+        return flux
+    seen = np.isfinite(depth).astype(np.float64)
+    radius = int(np.ceil(3.0 * sigma))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    taps /= taps.sum()
+
+    def blur(x):
+        for axis in (0, 1):
+            pad = [(0, 0)] * x.ndim
+            pad[axis] = (radius, radius)
+            xp = np.pad(x, pad)
+            out = np.zeros_like(x)
+            size = x.shape[axis]
+            for k, t in enumerate(taps):
+                out += t * np.take(xp, np.arange(k, k + size), axis=axis)
+            x = out
+        return x
+
+    density = blur(flux * seen[..., None])
+    weight = blur(seen)
+    return np.where(seen[..., None] > 0.0, density / np.maximum(weight, 1e-12)[..., None], 0.0)

@@ -6,7 +6,8 @@ wherever its shadow falls (the light as if there were no glass); a lossless ball
 every photon's flux to the floor; the ball focuses a vertical sun onto its paraxial focus
 nR / 2(n − 1) below its centre, the shadow's ring around it lit only by its rim's aberrant light;
 the Fresnel losses of a slab are the closed form's (1 − F)²; a photon on a surface the camera does
-not see is left out.
+not see is left out. Rough glass (Cycles' Filter Glossy on caustic paths): Cycles' roughness, GGX
+facets, a lens whose focus spreads while its flux stays, the smoothing that keeps the total.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from precompute.brdf import ggx_albedo
 from precompute.optics import caustics
 from precompute.shading.transmit import fresnel_dielectric
 
@@ -62,17 +64,18 @@ def ball_casts(centre, radius=R):
     return outside, inside
 
 
-def floor_flux(optics, centre, sun, grid=160, side=SIDE):
+def floor_flux(optics, centre, sun, grid=160, side=SIDE, alpha=0.0):
     """The floor's irradiance (H, W, 3) and the pixels' area from a sun of irradiance 1 towards
-    ``sun`` through one ball at ``centre``, the camera ``side`` wide."""
+    ``sun`` through one ball at ``centre``, the camera ``side`` wide; ``alpha``: the ball rough
+    (each photon at its own point, not smoothed)."""
     camera = ortho_camera(side=side)
     depth = np.full((PIXELS, PIXELS), 10.0)
     normals = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (PIXELS, PIXELS, 3))
     origins, direction, area = caustics.photon_grid(centre, R, sun, grid)
     flux = np.full((len(origins), 3), area)
     out, inn = ball_casts(centre)
-    records = caustics.trace(origins, direction, flux, [optics], out, inn, scale=R)
-    acc = caustics.splat(records, grid, camera, depth)
+    records = caustics.trace(origins, direction, flux, [optics], out, inn, scale=R, alpha=alpha)
+    acc = caustics.splat(records, grid, camera, depth, cells=alpha == 0.0)
     pixel_area = caustics.footprint(camera, depth, normals)
     return acc / pixel_area[..., None], pixel_area
 
@@ -110,6 +113,147 @@ def test_a_lossless_ball_delivers_every_photons_flux():
     total = float(np.sum(e[..., 0] * pixel_area))
     print(f"lossless ball: flux on the floor {total:.4f} of π R² = {np.pi * R * R:.4f}")
     assert abs(total / (np.pi * R * R) - 1.0) < 0.01
+
+
+def test_filter_glossys_roughness_is_cycles_closed_form():
+    # Cycles: blur_pdf = cos θ / π / blur_glossy after a diffuse bounce, α = ½ √(1 − blur_pdf)
+    assert caustics.blur_roughness(1.0, 1.0) == pytest.approx(0.5 * np.sqrt(1.0 - 1.0 / np.pi), abs=1e-12)
+    assert caustics.blur_roughness(0.0, 1.0) == pytest.approx(0.5)
+    assert caustics.blur_roughness(0.5, 0.25) == pytest.approx(0.5 * np.sqrt(1.0 - 2.0 / np.pi))
+    assert caustics.blur_roughness(1.0, 0.1) == 0.0  # p ≥ 1: the path is not blurred
+    assert caustics.blur_roughness(1.0, 0.0) == 0.0  # the filter off
+
+
+def test_microfacet_normals_follow_ggx():
+    """Seen along the normal, the visible normals are D(m) (m · n): tan² θm has the CDF
+    x / (α² + x), so its quartiles are α²/3, α² and 3α²; every normal about its own n, its azimuth
+    uniform."""
+    alpha, count = 0.45, 200_000
+    rng = np.random.default_rng(3)
+    n = np.tile(np.array([[0.0, 0.6, 0.8]]), (count, 1))
+    m = caustics.microfacets(n, n, alpha, rng, lambda rows, m: np.ones(len(rows), dtype=bool))
+    assert np.allclose(np.linalg.norm(m, axis=-1), 1.0)
+    cos_t = np.clip(np.sum(m * n, axis=-1), -1.0, 1.0)
+    tan2 = (1.0 - cos_t**2) / cos_t**2
+    quartiles = np.percentile(tan2, [25, 50, 75]) / alpha**2
+    print(f"GGX tan² θm quartiles / α²: {np.round(quartiles, 4)} (1/3, 1, 3)")
+    assert quartiles == pytest.approx([1.0 / 3.0, 1.0, 3.0], rel=0.03)
+    side = np.cross(n[0], m - cos_t[:, None] * n) @ np.array([1.0, 0.0, 0.0])
+    assert abs(np.mean(side > 0.0) - 0.5) < 0.01
+    never = caustics.microfacets(n[:10], n[:10], alpha, rng, lambda rows, m: np.zeros(len(rows), dtype=bool))
+    assert np.array_equal(never, n[:10])  # never valid: the normal itself
+
+
+def test_visible_normals_seen_askew_are_the_ggx_normals_weighted_by_their_facing():
+    """Seen from 60° off the normal, the drawn normals' statistics equal those of plain GGX normals
+    (drawn here by the closed-form inverse CDF of D(m) (m · n)) weighted by max(0, v · m) / (m · n)."""
+    alpha, count = 0.45, 400_000
+    rng = np.random.default_rng(5)
+    n = np.array([0.0, 0.0, 1.0])
+    v = np.array([np.sin(np.radians(60.0)), 0.0, np.cos(np.radians(60.0))])
+    m = caustics.microfacets(
+        np.tile(n, (count, 1)), np.tile(v, (count, 1)), alpha, rng, lambda r, m: np.ones(len(r), dtype=bool)
+    )
+    x = rng.random(count)
+    tan_t = alpha * np.sqrt(x / (1.0 - x))
+    cos_t = 1.0 / np.sqrt(1.0 + tan_t**2)
+    phi = 2.0 * np.pi * rng.random(count)
+    g = np.stack([tan_t * cos_t * np.cos(phi), tan_t * cos_t * np.sin(phi), cos_t], -1)
+    w = np.maximum(g @ v, 0.0) / g[:, 2]
+    for name, f in (("m·n", lambda q: q[:, 2]), ("m·v", lambda q: q @ v), ("m_x", lambda q: q[:, 0])):
+        drawn, weighted = float(np.mean(f(m))), float(np.sum(w * f(g)) / np.sum(w))
+        print(f"{name}: visible normals {drawn:.4f}, weighted GGX {weighted:.4f}")
+        assert drawn == pytest.approx(weighted, abs=0.004)
+    assert np.all(m @ v > 0.0)  # every drawn facet faces the viewer
+
+
+@pytest.mark.parametrize("mu", [1.0, 0.5, 0.2])
+def test_visible_normals_and_their_masking_give_ggxs_single_scattering_albedo(mu):
+    """A mirror of rough facets (F ≡ 1): directions drawn through visible normals, each weighted
+    by caustics.masking (G2 / G1), average to the single-scattering albedo E(μ) that
+    precompute.brdf.ggx_albedo integrates on its quadrature rule (directions below the surface
+    carry nothing)."""
+    alpha, count = 0.45, 400_000
+    rng = np.random.default_rng(7)
+    n = np.tile(np.array([0.0, 0.0, 1.0]), (count, 1))
+    v = np.tile(np.array([np.sqrt(1.0 - mu * mu), 0.0, mu]), (count, 1))
+    m = caustics.microfacets(n, v, alpha, rng, lambda r, m: np.ones(len(r), dtype=bool))
+    out = 2.0 * np.sum(v * m, axis=-1, keepdims=True) * m - v
+    w = np.where(out[:, 2] > 0.0, caustics.masking(np.full(count, mu), out[:, 2], alpha), 0.0)
+    want = float(ggx_albedo(np.array([mu]), alpha)[0])
+    print(f"μ {mu}: drawn and masked {w.mean():.4f}, ggx_albedo {want:.4f}")
+    assert w.mean() == pytest.approx(want, abs=0.004)
+
+
+def test_a_rough_ball_spreads_its_focus():
+    """Cycles' Filter Glossy draws the glass rough on caustic paths (α ≈ 0.45): the ball lens's
+    focus spreads over the shadow around it. What the floor and a dome above get is less than
+    the flux into the ball, by single scattering's loss alone: the facets' shadowing at each of
+    the ≥ 2 faces (a rough mirror of this α keeps 0.74 of the light at normal incidence, above),
+    as on Cycles' blurred glass; a rough face also reflects much of the light totally back
+    inside, and some of it leaves upwards."""
+    eta, alpha = 1.5, 0.45
+    focus = eta * R / (2.0 * (eta - 1.0))
+    out, inn = ball_casts((0.0, 0.0, 1.5))
+
+    def with_dome(o, d):  # receiver 1: everything that leaves upwards
+        glass, rec, p, n = out(o, d)
+        up = (glass < 0) & (rec < 0) & (d[:, 2] > 0.0)
+        return glass, np.where(up, 1, rec), np.where(up[:, None], o + 100.0 * d, p), n
+
+    origins, direction, area = caustics.photon_grid((0.0, 0.0, 1.5), R, np.array([0.0, 0.0, 1.0]), 160)
+    flux = np.full((len(origins), 3), area)
+    records = caustics.trace(origins, direction, flux, [lossless(eta)], with_dome, inn, scale=R, alpha=alpha)
+    got = np.concatenate([np.c_[rec, f[:, 0]] for _, _, f, rec in records.arrays().values()])
+    floor, dome = (float(got[got[:, 0] == k, 1].sum()) / (np.pi * R * R) for k in (0, 1))
+    print(f"rough lossless ball: floor {floor:.4f} + dome {dome:.4f} = {floor + dome:.4f} of the flux in")
+    assert 0.65 < floor + dome < 0.95
+    assert dome > 0.05
+    smooth, _ = floor_flux(lossless(eta), (0.0, 0.0, focus), np.array([0.0, 0.0, 1.0]))
+    rough, _ = floor_flux(lossless(eta), (0.0, 0.0, focus), np.array([0.0, 0.0, 1.0]), alpha=alpha)
+    ys, xs = np.mgrid[0:PIXELS, 0:PIXELS]
+    rho = np.hypot((xs + 0.5) / PIXELS * SIDE - SIDE / 2, SIDE / 2 - (ys + 0.5) / PIXELS * SIDE)
+    centre, ring = rho < 0.1 * R, (rho > 0.6 * R) & (rho < 0.9 * R)
+    print(
+        f"focus: smooth {smooth[centre, 1].mean():.2f}, rough {rough[centre, 1].mean():.2f}; "
+        f"ring 0.6–0.9 R: smooth {smooth[ring, 1].mean():.3f}, rough {rough[ring, 1].mean():.3f}"
+    )
+    assert rough[centre, 1].mean() < 0.25 * smooth[centre, 1].mean()
+    assert rough[ring, 1].mean() > 1.3 * smooth[ring, 1].mean()
+
+
+def test_each_photon_is_as_rough_as_cycles_makes_the_glass_from_where_it_lands():
+    """Glass of index 1 sends each photon straight on: under a sun 30° off the vertical every
+    photon through the ball lands on the floor at cos 30°, so each takes Filter Glossy's roughness
+    at that cosine; a photon that never landed takes the sun's height."""
+    theta = np.radians(30.0)
+    sun = np.array([np.sin(theta), 0.0, np.cos(theta)])
+    origins, direction, area = caustics.photon_grid((0.0, 0.0, 2.0), R, sun, 32)
+    out, inn = ball_casts((0.0, 0.0, 2.0))
+    records = caustics.trace(origins, direction, np.full((len(origins), 3), area), [lossless(1.0)], out, inn)
+    landed = np.isfinite(records.landing)
+    assert np.allclose(records.landing[landed], np.cos(theta), atol=1e-9)
+    alpha = caustics.photon_roughness(records.landing, sun, 1.0)
+    assert np.allclose(alpha[landed], caustics.blur_roughness(np.cos(theta), 1.0))
+    assert np.allclose(alpha[~landed], caustics.blur_roughness(sun[2], 1.0))
+    assert 0.6 * len(origins) < landed.sum() < 0.9 * len(origins)  # the disc of the square grid, π/4
+
+
+def test_smoothing_keeps_a_constant_and_the_total_and_leaves_the_void():
+    depth = np.full((64, 64), 5.0)
+    depth[:, :8] = np.inf  # the World
+    flux = np.zeros((64, 64, 3))
+    flux[30:34, 30:34] = 1.0
+    out = caustics.smooth(flux, depth, 2.0)
+    assert np.sum(out) == pytest.approx(np.sum(flux), rel=1e-9)
+    assert out[32, 32, 0] < 1.0 and out[32, 38, 0] > 0.0
+    constant = caustics.smooth(np.where(np.isfinite(depth)[..., None], 1.0, 0.0), depth, 3.0)
+    assert np.allclose(constant[:, 8:], 1.0) and np.all(constant[:, :8] == 0.0)
+
+
+def test_a_spheres_radius_on_the_picture():
+    # orthographic, 8 wide over 128 pixels: a radius of 1 is 16 pixels
+    assert caustics.projected_radius(ortho_camera(), (0.0, 0.0, 0.0), 1.0) == pytest.approx(16.0)
 
 
 def test_a_ball_lens_focuses_a_vertical_sun_on_its_paraxial_focus():
