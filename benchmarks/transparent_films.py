@@ -352,8 +352,10 @@ of the scene (`render --engine`, default EEVEE). EEVEE's pass is lit by the Worl
 lights (addon/headless/background_lamps.py: under this studio HDRI, a lamp of 616 in a panorama
 of mean 0.55, EEVEE's own World lighting lit the checker ground 5.1× brighter than Cycles; the
 lamps as suns 0.98×); thin transparent films cast no EEVEE shadow there, solid glass casts
-EEVEE's opaque shadow and the suns' light through and off it is traced through its mesh and put
-back (addon/headless/caustics.py: its shadow and caustics on the ground). A run with
+EEVEE's opaque shadow and the suns' light through and off it is traced through its mesh, as
+rough as Cycles' Filter Glossy (1, Blender's default, in these references) makes the glass on
+caustic paths, and put back (addon/headless/caustics.py: its shadow and caustics on the
+ground). A run with
 `--engine CYCLES` renders the pass with Cycles instead: the comparison is then of the films
 alone. The bubble's background is the HDRI alone, the same in every engine.
 
@@ -370,15 +372,14 @@ rest of its upper and lower halves: they add up to the mean.
 **Unclamped Cycles.** Blender's default indirect clamp (10 per sample) dimmed the ball's glints
 30× in the first references (a reflection chosen with probability F ≈ 0.03 carries 1/F of the
 lamp's 400 and is clamped), so the references are rendered with the clamps off
-(`SCENE_VERSION` 2). Not in our frame: Cycles' caustics on the ground (a ball brightens the
-ground beside its foot to 1.15–1.25×), a concave glass's far
-wall (a wine glass is taken as its nearest front and back faces), light inside the glass after
-more than one reflection. The cube and the wine glass stand 1 cm above the ground
-(`CONTACT_GAP`, `SCENE_VERSION` 2 for both): with their bottom faces in the ground's plane Cycles
-lit the ground under them 9× too dark (a probe: a 6 × 6 × 2 glass block, IOR 1.5, roughness
-0.05, on a white ground under a uniform sky, 64 spp, lights the ground under it 0.040 in
-contact and 0.351 with a 0.02 gap), which gave 3.3 of the cube's 8.2 and 9.3 of the wine
-glass's 23.8.
+(`SCENE_VERSION` 2). Not in our frame: a concave glass's far wall (a wine glass is taken as its
+nearest front and back faces), light inside the glass after more than four reflections, light
+the ground sends back onto itself through the glass (a second diffuse bounce). The cube and
+the wine glass stand 1 cm above the ground (`CONTACT_GAP`, `SCENE_VERSION` 2 for both): with
+their bottom faces in the ground's plane Cycles lit the ground under them 9× too dark (a probe:
+a 6 × 6 × 2 glass block, IOR 1.5, roughness 0.05, on a white ground under a uniform sky, 64 spp,
+lights the ground under it 0.040 in contact and 0.351 with a 0.02 gap), which gave 3.3 of the
+cube's 8.2 and 9.3 of the wine glass's 23.8.
 
 *Cycles s* is 0 for a cached render: the 1024-spp ones took 876 s (glass) and 353 s (bubble) on
 this machine at a load average of 6–8.
