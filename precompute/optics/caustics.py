@@ -57,6 +57,9 @@ from ..shading.transmit import fresnel_dielectric
 #: sequence is its own key): reflected totally inside, into the glass, reflected off its
 #: outside, reflected by the film inside.
 TOTAL, ENTER, REFLECT_OUT, REFLECT_IN = 0, 1, 2, 3
+#: A key past this takes no more total reflections (an int64 holds 31 digits; a light-guided
+#: photon may reflect totally up to CAUSTIC_BOUNCES times in each glass it crosses).
+KEY_LIMIT = 4**28
 #: Casts: what an outside ray met (:func:`trace`'s ``cast_outside``).
 MISS = -1
 
@@ -133,12 +136,13 @@ def _reflect(d, n):
     return d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n
 
 
-def blur_roughness(cos_receiver, blur_glossy: float) -> float:
+def blur_roughness(cos_receiver, blur_glossy: float):
     """Cycles' *Filter Glossy* (``scene.cycles.blur_glossy``, 1 by default): after a bounce of
     pdf p every later BSDF is at least as rough as α = ½ √(1 − p / blur_glossy) (Cycles'
     ``surface_shader_prepare_closures``). A caustic is found from the diffuse receiver, p =
     cos θ / π, so Cycles draws the glass rough on its caustic paths: α 0.41 (cos 1) to 0.5
-    (grazing) at the default. 0 where the filter is off (``blur_glossy`` 0)."""
+    (grazing) at the default. 0 where the filter is off (``blur_glossy`` 0). A float, or an
+    array of ``cos_receiver``'s shape."""
     if not blur_glossy > 0.0:
         return np.zeros(np.shape(cos_receiver)) if np.ndim(cos_receiver) else 0.0
     p = np.maximum(np.asarray(cos_receiver, dtype=np.float64), 0.0) / np.pi / float(blur_glossy)
@@ -158,10 +162,9 @@ def photon_roughness(landing, towards_light, blur_glossy: float) -> np.ndarray:
 def microfacets(n, view, alpha, rng, valid, tries: int = 8):
     """GGX microfacet normals (M, 3) about the unit normals ``n`` (M, 3) of roughness ``alpha``
     (one, or one per row; 0: the normal itself) as the unit directions ``view`` (M, 3; on n's
-    side) see them: the distribution of visible
-    normals, D(m) max(0, v · m) G1(v) / (v · n), drawn by Heitz's (2018) sampling of the stretched
-    hemisphere. A draw that ``valid(rows, m)`` (bool per row) refuses is drawn again, up to
-    ``tries`` times, then the normal itself stands."""
+    side) see them: the distribution of visible normals, D(m) max(0, v · m) G1(v) / (v · n),
+    drawn by Heitz's (2018) sampling of the stretched hemisphere. A draw that ``valid(rows, m)``
+    (bool per row) refuses is drawn again, up to ``tries`` times, then the normal itself stands."""
     n = np.asarray(n, dtype=np.float64)
     out = n.copy()
     rough = np.broadcast_to(np.asarray(alpha, dtype=np.float64), (len(n),))
@@ -353,7 +356,7 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale=1.
                     mirrored[total],
                     f[t] * wm[total],
                     photon[t],
-                    key[t] * 4 + TOTAL,
+                    np.where(key[t] < KEY_LIMIT, key[t] * 4 + TOTAL, key[t]),
                     int(gi),
                     faces[t] + 1,
                     orders[t],
