@@ -222,7 +222,9 @@ def _casts(meshes: list, receivers: _Receivers):
             sel = glass == g
             if np.any(sel):
                 normals[sel] = mesh.normals_at(tri[sel], points[sel])
-        rec = np.where((glass < 0) & (rec_index >= 0), receivers.owner[np.maximum(rec_index, 0)], -1)
+        rec = np.full(m, -1)
+        landed = (glass < 0) & (rec_index >= 0)
+        rec[landed] = receivers.owner[rec_index[landed]]
         return glass, rec, points, normals
 
     def inside(g, o, d):
@@ -298,7 +300,10 @@ def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=N
     if not meshes:
         return flux
     optics = [glass[name] for name in names]
-    outside, inside = _casts(meshes, _Receivers(depsgraph, set(names) | set(skip)))
+    receivers = _Receivers(depsgraph, set(names) | set(skip))
+    if receivers.bvh is None:  # nothing for the light to land on
+        return flux
+    outside, inside = _casts(meshes, receivers)
     suns = [
         obj
         for obj in scene.objects

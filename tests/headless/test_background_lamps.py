@@ -315,3 +315,21 @@ def test_solid_glass_under_other_lights_keeps_the_straight_shadow(bpy, bl):
     ).rgba
     assert not any(m.startswith("caustics") for m in messages)
     assert float(rgba[20:28, 20:28, :3].mean()) > 0.5 * float(rgba[:, 44:, :3].mean())  # not opaque
+
+
+def test_solid_glass_with_nothing_to_light_renders(bpy, bl):
+    """Solid glass alone under a sun (no floor, nothing else the light could land on): the pass
+    renders, the glass's material is restored and nothing is traced (the photons' casts once
+    failed on an empty set of receivers)."""
+    background, scene, slab = sun_over_floor(bpy, 4, 16.0, ((0.0, 0.0, 0.5), (4.0, 4.0, 0.1)), 0.0)
+    floor_obj = next(o for o in scene.objects if o.type == "MESH" and o is not slab)
+    bpy.data.objects.remove(floor_obj)
+    glass = bpy.data.materials.new("glass")
+    slab.data.materials.append(glass)
+    messages = []
+    rgba = background.render_background(
+        scene, 32, 32, engine="EEVEE", hidden={slab.name}, glass={slab.name: 1.5}, messages=messages
+    ).rgba
+    assert np.all(np.isfinite(rgba))
+    assert slab.material_slots[0].material == glass
+    assert not any(m.startswith("caustics:") and "photons" in m for m in messages), messages
