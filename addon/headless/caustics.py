@@ -12,7 +12,7 @@ Cycles finds a caustic from the diffuse surface it lands on and, by its *Filter 
 (``scene.cycles.blur_glossy``, 1 by default), draws the glass rough on those paths, the rougher
 the more grazing the light lands: each sun's photons are traced smooth first, for where and how
 steeply each lands, then again meeting the glass at GGX microfacets of that roughness, and
-their light is averaged into a density (:func:`precompute.optics.caustics.blur_roughness`);
+their light is averaged into a density (:mod:`precompute.optics.facets`);
 with the filter off the caustic is the smooth glass's, sharp.
 
 Only sun lights: :func:`applies` says whether a scene's lights are all suns (the World's lamps
@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from ...precompute.optics import caustics
+from ...precompute.optics import caustics, facets
 from ...precompute.shading.policy import CAUSTIC_GRID, CAUSTIC_SMOOTH
 from ...precompute.shading.transmit import back_reflectance, white_reflectance
 
@@ -322,7 +322,7 @@ def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=N
             alpha = 0.0
             if blur > 0.0:  # each photon as rough as Cycles makes the glass from where it lands
                 sharp = caustics.trace(origins, direction, power, optics, outside, inside, mesh.radius)
-                alpha = caustics.photon_roughness(sharp.landing, centre, blur)
+                alpha = facets.photon_roughness(sharp.landing, centre, blur)
             records = caustics.trace(
                 origins, direction, power, optics, outside, inside, mesh.radius, alpha, seed=(s, k, m)
             )

@@ -26,6 +26,10 @@ drives it in Blender):
 3. **Irradiance.** Each pixel's flux over its footprint on the receiver (the pixel's solid angle ×
    distance² / |n · r|, :func:`footprint`) is the irradiance the glass sends there, which the
    pass's diffuse colour turns into radiance (× albedo / π).
+4. **Rough glass.** Where Cycles' Filter Glossy makes the glass rough on a caustic's path
+   (:mod:`.facets`), :func:`trace` takes a roughness per photon and meets each face at a GGX
+   facet; such photons scatter apart, so :func:`splat` lands each at its own point
+   (``cells=False``) and :func:`smooth` averages them into a density.
 
 Glass of index 1 without a film sends every photon straight on with its flux: the irradiance
 is E cos θ wherever the glass's shadow falls, the light as if the glass were not there
@@ -39,7 +43,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..brdf import lambda_ggx
 from ..shading.policy import (
     CAUSTIC_BOUNCES,
     CAUSTIC_DEPTH_SLACK,
@@ -52,6 +55,7 @@ from ..shading.policy import (
 )
 from ..shading.refract import refract
 from ..shading.transmit import fresnel_dielectric
+from . import facets
 
 #: Path events, each a base-4 digit of a photon's path key (its first digit never 0, so every
 #: sequence is its own key): reflected totally inside, into the glass, reflected off its
@@ -132,81 +136,6 @@ def disc_directions(towards_light, angle: float, count: int = CAUSTIC_DISC_SAMPL
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
-def _reflect(d, n):
-    return d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n
-
-
-def blur_roughness(cos_receiver, blur_glossy: float):
-    """Cycles' *Filter Glossy* (``scene.cycles.blur_glossy``, 1 by default): after a bounce of
-    pdf p every later BSDF is at least as rough as α = ½ √(1 − p / blur_glossy) (Cycles'
-    ``surface_shader_prepare_closures``). A caustic is found from the diffuse receiver, p =
-    cos θ / π, so Cycles draws the glass rough on its caustic paths: α 0.41 (cos 1) to 0.5
-    (grazing) at the default. 0 where the filter is off (``blur_glossy`` 0). A float, or an
-    array of ``cos_receiver``'s shape."""
-    if not blur_glossy > 0.0:
-        return np.zeros(np.shape(cos_receiver)) if np.ndim(cos_receiver) else 0.0
-    p = np.maximum(np.asarray(cos_receiver, dtype=np.float64), 0.0) / np.pi / float(blur_glossy)
-    alpha = np.where(p < 1.0, 0.5 * np.sqrt(np.maximum(1.0 - p, 0.0)), 0.0)
-    return alpha if alpha.ndim else float(alpha)
-
-
-def photon_roughness(landing, towards_light, blur_glossy: float) -> np.ndarray:
-    """Each photon's roughness (N,) under Cycles' Filter Glossy: :func:`blur_roughness` at its
-    landing cosine (:attr:`Records.landing` of a smooth trace); a photon that did not land takes
-    the sun's height as its cosine (the receiver taken as level ground)."""
-    cos = np.asarray(landing, dtype=np.float64)
-    cos = np.where(np.isfinite(cos), cos, max(float(np.asarray(towards_light)[2]), 0.0))
-    return np.asarray(blur_roughness(cos, blur_glossy), dtype=np.float64).reshape(cos.shape)
-
-
-def microfacets(n, view, alpha, rng, valid, tries: int = 8):
-    """GGX microfacet normals (M, 3) about the unit normals ``n`` (M, 3) of roughness ``alpha``
-    (one, or one per row; 0: the normal itself) as the unit directions ``view`` (M, 3; on n's
-    side) see them: the distribution of visible normals, D(m) max(0, v · m) G1(v) / (v · n),
-    drawn by Heitz's (2018) sampling of the stretched hemisphere. A draw that ``valid(rows, m)``
-    (bool per row) refuses is drawn again, up to ``tries`` times, then the normal itself stands."""
-    n = np.asarray(n, dtype=np.float64)
-    out = n.copy()
-    rough = np.broadcast_to(np.asarray(alpha, dtype=np.float64), (len(n),))
-    view = np.asarray(view, dtype=np.float64)
-    todo = np.flatnonzero(rough > 0.0)
-    for _ in range(tries):
-        if todo.size == 0:
-            break
-        a = rough[todo][:, None]
-        stretch = np.concatenate([a, a, np.ones_like(a)], axis=-1)
-        nn = n[todo]
-        helper = np.where(np.abs(nn[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-        ex = np.cross(nn, helper)
-        ex /= np.linalg.norm(ex, axis=-1, keepdims=True)
-        ey = np.cross(nn, ex)
-        v = view[todo]
-        local = np.stack([np.sum(v * ex, -1), np.sum(v * ey, -1), np.maximum(np.sum(v * nn, -1), 1e-6)], -1)
-        vh = local * stretch
-        vh /= np.linalg.norm(vh, axis=-1, keepdims=True)
-        length = np.hypot(vh[:, 0], vh[:, 1])
-        t1 = np.where(
-            length[:, None] > 1e-12,
-            np.stack([-vh[:, 1], vh[:, 0], np.zeros_like(length)], -1) / np.maximum(length, 1e-12)[:, None],
-            np.array([[1.0, 0.0, 0.0]]),
-        )
-        t2 = np.cross(vh, t1)
-        r, phi = np.sqrt(rng.random(todo.size)), 2.0 * np.pi * rng.random(todo.size)
-        p1, p2 = r * np.cos(phi), r * np.sin(phi)
-        s = 0.5 * (1.0 + vh[:, 2])
-        p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
-        p3 = np.sqrt(np.maximum(1.0 - p1 * p1 - p2 * p2, 0.0))
-        nh = p1[:, None] * t1 + p2[:, None] * t2 + p3[:, None] * vh
-        ml = nh * stretch
-        ml[:, 2] = np.maximum(ml[:, 2], 0.0)
-        ml /= np.linalg.norm(ml, axis=-1, keepdims=True)
-        m = ml[:, :1] * ex + ml[:, 1:2] * ey + ml[:, 2:3] * nn
-        ok = np.asarray(valid(todo, m), dtype=bool)
-        out[todo[ok]] = m[ok]
-        todo = todo[~ok]
-    return out
-
-
 @dataclass
 class Records:
     """Where a sun's photons ended on receivers: per path key, photon index (M,), hit point
@@ -230,53 +159,6 @@ class Records:
         }
 
 
-def masking(cos_view, cos_out, alpha) -> np.ndarray:
-    """The weight of a direction drawn through a visible normal (:func:`microfacets`): Smith's
-    height-correlated G2 / G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)), the cosines to the surface's
-    normal (absolute). Single scattering: the light the facets shadow is lost, as on Cycles'
-    blurred glass, whose energy compensation is set before the blur (its roughness then ≈ 0)."""
-    lv = lambda_ggx(np.abs(cos_view), alpha)
-    return (1.0 + lv) / (1.0 + lv + lambda_ggx(np.abs(cos_out), alpha))
-
-
-def _entering(d, n, eta):
-    """A microfacet test for rays ``d`` meeting glass from outside at macro normals ``n``: the
-    facet faces the ray, its reflection leaves the surface and its refraction enters it."""
-
-    def valid(rows, m):
-        dd, nn = d[rows], n[rows]
-        faces = np.sum(dd * m, axis=-1) < 0.0
-        up = np.sum(_reflect(dd, m) * nn, axis=-1) > 0.0
-        down = np.sum(refract(dd, m, 1.0 / eta) * nn, axis=-1) < 0.0
-        return faces & up & down
-
-    return valid
-
-
-def _leaving(d, n, eta):
-    """The same from inside (``n`` outward, the facets drawn about −n): the facet faces the ray,
-    its reflection stays inside and its refraction, where there is one, leaves."""
-
-    def valid(rows, inward):
-        dd, nn, m = d[rows], n[rows], -inward
-        c = np.sum(dd * m, axis=-1)
-        total = eta * eta * (1.0 - c * c) >= 1.0
-        stays = np.sum(_reflect(dd, m) * nn, axis=-1) < 0.0
-        leaves = total | (np.sum(refract(dd, -m, eta) * nn, axis=-1) > 0.0)
-        return (c > 0.0) & stays & leaves
-
-    return valid
-
-
-def _weights(alpha, macro, d, *outgoing):
-    """:func:`masking` (M, 1) of each ``outgoing`` direction (M, 3) of rays ``d`` at the surface's
-    ``macro`` normals; ones for smooth glass."""
-    if not np.any(alpha > 0.0):
-        return tuple(np.ones((len(d), 1)) for _ in outgoing)
-    cv = np.sum(d * macro, axis=-1)
-    return tuple(masking(cv, np.sum(o * macro, axis=-1), alpha)[:, None] for o in outgoing)
-
-
 def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale=1.0, alpha=0.0, seed=0):
     """Follow photons from ``origins`` (N, 3) along ``direction`` (3,), each carrying ``flux``
     (N, 3), through the solid glass objects ``glasses`` (list of :class:`GlassOptics`); see the
@@ -290,7 +172,7 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale=1.
     ``scale``: the scene's size (the glass's radius), for the step off a surface. Photons that
     meet a receiver before any glass are not recorded (the pass lights them); ``cast_outside``'s
     normals at a receiver are its own, for :attr:`Records.landing`. ``alpha``: the glass drawn
-    rough (GGX, :func:`blur_roughness`; one, or one per photon), each photon meeting each face at
+    rough (GGX, :func:`.facets.blur_roughness`; one, or one per photon), each photon meeting each face at
     a microfacet drawn from ``seed``'s generator; 0: smooth. Returns :class:`Records`."""
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     n_rays = o.shape[0]
@@ -327,11 +209,11 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale=1.
                 dd, nn, pp = d[s], nrm[sel], p[sel]
                 a = rough[photon[s]]
                 if np.any(a > 0.0):
-                    nn = microfacets(nn, -dd, a, rng, _entering(dd, nrm[sel], optics.eta))
+                    nn = facets.microfacets(nn, -dd, a, rng, facets.entering(dd, nrm[sel], optics.eta))
                 c = np.clip(-np.sum(dd * nn, axis=-1), 0.0, 1.0)
                 r = np.clip(optics.front(c), 0.0, 1.0)
-                inward, outward = refract(dd, nn, 1.0 / optics.eta), _reflect(dd, nn)
-                wi, wo = _weights(a, nrm[sel], dd, inward, outward)
+                inward, outward = refract(dd, nn, 1.0 / optics.eta), facets.reflect(dd, nn)
+                wi, wo = facets.weights(a, nrm[sel], dd, inward, outward)
                 ks, od = key[s] * 4, orders[s]
                 nxt.append((pp, inward, f[s] * (1.0 - r) * wi, photon[s], ks + ENTER, int(gi), 0, od))
                 nxt.append((pp, outward, f[s] * r * wo, photon[s], ks + REFLECT_OUT, -1, 0, od + 1))
@@ -343,12 +225,12 @@ def trace(origins, direction, flux, glasses, cast_outside, cast_inside, scale=1.
             dd, macro = d[idx], nrm
             a = rough[photon[idx]]
             if np.any(a > 0.0):
-                nrm = -microfacets(-nrm, -dd, a, rng, _leaving(dd, nrm, optics.eta))
+                nrm = -facets.microfacets(-nrm, -dd, a, rng, facets.leaving(dd, nrm, optics.eta))
             c = np.clip(np.sum(dd * nrm, axis=-1), 0.0, 1.0)
             total = optics.eta * optics.eta * (1.0 - c * c) >= 1.0
-            mirrored = _reflect(dd, nrm)
+            mirrored = facets.reflect(dd, nrm)
             leaving = refract(dd, -nrm, optics.eta)
-            wl, wm = _weights(a, macro, dd, leaving, mirrored)
+            wl, wm = facets.weights(a, macro, dd, leaving, mirrored)
             t = idx[total]
             nxt.append(
                 (

@@ -313,7 +313,7 @@ CAUSTIC_REFLECTIONS = 1
 #: smooth (a third of a rough ball's light at α 0.45) and its light leaves after a few faces:
 #: with 8 a rough ball lost 5.5 % of it, with 16 0.8 % (tests/optics/test_caustics.py).
 CAUSTIC_BOUNCES = 16
-#: Rough glass's photons (Cycles' Filter Glossy, caustics.blur_roughness) scatter apart: their
+#: Rough glass's photons (Cycles' Filter Glossy, facets.blur_roughness) scatter apart: their
 #: flux is averaged over a Gaussian of this × the glass's radius on the picture (caustics.smooth),
 #: well inside the light's own spread (a third to a whole radius on the ground).
 CAUSTIC_SMOOTH = 0.1

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from precompute.brdf import ggx_albedo
-from precompute.optics import caustics
+from precompute.optics import caustics, facets
 from precompute.shading.transmit import fresnel_dielectric
 
 R = 1.0
@@ -117,11 +117,11 @@ def test_a_lossless_ball_delivers_every_photons_flux():
 
 def test_filter_glossys_roughness_is_cycles_closed_form():
     # Cycles: blur_pdf = cos θ / π / blur_glossy after a diffuse bounce, α = ½ √(1 − blur_pdf)
-    assert caustics.blur_roughness(1.0, 1.0) == pytest.approx(0.5 * np.sqrt(1.0 - 1.0 / np.pi), abs=1e-12)
-    assert caustics.blur_roughness(0.0, 1.0) == pytest.approx(0.5)
-    assert caustics.blur_roughness(0.5, 0.25) == pytest.approx(0.5 * np.sqrt(1.0 - 2.0 / np.pi))
-    assert caustics.blur_roughness(1.0, 0.1) == 0.0  # p ≥ 1: the path is not blurred
-    assert caustics.blur_roughness(1.0, 0.0) == 0.0  # the filter off
+    assert facets.blur_roughness(1.0, 1.0) == pytest.approx(0.5 * np.sqrt(1.0 - 1.0 / np.pi), abs=1e-12)
+    assert facets.blur_roughness(0.0, 1.0) == pytest.approx(0.5)
+    assert facets.blur_roughness(0.5, 0.25) == pytest.approx(0.5 * np.sqrt(1.0 - 2.0 / np.pi))
+    assert facets.blur_roughness(1.0, 0.1) == 0.0  # p ≥ 1: the path is not blurred
+    assert facets.blur_roughness(1.0, 0.0) == 0.0  # the filter off
 
 
 def test_microfacet_normals_follow_ggx():
@@ -131,7 +131,7 @@ def test_microfacet_normals_follow_ggx():
     alpha, count = 0.45, 200_000
     rng = np.random.default_rng(3)
     n = np.tile(np.array([[0.0, 0.6, 0.8]]), (count, 1))
-    m = caustics.microfacets(n, n, alpha, rng, lambda rows, m: np.ones(len(rows), dtype=bool))
+    m = facets.microfacets(n, n, alpha, rng, lambda rows, m: np.ones(len(rows), dtype=bool))
     assert np.allclose(np.linalg.norm(m, axis=-1), 1.0)
     cos_t = np.clip(np.sum(m * n, axis=-1), -1.0, 1.0)
     tan2 = (1.0 - cos_t**2) / cos_t**2
@@ -140,7 +140,7 @@ def test_microfacet_normals_follow_ggx():
     assert quartiles == pytest.approx([1.0 / 3.0, 1.0, 3.0], rel=0.03)
     side = np.cross(n[0], m - cos_t[:, None] * n) @ np.array([1.0, 0.0, 0.0])
     assert abs(np.mean(side > 0.0) - 0.5) < 0.01
-    never = caustics.microfacets(n[:10], n[:10], alpha, rng, lambda rows, m: np.zeros(len(rows), dtype=bool))
+    never = facets.microfacets(n[:10], n[:10], alpha, rng, lambda rows, m: np.zeros(len(rows), dtype=bool))
     assert np.array_equal(never, n[:10])  # never valid: the normal itself
 
 
@@ -151,7 +151,7 @@ def test_visible_normals_seen_askew_are_the_ggx_normals_weighted_by_their_facing
     rng = np.random.default_rng(5)
     n = np.array([0.0, 0.0, 1.0])
     v = np.array([np.sin(np.radians(60.0)), 0.0, np.cos(np.radians(60.0))])
-    m = caustics.microfacets(
+    m = facets.microfacets(
         np.tile(n, (count, 1)), np.tile(v, (count, 1)), alpha, rng, lambda r, m: np.ones(len(r), dtype=bool)
     )
     x = rng.random(count)
@@ -170,16 +170,16 @@ def test_visible_normals_seen_askew_are_the_ggx_normals_weighted_by_their_facing
 @pytest.mark.parametrize("mu", [1.0, 0.5, 0.2])
 def test_visible_normals_and_their_masking_give_ggxs_single_scattering_albedo(mu):
     """A mirror of rough facets (F ≡ 1): directions drawn through visible normals, each weighted
-    by caustics.masking (G2 / G1), average to the single-scattering albedo E(μ) that
+    by facets.masking (G2 / G1), average to the single-scattering albedo E(μ) that
     precompute.brdf.ggx_albedo integrates on its quadrature rule (directions below the surface
     carry nothing)."""
     alpha, count = 0.45, 400_000
     rng = np.random.default_rng(7)
     n = np.tile(np.array([0.0, 0.0, 1.0]), (count, 1))
     v = np.tile(np.array([np.sqrt(1.0 - mu * mu), 0.0, mu]), (count, 1))
-    m = caustics.microfacets(n, v, alpha, rng, lambda r, m: np.ones(len(r), dtype=bool))
+    m = facets.microfacets(n, v, alpha, rng, lambda r, m: np.ones(len(r), dtype=bool))
     out = 2.0 * np.sum(v * m, axis=-1, keepdims=True) * m - v
-    w = np.where(out[:, 2] > 0.0, caustics.masking(np.full(count, mu), out[:, 2], alpha), 0.0)
+    w = np.where(out[:, 2] > 0.0, facets.masking(np.full(count, mu), out[:, 2], alpha), 0.0)
     want = float(ggx_albedo(np.array([mu]), alpha)[0])
     print(f"μ {mu}: drawn and masked {w.mean():.4f}, ggx_albedo {want:.4f}")
     assert w.mean() == pytest.approx(want, abs=0.004)
@@ -233,9 +233,9 @@ def test_each_photon_is_as_rough_as_cycles_makes_the_glass_from_where_it_lands()
     records = caustics.trace(origins, direction, np.full((len(origins), 3), area), [lossless(1.0)], out, inn)
     landed = np.isfinite(records.landing)
     assert np.allclose(records.landing[landed], np.cos(theta), atol=1e-9)
-    alpha = caustics.photon_roughness(records.landing, sun, 1.0)
-    assert np.allclose(alpha[landed], caustics.blur_roughness(np.cos(theta), 1.0))
-    assert np.allclose(alpha[~landed], caustics.blur_roughness(sun[2], 1.0))
+    alpha = facets.photon_roughness(records.landing, sun, 1.0)
+    assert np.allclose(alpha[landed], facets.blur_roughness(np.cos(theta), 1.0))
+    assert np.allclose(alpha[~landed], facets.blur_roughness(sun[2], 1.0))
     assert 0.6 * len(origins) < landed.sum() < 0.9 * len(origins)  # the disc of the square grid, π/4
 
 
