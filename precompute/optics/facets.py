@@ -14,12 +14,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..brdf import lambda_ggx
+from ..brdf import reflect as mirror
+from ..shading.frame import view_aligned_frame
 from ..shading.refract import refract
 
 
 def reflect(d, n):
-    """``d`` (…, 3) mirrored at the unit normals ``n``."""
-    return d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n
+    """The ray ``d`` (…, 3) travelling on after a mirror at the unit normals ``n``
+    (:func:`precompute.brdf.reflect` mirrors a direction pointing away)."""
+    return -mirror(d, n)
 
 
 def blur_roughness(cos_receiver, blur_glossy: float):
@@ -61,13 +64,9 @@ def microfacets(n, view, alpha, rng, valid, tries: int = 8):
             break
         a = rough[todo][:, None]
         stretch = np.concatenate([a, a, np.ones_like(a)], axis=-1)
-        nn = n[todo]
-        helper = np.where(np.abs(nn[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-        ex = np.cross(nn, helper)
-        ex /= np.linalg.norm(ex, axis=-1, keepdims=True)
-        ey = np.cross(nn, ex)
-        v = view[todo]
-        local = np.stack([np.sum(v * ex, -1), np.sum(v * ey, -1), np.maximum(np.sum(v * nn, -1), 1e-6)], -1)
+        frame = view_aligned_frame(n[todo], view[todo])  # rows x, y, z = n; the view in x-z
+        local = np.einsum("mij,mj->mi", frame, view[todo])
+        local[:, 2] = np.maximum(local[:, 2], 1e-6)
         vh = local * stretch
         vh /= np.linalg.norm(vh, axis=-1, keepdims=True)
         length = np.hypot(vh[:, 0], vh[:, 1])
@@ -86,7 +85,7 @@ def microfacets(n, view, alpha, rng, valid, tries: int = 8):
         ml = nh * stretch
         ml[:, 2] = np.maximum(ml[:, 2], 0.0)
         ml /= np.linalg.norm(ml, axis=-1, keepdims=True)
-        m = ml[:, :1] * ex + ml[:, 1:2] * ey + ml[:, 2:3] * nn
+        m = np.einsum("mij,mi->mj", frame, ml)
         ok = np.asarray(valid(todo, m), dtype=bool)
         out[todo[ok]] = m[ok]
         todo = todo[~ok]
