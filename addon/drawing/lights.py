@@ -24,15 +24,17 @@ def _colour(light) -> np.ndarray:
     return rgb
 
 
-def light_row(obj, matrix_world) -> dict | None:
+def light_row(obj, matrix_world, glossy: bool = True) -> dict | None:
     """:func:`precompute.shading.lights.light_from_blender` of a light object (evaluated), or
-    None when it cannot reach a film (glossy rays off, Specular 0, no power, an unknown type)."""
+    None when it cannot reach a film (glossy rays off, Specular 0, no power, an unknown type).
+    ``glossy`` False: the light as diffuse surfaces see it (its glossy visibility and Specular
+    factor not applied), as the glass's caustics light the ground."""
     light = obj.data
     if light is None or light.type not in light_shading.KINDS:
         return None
-    if not getattr(obj, "visible_glossy", True):
+    if glossy and not getattr(obj, "visible_glossy", True):
         return None
-    specular = float(getattr(light, "specular_factor", 1.0))
+    specular = float(getattr(light, "specular_factor", 1.0)) if glossy else 1.0
     energy = float(light.energy)
     if specular == 0.0 or energy == 0.0 or not np.isfinite(energy * specular):
         return None

@@ -159,10 +159,11 @@ def render_background(
     lamps light the pass as sun lights (:func:`.background_lamps.world_lamps_as_suns`), as Cycles
     lights it, where None leaves EEVEE's own World lighting.
     ``glass``: {object name: relative index η or :class:`~precompute.optics.caustics.GlassOptics`}
-    of solid glass (:func:`.caustics.glass_optics`), EEVEE only: where every
-    light is a sun (:func:`.caustics.applies`) it casts EEVEE's opaque shadow and the suns' light
-    through and off it is traced and added (:func:`.caustics.sun_caustics`, its note appended to
-    ``messages``); else the straight shadow through glass, 1 − F per face.
+    of solid glass (:func:`.caustics.glass_optics`), EEVEE only: where every light can be traced
+    (:func:`.caustics.applies`: suns, and point, spot and area lights outside the glass) it casts
+    EEVEE's opaque shadow and the lights' light through and off it is traced and added
+    (:func:`.caustics.light_caustics`, its note appended to ``messages``); else the straight
+    shadow through glass, 1 − F per face.
     """
     import time
 
@@ -198,7 +199,7 @@ def render_background(
             *((obj, "visible_camera", False) for obj in objects),
             *((obj, "visible_shadow", False) for obj in objects if obj.name in shadowless),
         ]
-        caustic = bool(etas) and caustics.applies(scene)
+        caustic = bool(etas) and caustics.applies(scene, etas)
         if caustic:
             changes += [(layer, "use_pass_normal", True), (layer, "use_pass_diffuse_color", True)]
         suns = world_lamps_as_suns(scene, world if engine == "EEVEE" else None)
@@ -207,7 +208,7 @@ def render_background(
             if caustic:
                 rgba, z, normals, albedo = _read_layers(path, extra=True)
                 depth = np.where(z >= FAR, np.inf, z)
-                light = caustics.sun_caustics(
+                light = caustics.light_caustics(
                     scene, optics, depth, normals, albedo, skip=shadowless, messages=messages
                 )
                 rgba = rgba.copy()

@@ -22,8 +22,9 @@ the pass renders and restored after it (:func:`world_lamps_as_suns`):
   direction, with the angle of a disc of its group's solid angle; they cast shadows (the
   camera-invisible films still cast theirs);
 - EEVEE's own sun extraction is turned off (*Sun Threshold* raised above any radiance);
-- solid glass casts an opaque shadow, and the suns' light through and off it is traced and put
-  back after the render (:mod:`.caustics`), where every light is a sun; else the shadow a
+- solid glass casts an opaque shadow, and the lights' light through and off it is traced and
+  put back after the render (:mod:`.caustics`), where every light can be (suns, and point, spot
+  and area lights outside the glass's bounds); else the shadow a
   straight shadow ray through glass carries, 1 − F(θ) through each face (:func:`glass_shadows`;
   EEVEE's opaque shadow alone measured worse against Cycles, docs/transparent-films.md#figures).
 

@@ -1,7 +1,7 @@
 """Solid glass's shadow and caustics in EEVEE's background pass, from the sun lamps.
 
 While the pass renders, solid glass casts EEVEE's opaque shadow (:func:`.background_lamps.glass_shadows`
-with ``opaque``); :func:`sun_caustics` then traces each sun's light through the glass objects'
+with ``opaque``); :func:`light_caustics` then traces each light's light through the glass objects'
 real meshes (``precompute/optics/caustics.py``: photons, caustic cells, irradiance) and returns
 the radiance it brings to what the pass's camera sees: the pass's diffuse colour × irradiance / π.
 The rays are Blender's: ``mathutils.bvhtree`` over each glass object's evaluated mesh (its
@@ -15,30 +15,67 @@ steeply each lands, then again meeting the glass at GGX microfacets of that roug
 their light is averaged into a density (:mod:`precompute.optics.facets`);
 with the filter off the caustic is the smooth glass's, sharp.
 
-Only sun lights: :func:`applies` says whether a scene's lights are all suns (the World's lamps
-are, :mod:`.background_lamps`); otherwise the pass keeps the straight shadow through glass
-(1 − F per face) and no caustics.
+Suns (the World's lamps are suns, :mod:`.background_lamps`) send parallel photons; point, spot
+and area lights send them from their centre or their area's cells
+(:mod:`precompute.optics.sources`). :func:`applies` says whether every light the render sees can
+be traced so: a point, spot or area light inside a glass object's bounds cannot, and then the
+pass keeps the straight shadow through glass (1 − F per face) and no caustics.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 import time
 
 import numpy as np
 
-from ...precompute.optics import caustics, facets
+from ...precompute.optics import caustics, facets, sources
+from ...precompute.shading import lights as light_shading
 from ...precompute.shading.policy import CAUSTIC_GRID, CAUSTIC_SMOOTH
 from ...precompute.shading.transmit import back_reflectance, white_reflectance
 
 
-def applies(scene) -> bool:
-    """Whether every light the render sees is a sun (photons come from suns only)."""
-    return all(
-        obj.data.type == "SUN"
-        for obj in scene.objects
-        if obj.type == "LIGHT" and not obj.hide_render and obj.data.energy > 0.0
-    )
+def _lights(scene) -> list:
+    """The light objects the render sees, with power."""
+    return [
+        obj for obj in scene.objects if obj.type == "LIGHT" and not obj.hide_render and obj.data.energy > 0.0
+    ]
+
+
+def _bounds(obj) -> tuple[np.ndarray, float]:
+    """(centre, radius) of the sphere about ``obj``'s world-space bounding box."""
+    m = np.array(obj.matrix_world, dtype=np.float64)
+    corners = np.array([tuple(c) for c in obj.bound_box], dtype=np.float64) @ m[:3, :3].T + m[:3, 3]
+    centre = 0.5 * (corners.min(axis=0) + corners.max(axis=0))
+    return centre, float(np.max(np.linalg.norm(corners - centre, axis=-1)))
+
+
+def _reach(obj) -> float:
+    """How far a light's emitting points lie from its origin: an area light's half diagonal."""
+    light = obj.data
+    if light.type != "AREA":
+        return 0.0
+    side_y = light.size if light.shape in ("SQUARE", "DISK") else light.size_y
+    scale = max(abs(float(v)) for v in obj.matrix_world.to_scale())
+    return 0.5 * math.hypot(float(light.size), float(side_y)) * scale
+
+
+def applies(scene, glass=()) -> bool:
+    """Whether photons can stand for every light the render sees: suns, and point, spot and
+    area lights outside the bounds of each of the ``glass`` objects (names)."""
+    spheres = [_bounds(scene.objects[name]) for name in glass if name in scene.objects]
+    for obj in _lights(scene):
+        kind = obj.data.type
+        if kind == "SUN":
+            continue
+        if kind not in ("POINT", "SPOT", "AREA"):
+            return False
+        position = np.array(obj.matrix_world.translation, dtype=np.float64)
+        reach = _reach(obj)
+        if any(np.linalg.norm(position - c) <= r + reach for c, r in spheres):
+            return False
+    return True
 
 
 def glass_optics(items, messages=None) -> dict:
@@ -282,14 +319,52 @@ def _glass_meshes(scene, glass: dict, depsgraph, messages) -> tuple[list, list]:
     return names, meshes
 
 
-def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=None) -> np.ndarray:
-    """The radiance (H, W, 3) that the scene's suns bring through (and off) the solid glass
+def _sun_photons(suns, meshes):
+    """(origins, direction, power, grid, glass index, towards the light, seed) of each sun's
+    parallel photons at each glass mesh: a grid over its bounding sphere per direction of the
+    sun's disc (:func:`precompute.optics.caustics.photon_grid`), the sun's irradiance over it."""
+    from mathutils import Vector
+
+    for s, sun in enumerate(suns):
+        centre = np.array(sun.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0)))
+        irradiance = float(sun.data.energy) * np.array(sun.data.color, dtype=np.float64)
+        directions = caustics.disc_directions(centre, float(sun.data.angle))
+        for (k, towards), (m, mesh) in itertools.product(enumerate(directions), enumerate(meshes)):
+            origins, direction, area = caustics.photon_grid(mesh.centre, mesh.radius, towards, CAUSTIC_GRID)
+            power = np.broadcast_to(irradiance * area / len(directions), origins.shape)
+            yield origins, direction, power, CAUSTIC_GRID, m, centre, (s, k, m)
+
+
+def _point_photons(lights, meshes, first_seed: int):
+    """The same for point, spot and area lights (``lights``, a
+    :class:`precompute.shading.lights.Lights`): photons from each of their points
+    (:func:`precompute.optics.sources.emitters`; an area light's cells on half the grid per axis)
+    over each glass mesh's bounding sphere, each with the light's intensity that way."""
+    for k in range(lights.count):
+        for e, emitter in enumerate(sources.emitters(lights, k)):
+            grid = CAUSTIC_GRID if emitter.area == 0.0 else CAUSTIC_GRID // 2
+            for m, mesh in enumerate(meshes):
+                if not sources.outside_sphere(emitter.position, mesh.centre, mesh.radius):
+                    continue  # applies() keeps such scenes out
+                origins, direction, omega = sources.point_photons(
+                    emitter.position, mesh.centre, mesh.radius, grid
+                )
+                power = sources.emitted(lights, k, emitter, direction, omega)
+                towards = (emitter.position - mesh.centre) / np.linalg.norm(emitter.position - mesh.centre)
+                yield origins, direction, power, grid, m, towards, (first_seed + k, e, m)
+
+
+def light_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=None) -> np.ndarray:
+    """The radiance (H, W, 3) that the scene's lights bring through (and off) the solid glass
     ``glass`` ({object name: GlassOptics}) to the pass's pixels: ``depth`` (H, W, along the
     camera axis, ``inf`` where nothing), world ``normals`` (H, W, 3) and diffuse colour ``albedo``
-    (H, W, 3) from the pass; ``skip``: objects the light goes through (thin films). Called while
-    the pass's camera is set up (its overscan)."""
+    (H, W, 3) from the pass; ``skip``: objects the light goes through (thin films). Suns send
+    parallel photons, point, spot and area lights photons from points (:func:`applies` has
+    checked that they lie outside the glass). Called while the pass's camera is set up (its
+    overscan)."""
     import bpy
-    from mathutils import Vector
+
+    from ..drawing.lights import light_row
 
     t0 = time.perf_counter()
     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -304,33 +379,33 @@ def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=N
     if receivers.bvh is None:  # nothing for the light to land on
         return flux
     outside, inside = _casts(meshes, receivers)
-    suns = [
-        obj
-        for obj in scene.objects
-        if obj.type == "LIGHT" and obj.data.type == "SUN" and not obj.hide_render and obj.data.energy > 0.0
-    ]
     blur = filter_glossy(scene)
     rough = [np.zeros((h, w, 3)) for _ in meshes]
     photons = 0
-    for s, sun in enumerate(suns):
-        centre = np.array(sun.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0)))
-        irradiance = float(sun.data.energy) * np.array(sun.data.color, dtype=np.float64)
-        directions = caustics.disc_directions(centre, float(sun.data.angle))
-        for (k, towards), (m, mesh) in itertools.product(enumerate(directions), enumerate(meshes)):
-            origins, direction, area = caustics.photon_grid(mesh.centre, mesh.radius, towards, CAUSTIC_GRID)
-            power = np.broadcast_to(irradiance * area / len(directions), origins.shape)
-            alpha = 0.0
-            if blur > 0.0:  # each photon as rough as Cycles makes the glass from where it lands
-                sharp = caustics.trace(origins, direction, power, optics, outside, inside, mesh.radius)
-                alpha = facets.photon_roughness(sharp.landing, centre, blur)
-            records = caustics.trace(
-                origins, direction, power, optics, outside, inside, mesh.radius, alpha, seed=(s, k, m)
-            )
-            if blur > 0.0:
-                rough[m] += caustics.splat(records, CAUSTIC_GRID, camera, depth, cells=False)
-            else:
-                flux += caustics.splat(records, CAUSTIC_GRID, camera, depth)
-            photons += len(origins)
+
+    def shine(origins, direction, power, grid, m, towards, seed):
+        """Trace one grid of photons at glass ``m`` and splat them (see the module)."""
+        nonlocal flux, photons
+        alpha = 0.0
+        if blur > 0.0:  # each photon as rough as Cycles makes the glass from where it lands
+            sharp = caustics.trace(origins, direction, power, optics, outside, inside, meshes[m].radius)
+            alpha = facets.photon_roughness(sharp.landing, towards, blur)
+        records = caustics.trace(
+            origins, direction, power, optics, outside, inside, meshes[m].radius, alpha, seed=seed
+        )
+        if blur > 0.0:
+            rough[m] += caustics.splat(records, grid, camera, depth, cells=False)
+        else:
+            flux += caustics.splat(records, grid, camera, depth)
+        photons += len(origins)
+
+    lit = _lights(scene)
+    suns = [obj for obj in lit if obj.data.type == "SUN"]
+    rows = [light_row(obj, obj.matrix_world, glossy=False) for obj in lit if obj.data.type != "SUN"]
+    rows = [row for row in rows if row is not None]
+    others = light_shading.Lights.from_rows(rows)
+    for job in itertools.chain(_sun_photons(suns, meshes), _point_photons(others, meshes, len(suns))):
+        shine(*job)
     for mesh, light in zip(meshes, rough, strict=True):
         if np.any(light):
             sigma = CAUSTIC_SMOOTH * caustics.projected_radius(camera, mesh.centre, mesh.radius)
@@ -339,7 +414,7 @@ def sun_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages=N
     radiance = np.where(np.isfinite(area)[..., None], albedo * flux / (np.pi * area[..., None]), 0.0)
     if messages is not None:
         messages.append(
-            f"caustics: {len(suns)} suns × {len(meshes)} glass objects, {photons} photons, "
-            f"Filter Glossy {blur:g}, {time.perf_counter() - t0:.1f} s"
+            f"caustics: {len(suns)} suns, {others.count} other lights × {len(meshes)} glass objects, "
+            f"{photons} photons, Filter Glossy {blur:g}, {time.perf_counter() - t0:.1f} s"
         )
     return radiance

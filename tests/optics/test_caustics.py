@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from precompute.brdf import ggx_albedo
-from precompute.optics import caustics, facets
+from precompute.optics import caustics, facets, sources
 from precompute.shading.transmit import fresnel_dielectric
 
 R = 1.0
@@ -360,3 +360,115 @@ def test_a_suns_disc_directions_sit_within_its_disc_about_its_centre():
     mean = dirs.mean(axis=0)
     assert np.degrees(np.arccos(mean @ centre / np.linalg.norm(mean))) < 1e-6
     assert caustics.disc_directions(centre, 0.0, 7).shape == (1, 3)
+
+
+def point_floor_flux(optics, centre, light, side=SIDE):
+    """The floor's irradiance (H, W, 3) and the pixels' area from a point light of intensity 1
+    W/sr at ``light`` through one ball at ``centre`` (precompute/optics/sources.py)."""
+    camera = ortho_camera(side=side)
+    depth = np.full((PIXELS, PIXELS), 10.0)
+    normals = np.broadcast_to(np.array([0.0, 0.0, 1.0]), (PIXELS, PIXELS, 3))
+    origins, directions, omega = sources.point_photons(light, centre, R, 160)
+    flux = np.repeat(omega[:, None], 3, axis=1)
+    out, inn = ball_casts(centre)
+    records = caustics.trace(origins, directions, flux, [optics], out, inn, scale=R)
+    acc = caustics.splat(records, 160, camera, depth)
+    pixel_area = caustics.footprint(camera, depth, normals)
+    return acc / pixel_area[..., None], pixel_area
+
+
+def test_a_point_lights_photons_span_the_glass_by_their_solid_angles():
+    """A point light's grid of rays over the square that bounds a glass's sphere as seen from
+    the light: the cells' solid angles h² cos³ θ add up to the square pyramid's 4 asin(t² / (1 +
+    t²)) (t = tan β, sin β = R / distance), every ray to the sphere's silhouette falls inside
+    the square, and a light inside the sphere is refused."""
+    light, centre = np.array([0.3, -0.2, 6.0]), np.array([0.0, 0.0, 2.0])
+    origins, directions, omega = sources.point_photons(light, centre, R, 160)
+    distance = np.linalg.norm(centre - light)
+    t = R / np.sqrt(distance**2 - R**2)
+    total, exact = float(omega.sum()), sources.pyramid_solid_angle(t)
+    print(f"solid angle of the grid {total:.6f}, the pyramid's {exact:.6f}")
+    assert total == pytest.approx(exact, rel=1e-4)
+    assert np.allclose(origins, light) and np.allclose(np.linalg.norm(directions, axis=-1), 1.0)
+    axis = (centre - light) / distance
+    cos_edge = np.min(directions @ axis)
+    assert cos_edge < np.sqrt(1.0 - (R / distance) ** 2)  # the silhouette's cone is inside
+    with pytest.raises(ValueError, match="not outside"):
+        sources.point_photons(centre + 0.5 * R, centre, R, 8)
+
+
+def test_glass_of_index_one_under_a_point_light_lets_its_light_through():
+    """Through glass of index 1 without a film the floor in the ball's shadow gets the point
+    light's I cos θ / r², as if there were no glass."""
+    light = np.array([0.0, 0.0, 6.0])
+    e, _ = point_floor_flux(caustics.plain_glass(1.0), (0.0, 0.0, 2.0), light)
+    ys, xs = np.mgrid[0:PIXELS, 0:PIXELS]
+    x = (xs + 0.5) / PIXELS * SIDE - SIDE / 2
+    y = SIDE / 2 - (ys + 0.5) / PIXELS * SIDE
+    shadow = 6.0 * np.tan(np.arcsin(R / 4.0))  # the ball's shadow from 6 above, 4 from its centre
+    rho = np.hypot(x, y)
+    r2 = rho**2 + 36.0
+    want = 6.0 / np.sqrt(r2) / r2
+    ratio = e[rho < 0.85 * shadow, 1] / want[rho < 0.85 * shadow]
+    spread = f"{np.percentile(ratio, 5):.3f}–{np.percentile(ratio, 95):.3f}"
+    print(
+        f"point light, index 1: E / (I cos θ / r²) in the shadow median {np.median(ratio):.4f},"
+        f" 5–95 % {spread}"
+    )
+    assert abs(np.median(ratio) - 1.0) < 0.01
+    assert np.percentile(ratio, 5) > 0.9 and np.percentile(ratio, 95) < 1.1
+    assert np.all(e[rho > 1.1 * shadow] == 0.0)
+
+
+def test_a_lossless_ball_under_a_point_light_delivers_its_cones_flux():
+    """A lossless ball lens under a point light: the floor receives I 2π (1 − cos β), the flux
+    of the cone the ball subtends."""
+    light, centre = np.array([0.0, 0.0, 6.0]), np.array([0.0, 0.0, 2.0])
+    e, pixel_area = point_floor_flux(lossless(1.5), centre, light, side=400.0)
+    total = float(np.sum(e[..., 0] * pixel_area))
+    cone = 2.0 * np.pi * (1.0 - np.sqrt(1.0 - (R / 4.0) ** 2))
+    print(f"lossless ball under a point light: flux on the floor {total:.5f} of the cone's {cone:.5f}")
+    assert total / cone == pytest.approx(1.0, abs=0.01)
+
+
+def test_lights_send_photons_with_cycles_intensities():
+    """The flux a light's ray carries is its intensity that way times the ray's solid angle: a
+    point light P / 4π; a spot the same times its cone (0 outside it); an area light's cells
+    L A cos θ, their areas adding up to the light's, nothing behind it."""
+    from precompute.shading import lights as light_shading
+
+    matrix = np.eye(4)
+    matrix[:3, 3] = (0.0, 0.0, 5.0)  # −Z (the spot's axis, the area's side) points down
+    rows = [
+        light_shading.light_from_blender("POINT", matrix, energy=100.0, radius=0.1),
+        light_shading.light_from_blender(
+            "SPOT", matrix, energy=100.0, spot_size=np.radians(60), spot_blend=0.0
+        ),
+        light_shading.light_from_blender(
+            "AREA", matrix, energy=100.0, shape="RECTANGLE", size=2.0, size_y=1.0
+        ),
+    ]
+    lights = light_shading.Lights.from_rows(rows)
+    down, aside, up = (
+        np.array([[0.0, 0.0, -1.0]]),
+        np.array([[np.sin(0.7), 0.0, -np.cos(0.7)]]),
+        np.array([[0, 0, 1.0]]),
+    )
+    omega = np.array([1e-3])
+    point = sources.emitters(lights, 0)
+    assert len(point) == 1 and np.allclose(point[0].position, (0, 0, 5))
+    assert np.allclose(sources.emitted(lights, 0, point[0], down, omega), 100.0 / (4 * np.pi) * 1e-3)
+    spot = sources.emitters(lights, 1)[0]
+    assert np.allclose(sources.emitted(lights, 1, spot, down, omega), 100.0 / (4 * np.pi) * 1e-3)
+    assert np.all(sources.emitted(lights, 1, spot, aside, omega) == 0.0)  # 40° off a 30° half cone
+    cells = sources.emitters(lights, 2)
+    assert len(cells) == 16 and sum(c.area for c in cells) == pytest.approx(2.0)
+    radiance = 100.0 / (np.pi * 2.0)
+    assert np.allclose(
+        sources.emitted(lights, 2, cells[0], aside, omega), radiance * cells[0].area * np.cos(0.7) * 1e-3
+    )
+    assert np.all(sources.emitted(lights, 2, cells[0], up, omega) == 0.0)
+    assert (
+        sources.emitters(light_shading.Lights.from_rows([light_shading.light_from_blender("SUN", matrix)]), 0)
+        == []
+    )
