@@ -56,13 +56,22 @@ LIMITS = {
     ("cube", "CYCLES"): 5.0,
     ("wineglass", "EEVEE"): 5.0,
     ("wineglass", "CYCLES"): 5.0,
+    ("lamps", "EEVEE"): 3.0,  # no issue's limit: the ball's
+    ("lamps", "CYCLES"): 2.0,
 }
-SCENES = ("bubble", "glass", "cube", "wineglass")
+SCENES = ("bubble", "glass", "cube", "wineglass", "lamps")
+#: Scenes whose object is the sphere (the ball or the bubble): masked and cut into regions as one.
+SPHERES = ("bubble", "glass", "lamps")
 #: Each scene's version, part of its reference's cache key. 2: Cycles' sample clamps off (Blender's
 #: default indirect clamp of 10 dimmed the glass sphere's internal glints 30×: 0.3–0.5 instead of
 #: 10–15, a biased reference). 3 (glass): roughness 0.05, the scene of issue 34's comparison.
 #: 2 (cube, wine glass): lifted CONTACT_GAP off the ground (below).
-SCENE_VERSION = {"bubble": 2, "glass": 3, "cube": 2, "wineglass": 2}
+SCENE_VERSION = {"bubble": 2, "glass": 3, "cube": 2, "wineglass": 2, "lamps": 1}
+#: The "lamps" scene: the glass ball lit by a point light (position, power W, radius) and a
+#: square area light (position, power W, size), both aimed at the ball, the World dimmed to this.
+LAMP_POINT = ((1.2, 2.4, 2.6), 400.0, 0.1)
+LAMP_AREA = ((-2.6, 1.0, 2.2), 300.0, 0.8)
+LAMP_WORLD = 0.05
 #: The cube and the wine glass stand this far (m) above the ground, not in its plane: with the
 #: bottom face coplanar with the ground, Cycles lit the ground under the glass 9× darker than with
 #: a 0.02 gap (a 6 × 6 × 2 block, IOR 1.5, white ground, uniform sky, 64 spp: 0.040 vs 0.351), a
@@ -181,8 +190,28 @@ def _shape(bpy, name: str) -> None:
     obj.data = mesh
 
 
+def _lamps(bpy) -> None:
+    """The "lamps" scene's lights (:data:`LAMP_POINT`, :data:`LAMP_AREA`) aimed at the ball at
+    the origin, and its World dimmed to :data:`LAMP_WORLD`."""
+    from mathutils import Vector
+
+    for kind, (where, power, size) in (("POINT", LAMP_POINT), ("AREA", LAMP_AREA)):
+        data = bpy.data.lights.new(kind.lower(), kind)
+        data.energy = power
+        if kind == "AREA":
+            data.size = size
+        else:
+            data.shadow_soft_size = size
+        obj = bpy.data.objects.new(kind.lower(), data)
+        obj.location = where
+        obj.rotation_euler = (-Vector(where)).to_track_quat("-Z", "Y").to_euler()
+        bpy.context.scene.collection.objects.link(obj)
+    background = bpy.context.scene.world.node_tree.nodes["Background"]
+    background.inputs["Strength"].default_value = LAMP_WORLD
+
+
 def build(name: str, path, size: int, samples: int, unbiased: bool = True):
-    """The scene ``name`` ("bubble" or "glass") saved as a .blend; returns its path.
+    """The scene ``name`` (:data:`SCENES`) saved as a .blend; returns its path.
     ``unbiased``: Cycles' sample clamps off (the reference); else Blender's defaults (the
     headless frame's Cycles background pass, less noisy)."""
     import bpy
@@ -201,6 +230,8 @@ def build(name: str, path, size: int, samples: int, unbiased: bool = True):
     _shape(bpy, name)
     if name != "bubble":
         _ground(bpy)
+    if name == "lamps":
+        _lamps(bpy)
     bpy.ops.wm.save_as_mainfile(filepath=str(pathlib.Path(path).resolve()), check_existing=False)
     return path
 
@@ -270,7 +301,7 @@ def compare(
     if engine == "CYCLES":
         blend = build(name, pathlib.Path(workdir) / f"{name}_ours.blend", size, background_samples, False)
     ours, ours_s = headless_image(blend, pathlib.Path(workdir) / f"{name}.png", engine)
-    if name in ("bubble", "glass"):
+    if name in SPHERES:
         mask = cc.object_mask(render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG))
     else:
         mask = silhouette(blend)
@@ -318,7 +349,7 @@ def regions(name: str, ours, ref, size: int) -> dict:
     glints[:, :-1] |= y[:, 1:]
     out = {"glints": glints}
     rest = ~glints
-    if name in ("bubble", "glass"):
+    if name in SPHERES:
         view = render.sphere_view(size, size, cc.DISTANCE, cc.FOV_DEG)
         cos = np.sum(view.normals * view.views, axis=-1)
         out["rim"] = rest & (cos < RIM_COS)
@@ -367,7 +398,10 @@ and the ground mirrored (docs/transparent-films.md#solid-glass-refraction). The 
 inside is Cycles' back-face film (its index divided by the glass's). *glints*, *rim*, *upper*,
 *lower*: the mean ΔE2000 over the object's pixels contributed by its glints (either picture's
 luminance above 2, one pixel around), a ball's rim (n·v < 0.35; – for other shapes) and the
-rest of its upper and lower halves: they add up to the mean.
+rest of its upper and lower halves: they add up to the mean. *lamps*: the same ball under a
+point light (400 W, radius 0.1 m) and a 0.8 m square area light (300 W), both aimed at it, the
+World dimmed to 0.05: its shadow and caustics traced from the lights' centre and the area's
+cells (precompute/optics/sources.py).
 
 **Unclamped Cycles.** Blender's default indirect clamp (10 per sample) dimmed the ball's glints
 30× in the first references (a reflection chosen with probability F ≈ 0.03 carries 1/F of the
