@@ -96,7 +96,7 @@ def plain_glass(eta: float) -> GlassOptics:
     return GlassOptics(eta, front, back)
 
 
-def _across(d) -> tuple[np.ndarray, np.ndarray]:
+def across(d) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (u, v) across the unit direction ``d``, d × u = v."""
     helper = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
     u = np.cross(d, helper)
@@ -110,7 +110,7 @@ def photon_grid(centre, radius: float, towards_light, n: int = CAUSTIC_GRID):
     2 radii before it (row-major: photon i·n + j)."""
     d = -np.asarray(towards_light, dtype=np.float64)
     d = d / np.linalg.norm(d)
-    u, v = _across(d)
+    u, v = across(d)
     h = 2.0 * float(radius) / n
     s = (np.arange(n) + 0.5) * h - float(radius)
     a, b = np.meshgrid(s, s, indexing="ij")
@@ -128,7 +128,7 @@ def disc_directions(towards_light, angle: float, count: int = CAUSTIC_DISC_SAMPL
     d = d / np.linalg.norm(d)
     if count <= 1 or not angle > 0.0:
         return d[None]
-    u, v = _across(d)
+    u, v = across(d)
     r = np.tan(0.5 * float(angle)) * np.sqrt(0.5)
     phi = 2.0 * np.pi * np.arange(count - 1) / (count - 1)
     ring = d + r * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)

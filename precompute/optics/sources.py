@@ -24,22 +24,16 @@ import numpy as np
 
 from ..shading import lights as light_shading
 from ..shading.policy import AREA_SAMPLES, CAUSTIC_GRID
-from .caustics import _across
+from .caustics import across
 
-__all__ = ["Emitter", "emitted", "emitters", "outside_sphere", "point_photons", "pyramid_solid_angle"]
-
-
-def pyramid_solid_angle(half_width: float) -> float:
-    """The solid angle of the square of half-width ``half_width`` on the plane at unit distance,
-    seen from the origin: 4 asin(t² / (1 + t²)) (the square-based pyramid's closed form)."""
-    t2 = float(half_width) ** 2
-    return 4.0 * math.asin(t2 / (1.0 + t2))
+__all__ = ["Emitter", "emitted", "emitters", "outside_sphere", "point_photons"]
 
 
-def outside_sphere(position, centre, radius: float, margin: float = 1.0) -> bool:
-    """Whether ``position`` lies beyond ``margin`` × ``radius`` of ``centre``."""
+def outside_sphere(position, centre, radius: float) -> bool:
+    """Whether ``position`` lies outside the sphere of ``radius`` about ``centre``, where
+    :func:`point_photons` can span it."""
     gap = np.asarray(position, dtype=np.float64) - np.asarray(centre, dtype=np.float64)
-    return bool(np.linalg.norm(gap) > float(margin) * float(radius))
+    return bool(np.linalg.norm(gap) > float(radius))
 
 
 def point_photons(position, centre, radius: float, n: int = CAUSTIC_GRID):
@@ -54,7 +48,7 @@ def point_photons(position, centre, radius: float, n: int = CAUSTIC_GRID):
     if not distance > float(radius) > 0.0:
         raise ValueError(f"a light at {distance:.4g} from a glass of radius {radius:.4g}: not outside it")
     w = axis / distance
-    u, v = _across(w)
+    u, v = across(w)
     half = float(radius) / math.sqrt(distance * distance - float(radius) ** 2)
     h = 2.0 * half / n
     s = (np.arange(n) + 0.5) * h - half
@@ -78,17 +72,15 @@ class Emitter:
 def emitters(lights: light_shading.Lights, k: int, samples: int = AREA_SAMPLES) -> list[Emitter]:
     """The points light ``k`` of ``lights`` sends photons from: a point or spot light's centre;
     an area light's ``samples`` × ``samples`` cells of equal area (disks and ellipses through the
-    concentric map), as :func:`precompute.shading.lights.area_grid` lays them. A sun has none
+    concentric map), the films' cells (:func:`precompute.shading.lights.area_cells`). A sun has none
     (its photons are parallel)."""
     kind = int(lights.kind[k])
     if kind in (light_shading.POINT, light_shading.SPOT):
         return [Emitter(lights.position[k].copy())]
     if kind != light_shading.AREA:
         return []
-    ellipse = bool(lights.ellipse[k])
+    grid, area = light_shading.area_cells(lights, k, samples)
     u, v = lights.axis_u[k], lights.axis_v[k]
-    grid = light_shading.area_grid(samples, ellipse)
-    area = float(np.linalg.norm(u) * np.linalg.norm(v)) * (math.pi / 4.0 if ellipse else 1.0) / grid.shape[0]
     return [Emitter(lights.position[k] + a * u + b * v, area) for a, b in grid]
 
 

@@ -266,6 +266,15 @@ def area_grid(samples: int, ellipse: bool) -> np.ndarray:
     return 0.5 * np.stack([r * np.cos(phi), r * np.sin(phi)], -1)
 
 
+def area_cells(lights: Lights, k: int, samples: int = policy.AREA_SAMPLES) -> tuple[np.ndarray, float]:
+    """(centres (S², 2) as fractions of ``axis_u`` and ``axis_v``, each cell's area m²): area
+    light ``k``'s ``samples`` × ``samples`` cells of equal area (:func:`area_grid`)."""
+    ellipse = bool(lights.ellipse[k])
+    grid = area_grid(samples, ellipse)
+    size = float(np.linalg.norm(lights.axis_u[k]) * np.linalg.norm(lights.axis_v[k]))
+    return grid, size * (math.pi / 4.0 if ellipse else 1.0) / grid.shape[0]
+
+
 def light_samples(lights: Lights, k: int, positions, lobe=None):
     """Samples of light ``k`` seen from ``positions`` (N, 3): a list of (l (N, 3) unit towards
     the sample, E⊥ (N, 3), ρ² (N,)) (see the module docstring). ``lobe``: :func:`area_lobe` for
@@ -347,8 +356,8 @@ def _area_samples(lights: Lights, k: int, p: np.ndarray, lobe):
     u, v = lights.axis_u[k], lights.axis_v[k]
     size = np.linalg.norm(u) * np.linalg.norm(v)
     if ellipse or lobe is None:  # disks and ellipses: uniform equal-area cells (concentric map)
-        grid = area_grid(policy.AREA_SAMPLES, ellipse)
-        cell = np.full(p.shape[0], size * (np.pi / 4 if ellipse else 1.0) / grid.shape[0])
+        grid, area = area_cells(lights, k)
+        cell = np.full(p.shape[0], area)
         cells = [(np.full(p.shape[0], a), np.full(p.shape[0], b), cell) for a, b in grid]
     else:
         cu, cv, wu, wv = lobe
