@@ -25,7 +25,6 @@ pass keeps the straight shadow through glass (1 − F per face) and no caustics.
 from __future__ import annotations
 
 import itertools
-import math
 import time
 
 import numpy as np
@@ -51,31 +50,29 @@ def _bounds(obj) -> tuple[np.ndarray, float]:
     return centre, float(np.max(np.linalg.norm(corners - centre, axis=-1)))
 
 
-def _reach(obj) -> float:
-    """How far a light's emitting points lie from its origin: an area light's half diagonal."""
-    light = obj.data
-    if light.type != "AREA":
-        return 0.0
-    side_y = light.size if light.shape in ("SQUARE", "DISK") else light.size_y
-    scale = max(abs(float(v)) for v in obj.matrix_world.to_scale())
-    return 0.5 * math.hypot(float(light.size), float(side_y)) * scale
+def _finite_lights(scene) -> light_shading.Lights:
+    """The point, spot and area lights the render sees, as the diffuse ground sees them
+    (:func:`..drawing.lights.light_row` without the glossy visibility and Specular factor)."""
+    from ..drawing.lights import light_row
+
+    rows = [
+        light_row(obj, obj.matrix_world, glossy=False) for obj in _lights(scene) if obj.data.type != "SUN"
+    ]
+    return light_shading.Lights.from_rows([row for row in rows if row is not None])
 
 
 def applies(scene, glass=()) -> bool:
     """Whether photons can stand for every light the render sees: suns, and point, spot and
-    area lights outside the bounds of each of the ``glass`` objects (names)."""
+    area lights whose points the photons leave from (:func:`precompute.optics.sources.emitters`)
+    all lie outside the bounds of each of the ``glass`` objects (names)."""
     spheres = [_bounds(scene.objects[name]) for name in glass if name in scene.objects]
-    for obj in _lights(scene):
-        kind = obj.data.type
-        if kind == "SUN":
-            continue
-        if kind not in ("POINT", "SPOT", "AREA"):
-            return False
-        position = np.array(obj.matrix_world.translation, dtype=np.float64)
-        reach = _reach(obj)
-        if any(np.linalg.norm(position - c) <= r + reach for c, r in spheres):
-            return False
-    return True
+    lights = _finite_lights(scene)
+    return all(
+        sources.outside_sphere(emitter.position, centre, radius)
+        for k in range(lights.count)
+        for emitter in sources.emitters(lights, k)
+        for centre, radius in spheres
+    )
 
 
 def glass_optics(items, messages=None) -> dict:
@@ -350,7 +347,8 @@ def _point_photons(lights, meshes, first_seed: int):
                     emitter.position, mesh.centre, mesh.radius, grid
                 )
                 power = sources.emitted(lights, k, emitter, direction, omega)
-                towards = (emitter.position - mesh.centre) / np.linalg.norm(emitter.position - mesh.centre)
+                towards = emitter.position - mesh.centre
+                towards = towards / np.linalg.norm(towards)
                 yield origins, direction, power, grid, m, towards, (first_seed + k, e, m)
 
 
@@ -363,8 +361,6 @@ def light_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages
     checked that they lie outside the glass). Called while the pass's camera is set up (its
     overscan)."""
     import bpy
-
-    from ..drawing.lights import light_row
 
     t0 = time.perf_counter()
     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -399,11 +395,8 @@ def light_caustics(scene, glass: dict, depth, normals, albedo, skip=(), messages
             flux += caustics.splat(records, grid, camera, depth)
         photons += len(origins)
 
-    lit = _lights(scene)
-    suns = [obj for obj in lit if obj.data.type == "SUN"]
-    rows = [light_row(obj, obj.matrix_world, glossy=False) for obj in lit if obj.data.type != "SUN"]
-    rows = [row for row in rows if row is not None]
-    others = light_shading.Lights.from_rows(rows)
+    suns = [obj for obj in _lights(scene) if obj.data.type == "SUN"]
+    others = _finite_lights(scene)
     for job in itertools.chain(_sun_photons(suns, meshes), _point_photons(others, meshes, len(suns))):
         shine(*job)
     for mesh, light in zip(meshes, rough, strict=True):

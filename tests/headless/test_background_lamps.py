@@ -266,6 +266,18 @@ def test_solid_glass_lets_the_suns_light_through_its_faces(bpy, bl, incidence):
     assert abs(away - bare_away) < 0.01 * bare_away
 
 
+def real_glass(bpy):
+    """A smooth glass material Cycles renders as glass: Principled, transmission 1, IOR 1.5,
+    roughness 0, white."""
+    glass = bpy.data.materials.new("glass")
+    principled = glass.node_tree.nodes["Principled BSDF"]
+    principled.inputs["Transmission Weight"].default_value = 1.0
+    principled.inputs["IOR"].default_value = 1.5
+    principled.inputs["Roughness"].default_value = 0.0
+    principled.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    return glass
+
+
 @pytest.mark.parametrize("incidence", [0.0, 60.0])
 def test_under_filter_glossy_the_slabs_light_is_cycles_blurred_caustic(bpy, bl, incidence):
     """Cycles' default Filter Glossy (1) draws the glass rough (α 0.41–0.46) on the paths that
@@ -276,13 +288,7 @@ def test_under_filter_glossy_the_slabs_light_is_cycles_blurred_caustic(bpy, bl, 
     transmission 1, IOR 1.5, roughness 0), 128 spp."""
     _, scene, slab, floor = slab_over_floor(bpy, incidence)
     assert scene.cycles.blur_glossy == 1.0  # Blender's default
-    glass = bpy.data.materials.new("glass")
-    principled = glass.node_tree.nodes["Principled BSDF"]
-    principled.inputs["Transmission Weight"].default_value = 1.0
-    principled.inputs["IOR"].default_value = 1.5
-    principled.inputs["Roughness"].default_value = 0.0
-    principled.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    slab.data.materials.append(glass)
+    slab.data.materials.append(real_glass(bpy))
     ours, _ = floor(glass={slab.name: 1.5}, shadowless={slab.name})
     scene.cycles.samples = 128
     scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
@@ -409,13 +415,7 @@ def test_under_filter_glossy_a_point_lights_caustic_is_cycles(bpy, bl):
     bpy.ops.object.light_add(type="POINT", location=(0.0, 0.0, 4.0))
     bpy.context.object.data.energy = 300.0
     bpy.context.object.data.shadow_soft_size = 0.0
-    glass = bpy.data.materials.new("glass")
-    principled = glass.node_tree.nodes["Principled BSDF"]
-    principled.inputs["Transmission Weight"].default_value = 1.0
-    principled.inputs["IOR"].default_value = 1.5
-    principled.inputs["Roughness"].default_value = 0.0
-    principled.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    slab.data.materials.append(glass)
+    slab.data.materials.append(real_glass(bpy))
     ours, _ = floor(glass={slab.name: 1.5}, shadowless={slab.name})
     scene.cycles.samples = 1024  # 128 spp gave 0.728, 1024 0.762, 4096 0.754
     scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
