@@ -122,6 +122,21 @@ bool tf_refract_behind(vec3 o, vec3 w, float s, out ivec2 texel, out float gap, 
   return depth_q >= depth_behind;
 }
 
+/* Whether the ray o + t w meets the line through the surface points a and b beyond t = s
+ * (shading.refract._meets_ahead): a and b lie under two of its samples, in the plane through the
+ * camera and the ray; true where they are unknown (known false) or too close together. */
+bool tf_refract_meets_ahead(vec3 o, vec3 w, float s, vec3 a, vec3 b, bool known)
+{
+  vec3 e = b - a;
+  vec3 m = cross(w, e);
+  float mm = dot(m, m);
+  float ee = dot(e, e);
+  if (!known || !(ee > TF_REFRACT_LINE_EPS * max(dot(a, a), 1.0))) {
+    return true;
+  }
+  return mm > TF_REFRACT_LINE_EPS * ee && -dot(cross(o - a, e), m) > s * mm;
+}
+
 /* Where the exit ray o + s w first hits the scene behind (shading.refract.march): true and its
  * colour, or false. */
 bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
@@ -131,6 +146,10 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
   bool prev_behind = false;
   colour = vec3(0.0);
   ivec2 last = ivec2(0);
+  /* the surface points under the last two samples inside (known: both surfaces), the last's s */
+  vec3 last_pt = vec3(0.0), prev_pt = vec3(0.0);
+  bool last_known = false, prev_known = false;
+  float last_s = 0.0;
   for (int k = 0; k < TF_REFRACT_STEPS; k++) {
     float s = scale * (TF_REFRACT_FIRST * pow(TF_REFRACT_GROWTH, float(k)));
     ivec2 texel;
@@ -140,7 +159,10 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     if (!inside) {
 #if TF_REFRACT_EDGE
       vec4 edge = texelFetch(tf_behind, last, 0);
-      if (k > 0 && edge.a < TF_REFRACT_FAR) { /* left the picture: the surface at its edge (policy.REFRACT_EDGE) */
+      /* left the picture: the surface at its edge (policy.REFRACT_EDGE), if the ray heads into it */
+      if (k > 0 && edge.a < TF_REFRACT_FAR &&
+          (prev_behind || tf_refract_meets_ahead(o, w, last_s, prev_pt, last_pt, last_known && prev_known)))
+      {
         colour = edge.rgb;
         return true;
       }
@@ -148,6 +170,12 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
       return false;
     }
     last = texel;
+    prev_pt = last_pt;
+    prev_known = last_known;
+    /* q's depth is (1 - gap) x the surface's: the surface point on q's camera ray */
+    last_pt = tf_view.camera.xyz + (o + s * w - tf_view.camera.xyz) * (1.0 - gap);
+    last_known = texelFetch(tf_behind, texel, 0).a < TF_REFRACT_FAR;
+    last_s = s;
     if (behind && !prev_behind) {
       float lo = prev_s, hi = s;
       vec2 uv;

@@ -247,8 +247,16 @@ REFRACT_THICKNESS = 0.25
 #: A ray marched out of the picture (after a sample inside it) sees the picture's texel where it
 #: left (the scene beyond the edge taken as the scene at the edge: the ground goes on) instead of
 #: the World: a glass cube's side faces, whose rays leave sideways after total internal
-#: reflection, and a ball's rim see the ground as Cycles does (docs/tuning.md#refract-edge).
+#: reflection, and a ball's rim see the ground as Cycles does (docs/tuning.md#refract-edge);
+#: only where the ray heads into that surface (refract._meets_ahead): one climbing away from the
+#: ground sees the World.
 REFRACT_EDGE = True
+#: The line through the surface points under a ray's last two samples inside the picture
+#: (refract._meets_ahead): its squared length, relative to the squared distance of the first from
+#: the origin (at least 1), below which the two are one point and the line is unknown; and
+#: |ray × line|² relative to the line's squared length below which the ray runs parallel to it
+#: (never meets it). Float32 keeps ~1e-7 of a length: its square's resolution is ~1e-14.
+REFRACT_LINE_EPS = 1e-12
 #: Smooth solid glass reflects the scene behind where its mirror ray meets it (the same march),
 #: in place of the World: fully at roughness 0, fading out linearly to none at this roughness,
 #: where the split sum's blurred World stands (docs/transparent-films.md#solid-glass-refraction).
@@ -433,7 +441,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
     - ``TF_REFRACT_STEPS``, ``TF_REFRACT_FIRST``, ``TF_REFRACT_GROWTH``, ``TF_REFRACT_REFINE``,
       ``TF_REFRACT_THICKNESS``, ``TF_REFRACT_MIRROR_ROUGHNESS``: solid glass's screen-space march
       (:data:`REFRACT_STEPS` …) and its mirror of the scene; ``TF_REFRACT_EDGE``: 1 where
-      :data:`REFRACT_EDGE`; ``TF_REFRACT_FAR``: :data:`REFRACT_FAR`;
+      :data:`REFRACT_EDGE`; ``TF_REFRACT_FAR``: :data:`REFRACT_FAR`; ``TF_REFRACT_LINE_EPS``:
+      :data:`REFRACT_LINE_EPS`;
     - ``TF_GLASS_STEPS``, ``TF_GLASS_REACH``, ``TF_GLASS_REFINE``, ``TF_GLASS_SLACK``,
       ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``: the exit through the real mesh
       (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints (:data:`GLASS_ORDERS`).
@@ -482,6 +491,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "REFRACT_MIRROR_ROUGHNESS",
             "REFRACT_EDGE",
             "REFRACT_FAR",
+            "REFRACT_LINE_EPS",
             "GLASS_STEPS",
             "GLASS_REACH",
             "GLASS_REFINE",

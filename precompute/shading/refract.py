@@ -48,6 +48,7 @@ from .policy import (
     GLASS_STEPS,
     REFRACT_EDGE,
     REFRACT_FAR,
+    REFRACT_LINE_EPS,
     REFRACT_FIRST,
     REFRACT_GROWTH,
     REFRACT_MIRROR_ROUGHNESS,
@@ -208,7 +209,8 @@ def march(origins, dirs, depth, view_proj, camera, view_dir, screen, edge: bool 
     ``edge``: a ray that leaves the picture after a sample inside it takes the centre of the texel
     of its last sample inside where that texel is a surface (the scene beyond the edge taken as
     the scene at the edge: a floor goes on), counted as a hit; else (the World there) it sees
-    nothing."""
+    nothing. A ray in front of that surface must also be heading into it (:func:`_meets_ahead`):
+    one that climbs away from a floor sees the World, not the floor's edge."""
     scene = _Scene(depth, view_proj, camera, view_dir, screen)
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     w = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
@@ -221,17 +223,25 @@ def march(origins, dirs, depth, view_proj, camera, view_dir, screen, edge: bool 
     rows = np.zeros(count, dtype=np.int64)  # the texel of each ray's last sample inside
     cols = np.zeros(count, dtype=np.int64)
     at_row, at_col = np.zeros(count), np.zeros(count)
+    # the surface points under the last two samples inside, and the last one's s
+    last_s, last_pt, prev_pt = np.zeros(count), np.full((count, 3), np.nan), np.full((count, 3), np.nan)
     for k in range(REFRACT_STEPS):
         s = scale * (REFRACT_FIRST * REFRACT_GROWTH**k)
-        z, d, r_k, c_k, inside = scene.sample(o + s[:, None] * w)
+        q = o + s[:, None] * w
+        z, d, r_k, c_k, inside = scene.sample(q)
         leaving = active & ~inside & (scene.depth[rows, cols] < REFRACT_FAR)
         if edge and k > 0 and np.any(leaving):
+            leaving &= prev_behind | _meets_ahead(o, w, last_s, prev_pt, last_pt)
             hit |= leaving  # rows, cols still hold the last sample inside: a surface
             at_row = np.where(leaving, rows + 0.5, at_row)
             at_col = np.where(leaving, cols + 0.5, at_col)
         active &= inside
         rows = np.where(active, r_k, rows)
         cols = np.where(active, c_k, cols)
+        under = scene.camera + (q - scene.camera) * (d / np.maximum(z, WALL_GUARD))[:, None]
+        prev_pt = np.where(active[:, None], last_pt, prev_pt)
+        last_pt = np.where(active[:, None], np.where((d < REFRACT_FAR)[:, None], under, np.nan), last_pt)
+        last_s = np.where(active, s, last_s)
         behind = z >= d
         cross = active & behind & ~prev_behind
         if np.any(cross):
@@ -244,6 +254,22 @@ def march(origins, dirs, depth, view_proj, camera, view_dir, screen, edge: bool 
             active[found] = False
         prev_behind, prev_s = behind, s
     return hit, at_row, at_col
+
+
+def _meets_ahead(o, w, s, a, b) -> np.ndarray:
+    """Whether the rays o + t w (N, 3) meet the line through the surface points ``a`` and ``b``
+    (N, 3; NaN where unknown) beyond t = ``s`` (N,). a and b lie under two samples of the ray, on
+    the plane through the camera and the ray, so the line is the surface's trace in that plane
+    (exact for a plane): where the ray crosses it. Unknown points, or points too close together
+    to give a direction, count as met (the picture's edge taken as before)."""
+    e = b - a
+    m = np.cross(w, e)
+    mm = np.sum(m * m, axis=-1)
+    ee = np.sum(e * e, axis=-1)
+    known = np.isfinite(mm) & (ee > REFRACT_LINE_EPS * np.maximum(np.sum(a * a, axis=-1), 1.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = -np.sum(np.cross(o - a, e) * m, axis=-1) / mm
+    return ~known | ((mm > REFRACT_LINE_EPS * ee) & (t > s))
 
 
 def mirror_weight(roughness) -> float:

@@ -114,7 +114,7 @@ def test_the_glass_buffers_hold_the_cubes_faces(gd):  # noqa: F811
 @pytest.mark.parametrize(
     ("colour_mode", "shape"), [("spectral", "cube"), ("per_channel", "cube"), ("spectral", "pair")]
 )
-def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape):
+def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape, monkeypatch):
     """The refraction, the film from inside (spectral: the front film at the Snell-related angle;
     per channel: Cycles' back face, its table) and the glints through the mesh, per pixel; a mesh
     of two cubes, one behind the other, shows only its nearest front face (the far cube's faces
@@ -153,6 +153,9 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape)
     exit_points, dirs, found, cosines = refract.mesh_exit(points, n, views, centre, 1.5, 0, *args)
     hit, rows, cols = refract.march(exit_points, dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
     seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
+    with monkeypatch.context() as m:  # every ray that leaves the picture over a surface takes its edge
+        m.setattr(refract, "_meets_ahead", lambda o, *_a: np.ones(len(o), bool))
+        edge_hit, _r, _c = refract.march(exit_points, dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
     lerp = lamps.thickness_lerp(film, None, len(n))
 
     def back(c):
@@ -192,6 +195,8 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape)
         f" {np.percentile(err, 95):.1e}, max {err.max():.1e} of the peak"
     )
     assert inside.sum() > 300 and found.mean() > 0.95
+    # rays that leave the picture heading away from the wall see the World, not its edge
+    assert (edge_hit & ~hit).sum() > 0.05 * inside.sum()
     assert all(h.mean() > 0.05 for h in glint_hits[:2])  # glints that see the scene behind are exercised
     if shape == "pair":  # the far cube shows beside the near one and behind it
         near_only, _n = nearest_hits(model, rays, eye, "cube")

@@ -157,6 +157,26 @@ def test_a_ray_that_leaves_the_picture_sees_its_edge():
     assert cols[0] > 0.9 * SIZE and abs(rows[0] - (SIZE - 1) / 2) <= 1
 
 
+def test_a_ray_that_leaves_the_picture_climbing_away_from_a_floor_sees_nothing():
+    """policy.REFRACT_EDGE with a floor: of two rays that leave the picture sideways above it, the
+    one going down meets the floor beyond the edge and takes its edge texel; the one climbing
+    away never meets the floor and sees the World (the glass cube's lower side faces, whose rays
+    leave rising after a total internal reflection at the bottom face: ΔE 30–40 where they took
+    the floor). A ray behind the surface it leaves over (an occluder) still takes its edge."""
+    vp, eye, vd, rays = camera()
+    depth = floor_depth(rays, eye, -1.0)
+    origins = np.array([[0.3, 0.0, -0.6], [0.3, 0.0, -0.6]])
+    dirs = unit([[1.0, -0.3, -0.08], [1.0, -0.3, 0.15]])
+    s_floor = (-1.0 - origins[:, 2]) / dirs[:, 2]
+    assert s_floor[0] > 4.0 and s_floor[1] < 0.0  # the first meets the floor well off the picture
+    hit, rows, cols = refract.march(origins, dirs, depth, vp, eye, vd, (1, 1, 0, 0), edge=True)
+    assert hit.tolist() == [True, False]
+    assert cols[0] > 0.9 * SIZE
+    near_wall = np.full((SIZE, SIZE), 2.0)  # in front of both rays: they pass behind it
+    hit, _r, _c = refract.march(origins, dirs, near_wall, vp, eye, vd, (1, 1, 0, 0), edge=True)
+    assert hit.tolist() == [True, True]
+
+
 def test_an_occluder_in_front_of_the_path_is_not_a_hit():
     """A ray that passes behind a small near object (its depth far in front of the ray) goes on to
     the wall behind it."""
