@@ -112,12 +112,14 @@ bool tf_refract_surface(vec3 o, vec3 w, float s, out vec2 uv, out float gap)
   return gap >= 0.0;
 }
 
-/* Whether the ray o + s w passes behind the scene at s (its texel, false off the picture). */
-bool tf_refract_behind(vec3 o, vec3 w, float s, out ivec2 texel, out float gap, out bool inside)
+/* Whether the ray o + s w passes behind the scene at s (its texel and that texel's depth, false
+ * off the picture). */
+bool tf_refract_behind(vec3 o, vec3 w, float s, out ivec2 texel, out float gap, out bool inside,
+                       out float depth_behind)
 {
   float depth_q;
   inside = tf_refract_sample(o + s * w, texel, depth_q);
-  float depth_behind = texelFetch(tf_behind, texel, 0).a;
+  depth_behind = texelFetch(tf_behind, texel, 0).a;
   gap = (depth_q - depth_behind) / max(depth_q, TF_WALL_GUARD);
   return depth_q >= depth_behind;
 }
@@ -155,7 +157,8 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     ivec2 texel;
     float gap;
     bool inside;
-    bool behind = tf_refract_behind(o, w, s, texel, gap, inside);
+    float depth_behind;
+    bool behind = tf_refract_behind(o, w, s, texel, gap, inside, depth_behind);
     if (!inside) {
 #if TF_REFRACT_EDGE
       vec4 edge = texelFetch(tf_behind, last, 0);
@@ -172,9 +175,9 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     last = texel;
     prev_pt = last_pt;
     prev_known = last_known;
-    /* q's depth is (1 - gap) x the surface's: the surface point on q's camera ray */
+    /* the surface's depth is (1 - gap) x q's: the surface point on q's camera ray */
     last_pt = tf_view.camera.xyz + (o + s * w - tf_view.camera.xyz) * (1.0 - gap);
-    last_known = texelFetch(tf_behind, texel, 0).a < TF_REFRACT_FAR;
+    last_known = depth_behind < TF_REFRACT_FAR;
     last_s = s;
     if (behind && !prev_behind) {
       float lo = prev_s, hi = s;
