@@ -16,90 +16,17 @@ tiny frames (32–48 px, one TAA sample) under a uniform white World, read back 
 """
 
 import math
-import pathlib
-import tempfile
 
 import numpy as np
 import pytest
-from _cycles_scenes import film_material
-from _extension import registered_extension
+from _eevee_scene import eevee_film, eevee_plate, eevee_render, eevee_scene
 
 from precompute.colour.colour_difference import delta_e_2000
 
 pytestmark = pytest.mark.blender
 
-SIZE = 32
 #: The issue's floor for the flat plate at normal incidence (ΔE2000 at the reference's exposure).
 PLATE_LIMIT = 2.0
-
-
-@pytest.fixture(scope="module")
-def ext(bpy):
-    root = pathlib.Path(tempfile.mkdtemp(prefix="tf_eevee_"))
-    with registered_extension(
-        bpy,
-        root,
-        [
-            "addon.eevee.sync",
-            "addon.eevee.source",
-            "addon.eevee.nodes",
-            "addon.bakes.tables",
-            "precompute.bakes.eevee_table",
-            "addon.drawing.viewport",
-            "addon.ui.prefs",
-        ],
-    ) as ns:
-        ns.root = root
-        yield ns
-
-
-def _scene(bpy, size=SIZE):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.engine = "BLENDER_EEVEE"
-    scene.eevee.taa_render_samples = 1
-    scene.render.resolution_x = scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
-    scene.view_settings.view_transform = "Standard"
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-    world = bpy.data.worlds.new("white")
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    scene.world = world
-    return scene
-
-
-def _camera(bpy, scene, location=(0.0, 0.0, 3.0), rotation=(0.0, 0.0, 0.0), scale=1.0):
-    data = bpy.data.cameras.new("cam")
-    data.type = "ORTHO"
-    data.ortho_scale = scale
-    cam = bpy.data.objects.new("cam", data)
-    cam.location, cam.rotation_euler = location, rotation
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-
-
-def _film_material(bpy, name="film", thickness=300.0, film_ior=2.0, ior=1.5, roughness=0.2):
-    return film_material(bpy, name, thickness, film_ior, ior, roughness)
-
-
-def _plate(bpy, scene, mat):
-    bpy.ops.mesh.primitive_plane_add(size=4.0)
-    plate = bpy.context.active_object
-    plate.data.materials.append(mat)
-    _camera(bpy, scene)
-    return plate
-
-
-def _render(bpy, scene, path) -> np.ndarray:
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path))
-    try:
-        w, h = image.size
-        return np.array(image.pixels[:], dtype=np.float64).reshape(h, w, 4)[::-1, :, :3]
-    finally:
-        bpy.data.images.remove(image)
 
 
 def _snapshot(mat):
@@ -125,11 +52,11 @@ def test_flat_plate_renders_the_tables_colour(bpy, ext, tmp_path):
     """Head-on, a film plate under a uniform World of 1 returns the film's albedo A(θo = 0): the
     image's Glossy colour A / E times EEVEE's split sum E. And the film is what makes the
     colour: the same material with the film off (thickness 0) renders the bare glass."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     assert ext.sync.sync_all(scene)["film"] == "written"
-    film = _render(bpy, scene, tmp_path / "film.exr").reshape(-1, 3).mean(axis=0)
+    film = eevee_render(bpy, scene, tmp_path / "film.exr").reshape(-1, 3).mean(axis=0)
     spec = ext.source.spec(mat, scene)
     expected = ext.eevee_table.table_albedo(ext.tables.get_table(spec.film).data)[0, 0]
     de = float(delta_e_2000(film[None], expected[None], xyz="E")[0])
@@ -140,7 +67,7 @@ def test_flat_plate_renders_the_tables_colour(bpy, ext, tmp_path):
     )
     mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"].default_value = 0.0
     assert ext.sync.sync_material(mat, scene) == "removed"
-    bare = _render(bpy, scene, tmp_path / "bare.exr").reshape(-1, 3).mean(axis=0)
+    bare = eevee_render(bpy, scene, tmp_path / "bare.exr").reshape(-1, 3).mean(axis=0)
     off = float(delta_e_2000(film[None], bare[None], xyz="E")[0])
     assert off > 5.0, f"film {film} vs film off {bare}: ΔE2000 {off:.2f}; the film must show"
 
@@ -149,9 +76,9 @@ def test_outputs_and_principled_untouched_and_restored(bpy, ext):
     """EEVEE picks the added output (target EEVEE), Cycles the material's own (target All, the
     Principled film); the Principled BSDF and the links are as before, and switching the film off
     leaves exactly the original material, with no group or image behind."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     before = _snapshot(mat)
     groups, images = len(bpy.data.node_groups), len(bpy.data.images)
     ext.sync.sync_material(mat, scene)
@@ -181,11 +108,11 @@ def test_reload_keeps_the_packed_image(bpy, ext, tmp_path):
     """Saved and reopened, the image is still packed, float, with its key: nothing is re-baked
     (the sync finds it unchanged) and EEVEE renders the same frame, with the extension
     registered or not (a farm that has not installed it)."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
-    first = _render(bpy, scene, tmp_path / "a.exr")
+    first = eevee_render(bpy, scene, tmp_path / "a.exr")
     path = tmp_path / "film.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
@@ -195,11 +122,11 @@ def test_reload_keeps_the_packed_image(bpy, ext, tmp_path):
     image = ext.nodes.film_image_of(node.node_tree)
     assert image.packed_file is not None and image.is_float and image.get("thinfilm_eevee_key")
     assert ext.sync.sync_material(mat, scene) == "unchanged"
-    again = _render(bpy, scene, tmp_path / "b.exr")
+    again = eevee_render(bpy, scene, tmp_path / "b.exr")
     assert np.allclose(first, again, atol=1e-4), np.abs(first - again).max()
     ext.package.unregister()  # a render farm without the extension: the file holds everything
     try:
-        bare = _render(bpy, scene, tmp_path / "c.exr")
+        bare = eevee_render(bpy, scene, tmp_path / "c.exr")
     finally:
         ext.package.register()
     assert np.allclose(first, bare, atol=1e-4), "the film must render with no extension installed"
@@ -209,9 +136,9 @@ def test_keyframed_thickness_animates(bpy, ext, tmp_path):
     """``render(animation=True)`` (``blender -b -a``) of a keyframed Thin Film Thickness: the
     frames differ, and each is the film at that frame's thickness (the same material rendered
     with the thickness fixed there, within 1 ΔE2000: the table's rows are interpolated)."""
-    scene = _scene(bpy, size=16)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy, size=16)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     socket = mat.node_tree.nodes["Principled BSDF"].inputs["Thin Film Thickness"]
     for frame, value in ((1, 200.0), (3, 700.0)):
         socket.default_value = value
@@ -230,7 +157,7 @@ def test_keyframed_thickness_animates(bpy, ext, tmp_path):
     animation.action = None  # fixed thickness at frame 3's value
     socket.default_value = 700.0
     ext.sync.sync_material(mat, scene)
-    still = _render(bpy, scene, tmp_path / "still.exr").reshape(-1, 3).mean(axis=0)
+    still = eevee_render(bpy, scene, tmp_path / "still.exr").reshape(-1, 3).mean(axis=0)
     de = float(delta_e_2000(frames[1][None], still[None], xyz="E")[0])
     assert de < 1.0, f"animated frame 3 {frames[1]} vs the film fixed at 700 nm {still}: ΔE2000 {de:.2f}"
 
@@ -238,34 +165,34 @@ def test_keyframed_thickness_animates(bpy, ext, tmp_path):
 def test_linked_material_renders_and_is_not_rewritten(bpy, ext, tmp_path):
     """A material linked from a library brings its group and packed image: EEVEE renders its film
     in the new file, the sync leaves it alone (read-only); appended, it is local and up to date."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy, name="libfilm")
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy, name="libfilm")
+    eevee_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
-    reference = _render(bpy, scene, tmp_path / "lib.exr")
+    reference = eevee_render(bpy, scene, tmp_path / "lib.exr")
     library = tmp_path / "library.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(library))
     for link in (True, False):
-        scene = _scene(bpy)
+        scene = eevee_scene(bpy)
         with bpy.data.libraries.load(str(library), link=link) as (src, dst):
             dst.materials = ["libfilm"]
         mat = dst.materials[0]
-        _plate(bpy, scene, mat)
+        eevee_plate(bpy, scene, mat)
         assert (mat.library is not None) == link
         key = ext.sync._current_key(mat)
         assert key is not None, "the group and image must travel with the material"
         assert ext.sync.sync_material(mat, scene) == ("read-only" if link else "unchanged")
         assert ext.sync._current_key(mat) == key
-        found = _render(bpy, scene, tmp_path / f"linked_{link}.exr")
+        found = eevee_render(bpy, scene, tmp_path / f"linked_{link}.exr")
         assert np.allclose(found, reference, atol=1e-4), (link, np.abs(found - reference).max())
 
 
 def test_edit_is_baked_on_the_worker_and_written_in_place(bpy, ext):
     """A live edit: the spec is read on the main thread, the table and pixels computed by the
     worker, and the timer writes them into the same image (no new datablock)."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
     node, _output = ext.nodes.find(mat.node_tree)
     image = ext.nodes.film_image_of(node.node_tree)
@@ -285,8 +212,8 @@ def test_thin_wall_bubble_lets_the_background_through(bpy, ext, tmp_path):
     EEVEE shows the plane × the wall's transmittance T plus the wall's reflection (Cycles' thin
     wall, shading/transmit.py), within 1 ΔE2000 head-on, with the material blended; the film off
     restores its own render method."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy, name="bubble", thickness=400.0, film_ior=1.33, ior=1.0, roughness=0.05)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy, name="bubble", thickness=400.0, film_ior=1.33, ior=1.0, roughness=0.05)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["Thin Wall"].default_value = True
@@ -294,11 +221,11 @@ def test_thin_wall_bubble_lets_the_background_through(bpy, ext, tmp_path):
     red = bpy.data.materials.new("red")
     red.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.0, 0.0, 1.0)
     bpy.context.active_object.data.materials.append(red)
-    _plate(bpy, scene, mat)
+    eevee_plate(bpy, scene, mat)
     method = mat.surface_render_method
     ext.sync.sync_material(mat, scene)
     assert mat.surface_render_method == "BLENDED"
-    seen = _render(bpy, scene, tmp_path / "bubble.exr").reshape(-1, 3).mean(axis=0)
+    seen = eevee_render(bpy, scene, tmp_path / "bubble.exr").reshape(-1, 3).mean(axis=0)
     spec = ext.source.spec(mat, scene)
     made, _light = ext.sync.compute(spec)
     t = made.pixels[made.rows * made.bands["transmission"], 0, :3]
@@ -307,7 +234,7 @@ def test_thin_wall_bubble_lets_the_background_through(bpy, ext, tmp_path):
     ext.sync.sync_material(mat, scene)
     assert mat.surface_render_method == method
     bpy.data.objects["Plane.001"].hide_render = True
-    behind = _render(bpy, scene, tmp_path / "behind.exr").reshape(-1, 3).mean(axis=0)
+    behind = eevee_render(bpy, scene, tmp_path / "behind.exr").reshape(-1, 3).mean(axis=0)
     expected = behind * t + r
     de = float(delta_e_2000(seen[None], expected[None], xyz="E")[0])
     print(f"bubble: EEVEE {seen}, behind {behind} × T {t} + R {r} = {expected}: ΔE2000 {de:.2f}")
@@ -320,7 +247,7 @@ def test_overlay_draws_in_rendered_shading_with_eevee_by_preference(bpy, ext):
     depth the overlay is tested against, eevee_film_frag) and while the preference is on."""
     import types
 
-    scene = _scene(bpy)
+    scene = eevee_scene(bpy)
 
     def space(kind):
         return types.SimpleNamespace(shading=types.SimpleNamespace(type=kind))
@@ -347,15 +274,15 @@ def test_extension_materials_metals_and_multilayers(bpy, ext, tmp_path, preset):
     titanium, an absorbing oxide on iron, a 16-layer stack (spectral mode: the 3×3 matrices'
     white-light row sums). Head-on under a uniform World each renders its table's albedo within
     2 ΔE2000; switching the extension off removes the EEVEE path."""
-    scene = _scene(bpy)
+    scene = eevee_scene(bpy)
     mat = bpy.data.materials.new(preset.lower())
     props = mat.thinfilm_sh
     props.preset = preset
     props.enabled = True
     props.vary_thickness = False
-    _plate(bpy, scene, mat)
+    eevee_plate(bpy, scene, mat)
     assert ext.sync.sync_material(mat, scene) == "written"
-    seen = _render(bpy, scene, tmp_path / "plate.exr").reshape(-1, 3).mean(axis=0)
+    seen = eevee_render(bpy, scene, tmp_path / "plate.exr").reshape(-1, 3).mean(axis=0)
     spec = ext.source.spec(mat, scene)
     expected = ext.eevee_table.table_albedo(ext.tables.get_table(spec.film).data)[0, 0]
     de = float(delta_e_2000(seen[None], expected[None], xyz="E")[0])
@@ -369,14 +296,14 @@ def test_extension_noise_thickness_is_built_inside_the_group(bpy, ext, tmp_path)
     """An extension material whose thickness varies by noise gets the noise as nodes inside its
     group (Blender's Noise Texture, as *Write to Principled BSDF* writes it), so EEVEE varies the
     film over the surface; the material's own tree gains only the group and the output."""
-    scene = _scene(bpy)
+    scene = eevee_scene(bpy)
     mat = bpy.data.materials.new("oil")
     props = mat.thinfilm_sh
     props.preset = "OIL_ON_WATER"
     props.enabled = True
     props.thickness_source = "NOISE"
     props.noise_scale = 4.0
-    _plate(bpy, scene, mat)
+    eevee_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
     node, _output = ext.nodes.find(mat.node_tree)
     inside = {n.bl_idname for n in node.node_tree.nodes}
@@ -386,7 +313,7 @@ def test_extension_noise_thickness_is_built_inside_the_group(bpy, ext, tmp_path)
         "ShaderNodeOutputMaterial",
         "ShaderNodeGroup",
     }
-    pixels = _render(bpy, scene, tmp_path / "oil.exr").reshape(-1, 3)
+    pixels = eevee_render(bpy, scene, tmp_path / "oil.exr").reshape(-1, 3)
     spread = float(np.ptp(pixels, axis=0).max())
     assert spread > 0.02, f"the film must vary over the plate with the noise (max−min {spread:.4f})"
 
@@ -405,7 +332,7 @@ def test_the_groups_equirect_lookup_reads_the_directions_image_as_written(bpy, e
     image = np.full((height, width, 3), 1e-3)
     image[(hdri.equirect_directions(height, width) @ lamp) > np.cos(np.radians(4.0))] = 300.0
     pixels = ext.eevee_table.dominant_directions(prefilter.prefilter(image), 0.6)
-    scene = _scene(bpy, size=4)
+    scene = eevee_scene(bpy, size=4)
     picture = bpy.data.images.new(
         "directions", pixels.shape[1], pixels.shape[0], alpha=True, float_buffer=True
     )
@@ -419,14 +346,14 @@ def test_the_groups_equirect_lookup_reads_the_directions_image_as_written(bpy, e
     emission = tree.nodes.new("ShaderNodeEmission")
     tree.links.new(found, emission.inputs["Color"])
     tree.links.new(emission.outputs["Emission"], tree.nodes["Material Output"].inputs["Surface"])
-    _plate(bpy, scene, mat)
+    eevee_plate(bpy, scene, mat)
     top_first = pixels[::-1, :, :3].astype(np.float64)
     seen_all = []
     for d in ((0.3, 0.2, 0.93), (-0.7, 0.1, 0.2), (0.1, -0.9, -0.4), (0.5, 0.6, 0.62)):
         d = np.array(d) / np.linalg.norm(d)
         for socket, value in zip(direction.inputs, d, strict=True):
             socket.default_value = float(value)
-        seen = _render(bpy, scene, tmp_path / "probe.exr").reshape(-1, 3).mean(axis=0)
+        seen = eevee_render(bpy, scene, tmp_path / "probe.exr").reshape(-1, 3).mean(axis=0)
         rows, columns = top_first.shape[:2]
         u = 0.5 - np.arctan2(d[1], d[0]) / (2 * np.pi)
         row = min(int(np.arccos(d[2]) / np.pi * rows), rows - 1)
@@ -441,9 +368,9 @@ def test_a_copied_material_gets_its_own_group_and_image_at_its_edit(bpy, ext):
     """Material → Copy shares the original's group and image; editing the copy's film gives it
     its own (the original's image keeps its key), and removing the copy's film leaves the
     original's group and image in place."""
-    scene = _scene(bpy)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
     group = ext.nodes.find(mat.node_tree)[0].node_tree
     key = ext.sync._current_key(mat)
@@ -488,9 +415,9 @@ def test_a_light_object_added_moved_or_switched_off_rewrites_the_light_image(bpy
 
     from precompute.world import hdri
 
-    scene = _scene(bpy)
-    mat = _film_material(bpy)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy)
+    eevee_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
     alone_c, alone_share = _lobe_light(bpy, ext, mat)
     assert alone_share.max() < 1e-5, "no light objects yet: the World alone"
@@ -526,9 +453,9 @@ def test_a_glossy_film_under_a_sun_weighs_it_against_the_world(bpy, ext):
 
     from precompute.world import hdri
 
-    scene = _scene(bpy)
-    mat = _film_material(bpy, roughness=0.05)
-    _plate(bpy, scene, mat)
+    scene = eevee_scene(bpy)
+    mat = eevee_film(bpy, roughness=0.05)
+    eevee_plate(bpy, scene, mat)
     data = bpy.data.lights.new("sun", "SUN")
     data.energy, data.angle = 20.0, math.radians(1.0)
     sun = bpy.data.objects.new("sun", data)
@@ -543,55 +470,3 @@ def test_a_glossy_film_under_a_sun_weighs_it_against_the_world(bpy, ext):
     assert share[cosine < np.cos(np.radians(30.0))].max() < 0.01, "away from the sun the World holds the lobe"
     nearest = np.unravel_index(np.argmax(cosine), cosine.shape)
     assert share[nearest] > 0.95 and c[nearest] @ toward > np.cos(np.radians(1.0))
-
-
-def test_a_walls_shadow_reads_its_middle_thickness(bpy, ext, tmp_path):
-    """EEVEE evaluates a transparent wall's nodes in its shadow pass (*Transparent Shadows*): the
-    group reads the middle thickness row for shadow rays, so the thickness source drops out of
-    that pass (a noise source was half the soap bubble scene's frame time). A thin-wall film of
-    index 2.5 whose thickness runs 0–60 nm across the plate (T ≈ 1 to ≈ 0.35) over a sunlit
-    ground, the plate hidden from the camera: its shadow is even across; with the switch cut,
-    the gradient shows."""
-    scene = _scene(bpy)
-    scene.eevee.taa_render_samples = 16
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.02, 0.02, 0.02, 1.0)
-    bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -1.0))
-    bpy.context.active_object.data.materials.append(bpy.data.materials.new("ground"))
-    sun = bpy.data.lights.new("sun", "SUN")
-    sun.energy, sun.angle = 3.0, 0.0
-    scene.collection.objects.link(bpy.data.objects.new("sun", sun))
-    mat = _film_material(bpy, name="wall", thickness=30.0, film_ior=2.5, ior=1.0, roughness=0.05)
-    nt = mat.node_tree
-    bsdf = nt.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bsdf.inputs["Transmission Weight"].default_value = 1.0
-    bsdf.inputs["Thin Wall"].default_value = True
-    coords, split = nt.nodes.new("ShaderNodeTexCoord"), nt.nodes.new("ShaderNodeSeparateXYZ")
-    remap = nt.nodes.new("ShaderNodeMapRange")
-    for name, value in (("From Min", -2.0), ("From Max", 2.0), ("To Min", 0.0), ("To Max", 60.0)):
-        remap.inputs[name].default_value = value
-    nt.links.new(coords.outputs["Object"], split.inputs[0])
-    nt.links.new(split.outputs["X"], remap.inputs["Value"])
-    nt.links.new(remap.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
-    plate = _plate(bpy, scene, mat)
-    plate.visible_camera = False
-    _camera(bpy, scene, scale=3.0)
-    ext.sync.sync_material(mat, scene)
-    group = ext.nodes.find(mat.node_tree)[0].node_tree
-
-    def sides(name):
-        """(right − left) / mean of the shadow's outer thirds, and the mean."""
-        pixels = _render(bpy, scene, tmp_path / f"{name}.exr")[..., 1]
-        third = pixels.shape[1] // 3
-        left, right = pixels[:, :third].mean(), pixels[:, -third:].mean()
-        return float((right - left) / pixels.mean()), float(pixels.mean())
-
-    even, lit = sides("switched")
-    switch = group.nodes["shadow row"].inputs["Factor"]
-    for link in list(switch.links):
-        group.links.remove(link)
-    switch.default_value = 0.0  # shadow rays read the pixel's own row: the gradient
-    graded, _ = sides("cut")
-    print(f"shadow's right − left / mean: {even:+.4f} switched, {graded:+.4f} cut; ground {lit:.3f}")
-    assert 0.3 < lit < 3.5, "the ground must be lit through the wall (a film lets light through)"
-    assert abs(graded) > 0.1 and abs(even) < 0.25 * abs(graded), (even, graded)
