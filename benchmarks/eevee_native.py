@@ -359,33 +359,45 @@ def film_mask(blend, workdir) -> np.ndarray:
 
 
 def frame_times(blend, workdir, runs: int = 3) -> dict:
-    """EEVEE's frame time of the file with its films' EEVEE outputs, then with them removed:
-    medians of ``runs`` warm renders (after one untimed), wall seconds (``time_film``,
-    ``time_off``) and process CPU seconds (``cpu_film``, ``cpu_off``). llvmpipe renders on this
-    process's own threads, so its CPU time counts the frame's work whatever else the shared
-    machine runs; the wall time moves with the other processes' load."""
+    """EEVEE's frame time of the file with its films' EEVEE outputs, then with them removed,
+    interleaved: ``runs`` rounds, each opening the file twice (films, then films removed) and
+    timing one warm render of each (after one untimed: shaders compiled, caches warm). Medians
+    of wall seconds (``time_film``, ``time_off``) and process CPU seconds (``cpu_film``,
+    ``cpu_off``). llvmpipe renders on this process's own threads, so its CPU time counts the
+    frame's work whatever else the shared machine runs; but the same render's CPU seconds moved
+    by up to 1.7× between processes here, and drift within one, so the two are interleaved."""
     bpy = _bpy()
     sync = importlib.import_module("thinfilm_sh.addon.eevee.sync")
     wiring = importlib.import_module("thinfilm_sh.addon.eevee.wiring")
-    bpy.ops.wm.open_mainfile(filepath=str(blend))
-    scene = bpy.context.scene
-    _eevee(scene)
     out = pathlib.Path(workdir) / "timed.exr"
+    found = {True: [], False: []}
+    for _ in range(runs):
+        for film in (True, False):
+            bpy.ops.wm.open_mainfile(filepath=str(blend))  # the films are synced at load
+            scene = bpy.context.scene
+            _eevee(scene)
+            if not film:
+                sync.unregister()  # render_pre would write them back
+            try:
+                if not film:
+                    for mat in bpy.data.materials:
+                        wiring.remove(mat)
+                _render(scene, out)
+                found[film].append(common.time_once_cpu(lambda scene=scene: _render(scene, out))[:2])
+            finally:
+                if not film:
+                    sync.register()
 
-    def timed() -> tuple[float, float]:
-        _render(scene, out)  # shaders compiled, caches warm
-        found = [common.time_once_cpu(lambda: _render(scene, out))[:2] for _ in range(runs)]
-        return statistics.median(w for w, _ in found), statistics.median(c for _, c in found)
+    def median(film: bool, index: int) -> float:
+        return statistics.median(t[index] for t in found[film])
 
-    with_film = timed()
-    sync.unregister()  # render_pre would write them back
-    try:
-        for mat in bpy.data.materials:
-            wiring.remove(mat)
-        without = timed()
-    finally:
-        sync.register()
-    return dict(time_film=with_film[0], time_off=without[0], cpu_film=with_film[1], cpu_off=without[1])
+    wall, cpu = 0, 1
+    return dict(
+        time_film=median(True, wall),
+        time_off=median(False, wall),
+        cpu_film=median(True, cpu),
+        cpu_off=median(False, cpu),
+    )
 
 
 def compare(case: Case, workdir, overlay: bool, timed: bool) -> dict:
