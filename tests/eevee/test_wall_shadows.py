@@ -27,14 +27,22 @@ def _sunlit_ground(bpy, scene) -> None:
     scene.collection.objects.link(bpy.data.objects.new("sun", sun))
 
 
-def _wall(bpy, name: str, ior: float):
-    """A smooth Principled thin wall (Transmission 1, Base Color white) under a 300 nm film of 1.33."""
-    mat = eevee_film(bpy, name=name, thickness=300.0, film_ior=1.33, ior=ior, roughness=0.0)
+def _wall(bpy, ior: float, thickness: float = 300.0, film_ior: float = 1.33, roughness: float = 0.0):
+    """A Principled thin wall (Transmission 1, Base Color white) of IOR ``ior`` under a film."""
+    mat = eevee_film(bpy, name="wall", thickness=thickness, film_ior=film_ior, ior=ior, roughness=roughness)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["Thin Wall"].default_value = True
     return mat
+
+
+def _hidden_plate(bpy, scene, mat):
+    """The plate wearing ``mat``, hidden from a 3 m orthographic camera that sees its shadow."""
+    plate = eevee_plate(bpy, scene, mat)
+    plate.visible_camera = False
+    eevee_camera(bpy, scene, scale=3.0)
+    return plate
 
 
 @pytest.mark.parametrize("ior", [1.0, 1.52])
@@ -48,10 +56,8 @@ def test_a_smooth_thin_walls_shadow_lets_through_what_cycles_does(bpy, ext, tmp_
         scene = eevee_scene(bpy, size=16)
         scene.eevee.taa_render_samples = 16
         _sunlit_ground(bpy, scene)
-        mat = _wall(bpy, "wall", ior)
-        plate = eevee_plate(bpy, scene, mat)
-        plate.visible_camera = False
-        eevee_camera(bpy, scene, scale=3.0)
+        mat = _wall(bpy, ior)
+        plate = _hidden_plate(bpy, scene, mat)
         if engine == "EEVEE":
             ext.sync.sync_material(mat, scene)
             assert mat.surface_render_method == "BLENDED" and mat.use_transparent_shadow
@@ -76,12 +82,9 @@ def test_a_walls_shadow_reads_its_middle_thickness(bpy, ext, tmp_path):
     scene = eevee_scene(bpy)
     scene.eevee.taa_render_samples = 16
     _sunlit_ground(bpy, scene)
-    mat = eevee_film(bpy, name="wall", thickness=30.0, film_ior=2.5, ior=1.0, roughness=0.05)
+    mat = _wall(bpy, 1.0, thickness=30.0, film_ior=2.5, roughness=0.05)
     nt = mat.node_tree
     bsdf = nt.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bsdf.inputs["Transmission Weight"].default_value = 1.0
-    bsdf.inputs["Thin Wall"].default_value = True
     coords, split = nt.nodes.new("ShaderNodeTexCoord"), nt.nodes.new("ShaderNodeSeparateXYZ")
     remap = nt.nodes.new("ShaderNodeMapRange")
     for name, value in (("From Min", -2.0), ("From Max", 2.0), ("To Min", 0.0), ("To Max", 60.0)):
@@ -89,9 +92,7 @@ def test_a_walls_shadow_reads_its_middle_thickness(bpy, ext, tmp_path):
     nt.links.new(coords.outputs["Object"], split.inputs[0])
     nt.links.new(split.outputs["X"], remap.inputs["Value"])
     nt.links.new(remap.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
-    plate = eevee_plate(bpy, scene, mat)
-    plate.visible_camera = False
-    eevee_camera(bpy, scene, scale=3.0)
+    _hidden_plate(bpy, scene, mat)
     ext.sync.sync_material(mat, scene)
     group = ext.nodes.find(mat.node_tree)[0].node_tree
 
