@@ -271,7 +271,8 @@ REFRACT_MIRROR_ROUGHNESS = 0.5
 #: rim's rays, bent furthest, find the ground; docs/transparent-films.md#solid-glass-refraction).
 REFRACT_OVERSCAN = 1.0
 #: …but never wider than this many pixels on its longer side (a 4K frame would otherwise need a
-#: 7680 × 6000 pass: 740 MB as the RGBA32F texture the glass reads).
+#: 7680 × 6000 pass: 740 MB as the RGBA32F texture the glass reads). Its pixels are the frame's:
+#: a pass twice as fine was measured and not kept (docs/tuning.md#background-pass-density).
 REFRACT_MAX_SIDE = 4096
 #: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
 REFRACT_FAR = 1e30
