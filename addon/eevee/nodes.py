@@ -16,7 +16,8 @@ thickness and shades with EEVEE's own closures:
   band (1/E) at θo: EEVEE multiplies it by its split sum E, so it returns the film's albedo;
 - a **Diffuse BSDF** of *Base Color* × the *diffuse* band (a diffuse base under the film);
 - a **Transparent BSDF** of the *transmission* band (a thin wall: soap bubble, window), or a
-  **Refraction BSDF** of it (solid glass).
+  **Refraction BSDF** of it (solid glass); for shadow rays a thin wall lets through its fitted
+  curve (:func:`precompute.bakes.eevee_table.shadow_fit`), a few math nodes instead of the image.
 
 The material gets a second Material Output, target *EEVEE*, fed by the group; its own output
 (target *All*) is left as it is: Blender picks the output whose target matches the engine
@@ -37,6 +38,8 @@ __all__ = [
     "GROUP_PREFIX",
     "NODE_GROUP",
     "NODE_OUTPUT",
+    "SHADOW_EXPONENT",
+    "SHADOW_R0",
     "TAG",
     "Structure",
     "band_textures",
@@ -57,7 +60,9 @@ GROUP_PREFIX = "TF EEVEE Film · "
 #: Custom property marking what the extension added (on the two nodes and the group).
 TAG = "thinfilm_eevee"
 #: Version of the group's inside: a group built by another version is rebuilt.
-LAYOUT_VERSION = 7
+LAYOUT_VERSION = 8
+#: Nodes holding a thin wall's shadow curve (:func:`_shadow_transmittance`): r0, e.
+SHADOW_R0, SHADOW_EXPONENT = "shadow r0", "shadow exponent"
 #: The group's inputs.
 IN_THICKNESS, IN_ROUGHNESS, IN_NORMAL, IN_BASE = "Thickness", "Roughness", "Normal", "Base Color"
 
@@ -302,6 +307,8 @@ def _build(group, structure: Structure, image) -> None:
         name: _band_lookup(tree, links, image, i, light if name == "specular" else view, rows)
         for i, name in enumerate(structure.bands)
     }
+    if structure.wall == "transparent":
+        colours["transmission"] = _shadow_transmittance(tree, links, cos_view, colours["transmission"])
     scaled = _node(tree, "ShaderNodeMix", "A / E", 450, 150, data_type="RGBA", blend_type="MULTIPLY")
     scaled.inputs["Factor"].default_value = 1.0
     links.new(colours["specular"], scaled.inputs["A"])
@@ -333,6 +340,36 @@ def _shadow_row(tree, links, row_value):
     links.new(path.outputs["Is Shadow Ray"], shadow.inputs["Factor"])
     links.new(row_value, shadow.inputs["A"])
     return shadow.outputs["Result"]
+
+
+def _shadow_transmittance(tree, links, cos_view, colour):
+    """A thin wall's transmittance: the *transmission* band for the camera and reflections, for
+    shadow rays the wall's fitted curve T = (1 − r)/(1 + r), r = r0 + (1 − r0)(1 − c)^e at the
+    light's cosine c (:func:`precompute.bakes.eevee_table.shadow_model`; r0 and e are socket values,
+    :func:`set_constants`). EEVEE evaluates a transparent wall's nodes for every shadow-map
+    sample: there these few math nodes replace the image's four texel reads per band."""
+    one_minus = _math(tree, "SUBTRACT", "shadow 1 − c", 150, -800)
+    one_minus.inputs[0].default_value = 1.0
+    links.new(cos_view, one_minus.inputs[1])
+    power = _math(tree, "POWER", SHADOW_EXPONENT, 300, -800)
+    links.new(one_minus.outputs[0], power.inputs[0])
+    power.inputs[1].default_value = 5.0  # Schlick's curve of a 4 % face until set_constants
+    reflect = _node(tree, "ShaderNodeMix", SHADOW_R0, 450, -800, data_type="RGBA", blend_type="MIX")
+    reflect.inputs["A"].default_value = (0.04, 0.04, 0.04, 1.0)
+    links.new(power.outputs[0], reflect.inputs["Factor"])
+    reflect.inputs["B"].default_value = (1.0, 1.0, 1.0, 1.0)
+    through, back = (
+        _node(tree, "ShaderNodeVectorMath", name, 600, y, operation=op)
+        for name, y, op in (("shadow 1 − r", -760, "SUBTRACT"), ("shadow 1 + r", -900, "ADD"))
+    )
+    for node in (through, back):  # 1 − r and 1 + r
+        node.inputs[0].default_value = (1.0, 1.0, 1.0)
+        links.new(reflect.outputs["Result"], node.inputs[1])
+    ratio = _node(tree, "ShaderNodeVectorMath", "shadow T", 750, -800, operation="DIVIDE")
+    links.new(through.outputs["Vector"], ratio.inputs[0])
+    links.new(back.outputs["Vector"], ratio.inputs[1])
+    shadow_ray = tree.nodes["Light Path"].outputs["Is Shadow Ray"]
+    return _mix(tree, links, "shadow or view", shadow_ray, colour, ratio.outputs["Vector"], 900, -650)
 
 
 def _diffuse(tree, links, inputs, colour, normal, structure):
@@ -368,6 +405,7 @@ def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0, lit: b
     """Write the image's axes into the group's socket values (no shader recompile):
     ``layout`` is a :class:`precompute.bakes.eevee_table.FilmImage` (or anything with its ``width``,
     ``height``, ``rows`` and ``thickness_nm``); ``ior``: a refraction's relative index;
+    ``layout.shadow`` (where it has one): a thin wall's shadow curve, r0 and e;
     ``dominant``: how much the specular band is read at the lobe light's angle θ' rather than
     the view angle where the World alone lights it (0: no dominant-direction image is set); the
     light objects' share s raises it to d + (1 − d) s where ``lit`` (a direction image is set;
@@ -399,6 +437,13 @@ def set_constants(group, layout, ior: float = 1.0, dominant: float = 0.0, lit: b
         band += 1
     _put(nodes["light weight"].inputs[1], 1.0 - float(dominant) if lit else 0.0)  # s (1 − d) + d
     _put(nodes["light weight"].inputs[2], float(dominant))
+    shadow = getattr(layout, "shadow", None)
+    if SHADOW_R0 in nodes and shadow is not None:
+        reflect = nodes[SHADOW_R0].inputs["A"]
+        now = [float(c) for c in reflect.default_value[:3]]
+        if any(abs(a - float(b)) > 1e-6 for a, b in zip(now, shadow[:3], strict=True)):
+            reflect.default_value = (*shadow[:3], 1.0)
+        _put(nodes[SHADOW_EXPONENT].inputs[1], float(shadow[3]))
     through = nodes.get("Through")
     if through is not None and "IOR" in through.inputs:
         _put(through.inputs["IOR"], float(ior))

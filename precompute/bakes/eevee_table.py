@@ -57,6 +57,8 @@ __all__ = [
     "glossy_colour",
     "light_moments",
     "lobe_norm",
+    "shadow_fit",
+    "shadow_model",
     "table_albedo",
     "white_reflectance_at",
 ]
@@ -202,13 +204,15 @@ class FilmImage:
 
     ``pixels``: (H, W, 4) float32 RGBA, row 0 at the bottom (Blender's order), W = view angles
     (θo uniform 0…90°), H = rows × bands; ``rows``: thickness rows per band (T);
-    ``thickness_nm``: (lo, hi) of the rows (equal for one row); ``bands``: band name → index.
+    ``thickness_nm``: (lo, hi) of the rows (equal for one row); ``bands``: band name → index;
+    ``shadow``: a thin wall's shadow transmittance, (r0 R, G, B, e) of :func:`shadow_fit`, or None.
     """
 
     pixels: np.ndarray
     rows: int
     thickness_nm: tuple
     bands: dict
+    shadow: tuple | None = None
 
     @property
     def width(self) -> int:
@@ -232,6 +236,7 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
     """
     cos_o = np.cos(np.asarray(result.view_angles_rad, dtype=np.float64))
     roughness = float(result.material.roughness)
+    shadow = None
     albedo = table_albedo(result.data)  # (T, A, 3)
     t_rows = albedo.shape[0]
     bands = {"specular": albedo}
@@ -246,6 +251,9 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
         if int(wall[0]) == transmit.WALL_SOLID:
             transmittance = transmittance * tint  # √tint in and √tint out (Cycles' glass)
         bands = {"specular": albedo * scale, "transmission": transmittance}
+        if int(wall[0]) != transmit.WALL_SOLID:
+            r0, exponent = shadow_fit(transmittance, cos_o)
+            shadow = (*(float(x) for x in r0), exponent)
     inverse = glossy_colour(np.ones((1, cos_o.size, 3)), cos_o[None, :], roughness)
     bands["inverse"] = np.broadcast_to(inverse, (t_rows, cos_o.size, 3))
     if base_result is not None:
@@ -263,7 +271,43 @@ def film_image(result, film=None, wall=None, base_result=None, base_color=None) 
         rows=t_rows,
         thickness_nm=(float(thick[0]), float(thick[-1])),
         bands={name: i for i, name in enumerate(order)},
+        shadow=shadow,
     )
+
+
+#: The exponents :func:`shadow_fit` tries.
+SHADOW_EXPONENTS = np.linspace(1.0, 10.0, 181)
+
+
+def shadow_model(r0, exponent: float, cos_i) -> np.ndarray:
+    """A thin wall's transmittance (1 − r)/(1 + r) with r = r0 + (1 − r0)(1 − c)^e at the
+    cosines ``cos_i`` (..., 1) per channel of ``r0`` (3,): the wall's two faces, each reflecting
+    r (a Schlick curve), light passing both with every inter-reflection."""
+    p = np.clip(1.0 - np.asarray(cos_i, dtype=np.float64), 0.0, 1.0) ** float(exponent)
+    r = np.asarray(r0, dtype=np.float64) * (1.0 - p) + p
+    return (1.0 - r) / (1.0 + r)
+
+
+def shadow_fit(transmittance, cos_o) -> tuple[np.ndarray, float]:
+    """(r0 per channel, e) of :func:`shadow_model` nearest (least squares over the view angles) to a
+    wall's transmittance averaged over its thickness rows: ``transmittance`` (rows, A, 3) at the
+    cosines ``cos_o`` (A,). What a transparent wall lets through for EEVEE's shadow rays, where its
+    node group evaluates these few math nodes instead of the image (EEVEE evaluates a wall's nodes
+    for every shadow-map sample). Averaged over the rows: a shadow has no thickness of its own
+    (the shadow pass drops the thickness source, :mod:`addon.eevee.nodes`), and a film lets
+    through nearly the same at any thickness, its colour averaging out."""
+    target = np.clip(np.mean(np.asarray(transmittance, dtype=np.float64), axis=0), 0.0, 1.0)  # (A, 3)
+    reflect = (1.0 - target) / (1.0 + target)
+    cos = np.asarray(cos_o, dtype=np.float64).reshape(-1, 1)
+    best = (np.inf, np.zeros(3), 5.0)
+    for exponent in SHADOW_EXPONENTS:
+        p = np.clip(1.0 - cos, 0.0, 1.0) ** exponent  # r − p = r0 (1 − p): r0 by least squares
+        q = 1.0 - p
+        r0 = np.clip(np.sum((reflect - p) * q, axis=0) / max(float(np.sum(q * q)), 1e-12), 0.0, 1.0)
+        error = float(np.sum((shadow_model(r0, exponent, cos) - target) ** 2))
+        if error < best[0]:
+            best = (error, r0, float(exponent))
+    return best[1], best[2]
 
 
 def dominant_weight(roughness: float) -> float:
