@@ -5,11 +5,13 @@ rays) and in EEVEE (the wall's *Transparent Shadows*, addon/eevee/wiring.py); a 
 pass lets through the wall's fitted curve (precompute.bakes.eevee_table.shadow_fit), whatever its
 thickness (the thickness source drops out of that pass).
 
-Not tested, measured (docs/eevee-native-results.md#frame-time): a *rough* thin wall of an IOR
-other than 1 (roughness 0.005 and up) stops Cycles' shadow rays; the ground under it keeps
-0.25–0.67 of the open ground's light in the scenes tried (what reaches it through the wall by
-other paths; 0.55 under this file's plate of IOR 1.52 at roughness 0.05 and 0.3), where EEVEE
-lets 0.9–0.99 through. At IOR 1 Cycles lets them through at any roughness (0.894 at 0.3).
+A *rough* thin wall of an index other than 1 (Roughness 0.0045 and up) stops Cycles' shadow
+rays (precompute.shading.transmit.wall_stops_shadow_rays): the ground under it keeps 0.25–0.67 of
+the open ground's light in the scenes measured (what reaches it by other paths; 0.55 under this
+file's plate of IOR 1.52 at Roughness 0.05 and 0.3). EEVEE can let a wall's light through or
+stop it, nothing between: such a wall's *Transparent Shadows* is switched off, so EEVEE stops
+the sun there too (the light by other paths is not rendered). At IOR 1 Cycles lets shadow rays
+through at any roughness (0.894 at 0.3).
 """
 
 import math
@@ -147,3 +149,44 @@ def test_a_walls_shadow_lets_through_its_curve_at_the_lights_angle(bpy, ext, tmp
     ratio = float(shadowed / open_ground)
     print(f"tilt {tilt_deg}°: shadowed / open {ratio:.4f}, the curve {expected:.4f}")
     assert abs(ratio - expected) < 0.03, (ratio, expected)
+
+
+@pytest.mark.parametrize("ior", [1.0, 1.52])
+def test_a_rough_walls_shadow_stops_the_sun_where_cycles_does(bpy, ext, tmp_path, ior):
+    """A rough thin-wall plate (Roughness 0.05) over a sunlit ground, hidden from the camera: at
+    IOR 1 both engines let the sun through (EEVEE's shadow within 0.12 of Cycles', both above
+    0.8), at IOR 1.52 Cycles stops its shadow rays (under 0.7: the rest comes by other paths) and
+    the sync switches the wall's *Transparent Shadows* off, so EEVEE stops the sun (under 0.1:
+    the dim World's light); the wall made smooth, or the film removed, the material's own
+    setting is back."""
+    ratios = {}
+    for engine in ("EEVEE", "CYCLES"):
+        scene = eevee_scene(bpy, size=16)
+        scene.eevee.taa_render_samples = 16
+        _sunlit_ground(bpy, scene)
+        mat = _wall(bpy, ior, roughness=0.05)
+        plate = _hidden_plate(bpy, scene, mat)
+        if engine == "EEVEE":
+            assert mat.use_transparent_shadow  # Blender's default
+            ext.sync.sync_material(mat, scene)
+            assert mat.use_transparent_shadow == (ior == 1.0)
+        else:
+            cc.cycles_settings(scene, 64, size=16, bounces=4)
+        shadowed = eevee_render(bpy, scene, tmp_path / f"{engine}.exr")[..., 1].mean()
+        plate.hide_render = True
+        open_ground = eevee_render(bpy, scene, tmp_path / f"{engine}_open.exr")[..., 1].mean()
+        ratios[engine] = float(shadowed / open_ground)
+        if engine == "EEVEE":
+            bsdf = mat.node_tree.nodes["Principled BSDF"]
+            for roughness, through in ((0.0, True), (0.05, ior == 1.0)):  # smoothed, then rough again
+                bsdf.inputs["Roughness"].default_value = roughness
+                ext.sync.sync_material(mat, scene)
+                assert mat.use_transparent_shadow == through, roughness
+            bsdf.inputs["Thin Film Thickness"].default_value = 0.0
+            assert ext.sync.sync_material(mat, scene) == "removed"
+            assert mat.use_transparent_shadow, "the film off restores the material's own setting"
+    print(f"IOR {ior}, Roughness 0.05: shadowed / open ground {ratios}")
+    if ior == 1.0:
+        assert min(ratios.values()) > 0.8 and abs(ratios["EEVEE"] - ratios["CYCLES"]) < 0.12, ratios
+    else:
+        assert ratios["CYCLES"] < 0.7 and ratios["EEVEE"] < 0.1, ratios

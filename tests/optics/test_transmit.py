@@ -191,3 +191,14 @@ def test_solid_exit_is_the_ray_traced_through_a_glass_sphere():
     out /= np.linalg.norm(out, axis=-1, keepdims=True)
     assert np.allclose(transmit.solid_exit(n, -d, eta), out, atol=1e-9)
     assert np.allclose(transmit.solid_exit(n, -d, 1.0), d, atol=1e-12)  # η = 1: straight through
+
+
+def test_cycles_stops_shadow_rays_only_at_rough_walls_of_another_index():
+    """Cycles' rule as measured (tests/eevee/test_wall_shadows.py renders it): Roughness 0.0044
+    lets a shadow ray through a thin wall of IOR 1.1 or 1.52, 0.0045 stops it; IOR 1 never does."""
+    for eta in (1.1, 1.52, 0.75):
+        assert not transmit.wall_stops_shadow_rays(eta, 0.0044)
+        assert transmit.wall_stops_shadow_rays(eta, 0.0045)
+    for roughness in (0.0, 0.05, 0.3, 1.0):
+        assert not transmit.wall_stops_shadow_rays(1.0, roughness)
+    assert transmit.wall_stops_shadow_rays(1.0001, 0.05)  # Cycles: 0.52 under it, 0.89 at IOR 1
