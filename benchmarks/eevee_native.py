@@ -280,12 +280,19 @@ FREE_FILM_IOR = 1.001
 
 
 def bare_blend(blend, workdir) -> pathlib.Path:
-    """The case's file with every Principled film off (Thin Film Thickness 0, unlinked): the same
-    BSDF without its film, for EEVEE's own floor against Cycles. A free film's IOR-1 substrate
-    takes the film's index (:data:`FREE_FILM_IOR`)."""
+    """The case's file with every Principled film off (Thin Film Thickness 0, unlinked) and the
+    extension's film switched off where its panel had one (else its sync would keep the film's
+    EEVEE output: EEVEE would render the film where Cycles does not): the same BSDF without its
+    film, for EEVEE's own floor against Cycles. A free film's IOR-1 substrate takes the film's
+    index (:data:`FREE_FILM_IOR`)."""
     bpy = _bpy()
     bpy.ops.wm.open_mainfile(filepath=str(blend))
+    wiring = importlib.import_module("thinfilm_sh.addon.eevee.wiring")
     for mat in bpy.data.materials:
+        props = getattr(mat, "thinfilm_sh", None)
+        if props is not None and props.enabled:
+            props.enabled = False
+        wiring.remove(mat)
         for node in getattr(mat.node_tree, "nodes", ()):
             socket = (
                 node.inputs.get("Thin Film Thickness")

@@ -8,7 +8,9 @@
   *Thin Wall* on: Cycles' thin wall (the film on both faces, the slab series of
   ``bsdf_thin_glass_fresnel``), its transmission tinted by *Base Color* as Cycles does; without
   *Thin Wall* (solid glass, water) solid glass of its IOR, tinted the same way:
-  the World seen through the ray's exit from a sphere of that glass (docs/transparent-films.md).
+  the World seen through the ray's exit from a sphere of that glass (docs/transparent-films.md);
+  without *Thin Wall* at IOR 1 (glass of the ambient's index) the film alone, once on each wall
+  a ray crosses, as the extension's own free film.
 
 :func:`wall` gives the draw item's ``wall`` = (mode, η), or None for an opaque film.
 """
@@ -61,6 +63,8 @@ def _principled_wall(bpy_material, desc) -> tuple | None:
     tint = tuple(min(1.0, max(0.0, float(c))) for c in tuple(_input(node, SOCKET_BASE_COLOR, (1.0,) * 4))[:3])
     if bool(_input(node, SOCKET_THIN_WALL, False)):
         return (transmit.WALL_CYCLES, eta, *tint)
+    if abs(eta - 1.0) < 1e-6:  # glass of the ambient's index: the film alone on each wall crossed
+        return (transmit.WALL_SHEET, 1.0, *tint)
     return (transmit.WALL_SOLID, eta, *tint)
 
 

@@ -72,6 +72,7 @@ def test_principled_thin_wall_is_cycles_slab_series(bpy, ext):
     assert _wall(ext, _principled(bpy, 1.0, True)) == (transmit.WALL_CYCLES, 1.0, 1.0, 1.0, 1.0)
     mode, eta, *tint = _wall(ext, _principled(bpy, 1.0, False, 1.5))  # solid glass of its IOR
     assert mode == transmit.WALL_SOLID and eta == pytest.approx(1.5) and tint == [1.0, 1.0, 1.0]
+    assert _wall(ext, _principled(bpy, 1.0, False))[:2] == (transmit.WALL_SHEET, 1.0)  # the film alone
     assert _wall(ext, _principled(bpy, 0.2, True)) is None  # previewed as Transmission 0
     # Cycles tints the transmission by Base Color (Blender's default 0.8): the wall carries it
     mode, eta, *tint = _wall(ext, _principled(bpy, 1.0, True, 1.45, base=(0.8, 0.5, 0.2)))
