@@ -52,28 +52,43 @@ def _hidden_plate(bpy, scene, mat):
     return plate
 
 
-@pytest.mark.parametrize("ior", [1.0, 1.52])
-def test_a_smooth_thin_walls_shadow_lets_through_what_cycles_does(bpy, ext, tmp_path, ior):
-    """A smooth thin-wall plate (a soap film on air, a coated pane) over a sunlit ground, hidden
-    from the camera, which sees its shadow: the shadowed ground over the open ground (the plate
-    hidden) in EEVEE's render within 0.12 of Cycles' (64 spp), and above 0.8 in both (a wall
-    cast as opaque leaves the World's 0.02)."""
+def _shadow_ratios(bpy, ext, tmp_path, ior: float, roughness: float = 0.0, synced=None, after=None) -> dict:
+    """The shadowed ground over the open ground (the plate hidden) under a sunlit thin-wall plate
+    (:func:`_wall` of ``ior`` and ``roughness``) hidden from the camera, in EEVEE (the film synced;
+    ``synced(mat)`` then, ``after(mat, scene)`` after its renders) and in Cycles (64 spp)."""
     ratios = {}
     for engine in ("EEVEE", "CYCLES"):
         scene = eevee_scene(bpy, size=16)
         scene.eevee.taa_render_samples = 16
         _sunlit_ground(bpy, scene)
-        mat = _wall(bpy, ior)
+        mat = _wall(bpy, ior, roughness=roughness)
         plate = _hidden_plate(bpy, scene, mat)
         if engine == "EEVEE":
             ext.sync.sync_material(mat, scene)
-            assert mat.surface_render_method == "BLENDED" and mat.use_transparent_shadow
+            if synced is not None:
+                synced(mat)
         else:
             cc.cycles_settings(scene, 64, size=16, bounces=4)
         shadowed = eevee_render(bpy, scene, tmp_path / f"{engine}.exr")[..., 1].mean()
         plate.hide_render = True
         open_ground = eevee_render(bpy, scene, tmp_path / f"{engine}_open.exr")[..., 1].mean()
         ratios[engine] = float(shadowed / open_ground)
+        if engine == "EEVEE" and after is not None:
+            after(mat, scene)
+    return ratios
+
+
+@pytest.mark.parametrize("ior", [1.0, 1.52])
+def test_a_smooth_thin_walls_shadow_lets_through_what_cycles_does(bpy, ext, tmp_path, ior):
+    """A smooth thin-wall plate (a soap film on air, a coated pane) over a sunlit ground, hidden
+    from the camera, which sees its shadow: the shadowed ground over the open ground (the plate
+    hidden) in EEVEE's render within 0.12 of Cycles' (64 spp), and above 0.8 in both (a wall
+    cast as opaque leaves the World's 0.02)."""
+
+    def synced(mat):
+        assert mat.surface_render_method == "BLENDED" and mat.use_transparent_shadow
+
+    ratios = _shadow_ratios(bpy, ext, tmp_path, ior, synced=synced)
     print(f"IOR {ior}: shadowed / open ground {ratios}")
     assert min(ratios.values()) > 0.8, f"a smooth thin wall lets the sun through: {ratios}"
     assert abs(ratios["EEVEE"] - ratios["CYCLES"]) < 0.12, f"EEVEE's shadow must be Cycles': {ratios}"
@@ -159,32 +174,21 @@ def test_a_rough_walls_shadow_stops_the_sun_where_cycles_does(bpy, ext, tmp_path
     the sync switches the wall's *Transparent Shadows* off, so EEVEE stops the sun (under 0.1:
     the dim World's light); the wall made smooth, or the film removed, the material's own
     setting is back."""
-    ratios = {}
-    for engine in ("EEVEE", "CYCLES"):
-        scene = eevee_scene(bpy, size=16)
-        scene.eevee.taa_render_samples = 16
-        _sunlit_ground(bpy, scene)
-        mat = _wall(bpy, ior, roughness=0.05)
-        plate = _hidden_plate(bpy, scene, mat)
-        if engine == "EEVEE":
-            assert mat.use_transparent_shadow  # Blender's default
+
+    def synced(mat):
+        assert mat.use_transparent_shadow == (ior == 1.0)  # Blender's default is on
+
+    def after(mat, scene):
+        bsdf = mat.node_tree.nodes["Principled BSDF"]
+        for roughness, through in ((0.0, True), (0.05, ior == 1.0)):  # smoothed, then rough again
+            bsdf.inputs["Roughness"].default_value = roughness
             ext.sync.sync_material(mat, scene)
-            assert mat.use_transparent_shadow == (ior == 1.0)
-        else:
-            cc.cycles_settings(scene, 64, size=16, bounces=4)
-        shadowed = eevee_render(bpy, scene, tmp_path / f"{engine}.exr")[..., 1].mean()
-        plate.hide_render = True
-        open_ground = eevee_render(bpy, scene, tmp_path / f"{engine}_open.exr")[..., 1].mean()
-        ratios[engine] = float(shadowed / open_ground)
-        if engine == "EEVEE":
-            bsdf = mat.node_tree.nodes["Principled BSDF"]
-            for roughness, through in ((0.0, True), (0.05, ior == 1.0)):  # smoothed, then rough again
-                bsdf.inputs["Roughness"].default_value = roughness
-                ext.sync.sync_material(mat, scene)
-                assert mat.use_transparent_shadow == through, roughness
-            bsdf.inputs["Thin Film Thickness"].default_value = 0.0
-            assert ext.sync.sync_material(mat, scene) == "removed"
-            assert mat.use_transparent_shadow, "the film off restores the material's own setting"
+            assert mat.use_transparent_shadow == through, roughness
+        bsdf.inputs["Thin Film Thickness"].default_value = 0.0
+        assert ext.sync.sync_material(mat, scene) == "removed"
+        assert mat.use_transparent_shadow, "the film off restores the material's own setting"
+
+    ratios = _shadow_ratios(bpy, ext, tmp_path, ior, 0.05, synced, after)
     print(f"IOR {ior}, Roughness 0.05: shadowed / open ground {ratios}")
     if ior == 1.0:
         assert min(ratios.values()) > 0.8 and abs(ratios["EEVEE"] - ratios["CYCLES"]) < 0.12, ratios
