@@ -21,7 +21,7 @@ import json
 import bpy
 
 from ...precompute.bakes import eevee_table
-from ...precompute.shading import transmit
+from ..materials import transparency
 from ..thickness import thickness_nodes
 from . import image as film_image_store
 from . import nodes
@@ -174,16 +174,17 @@ def _build_source(group, props, spec: Spec) -> None:
     group[SOURCE_KEY] = key
 
 
-def _wanted(spec: Spec) -> dict:
+def _wanted(spec: Spec, material) -> dict:
     """The material's EEVEE settings for ``spec``'s wall (:data:`WALL_SETTINGS`); a thin wall's
     *Transparent Shadows* off where Cycles stops shadow rays at it
-    (:func:`precompute.shading.transmit.wall_stops_shadow_rays`: a rough wall of an index other
-    than 1). Elsewhere the setting stays the material's own (Blender's default lets the wall's
-    light through: its shadow pass reads the wall's fitted curve, :mod:`.nodes`)."""
+    (:func:`..materials.transparency.cycles_stops_shadow_rays`: a rough thin wall of an index
+    other than 1, glass without *Thin Wall*). Elsewhere the setting stays the material's own
+    (Blender's default lets the wall's light through: its shadow pass reads the wall's fitted
+    curve, :mod:`.nodes`)."""
     kind = spec.structure.wall
     wanted = dict(WALL_SETTINGS.get(kind, {}))
     if kind == "transparent" and spec.wall is not None:
-        if transmit.wall_stops_shadow_rays(spec.wall[1], spec.film.roughness):
+        if transparency.cycles_stops_shadow_rays(material, spec.wall, spec.film.roughness):
             wanted["use_transparent_shadow"] = False
     return wanted
 
@@ -235,7 +236,7 @@ def apply(material, spec: Spec, made, light=None) -> None:
     nodes.set_constants(group, made, spec.ior, dominant=weight, lit=light is not None)
     feed(material, node, spec, getattr(material, "thinfilm_sh", None))
     _group, output = nodes.find(tree)
-    _settings(material, output, _wanted(spec))
+    _settings(material, output, _wanted(spec, material))
 
 
 def remove(material) -> bool:

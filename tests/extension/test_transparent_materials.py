@@ -92,3 +92,24 @@ def test_write_back_sets_thin_wall_for_a_film_on_air(bpy, ext):
     glass.thinfilm_sh.transparency = "SHEET"
     write(glass)
     assert ext["principled"].principled_node(glass).inputs["Thin Wall"].default_value
+
+
+def test_cycles_stops_shadow_rays_where_the_principled_bsdf_says(bpy, ext):
+    """Read from the material's Principled BSDF (what Cycles renders): a thin wall of IOR 1 lets
+    shadow rays through at any roughness, one of IOR 1.52 only while smooth; glass without Thin
+    Wall never does, even of IOR 1 (measured, tests/eevee/test_wall_shadows.py and
+    docs/eevee-native-results.md)."""
+    stops = ext["transparency"].cycles_stops_shadow_rays
+    for thin_wall, ior, roughness, expected in (
+        (True, 1.0, 0.3, False),
+        (True, 1.52, 0.0, False),
+        (True, 1.52, 0.05, True),
+        (False, 1.0, 0.0, True),
+        (False, 1.5, 0.0, True),
+    ):
+        mat = _principled(bpy, 1.0, thin_wall, ior)
+        mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = roughness
+        assert stops(mat, _wall(ext, mat), 0.5) == expected, (thin_wall, ior, roughness)
+    soap = _film(bpy, "SOAP_FILM")  # the extension's free film, written back as a thin wall
+    ext["principled"].write_back_to_principled(soap)
+    assert not stops(soap, _wall(ext, soap), 0.05)
