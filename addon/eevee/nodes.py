@@ -300,15 +300,17 @@ def _build(group, structure: Structure, image) -> None:
     row = _node(tree, "ShaderNodeMapRange", "row", -1050, 0, clamp=True)
     links.new(inputs.outputs[IN_THICKNESS], row.inputs["Value"])
     row_value = row.outputs["Result"]
+    shadow_ray = None
     if structure.wall:  # EEVEE's transparent shadows evaluate the wall: there at the middle row
-        row_value = _shadow_row(tree, links, row_value)
+        row_value, shadow_ray = _shadow_row(tree, links, row_value)
     rows = _split(tree, links, row_value, "y", 0)
     colours = {
         name: _band_lookup(tree, links, image, i, light if name == "specular" else view, rows)
         for i, name in enumerate(structure.bands)
     }
     if structure.wall == "transparent":
-        colours["transmission"] = _shadow_transmittance(tree, links, cos_view, colours["transmission"])
+        through = colours["transmission"]
+        colours["transmission"] = _shadow_transmittance(tree, links, cos_view, shadow_ray, through)
     scaled = _node(tree, "ShaderNodeMix", "A / E", 450, 150, data_type="RGBA", blend_type="MULTIPLY")
     scaled.inputs["Factor"].default_value = 1.0
     links.new(colours["specular"], scaled.inputs["A"])
@@ -334,15 +336,15 @@ def _shadow_row(tree, links, row_value):
     every shadow-map sample (the material's *Transparent Shadows*); with the row a constant there,
     its compiler drops the thickness source (a Noise Texture: half the soap bubble scene's
     frame) from the shadow pass. A film lets nearly the same through at any thickness (T = 1 − R),
-    so the shadow barely changes."""
+    so the shadow barely changes. Returns (the row, *Is Shadow Ray*)."""
     path = _node(tree, "ShaderNodeLightPath", "Light Path", -1050, 350)
     shadow = _node(tree, "ShaderNodeMix", "shadow row", -870, 150, data_type="FLOAT")
     links.new(path.outputs["Is Shadow Ray"], shadow.inputs["Factor"])
     links.new(row_value, shadow.inputs["A"])
-    return shadow.outputs["Result"]
+    return shadow.outputs["Result"], path.outputs["Is Shadow Ray"]
 
 
-def _shadow_transmittance(tree, links, cos_view, colour):
+def _shadow_transmittance(tree, links, cos_view, shadow_ray, colour):
     """A thin wall's transmittance: the *transmission* band for the camera and reflections, for
     shadow rays the wall's fitted curve T = (1 − r)/(1 + r), r = r0 + (1 − r0)(1 − c)^e at the
     light's cosine c (:func:`precompute.bakes.eevee_table.shadow_model`; r0 and e are socket values,
@@ -368,7 +370,6 @@ def _shadow_transmittance(tree, links, cos_view, colour):
     ratio = _node(tree, "ShaderNodeVectorMath", "shadow T", 750, -800, operation="DIVIDE")
     links.new(through.outputs["Vector"], ratio.inputs[0])
     links.new(back.outputs["Vector"], ratio.inputs[1])
-    shadow_ray = tree.nodes["Light Path"].outputs["Is Shadow Ray"]
     return _mix(tree, links, "shadow or view", shadow_ray, colour, ratio.outputs["Vector"], 900, -650)
 
 

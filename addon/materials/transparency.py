@@ -66,7 +66,7 @@ def _principled_wall(bpy_material, desc) -> tuple | None:
     if bool(_input(node, SOCKET_THIN_WALL, False)):
         return (transmit.WALL_CYCLES, eta, *tint)
     if abs(eta - 1.0) < 1e-6:  # glass of the ambient's index: the film alone on each wall crossed
-        return (transmit.WALL_SHEET, 1.0, *tint)
+        return (transmit.WALL_SHEET, 1.0)  # a free film has no tint (Cycles' √tint per face is not drawn)
     return (transmit.WALL_SOLID, eta, *tint)
 
 
