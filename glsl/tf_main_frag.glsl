@@ -86,24 +86,25 @@ int tf_glass_own()
 /* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray (through
  * the real mesh, tf_glass_exit, else the sphere about the origin) hits it, else the World along
  * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
- * the pixel; cosines: inside the glass at the first face and the face it leaves through. */
-vec3 tf_refracted(vec3 n, vec3 v, TFLerp r, out vec2 cosines)
+ * the pixel, times what the path carries (0 where Cycles ends it); g: the face's geometric
+ * normal; cosines: inside the glass at the first face and the face it leaves through. */
+vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines)
 {
-  vec3 exit_point, dir, colour, unused_carried;
-  tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), 0, r,
-                exit_point, dir, cosines, unused_carried);
+  vec3 exit_point, dir, colour, carried;
+  tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), 0, r,
+                exit_point, dir, cosines, carried);
   if (tf_refract_march(exit_point, dir, colour)) {
-    return colour;
+    return carried * colour;
   }
 #ifdef TF_SPLIT_SUM
   vec3 unused_moment;
   float unused_weight;
-  return tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+  return carried * tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
 #else
   ivec2 texel;
   float unused_depth;
   tf_refract_sample(tf_world_pos, texel, unused_depth);
-  return texelFetch(tf_behind, texel, 0).rgb;
+  return carried * texelFetch(tf_behind, texel, 0).rgb;
 #endif
 }
 #endif
@@ -116,7 +117,7 @@ vec3 tf_refracted(vec3 n, vec3 v, TFLerp r, out vec2 cosines)
  * (tf_refract_march), else the World along it (tf_glass_exit with k reflections). Where the
  * buffers do not hold the object, the sphere's one reflection inside (tf_solid_internal) stands
  * in, seeing the World. */
-vec3 tf_glass_glint(vec3 n, vec3 v, vec3 t_in, TFLerp r)
+vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
 {
   int own = tf_glass_own();
   float eta = tf_object.material.w;
@@ -126,7 +127,7 @@ vec3 tf_glass_glint(vec3 n, vec3 v, vec3 t_in, TFLerp r)
   for (int k = 1; k <= TF_GLASS_ORDERS; k++) {
     vec3 exit_point, dir, carried;
     vec2 cosines;
-    if (!tf_glass_exit(tf_world_pos, n, v, tf_object.model[3].xyz, eta, own, k, r, exit_point, dir, cosines,
+    if (!tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, eta, own, k, r, exit_point, dir, cosines,
                        carried)) {
       vec3 r_in = tf_glass_back_r(cosines.x, r, eta, own);
       return t_in * r_in * (vec3(1.0) - r_in) *
@@ -162,6 +163,8 @@ vec3 tf_scene_mirror(vec3 n, vec3 v, vec3 wall_t)
 void main()
 {
 #ifdef TF_REFRACT
+  /* the face's own (flat) normal, taken before anything can leave the quad's control flow */
+  vec3 face_g = cross(dFdx(tf_world_pos), dFdy(tf_world_pos));
   if (tf_object.material.z > 1.5 && !tf_glass_nearest_front(tf_world_pos, tf_glass_own(), gl_FrontFacing)) {
     discard; /* solid glass is its nearest front face, the rest is inside it (tf_glass_exit) */
   }
@@ -235,11 +238,13 @@ void main()
   if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
     vec3 t_in = sqrt(max(wall_t, vec3(0.0))); /* wall_t = (1 - r)^2 */
     vec2 cosines;
-    vec3 seen = tf_refracted(n, v, r_wall, cosines);
+    vec3 g = tf_safe_normalize(face_g, n);
+    g = (dot(g, v) < 0.0) ? -g : g; /* the front face's, facing the viewer as n does */
+    vec3 seen = tf_refracted(n, g, v, r_wall, cosines);
     vec3 r_out = tf_glass_back_r(cosines.y, r_wall, tf_object.material.w, tf_glass_own());
     rgb += through * t_in * (vec3(1.0) - r_out) * seen;
 #ifdef TF_SPLIT_SUM
-    rgb += through * tf_glass_glint(n, v, t_in, r_wall);
+    rgb += through * tf_glass_glint(n, g, v, t_in, r_wall);
     rgb = max(rgb + tf_scene_mirror(n, v, wall_t), vec3(0.0));
 #endif
     wall_mean = 0.0;

@@ -217,6 +217,55 @@ int tf_glass_decode(vec4 texel, out vec3 normal, out float depth)
   return int(floor(len + 0.5)) - 1;
 }
 
+/* Octahedral coordinates -> unit vector (shading.refract.from_octahedral). */
+vec3 tf_oct_decode(vec2 e)
+{
+  vec3 n = vec3(e, 1.0 - abs(e.x) - abs(e.y));
+  float t = max(-n.z, 0.0);
+  n.x += (n.x >= 0.0) ? -t : t;
+  n.y += (n.y >= 0.0) ? -t : t;
+  return normalize(n);
+}
+
+/* The shading normal Cycles uses for smooth glass (shading.refract.valid_normal, Cycles'
+ * ensure_valid_specular_reflection): n where the mirror of wi about it rises at least
+ * min(0.9 cos, 0.01) above the face (geometric normal ng, cos = wi . ng), else n turned towards
+ * ng in their plane until it rises exactly that much; ng, wi and n face the same side. */
+vec3 tf_valid_normal(vec3 ng, vec3 wi, vec3 n)
+{
+  vec3 mirror = 2.0 * dot(n, wi) * n - wi;
+  float iz = dot(wi, ng);
+  float threshold = min(0.9 * iz, 0.01);
+  if (dot(ng, mirror) >= threshold) {
+    return n;
+  }
+  vec3 x = tf_safe_normalize(n - dot(n, ng) * ng, n);
+  float ix = dot(wi, x);
+  float a = max(ix * ix + iz * iz, TF_DIVISION_FLOOR);
+  float b = 2.0 * (a + iz * threshold);
+  float c = (threshold + iz) * (threshold + iz);
+  float root = sqrt(max(b * b - 4.0 * a * c, 0.0));
+  float nz2 = (ix < 0.0) ? 0.25 * (b + root) / a : 0.25 * (b - root) / a;
+  return sqrt(max(1.0 - nz2, 0.0)) * x + sqrt(max(nz2, 0.0)) * ng;
+}
+
+/* One face met from inside by the unit ray d (outward shading normal face_n, geometric face_g) as
+ * Cycles' smooth glass meets it (shading.refract._face_step): the cosine inside, the refracted
+ * direction out (0 under total internal reflection), the mirrored one, and whether each is valid
+ * (it leaves on its side of the face and of the normal; Cycles ends the path otherwise). */
+void tf_glass_face(vec3 d, vec3 face_n, vec3 face_g, float eta, out float cos_face, out vec3 out_dir,
+                   out vec3 mirrored, out bool out_ok, out bool mirror_ok)
+{
+  vec3 g_in = -face_g;
+  vec3 n_in = tf_valid_normal(g_in, -d, -face_n);
+  cos_face = clamp(-dot(d, n_in), 0.0, 1.0);
+  out_dir = refract(d, n_in, eta);
+  mirrored = tf_safe_normalize(d - 2.0 * dot(d, n_in) * n_in, d);
+  bool facing = dot(n_in, -d) > 0.0;
+  out_ok = facing && dot(g_in, out_dir) < 0.0 && dot(n_in, out_dir) < 0.0;
+  mirror_ok = facing && dot(g_in, mirrored) > 0.0 && dot(n_in, mirrored) > 0.0;
+}
+
 /* The object id in the back buffer under world point q (-1: none or off the picture). */
 int tf_glass_id_at(vec3 q)
 {
@@ -255,9 +304,10 @@ bool tf_glass_nearest_front(vec3 q, int own, bool front_facing)
 }
 
 /* Whether q lies outside object own along its pixel's camera ray (shading.refract._Glass.outside):
- * behind its back face, in front of its front face, or off its silhouette; which face and its
- * normal. */
-bool tf_glass_outside(vec3 q, int own, out bool through_back, out vec3 face_normal, out bool inside)
+ * behind its back face, in front of its front face, or off its silhouette; which face, its
+ * normal and its geometric normal (tf_glass_geom: .xy the front face's, .zw the back face's). */
+bool tf_glass_outside(vec3 q, int own, out bool through_back, out vec3 face_normal, out vec3 face_geom,
+                      out bool inside)
 {
   mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
   vec4 clip = view_proj * vec4(q, 1.0);
@@ -275,21 +325,23 @@ bool tf_glass_outside(vec3 q, int own, out bool through_back, out vec3 face_norm
   through_back = id_b != own || z > db + slack;
   bool before_front = id_f == own && z < df - slack;
   face_normal = through_back ? nb : nf;
+  vec4 geom = texelFetch(tf_glass_geom, texel, 0);
+  face_geom = tf_oct_decode(through_back ? geom.zw : geom.xy);
   return through_back || before_front;
 }
 
 /* Where o + s d, s in (0, reach], first leaves object own (shading.refract._march_inside). */
 bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out bool through_back,
-                    out vec3 face_normal)
+                    out vec3 face_normal, out vec3 face_geom)
 {
   float lo = 0.0;
   s_hit = 0.0;
   bool found = false;
   bool back_k, inside;
-  vec3 n_k;
+  vec3 n_k, g_k;
   for (int k = 0; k < TF_GLASS_STEPS; k++) {
     float s = reach * float(k + 1) / float(TF_GLASS_STEPS);
-    if (tf_glass_outside(o + s * d, own, back_k, n_k, inside) && inside) {
+    if (tf_glass_outside(o + s * d, own, back_k, n_k, g_k, inside) && inside) {
       s_hit = s;
       found = true;
       break;
@@ -302,7 +354,7 @@ bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out b
   float hi = s_hit;
   for (int j = 0; j < TF_GLASS_REFINE; j++) {
     float mid = 0.5 * (lo + hi);
-    if (tf_glass_outside(o + mid * d, own, back_k, n_k, inside)) {
+    if (tf_glass_outside(o + mid * d, own, back_k, n_k, g_k, inside)) {
       hi = mid;
     }
     else {
@@ -310,7 +362,7 @@ bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out b
     }
   }
   s_hit = hi;
-  tf_glass_outside(o + hi * d, own, through_back, face_normal, inside);
+  tf_glass_outside(o + hi * d, own, through_back, face_normal, face_geom, inside);
   return true;
 }
 
@@ -346,15 +398,17 @@ vec3 tf_glass_back_r(float cos_inside, TFLerp r, float eta, int own)
 }
 
 /* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
- * (normal n) and leaving object own through its real faces (shading.refract.mesh_exit), total
- * internal reflections followed up to TF_GLASS_BOUNCES faces; reflections: the first that many
- * faces it could leave through reflect it instead (the glints), carried the product of the film's
- * reflectance from inside there (tf_glass_back_r with r; 0 where such a path does not leave within
- * TF_GLASS_BOUNCES faces); cosines: inside the glass at the first
- * face met and at the face it leaves through (1 where it never leaves). False where the buffers
- * do not hold the object (the sphere about c stands in, tf_solid_exit_ray; both cosines its
- * cos theta_t). */
-bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, int reflections, TFLerp r,
+ * (normal n, geometric normal g, both facing the viewer) and leaving object own through its real
+ * faces (shading.refract.mesh_exit), total internal reflections followed up to TF_GLASS_BOUNCES
+ * faces, each face met as Cycles' smooth glass meets it (tf_glass_face); reflections: the first
+ * that many faces it could leave through reflect it instead (the glints), carried the product of
+ * the film's reflectance from inside there (tf_glass_back_r with r); carried 0 on a path that
+ * does not leave within TF_GLASS_BOUNCES faces (Cycles' bounce limit ends it) and on any path
+ * Cycles ends (a direction on the wrong side of a face, in or out); cosines: inside the glass at
+ * the first face met and at the face it leaves through (1 where it never leaves). False where
+ * the buffers do not hold the object (the sphere about c stands in, tf_solid_exit_ray; both
+ * cosines its cos theta_t). */
+bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, int reflections, TFLerp r,
                    out vec3 exit_point, out vec3 dir, out vec2 cosines, out vec3 carried)
 {
   float e = max(eta, TF_WALL_GUARD);
@@ -364,7 +418,14 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, int refle
     tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
     return false;
   }
-  vec3 d = tf_safe_normalize(refract(-v, n, 1.0 / e), -v);
+  vec3 n_entry = tf_valid_normal(g, v, n);
+  vec3 d = tf_safe_normalize(refract(-v, n_entry, 1.0 / e), -v);
+  if (dot(g, d) >= 0.0 || dot(n_entry, v) <= 0.0) { /* Cycles ends a refraction that does not go in */
+    exit_point = p;
+    dir = d;
+    carried = vec3(0.0);
+    return true;
+  }
   float reach = TF_GLASS_REACH * max(length(p - c), TF_WALL_GUARD);
   vec3 o = p;
   bool first = true;
@@ -373,8 +434,8 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, int refle
   for (int bounce = 0; bounce < TF_GLASS_BOUNCES; bounce++) {
     float s;
     bool through_back;
-    vec3 face_n;
-    if (!tf_glass_march(o, d, reach, own, s, through_back, face_n)) {
+    vec3 face_n, face_g;
+    if (!tf_glass_march(o, d, reach, own, s, through_back, face_n, face_g)) {
       if (bounce == 0) {
         tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
         return false;
@@ -382,31 +443,41 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 v, vec3 c, float eta, int own, int refle
       break;
     }
     o = o + s * d;
-    float cos_face = abs(dot(d, face_n));
+    float cos_face;
+    vec3 out_dir, mirrored;
+    bool out_ok, mirror_ok;
+    tf_glass_face(d, face_n, face_g, e, cos_face, out_dir, mirrored, out_ok, mirror_ok);
     if (first) {
       cos_first = cos_face;
     }
-    vec3 out_dir = refract(d, -face_n, e);
     bool tir = dot(out_dir, out_dir) < TF_TIR_EPS;
     if (!tir && chosen >= reflections) {
       exit_point = o;
       dir = tf_safe_normalize(out_dir, d);
       cosines = vec2(cos_first, cos_face);
+      if (!out_ok) {
+        dir = d;
+        carried = vec3(0.0);
+      }
+      return true;
+    }
+    if (!mirror_ok) {
+      exit_point = o;
+      dir = d;
+      cosines = vec2(cos_first, 1.0);
+      carried = vec3(0.0);
       return true;
     }
     if (!tir) { /* reflected by choice: a glint's path */
       carried *= tf_glass_back_r(cos_face, r, eta, own);
       chosen++;
     }
-    d = tf_safe_normalize(d - 2.0 * dot(d, face_n) * face_n, d);
+    d = mirrored;
     first = false;
   }
   exit_point = o;
   dir = d;
   cosines = vec2(cos_first, 1.0);
-  if (reflections > 0) {
-    carried = vec3(0.0); /* a glint's path that does not leave within TF_GLASS_BOUNCES faces: none */
-  }
+  carried = vec3(0.0); /* not left within TF_GLASS_BOUNCES faces: none (Cycles' bounce limit ends it) */
   return true;
 }
-

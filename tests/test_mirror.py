@@ -67,7 +67,6 @@ def test_every_chunk_with_a_numpy_twin_is_listed():
         "tf_main_vert.glsl",
         "tf_background_frag.glsl",
         "tf_background_vert.glsl",
-        "tf_glass_frag.glsl",  # the glass buffers' entry point; its encoding: refract.glass_texel
     }
     chunks = {p.name for p in GLSL.glob("*.glsl")}
     assert chunks - unlisted == listed - {"defines", "generated"}, sorted(chunks - unlisted ^ listed)

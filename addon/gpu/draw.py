@@ -383,10 +383,11 @@ def submit(prepared: PreparedDraw) -> None:
                 if group.variant.refract:
                     shader.uniform_block(layout.BEHIND.name, prepared.behind.ubo)
                     shader.uniform_sampler(layout.BEHIND_SAMPLER.name, prepared.behind.texture)
-                    front, back, film = prepared.behind.glass_textures()
+                    front, back, film, geom = prepared.behind.glass_textures()
                     shader.uniform_sampler(layout.GLASS_FRONT_SAMPLER.name, front)
                     shader.uniform_sampler(layout.GLASS_BACK_SAMPLER.name, back)
                     shader.uniform_sampler(layout.GLASS_FILM_SAMPLER.name, film)
+                    shader.uniform_sampler(layout.GLASS_GEOM_SAMPLER.name, geom)
             _bind_group(shader, group)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(layout.OBJECT.name, object_ubo)

@@ -13,11 +13,18 @@ axis, 0 where no glass is (glsl/tf_glass_frag.glsl; decoded by ``refract.glass_t
 tells objects apart, so one glass does not exit through another's faces. For a convex object the
 pixel's span [front, back] is exactly the object along that pixel's camera ray; a concave one (a
 wine glass's bowl) is taken as its nearest front and back faces.
+
+The same two passes drawn again with ``TF_GLASS_GEOMETRIC`` give those faces' geometric (flat)
+normals, kept in one texture, **geom**: .xy the front face's, .zw the back face's, octahedral
+(``refract.geometric_texel``). With them the march meets a smooth-shaded face as Cycles does
+(``refract.valid_normal``): a wine glass's foot, shaded smooth across its rim, sends the light
+Cycles sends, not straight through to the ground.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import gpu
 import numpy as np
@@ -31,17 +38,17 @@ from .shaders import glass_shader_info
 #: The glass buffers' passes: (name, the faces culled).
 PASSES = (("front", "BACK"), ("back", "FRONT"))
 
-_SHADER = None
+_SHADERS = {}
 
 
-def glass_shader():
-    """The glass buffers' shader (compiled once): tf_main_vert.glsl, then tf_glass_frag.glsl."""
-    global _SHADER
-    if _SHADER is None:
-        info, iface = glass_shader_info()
-        _SHADER = gpu.shader.create_from_info(info)
+def glass_shader(geometric: bool = False):
+    """The glass buffers' shader (compiled once each): tf_main_vert.glsl, then
+    tf_glass_frag.glsl; ``geometric``: the faces' geometric normals (``TF_GLASS_GEOMETRIC``)."""
+    if geometric not in _SHADERS:
+        info, iface = glass_shader_info(geometric)
+        _SHADERS[geometric] = gpu.shader.create_from_info(info)
         del iface  # kept until the shader is compiled
-    return _SHADER
+    return _SHADERS[geometric]
 
 
 def solid_glass(items) -> list:
@@ -57,18 +64,20 @@ def solid_glass(items) -> list:
 
 @dataclasses.dataclass
 class GlassBuffers:
-    """The glass buffers (H, W, 4) float32, top row first, and each glass item's ``id()`` → its id."""
+    """The glass buffers (H, W, 4) float32, top row first: ``front``, ``back`` and their faces'
+    geometric normals ``geom`` (see the module), and each glass item's ``id()`` → its id."""
 
     front: np.ndarray
     back: np.ndarray
+    geom: np.ndarray
     ids: dict
 
     def textures(self) -> tuple:
-        """(front, back) as RGBA32F textures, row 0 at the bottom (as drawn)."""
+        """(front, back, geom) as RGBA32F textures, row 0 at the bottom (as drawn)."""
         h, w = self.front.shape[:2]
         return tuple(
             gpu.types.GPUTexture((w, h), format="RGBA32F", data=float_buffer(a[::-1]))
-            for a in (self.front, self.back)
+            for a in (self.front, self.back, self.geom)
         )
 
 
@@ -81,7 +90,6 @@ def render_glass_buffers(
     if not glass:
         return None
     ids = {id(item): k for k, item in enumerate(glass)}
-    shader = glass_shader()
     view = view_ubo(view_matrix, projection_matrix)
     # kept alive until drawn: a buffer freed before its draw call is not bound
     ubos = [
@@ -95,7 +103,8 @@ def render_glass_buffers(
     try:
         with offscreen.bind():
             fb = gpu.state.active_framebuffer_get()
-            for name, cull in PASSES:
+            for (name, cull), geometric in itertools.product(PASSES, (False, True)):
+                shader = glass_shader(geometric)
                 fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
                 gpu.state.depth_test_set("LESS")
                 gpu.state.depth_mask_set(True)
@@ -111,10 +120,11 @@ def render_glass_buffers(
                     gpu.state.face_culling_set("NONE")
                     gpu.state.depth_test_set("NONE")
                     gpu.state.depth_mask_set(False)
-                out[name] = read_framebuffer(fb, int(width), int(height))
+                out[name, geometric] = read_framebuffer(fb, int(width), int(height))
     finally:
         offscreen.free()
-    return GlassBuffers(out["front"], out["back"], ids)
+    geom = np.concatenate([out["front", True][..., :2], out["back", True][..., :2]], axis=-1)
+    return GlassBuffers(out["front", False], out["back", False], geom, ids)
 
 
 def film_texture(tables) -> gpu.types.GPUTexture | None:

@@ -475,8 +475,8 @@ class BehindTexture:
     scene-linear colour, .a its depth, the distance along the camera axis,
     policy.REFRACT_FAR where nothing was drawn; read with texelFetch) and the :data:`BEHIND`
     buffer placing it in the drawn window; the glass buffers ``front`` and ``back`` (the drawn
-    window's solid glass faces, :mod:`.glass_buffers`; 1 × 1 empty ones without) and ``ids``
-    (a glass item's name → its id there)."""
+    window's solid glass faces, :mod:`.glass_buffers`; 1 × 1 empty ones without), their faces'
+    geometric normals ``geom`` and ``ids`` (a glass item's name → its id there)."""
 
     texture: gpu.types.GPUTexture
     ubo: gpu.types.GPUUniformBuf
@@ -488,17 +488,23 @@ class BehindTexture:
     ids: dict = field(default_factory=dict)
     #: Cycles' back-face film per glass id (rows), u uniform 0…1 (columns), .a = 1 where given.
     film: gpu.types.GPUTexture | None = None
+    #: The glass buffers' geometric normals (:mod:`.glass_buffers`: .xy front, .zw back).
+    geom: gpu.types.GPUTexture | None = None
 
     def glass_textures(self) -> tuple:
-        """(front, back, film): the glass buffers and back-face films, empty 1 × 1 (2 × 1) ones
-        where none were drawn."""
+        """(front, back, film, geom): the glass buffers, back-face films and the buffers'
+        geometric normals, empty 1 × 1 (2 × 1) ones where none were drawn."""
         empty = float_buffer(np.zeros((1, 2, 4)))
         if self.front is None or self.back is None:
-            self.front = gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
-            self.back = gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
+            self.front, self.back, self.geom = (
+                gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
+                for _ in range(3)
+            )
+        if self.geom is None:
+            raise ValueError("the glass buffers were given without their geometric normals (geom)")
         if self.film is None:
             self.film = gpu.types.GPUTexture((2, 1), format="RGBA32F", data=empty)
-        return self.front, self.back, self.film
+        return self.front, self.back, self.film, self.geom
 
     @staticmethod
     def screen(width: int, height: int, pad: int, margin: int = 0) -> tuple[float, ...]:

@@ -151,6 +151,7 @@ def declare_shading_resources(info, variant: Variant) -> None:
         _declare(info, layout.GLASS_FRONT_SAMPLER)
         _declare(info, layout.GLASS_BACK_SAMPLER)
         _declare(info, layout.GLASS_FILM_SAMPLER)
+        _declare(info, layout.GLASS_GEOM_SAMPLER)
     info.typedef_source(layout.TYPEDEFS)
     _declare(info, layout.LIGHTING)
     _declare(info, layout.TABLE if variant.table_ubo else layout.TABLE_SAMPLER)
@@ -199,10 +200,13 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     return info, iface
 
 
-def glass_shader_info():
+def glass_shader_info(geometric: bool = False):
     """(create-info, stage interface) of the glass buffers' shader (:mod:`.glass_buffers`):
-    tf_main_vert.glsl, then tf_glass_frag.glsl (a face's normal and depth, no shading)."""
+    tf_main_vert.glsl, then tf_glass_frag.glsl (a face's normal and depth, no shading;
+    ``geometric``: its geometric normal, ``TF_GLASS_GEOMETRIC``)."""
     info = gpu.types.GPUShaderCreateInfo()
+    if geometric:
+        info.define("TF_GLASS_GEOMETRIC", "1")
     for name, value in policy.glsl_defines():
         info.define(name, value)
     info.typedef_source(layout.TYPEDEFS)

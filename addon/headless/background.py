@@ -299,7 +299,7 @@ def film_layers(items, view, proj, width: int, height: int, behind=None):
     if behind is not None:
         buffers = render_glass_buffers(items, view, proj, width, height)
         if buffers is not None:
-            behind.front, behind.back = buffers.textures()
+            behind.front, behind.back, behind.geom = buffers.textures()
             behind.ids = buffers.ids
             behind.film = film_texture([back_film(item) for item in solid_glass(items)])
     black, depth = render_offscreen(items, view, proj, width, height, with_depth=True, behind=behind)

@@ -106,6 +106,9 @@ MIRROR = (
     Mirror(
         (
             "shading.refract.glass_texel",
+            "shading.refract.geometric_texel",
+            "shading.refract.from_octahedral",
+            "shading.refract.valid_normal",
             "shading.refract.mesh_exit",
             "shading.refract.inner_cosine",
             "shading.transmit.back_reflectance",
@@ -113,6 +116,9 @@ MIRROR = (
         "tf_refract.glsl",
         (
             "tf_glass_decode",
+            "tf_oct_decode",
+            "tf_valid_normal",
+            "tf_glass_face",
             "tf_glass_outside",
             "tf_glass_march",
             "tf_glass_exit",
@@ -120,8 +126,15 @@ MIRROR = (
             "tf_glass_back_r",
         ),
         numpy_note="solid glass's exit through its real mesh (the glass buffers), total internal "
-        "reflection, the film seen from inside",
+        "reflection, the film seen from inside, smooth-shaded faces met as Cycles meets them",
         glsl_note="`TF_REFRACT` with the glass buffers; `tf_glass_glint` in `tf_main_frag.glsl`",
+    ),
+    Mirror(
+        ("shading.refract.octahedral",),
+        "tf_glass_frag.glsl",
+        ("tf_oct_encode",),
+        numpy_note="a glass face's geometric normal in two floats",
+        glsl_note="`TF_GLASS_GEOMETRIC`, the glass buffers' second pass",
     ),
     Mirror(
         ("shading.radiance_grid.lookup", "shading.radiance_grid.coordinates"),

@@ -282,8 +282,8 @@ REFRACT_FAR = 1e30
 #: (a cube's corner lies √3 half sides away, a face's middle one: its space diagonal is 3.5× that),
 #: the first step outside bisected GLASS_REFINE times; a point counts as outside a face when it
 #: lies GLASS_SLACK × its depth beyond it (the buffers' rasterised depth against the interpolated
-#: surface); GLASS_BOUNCES faces at most (total internal reflections), then the ray goes on
-#: straight (docs/tuning.md#glass-buffers).
+#: surface); GLASS_BOUNCES faces at most (total internal reflections): a path that has not left
+#: by then carries nothing, as Cycles' bounce limit ends it (docs/tuning.md#glass-buffers).
 GLASS_STEPS = 24
 GLASS_REACH = 4.0
 GLASS_REFINE = 6

@@ -302,13 +302,94 @@ def glass_texel(encoded) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return ids, normal, e[..., 3]
 
 
+def octahedral(normals) -> np.ndarray:
+    """Unit vectors (…, 3) → their octahedral coordinates (…, 2) in [−1, 1]² (the lower half
+    folded over the diagonals), as tf_oct_encode: how the glass buffers keep a face's geometric
+    normal in two floats."""
+    n = np.asarray(normals, dtype=np.float64)
+    n = n / np.maximum(np.sum(np.abs(n), axis=-1, keepdims=True), 1e-30)
+    xy = n[..., :2]
+    folded = (1.0 - np.abs(xy[..., ::-1])) * np.where(xy >= 0.0, 1.0, -1.0)
+    return np.where(n[..., 2:3] >= 0.0, xy, folded)
+
+
+def from_octahedral(coords) -> np.ndarray:
+    """Octahedral coordinates (…, 2) → unit vectors (…, 3) (:func:`octahedral`'s inverse), as
+    tf_oct_decode."""
+    e = np.asarray(coords, dtype=np.float64)
+    z = 1.0 - np.abs(e[..., 0]) - np.abs(e[..., 1])
+    t = np.maximum(-z, 0.0)
+    x = e[..., 0] + np.where(e[..., 0] >= 0.0, -t, t)
+    y = e[..., 1] + np.where(e[..., 1] >= 0.0, -t, t)
+    n = np.stack([x, y, z], axis=-1)
+    return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+
+
+def geometric_texel(encoded) -> tuple[np.ndarray, np.ndarray]:
+    """(front, back) unit outward geometric normals (…, 3) of the geometric glass buffer's texels
+    (…, 4): .xy the front face's, .zw the back face's, octahedral (:func:`octahedral`)."""
+    e = np.asarray(encoded, dtype=np.float64)
+    return from_octahedral(e[..., :2]), from_octahedral(e[..., 2:])
+
+
+def valid_normal(geometric, incoming, normal) -> np.ndarray:
+    """The shading normal Cycles uses for a smooth glass's reflection and refraction (…, 3)
+    (``ensure_valid_specular_reflection``, Blender 5.2, a material's *Bump Map Correction*, on
+    by default): ``normal`` where the mirror of the unit ``incoming`` direction (towards where the
+    light goes back to, facing ``geometric``) about it rises at least min(0.9 cos, 0.01) above the
+    face's plane (cos = incoming · geometric), else that normal turned towards ``geometric`` in
+    their plane just far enough that the mirror rises exactly that much. All three face the
+    incoming side. As tf_valid_normal."""
+    ng = np.asarray(geometric, dtype=np.float64)
+    wi = np.asarray(incoming, dtype=np.float64)
+    n = np.asarray(normal, dtype=np.float64)
+    mirror = 2.0 * np.sum(n * wi, axis=-1, keepdims=True) * n - wi
+    iz = np.sum(wi * ng, axis=-1)
+    threshold = np.minimum(0.9 * iz, 0.01)
+    keep = np.sum(ng * mirror, axis=-1) >= threshold
+    x = _unit(n - np.sum(n * ng, axis=-1, keepdims=True) * ng, n)
+    ix = np.sum(wi * x, axis=-1)
+    a = np.maximum(ix * ix + iz * iz, 1e-30)
+    b = 2.0 * (a + iz * threshold)
+    c = (threshold + iz) ** 2
+    root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+    nz2 = np.where(ix < 0.0, 0.25 * (b + root) / a, 0.25 * (b - root) / a)
+    along, up = np.sqrt(np.maximum(1.0 - nz2, 0.0)), np.sqrt(np.maximum(nz2, 0.0))
+    turned = along[..., None] * x + up[..., None] * ng
+    return np.where(keep[..., None], n, turned)
+
+
+def _face_step(d, face_n, face_g, eta: float):
+    """One face met from inside by the unit ray ``d`` (N, 3), outward shading and geometric
+    normals ``face_n`` and ``face_g``, as Cycles' smooth glass meets it: (cosine inside, refracted
+    direction out (0 under total internal reflection), mirrored direction, whether the refracted
+    and the mirrored directions are valid). The normal is :func:`valid_normal` facing back inside;
+    a direction is valid where it leaves on its side of both the face and that normal (Cycles
+    drops the rest: its path ends)."""
+    g_in = -face_g
+    n_in = valid_normal(g_in, -d, -face_n)
+    cos_face = np.clip(-np.sum(d * n_in, axis=-1), 0.0, 1.0)
+    out = refract(d, n_in, eta)
+    mirrored = _unit(d - 2.0 * np.sum(d * n_in, axis=-1, keepdims=True) * n_in, d)
+    out_ok = (np.sum(g_in * out, axis=-1) < 0.0) & (np.sum(n_in * out, axis=-1) < 0.0)
+    mirror_ok = (np.sum(g_in * mirrored, axis=-1) > 0.0) & (np.sum(n_in * mirrored, axis=-1) > 0.0)
+    facing = np.sum(n_in * -d, axis=-1) > 0.0
+    return cos_face, out, mirrored, out_ok & facing, mirror_ok & facing
+
+
 class _Glass:
     """The glass buffers as the mesh march reads them: front and back (H, W, 4) top row first
-    (:func:`glass_texel`), placed in the drawn window by ``screen``, as :class:`_Scene`."""
+    (:func:`glass_texel`), their faces' geometric normals ``geometric`` (:func:`geometric_texel`;
+    None: the shading normals stand in), placed in the drawn window by ``screen``, as
+    :class:`_Scene`."""
 
-    def __init__(self, front, back, view_proj, camera, view_dir, screen):
+    def __init__(self, front, back, view_proj, camera, view_dir, screen, geometric=None):
         self.front = glass_texel(front)
         self.back = glass_texel(back)
+        if geometric is None:
+            self.front_g, self.back_g = self.front[1], self.back[1]
+        else:
+            self.front_g, self.back_g = geometric_texel(geometric)
         self.view_proj = np.asarray(view_proj, dtype=np.float64)
         self.camera = np.asarray(camera, dtype=np.float64).reshape(3)
         self.view_dir = np.asarray(view_dir, dtype=np.float64).reshape(3)
@@ -367,75 +448,89 @@ def mesh_exit(
     view_dir,
     screen=(1.0, 1.0, 0.0, 0.0),
     reflections: int = 0,
+    geometric=None,
+    entry_geometric=None,
 ):
     """(exit points (N, 3), exit directions (N, 3), found (N,), cosines (N, 2 + reflections)):
     rays from the viewer entering glass of index ``eta`` at ``points`` (unit ``normals`` facing
     the viewer) and leaving the object ``own`` through its real surface, read from the glass
     buffers ``front`` and ``back`` (see :func:`glass_texel`; the object's nearest front and back
-    faces per pixel).
+    faces per pixel) and ``geometric`` (their faces' geometric normals, :func:`geometric_texel`;
+    None: the shading normals stand in; ``entry_geometric``: the entry faces', facing the viewer).
 
     The inner ray is marched until it leaves the object (:func:`_march_inside`, over
-    GLASS_REACH × ‖p − centre‖), refracted out at the face it crosses (its buffer's normal); under
-    total internal reflection it is reflected and marched again, up to GLASS_BOUNCES faces, then
-    goes on straight. ``reflections``: the first that many faces the ray could leave through
-    reflect it instead (the glints: the light the film reflects back inside, once or more; faces
-    that reflect totally do so anyway and are not counted). ``cosines``: the cosine inside the
-    glass at the first face met, at the face the ray leaves through (1 where it never leaves;
-    NaN there with ``reflections``: a glint that never leaves carries nothing),
-    then at each face that reflected it by choice (NaN where it met no more), for the film's
-    reflectance from inside (:func:`.transmit.back_reflectance`). Where the first march finds no
-    face (the object is not in the back buffer at the entry's pixel, or no exit within reach)
-    ``found`` is False and the sphere about ``centre`` stands in (:func:`exit_ray`; every cosine
-    its cos θₜ)."""
+    GLASS_REACH × ‖p − centre‖), refracted out at the face it crosses; under total internal
+    reflection it is reflected and marched again, up to GLASS_BOUNCES faces; a path that has not
+    left by then carries nothing, as Cycles' bounce limit ends it. Each face turns and refracts
+    as Cycles' smooth glass does (:func:`_face_step`, :func:`valid_normal`: a smooth-shaded
+    mesh's normal is lifted where its mirror would dip below the face); a path whose next
+    direction Cycles drops (a refraction that would not leave through the face, a mirror that
+    would) carries nothing. ``reflections``: the first that many faces the ray could leave
+    through reflect it instead (the glints: the light the film reflects back inside, once or
+    more; faces that reflect totally do so anyway and are not counted). ``cosines``: the cosine
+    inside the glass at the first face met, at the face the ray leaves through (NaN where the
+    path carries nothing: it never leaves, or Cycles drops it), then at each face that reflected
+    it by choice (NaN where it met no more), for the film's reflectance from inside
+    (:func:`.transmit.back_reflectance`). Where the first march finds no face (the object is not
+    in the back buffer at the entry's pixel, or no exit within reach) ``found`` is False and the
+    sphere about ``centre`` stands in
+    (:func:`exit_ray`; every cosine its cos θₜ)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
     c = np.asarray(centre, dtype=np.float64).reshape(3)
     e = max(float(eta), WALL_GUARD)
-    glass = _Glass(front, back, view_proj, camera, view_dir, screen)
-    d = _unit(refract(-v, n, 1.0 / e), -v)
+    glass = _Glass(front, back, view_proj, camera, view_dir, screen, geometric)
+    g_entry = n if entry_geometric is None else np.asarray(entry_geometric, dtype=np.float64).reshape(-1, 3)
+    n_entry = valid_normal(g_entry, v, n)
+    d = _unit(refract(-v, n_entry, 1.0 / e), -v)
+    # Cycles drops a refraction that does not go into the face (a smooth normal tilted past it)
+    dropped = (np.sum(g_entry * d, axis=-1) >= 0.0) | (np.sum(n_entry * v, axis=-1) <= 0.0)
     reach = GLASS_REACH * np.maximum(np.linalg.norm(p - c, axis=-1), WALL_GUARD)
     o = p.copy()
     count = p.shape[0]
-    done = np.zeros(count, dtype=bool)
     left = np.zeros(count, dtype=bool)
     first = np.ones(count, dtype=bool)
-    any_found = np.zeros(count, dtype=bool)
     cos_first = np.ones(count)
     cos_last = np.ones(count)
     forced = np.zeros(count, dtype=np.int64)
     cos_forced = np.full((count, int(reflections)), np.nan)
     _o, _b, row, col, on_picture = glass.outside(p, own)
     present = (glass.back[0][row, col] == own) & on_picture  # the object is in the buffers at its entry
+    done = dropped & present  # dropped on the way in: it goes no further
+    any_found = done.copy()
     for bounce in range(GLASS_BOUNCES):
         found, s, through_back, row, col = _march_inside(glass, o, d, reach, own)
         found &= present
         if bounce == 0:
-            any_found = found
+            any_found |= found
         live = found & ~done
         q = o + s[:, None] * d
         face_n = np.where(through_back[:, None], glass.back[1][row, col], glass.front[1][row, col])
-        cos_face = np.abs(np.sum(d * face_n, axis=-1))
+        face_g = np.where(through_back[:, None], glass.back_g[row, col], glass.front_g[row, col])
+        cos_face, out, mirrored, out_ok, mirror_ok = _face_step(d, face_n, face_g, e)
         cos_first = np.where(live & first, cos_face, cos_first)
-        out = refract(d, -face_n, e)
-        tir = np.sum(out * out, axis=-1) < 1e-12
+        tir = np.sum(out * out, axis=-1) < TIR_EPS
         chosen = live & ~tir & (forced < reflections)  # reflected by choice: a glint's path
         for k in range(int(reflections)):
             cos_forced[:, k] = np.where(chosen & (forced == k), cos_face, cos_forced[:, k])
         forced += chosen
         bounce_here = tir | chosen
-        mirrored = _unit(d - 2.0 * np.sum(d * face_n, -1, keepdims=True) * face_n, d)
-        leave = live & ~bounce_here
+        drop_here = live & np.where(bounce_here, ~mirror_ok, ~out_ok)
+        dropped |= drop_here
+        go = live & ~drop_here
+        leave = go & ~bounce_here
         cos_last = np.where(leave, cos_face, cos_last)
         o = np.where(live[:, None], q, o)
-        d = np.where(leave[:, None], _unit(out, d), np.where(live[:, None], mirrored, d))
-        done |= leave | ~found
+        d = np.where(leave[:, None], _unit(out, d), np.where(go[:, None], mirrored, d))
+        done |= leave | ~found | drop_here
         left |= leave
         first &= ~live
     sphere_point, sphere_dir = exit_ray(p, n, v, c, e)
     cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
-    if reflections:  # a glint's path that does not leave within GLASS_BOUNCES faces: none
-        cos_last = np.where(left, cos_last, np.nan)
+    # a path that does not leave within GLASS_BOUNCES faces carries nothing (Cycles' bounce limit)
+    cos_last = np.where(left, cos_last, np.nan)
+    cos_last = np.where(dropped & any_found, np.nan, cos_last)
     traced = np.concatenate([np.stack([cos_first, cos_last], -1), cos_forced], axis=-1)
     cosines = np.where(any_found[:, None], traced, cos_t[:, None])
     return (
