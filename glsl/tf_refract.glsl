@@ -229,13 +229,14 @@ vec3 tf_oct_decode(vec2 e)
 
 /* The shading normal Cycles uses for smooth glass (shading.refract.valid_normal, Cycles'
  * ensure_valid_specular_reflection): n where the mirror of wi about it rises at least
- * min(0.9 cos, 0.01) above the face (geometric normal ng, cos = wi . ng), else n turned towards
- * ng in their plane until it rises exactly that much; ng, wi and n face the same side. */
+ * min(TF_VALID_REFLECTION_SCALE cos, TF_VALID_REFLECTION_RISE) above the face (geometric
+ * normal ng, cos = wi . ng), else n turned towards ng in their plane until it rises exactly that
+ * much; ng, wi and n face the same side. */
 vec3 tf_valid_normal(vec3 ng, vec3 wi, vec3 n)
 {
   vec3 mirror = 2.0 * dot(n, wi) * n - wi;
   float iz = dot(wi, ng);
-  float threshold = min(0.9 * iz, 0.01);
+  float threshold = min(TF_VALID_REFLECTION_SCALE * iz, TF_VALID_REFLECTION_RISE);
   if (dot(ng, mirror) >= threshold) {
     return n;
   }

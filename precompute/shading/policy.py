@@ -295,6 +295,12 @@ GLASS_BOUNCES = 8
 #: nears the critical one): Cycles' transmission there was 2–3× ours in the median with one. The
 #: benchmark's ball over a Cycles pass: 3.12 with 1, 2.98 with 4 (docs/transparent-films.md).
 GLASS_ORDERS = 4
+#: Cycles' rule for a smooth-shaded face (``ensure_valid_specular_reflection``, Blender 5.2): a
+#: shading normal whose mirror of the incoming ray (at cosine c to the face) rises less than
+#: min(VALID_REFLECTION_SCALE c, VALID_REFLECTION_RISE) above the face is turned towards the
+#: face's own normal until it rises exactly that much (shading/refract.py ``valid_normal``).
+VALID_REFLECTION_SCALE = 0.9
+VALID_REFLECTION_RISE = 0.01
 #: With the glass buffers solid glass draws only its nearest front face: a fragment more than this
 #: × its depth behind the front buffer's face is inside the glass (a wine glass's far wall, seen
 #: through its near one), and is left out (docs/tuning.md#glass-buffers).
@@ -446,7 +452,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       :data:`REFRACT_LINE_EPS`;
     - ``TF_GLASS_STEPS``, ``TF_GLASS_REACH``, ``TF_GLASS_REFINE``, ``TF_GLASS_SLACK``,
       ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``: the exit through the real mesh
-      (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints (:data:`GLASS_ORDERS`).
+      (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints (:data:`GLASS_ORDERS`);
+      ``TF_VALID_REFLECTION_SCALE``, ``TF_VALID_REFLECTION_RISE``: Cycles' rule at a
+      smooth-shaded face (:data:`VALID_REFLECTION_SCALE`, :data:`VALID_REFLECTION_RISE`).
     """
     return (
         *_defines(
@@ -498,6 +506,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "GLASS_REFINE",
             "GLASS_SLACK",
             "GLASS_BOUNCES",
+            "VALID_REFLECTION_SCALE",
+            "VALID_REFLECTION_RISE",
             "GLASS_FRONT_SLACK",
             "GLASS_ORDERS",
         ),

@@ -56,6 +56,8 @@ from .policy import (
     REFRACT_STEPS,
     REFRACT_THICKNESS,
     TIR_EPS,
+    VALID_REFLECTION_RISE,
+    VALID_REFLECTION_SCALE,
     WALL_GUARD,
 )
 
@@ -337,7 +339,8 @@ def valid_normal(geometric, incoming, normal) -> np.ndarray:
     (``ensure_valid_specular_reflection``, Blender 5.2, a material's *Bump Map Correction*, on
     by default): ``normal`` where the mirror of the unit ``incoming`` direction (towards where the
     light goes back to, facing ``geometric``) about it rises at least min(0.9 cos, 0.01) above the
-    face's plane (cos = incoming · geometric), else that normal turned towards ``geometric`` in
+    face's plane (cos = incoming · geometric; :data:`.policy.VALID_REFLECTION_SCALE`, ``_RISE``),
+    else that normal turned towards ``geometric`` in
     their plane just far enough that the mirror rises exactly that much. All three face the
     incoming side. As tf_valid_normal."""
     ng = np.asarray(geometric, dtype=np.float64)
@@ -345,7 +348,7 @@ def valid_normal(geometric, incoming, normal) -> np.ndarray:
     n = np.asarray(normal, dtype=np.float64)
     mirror = 2.0 * np.sum(n * wi, axis=-1, keepdims=True) * n - wi
     iz = np.sum(wi * ng, axis=-1)
-    threshold = np.minimum(0.9 * iz, 0.01)
+    threshold = np.minimum(VALID_REFLECTION_SCALE * iz, VALID_REFLECTION_RISE)
     keep = np.sum(ng * mirror, axis=-1) >= threshold
     x = _unit(n - np.sum(n * ng, axis=-1, keepdims=True) * ng, n)
     ix = np.sum(wi * x, axis=-1)

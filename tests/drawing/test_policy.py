@@ -18,8 +18,9 @@ from precompute.shading.variant import Variant, choose_variant
 REPO = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 GLSL = REPO / "glsl"
 
-#: Defines the shaders set for themselves: the library switch of the generated code.
-LIBRARY_DEFINES = {codegen.X90_GENERATED[0]}
+#: Defines the shaders set for themselves: the library switch of the generated code, and the
+#: glass buffers' second pass (addon/gpu/shaders.py ``glass_shader_info``).
+LIBRARY_DEFINES = {codegen.X90_GENERATED[0], "TF_GLASS_GEOMETRIC"}
 
 
 def code(text: str) -> str:
