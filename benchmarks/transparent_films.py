@@ -404,7 +404,9 @@ alone. The bubble's background is the HDRI alone, the same in every engine.
 
 **Solid glass** (ball, cube, wine glass; a 300 nm film of 1.33 on glass of 1.5, roughness 0.05)
 leaves through its real mesh: its nearest front and back faces per pixel (the glass buffers),
-total internal reflection followed, refracted over the background pass's depth (overscanned on
+total internal reflection followed (8 faces; a path still inside then is dark, as Cycles' bounce
+limit makes it), faces shaded smooth met as Cycles meets them (its correction of a normal
+tilted past its face), refracted over the background pass's depth (overscanned on
 each side; a ray leaving the picture sees its edge if it heads into it, else the World), up to
 four reflections inside (the glints)
 and the ground mirrored (docs/transparent-films.md#solid-glass-refraction). The film seen from
