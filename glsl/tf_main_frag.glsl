@@ -176,6 +176,15 @@ void main()
   if (dot(n, v) < 0.0) {
     n = -n;
   }
+#ifdef TF_REFRACT
+  vec3 g = n; /* solid glass: its face's own normal, facing the viewer */
+  if (tf_object.material.z > 1.5) { /* the normal Cycles shades it with (tf_valid_normal) */
+    g = tf_safe_normalize(face_g, n);
+    g = (dot(g, v) < 0.0) ? -g : g;
+    vec3 smooth_n = tf_safe_normalize(tf_world_nor, v);
+    n = tf_valid_normal(g, v, (dot(smooth_n, g) < 0.0) ? -smooth_n : smooth_n);
+  }
+#endif
 #ifdef TF_VARY_THICKNESS
   float thickness01 = tf_thickness;
 #else
@@ -238,8 +247,6 @@ void main()
   if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
     vec3 t_in = sqrt(max(wall_t, vec3(0.0))); /* wall_t = (1 - r)^2 */
     vec2 cosines;
-    vec3 g = tf_safe_normalize(face_g, n);
-    g = (dot(g, v) < 0.0) ? -g : g; /* the front face's, facing the viewer as n does */
     vec3 seen = tf_refracted(n, g, v, r_wall, cosines);
     vec3 r_out = tf_glass_back_r(cosines.y, r_wall, tf_object.material.w, tf_glass_own());
     rgb += through * t_in * (vec3(1.0) - r_out) * seen;
