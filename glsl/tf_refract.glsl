@@ -234,7 +234,7 @@ vec3 tf_oct_decode(vec2 e)
  * much; ng, wi and n face the same side. */
 vec3 tf_valid_normal(vec3 ng, vec3 wi, vec3 n)
 {
-  vec3 mirror = 2.0 * dot(n, wi) * n - wi;
+  vec3 mirror = reflect(-wi, n);
   float iz = dot(wi, ng);
   float threshold = min(TF_VALID_REFLECTION_SCALE * iz, TF_VALID_REFLECTION_RISE);
   if (dot(ng, mirror) >= threshold) {
@@ -261,7 +261,7 @@ void tf_glass_face(vec3 d, vec3 face_n, vec3 face_g, float eta, out float cos_fa
   vec3 n_in = tf_valid_normal(g_in, -d, -face_n);
   cos_face = clamp(-dot(d, n_in), 0.0, 1.0);
   out_dir = refract(d, n_in, eta);
-  mirrored = tf_safe_normalize(d - 2.0 * dot(d, n_in) * n_in, d);
+  mirrored = tf_safe_normalize(reflect(d, n_in), d);
   bool facing = dot(n_in, -d) > 0.0;
   out_ok = facing && dot(g_in, out_dir) < 0.0 && dot(n_in, out_dir) < 0.0;
   mirror_ok = facing && dot(g_in, mirrored) > 0.0 && dot(n_in, mirrored) > 0.0;

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..brdf import reflect
 from .policy import (
     GLASS_BOUNCES,
     GLASS_REACH,
@@ -340,13 +341,12 @@ def valid_normal(geometric, incoming, normal) -> np.ndarray:
     by default): ``normal`` where the mirror of the unit ``incoming`` direction (towards where the
     light goes back to, facing ``geometric``) about it rises at least min(0.9 cos, 0.01) above the
     face's plane (cos = incoming · geometric; :data:`.policy.VALID_REFLECTION_SCALE`, ``_RISE``),
-    else that normal turned towards ``geometric`` in
-    their plane just far enough that the mirror rises exactly that much. All three face the
-    incoming side. As tf_valid_normal."""
+    else that normal turned towards ``geometric`` in their plane just far enough that the mirror
+    rises exactly that much. All three face the incoming side. As tf_valid_normal."""
     ng = np.asarray(geometric, dtype=np.float64)
     wi = np.asarray(incoming, dtype=np.float64)
     n = np.asarray(normal, dtype=np.float64)
-    mirror = 2.0 * np.sum(n * wi, axis=-1, keepdims=True) * n - wi
+    mirror = reflect(wi, n)
     iz = np.sum(wi * ng, axis=-1)
     threshold = np.minimum(VALID_REFLECTION_SCALE * iz, VALID_REFLECTION_RISE)
     keep = np.sum(ng * mirror, axis=-1) >= threshold
@@ -373,7 +373,7 @@ def _face_step(d, face_n, face_g, eta: float):
     n_in = valid_normal(g_in, -d, -face_n)
     cos_face = np.clip(-np.sum(d * n_in, axis=-1), 0.0, 1.0)
     out = refract(d, n_in, eta)
-    mirrored = _unit(d - 2.0 * np.sum(d * n_in, axis=-1, keepdims=True) * n_in, d)
+    mirrored = _unit(-reflect(d, n_in), d)
     out_ok = (np.sum(g_in * out, axis=-1) < 0.0) & (np.sum(n_in * out, axis=-1) < 0.0)
     mirror_ok = (np.sum(g_in * mirrored, axis=-1) > 0.0) & (np.sum(n_in * mirrored, axis=-1) > 0.0)
     facing = np.sum(n_in * -d, axis=-1) > 0.0
@@ -476,8 +476,7 @@ def mesh_exit(
     it by choice (NaN where it met no more), for the film's reflectance from inside
     (:func:`.transmit.back_reflectance`). Where the first march finds no face (the object is not
     in the back buffer at the entry's pixel, or no exit within reach) ``found`` is False and the
-    sphere about ``centre`` stands in
-    (:func:`exit_ray`; every cosine its cos θₜ)."""
+    sphere about ``centre`` stands in (:func:`exit_ray`; every cosine its cos θₜ)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
@@ -488,7 +487,7 @@ def mesh_exit(
     n_entry = valid_normal(g_entry, v, n)
     d = _unit(refract(-v, n_entry, 1.0 / e), -v)
     # Cycles drops a refraction that does not go into the face (a smooth normal tilted past it)
-    dropped = (np.sum(g_entry * d, axis=-1) >= 0.0) | (np.sum(n_entry * v, axis=-1) <= 0.0)
+    dropped_in = (np.sum(g_entry * d, axis=-1) >= 0.0) | (np.sum(n_entry * v, axis=-1) <= 0.0)
     reach = GLASS_REACH * np.maximum(np.linalg.norm(p - c, axis=-1), WALL_GUARD)
     o = p.copy()
     count = p.shape[0]
@@ -500,7 +499,7 @@ def mesh_exit(
     cos_forced = np.full((count, int(reflections)), np.nan)
     _o, _b, row, col, on_picture = glass.outside(p, own)
     present = (glass.back[0][row, col] == own) & on_picture  # the object is in the buffers at its entry
-    done = dropped & present  # dropped on the way in: it goes no further
+    done = dropped_in & present  # dropped on the way in: it goes no further
     any_found = done.copy()
     for bounce in range(GLASS_BOUNCES):
         found, s, through_back, row, col = _march_inside(glass, o, d, reach, own)
@@ -520,7 +519,6 @@ def mesh_exit(
         forced += chosen
         bounce_here = tir | chosen
         drop_here = live & np.where(bounce_here, ~mirror_ok, ~out_ok)
-        dropped |= drop_here
         go = live & ~drop_here
         leave = go & ~bounce_here
         cos_last = np.where(leave, cos_face, cos_last)
@@ -531,9 +529,8 @@ def mesh_exit(
         first &= ~live
     sphere_point, sphere_dir = exit_ray(p, n, v, c, e)
     cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
-    # a path that does not leave within GLASS_BOUNCES faces carries nothing (Cycles' bounce limit)
+    # a path that does not leave (within GLASS_BOUNCES faces, or one Cycles drops) carries nothing
     cos_last = np.where(left, cos_last, np.nan)
-    cos_last = np.where(dropped & any_found, np.nan, cos_last)
     traced = np.concatenate([np.stack([cos_first, cos_last], -1), cos_forced], axis=-1)
     cosines = np.where(any_found[:, None], traced, cos_t[:, None])
     return (
