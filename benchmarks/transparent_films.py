@@ -421,8 +421,9 @@ cells (precompute/optics/sources.py).
 **Unclamped Cycles.** Blender's default indirect clamp (10 per sample) dimmed the ball's glints
 30× in the first references (a reflection chosen with probability F ≈ 0.03 carries 1/F of the
 lamp's 400 and is clamped), so the references are rendered with the clamps off
-(`SCENE_VERSION` 2). Not in our frame: a concave glass's far wall (a wine glass is taken as its
-nearest front and back faces), light inside the glass after more than four reflections, light
+(`SCENE_VERSION` 2). Not in our frame: a concave glass's spans beyond its second (the glass
+buffers hold two front and two back faces per pixel), light inside the glass after more than
+four reflections, light
 the ground sends back onto itself through the glass (a second diffuse bounce). The cube and
 the wine glass stand 1 cm above the ground (`CONTACT_GAP`, `SCENE_VERSION` 2 for both): with
 their bottom faces in the ground's plane Cycles lit the ground under them 9× too dark (a probe:

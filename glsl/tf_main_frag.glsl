@@ -83,16 +83,39 @@ int tf_glass_own()
   return int(floor(tf_object.glass.x + 0.5));
 }
 
+/* What the ray from o along dir sees: the scene behind where it meets it, else the World along it
+ * (TF_SPLIT_SUM), else nothing. */
+vec3 tf_refract_seen(vec3 o, vec3 dir)
+{
+  vec3 colour;
+  if (tf_refract_march(o, dir, colour)) {
+    return colour;
+  }
+#ifdef TF_SPLIT_SUM
+  vec3 unused_moment;
+  float unused_weight;
+  return tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+#else
+  return vec3(0.0);
+#endif
+}
+
 /* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray (through
  * the real mesh, tf_glass_exit, else the sphere about the origin) hits it, else the World along
  * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
  * the pixel, times what the path carries (0 where Cycles ends it); g: the face's geometric
- * normal; cosines: inside the glass at the first face and the face it leaves through. */
-vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines)
+ * normal; cosines: inside the glass at the first face and the face it leaves through; side: what
+ * the film mirrors where the ray enters the glass again (a wine glass's far wall,
+ * tf_refract_seen), times what that branch carries. */
+vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines, out vec3 side)
 {
-  vec3 exit_point, dir, colour, carried;
+  vec3 exit_point, dir, colour, carried, side_point, side_dir, side_carried;
   tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), 0, r,
-                exit_point, dir, cosines, carried);
+                exit_point, dir, cosines, carried, side_point, side_dir, side_carried);
+  side = vec3(0.0);
+  if (any(greaterThan(side_carried, vec3(0.0)))) {
+    side = side_carried * tf_refract_seen(side_point, side_dir);
+  }
   if (tf_refract_march(exit_point, dir, colour)) {
     return carried * colour;
   }
@@ -125,10 +148,10 @@ vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
   float unused_weight;
   vec3 total = vec3(0.0);
   for (int k = 1; k <= TF_GLASS_ORDERS; k++) {
-    vec3 exit_point, dir, carried;
+    vec3 exit_point, dir, carried, side_point, side_dir, side_carried;
     vec2 cosines;
     if (!tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, eta, own, k, r, exit_point, dir, cosines,
-                       carried)) {
+                       carried, side_point, side_dir, side_carried)) {
       vec3 r_in = tf_glass_back_r(cosines.x, r, eta, own);
       return t_in * r_in * (vec3(1.0) - r_in) *
              tf_prefiltered_lookup(tf_solid_internal(n, v, eta), 0.0, unused_moment, unused_weight);
@@ -247,9 +270,10 @@ void main()
   if (tf_object.material.z > 1.5) { /* solid glass: in and out through the film along the exit ray */
     vec3 t_in = sqrt(max(wall_t, vec3(0.0))); /* wall_t = (1 - r)^2 */
     vec2 cosines;
-    vec3 seen = tf_refracted(n, g, v, r_wall, cosines);
+    vec3 side;
+    vec3 seen = tf_refracted(n, g, v, r_wall, cosines, side);
     vec3 r_out = tf_glass_back_r(cosines.y, r_wall, tf_object.material.w, tf_glass_own());
-    rgb += through * t_in * (vec3(1.0) - r_out) * seen;
+    rgb += through * t_in * ((vec3(1.0) - r_out) * seen + side);
 #ifdef TF_SPLIT_SUM
     rgb += through * tf_glass_glint(n, g, v, t_in, r_wall);
     rgb = max(rgb + tf_scene_mirror(n, v, wall_t), vec3(0.0));

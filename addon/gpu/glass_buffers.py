@@ -10,9 +10,13 @@ solid glass objects, drawn in the films' window before the films (:func:`render_
 
 each texel .xyz = the face's unit outward normal × (id + 1), .w = its depth along the camera
 axis, 0 where no glass is (glsl/tf_glass_frag.glsl; decoded by ``refract.glass_texel``). The id
-tells objects apart, so one glass does not exit through another's faces. For a convex object the
-pixel's span [front, back] is exactly the object along that pixel's camera ray; a concave one (a
-wine glass's bowl) is taken as its nearest front and back faces.
+tells objects apart, so one glass does not exit through another's faces. Each pass is peeled
+``policy.GLASS_LAYERS`` deep (``TF_GLASS_FURTHER``: a further layer draws only the faces behind
+the layer before): for a convex object the pixel's span [front, back] of layer 0 is exactly the
+object along that pixel's camera ray; a concave one (a wine glass) has a further span per layer,
+its far wall behind its near one, its foot behind its stem, which the exit ray enters again
+(``refract._march_enter``). The arrays are (layers, H, W, 4); the textures hold the layers side by
+side (layer k's texel (x, y) at (x + k W, y)).
 
 The same two passes drawn again with ``TF_GLASS_GEOMETRIC`` give those faces' geometric (flat)
 normals, kept in one texture, **geom**: .xy the front face's, .zw the back face's, octahedral
@@ -29,6 +33,7 @@ import itertools
 import gpu
 import numpy as np
 
+from ...precompute.shading.policy import GLASS_LAYERS
 from ...precompute.shading.transmit import WALL_SOLID
 from . import layout
 from .draw import _batch_of, _matrix, object_uniforms, read_framebuffer, view_ubo
@@ -41,14 +46,16 @@ PASSES = (("front", "BACK"), ("back", "FRONT"))
 _SHADERS = {}
 
 
-def glass_shader(geometric: bool = False):
+def glass_shader(geometric: bool = False, further: bool = False):
     """The glass buffers' shader (compiled once each): tf_main_vert.glsl, then
-    tf_glass_frag.glsl; ``geometric``: the faces' geometric normals (``TF_GLASS_GEOMETRIC``)."""
-    if geometric not in _SHADERS:
-        info, iface = glass_shader_info(geometric)
-        _SHADERS[geometric] = gpu.shader.create_from_info(info)
+    tf_glass_frag.glsl; ``geometric``: the faces' geometric normals (``TF_GLASS_GEOMETRIC``);
+    ``further``: a further layer's faces (``TF_GLASS_FURTHER``)."""
+    key = (geometric, further)
+    if key not in _SHADERS:
+        info, iface = glass_shader_info(geometric, further)
+        _SHADERS[key] = gpu.shader.create_from_info(info)
         del iface  # kept until the shader is compiled
-    return _SHADERS[geometric]
+    return _SHADERS[key]
 
 
 def solid_glass(items) -> list:
@@ -64,8 +71,8 @@ def solid_glass(items) -> list:
 
 @dataclasses.dataclass
 class GlassBuffers:
-    """The glass buffers (H, W, 4) float32, top row first: ``front``, ``back`` and their faces'
-    geometric normals ``geom`` (see the module), and each glass item's ``id()`` → its id."""
+    """The glass buffers (layers, H, W, 4) float32, top row first: ``front``, ``back`` and their
+    faces' geometric normals ``geom`` (see the module), and each glass item's ``id()`` → its id."""
 
     front: np.ndarray
     back: np.ndarray
@@ -73,19 +80,45 @@ class GlassBuffers:
     ids: dict
 
     def textures(self) -> tuple:
-        """(front, back, geom) as RGBA32F textures, row 0 at the bottom (as drawn)."""
-        h, w = self.front.shape[:2]
+        """(front, back, geom) as RGBA32F textures, the layers side by side, row 0 at the bottom
+        (as drawn)."""
+        layers, h, w = self.front.shape[:3]
         return tuple(
-            gpu.types.GPUTexture((w, h), format="RGBA32F", data=float_buffer(a[::-1]))
+            gpu.types.GPUTexture(
+                (w * layers, h), format="RGBA32F", data=float_buffer(np.concatenate(list(a), axis=1)[::-1])
+            )
             for a in (self.front, self.back, self.geom)
         )
 
 
+def _draw_pass(fb, glass, ubos, view, cull: str, geometric: bool, peel) -> None:
+    """One pass of the glass buffers into ``fb``: the faces not culled by ``cull``, nearest first;
+    ``peel``: the same side's layer before (a texture), whose faces it draws behind."""
+    shader = glass_shader(geometric, peel is not None)
+    fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+    gpu.state.depth_test_set("LESS")
+    gpu.state.depth_mask_set(True)
+    gpu.state.blend_set("NONE")
+    gpu.state.face_culling_set(cull)
+    try:
+        shader.bind()
+        shader.uniform_block(layout.VIEW.name, view)
+        if peel is not None:
+            shader.uniform_sampler(layout.GLASS_PEEL_SAMPLER.name, peel)
+        for ubo, item in zip(ubos, glass, strict=True):
+            shader.uniform_block(layout.OBJECT.name, ubo)
+            _batch_of(item)[0].draw(shader)
+    finally:
+        gpu.state.face_culling_set("NONE")
+        gpu.state.depth_test_set("NONE")
+        gpu.state.depth_mask_set(False)
+
+
 def render_glass_buffers(
-    items, view_matrix, projection_matrix, width: int, height: int
+    items, view_matrix, projection_matrix, width: int, height: int, layers: int = GLASS_LAYERS
 ) -> GlassBuffers | None:
     """Draw the solid glass ``items`` into the glass buffers of a ``width`` × ``height`` window (the
-    films' pass, the same matrices); None without solid glass. See the module."""
+    films' pass, the same matrices), ``layers`` deep; None without solid glass. See the module."""
     glass = solid_glass(items)
     if not glass:
         return None
@@ -98,33 +131,31 @@ def render_glass_buffers(
         )
         for item in glass
     ]
+    w, h = int(width), int(height)
     out = {}
-    offscreen = gpu.types.GPUOffScreen(int(width), int(height), format="RGBA32F")
+    offscreen = gpu.types.GPUOffScreen(w, h, format="RGBA32F")
     try:
         with offscreen.bind():
             fb = gpu.state.active_framebuffer_get()
-            for (name, cull), geometric in itertools.product(PASSES, (False, True)):
-                shader = glass_shader(geometric)
-                fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-                gpu.state.depth_test_set("LESS")
-                gpu.state.depth_mask_set(True)
-                gpu.state.blend_set("NONE")
-                gpu.state.face_culling_set(cull)
-                try:
-                    shader.bind()
-                    shader.uniform_block(layout.VIEW.name, view)
-                    for item, ubo in zip(glass, ubos, strict=True):
-                        shader.uniform_block(layout.OBJECT.name, ubo)
-                        _batch_of(item)[0].draw(shader)
-                finally:
-                    gpu.state.face_culling_set("NONE")
-                    gpu.state.depth_test_set("NONE")
-                    gpu.state.depth_mask_set(False)
-                out[name, geometric] = read_framebuffer(fb, int(width), int(height))
+            for layer, (name, cull) in itertools.product(range(int(layers)), PASSES):
+                peel = None
+                if layer > 0:
+                    before = out[name, False, layer - 1]
+                    if not np.any(before[..., 3] > 0.0):  # nothing left to peel
+                        out[name, False, layer] = out[name, True, layer] = np.zeros_like(before)
+                        continue
+                    peel = gpu.types.GPUTexture((w, h), format="RGBA32F", data=float_buffer(before[::-1]))
+                for geometric in (False, True):
+                    _draw_pass(fb, glass, ubos, view, cull, geometric, peel)
+                    out[name, geometric, layer] = read_framebuffer(fb, w, h)
     finally:
         offscreen.free()
-    geom = np.concatenate([out["front", True][..., :2], out["back", True][..., :2]], axis=-1)
-    return GlassBuffers(out["front", False], out["back", False], geom, ids)
+
+    def stack(name, geometric):
+        return np.stack([out[name, geometric, k] for k in range(int(layers))])
+
+    geom = np.concatenate([stack("front", True)[..., :2], stack("back", True)[..., :2]], axis=-1)
+    return GlassBuffers(stack("front", False), stack("back", False), geom, ids)
 
 
 def film_texture(tables) -> gpu.types.GPUTexture | None:

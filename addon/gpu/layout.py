@@ -281,3 +281,6 @@ GLASS_FILM_SAMPLER = Sampler(11, "FLOAT_2D", "tf_glass_film")
 #: The geometric normals of those faces (.xy the front face's, .zw the back face's, octahedral;
 #: tf_refract.glsl tf_glass_outside), for Cycles' rules at smooth-shaded faces.
 GLASS_GEOM_SAMPLER = Sampler(12, "FLOAT_2D", "tf_glass_geom")
+#: The glass buffers' shader's only texture (``TF_GLASS_FURTHER``, :mod:`.glass_buffers`): the
+#: layer before, whose faces a further layer's lie behind.
+GLASS_PEEL_SAMPLER = Sampler(0, "FLOAT_2D", "tf_glass_peel")

@@ -493,12 +493,13 @@ class BehindTexture:
 
     def glass_textures(self) -> tuple:
         """(front, back, film, geom): the glass buffers, back-face films and the buffers'
-        geometric normals, empty 1 × 1 (2 × 1) ones where none were drawn."""
+        geometric normals, empty ones (one texel a layer; the film 2 × 1) where none were drawn."""
         empty = float_buffer(np.zeros((1, 2, 4)))
         if self.front is None or self.back is None:
+            layers = policy.GLASS_LAYERS  # side by side (.glass_buffers)
+            none = float_buffer(np.zeros((1, layers, 4)))
             self.front, self.back, self.geom = (
-                gpu.types.GPUTexture((1, 1), format="RGBA32F", data=float_buffer(np.zeros(4)))
-                for _ in range(3)
+                gpu.types.GPUTexture((layers, 1), format="RGBA32F", data=none) for _ in range(3)
             )
         if self.geom is None:
             raise ValueError("the glass buffers were given without their geometric normals (geom)")

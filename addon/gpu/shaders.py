@@ -200,13 +200,17 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     return info, iface
 
 
-def glass_shader_info(geometric: bool = False):
+def glass_shader_info(geometric: bool = False, further: bool = False):
     """(create-info, stage interface) of the glass buffers' shader (:mod:`.glass_buffers`):
     tf_main_vert.glsl, then tf_glass_frag.glsl (a face's normal and depth, no shading;
-    ``geometric``: its geometric normal, ``TF_GLASS_GEOMETRIC``)."""
+    ``geometric``: its geometric normal, ``TF_GLASS_GEOMETRIC``; ``further``: a further layer's,
+    behind the layer before, ``TF_GLASS_FURTHER``)."""
     info = gpu.types.GPUShaderCreateInfo()
     if geometric:
         info.define("TF_GLASS_GEOMETRIC", "1")
+    if further:
+        info.define("TF_GLASS_FURTHER", "1")
+        _declare(info, layout.GLASS_PEEL_SAMPLER)
     for name, value in policy.glsl_defines():
         info.define(name, value)
     info.typedef_source(layout.TYPEDEFS)

@@ -289,6 +289,13 @@ GLASS_REACH = 4.0
 GLASS_REFINE = 6
 GLASS_SLACK = 1e-4
 GLASS_BOUNCES = 8
+#: The glass buffers hold GLASS_LAYERS front and back faces per pixel, nearest first (depth
+#: peeling): a concave glass's further spans, a wine glass's far wall behind its near one or its
+#: foot behind its stem. A ray that leaves the glass is marched on, in GLASS_STEPS even steps over
+#: the same reach, into those spans (it meets the far wall as Cycles' path does) before the scene
+#: behind; a face more than GLASS_PEEL × its depth behind the layer before is the next layer's.
+GLASS_LAYERS = 2
+GLASS_PEEL = 1e-5
 #: Solid glass's glints: the paths that the film reflects back inside 1 … GLASS_ORDERS times
 #: before they leave (glsl/tf_main_frag.glsl tf_glass_glint; faces that reflect totally do so on
 #: every path). Near a ball's rim the film reflects most of the light back inside (its inner angle
@@ -451,8 +458,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       :data:`REFRACT_EDGE`; ``TF_REFRACT_FAR``: :data:`REFRACT_FAR`; ``TF_REFRACT_LINE_EPS``:
       :data:`REFRACT_LINE_EPS`;
     - ``TF_GLASS_STEPS``, ``TF_GLASS_REACH``, ``TF_GLASS_REFINE``, ``TF_GLASS_SLACK``,
-      ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``: the exit through the real mesh
-      (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints (:data:`GLASS_ORDERS`);
+      ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``, ``TF_GLASS_LAYERS``, ``TF_GLASS_PEEL``:
+      the exit through the real mesh (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints
+      (:data:`GLASS_ORDERS`);
       ``TF_VALID_REFLECTION_SCALE``, ``TF_VALID_REFLECTION_RISE``: Cycles' rule at a
       smooth-shaded face (:data:`VALID_REFLECTION_SCALE`, :data:`VALID_REFLECTION_RISE`).
     """
@@ -506,6 +514,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "GLASS_REFINE",
             "GLASS_SLACK",
             "GLASS_BOUNCES",
+            "GLASS_LAYERS",
+            "GLASS_PEEL",
             "VALID_REFLECTION_SCALE",
             "VALID_REFLECTION_RISE",
             "GLASS_FRONT_SLACK",

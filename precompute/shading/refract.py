@@ -380,49 +380,88 @@ def _face_step(d, face_n, face_g, eta: float):
     return cos_face, out, mirrored, out_ok & facing, mirror_ok & facing
 
 
+def _layers(buffer) -> np.ndarray:
+    """A glass buffer as its layers (L, H, W, 4): one (H, W, 4) is one layer."""
+    b = np.asarray(buffer, dtype=np.float64)
+    return b[None] if b.ndim == 3 else b
+
+
 class _Glass:
-    """The glass buffers as the mesh march reads them: front and back (H, W, 4) top row first
-    (:func:`glass_texel`), their faces' geometric normals ``geometric`` (:func:`geometric_texel`;
+    """The glass buffers as the mesh march reads them: front and back (L, H, W, 4) top row first,
+    their L faces per pixel nearest first (depth peeling; one (H, W, 4) is one layer;
+    :func:`glass_texel`), their faces' geometric normals ``geometric`` (:func:`geometric_texel`;
     None: the shading normals stand in), placed in the drawn window by ``screen``, as
-    :class:`_Scene`."""
+    :class:`_Scene`.
+
+    The object ``own``'s spans along a pixel's camera ray are its layers: layer 0 from its front
+    face (or from the camera where the front buffer's face there is another's) to its back face,
+    each further layer from its front face to its back face, where both are ``own``'s."""
 
     def __init__(self, front, back, view_proj, camera, view_dir, screen, geometric=None):
-        self.front = glass_texel(front)
-        self.back = glass_texel(back)
+        self.front = glass_texel(_layers(front))
+        self.back = glass_texel(_layers(back))
         if geometric is None:
             self.front_g, self.back_g = self.front[1], self.back[1]
         else:
-            self.front_g, self.back_g = geometric_texel(geometric)
+            self.front_g, self.back_g = geometric_texel(_layers(geometric))
+        self.layers = self.back[0].shape[0]
         self.view_proj = np.asarray(view_proj, dtype=np.float64)
         self.camera = np.asarray(camera, dtype=np.float64).reshape(3)
         self.view_dir = np.asarray(view_dir, dtype=np.float64).reshape(3)
         self.screen = np.asarray(screen, dtype=np.float64).reshape(4)
 
-    def outside(self, q, own):
-        """(outside (N,), through the back (N,), row, column, inside the picture) of points ``q``:
-        whether q lies outside the object ``own`` along its pixel's camera ray (behind its back
-        face, in front of its front face, or off its silhouette)."""
-        row, col, inside = _project(q, self.view_proj, self.screen, self.back[0].shape)
+    def spans(self, q, own):
+        """(row, column, inside the picture, depth z (N,), valid (L, N), front depth (L, N),
+        back depth (L, N)) of points ``q``: ``own``'s spans on their pixels (see the class; an
+        open layer 0 starts at −REFRACT_FAR)."""
+        row, col, inside = _project(q, self.view_proj, self.screen, self.back[0].shape[1:])
         z = (self.camera - q) @ self.view_dir
-        id_b, _nb, d_b = (a[row, col] for a in self.back)
-        id_f, _nf, d_f = (a[row, col] for a in self.front)
+        id_f, d_f = self.front[0][:, row, col], self.front[2][:, row, col]
+        id_b, d_b = self.back[0][:, row, col], self.back[2][:, row, col]
+        valid = id_b == own
+        valid[1:] &= id_f[1:] == own
+        f = np.where(id_f == own, d_f, -REFRACT_FAR)
+        return row, col, inside, z, valid, f, d_b
+
+    def outside(self, q, own):
+        """(outside (N,), through a back face (N,), that face's layer (N,), row, column, inside the
+        picture) of points ``q``: whether q lies outside every span of the object ``own`` along
+        its pixel's camera ray, and the face it lies beyond: the nearest back face it lies behind
+        or front face it lies in front of (layer 0's back where it lies beyond none: off the
+        object's silhouette)."""
+        row, col, inside, z, valid, f, b = self.spans(q, own)
         slack = GLASS_SLACK * z
-        past_back = (id_b != own) | (z > d_b + slack)
-        before_front = (id_f == own) & (z < d_f - slack)
-        return past_back | before_front, past_back, row, col, inside
+        within = valid & (z <= b + slack) & (z >= f - slack)
+        beyond = np.concatenate(
+            [
+                np.where(valid & (z > b + slack), z - b, np.inf),
+                np.where(valid & (z < f - slack), f - z, np.inf),
+            ]
+        )
+        nearest = np.argmin(beyond, axis=0)
+        none = ~np.isfinite(np.min(beyond, axis=0))
+        through_back = (nearest < self.layers) | none
+        layer = np.where(none, 0, nearest % self.layers)
+        return ~within.any(axis=0), through_back, layer, row, col, inside
+
+    def face(self, through_back, layer, row, col):
+        """(outward normal, geometric normal) (N, 3) of the faces :meth:`outside` names."""
+        n = np.where(through_back[:, None], self.back[1][layer, row, col], self.front[1][layer, row, col])
+        g = np.where(through_back[:, None], self.back_g[layer, row, col], self.front_g[layer, row, col])
+        return n, g
 
 
 def _march_inside(glass, o, d, reach, own):
     """Where the rays o + s d (N, 3), s in (0, reach], first leave the object ``own``: (found,
-    s, through the back, row, column). GLASS_STEPS even steps, the first exit bisected
-    GLASS_REFINE times."""
+    s, the face's outward normal, its geometric normal). GLASS_STEPS even steps, the first exit
+    bisected GLASS_REFINE times."""
     count = o.shape[0]
     found = np.zeros(count, dtype=bool)
     s_hit = np.zeros(count)
     lo = np.zeros(count)
     for k in range(GLASS_STEPS):
         s = reach * (k + 1) / GLASS_STEPS
-        out, _b, _r, _c, inside = glass.outside(o + s[:, None] * d, own)
+        out, _b, _l, _r, _c, inside = glass.outside(o + s[:, None] * d, own)
         new = ~found & out & inside
         s_hit = np.where(new, s, s_hit)
         found |= new
@@ -430,11 +469,59 @@ def _march_inside(glass, o, d, reach, own):
     hi = s_hit
     for _ in range(GLASS_REFINE):
         mid = 0.5 * (lo + hi)
-        out, _b, _r, _c, _in = glass.outside(o + mid[:, None] * d, own)
+        out, _b, _l, _r, _c, _in = glass.outside(o + mid[:, None] * d, own)
         hi = np.where(out, mid, hi)
         lo = np.where(out, lo, mid)
-    _o, back, row, col, _in = glass.outside(o + hi[:, None] * d, own)
-    return found, hi, back, row, col
+    _o, back, layer, row, col, _in = glass.outside(o + hi[:, None] * d, own)
+    return (found, hi, *glass.face(back, layer, row, col))
+
+
+def _march_enter(glass, o, d, reach, own):
+    """Where the rays o + s d (N, 3) that have left the object ``own`` at o first enter one of its
+    spans again, s in (0, reach]: (found, s, the face's outward normal, its geometric normal).
+    GLASS_STEPS even steps until the ray leaves the picture; a step enters span k where it
+    crosses the span's near face on its pixel (its front face for a ray going away from the
+    camera, else its back face; a thin wall between two steps is not stepped over) or lies
+    within the span; the entry is bisected GLASS_REFINE times against that face of layer k."""
+    count = o.shape[0]
+    away = (d @ glass.view_dir) <= 0.0  # depth grows along the ray: it enters through front faces
+    prev_z = (glass.camera - o) @ glass.view_dir
+    found = np.zeros(count, dtype=bool)
+    gone = np.zeros(count, dtype=bool)
+    layer = np.zeros(count, dtype=np.int64)
+    s_hit = np.zeros(count)
+    lo = np.zeros(count)
+    lanes = np.arange(count)
+    for k in range(GLASS_STEPS):
+        s = reach * (k + 1) / GLASS_STEPS
+        _r, _c, inside, z, valid, f, b = glass.spans(o + s[:, None] * d, own)
+        slack = GLASS_SLACK * z
+        crosses = np.where(
+            away, (prev_z < f - slack) & (z >= f - slack), (prev_z > b + slack) & (z <= b + slack)
+        )
+        enters = valid & (crosses | ((z <= b + slack) & (z >= f - slack)))
+        gone |= ~found & ~inside
+        new = ~found & ~gone & enters.any(axis=0)
+        layer = np.where(new, np.argmax(enters, axis=0), layer)
+        s_hit = np.where(new, s, s_hit)
+        found |= new
+        lo = np.where(found | gone, lo, s)
+        prev_z = z
+
+    def past(s):  # at s, on the pixel's layer k: past the face the ray enters through
+        row, col, _in, z, valid, f, b = glass.spans(o + s[:, None] * d, own)
+        slack = GLASS_SLACK * z
+        f, b, valid = f[layer, lanes], b[layer, lanes], valid[layer, lanes]
+        return valid & np.where(away, z >= f - slack, z <= b + slack), row, col
+
+    hi = s_hit
+    for _ in range(GLASS_REFINE):
+        mid = 0.5 * (lo + hi)
+        yes, _r, _c = past(mid)
+        hi = np.where(yes, mid, hi)
+        lo = np.where(yes, lo, mid)
+    _yes, row, col = past(hi)
+    return (found, hi, *glass.face(~away, layer, row, col))
 
 
 def mesh_exit(
@@ -453,6 +540,7 @@ def mesh_exit(
     reflections: int = 0,
     geometric=None,
     entry_geometric=None,
+    side: bool = False,
 ):
     """(exit points (N, 3), exit directions (N, 3), found (N,), cosines (N, 2 + reflections)):
     rays from the viewer entering glass of index ``eta`` at ``points`` (unit ``normals`` facing
@@ -468,15 +556,24 @@ def mesh_exit(
     as Cycles' smooth glass does (:func:`_face_step`, :func:`valid_normal`: a smooth-shaded
     mesh's normal is lifted where its mirror would dip below the face); a path whose next
     direction Cycles drops (a refraction that would not leave through the face, a mirror that
-    would) carries nothing. ``reflections``: the first that many faces the ray could leave
+    would) carries nothing. With more than one layer in the buffers a ray that leaves is marched
+    on (:func:`_march_enter`) into the object's further spans, at most layers − 1 times: it
+    refracts in there as at its entry (a concave glass: a wine glass's far wall, its foot behind
+    its stem) and goes on inside. ``reflections``: the first that many faces the ray could leave
     through reflect it instead (the glints: the light the film reflects back inside, once or
     more; faces that reflect totally do so anyway and are not counted). ``cosines``: the cosine
     inside the glass at the first face met, at the face the ray leaves through (NaN where the
     path carries nothing: it never leaves, or Cycles drops it), then at each face that reflected
     it by choice (NaN where it met no more), for the film's reflectance from inside
-    (:func:`.transmit.back_reflectance`). Where the first march finds no face (the object is not
-    in the back buffer at the entry's pixel, or no exit within reach) ``found`` is False and the
-    sphere about ``centre`` stands in (:func:`exit_ray`; every cosine its cos θₜ)."""
+    (:func:`.transmit.back_reflectance`), then per entry into a further span (NaN where none):
+    the cosine inside at the face it left through before and the cosine outside at the face it
+    enters (the film's reflectance from outside there, :func:`.transmit.white_reflectance`).
+    ``side``: also (points (N, 3), directions (N, 3)) of the ray the film mirrors where the path
+    first enters a further span (a wine glass's far wall seen from its bowl; NaN where it does
+    not), a fifth item.
+    Where the first march finds no face (the object is not in the back buffer at the entry's
+    pixel, or no exit within reach) ``found`` is False and the sphere about ``centre`` stands in
+    (:func:`exit_ray`; every cosine its cos θₜ)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     v = np.asarray(views, dtype=np.float64).reshape(-1, 3)
@@ -497,19 +594,20 @@ def mesh_exit(
     cos_last = np.ones(count)
     forced = np.zeros(count, dtype=np.int64)
     cos_forced = np.full((count, int(reflections)), np.nan)
-    _o, _b, row, col, on_picture = glass.outside(p, own)
-    present = (glass.back[0][row, col] == own) & on_picture  # the object is in the buffers at its entry
+    entries = np.zeros(count, dtype=np.int64)
+    side_p, side_d = np.full((count, 3), np.nan), np.full((count, 3), np.nan)
+    cos_entries = np.full((count, 2 * (glass.layers - 1)), np.nan)
+    _o, _b, _l, row, col, on_picture = glass.outside(p, own)
+    present = (glass.back[0][0, row, col] == own) & on_picture  # the object is in the buffers at its entry
     done = dropped_in & present  # dropped on the way in: it goes no further
     any_found = done.copy()
     for bounce in range(GLASS_BOUNCES):
-        found, s, through_back, row, col = _march_inside(glass, o, d, reach, own)
+        found, s, face_n, face_g = _march_inside(glass, o, d, reach, own)
         found &= present
         if bounce == 0:
             any_found |= found
         live = found & ~done
         q = o + s[:, None] * d
-        face_n = np.where(through_back[:, None], glass.back[1][row, col], glass.front[1][row, col])
-        face_g = np.where(through_back[:, None], glass.back_g[row, col], glass.front_g[row, col])
         cos_face, out, mirrored, out_ok, mirror_ok = _face_step(d, face_n, face_g, e)
         cos_first = np.where(live & first, cos_face, cos_first)
         tir = np.sum(out * out, axis=-1) < TIR_EPS
@@ -521,9 +619,33 @@ def mesh_exit(
         drop_here = live & np.where(bounce_here, ~mirror_ok, ~out_ok)
         go = live & ~drop_here
         leave = go & ~bounce_here
+        out = _unit(out, d)
+        # out into the air: on into a further span of the object, refracted in as at the entry
+        again = leave & (entries < glass.layers - 1)
+        if again.any():
+            met, s_in, in_n, in_g = _march_enter(glass, q, out, reach, own)
+            w = -out
+            met &= again & (np.sum(in_g * w, axis=-1) > 0.0)  # the face met from outside
+            n_in = valid_normal(in_g, w, in_n)
+            d_in = _unit(refract(out, n_in, 1.0 / e), out)
+            drop_in = met & ((np.sum(in_g * d_in, axis=-1) >= 0.0) | (np.sum(n_in * w, axis=-1) <= 0.0))
+            cos_in = np.clip(np.sum(w * n_in, axis=-1), 0.0, 1.0)
+            mirror_here = (met & ~drop_in & (entries == 0))[:, None]
+            side_p = np.where(mirror_here, q + s_in[:, None] * out, side_p)
+            side_d = np.where(mirror_here, -reflect(out, n_in), side_d)
+            for k in range(glass.layers - 1):
+                at = met & (entries == k)
+                cos_entries[:, 2 * k] = np.where(at, cos_face, cos_entries[:, 2 * k])
+                cos_entries[:, 2 * k + 1] = np.where(at, cos_in, cos_entries[:, 2 * k + 1])
+            entries += met
+            drop_here |= drop_in
+            leave &= ~met
+            go &= ~drop_in
+            q = np.where(met[:, None], q + s_in[:, None] * out, q)
+            mirrored = np.where(met[:, None], d_in, mirrored)
         cos_last = np.where(leave, cos_face, cos_last)
         o = np.where(live[:, None], q, o)
-        d = np.where(leave[:, None], _unit(out, d), np.where(go[:, None], mirrored, d))
+        d = np.where(leave[:, None], out, np.where(go[:, None], mirrored, d))
         done |= leave | ~found | drop_here
         left |= leave
         first &= ~live
@@ -531,14 +653,16 @@ def mesh_exit(
     cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
     # a path that does not leave (within GLASS_BOUNCES faces, or one Cycles drops) carries nothing
     cos_last = np.where(left, cos_last, np.nan)
-    traced = np.concatenate([np.stack([cos_first, cos_last], -1), cos_forced], axis=-1)
-    cosines = np.where(any_found[:, None], traced, cos_t[:, None])
-    return (
+    traced = np.concatenate([np.stack([cos_first, cos_last], -1), cos_forced, cos_entries], axis=-1)
+    sphere = np.concatenate([np.repeat(cos_t[:, None], 2 + int(reflections), 1), np.nan * cos_entries], -1)
+    cosines = np.where(any_found[:, None], traced, sphere)
+    result = (
         np.where(any_found[:, None], o, sphere_point),
         np.where(any_found[:, None], d, sphere_dir),
         any_found,
         cosines,
     )
+    return (*result, (side_p, side_d)) if side else result
 
 
 def inner_cosine(cos_outside, eta: float) -> np.ndarray:

@@ -19,8 +19,8 @@ REPO = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 GLSL = REPO / "glsl"
 
 #: Defines the shaders set for themselves: the library switch of the generated code, and the
-#: glass buffers' second pass (addon/gpu/shaders.py ``glass_shader_info``).
-LIBRARY_DEFINES = {codegen.X90_GENERATED[0], "TF_GLASS_GEOMETRIC"}
+#: glass buffers' geometric and further-layer passes (addon/gpu/shaders.py ``glass_shader_info``).
+LIBRARY_DEFINES = {codegen.X90_GENERATED[0], "TF_GLASS_GEOMETRIC", "TF_GLASS_FURTHER"}
 
 
 def code(text: str) -> str:

@@ -106,7 +106,10 @@ def test_the_glass_buffers_hold_the_cubes_faces(gd):  # noqa: F811
     eye, vd = np.array([0.0, -DISTANCE, 0.0]), np.array([0.0, -1.0, 0.0])
     box = Box(model[:3, 3], [HALF] * 3, turn())
     want_front, want_back = box.buffers(rays, eye, vd)
-    for name, got, want in (("front", buffers.front, want_front), ("back", buffers.back, want_back)):
+    assert buffers.front.shape == (policy.GLASS_LAYERS, SIZE, SIZE, 4)
+    # a convex object has one span per pixel: its further layers are empty
+    assert not np.any(buffers.front[1:]) and not np.any(buffers.back[1:])
+    for name, got, want in (("front", buffers.front[0], want_front), ("back", buffers.back[0], want_back)):
         ids, n, depth = refract.glass_texel(got)
         want_ids, want_n, want_depth = refract.glass_texel(want)
         covered = (ids == 0) & (want_ids == 0)
@@ -118,7 +121,7 @@ def test_the_glass_buffers_hold_the_cubes_faces(gd):  # noqa: F811
         assert same_face.sum() > 0.95 * covered.sum()  # edges between faces
         assert np.max(np.abs(depth - want_depth)[same_face]) < 1e-4
         # the faces' geometric normals (a flat cube's are its faces' normals), outward on both sides
-        geometric = refract.geometric_texel(buffers.geom)[0 if name == "front" else 1]
+        geometric = refract.geometric_texel(buffers.geom[0])[0 if name == "front" else 1]
         err = np.linalg.norm(geometric - want_n, axis=-1)[same_face]
         print(f"{name}: geometric normal error median {np.median(err):.1e}, max {err.max():.1e}")
         assert np.median(err) < 1e-5 and np.percentile(err, 99) < 1e-3
@@ -155,7 +158,7 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
     eye = np.array([0.0, -DISTANCE, 0.0])
     t_near, n_near = nearest_hits(model, rays, eye, shape)
-    ids, drawn_n, _d = refract.glass_texel(buffers.front)
+    ids, drawn_n, _d = refract.glass_texel(buffers.front[0])
     inside = np.isfinite(t_near) & (ids == 0)
     points = eye + t_near[inside][:, None] * rays[inside]
     # the shading normal as the GPU interpolates it (the front buffer's); the face's own normal
@@ -171,7 +174,9 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     centre = model[:3, 3]
     args = (buffers.front, buffers.back, vp, cam, vd)
     rules = {"geometric": buffers.geom, "entry_geometric": faces}
-    exit_points, dirs, found, cosines = refract.mesh_exit(points, n, views, centre, 1.5, 0, *args, **rules)
+    exit_points, dirs, found, cosines, (side_p, side_d) = refract.mesh_exit(
+        points, n, views, centre, 1.5, 0, *args, side=True, **rules
+    )
     kept = ~np.isnan(cosines[:, 1])  # a path Cycles ends carries nothing
     hit, rows, cols = refract.march(exit_points, dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
     seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
@@ -182,6 +187,14 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
 
     def back(c):
         return transmit.back_reflectance(film, lerp, c, 1.5, back_table)
+
+    def crossed(entries):  # the film out and back in where the ray entered a further span
+        factor = np.ones((len(n), 3))
+        for c_out, c_in in entries.reshape(len(n), -1, 2).transpose(1, 2, 0):
+            r_in = np.clip(transmit.white_reflectance(film, lerp, np.nan_to_num(c_in, nan=1.0)), 0.0, 1.0)
+            step = (1.0 - back(np.nan_to_num(c_out, nan=1.0))) * (1.0 - r_in)
+            factor *= np.where(np.isnan(c_out)[:, None], 1.0, step)
+        return factor
 
     t_in = np.sqrt(t)
     # the glints: reflected back inside by the film at the first k faces the ray could leave
@@ -195,8 +208,8 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
         )
         g_hit, g_rows, g_cols = refract.march(g_points, g_dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
         g_seen = refract.seen(g_hit, g_rows, g_cols, colour, split_sum.lookup(pre, g_dirs, np.zeros(len(n))))
-        chosen = g_cos[:, 2:]  # NaN where the path met no more faces to reflect at
-        carried = np.prod(
+        chosen = g_cos[:, 2 : 2 + k]  # NaN where the path met no more faces to reflect at
+        carried = crossed(g_cos[:, 2 + k :]) * np.prod(
             [np.where(np.isnan(c)[:, None], 1.0, back(np.nan_to_num(c, nan=1.0))) for c in chosen.T], axis=0
         )
         leaves = g_found & ~np.isnan(g_cos[:, 1])  # a path that never leaves carries nothing
@@ -204,7 +217,18 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
         glint += np.where(leaves[:, None], carried * out * g_seen, 0.0)
         glint_hits.append(g_hit & g_found)
     glint *= t_in
-    through = np.where(kept[:, None], t_in * (1.0 - back(np.nan_to_num(cosines[:, 1], nan=1.0))) * seen, 0.0)
+    through = t_in * crossed(cosines[:, 2:]) * (1.0 - back(np.nan_to_num(cosines[:, 1], nan=1.0))) * seen
+    through = np.where(kept[:, None], through, 0.0)
+    # the film's mirror where the path first enters the far cube: what that ray sees
+    mirrored = ~np.isnan(side_p[:, 0])
+    s_p, s_d = np.nan_to_num(side_p), np.nan_to_num(side_d, nan=1.0)
+    s_hit, s_rows, s_cols = refract.march(s_p, s_d, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
+    s_seen = refract.seen(s_hit, s_rows, s_cols, colour, split_sum.lookup(pre, s_d, np.zeros(len(n))))
+    r_far = np.clip(transmit.white_reflectance(film, lerp, np.nan_to_num(cosines[:, 3], nan=1.0)), 0.0, 1.0)
+    side = np.where(
+        mirrored[:, None], t_in * (1.0 - back(np.nan_to_num(cosines[:, 2], nan=1.0))) * r_far * s_seen, 0.0
+    )
+    through += side
     expected = s * split_sum.shade_split_sum(result, pre, n, views) + through
     expected, _m_hit, _w = with_scene_mirror(
         expected + glint, (points, n, views), (colour, depth), pre, item.roughness, t
@@ -228,6 +252,15 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
         far_t = far.hits(np.broadcast_to(eye, rays.shape), rays)[0]
         assert (inside & ~np.isfinite(near_only)).sum() > 100
         assert (np.isfinite(near_only) & np.isfinite(far_t)).sum() > 100  # seen through the near one
+        # the rays that leave the near cube and enter the far one (its layer behind), and leave it
+        entered = ~np.isnan(cosines[:, 2])
+        both = (entered & kept).mean()
+        print(f"pair: {entered.mean():.0%} of the paths enter the far cube, {both:.0%} leave it")
+        assert mirrored.any() and not (mirrored & ~entered).any()
+        # the mirror branch is larger than the draw's tolerance where it is
+        print(f"pair: the far cube's mirror up to {side.max() / np.max(expected):.1e} of the peak")
+        assert np.percentile(side.max(-1)[mirrored], 50) / np.max(expected) > 1e-3
+        assert both > 0.05
     # float32 on the GPU may step to the neighbouring texel (a face's edge, a pattern's texel): a
     # few pixels differ, the rest agree to float32
     assert np.median(err) < 1e-4 and np.percentile(err, 95) < 2e-2
