@@ -2,17 +2,17 @@
 
 /* tf_glass_frag.glsl: solid glass's faces into the glass buffers (addon/gpu/glass_buffers.py).
  *
- * numpy counterpart: shading.refract.glass_texel (the decoding). Drawn after tf_main_vert.glsl with
+ * numpy counterpart: shading.glass.glass_exit.glass_texel (the decoding). Drawn after tf_main_vert.glsl with
  * the front or the back faces culled: .xyz the unit outward normal times (id + 1), id the object's
- * tf_object.glass.x; .w the depth along the camera axis (as tf_refract.glsl reads it). With
+ * tf_object.glass.x; .w the depth along the camera axis (as tf_glass_exit.glsl reads it). With
  * TF_GLASS_GEOMETRIC: .xy the face's geometric normal, outward, octahedral (tf_oct_encode;
- * shading.refract.geometric_texel), for Cycles' rules at smooth-shaded faces (tf_valid_normal).
+ * shading.glass.glass_exit.geometric_texel), for Cycles' rules at smooth-shaded faces (tf_valid_normal).
  * With TF_GLASS_FURTHER (the further layers, depth peeling): only faces more than TF_GLASS_PEEL x their
  * depth behind the layer before (tf_glass_peel, the same side's: .w its depth, 0 where empty).
  */
 
 /* Unit n -> its octahedral coordinates in [-1, 1]^2, the lower half folded over the diagonals
- * (shading.refract.octahedral). */
+ * (shading.glass.glass_exit.octahedral). */
 vec2 tf_oct_encode(vec3 n)
 {
   vec3 a = n / max(abs(n.x) + abs(n.y) + abs(n.z), TF_DIVISION_FLOOR);

@@ -13,7 +13,7 @@
  * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
  * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl). A closed
  * thin wall's far side adds its reflections inside (tf_wall_inside, shading.transmit; TF_SPLIT_SUM).
- * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_refract.glsl (TF_REFRACT) are joined before this chunk
+ * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_glass_exit.glsl with tf_refract.glsl (TF_REFRACT) are joined before this chunk
  * for the variants that have them (addon/gpu/shaders.py).
  */
 
@@ -100,7 +100,7 @@ vec3 tf_refract_seen(vec3 o, vec3 dir)
 #endif
 }
 
-/* What solid glass shows behind it (tf_refract.glsl): the scene behind where the exit ray (through
+/* What solid glass shows behind it (tf_refract.glsl, tf_glass_exit.glsl): the scene behind where the exit ray (through
  * the real mesh, tf_glass_exit, else the sphere about the origin) hits it, else the World along
  * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
  * the pixel, times what the path carries (0 where Cycles ends it); g: the face's geometric
@@ -167,7 +167,7 @@ vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
 
 /* Smooth solid glass reflects the scene behind where its mirror ray meets it, in place of the
  * World: w r (scene - World) along reflect(-v, n), r = 1 - sqrt(T), w falling from 1 at roughness
- * 0 to 0 at TF_REFRACT_MIRROR_ROUGHNESS (shading.refract.mirror_weight). */
+ * 0 to 0 at TF_REFRACT_MIRROR_ROUGHNESS (shading.glass.refract.mirror_weight). */
 vec3 tf_scene_mirror(vec3 n, vec3 v, vec3 wall_t)
 {
   float w = clamp(1.0 - tf_object.material.x / TF_REFRACT_MIRROR_ROUGHNESS, 0.0, 1.0);

@@ -5,7 +5,7 @@ turned box with its exact ray trace (Snell's law at each face, total internal re
 
 import numpy as np
 
-from precompute.shading import refract
+from precompute.shading.glass import refract
 
 
 def unit(v):

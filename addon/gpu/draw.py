@@ -297,7 +297,7 @@ def prepare_draw(
     ``display_lut`` (a :class:`.resources.DisplayLUTTexture`, with ``display_srgb``): the
     scene's view transform instead of the Standard sRGB encoding. ``behind`` (a
     :class:`.resources.BehindTexture`: the frame drawn without the films, colour and depth):
-    solid glass refracts it (``TF_REFRACT``, precompute/shading/refract.py); None: solid glass
+    solid glass refracts it (``TF_REFRACT``, precompute/shading/glass/refract.py); None: solid glass
     sees the World along its exit ray.
     """
     ensure_gpu_context()

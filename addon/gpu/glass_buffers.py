@@ -1,7 +1,7 @@
 """Solid glass's real faces for its refraction: the glass buffers of the headless frame.
 
-The exit ray of solid glass (``TF_REFRACT``, glsl/tf_refract.glsl ``tf_glass_exit``, numpy twin
-precompute/shading/refract.py ``mesh_exit``) leaves the object where its inner ray crosses the
+The exit ray of solid glass (``TF_REFRACT``, glsl/tf_glass_exit.glsl ``tf_glass_exit``, numpy twin
+precompute/shading/glass/glass_exit.py ``mesh_exit``) leaves the object where its inner ray crosses the
 object's real surface. The draw knows that surface per pixel from two off-screen passes over the
 solid glass objects, drawn in the films' window before the films (:func:`render_glass_buffers`):
 
@@ -9,19 +9,19 @@ solid glass objects, drawn in the films' window before the films (:func:`render_
 - **back**: the nearest back face per pixel (front faces culled),
 
 each texel .xyz = the face's unit outward normal × (id + 1), .w = its depth along the camera
-axis, 0 where no glass is (glsl/tf_glass_frag.glsl; decoded by ``refract.glass_texel``). The id
+axis, 0 where no glass is (glsl/tf_glass_frag.glsl; decoded by ``glass_exit.glass_texel``). The id
 tells objects apart, so one glass does not exit through another's faces. Each pass is peeled
 ``policy.GLASS_LAYERS`` deep (``TF_GLASS_FURTHER``: a further layer draws only the faces behind
 the layer before): for a convex object the pixel's span [front, back] of layer 0 is exactly the
 object along that pixel's camera ray; a concave one (a wine glass) has a further span per layer,
 its far wall behind its near one, its foot behind its stem, which the exit ray enters again
-(``refract._march_enter``). The arrays are (layers, H, W, 4); the textures hold the layers side by
+(``glass_exit._march_enter``). The arrays are (layers, H, W, 4); the textures hold the layers side by
 side (layer k's texel (x, y) at (x + k W, y)).
 
 The same two passes drawn again with ``TF_GLASS_GEOMETRIC`` give those faces' geometric (flat)
 normals, kept in one texture, **geom**: .xy the front face's, .zw the back face's, octahedral
-(``refract.geometric_texel``). With them the march meets a smooth-shaded face as Cycles does
-(``refract.valid_normal``): a wine glass's foot, shaded smooth across its rim, sends the light
+(``glass_exit.geometric_texel``). With them the march meets a smooth-shaded face as Cycles does
+(``glass_exit.valid_normal``): a wine glass's foot, shaded smooth across its rim, sends the light
 Cycles sends, not straight through to the ground.
 """
 

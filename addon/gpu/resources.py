@@ -471,7 +471,7 @@ class DisplayLUTTexture:
 @dataclass
 class BehindTexture:
     """The scene drawn without the films, which solid glass refracts (``TF_REFRACT``,
-    precompute/shading/refract.py): an RGBA32F texture (:data:`BEHIND_SAMPLER`; .rgb its
+    precompute/shading/glass/refract.py): an RGBA32F texture (:data:`BEHIND_SAMPLER`; .rgb its
     scene-linear colour, .a its depth, the distance along the camera axis,
     policy.REFRACT_FAR where nothing was drawn; read with texelFetch) and the :data:`BEHIND`
     buffer placing it in the drawn window; the glass buffers ``front`` and ``back`` (the drawn

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..shading.glass.refract import refract
 from ..shading.policy import (
     CAUSTIC_BOUNCES,
     CAUSTIC_DEPTH_SLACK,
@@ -53,7 +54,6 @@ from ..shading.policy import (
     CAUSTIC_MIN_FLUX,
     CAUSTIC_REFLECTIONS,
 )
-from ..shading.refract import refract
 from ..shading.transmit import fresnel_dielectric
 from . import facets
 

@@ -16,7 +16,7 @@ import numpy as np
 from ..brdf import lambda_ggx
 from ..brdf import reflect as mirror
 from ..shading.frame import view_aligned_frame
-from ..shading.refract import refract
+from ..shading.glass.refract import refract
 
 
 def reflect(d, n):

@@ -232,7 +232,7 @@ INSIDE_ORDERS = 2
 INSIDE_MIN_EXPLAINED = 0.5
 #: Smallest reflectance and denominator a wall's formulas divide by (r → 0, r·R_b → 1).
 WALL_GUARD = 1e-6
-#: Solid glass's screen-space refraction (shading/refract.py, glsl/tf_refract.glsl): the exit ray
+#: Solid glass's screen-space refraction (shading/glass/refract.py, glsl/tf_refract.glsl): the exit ray
 #: is marched over the scene behind in REFRACT_STEPS samples at distances growing geometrically
 #: from REFRACT_FIRST × the exit point's depth by REFRACT_GROWTH per step (1.16⁴⁷ ≈ 1070: the
 #: last sample lies ≈ 10 depths away), and a crossing of the depth behind is refined by
@@ -276,7 +276,7 @@ REFRACT_OVERSCAN = 1.0
 REFRACT_MAX_SIDE = 4096
 #: Depth the scene-behind texture stores where nothing was drawn (the World): beyond any march.
 REFRACT_FAR = 1e30
-#: Solid glass's exit through its real mesh (shading/refract.py mesh_exit, glsl/tf_refract.glsl):
+#: Solid glass's exit through its real mesh (shading/glass/glass_exit.py mesh_exit, glsl/tf_glass_exit.glsl):
 #: the inner ray is marched over the object's front and back faces (the glass buffers) in
 #: GLASS_STEPS even steps over GLASS_REACH × the entry point's distance from the object's origin
 #: (a cube's corner lies √3 half sides away, a face's middle one: its space diagonal is 3.5× that),
@@ -305,7 +305,7 @@ GLASS_ORDERS = 4
 #: Cycles' rule for a smooth-shaded face (``ensure_valid_specular_reflection``, Blender 5.2): a
 #: shading normal whose mirror of the incoming ray (at cosine c to the face) rises less than
 #: min(VALID_REFLECTION_SCALE c, VALID_REFLECTION_RISE) above the face is turned towards the
-#: face's own normal until it rises exactly that much (shading/refract.py ``valid_normal``).
+#: face's own normal until it rises exactly that much (shading/glass/glass_exit.py ``valid_normal``).
 VALID_REFLECTION_SCALE = 0.9
 VALID_REFLECTION_RISE = 0.01
 #: With the glass buffers solid glass draws only its nearest front face: a fragment more than this

@@ -182,7 +182,7 @@ def choose_variant(
     - ``grid``: the item has an outgoing-radiance grid; its SH half is read from it where
       policy.uses_grid says so (constant thickness, l_max ≥ GRID_MIN_L, an SH half drawn).
     - ``refract``: solid glass over a scene-behind texture (the headless frame's background pass):
-      its passes march the exit ray over it (shading/refract.py).
+      its passes march the exit ray over it (shading/glass/refract.py).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0

@@ -1,5 +1,5 @@
 """Solid glass refracting the scene behind it, drawn on the GPU (glsl/tf_refract.glsl,
-``TF_REFRACT``) against its numpy twin (precompute/shading/refract.py), per pixel.
+``TF_REFRACT``) against its numpy twin (precompute/shading/glass/refract.py), per pixel.
 
 A flat tilted glass quad whose object origin lies behind it (the sphere the exit ray assumes),
 over a scene-behind texture: a wall 3 units behind the origin with a smooth colour pattern, its
@@ -12,7 +12,8 @@ from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item, baked, rotation
 
 from precompute.colour import film_colour
 from precompute.output import render
-from precompute.shading import policy, refract, split_sum, transmit
+from precompute.shading import policy, split_sum, transmit
+from precompute.shading.glass import refract
 from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
 from precompute.world import prefilter
 

@@ -1,5 +1,5 @@
 """Solid glass leaving through its real mesh, drawn on the GPU (addon/gpu/glass_buffers.py,
-glsl/tf_refract.glsl ``tf_glass_exit``) against its numpy twin (precompute/shading/refract.py
+glsl/tf_glass_exit.glsl ``tf_glass_exit``) against its numpy twin (precompute/shading/glass/refract.py
 ``mesh_exit``), per pixel.
 
 A turned glass cube (flat faces: total internal reflection at its sides) over the scene-behind
@@ -17,7 +17,8 @@ from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item
 from test_refract_draw import as_solid_glass, glass_lighting, with_scene_mirror
 
 from precompute.output import render
-from precompute.shading import lamps, policy, refract, split_sum, transmit
+from precompute.shading import lamps, policy, split_sum, transmit
+from precompute.shading.glass import glass_exit, refract
 
 pytestmark = pytest.mark.blender
 assert linked_extension  # the fixture's module imports it
@@ -110,8 +111,8 @@ def test_the_glass_buffers_hold_the_cubes_faces(gd):  # noqa: F811
     # a convex object has one span per pixel: its further layers are empty
     assert not np.any(buffers.front[1:]) and not np.any(buffers.back[1:])
     for name, got, want in (("front", buffers.front[0], want_front), ("back", buffers.back[0], want_back)):
-        ids, n, depth = refract.glass_texel(got)
-        want_ids, want_n, want_depth = refract.glass_texel(want)
+        ids, n, depth = glass_exit.glass_texel(got)
+        want_ids, want_n, want_depth = glass_exit.glass_texel(want)
         covered = (ids == 0) & (want_ids == 0)
         mismatch = np.mean((ids == 0) != (want_ids == 0))
         same_face = covered & (np.sum(n * want_n, -1) > 0.999)
@@ -121,7 +122,7 @@ def test_the_glass_buffers_hold_the_cubes_faces(gd):  # noqa: F811
         assert same_face.sum() > 0.95 * covered.sum()  # edges between faces
         assert np.max(np.abs(depth - want_depth)[same_face]) < 1e-4
         # the faces' geometric normals (a flat cube's are its faces' normals), outward on both sides
-        geometric = refract.geometric_texel(buffers.geom[0])[0 if name == "front" else 1]
+        geometric = glass_exit.geometric_texel(buffers.geom[0])[0 if name == "front" else 1]
         err = np.linalg.norm(geometric - want_n, axis=-1)[same_face]
         print(f"{name}: geometric normal error median {np.median(err):.1e}, max {err.max():.1e}")
         assert np.median(err) < 1e-5 and np.percentile(err, 99) < 1e-3
@@ -158,14 +159,14 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
     eye = np.array([0.0, -DISTANCE, 0.0])
     t_near, n_near = nearest_hits(model, rays, eye, shape)
-    ids, drawn_n, _d = refract.glass_texel(buffers.front[0])
+    ids, drawn_n, _d = glass_exit.glass_texel(buffers.front[0])
     inside = np.isfinite(t_near) & (ids == 0)
     points = eye + t_near[inside][:, None] * rays[inside]
     # the shading normal as the GPU interpolates it (the front buffer's); the face's own normal
     n, faces, views = drawn_n[inside], n_near[inside], -rays[inside]
-    # the normal the draw shades solid glass with: Cycles' (refract.valid_normal), the smooth
+    # the normal the draw shades solid glass with: Cycles' (glass_exit.valid_normal), the smooth
     # normal taken on the face's side
-    n = refract.valid_normal(faces, views, np.where(np.sum(n * faces, -1, keepdims=True) < 0.0, -n, n))
+    n = glass_exit.valid_normal(faces, views, np.where(np.sum(n * faces, -1, keepdims=True) < 0.0, -n, n))
     if shape != "smooth":
         assert np.percentile(np.linalg.norm(n - faces, axis=-1), 95) < 1e-5
     inv_view = np.linalg.inv(VIEW)
@@ -174,7 +175,7 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     centre = model[:3, 3]
     args = (buffers.front, buffers.back, vp, cam, vd)
     rules = {"geometric": buffers.geom, "entry_geometric": faces}
-    exit_points, dirs, found, cosines, (side_p, side_d) = refract.mesh_exit(
+    exit_points, dirs, found, cosines, (side_p, side_d) = glass_exit.mesh_exit(
         points, n, views, centre, 1.5, 0, *args, side=True, **rules
     )
     kept = ~np.isnan(cosines[:, 1])  # a path Cycles ends carries nothing
@@ -203,7 +204,7 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     glint = np.zeros_like(seen)
     glint_hits = []
     for k in range(1, policy.GLASS_ORDERS + 1):
-        g_points, g_dirs, g_found, g_cos = refract.mesh_exit(
+        g_points, g_dirs, g_found, g_cos = glass_exit.mesh_exit(
             points, n, views, centre, 1.5, 0, *args, reflections=k, **rules
         )
         g_hit, g_rows, g_cols = refract.march(g_points, g_dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))

@@ -1,4 +1,4 @@
-"""Solid glass's refraction of the scene behind (precompute/shading/refract.py), pure numpy.
+"""Solid glass's refraction of the scene behind (precompute/shading/glass/refract.py), pure numpy.
 
 Physics and properties: the exit ray of a glass sphere against an independent ray trace (Snell's
 law at both interfaces, angles from the geometry); glass of index 1 shows the picture behind
@@ -10,7 +10,8 @@ a receding floor where the floor is, to a few hundredths of a texel.
 import numpy as np
 import pytest
 
-from precompute.shading import refract, transmit
+from precompute.shading import transmit
+from precompute.shading.glass import refract
 
 SIZE = 96
 DISTANCE, FOV = 4.0, 32.0

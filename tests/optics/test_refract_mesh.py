@@ -1,4 +1,4 @@
-"""Solid glass's exit through its real mesh (precompute/shading/refract.py ``mesh_exit``), pure
+"""Solid glass's exit through its real mesh (precompute/shading/glass/glass_exit.py ``mesh_exit``), pure
 numpy, against independent ray traces.
 
 The glass buffers (the object's nearest front and back faces per pixel, ``glass_texel``'s
@@ -12,7 +12,7 @@ import pytest
 from _glass_mesh import Box, encode
 from test_refract import SIZE, camera, sphere_hits, trace_sphere, unit
 
-from precompute.shading import refract
+from precompute.shading.glass import glass_exit, refract
 
 
 def sphere_buffers(rays, eye, view_dir, centre, radius, own=0):
@@ -41,7 +41,7 @@ def test_the_mesh_exit_of_a_sphere_matches_a_ray_trace(eta):
     mask, p, n, v = sphere_hits(rays, eye, centre, radius)
     inner_cos = np.sum(n * v, -1)
     keep = inner_cos > 0.3  # the rim's inner rays run along the silhouette, a texel apart
-    q, d, found, _cos = refract.mesh_exit(p, n, v, centre, eta, 0, front, back, vp, eye, vd)
+    q, d, found, _cos = glass_exit.mesh_exit(p, n, v, centre, eta, 0, front, back, vp, eye, vd)
     ref_q, ref_d = trace_sphere(p, n, v, centre, eta)
     assert found[keep].all(), "the march found the sphere's far side everywhere but the rim"
     err = np.linalg.norm(d - ref_d, axis=-1)[keep]
@@ -79,7 +79,7 @@ def test_the_mesh_exit_of_a_cube_follows_its_faces_and_total_internal_reflection
             near_edge |= np.roll(face, shift, axis) != face
             near_edge |= np.roll(hit, shift, axis) != hit
     keep = ~near_edge[hit]
-    q, d, found, _cos = refract.mesh_exit(p, n, v, box.c, eta, 0, front, back, vp, eye, vd)
+    q, d, found, _cos = glass_exit.mesh_exit(p, n, v, box.c, eta, 0, front, back, vp, eye, vd)
     assert found[keep].all()
     err = np.linalg.norm(d - ref_d, axis=-1)[keep]
     tir = np.zeros(keep.shape, bool)
@@ -106,7 +106,9 @@ def test_the_reflected_glint_ray_leaves_a_sphere_as_one_reflection_inside():
     front, back = sphere_buffers(rays, eye, vd, centre, 1.0)
     _m, p, n, v = sphere_hits(rays, eye, centre, 1.0)
     keep = np.sum(n * v, -1) > 0.5
-    _q, d, found, _cos = refract.mesh_exit(p, n, v, centre, 1.5, 0, front, back, vp, eye, vd, reflections=1)
+    _q, d, found, _cos = glass_exit.mesh_exit(
+        p, n, v, centre, 1.5, 0, front, back, vp, eye, vd, reflections=1
+    )
     assert found[keep].all()
     err = np.linalg.norm(d - transmit.solid_internal(n, v, 1.5), axis=-1)[keep]
     # two faces' normals, each a texel's (~0.03 rad apart at this sphere's 35-pixel radius), and
@@ -120,14 +122,14 @@ def test_without_the_object_in_the_buffers_the_sphere_stands_in():
     centre = np.zeros(3)
     front, back = sphere_buffers(rays, eye, vd, centre, 1.0, own=3)  # another object's faces
     _m, p, n, v = sphere_hits(rays, eye, centre, 1.0)
-    q, d, found, _cos = refract.mesh_exit(p, n, v, centre, 1.5, 0, front, back, vp, eye, vd)
+    q, d, found, _cos = glass_exit.mesh_exit(p, n, v, centre, 1.5, 0, front, back, vp, eye, vd)
     sq, sd = refract.exit_ray(p, n, v, centre, 1.5)
     assert not found.any()
     assert np.array_equal(d, sd) and np.array_equal(q, sq)
 
 
 def test_glass_texel_decodes_ids_normals_and_depth():
-    ids, normals, depth = refract.glass_texel([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, -3.0, 7.5]])
+    ids, normals, depth = glass_exit.glass_texel([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, -3.0, 7.5]])
     assert ids.tolist() == [-1, 2]
     assert np.allclose(normals[1], [0, 0, -1]) and depth[1] == 7.5
     assert SIZE > 0
@@ -141,9 +143,9 @@ def test_octahedral_coordinates_round_trip_every_direction():
     rng = np.random.default_rng(7)
     n = unit(rng.normal(size=(4000, 3)))
     n = np.concatenate([n, np.eye(3), -np.eye(3)])
-    e = refract.octahedral(n)
+    e = glass_exit.octahedral(n)
     assert np.all(np.abs(e) <= 1.0 + 1e-12)
-    assert np.max(np.abs(refract.from_octahedral(e) - n)) < 1e-12
+    assert np.max(np.abs(glass_exit.from_octahedral(e) - n)) < 1e-12
 
 
 def test_a_valid_normal_lifts_a_mirror_that_dips_below_its_face_to_cycles_threshold():
@@ -165,7 +167,7 @@ def test_a_valid_normal_lifts_a_mirror_that_dips_below_its_face_to_cycles_thresh
         return np.sum(ng[: len(w)] * (2.0 * np.sum(normal * w, -1, keepdims=True) * normal - w), -1)
 
     t = np.minimum(0.9 * wi[:, 2], 0.01)
-    out = refract.valid_normal(ng, wi, n)
+    out = glass_exit.valid_normal(ng, wi, n)
     kept = rise(n) >= t
     assert 0.05 < kept.mean() < 0.95  # both branches exercised
     assert np.array_equal(out[kept], n[kept])
@@ -192,11 +194,11 @@ def slab_view():
     turn = np.array([[1.0, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
     box = Box([0.0, 0.0, 0.0], [1.6, 1.6, 0.08], turn)
     front, back = box.buffers(rays, eye, vd)
-    ids, flat, depth = refract.glass_texel(back)
+    ids, flat, depth = glass_exit.glass_texel(back)
     toward = unit(eye - box.c)
     smooth_back = encode(ids, _towards(flat, toward, 17.0), depth)
-    _i, flat_front, _d = refract.glass_texel(front)
-    geometric = np.concatenate([refract.octahedral(flat_front), refract.octahedral(flat)], axis=-1)
+    _i, flat_front, _d = glass_exit.glass_texel(front)
+    geometric = np.concatenate([glass_exit.octahedral(flat_front), glass_exit.octahedral(flat)], axis=-1)
     t_near, _tf, n_near, _nf = box.hits(np.broadcast_to(eye, rays.shape), rays)
     hit = np.isfinite(t_near) & (ids == 0)
     p = eye + t_near[hit][:, None] * rays[hit]
@@ -223,8 +225,8 @@ def test_a_smooth_shaded_face_keeps_the_ray_inside_as_cycles_does():
     tir = np.sum(refract.refract(d0, -nb, 1.5) ** 2, -1) < 1e-12
     dips = tir & (np.sum((d0 - 2.0 * np.sum(d0 * nb, -1, keepdims=True) * nb) * bottom, -1) > 0.0)
     args = (p, n, v, box.c, 1.5, 0, front, back, vp, eye, vd)
-    q_old, _d, found_old, _c = refract.mesh_exit(*args)
-    q, _d, found, cos = refract.mesh_exit(*args, geometric=geometric, entry_geometric=flat)
+    q_old, _d, found_old, _c = glass_exit.mesh_exit(*args)
+    q, _d, found, cos = glass_exit.mesh_exit(*args, geometric=geometric, entry_geometric=flat)
     at_first_old = np.linalg.norm(q_old - first, axis=-1) < 0.05
     at_first = (np.linalg.norm(q - first, axis=-1) < 0.05) & ~np.isnan(cos[:, 1])
     print(
@@ -244,15 +246,15 @@ def test_flat_faces_meet_the_march_as_before():
     box = turned_box()
     front, back = box.buffers(rays, eye, vd)
     t_near, _tf, n_near, _nf = box.hits(np.broadcast_to(eye, rays.shape), rays)
-    ids, nf, _d = refract.glass_texel(front)
-    _ib, nb, _db = refract.glass_texel(back)
+    ids, nf, _d = glass_exit.glass_texel(front)
+    _ib, nb, _db = glass_exit.glass_texel(back)
     hit = np.isfinite(t_near) & (ids == 0)
     p, n, v = eye + t_near[hit][:, None] * rays[hit], n_near[hit], -rays[hit]
-    geometric = np.concatenate([refract.octahedral(nf), refract.octahedral(nb)], axis=-1)
+    geometric = np.concatenate([glass_exit.octahedral(nf), glass_exit.octahedral(nb)], axis=-1)
     for k in (0, 1):
         args = (p, n, v, box.c, 1.5, 0, front, back, vp, eye, vd)
-        plain = refract.mesh_exit(*args, reflections=k)
-        ruled = refract.mesh_exit(*args, reflections=k, geometric=geometric, entry_geometric=n)
+        plain = glass_exit.mesh_exit(*args, reflections=k)
+        ruled = glass_exit.mesh_exit(*args, reflections=k, geometric=geometric, entry_geometric=n)
         carried = ~np.isnan(plain[3][:, 1]) & ~np.isnan(ruled[3][:, 1])
         # a glint's path that leaves in one and not the other: where the face a step lands on in
         # the buffers is not the one its ray crosses (a texel at an edge), a pixel in a thousand
@@ -313,7 +315,7 @@ def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
     # edge mixes two faces' normals)
     keep = np.ones(len(p), bool)
     for box, side, at in ((near, 0, p), (near, 1, q1), (far, 0, p2), (far, 1, q2)):
-        ids, normals, _depth = refract.glass_texel(box.buffers(rays, eye, vd)[side])
+        ids, normals, _depth = glass_exit.glass_texel(box.buffers(rays, eye, vd)[side])
         face = np.where(ids >= 0, np.argmax(normals @ turn, -1) + 3 * np.argmax(-normals @ turn, -1), -1)
         edge = np.zeros(face.shape, bool)
         for axis in (0, 1):
@@ -321,7 +323,7 @@ def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
                 edge |= np.roll(face, shift, axis) != face
         row, col, _in = refract._project(np.nan_to_num(at), vp, np.array([1.0, 1.0, 0.0, 0.0]), face.shape)
         keep &= ~edge[row, col] | ((box is far) & ~enters)
-    q, d, found, cos, (side_p, side_d) = refract.mesh_exit(
+    q, d, found, cos, (side_p, side_d) = glass_exit.mesh_exit(
         p, n, v, near.c, eta, 0, front, back, vp, eye, vd, side=True
     )
     entered = ~np.isnan(cos[:, 2])
@@ -345,6 +347,6 @@ def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
     assert np.median(np.linalg.norm(side_p - p2, axis=-1)[both]) < 0.03
     assert np.percentile(np.linalg.norm(side_d - mirror, axis=-1)[both], 95) < 0.02
     # the nearest layer alone: the rays that should enter the far box leave from the near one
-    q0, _d0, _f0, cos0 = refract.mesh_exit(p, n, v, near.c, eta, 0, front[0], back[0], vp, eye, vd)
+    q0, _d0, _f0, cos0 = glass_exit.mesh_exit(p, n, v, near.c, eta, 0, front[0], back[0], vp, eye, vd)
     assert cos0.shape == (len(p), 2)
     assert np.median(np.linalg.norm(q0 - ref_q, axis=-1)[keep & enters]) > 0.3
