@@ -9,11 +9,10 @@
  * tf_glass_exit gives where it leaves for good, tf_refract.glsl's march what it sees there.
  */
 
-/* The glass buffers tf_glass_front and
- * tf_glass_back (.xyz the outward normal times (id + 1), .w the depth along the camera axis; 0
- * where empty) hold the object's TF_GLASS_LAYERS nearest front and back faces per pixel of the
- * drawn window, nearest first, side by side: layer k's texel (x, y) at (x + k W, y), W the
- * window's width. */
+/* The glass buffers tf_glass_front and tf_glass_back (2D arrays; .xyz the outward normal times
+ * (id + 1), .w the depth along the camera axis; 0 where empty) hold the object's TF_GLASS_LAYERS
+ * nearest front and back faces per pixel of the drawn window, nearest first: layer k is array
+ * layer k (tf_glass_geom the same). */
 
 /* Decode a glass-buffer texel: its object id (-1 where empty), unit normal and depth. */
 int tf_glass_decode(vec4 texel, out vec3 normal, out float depth)
@@ -74,11 +73,10 @@ void tf_glass_face(vec3 d, vec3 face_n, vec3 face_g, float eta, out float cos_fa
   mirror_ok = facing && dot(g_in, mirrored) > 0.0 && dot(n_in, mirrored) > 0.0;
 }
 
-/* The width and height of one layer of the glass buffers. */
+/* The width and height of the glass buffers. */
 ivec2 tf_glass_size()
 {
-  ivec2 size = textureSize(tf_glass_back, 0);
-  return ivec2(max(size.x / TF_GLASS_LAYERS, 1), size.y);
+  return textureSize(tf_glass_back, 0).xy;
 }
 
 /* The glass buffers' cell under world point q (clamped to the picture) and q's depth; false off the
@@ -100,7 +98,7 @@ bool tf_glass_cell(vec3 q, out ivec2 cell, out float z)
  * depth (-TF_REFRACT_FAR where the front face there is not own's) and its back depth. */
 bool tf_glass_span(ivec2 cell, int k, int own, out float f, out float b)
 {
-  ivec2 texel = cell + ivec2(k * tf_glass_size().x, 0);
+  ivec3 texel = ivec3(cell, k);
   vec3 normal;
   int id_f = tf_glass_decode(texelFetch(tf_glass_front, texel, 0), normal, f);
   int id_b = tf_glass_decode(texelFetch(tf_glass_back, texel, 0), normal, b);
@@ -114,7 +112,7 @@ bool tf_glass_span(ivec2 cell, int k, int own, out float f, out float b)
  * the front face's, .zw the back face's). */
 void tf_glass_face_at(ivec2 cell, int k, bool back, out vec3 face_normal, out vec3 face_geom)
 {
-  ivec2 texel = cell + ivec2(k * tf_glass_size().x, 0);
+  ivec3 texel = ivec3(cell, k);
   float depth;
   vec4 encoded = back ? texelFetch(tf_glass_back, texel, 0) : texelFetch(tf_glass_front, texel, 0);
   tf_glass_decode(encoded, face_normal, depth);
@@ -133,7 +131,7 @@ int tf_glass_id_at(vec3 q)
   }
   vec3 normal;
   float depth;
-  return tf_glass_decode(texelFetch(tf_glass_back, cell, 0), normal, depth);
+  return tf_glass_decode(texelFetch(tf_glass_back, ivec3(cell, 0), 0), normal, depth);
 }
 
 /* Whether a fragment of solid glass own at q is drawn: with the glass buffers only its nearest
@@ -152,7 +150,7 @@ bool tf_glass_nearest_front(vec3 q, int own, bool front_facing)
   tf_glass_cell(q, cell, z);
   vec3 normal;
   float nearest;
-  int id = tf_glass_decode(texelFetch(tf_glass_front, cell, 0), normal, nearest);
+  int id = tf_glass_decode(texelFetch(tf_glass_front, ivec3(cell, 0), 0), normal, nearest);
   return id != own || z <= nearest + TF_GLASS_FRONT_SLACK * z;
 }
 

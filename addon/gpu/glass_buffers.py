@@ -15,8 +15,9 @@ tells objects apart, so one glass does not exit through another's faces. Each pa
 the layer before): for a convex object the pixel's span [front, back] of layer 0 is exactly the
 object along that pixel's camera ray; a concave one (a wine glass) has a further span per layer,
 its far wall behind its near one, its foot behind its stem, which the exit ray enters again
-(``glass_exit._march_enter``). The arrays are (layers, H, W, 4); the textures hold the layers side by
-side (layer k's texel (x, y) at (x + k W, y)).
+(``glass_exit._march_enter``). The arrays are (layers, H, W, 4), the textures 2D arrays of as many
+layers (the window's side may be the GPU's limit on a texture's side, so the layers do not share
+one).
 
 The same two passes drawn again with ``TF_GLASS_GEOMETRIC`` give those faces' geometric (flat)
 normals, kept in one texture, **geom**: .xy the front face's, .zw the back face's, octahedral
@@ -80,13 +81,11 @@ class GlassBuffers:
     ids: dict
 
     def textures(self) -> tuple:
-        """(front, back, geom) as RGBA32F textures, the layers side by side, row 0 at the bottom
-        (as drawn)."""
+        """(front, back, geom) as RGBA32F 2D-array textures, one array layer per layer, row 0 at
+        the bottom (as drawn)."""
         layers, h, w = self.front.shape[:3]
         return tuple(
-            gpu.types.GPUTexture(
-                (w * layers, h), format="RGBA32F", data=float_buffer(np.concatenate(list(a), axis=1)[::-1])
-            )
+            gpu.types.GPUTexture((w, h), layers=layers, format="RGBA32F", data=float_buffer(a[:, ::-1]))
             for a in (self.front, self.back, self.geom)
         )
 

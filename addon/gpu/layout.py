@@ -274,13 +274,13 @@ DISPLAY_LUT_SAMPLER = Sampler(7, "FLOAT_2D", "tf_display_lut")
 BEHIND_SAMPLER = Sampler(8, "FLOAT_2D", "tf_behind")
 #: Solid glass's nearest front and back faces per pixel (:class:`.resources.BehindTexture`,
 #: ``TF_REFRACT``).
-GLASS_FRONT_SAMPLER = Sampler(9, "FLOAT_2D", "tf_glass_front")
-GLASS_BACK_SAMPLER = Sampler(10, "FLOAT_2D", "tf_glass_back")
+GLASS_FRONT_SAMPLER = Sampler(9, "FLOAT_2D_ARRAY", "tf_glass_front")
+GLASS_BACK_SAMPLER = Sampler(10, "FLOAT_2D_ARRAY", "tf_glass_back")
 #: Cycles' film seen from inside each solid glass (row = its id; tf_glass_exit.glsl tf_glass_back_r).
 GLASS_FILM_SAMPLER = Sampler(11, "FLOAT_2D", "tf_glass_film")
 #: The geometric normals of those faces (.xy the front face's, .zw the back face's, octahedral;
 #: tf_glass_exit.glsl tf_glass_outside), for Cycles' rules at smooth-shaded faces.
-GLASS_GEOM_SAMPLER = Sampler(12, "FLOAT_2D", "tf_glass_geom")
+GLASS_GEOM_SAMPLER = Sampler(12, "FLOAT_2D_ARRAY", "tf_glass_geom")
 #: The glass buffers' shader's only texture (``TF_GLASS_FURTHER``, :mod:`.glass_buffers`): the
 #: layer before, whose faces a further layer's lie behind.
 GLASS_PEEL_SAMPLER = Sampler(0, "FLOAT_2D", "tf_glass_peel")

@@ -496,10 +496,10 @@ class BehindTexture:
         geometric normals, empty ones (one texel a layer; the film 2 × 1) where none were drawn."""
         empty = float_buffer(np.zeros((1, 2, 4)))
         if self.front is None or self.back is None:
-            layers = policy.GLASS_LAYERS  # side by side (.glass_buffers)
-            none = float_buffer(np.zeros((1, layers, 4)))
+            layers = policy.GLASS_LAYERS  # 2D arrays (.glass_buffers)
+            none = float_buffer(np.zeros((layers, 1, 1, 4)))
             self.front, self.back, self.geom = (
-                gpu.types.GPUTexture((layers, 1), format="RGBA32F", data=none) for _ in range(3)
+                gpu.types.GPUTexture((1, 1), layers=layers, format="RGBA32F", data=none) for _ in range(3)
             )
         if self.geom is None:
             raise ValueError("the glass buffers were given without their geometric normals (geom)")
