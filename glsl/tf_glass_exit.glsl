@@ -23,7 +23,7 @@ int tf_glass_decode(vec4 texel, out vec3 normal, out float depth)
   return int(floor(len + 0.5)) - 1;
 }
 
-/* Octahedral coordinates -> unit vector (shading.refract.from_octahedral). */
+/* Octahedral coordinates -> unit vector (shading.glass.glass_exit.from_octahedral). */
 vec3 tf_oct_decode(vec2 e)
 {
   vec3 n = vec3(e, 1.0 - abs(e.x) - abs(e.y));
@@ -33,7 +33,7 @@ vec3 tf_oct_decode(vec2 e)
   return normalize(n);
 }
 
-/* The shading normal Cycles uses for smooth glass (shading.refract.valid_normal, Cycles'
+/* The shading normal Cycles uses for smooth glass (shading.glass.glass_exit.valid_normal, Cycles'
  * ensure_valid_specular_reflection): n where the mirror of wi about it rises at least
  * min(TF_VALID_REFLECTION_SCALE cos, TF_VALID_REFLECTION_RISE) above the face (geometric
  * normal ng, cos = wi . ng), else n turned towards ng in their plane until it rises exactly that
@@ -57,7 +57,7 @@ vec3 tf_valid_normal(vec3 ng, vec3 wi, vec3 n)
 }
 
 /* One face met from inside by the unit ray d (outward shading normal face_n, geometric face_g) as
- * Cycles' smooth glass meets it (shading.refract._face_step): the cosine inside, the refracted
+ * Cycles' smooth glass meets it (shading.glass.glass_exit._face_step): the cosine inside, the refracted
  * direction out (0 under total internal reflection), the mirrored one, and whether each is valid
  * (it leaves on its side of the face and of the normal; Cycles ends the path otherwise). */
 void tf_glass_face(vec3 d, vec3 face_n, vec3 face_g, float eta, out float cos_face, out vec3 out_dir,
@@ -93,7 +93,7 @@ bool tf_glass_cell(vec3 q, out ivec2 cell, out float z)
   return clip.w > 0.0 && z > 0.0 && all(greaterThanEqual(at, vec2(0.0))) && all(lessThan(at, size));
 }
 
-/* Layer k of object own's spans along cell's camera ray (shading.refract._Glass.spans): whether it
+/* Layer k of object own's spans along cell's camera ray (shading.glass.glass_exit._Glass.spans): whether it
  * is one (layer 0: own's back face there; a further layer: own's front and back faces), its front
  * depth (-TF_REFRACT_FAR where the front face there is not own's) and its back depth. */
 bool tf_glass_span(ivec2 cell, int k, int own, out float f, out float b)
@@ -155,7 +155,7 @@ bool tf_glass_nearest_front(vec3 q, int own, bool front_facing)
 }
 
 /* Whether q lies outside every span of object own along its pixel's camera ray
- * (shading.refract._Glass.outside), and the face it lies beyond: the nearest back face it lies
+ * (shading.glass.glass_exit._Glass.outside), and the face it lies beyond: the nearest back face it lies
  * behind or front face it lies in front of (layer 0's back face where none: off the object's
  * silhouette): which side and layer, on cell (tf_glass_face_at); inside: q on the picture. */
 bool tf_glass_outside(vec3 q, int own, out bool through_back, out int layer, out ivec2 cell, out bool inside)
@@ -190,7 +190,7 @@ bool tf_glass_outside(vec3 q, int own, out bool through_back, out int layer, out
   return !within;
 }
 
-/* Where o + s d, s in (0, reach], first leaves object own (shading.refract._march_inside). */
+/* Where o + s d, s in (0, reach], first leaves object own (shading.glass.glass_exit._march_inside). */
 bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out vec3 face_normal,
                     out vec3 face_geom)
 {
@@ -240,7 +240,7 @@ bool tf_glass_past(vec3 q, int own, int k, bool away)
 }
 
 /* Where o + s d, s in (0, reach], having left object own at o, first enters one of its spans again
- * (shading.refract._march_enter): TF_GLASS_STEPS even steps until it leaves the picture, a step
+ * (shading.glass.glass_exit._march_enter): TF_GLASS_STEPS even steps until it leaves the picture, a step
  * entering span k where it crosses the span's near face on its pixel or lies within it, the entry
  * bisected TF_GLASS_REFINE times against that face; its normal and geometric normal. */
 bool tf_glass_enter(vec3 o, vec3 d, float reach, int own, out float s_hit, out vec3 face_normal,
@@ -295,7 +295,7 @@ bool tf_glass_enter(vec3 o, vec3 d, float reach, int own, out float s_hit, out v
   return true;
 }
 
-/* cos theta_t inside glass of index eta of a ray entering at cos_outside (shading.refract.inner_cosine). */
+/* cos theta_t inside glass of index eta of a ray entering at cos_outside (shading.glass.refract.inner_cosine). */
 float tf_inner_cosine(float cos_outside, float eta)
 {
   float c = clamp(cos_outside, 0.0, 1.0);
@@ -328,7 +328,7 @@ vec3 tf_glass_back_r(float cos_inside, TFLerp r, float eta, int own)
 
 /* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
  * (normal n, geometric normal g, both facing the viewer) and leaving object own through its real
- * faces (shading.refract.mesh_exit), total internal reflections followed up to TF_GLASS_BOUNCES
+ * faces (shading.glass.glass_exit.mesh_exit), total internal reflections followed up to TF_GLASS_BOUNCES
  * faces, each face met as Cycles' smooth glass meets it (tf_glass_face); reflections: the first
  * that many faces it could leave through reflect it instead (the glints), carried the product of
  * the film's reflectance from inside there (tf_glass_back_r with r); a ray that leaves goes on

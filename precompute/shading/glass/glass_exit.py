@@ -79,7 +79,7 @@ def valid_normal(geometric, incoming, normal) -> np.ndarray:
     (``ensure_valid_specular_reflection``, Blender 5.2, a material's *Bump Map Correction*, on
     by default): ``normal`` where the mirror of the unit ``incoming`` direction (towards where the
     light goes back to, facing ``geometric``) about it rises at least min(0.9 cos, 0.01) above the
-    face's plane (cos = incoming · geometric; :data:`.policy.VALID_REFLECTION_SCALE`, ``_RISE``),
+    face's plane (cos = incoming · geometric; :data:`..policy.VALID_REFLECTION_SCALE`, ``_RISE``),
     else that normal turned towards ``geometric`` in their plane just far enough that the mirror
     rises exactly that much. All three face the incoming side. As tf_valid_normal."""
     ng = np.asarray(geometric, dtype=np.float64)
@@ -304,9 +304,9 @@ def mesh_exit(
     inside the glass at the first face met, at the face the ray leaves through (NaN where the
     path carries nothing: it never leaves, or Cycles drops it), then at each face that reflected
     it by choice (NaN where it met no more), for the film's reflectance from inside
-    (:func:`.transmit.back_reflectance`), then per entry into a further span (NaN where none):
+    (:func:`..transmit.back_reflectance`), then per entry into a further span (NaN where none):
     the cosine inside at the face it left through before and the cosine outside at the face it
-    enters (the film's reflectance from outside there, :func:`.transmit.white_reflectance`).
+    enters (the film's reflectance from outside there, :func:`..transmit.white_reflectance`).
     ``side``: also (points (N, 3), directions (N, 3)) of the ray the film mirrors where the path
     first enters a further span (a wine glass's far wall seen from its bowl; NaN where it does
     not), a fifth item.

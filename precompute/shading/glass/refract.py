@@ -1,7 +1,7 @@
 """Solid glass refracts the scene behind it: the exit ray and its screen-space march (numpy twin of
 glsl/tf_refract.glsl).
 
-A film on solid glass (:data:`.transmit.WALL_SOLID`, a Principled BSDF with *Transmission* and no
+A film on solid glass (:data:`..transmit.WALL_SOLID`, a Principled BSDF with *Transmission* and no
 *Thin Wall*) replaces what is behind it by what the ray sees after passing through the glass.
 Two steps, both per pixel:
 
@@ -17,12 +17,12 @@ Two steps, both per pixel:
 2. **Over the scene behind** (:func:`march`). The scene without the glass is an image with its
    depth d (the distance along the camera axis, the headless frame's background pass). The exit
    ray p₂ + s w is sampled at s_k = z₂ · FIRST · GROWTH^k (z₂: the exit point's depth; k < STEPS,
-   :data:`.policy.REFRACT_STEPS` …); each sample q is projected to the image (the view-projection
+   :data:`..policy.REFRACT_STEPS` …); each sample q is projected to the image (the view-projection
    matrix, then ``screen``: the pass's [0, 1] window → the image's uv) and read at its nearest
    texel. The first step where q's depth passes the image's depth (after one in front of it) is
-   bisected :data:`.policy.REFRACT_REFINE` times against the depth between texel centres
+   bisected :data:`..policy.REFRACT_REFINE` times against the depth between texel centres
    (bilinear in 1 / depth, exact for a plane); the hit is accepted where q lies at most
-   :data:`.policy.REFRACT_THICKNESS` × its depth behind the surface (else the ray passed behind
+   :data:`..policy.REFRACT_THICKNESS` × its depth behind the surface (else the ray passed behind
    an occluder and marches on), and sees the image's colour at the hit point, bilinear between
    texel centres. A ray that leaves the image or the march sees nothing: the caller falls back to
    the World along w (the prefiltered World's sharpest level).
@@ -269,7 +269,7 @@ def _meets_ahead(o, w, s, a, b) -> np.ndarray:
 
 def mirror_weight(roughness) -> float:
     """How much of the scene behind smooth solid glass reflects in place of the World: 1 at
-    roughness 0, falling linearly to 0 at :data:`.policy.REFRACT_MIRROR_ROUGHNESS`."""
+    roughness 0, falling linearly to 0 at :data:`..policy.REFRACT_MIRROR_ROUGHNESS`."""
     return float(np.clip(1.0 - float(roughness) / REFRACT_MIRROR_ROUGHNESS, 0.0, 1.0))
 
 
