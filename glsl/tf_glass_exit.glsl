@@ -167,10 +167,13 @@ bool tf_glass_outside(vec3 q, int own, out bool through_back, out int layer, out
   float nearest = 0.0;
   layer = 0;
   through_back = true;
+  float fs[TF_GLASS_LAYERS];
+  bool spans[TF_GLASS_LAYERS];
   for (int k = 0; k < TF_GLASS_LAYERS; k++) {
-    float f, b;
-    if (tf_glass_span(cell, k, own, f, b)) {
-      within = within || (z <= b + slack && z >= f - slack);
+    float b;
+    spans[k] = tf_glass_span(cell, k, own, fs[k], b);
+    if (spans[k]) {
+      within = within || (z <= b + slack && z >= fs[k] - slack);
       if (z > b + slack && (!any || z - b < nearest)) {
         any = true;
         nearest = z - b;
@@ -178,9 +181,9 @@ bool tf_glass_outside(vec3 q, int own, out bool through_back, out int layer, out
       }
     }
   }
-  for (int k = 0; k < TF_GLASS_LAYERS; k++) {
-    float f, b;
-    if (tf_glass_span(cell, k, own, f, b) && z < f - slack && (!any || f - z < nearest)) {
+  for (int k = 0; k < TF_GLASS_LAYERS; k++) { /* the fronts after the backs, as numpy's argmin */
+    float f = fs[k];
+    if (spans[k] && z < f - slack && (!any || f - z < nearest)) {
       any = true;
       nearest = f - z;
       layer = k;

@@ -13,8 +13,9 @@
  * (addon/gpu/draw.py); alpha ends as 1 - (1 - alpha_behind) mean T.
  * Solid glass with TF_REFRACT sees the scene behind along its exit ray (tf_refract.glsl). A closed
  * thin wall's far side adds its reflections inside (tf_wall_inside, shading.transmit; TF_SPLIT_SUM).
- * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and tf_glass_exit.glsl with tf_refract.glsl (TF_REFRACT) are joined before this chunk
- * for the variants that have them (addon/gpu/shaders.py).
+ * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and
+ * tf_glass_exit.glsl with tf_refract.glsl (TF_REFRACT) are joined before this chunk for the
+ * variants that have them (addon/gpu/shaders.py).
  */
 
 #if defined(TF_TRANSMIT) && defined(TF_SPLIT_SUM)
@@ -100,8 +101,9 @@ vec3 tf_refract_seen(vec3 o, vec3 dir)
 #endif
 }
 
-/* What solid glass shows behind it (tf_refract.glsl, tf_glass_exit.glsl): the scene behind where the exit ray (through
- * the real mesh, tf_glass_exit, else the sphere about the origin) hits it, else the World along
+/* What solid glass shows behind it (tf_refract.glsl, tf_glass_exit.glsl): the scene behind where
+ * the exit ray (through the real mesh, tf_glass_exit, else the sphere about the origin) hits it,
+ * else the World along
  * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
  * the pixel, times what the path carries (0 where Cycles ends it); g: the face's geometric
  * normal; cosines: inside the glass at the first face and the face it leaves through; side: what
@@ -109,21 +111,20 @@ vec3 tf_refract_seen(vec3 o, vec3 dir)
  * tf_refract_seen), times what that branch carries. */
 vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines, out vec3 side)
 {
-  vec3 exit_point, dir, colour, carried, side_point, side_dir, side_carried;
+  vec3 exit_point, dir, carried, side_point, side_dir, side_carried;
   tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), 0, r,
                 exit_point, dir, cosines, carried, side_point, side_dir, side_carried);
   side = vec3(0.0);
   if (any(greaterThan(side_carried, vec3(0.0)))) {
     side = side_carried * tf_refract_seen(side_point, side_dir);
   }
+#ifdef TF_SPLIT_SUM
+  return carried * tf_refract_seen(exit_point, dir);
+#else
+  vec3 colour;
   if (tf_refract_march(exit_point, dir, colour)) {
     return carried * colour;
   }
-#ifdef TF_SPLIT_SUM
-  vec3 unused_moment;
-  float unused_weight;
-  return carried * tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
-#else
   ivec2 texel;
   float unused_depth;
   tf_refract_sample(tf_world_pos, texel, unused_depth);
@@ -156,10 +157,7 @@ vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
       return t_in * r_in * (vec3(1.0) - r_in) *
              tf_prefiltered_lookup(tf_solid_internal(n, v, eta), 0.0, unused_moment, unused_weight);
     }
-    vec3 seen;
-    if (!tf_refract_march(exit_point, dir, seen)) {
-      seen = tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
-    }
+    vec3 seen = tf_refract_seen(exit_point, dir);
     total += carried * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own)) * seen;
   }
   return t_in * total;
