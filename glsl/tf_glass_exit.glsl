@@ -329,45 +329,43 @@ vec3 tf_glass_back_r(float cos_inside, TFLerp r, float eta, int own)
   return clamp(tf_film_white(sqrt(max(1.0 - s2, 0.0)), r), vec3(0.0), vec3(1.0));
 }
 
-/* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
- * (normal n, geometric normal g, both facing the viewer) and leaving object own through its real
- * faces (shading.glass.glass_exit.mesh_exit), total internal reflections followed up to TF_GLASS_BOUNCES
- * faces, each face met as Cycles' smooth glass meets it (tf_glass_face); reflections: the first
- * that many faces it could leave through reflect it instead (the glints), carried the product of
- * the film's reflectance from inside there (tf_glass_back_r with r); a ray that leaves goes on
- * into a further span of the object (tf_glass_enter, at most TF_GLASS_LAYERS - 1 times: a concave
- * glass), refracted in there, carried the film's transmittance out and in (side: the ray the film
- * mirrors where it first enters again, from side_point along side_dir, carried side_carried; 0
- * where it does not); carried 0 on a path that
- * does not leave within TF_GLASS_BOUNCES faces (Cycles' bounce limit ends it) and on any path
- * Cycles ends (a direction on the wrong side of a face, in or out); cosines: inside the glass at
- * the first face met and at the face it leaves through (1 where it never leaves). False where
- * the buffers do not hold the object (the sphere about c stands in, tf_solid_exit_ray; both
- * cosines its cos theta_t). */
-bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, int reflections, TFLerp r,
-                   out vec3 exit_point, out vec3 dir, out vec2 cosines, out vec3 carried, out vec3 side_point,
-                   out vec3 side_dir, out vec3 side_carried)
+/* A branch of a glass path: the ray from point along dir, carried carried (0 where none). */
+struct TFGlassBranch {
+  vec3 point;
+  vec3 dir;
+  vec3 carried;
+};
+
+/* No branch. */
+TFGlassBranch tf_glass_no_branch()
+{
+  return TFGlassBranch(vec3(0.0), vec3(0.0, 0.0, 1.0), vec3(0.0));
+}
+
+/* The ray o + s d inside object own (index eta, reach its march's reach, carried what it carries so
+ * far) until it leaves the object for good (shading.glass.glass_exit._follow): faces met as
+ * Cycles' smooth glass meets them (tf_glass_face), total internal reflections followed up to
+ * TF_GLASS_BOUNCES faces; reflections: the first that many faces it could leave through reflect
+ * it instead (the glints), carried the film's reflectance from inside there (tf_glass_back_r with
+ * r); a ray that leaves goes on into a further span of the object (tf_glass_enter, at most
+ * TF_GLASS_LAYERS - 1 times: a concave glass), refracted in there, carried the film's
+ * transmittance out and in. Where it first enters again the film's mirror there is branched off
+ * (mirror: in the air, a bowl's far wall seen from inside it), and where it then leaves, the
+ * film's reflection back inside (inner: that wall's outer face seen from inside the glass).
+ * carried 0 on a path that does not leave within TF_GLASS_BOUNCES faces (Cycles' bounce limit
+ * ends it) and on any path Cycles ends (a direction on the wrong side of a face, in or out).
+ * cosines: inside the glass at the first face met and at the face it leaves through (1 where it
+ * never leaves). False where the first march meets no face (the caller's fallback). */
+bool tf_glass_follow(vec3 o, vec3 d, float reach, float eta, int own, int reflections, TFLerp r, inout vec3 carried,
+                     out vec3 exit_point, out vec3 dir, out vec2 cosines, out TFGlassBranch mirror,
+                     out TFGlassBranch inner)
 {
   float e = max(eta, TF_WALL_GUARD);
-  cosines = vec2(tf_inner_cosine(dot(n, v), e));
-  carried = vec3(1.0);
-  side_point = p;
-  side_dir = v;
-  side_carried = vec3(0.0);
-  if (own < 0 || tf_glass_id_at(p) != own) { /* the object is not in the buffers at its entry */
-    tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
-    return false;
-  }
-  vec3 n_entry = tf_valid_normal(g, v, n);
-  vec3 d = tf_safe_normalize(refract(-v, n_entry, 1.0 / e), -v);
-  if (dot(g, d) >= 0.0 || dot(n_entry, v) <= 0.0) { /* Cycles ends a refraction that does not go in */
-    exit_point = p;
-    dir = d;
-    carried = vec3(0.0);
-    return true;
-  }
-  float reach = TF_GLASS_REACH * max(length(p - c), TF_WALL_GUARD);
-  vec3 o = p;
+  mirror = tf_glass_no_branch();
+  inner = tf_glass_no_branch();
+  exit_point = o;
+  dir = d;
+  cosines = vec2(1.0);
   bool first = true;
   float cos_first = 1.0;
   int chosen = 0;
@@ -377,7 +375,6 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, i
     vec3 face_n, face_g;
     if (!tf_glass_march(o, d, reach, own, s, face_n, face_g)) {
       if (bounce == 0) {
-        tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
         return false;
       }
       break;
@@ -414,9 +411,7 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, i
         vec3 r_in = clamp(tf_film_white(clamp(dot(-out_n, n_in), 0.0, 1.0), r), vec3(0.0), vec3(1.0));
         carried *= vec3(1.0) - r_out;
         if (entries == 1) { /* the mirror branch where it first enters again (a bowl's far wall) */
-          side_point = o;
-          side_dir = reflect(out_n, n_in);
-          side_carried = carried * r_in;
+          mirror = TFGlassBranch(o, reflect(out_n, n_in), carried * r_in);
         }
         carried *= vec3(1.0) - r_in;
         d = d_in;
@@ -429,6 +424,9 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, i
       if (!out_ok) {
         dir = d;
         carried = vec3(0.0);
+      }
+      else if (entries == 1 && mirror_ok) { /* the far wall's reflection back inside where it leaves */
+        inner = TFGlassBranch(o, mirrored, carried * tf_glass_back_r(cos_face, r, eta, own));
       }
       return true;
     }
@@ -450,5 +448,43 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, i
   dir = d;
   cosines = vec2(cos_first, 1.0);
   carried = vec3(0.0); /* not left within TF_GLASS_BOUNCES faces: none (Cycles' bounce limit ends it) */
+  return true;
+}
+
+/* The exit point and direction of the ray from the viewer (v) entering glass of index eta at p
+ * (normal n, geometric normal g, both facing the viewer) and leaving object own through its real
+ * faces (shading.glass.glass_exit.mesh_exit): refracted in as Cycles' smooth glass refracts it,
+ * then followed (tf_glass_follow: reflections, carried, cosines, mirror and inner as there). False
+ * where the buffers do not hold the object (the sphere about c stands in, tf_solid_exit_ray;
+ * both cosines its cos theta_t). */
+bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, int reflections, TFLerp r,
+                   out vec3 exit_point, out vec3 dir, out vec2 cosines, out vec3 carried, out TFGlassBranch mirror,
+                   out TFGlassBranch inner)
+{
+  float e = max(eta, TF_WALL_GUARD);
+  cosines = vec2(tf_inner_cosine(dot(n, v), e));
+  carried = vec3(1.0);
+  mirror = tf_glass_no_branch();
+  inner = tf_glass_no_branch();
+  if (own < 0 || tf_glass_id_at(p) != own) { /* the object is not in the buffers at its entry */
+    tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
+    return false;
+  }
+  vec3 n_entry = tf_valid_normal(g, v, n);
+  vec3 d = tf_safe_normalize(refract(-v, n_entry, 1.0 / e), -v);
+  if (dot(g, d) >= 0.0 || dot(n_entry, v) <= 0.0) { /* Cycles ends a refraction that does not go in */
+    exit_point = p;
+    dir = d;
+    carried = vec3(0.0);
+    return true;
+  }
+  float reach = TF_GLASS_REACH * max(length(p - c), TF_WALL_GUARD);
+  vec2 traced;
+  if (!tf_glass_follow(p, d, reach, eta, own, reflections, r, carried, exit_point, dir, traced, mirror, inner)) {
+    tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
+    carried = vec3(1.0);
+    return false;
+  }
+  cosines = traced;
   return true;
 }

@@ -101,23 +101,60 @@ vec3 tf_refract_seen(vec3 o, vec3 dir)
 #endif
 }
 
+/* What a branch of solid glass own's path sees (tf_glass_follow's mirror and inner), times what it
+ * carries (shading.glass.glass_exit.branch_exit): inner, inside the glass, is followed until it
+ * leaves; mirror, in the air, enters the object where it meets it again (a bowl's near wall, from
+ * behind), through the film there, and is followed; each out through the film, seeing the scene
+ * where it meets it, else the World (tf_refract_seen). A mirror that meets the object no more
+ * sees along its ray, as does one whose march meets no face; an inner one then sees nothing. */
+vec3 tf_glass_branch(TFGlassBranch b, bool in_air, TFLerp r)
+{
+  if (!any(greaterThan(b.carried, vec3(0.0)))) {
+    return vec3(0.0);
+  }
+  int own = tf_glass_own();
+  float eta = tf_object.material.w;
+  float reach = TF_GLASS_REACH * max(length(b.point - tf_object.model[3].xyz), TF_WALL_GUARD);
+  vec3 o = b.point, d = b.dir, carried = b.carried;
+  if (in_air) {
+    float s_in;
+    vec3 in_n, in_g;
+    if (!tf_glass_enter(o, d, reach, own, s_in, in_n, in_g) || dot(in_g, -d) <= 0.0) {
+      return carried * tf_refract_seen(o, d);
+    }
+    vec3 n_in = tf_valid_normal(in_g, -d, (dot(in_n, -d) < 0.0) ? -in_n : in_n);
+    vec3 d_in = tf_safe_normalize(refract(d, n_in, 1.0 / max(eta, TF_WALL_GUARD)), d);
+    if (dot(in_g, d_in) >= 0.0 || dot(n_in, -d) <= 0.0) { /* Cycles ends it */
+      return vec3(0.0);
+    }
+    carried *= vec3(1.0) - clamp(tf_film_white(clamp(dot(-d, n_in), 0.0, 1.0), r), vec3(0.0), vec3(1.0));
+    o += s_in * d;
+    d = d_in;
+  }
+  vec3 exit_point, dir;
+  vec2 cosines;
+  TFGlassBranch unused_mirror, unused_inner;
+  if (!tf_glass_follow(o, d, reach, eta, own, 0, r, carried, exit_point, dir, cosines, unused_mirror, unused_inner)) {
+    return in_air ? b.carried * tf_refract_seen(b.point, b.dir) : vec3(0.0);
+  }
+  return carried * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own)) * tf_refract_seen(exit_point, dir);
+}
+
 /* What solid glass shows behind it (tf_refract.glsl, tf_glass_exit.glsl): the scene behind where
  * the exit ray (through the real mesh, tf_glass_exit, else the sphere about the origin) hits it,
  * else the World along
  * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
  * the pixel, times what the path carries (0 where Cycles ends it); g: the face's geometric
  * normal; cosines: inside the glass at the first face and the face it leaves through; side: what
- * the film mirrors where the ray enters the glass again (a wine glass's far wall,
- * tf_refract_seen), times what that branch carries. */
+ * the film reflects where the ray enters the glass again and leaves it (a wine glass's far wall:
+ * its mirror in the bowl, its reflection inside; tf_glass_branch). */
 vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines, out vec3 side)
 {
-  vec3 exit_point, dir, carried, side_point, side_dir, side_carried;
+  vec3 exit_point, dir, carried;
+  TFGlassBranch mirror, inner;
   tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, tf_object.material.w, tf_glass_own(), 0, r,
-                exit_point, dir, cosines, carried, side_point, side_dir, side_carried);
-  side = vec3(0.0);
-  if (any(greaterThan(side_carried, vec3(0.0)))) {
-    side = side_carried * tf_refract_seen(side_point, side_dir);
-  }
+                exit_point, dir, cosines, carried, mirror, inner);
+  side = tf_glass_branch(mirror, true, r) + tf_glass_branch(inner, false, r);
 #ifdef TF_SPLIT_SUM
   return carried * tf_refract_seen(exit_point, dir);
 #else
@@ -149,10 +186,11 @@ vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
   float unused_weight;
   vec3 total = vec3(0.0);
   for (int k = 1; k <= TF_GLASS_ORDERS; k++) {
-    vec3 exit_point, dir, carried, side_point, side_dir, side_carried;
+    vec3 exit_point, dir, carried;
     vec2 cosines;
+    TFGlassBranch unused_mirror, unused_inner;
     if (!tf_glass_exit(tf_world_pos, n, g, v, tf_object.model[3].xyz, eta, own, k, r, exit_point, dir, cosines,
-                       carried, side_point, side_dir, side_carried)) {
+                       carried, unused_mirror, unused_inner)) {
       vec3 r_in = tf_glass_back_r(cosines.x, r, eta, own);
       return t_in * r_in * (vec3(1.0) - r_in) *
              tf_prefiltered_lookup(tf_solid_internal(n, v, eta), 0.0, unused_moment, unused_weight);

@@ -175,7 +175,7 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     centre = model[:3, 3]
     args = (buffers.front, buffers.back, vp, cam, vd)
     rules = {"geometric": buffers.geom, "entry_geometric": faces}
-    exit_points, dirs, found, cosines, (side_p, side_d) = glass_exit.mesh_exit(
+    exit_points, dirs, found, cosines, branches = glass_exit.mesh_exit(
         points, n, views, centre, 1.5, 0, *args, side=True, **rules
     )
     kept = ~np.isnan(cosines[:, 1])  # a path Cycles ends carries nothing
@@ -220,15 +220,40 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     glint *= t_in
     through = t_in * crossed(cosines[:, 2:]) * (1.0 - back(np.nan_to_num(cosines[:, 1], nan=1.0))) * seen
     through = np.where(kept[:, None], through, 0.0)
-    # the film's mirror where the path first enters the far cube: what that ray sees
-    mirrored = ~np.isnan(side_p[:, 0])
-    s_p, s_d = np.nan_to_num(side_p), np.nan_to_num(side_d, nan=1.0)
-    s_hit, s_rows, s_cols = refract.march(s_p, s_d, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
-    s_seen = refract.seen(s_hit, s_rows, s_cols, colour, split_sum.lookup(pre, s_d, np.zeros(len(n))))
+
+    # the film's mirror where the path first enters the far cube, and its reflection back inside
+    # where the path leaves it: each followed back through the glass (glass_exit.branch_exit)
+    def sees(q, d):
+        q, d = np.nan_to_num(q), np.nan_to_num(d, nan=1.0)
+        b_hit, b_rows, b_cols = refract.march(q, d, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
+        return refract.seen(b_hit, b_rows, b_cols, colour, split_sum.lookup(pre, d, np.zeros(len(n))))
+
+    def onward(cos):  # through the further spans the branch entered, then out through the film
+        return crossed(cos[:, 2:]) * np.where(
+            np.isnan(cos[:, 1:2]), 0.0, 1.0 - back(np.nan_to_num(cos[:, 1], nan=1.0))
+        )
+
+    mirrored = ~np.isnan(branches.mirror_point[:, 0])
     r_far = np.clip(transmit.white_reflectance(film, lerp, np.nan_to_num(cosines[:, 3], nan=1.0)), 0.0, 1.0)
-    side = np.where(
-        mirrored[:, None], t_in * (1.0 - back(np.nan_to_num(cosines[:, 2], nan=1.0))) * r_far * s_seen, 0.0
+    m_carried = t_in * (1.0 - back(np.nan_to_num(cosines[:, 2], nan=1.0))) * r_far
+    m_q, m_d, m_followed, m_cos_entry, m_cos = glass_exit.branch_exit(
+        branches.mirror_point, branches.mirror_dir, True, centre, 1.5, 0, *args, geometric=buffers.geom
     )
+    m_met = ~np.isnan(m_cos_entry)
+    r_in = np.clip(transmit.white_reflectance(film, lerp, np.nan_to_num(m_cos_entry, nan=1.0)), 0.0, 1.0)
+    straight = ~m_met | ~m_followed  # meets the object no more (or its march no face): seen along itself
+    m_seen = np.where(
+        straight[:, None],
+        sees(branches.mirror_point, branches.mirror_dir),
+        (1.0 - r_in) * onward(m_cos) * sees(m_q, m_d),
+    )
+    side = np.where(mirrored[:, None], m_carried * m_seen, 0.0)
+    inner = ~np.isnan(branches.inner_point[:, 0])
+    i_carried = t_in * crossed(cosines[:, 2:]) * back(np.nan_to_num(cosines[:, 1], nan=1.0))
+    i_q, i_d, i_followed, _c, i_cos = glass_exit.branch_exit(
+        branches.inner_point, branches.inner_dir, False, centre, 1.5, 0, *args, geometric=buffers.geom
+    )
+    side += np.where((inner & i_followed)[:, None], i_carried * onward(i_cos) * sees(i_q, i_d), 0.0)
     through += side
     expected = s * split_sum.shade_split_sum(result, pre, n, views) + through
     expected, _m_hit, _w = with_scene_mirror(
@@ -258,6 +283,11 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
         both = (entered & kept).mean()
         print(f"pair: {entered.mean():.0%} of the paths enter the far cube, {both:.0%} leave it")
         assert mirrored.any() and not (mirrored & ~entered).any()
+        assert inner.any() and not (inner & ~entered).any()
+        print(
+            f"pair: {inner.mean():.0%} of the paths reflect back inside the far cube,"
+            f" {i_followed.mean():.0%} followed"
+        )
         # the mirror branch is larger than the draw's tolerance where it is
         print(f"pair: the far cube's mirror up to {side.max() / np.max(expected):.1e} of the peak")
         assert np.percentile(side.max(-1)[mirrored], 50) / np.max(expected) > 1e-3

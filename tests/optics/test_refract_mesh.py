@@ -289,15 +289,14 @@ def layered_buffers(boxes, rays, eye, view_dir):
     return sides
 
 
-def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
+def two_boxes(far_turn=None):
     """One object of two boxes, the second behind the first (a wine glass's far wall behind its
-    near one): with two layers in the buffers the ray that leaves the near box enters the far one
-    and leaves it where an exact trace through both boxes does; with the nearest layer alone it
-    would go on to the scene behind from the near box."""
+    near one; turned as the first, or by ``far_turn``), its two-layer buffers, the camera's pixels
+    that see the near box first, and an exact trace through both (a dict)."""
     vp, eye, vd, rays = camera()
     turn = turned_box().m
     near = Box([-0.2, -0.3, 0.0], [0.35, 0.2, 0.5], turn)
-    far = Box([0.15, 0.9, 0.1], [0.45, 0.25, 0.45], turn)
+    far = Box([0.15, 0.9, 0.1], [0.45, 0.25, 0.45], turn if far_turn is None else far_turn)
     front, back = layered_buffers([near, far], rays, eye, vd)
     t_near, _tf, n_near, _nf = near.hits(np.broadcast_to(eye, rays.shape), rays)
     t_far_box = far.hits(np.broadcast_to(eye, rays.shape), rays)[0]
@@ -310,22 +309,37 @@ def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
     enters = np.isfinite(tn2) & (tn2 > 0)
     p2 = q1 + np.where(enters, tn2, 0.0)[:, None] * d1
     q2, d2 = far.trace(p2, unit(refract.refract(d1, n2, 1.0 / eta)), eta)
-    ref_q, ref_d = np.where(enters[:, None], q2, q1), np.where(enters[:, None], d2, d1)
     # the paths that meet every face a texel or more from its edges in the buffers (a texel at an
     # edge mixes two faces' normals)
     keep = np.ones(len(p), bool)
     for box, side, at in ((near, 0, p), (near, 1, q1), (far, 0, p2), (far, 1, q2)):
-        ids, normals, _depth = glass_exit.glass_texel(box.buffers(rays, eye, vd)[side])
-        face = np.where(ids >= 0, np.argmax(normals @ turn, -1) + 3 * np.argmax(-normals @ turn, -1), -1)
-        edge = np.zeros(face.shape, bool)
-        for axis in (0, 1):
-            for shift in (1, -1):
-                edge |= np.roll(face, shift, axis) != face
-        row, col, _in = refract._project(np.nan_to_num(at), vp, np.array([1.0, 1.0, 0.0, 0.0]), face.shape)
-        keep &= ~edge[row, col] | ((box is far) & ~enters)
-    q, d, found, cos, (side_p, side_d) = glass_exit.mesh_exit(
-        p, n, v, near.c, eta, 0, front, back, vp, eye, vd, side=True
-    )
+        keep &= ~on_edge(box, side, at, rays, eye, vd, vp) | ((box is far) & ~enters)
+    args = (front, back, vp, eye, vd)
+    return dict(locals())
+
+
+def on_edge(box, side, at, rays, eye, vd, vp):
+    """Whether points ``at`` lie a texel or less from an edge of ``box``'s faces in its buffer
+    ``side`` (0 front, 1 back)."""
+    ids, normals, _depth = glass_exit.glass_texel(box.buffers(rays, eye, vd)[side])
+    face = np.where(ids >= 0, np.argmax(normals @ box.m, -1) + 3 * np.argmax(-normals @ box.m, -1), -1)
+    edge = np.zeros(face.shape, bool)
+    for axis in (0, 1):
+        for shift in (1, -1):
+            edge |= np.roll(face, shift, axis) != face
+    row, col, _in = refract._project(np.nan_to_num(at), vp, np.array([1.0, 1.0, 0.0, 0.0]), face.shape)
+    return edge[row, col]
+
+
+def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
+    """The two boxes: with two layers in the buffers the ray that leaves the near box enters the
+    far one and leaves it where an exact trace through both boxes does; with the nearest layer
+    alone it would go on to the scene behind from the near box."""
+    t = two_boxes()
+    p, n, v, keep, enters, eta = t["p"], t["n"], t["v"], t["keep"], t["enters"], t["eta"]
+    ref_q = np.where(enters[:, None], t["q2"], t["q1"])
+    ref_d = np.where(enters[:, None], t["d2"], t["d1"])
+    q, d, found, cos, branches = glass_exit.mesh_exit(p, n, v, t["near"].c, eta, 0, *t["args"], side=True)
     entered = ~np.isnan(cos[:, 2])
     assert found[keep].all() and cos.shape == (len(p), 4)
     assert enters[keep].mean() > 0.2, "the scene should send rays from the near box into the far one"
@@ -342,11 +356,88 @@ def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
     # the film's mirror where the ray enters the far box: from its entry point (found on the
     # face's depth at a texel, ~0.03 wide there), mirrored about its face
     both = keep & enters & entered
+    d1, n2 = t["d1"], t["n2"]
     mirror = d1 - 2.0 * np.sum(d1 * n2, -1, keepdims=True) * n2
-    assert np.array_equal(~np.isnan(side_p[:, 0]), entered)
-    assert np.median(np.linalg.norm(side_p - p2, axis=-1)[both]) < 0.03
-    assert np.percentile(np.linalg.norm(side_d - mirror, axis=-1)[both], 95) < 0.02
+    assert np.array_equal(~np.isnan(branches.mirror_point[:, 0]), entered)
+    assert np.median(np.linalg.norm(branches.mirror_point - t["p2"], axis=-1)[both]) < 0.03
+    assert np.percentile(np.linalg.norm(branches.mirror_dir - mirror, axis=-1)[both], 95) < 0.02
     # the nearest layer alone: the rays that should enter the far box leave from the near one
-    q0, _d0, _f0, cos0 = glass_exit.mesh_exit(p, n, v, near.c, eta, 0, front[0], back[0], vp, eye, vd)
+    front, back, vp, eye, vd = t["args"]
+    q0, _d0, _f0, cos0 = glass_exit.mesh_exit(p, n, v, t["near"].c, eta, 0, front[0], back[0], vp, eye, vd)
     assert cos0.shape == (len(p), 2)
     assert np.median(np.linalg.norm(q0 - ref_q, axis=-1)[keep & enters]) > 0.3
+
+
+def test_the_far_walls_branches_go_back_through_the_glass():
+    """The two boxes: the far box's film mirror (in the air between them) and its reflection back
+    inside where the path leaves it (glass_exit.Branches) are followed back through the glass
+    (branch_exit): the mirror enters the near box from behind and leaves it, the inner reflection
+    leaves the far box, enters the near one and leaves it, each where an exact trace does."""
+    c, s = np.cos(np.radians(8.0)), np.sin(np.radians(8.0))
+    t = two_boxes(
+        np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    )  # its front face about square to the view
+    near, far, eta, keep = t["near"], t["far"], t["eta"], t["keep"]
+    _q, _d, _found, cos, b = glass_exit.mesh_exit(
+        t["p"], t["n"], t["v"], near.c, eta, 0, *t["args"], side=True
+    )
+    vp, eye, vd, rays = t["vp"], t["eye"], t["vd"], t["rays"]
+
+    def through_near(o, d):  # exact: in air from o along d, through the near box if it meets it
+        tn, _tf, nn, _nf = near.hits(o + 1e-9 * d, d)
+        met = np.isfinite(tn) & (tn > 0)
+        entry = o + np.where(met, tn, 0.0)[:, None] * d
+        q, out = near.trace(entry, unit(refract.refract(d, nn, 1.0 / eta)), eta)
+        cos = np.clip(-np.sum(d * nn, -1), 0.0, 1.0)
+        return met, entry, np.where(met[:, None], q, np.nan), np.where(met[:, None], out, d), cos
+
+    # the mirror: from the far box's face, in the air, back towards the near box
+    live = keep & ~np.isnan(b.mirror_point[:, 0])
+    met, entry, ref_q, ref_d, ref_cos = through_near(b.mirror_point, b.mirror_dir)
+    keep_m = live & ~on_edge(near, 1, entry, rays, eye, vd, vp) & ~on_edge(near, 0, ref_q, rays, eye, vd, vp)
+    q, d, followed, cos_entry, cos_m = glass_exit.branch_exit(
+        b.mirror_point, b.mirror_dir, True, near.c, eta, 0, *t["args"]
+    )
+    agree = np.mean((followed & ~np.isnan(cos_entry))[keep_m] == met[keep_m])
+    both = keep_m & met & followed
+    err_q = np.linalg.norm(q - ref_q, axis=-1)[both]
+    err_d = np.linalg.norm(d - ref_d, axis=-1)[both]
+    print(
+        f"mirror: {live.sum()} branches, {met[keep_m].mean():.0%} meet the near box again, the march"
+        f" agrees on {agree:.1%}; exit point error median {np.median(err_q):.1e}, direction p95"
+        f" {np.percentile(err_d, 95):.1e}"
+    )
+    assert live.sum() > 200 and met[keep_m].mean() > 0.2 and agree > 0.95
+    assert np.median(err_q) < 0.02 and np.percentile(err_d, 95) < 0.05
+    assert np.median(np.abs(cos_entry - ref_cos)[both]) < 0.01  # the film's cosine where it enters
+    # the inner reflection: where the path leaves the far box (no total reflection there), back
+    # inside it about that face, out of it, and on through the near box
+    inside_far = unit(refract.refract(t["d1"], t["n2"], 1.0 / eta))
+    _tn, t_out, _nn, n_out = far.hits(t["p2"] + 1e-9 * inside_far, inside_far)
+    straight = np.sum(refract.refract(inside_far, -n_out, eta) ** 2, -1) > 1e-12  # no total reflection
+    live = keep & straight & ~np.isnan(b.inner_point[:, 0])
+    at = t["p2"] + t_out[:, None] * inside_far
+    back_in = inside_far - 2.0 * np.sum(inside_far * n_out, -1, keepdims=True) * n_out
+    q4, d4 = far.trace(at, back_in, eta)
+    met, entry, ref_q, ref_d, _cos = through_near(q4, d4)
+    ref_q = np.where(met[:, None], ref_q, q4)
+    keep_i = live & ~on_edge(far, 0, q4, rays, eye, vd, vp) & ~on_edge(near, 1, entry, rays, eye, vd, vp)
+    keep_i &= ~on_edge(near, 0, ref_q, rays, eye, vd, vp)
+    assert np.percentile(np.linalg.norm(b.inner_point - at, axis=-1)[live], 50) < 0.03
+    q, d, followed, _cos_entry, cos_i = glass_exit.branch_exit(
+        b.inner_point, b.inner_dir, False, near.c, eta, 0, *t["args"]
+    )
+    leaves = followed & ~np.isnan(cos_i[:, 1])
+    entered_near = ~np.isnan(cos_i[:, 2])
+    agree = np.mean(entered_near[keep_i & leaves] == met[keep_i & leaves])
+    both = keep_i & leaves
+    err_q = np.linalg.norm(q - ref_q, axis=-1)[both]
+    err_d = np.linalg.norm(d - ref_d, axis=-1)[both]
+    print(
+        f"inner: {live.sum()} branches, {leaves[keep_i].mean():.0%} leave, {met[both].mean():.0%} through"
+        f" the near box,"
+        f" the march agrees on {agree:.1%}; exit point error median {np.median(err_q):.1e}, direction p95"
+        f" {np.percentile(err_d, 95):.1e}"
+    )
+    assert live.sum() > 200 and leaves[keep_i].mean() > 0.9 and met[both].mean() > 0.1 and agree > 0.95
+    assert np.median(err_q) < 0.02 and np.percentile(err_d, 95) < 0.05

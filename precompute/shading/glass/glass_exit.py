@@ -15,6 +15,8 @@ sees is :mod:`.refract`'s march over the scene behind.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ...brdf import reflect
@@ -263,6 +265,94 @@ def _march_enter(glass, o, d, reach, own):
     return (found, hi, *glass.face(~away, layer, row, col))
 
 
+@dataclasses.dataclass
+class Branches:
+    """The two rays the film branches off a path through a concave glass (NaN where none), what
+    :func:`mesh_exit` gives with ``side``: ``mirror``, its mirror in the air where the path first
+    enters the object again (a wine glass's far wall seen from its bowl), and ``inner``, its
+    reflection back inside where the path then leaves (that wall's outer face seen from inside
+    the glass: the cosine inside there is the path's last). Points and directions (N, 3) each;
+    :func:`branch_exit` follows them."""
+
+    mirror_point: np.ndarray
+    mirror_dir: np.ndarray
+    inner_point: np.ndarray
+    inner_dir: np.ndarray
+
+
+def _follow(glass, o, d, reach, own: int, e: float, reflections: int, active):
+    """The rays o + s d (N, 3) inside the object ``own`` (index ``e``) followed until they leave
+    it for good, the lanes ``active`` only (glsl ``tf_glass_follow``; see :func:`mesh_exit`):
+    (exit points, directions, found (the first march met a face), left (they leave: the path
+    carries light), cos first, cos last, the forced reflections' cosines (N, reflections), the
+    entries' cosines (N, 2 (layers − 1)), :class:`Branches`)."""
+    count = o.shape[0]
+    done = ~active
+    first_found = np.zeros(count, dtype=bool)
+    left = np.zeros(count, dtype=bool)
+    first = np.ones(count, dtype=bool)
+    cos_first = np.ones(count)
+    cos_last = np.ones(count)
+    forced = np.zeros(count, dtype=np.int64)
+    cos_forced = np.full((count, int(reflections)), np.nan)
+    entries = np.zeros(count, dtype=np.int64)
+    branches = Branches(*(np.full((count, 3), np.nan) for _ in range(4)))
+    cos_entries = np.full((count, 2 * (glass.layers - 1)), np.nan)
+    for bounce in range(GLASS_BOUNCES):
+        found, s, face_n, face_g = _march_inside(glass, o, d, reach, own)
+        found &= active
+        if bounce == 0:
+            first_found = found.copy()
+        live = found & ~done
+        q = o + s[:, None] * d
+        cos_face, out, mirrored, out_ok, mirror_ok = _face_step(d, face_n, face_g, e)
+        cos_first = np.where(live & first, cos_face, cos_first)
+        tir = np.sum(out * out, axis=-1) < TIR_EPS
+        chosen = live & ~tir & (forced < reflections)  # reflected by choice: a glint's path
+        for k in range(int(reflections)):
+            cos_forced[:, k] = np.where(chosen & (forced == k), cos_face, cos_forced[:, k])
+        forced += chosen
+        bounce_here = tir | chosen
+        drop_here = live & np.where(bounce_here, ~mirror_ok, ~out_ok)
+        go = live & ~drop_here
+        leave = go & ~bounce_here
+        out = _unit(out, d)
+        # out into the air: on into a further span of the object, refracted in as at the entry
+        again = leave & (entries < glass.layers - 1)
+        if again.any():
+            met, s_in, in_n, in_g = _march_enter(glass, q, out, reach, own)
+            w = -out
+            met &= again & (np.sum(in_g * w, axis=-1) > 0.0)  # the face met from outside
+            n_in = valid_normal(in_g, w, in_n)
+            d_in = _unit(refract(out, n_in, 1.0 / e), out)
+            drop_in = met & ((np.sum(in_g * d_in, axis=-1) >= 0.0) | (np.sum(n_in * w, axis=-1) <= 0.0))
+            cos_in = np.clip(np.sum(w * n_in, axis=-1), 0.0, 1.0)
+            mirror_here = (met & ~drop_in & (entries == 0))[:, None]
+            branches.mirror_point = np.where(mirror_here, q + s_in[:, None] * out, branches.mirror_point)
+            branches.mirror_dir = np.where(mirror_here, -reflect(out, n_in), branches.mirror_dir)
+            for k in range(glass.layers - 1):
+                at = met & (entries == k)
+                cos_entries[:, 2 * k] = np.where(at, cos_face, cos_entries[:, 2 * k])
+                cos_entries[:, 2 * k + 1] = np.where(at, cos_in, cos_entries[:, 2 * k + 1])
+            entries += met
+            drop_here |= drop_in
+            leave &= ~met
+            go &= ~drop_in
+            q = np.where(met[:, None], q + s_in[:, None] * out, q)
+            mirrored = np.where(met[:, None], d_in, mirrored)
+        # where it leaves after entering again, the film's reflection back inside
+        inner_here = (leave & (entries == 1) & mirror_ok)[:, None]
+        branches.inner_point = np.where(inner_here, q, branches.inner_point)
+        branches.inner_dir = np.where(inner_here, mirrored, branches.inner_dir)
+        cos_last = np.where(leave, cos_face, cos_last)
+        o = np.where(live[:, None], q, o)
+        d = np.where(leave[:, None], out, np.where(go[:, None], mirrored, d))
+        done |= leave | ~found | drop_here
+        left |= leave
+        first &= ~live
+    return o, d, first_found, left, cos_first, cos_last, cos_forced, cos_entries, branches
+
+
 def mesh_exit(
     points,
     normals,
@@ -325,69 +415,13 @@ def mesh_exit(
     # Cycles drops a refraction that does not go into the face (a smooth normal tilted past it)
     dropped_in = (np.sum(g_entry * d, axis=-1) >= 0.0) | (np.sum(n_entry * v, axis=-1) <= 0.0)
     reach = GLASS_REACH * np.maximum(np.linalg.norm(p - c, axis=-1), WALL_GUARD)
-    o = p.copy()
-    count = p.shape[0]
-    left = np.zeros(count, dtype=bool)
-    first = np.ones(count, dtype=bool)
-    cos_first = np.ones(count)
-    cos_last = np.ones(count)
-    forced = np.zeros(count, dtype=np.int64)
-    cos_forced = np.full((count, int(reflections)), np.nan)
-    entries = np.zeros(count, dtype=np.int64)
-    side_p, side_d = np.full((count, 3), np.nan), np.full((count, 3), np.nan)
-    cos_entries = np.full((count, 2 * (glass.layers - 1)), np.nan)
     _o, _b, _l, row, col, on_picture = glass.outside(p, own)
     present = (glass.back[0][0, row, col] == own) & on_picture  # the object is in the buffers at its entry
-    done = dropped_in & present  # dropped on the way in: it goes no further
-    any_found = done.copy()
-    for bounce in range(GLASS_BOUNCES):
-        found, s, face_n, face_g = _march_inside(glass, o, d, reach, own)
-        found &= present
-        if bounce == 0:
-            any_found |= found
-        live = found & ~done
-        q = o + s[:, None] * d
-        cos_face, out, mirrored, out_ok, mirror_ok = _face_step(d, face_n, face_g, e)
-        cos_first = np.where(live & first, cos_face, cos_first)
-        tir = np.sum(out * out, axis=-1) < TIR_EPS
-        chosen = live & ~tir & (forced < reflections)  # reflected by choice: a glint's path
-        for k in range(int(reflections)):
-            cos_forced[:, k] = np.where(chosen & (forced == k), cos_face, cos_forced[:, k])
-        forced += chosen
-        bounce_here = tir | chosen
-        drop_here = live & np.where(bounce_here, ~mirror_ok, ~out_ok)
-        go = live & ~drop_here
-        leave = go & ~bounce_here
-        out = _unit(out, d)
-        # out into the air: on into a further span of the object, refracted in as at the entry
-        again = leave & (entries < glass.layers - 1)
-        if again.any():
-            met, s_in, in_n, in_g = _march_enter(glass, q, out, reach, own)
-            w = -out
-            met &= again & (np.sum(in_g * w, axis=-1) > 0.0)  # the face met from outside
-            n_in = valid_normal(in_g, w, in_n)
-            d_in = _unit(refract(out, n_in, 1.0 / e), out)
-            drop_in = met & ((np.sum(in_g * d_in, axis=-1) >= 0.0) | (np.sum(n_in * w, axis=-1) <= 0.0))
-            cos_in = np.clip(np.sum(w * n_in, axis=-1), 0.0, 1.0)
-            mirror_here = (met & ~drop_in & (entries == 0))[:, None]
-            side_p = np.where(mirror_here, q + s_in[:, None] * out, side_p)
-            side_d = np.where(mirror_here, -reflect(out, n_in), side_d)
-            for k in range(glass.layers - 1):
-                at = met & (entries == k)
-                cos_entries[:, 2 * k] = np.where(at, cos_face, cos_entries[:, 2 * k])
-                cos_entries[:, 2 * k + 1] = np.where(at, cos_in, cos_entries[:, 2 * k + 1])
-            entries += met
-            drop_here |= drop_in
-            leave &= ~met
-            go &= ~drop_in
-            q = np.where(met[:, None], q + s_in[:, None] * out, q)
-            mirrored = np.where(met[:, None], d_in, mirrored)
-        cos_last = np.where(leave, cos_face, cos_last)
-        o = np.where(live[:, None], q, o)
-        d = np.where(leave[:, None], out, np.where(go[:, None], mirrored, d))
-        done |= leave | ~found | drop_here
-        left |= leave
-        first &= ~live
+    o, d, first_found, left, cos_first, cos_last, cos_forced, cos_entries, branches = _follow(
+        glass, p, d, reach, own, e, reflections, present & ~dropped_in
+    )
+    any_found = (dropped_in & present) | first_found  # dropped on the way in: it goes no further
+    o = np.where((dropped_in & present)[:, None], p, o)
     sphere_point, sphere_dir = exit_ray(p, n, v, c, e)
     cos_t = inner_cosine(np.sum(n * v, axis=-1), e)
     # a path that does not leave (within GLASS_BOUNCES faces, or one Cycles drops) carries nothing
@@ -401,4 +435,55 @@ def mesh_exit(
         any_found,
         cosines,
     )
-    return (*result, (side_p, side_d)) if side else result
+    return (*result, branches) if side else result
+
+
+def branch_exit(
+    points,
+    dirs,
+    in_air: bool,
+    centre,
+    eta: float,
+    own: int,
+    front,
+    back,
+    view_proj,
+    camera,
+    view_dir,
+    screen=(1.0, 1.0, 0.0, 0.0),
+    geometric=None,
+):
+    """Where the rays a path branches off (:class:`Branches`; NaN lanes carry nothing) leave the
+    object ``own`` (glsl ``tf_glass_branch``): ``in_air`` (a mirror) the ray enters the object
+    where it meets it again (:func:`_march_enter`: a bowl's near wall, from behind) as Cycles
+    refracts it in, else (an inner reflection) it is inside already; then followed
+    (:func:`_follow`). (exit points, directions, followed (N,): the ray was followed (else it is
+    seen along itself, or, inner, not at all), cos outside at the entry (NaN where none), cosines
+    (N, 2 + 2 (layers − 1)) as :func:`mesh_exit`'s (NaN last: carries nothing))."""
+    o = np.nan_to_num(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    d = _unit(
+        np.nan_to_num(np.asarray(dirs, dtype=np.float64).reshape(-1, 3), nan=1.0), np.array([0.0, 0.0, 1.0])
+    )
+    live = ~np.isnan(np.asarray(points, dtype=np.float64).reshape(-1, 3)[:, 0])
+    e = max(float(eta), WALL_GUARD)
+    glass = _Glass(front, back, view_proj, camera, view_dir, screen, geometric)
+    reach = GLASS_REACH * np.maximum(
+        np.linalg.norm(o - np.asarray(centre, dtype=np.float64), axis=-1), WALL_GUARD
+    )
+    cos_entry = np.full(o.shape[0], np.nan)
+    dropped = np.zeros(o.shape[0], dtype=bool)
+    if in_air:
+        met, s_in, in_n, in_g = _march_enter(glass, o, d, reach, own)
+        w = -d
+        met &= live & (np.sum(in_g * w, axis=-1) > 0.0)
+        n_in = valid_normal(in_g, w, np.where(np.sum(in_n * w, -1, keepdims=True) < 0.0, -in_n, in_n))
+        d_in = _unit(refract(d, n_in, 1.0 / e), d)
+        dropped = met & ((np.sum(in_g * d_in, axis=-1) >= 0.0) | (np.sum(n_in * w, axis=-1) <= 0.0))
+        cos_entry = np.where(met, np.clip(np.sum(w * n_in, axis=-1), 0.0, 1.0), np.nan)
+        o = np.where(met[:, None], o + s_in[:, None] * d, o)
+        d = np.where(met[:, None], d_in, d)
+        live = met & ~dropped
+    q, out, found, left, _cf, cos_last, _cr, cos_entries, _b = _follow(glass, o, d, reach, own, e, 0, live)
+    cosines = np.concatenate([np.stack([_cf, np.where(left, cos_last, np.nan)], -1), cos_entries], axis=-1)
+    cosines[dropped, 1] = np.nan
+    return q, out, found | dropped, cos_entry, cosines
