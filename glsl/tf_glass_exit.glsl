@@ -120,6 +120,39 @@ void tf_glass_face_at(ivec2 cell, int k, bool back, out vec3 face_normal, out ve
   face_geom = tf_oct_decode(back ? geom.zw : geom.xy);
 }
 
+/* The normal (and geometric normal) of layer k's back (or front) face at q on cell, q's nearest
+ * texel (shading.glass.glass_exit._Glass._blend): bilinear between the four texel centres around
+ * q over the texels of the same face (object own's, their normal within TF_GLASS_BLEND_COS of
+ * the nearest texel's, their depth within TF_GLASS_BLEND_DEPTH x its depth). */
+void tf_glass_face_near(vec3 q, ivec2 cell, int k, bool back, int own, out vec3 face_normal, out vec3 face_geom)
+{
+  tf_glass_face_at(cell, k, back, face_normal, face_geom);
+  float depth0;
+  vec3 nearest;
+  tf_glass_decode(back ? texelFetch(tf_glass_back, ivec3(cell, k), 0) : texelFetch(tf_glass_front, ivec3(cell, k), 0),
+                  nearest, depth0);
+  mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
+  vec4 clip = view_proj * vec4(q, 1.0);
+  vec2 size = vec2(tf_glass_size());
+  vec2 at = (clip.xy / max(abs(clip.w), TF_DIVISION_FLOOR) * sign(clip.w) * 0.5 + 0.5) * size - 0.5;
+  vec2 base = floor(at);
+  vec2 f = at - base;
+  vec3 total = vec3(0.0);
+  for (int j = 0; j < 4; j++) {
+    vec2 step_xy = vec2(float(j & 1), float(j >> 1));
+    ivec3 texel = ivec3(ivec2(clamp(base + step_xy, vec2(0.0), size - 1.0)), k);
+    vec3 n_j;
+    float depth_j;
+    int id = tf_glass_decode(back ? texelFetch(tf_glass_back, texel, 0) : texelFetch(tf_glass_front, texel, 0), n_j,
+                             depth_j);
+    vec2 w = mix(vec2(1.0) - f, f, step_xy);
+    if (id == own && dot(n_j, nearest) >= TF_GLASS_BLEND_COS && abs(depth_j - depth0) <= TF_GLASS_BLEND_DEPTH * depth0) {
+      total += w.x * w.y * n_j;
+    }
+  }
+  face_normal = tf_safe_normalize(total, face_normal);
+}
+
 /* The object id in the back buffer's nearest layer under world point q (-1: none or off the
  * picture). */
 int tf_glass_id_at(vec3 q)
@@ -227,7 +260,7 @@ bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out v
   }
   s_hit = hi;
   tf_glass_outside(o + hi * d, own, back, layer, cell, inside);
-  tf_glass_face_at(cell, layer, back, face_normal, face_geom);
+  tf_glass_face_near(o + hi * d, cell, layer, back, own, face_normal, face_geom);
   return true;
 }
 
@@ -294,7 +327,7 @@ bool tf_glass_enter(vec3 o, vec3 d, float reach, int own, out float s_hit, out v
   ivec2 cell;
   float z;
   tf_glass_cell(o + hi * d, cell, z);
-  tf_glass_face_at(cell, layer, !away, face_normal, face_geom);
+  tf_glass_face_near(o + hi * d, cell, layer, !away, own, face_normal, face_geom);
   return true;
 }
 

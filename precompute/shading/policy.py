@@ -312,6 +312,14 @@ VALID_REFLECTION_RISE = 0.01
 #: × its depth behind the front buffer's face is inside the glass (a wine glass's far wall, seen
 #: through its near one), and is left out (docs/tuning.md#glass-buffers).
 GLASS_FRONT_SLACK = 1e-3
+#: The normal of a face the glass march meets is interpolated between the four texel centres
+#: around the point (shading/glass/glass_exit.py ``_Glass._blend``), over the texels of the same
+#: face: the object's, their normal within this cosine of the nearest texel's (a flat-shaded
+#: crease, 20 degrees and more, keeps its edge) and their depth within GLASS_BLEND_DEPTH × its
+#: depth (another surface behind keeps its own). The nearest texel's normal alone misplaced a
+#: wine glass's rim glints by pixels (docs/transparent-films.md#solid-glass-refraction).
+GLASS_BLEND_COS = 0.94
+GLASS_BLEND_DEPTH = 0.02
 #: Solid glass's shadow and caustics in EEVEE's background pass (precompute/optics/caustics.py):
 #: each sun's photons on a CAUSTIC_GRID² grid over the glass's bounding sphere; a cell of four
 #: photons spread over its image on the receiver unless it is wider than CAUSTIC_MAX_EXTENT
@@ -458,7 +466,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       :data:`REFRACT_EDGE`; ``TF_REFRACT_FAR``: :data:`REFRACT_FAR`; ``TF_REFRACT_LINE_EPS``:
       :data:`REFRACT_LINE_EPS`;
     - ``TF_GLASS_STEPS``, ``TF_GLASS_REACH``, ``TF_GLASS_REFINE``, ``TF_GLASS_SLACK``,
-      ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``, ``TF_GLASS_LAYERS``, ``TF_GLASS_PEEL``:
+      ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``, ``TF_GLASS_LAYERS``, ``TF_GLASS_PEEL``,
+      ``TF_GLASS_BLEND_COS``, ``TF_GLASS_BLEND_DEPTH``:
       the exit through the real mesh (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints
       (:data:`GLASS_ORDERS`);
       ``TF_VALID_REFLECTION_SCALE``, ``TF_VALID_REFLECTION_RISE``: Cycles' rule at a
@@ -519,6 +528,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "VALID_REFLECTION_SCALE",
             "VALID_REFLECTION_RISE",
             "GLASS_FRONT_SLACK",
+            "GLASS_BLEND_COS",
+            "GLASS_BLEND_DEPTH",
             "GLASS_ORDERS",
         ),
     )

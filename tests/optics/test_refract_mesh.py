@@ -34,7 +34,9 @@ def sphere_buffers(rays, eye, view_dir, centre, radius, own=0):
 @pytest.mark.parametrize("eta", [1.33, 1.5])
 def test_the_mesh_exit_of_a_sphere_matches_a_ray_trace(eta):
     """Buffers of a sphere: the march finds its far side; the exit direction equals the traced one
-    to the buffers' resolution (a texel of normal at the exit)."""
+    to a fraction of the buffers' resolution: the normal at the exit is interpolated between the
+    texel centres around it (the nearest texel's alone gave a median of 6e-3 and 9e-3, a texel of
+    normal)."""
     vp, eye, vd, rays = camera()
     centre, radius = np.array([0.1, 0.2, -0.05]), 1.0
     front, back = sphere_buffers(rays, eye, vd, centre, radius)
@@ -46,7 +48,7 @@ def test_the_mesh_exit_of_a_sphere_matches_a_ray_trace(eta):
     assert found[keep].all(), "the march found the sphere's far side everywhere but the rim"
     err = np.linalg.norm(d - ref_d, axis=-1)[keep]
     print(f"η {eta}: exit direction error median {np.median(err):.2e}, p99 {np.percentile(err, 99):.2e}")
-    assert np.median(err) < 0.01 and np.percentile(err, 99) < 0.05
+    assert np.median(err) < 1e-3 and np.percentile(err, 99) < 0.01
     assert np.median(np.linalg.norm(q - ref_q, axis=-1)[keep]) < 0.01
 
 

@@ -21,6 +21,8 @@ import numpy as np
 
 from ...brdf import reflect
 from ..policy import (
+    GLASS_BLEND_COS,
+    GLASS_BLEND_DEPTH,
     GLASS_BOUNCES,
     GLASS_REACH,
     GLASS_REFINE,
@@ -32,7 +34,7 @@ from ..policy import (
     VALID_REFLECTION_SCALE,
     WALL_GUARD,
 )
-from .refract import _project, _unit, exit_ray, inner_cosine, refract
+from .refract import _project, _unit, _uv, exit_ray, inner_cosine, refract
 
 
 def glass_texel(encoded) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -185,11 +187,46 @@ class _Glass:
         layer = np.where(none, 0, nearest % self.layers)
         return ~within.any(axis=0), through_back, layer, row, col, inside
 
-    def face(self, through_back, layer, row, col):
-        """(outward normal, geometric normal) (N, 3) of the faces :meth:`outside` names."""
+    def face(self, through_back, layer, row, col, q=None, own=None):
+        """(outward normal, geometric normal) (N, 3) of the faces :meth:`outside` names; with the
+        points ``q`` on them and their object ``own``, the normal interpolated at q between the
+        four texel centres around it (:meth:`_blend`)."""
         n = np.where(through_back[:, None], self.back[1][layer, row, col], self.front[1][layer, row, col])
         g = np.where(through_back[:, None], self.back_g[layer, row, col], self.front_g[layer, row, col])
+        if q is not None:
+            n = self._blend(q, through_back, layer, row, col, own, n)
         return n, g
+
+    def _blend(self, q, through_back, layer, row, col, own, nearest):
+        """The faces' normals at points ``q`` (N, 3), bilinear between the four texel centres
+        around them (glsl ``tf_glass_face_near``): the texels of the same face only, those of
+        ``own`` whose normal lies within GLASS_BLEND_COS of the nearest texel's (``nearest``, on
+        row, col) and whose depth within GLASS_BLEND_DEPTH of its depth (a crease or another
+        surface keeps its own normal). The nearest texel's normal alone is a staircase: at a
+        glass's rim, seen edge-on, a texel spans a degree of normal, which the grazing exit
+        turns by several."""
+        depth0 = np.where(through_back, self.back[2][layer, row, col], self.front[2][layer, row, col])
+        uv, _w = _uv(q, self.view_proj, self.screen)
+        h, w = self.back[0].shape[1:]
+        x, y = uv[:, 0] * w - 0.5, uv[:, 1] * h - 0.5  # texel units, row 0 at the bottom
+        x0, y0 = np.floor(x), np.floor(y)
+        fx, fy = x - x0, y - y0
+        total = np.zeros_like(nearest)
+        for dy in (0, 1):
+            for dx in (0, 1):
+                c = np.clip(x0 + dx, 0, w - 1).astype(np.int64)
+                r = (h - 1 - np.clip(y0 + dy, 0, h - 1)).astype(np.int64)
+                id_k = np.where(through_back, self.back[0][layer, r, c], self.front[0][layer, r, c])
+                n_k = np.where(through_back[:, None], self.back[1][layer, r, c], self.front[1][layer, r, c])
+                d_k = np.where(through_back, self.back[2][layer, r, c], self.front[2][layer, r, c])
+                same = (
+                    (id_k == own)
+                    & (np.sum(n_k * nearest, axis=-1) >= GLASS_BLEND_COS)
+                    & (np.abs(d_k - depth0) <= GLASS_BLEND_DEPTH * depth0)
+                )
+                weight = (fx if dx else 1.0 - fx) * (fy if dy else 1.0 - fy)
+                total += np.where(same, weight, 0.0)[:, None] * n_k
+        return _unit(total, nearest)
 
 
 def _march_inside(glass, o, d, reach, own):
@@ -213,8 +250,9 @@ def _march_inside(glass, o, d, reach, own):
         out, _b, _l, _r, _c, _in = glass.outside(o + mid[:, None] * d, own)
         hi = np.where(out, mid, hi)
         lo = np.where(out, lo, mid)
-    _o, back, layer, row, col, _in = glass.outside(o + hi[:, None] * d, own)
-    return (found, hi, *glass.face(back, layer, row, col))
+    q = o + hi[:, None] * d
+    _o, back, layer, row, col, _in = glass.outside(q, own)
+    return (found, hi, *glass.face(back, layer, row, col, q, own))
 
 
 def _march_enter(glass, o, d, reach, own):
@@ -262,7 +300,7 @@ def _march_enter(glass, o, d, reach, own):
         hi = np.where(yes, mid, hi)
         lo = np.where(yes, lo, mid)
     _yes, row, col = past(hi)
-    return (found, hi, *glass.face(~away, layer, row, col))
+    return (found, hi, *glass.face(~away, layer, row, col, o + hi[:, None] * d, own))
 
 
 @dataclasses.dataclass
