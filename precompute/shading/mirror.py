@@ -110,6 +110,7 @@ MIRROR = (
             "shading.glass.glass_exit.from_octahedral",
             "shading.glass.glass_exit.valid_normal",
             "shading.glass.glass_exit.mesh_exit",
+            "shading.glass.glass_exit.branch_exit",
             "shading.glass.refract.inner_cosine",
             "shading.transmit.back_reflectance",
         ),
@@ -121,16 +122,20 @@ MIRROR = (
             "tf_glass_face",
             "tf_glass_span",
             "tf_glass_outside",
+            "tf_glass_face_near",
             "tf_glass_march",
             "tf_glass_enter",
+            "tf_glass_follow",
             "tf_glass_exit",
             "tf_inner_cosine",
             "tf_glass_back_r",
         ),
         numpy_note="solid glass's exit through its real mesh (the glass buffers, two layers deep), "
         "total internal reflection, the film seen from inside, smooth-shaded faces met as Cycles "
-        "meets them, a concave glass's further spans entered again",
-        glsl_note="`TF_REFRACT` with the glass buffers; `tf_glass_glint` in `tf_main_frag.glsl`",
+        "meets them, a concave glass's further spans entered again, its far wall's mirror and inner "
+        "reflection followed back through it",
+        glsl_note="`TF_REFRACT` with the glass buffers; `tf_glass_glint` and `tf_glass_branch` in "
+        "`tf_main_frag.glsl`",
     ),
     Mirror(
         ("shading.glass.glass_exit.octahedral",),
