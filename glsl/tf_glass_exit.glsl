@@ -226,7 +226,9 @@ bool tf_glass_outside(vec3 q, int own, out bool through_back, out int layer, out
   return !within;
 }
 
-/* Where o + s d, s in (0, reach], first leaves object own (shading.glass.glass_exit._march_inside). */
+/* Where o + s d, s in (0, reach], first leaves object own (shading.glass.glass_exit._march_inside):
+ * its face read where the exit lies, or, off the object's silhouette there, on the last texel
+ * inside (its front or back face, the nearer in depth). */
 bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out vec3 face_normal,
                     out vec3 face_geom)
 {
@@ -260,6 +262,22 @@ bool tf_glass_march(vec3 o, vec3 d, float reach, int own, out float s_hit, out v
   }
   s_hit = hi;
   tf_glass_outside(o + hi * d, own, back, layer, cell, inside);
+  /* a ray that leaves across the silhouette (a rim's face seen edge-on) ends on an empty texel:
+   * the face is the one on the last texel inside, its front or back whichever lies nearer in
+   * depth */
+  vec3 unused_normal;
+  float unused_depth;
+  ivec3 texel = ivec3(cell, layer);
+  if (tf_glass_decode(back ? texelFetch(tf_glass_back, texel, 0) : texelFetch(tf_glass_front, texel, 0), unused_normal,
+                      unused_depth) != own)
+  {
+    float z, unused_z, f, b;
+    tf_glass_cell(o + hi * d, cell, z);
+    tf_glass_cell(o + lo * d, cell, unused_z);
+    tf_glass_decode(texelFetch(tf_glass_front, ivec3(cell, layer), 0), unused_normal, f);
+    tf_glass_decode(texelFetch(tf_glass_back, ivec3(cell, layer), 0), unused_normal, b);
+    back = abs(z - b) <= abs(z - f);
+  }
   tf_glass_face_near(o + hi * d, cell, layer, back, own, face_normal, face_geom);
   return true;
 }

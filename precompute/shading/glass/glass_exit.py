@@ -232,7 +232,8 @@ class _Glass:
 def _march_inside(glass, o, d, reach, own):
     """Where the rays o + s d (N, 3), s in (0, reach], first leave the object ``own``: (found,
     s, the face's outward normal, its geometric normal). GLASS_STEPS even steps, the first exit
-    bisected GLASS_REFINE times."""
+    bisected GLASS_REFINE times; the face read where the exit lies, or, off the object's
+    silhouette there, on the last texel inside (its front or back face, the nearer in depth)."""
     count = o.shape[0]
     found = np.zeros(count, dtype=bool)
     s_hit = np.zeros(count)
@@ -252,6 +253,14 @@ def _march_inside(glass, o, d, reach, own):
         lo = np.where(out, lo, mid)
     q = o + hi[:, None] * d
     _o, back, layer, row, col, _in = glass.outside(q, own)
+    # a ray that leaves across the silhouette (a rim's face seen edge-on) ends on an empty texel:
+    # the face is the one on the last texel inside, its front or back whichever lies nearer in depth
+    empty = np.where(back, glass.back[0][layer, row, col], glass.front[0][layer, row, col]) != own
+    _o, _b, _l, row_lo, col_lo, _in = glass.outside(o + lo[:, None] * d, own)
+    z = (glass.camera - q) @ glass.view_dir
+    f, b = glass.front[2][layer, row_lo, col_lo], glass.back[2][layer, row_lo, col_lo]
+    back = np.where(empty, np.abs(z - b) <= np.abs(z - f), back)
+    row, col = np.where(empty, row_lo, row), np.where(empty, col_lo, col)
     return (found, hi, *glass.face(back, layer, row, col, q, own))
 
 
