@@ -291,6 +291,11 @@ def layered_buffers(boxes, rays, eye, view_dir):
     return sides
 
 
+def exit_errors(q, d, ref_q, ref_d, where):
+    """(exit point errors, exit direction errors) against a reference, over the lanes ``where``."""
+    return np.linalg.norm(q - ref_q, axis=-1)[where], np.linalg.norm(d - ref_d, axis=-1)[where]
+
+
 def two_boxes(far_turn=None):
     """One object of two boxes, the second behind the first (a wine glass's far wall behind its
     near one; turned as the first, or by ``far_turn``), its two-layer buffers, the camera's pixels
@@ -346,8 +351,7 @@ def test_a_ray_that_leaves_a_concave_glass_enters_its_further_span():
     assert found[keep].all() and cos.shape == (len(p), 4)
     assert enters[keep].mean() > 0.2, "the scene should send rays from the near box into the far one"
     agree = np.mean(entered[keep] == enters[keep])
-    err_q = np.linalg.norm(q - ref_q, axis=-1)[keep]
-    err_d = np.linalg.norm(d - ref_d, axis=-1)[keep]
+    err_q, err_d = exit_errors(q, d, ref_q, ref_d, keep)
     print(
         f"two boxes: {enters[keep].mean():.0%} of the rays enter the far box, the march agrees on"
         f" {agree:.1%}; exit point error median {np.median(err_q):.1e}, direction p95"
@@ -402,8 +406,7 @@ def test_the_far_walls_branches_go_back_through_the_glass():
     )
     agree = np.mean((followed & ~np.isnan(cos_entry))[keep_m] == met[keep_m])
     both = keep_m & met & followed
-    err_q = np.linalg.norm(q - ref_q, axis=-1)[both]
-    err_d = np.linalg.norm(d - ref_d, axis=-1)[both]
+    err_q, err_d = exit_errors(q, d, ref_q, ref_d, both)
     print(
         f"mirror: {live.sum()} branches, {met[keep_m].mean():.0%} meet the near box again, the march"
         f" agrees on {agree:.1%}; exit point error median {np.median(err_q):.1e}, direction p95"
@@ -433,8 +436,7 @@ def test_the_far_walls_branches_go_back_through_the_glass():
     entered_near = ~np.isnan(cos_i[:, 2])
     agree = np.mean(entered_near[keep_i & leaves] == met[keep_i & leaves])
     both = keep_i & leaves
-    err_q = np.linalg.norm(q - ref_q, axis=-1)[both]
-    err_d = np.linalg.norm(d - ref_d, axis=-1)[both]
+    err_q, err_d = exit_errors(q, d, ref_q, ref_d, both)
     print(
         f"inner: {live.sum()} branches, {leaves[keep_i].mean():.0%} leave, {met[both].mean():.0%} through"
         f" the near box,"

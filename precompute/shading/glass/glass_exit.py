@@ -140,7 +140,7 @@ class _Glass:
     face (or from the camera where the front buffer's face there is another's) to its back face,
     each further layer from its front face to its back face, where both are ``own``'s."""
 
-    def __init__(self, front, back, view_proj, camera, view_dir, screen, geometric=None):
+    def __init__(self, front, back, view_proj, camera, view_dir, screen=(1.0, 1.0, 0.0, 0.0), geometric=None):
         self.front = glass_texel(_layers(front))
         self.back = glass_texel(_layers(back))
         if geometric is None:
@@ -485,35 +485,22 @@ def mesh_exit(
     return (*result, branches) if side else result
 
 
-def branch_exit(
-    points,
-    dirs,
-    in_air: bool,
-    centre,
-    eta: float,
-    own: int,
-    front,
-    back,
-    view_proj,
-    camera,
-    view_dir,
-    screen=(1.0, 1.0, 0.0, 0.0),
-    geometric=None,
-):
+def branch_exit(points, dirs, in_air: bool, centre, eta: float, own: int, *buffers, geometric=None):
     """Where the rays a path branches off (:class:`Branches`; NaN lanes carry nothing) leave the
     object ``own`` (glsl ``tf_glass_branch``): ``in_air`` (a mirror) the ray enters the object
     where it meets it again (:func:`_march_enter`: a bowl's near wall, from behind) as Cycles
     refracts it in, else (an inner reflection) it is inside already; then followed
     (:func:`_follow`). (exit points, directions, followed (N,): the ray was followed (else it is
     seen along itself, or, inner, not at all), cos outside at the entry (NaN where none), cosines
-    (N, 2 + 2 (layers − 1)) as :func:`mesh_exit`'s (NaN last: carries nothing))."""
+    (N, 2 + 2 (layers − 1)) as :func:`mesh_exit`'s (NaN last: carries nothing)). ``buffers``: front,
+    back, view_proj, camera, view_dir[, screen] as :func:`mesh_exit` takes them."""
     o = np.nan_to_num(np.asarray(points, dtype=np.float64).reshape(-1, 3))
     d = _unit(
         np.nan_to_num(np.asarray(dirs, dtype=np.float64).reshape(-1, 3), nan=1.0), np.array([0.0, 0.0, 1.0])
     )
     live = ~np.isnan(np.asarray(points, dtype=np.float64).reshape(-1, 3)[:, 0])
     e = max(float(eta), WALL_GUARD)
-    glass = _Glass(front, back, view_proj, camera, view_dir, screen, geometric)
+    glass = _Glass(*buffers, geometric=geometric)
     reach = GLASS_REACH * np.maximum(
         np.linalg.norm(o - np.asarray(centre, dtype=np.float64), axis=-1), WALL_GUARD
     )
