@@ -108,29 +108,19 @@ bool tf_glass_span(ivec2 cell, int k, int own, out float f, out float b)
   return id_b == own && (k == 0 || id_f == own);
 }
 
-/* The outward and geometric normals of layer k's back (or front) face on cell (tf_glass_geom: .xy
- * the front face's, .zw the back face's). */
-void tf_glass_face_at(ivec2 cell, int k, bool back, out vec3 face_normal, out vec3 face_geom)
-{
-  ivec3 texel = ivec3(cell, k);
-  float depth;
-  vec4 encoded = back ? texelFetch(tf_glass_back, texel, 0) : texelFetch(tf_glass_front, texel, 0);
-  tf_glass_decode(encoded, face_normal, depth);
-  vec4 geom = texelFetch(tf_glass_geom, texel, 0);
-  face_geom = tf_oct_decode(back ? geom.zw : geom.xy);
-}
-
 /* The normal (and geometric normal) of layer k's back (or front) face at q on cell, q's nearest
- * texel (shading.glass.glass_exit._Glass._blend): bilinear between the four texel centres around
+ * texel (shading.glass.glass_exit._Glass.face, _blend; tf_glass_geom: .xy the front face's geometric
+ * normal, .zw the back face's): bilinear between the four texel centres around
  * q over the texels of the same face (object own's, their normal within TF_GLASS_BLEND_COS of
  * the nearest texel's, their depth within TF_GLASS_BLEND_DEPTH x its depth). */
 void tf_glass_face_near(vec3 q, ivec2 cell, int k, bool back, int own, out vec3 face_normal, out vec3 face_geom)
 {
-  tf_glass_face_at(cell, k, back, face_normal, face_geom);
   float depth0;
   vec3 nearest;
   tf_glass_decode(back ? texelFetch(tf_glass_back, ivec3(cell, k), 0) : texelFetch(tf_glass_front, ivec3(cell, k), 0),
                   nearest, depth0);
+  vec4 geom = texelFetch(tf_glass_geom, ivec3(cell, k), 0);
+  face_geom = tf_oct_decode(back ? geom.zw : geom.xy);
   mat4 view_proj = mat4(tf_view.view_proj[0], tf_view.view_proj[1], tf_view.view_proj[2], tf_view.view_proj[3]);
   vec4 clip = view_proj * vec4(q, 1.0);
   vec2 size = vec2(tf_glass_size());
@@ -150,7 +140,7 @@ void tf_glass_face_near(vec3 q, ivec2 cell, int k, bool back, int own, out vec3 
       total += w.x * w.y * n_j;
     }
   }
-  face_normal = tf_safe_normalize(total, face_normal);
+  face_normal = tf_safe_normalize(total, nearest);
 }
 
 /* The object id in the back buffer's nearest layer under world point q (-1: none or off the
@@ -190,7 +180,7 @@ bool tf_glass_nearest_front(vec3 q, int own, bool front_facing)
 /* Whether q lies outside every span of object own along its pixel's camera ray
  * (shading.glass.glass_exit._Glass.outside), and the face it lies beyond: the nearest back face it lies
  * behind or front face it lies in front of (layer 0's back face where none: off the object's
- * silhouette): which side and layer, on cell (tf_glass_face_at); inside: q on the picture. */
+ * silhouette): which side and layer, on cell (tf_glass_face_near); inside: q on the picture. */
 bool tf_glass_outside(vec3 q, int own, out bool through_back, out int layer, out ivec2 cell, out bool inside)
 {
   float z;
@@ -349,6 +339,17 @@ bool tf_glass_enter(vec3 o, vec3 d, float reach, int own, out float s_hit, out v
   return true;
 }
 
+/* A ray arriving from outside (w: towards where it came from) refracted into glass of index eta
+ * at a face of geometric normal g and shading normal n (both facing w) as Cycles' smooth glass
+ * refracts it (shading.glass.glass_exit._refract_in): the normal it uses (tf_valid_normal), the
+ * direction in, and false where Cycles ends the path (a refraction that does not cross the face). */
+bool tf_glass_refract_in(vec3 g, vec3 w, vec3 n, float eta, out vec3 n_valid, out vec3 d_in)
+{
+  n_valid = tf_valid_normal(g, w, n);
+  d_in = tf_safe_normalize(refract(-w, n_valid, 1.0 / max(eta, TF_WALL_GUARD)), -w);
+  return dot(g, d_in) < 0.0 && dot(n_valid, w) > 0.0;
+}
+
 /* cos theta_t inside glass of index eta of a ray entering at cos_outside (shading.glass.refract.inner_cosine). */
 float tf_inner_cosine(float cos_outside, float eta)
 {
@@ -387,10 +388,21 @@ struct TFGlassBranch {
   vec3 carried;
 };
 
+/* The branch from point along dir, carried carried (its fields set one by one, as the other
+ * structs here: no struct constructor). */
+TFGlassBranch tf_glass_make_branch(vec3 point, vec3 dir, vec3 carried)
+{
+  TFGlassBranch b;
+  b.point = point;
+  b.dir = dir;
+  b.carried = carried;
+  return b;
+}
+
 /* No branch. */
 TFGlassBranch tf_glass_no_branch()
 {
-  return TFGlassBranch(vec3(0.0), vec3(0.0, 0.0, 1.0), vec3(0.0));
+  return tf_glass_make_branch(vec3(0.0), vec3(0.0, 0.0, 1.0), vec3(0.0));
 }
 
 /* The ray o + s d inside object own (index eta, reach its march's reach, carried what it carries so
@@ -447,11 +459,11 @@ bool tf_glass_follow(vec3 o, vec3 d, float reach, float eta, int own, int reflec
       if (out_ok && entries < TF_GLASS_LAYERS - 1 && tf_glass_enter(o, out_n, reach, own, s_in, in_n, in_g) &&
           dot(in_g, -out_n) > 0.0)
       {
-        vec3 n_in = tf_valid_normal(in_g, -out_n, in_n);
-        vec3 d_in = tf_safe_normalize(refract(out_n, n_in, 1.0 / e), out_n);
+        vec3 n_in, d_in;
+        bool kept = tf_glass_refract_in(in_g, -out_n, in_n, e, n_in, d_in);
         entries++;
         o = o + s_in * out_n;
-        if (dot(in_g, d_in) >= 0.0 || dot(n_in, -out_n) <= 0.0) { /* Cycles ends it */
+        if (!kept) { /* Cycles ends it */
           exit_point = o;
           dir = d_in;
           cosines = vec2(cos_first, 1.0);
@@ -462,7 +474,7 @@ bool tf_glass_follow(vec3 o, vec3 d, float reach, float eta, int own, int reflec
         vec3 r_in = clamp(tf_film_white(clamp(dot(-out_n, n_in), 0.0, 1.0), r), vec3(0.0), vec3(1.0));
         carried *= vec3(1.0) - r_out;
         if (entries == 1) { /* the mirror branch where it first enters again (a bowl's far wall) */
-          mirror = TFGlassBranch(o, reflect(out_n, n_in), carried * r_in);
+          mirror = tf_glass_make_branch(o, reflect(out_n, n_in), carried * r_in);
         }
         carried *= vec3(1.0) - r_in;
         d = d_in;
@@ -477,7 +489,7 @@ bool tf_glass_follow(vec3 o, vec3 d, float reach, float eta, int own, int reflec
         carried = vec3(0.0);
       }
       else if (entries == 1 && mirror_ok) { /* the far wall's reflection back inside where it leaves */
-        inner = TFGlassBranch(o, mirrored, carried * tf_glass_back_r(cos_face, r, eta, own));
+        inner = tf_glass_make_branch(o, mirrored, carried * tf_glass_back_r(cos_face, r, eta, own));
       }
       return true;
     }
@@ -521,9 +533,8 @@ bool tf_glass_exit(vec3 p, vec3 n, vec3 g, vec3 v, vec3 c, float eta, int own, i
     tf_solid_exit_ray(p, n, v, c, eta, exit_point, dir);
     return false;
   }
-  vec3 n_entry = tf_valid_normal(g, v, n);
-  vec3 d = tf_safe_normalize(refract(-v, n_entry, 1.0 / e), -v);
-  if (dot(g, d) >= 0.0 || dot(n_entry, v) <= 0.0) { /* Cycles ends a refraction that does not go in */
+  vec3 n_entry, d;
+  if (!tf_glass_refract_in(g, v, n, e, n_entry, d)) { /* Cycles ends a refraction that does not go in */
     exit_point = p;
     dir = d;
     carried = vec3(0.0);

@@ -122,10 +122,9 @@ vec3 tf_glass_branch(TFGlassBranch b, bool in_air, TFLerp r)
     if (!tf_glass_enter(o, d, reach, own, s_in, in_n, in_g) || dot(in_g, -d) <= 0.0) {
       return carried * tf_refract_seen(o, d);
     }
-    vec3 n_in = tf_valid_normal(in_g, -d, (dot(in_n, -d) < 0.0) ? -in_n : in_n);
-    vec3 d_in = tf_safe_normalize(refract(d, n_in, 1.0 / max(eta, TF_WALL_GUARD)), d);
-    if (dot(in_g, d_in) >= 0.0 || dot(n_in, -d) <= 0.0) { /* Cycles ends it */
-      return vec3(0.0);
+    vec3 n_in, d_in;
+    if (!tf_glass_refract_in(in_g, -d, (dot(in_n, -d) < 0.0) ? -in_n : in_n, eta, n_in, d_in)) {
+      return vec3(0.0); /* Cycles ends it */
     }
     carried *= vec3(1.0) - clamp(tf_film_white(clamp(dot(-d, n_in), 0.0, 1.0), r), vec3(0.0), vec3(1.0));
     o += s_in * d;

@@ -126,6 +126,7 @@ MIRROR = (
             "tf_glass_march",
             "tf_glass_enter",
             "tf_glass_follow",
+            "tf_glass_refract_in",
             "tf_glass_exit",
             "tf_inner_cosine",
             "tf_glass_back_r",

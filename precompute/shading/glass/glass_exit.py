@@ -123,6 +123,18 @@ def _face_step(d, face_n, face_g, eta: float):
     return cos_face, out, mirrored, out_ok & facing, mirror_ok & facing
 
 
+def _refract_in(g, w, n, e: float):
+    """Rays arriving from outside (``w``: towards where they came from, (N, 3)) refracted into
+    glass of index ``e`` at faces of geometric normals ``g`` and shading normals ``n`` (both
+    facing w) as Cycles' smooth glass refracts them (glsl ``tf_glass_refract_in``): (the normals
+    used, :func:`valid_normal`; the directions in; dropped (N,): where Cycles ends the path, a
+    refraction that does not cross the face)."""
+    n_valid = valid_normal(g, w, n)
+    d_in = _unit(refract(-w, n_valid, 1.0 / e), -w)
+    dropped = (np.sum(g * d_in, axis=-1) >= 0.0) | (np.sum(n_valid * w, axis=-1) <= 0.0)
+    return n_valid, d_in, dropped
+
+
 def _layers(buffer) -> np.ndarray:
     """A glass buffer as its layers (L, H, W, 4): one (H, W, 4) is one layer."""
     b = np.asarray(buffer, dtype=np.float64)
@@ -370,9 +382,8 @@ def _follow(glass, o, d, reach, own: int, e: float, reflections: int, active):
             met, s_in, in_n, in_g = _march_enter(glass, q, out, reach, own)
             w = -out
             met &= again & (np.sum(in_g * w, axis=-1) > 0.0)  # the face met from outside
-            n_in = valid_normal(in_g, w, in_n)
-            d_in = _unit(refract(out, n_in, 1.0 / e), out)
-            drop_in = met & ((np.sum(in_g * d_in, axis=-1) >= 0.0) | (np.sum(n_in * w, axis=-1) <= 0.0))
+            n_in, d_in, drop_in = _refract_in(in_g, w, in_n, e)
+            drop_in &= met
             cos_in = np.clip(np.sum(w * n_in, axis=-1), 0.0, 1.0)
             mirror_here = (met & ~drop_in & (entries == 0))[:, None]
             branches.mirror_point = np.where(mirror_here, q + s_in[:, None] * out, branches.mirror_point)
@@ -457,10 +468,8 @@ def mesh_exit(
     e = max(float(eta), WALL_GUARD)
     glass = _Glass(front, back, view_proj, camera, view_dir, screen, geometric)
     g_entry = n if entry_geometric is None else np.asarray(entry_geometric, dtype=np.float64).reshape(-1, 3)
-    n_entry = valid_normal(g_entry, v, n)
-    d = _unit(refract(-v, n_entry, 1.0 / e), -v)
     # Cycles drops a refraction that does not go into the face (a smooth normal tilted past it)
-    dropped_in = (np.sum(g_entry * d, axis=-1) >= 0.0) | (np.sum(n_entry * v, axis=-1) <= 0.0)
+    _n_entry, d, dropped_in = _refract_in(g_entry, v, n, e)
     reach = GLASS_REACH * np.maximum(np.linalg.norm(p - c, axis=-1), WALL_GUARD)
     _o, _b, _l, row, col, on_picture = glass.outside(p, own)
     present = (glass.back[0][0, row, col] == own) & on_picture  # the object is in the buffers at its entry
@@ -510,9 +519,10 @@ def branch_exit(points, dirs, in_air: bool, centre, eta: float, own: int, *buffe
         met, s_in, in_n, in_g = _march_enter(glass, o, d, reach, own)
         w = -d
         met &= live & (np.sum(in_g * w, axis=-1) > 0.0)
-        n_in = valid_normal(in_g, w, np.where(np.sum(in_n * w, -1, keepdims=True) < 0.0, -in_n, in_n))
-        d_in = _unit(refract(d, n_in, 1.0 / e), d)
-        dropped = met & ((np.sum(in_g * d_in, axis=-1) >= 0.0) | (np.sum(n_in * w, axis=-1) <= 0.0))
+        n_in, d_in, dropped = _refract_in(
+            in_g, w, np.where(np.sum(in_n * w, -1, keepdims=True) < 0.0, -in_n, in_n), e
+        )
+        dropped &= met
         cos_entry = np.where(met, np.clip(np.sum(w * n_in, axis=-1), 0.0, 1.0), np.nan)
         o = np.where(met[:, None], o + s_in[:, None] * d, o)
         d = np.where(met[:, None], d_in, d)
