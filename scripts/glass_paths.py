@@ -35,7 +35,7 @@ import tempfile
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "scripts")]
 
 import _cycles_scenes as cc  # noqa: E402
 
@@ -50,34 +50,24 @@ MIN_WEIGHT = 1e-4
 
 
 class Scene:
-    """The built scene: the glass mesh in world space (its BVH tree and corner normals), the
-    camera and the World's panorama."""
+    """The built scene: the glass mesh in world space (addon/headless/caustics.py's ``_GlassMesh``:
+    its BVH tree and corner normals), the camera and the World's panorama."""
 
     def __init__(self, name: str, ref=None, ground=0.3):
         import bpy
+        import thinfilm_headless
         from mathutils import Vector
-        from mathutils.bvhtree import BVHTree
 
         from benchmarks import transparent_films as tf
 
         blend = tf.build(name, pathlib.Path(tempfile.mkdtemp()) / f"{name}.blend", tf.SIZE, 16)
         bpy.ops.wm.open_mainfile(filepath=str(blend))
+        thinfilm_headless.register_extension()
+        from thinfilm_sh.addon.headless.caustics import _GlassMesh  # the caustics' own glass mesh
+
         scene = bpy.context.scene
         obj = next(o for o in scene.objects if o.type == "MESH" and "film" in o.data.materials)
-        mesh = obj.data
-        mesh.calc_loop_triangles()
-        world = obj.matrix_world
-        normal_matrix = world.to_3x3().inverted().transposed()
-        verts = [world @ v.co for v in mesh.vertices]
-        self.vertices = np.array([list(v) for v in verts])
-        self.triangles = np.array([tuple(t.vertices) for t in mesh.loop_triangles])
-        self.corner_normals = np.array(
-            [
-                [list((normal_matrix @ Vector(n)).normalized()) for n in t.split_normals]
-                for t in mesh.loop_triangles
-            ]
-        )
-        self.bvh = BVHTree.FromPolygons(verts, [tuple(t) for t in self.triangles])
+        self.mesh = _GlassMesh(obj, bpy.context.evaluated_depsgraph_get())
         self.vector = Vector
         self.camera = scene.camera
         self.size = scene.render.resolution_x
@@ -92,17 +82,6 @@ class Scene:
         x, y = col / self.size * 2.0 - 1.0, 1.0 - row / self.size * 2.0
         d = self.camera.matrix_world.to_3x3() @ self.vector((x * t, y * t, -1.0))
         return np.array(list(self.camera.location)), np.array(list(d.normalized()))
-
-    def smooth_normal(self, index: int, p) -> np.ndarray:
-        """The corner normals of triangle ``index`` interpolated at its point ``p``."""
-        a, b, c = self.vertices[self.triangles[index]]
-        v0, v1, v2 = b - a, c - a, p - a
-        d00, d01, d11, d20, d21 = v0 @ v0, v0 @ v1, v1 @ v1, v2 @ v0, v2 @ v1
-        den = d00 * d11 - d01 * d01
-        w1, w2 = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
-        n = (1.0 - w1 - w2) * self.corner_normals[index, 0] + w1 * self.corner_normals[index, 1]
-        n = n + w2 * self.corner_normals[index, 2]
-        return n / np.linalg.norm(n)
 
     def seen(self, o, d) -> tuple[str, np.ndarray]:
         """What a ray that has left the glass sees: ("ground", colour) or ("world", radiance)."""
@@ -129,7 +108,7 @@ class Scene:
         stack = [(o, d, 1.0, "", ())]
         while stack:
             o, d, w, path, faces = stack.pop()
-            hit = self.bvh.ray_cast(self.vector(o + 1e-5 * d), self.vector(d))
+            hit = self.mesh.bvh.ray_cast(self.vector(o + 1e-5 * d), self.vector(d))
             if hit[0] is None:
                 kind, radiance = self.seen(o, d)
                 out.append((w, path, kind, d, radiance, faces))
@@ -140,7 +119,7 @@ class Scene:
             p, g = np.array(list(hit[0])), np.array(list(hit[1]))
             entering = d @ g < 0.0
             g = g if entering else -g  # the face's normal on the ray's side
-            n = self.smooth_normal(hit[2], p) * (1.0 if entering else -1.0)
+            n = self.mesh.normals_at([hit[2]], p[None])[0] * (1.0 if entering else -1.0)
             n = glass_exit.valid_normal(g[None], -d[None], n[None])[0]
             eta = self.eta if entering else 1.0 / self.eta
             cos_i = float(np.clip(-(d @ n), 0.0, 1.0))
