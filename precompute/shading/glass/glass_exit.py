@@ -268,7 +268,9 @@ def _march_inside(glass, o, d, reach, own):
     # a ray that leaves across the silhouette (a rim's face seen edge-on) ends on an empty texel:
     # the face is the one on the last texel inside, its front or back whichever lies nearer in depth
     empty = np.where(back, glass.back[0][layer, row, col], glass.front[0][layer, row, col]) != own
-    _o, _b, _l, row_lo, col_lo, _in = glass.outside(o + lo[:, None] * d, own)
+    row_lo, col_lo, _in = _project(
+        o + lo[:, None] * d, glass.view_proj, glass.screen, glass.back[0].shape[1:]
+    )
     z = (glass.camera - q) @ glass.view_dir
     f, b = glass.front[2][layer, row_lo, col_lo], glass.back[2][layer, row_lo, col_lo]
     back = np.where(empty, np.abs(z - b) <= np.abs(z - f), back)
