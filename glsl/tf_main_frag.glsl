@@ -84,9 +84,72 @@ int tf_glass_own()
   return int(floor(tf_object.glass.x + 0.5));
 }
 
+/* How far a rough glass path spreads the directions it leaves in (shading.glass.tails.path_spread):
+ * (in its plane of incidence, across it), in units of alpha^2, for a path that enters at cos_o
+ * outside (refracted by Snell's law), reflects at reflections faces inside and leaves at cos_exit
+ * inside (TF_GLASS_TAIL_MAX_GAIN bounds the exit's gain at the critical angle). Each rough face
+ * turns the path by its gain times its facet's tilt; a later refraction magnifies what came
+ * before; the gains' squares add. */
+vec2 tf_glass_spread(float cos_o, float cos_exit, float eta, int reflections)
+{
+  float e = max(eta, TF_WALL_GUARD);
+  float co = clamp(cos_o, 0.0, 1.0);
+  float ci = max(tf_inner_cosine(co, e), TF_MIN_COS);
+  float cx = clamp(cos_exit, 0.0, 1.0);
+  float ct = sqrt(max(1.0 - e * e * (1.0 - cx * cx), 0.0));
+  float m = e * cx / max(ct, max(e * cx / TF_GLASS_TAIL_MAX_GAIN, TF_DIVISION_FLOOR));
+  float in_plane = co / (e * ci) - 1.0, in_across = co / e - ci;
+  float out_plane = m - 1.0, out_across = e * cx - ct;
+  float k4 = 4.0 * float(reflections);
+  return vec2((in_plane * in_plane + k4) * m * m + out_plane * out_plane,
+              (in_across * in_across + k4) * e * e + out_across * out_across);
+}
+
+/* The World's lamps seen in the tails of a rough path leaving at o along dir
+ * (shading.glass.tails.lamp_tails): each lamp's power times the path's lobe (GGX's shape in
+ * slope space, widths a^2 = spread alpha^2 widened by the lamp's own radius TF_GLASS_TAIL_CORE,
+ * scaled to the part a lamp of that radius leaves outside its image) at the lamp's slope, the
+ * plane of incidence taken through dir and the path's last chord (from p). */
+vec3 tf_lamp_tails(vec3 p, vec3 o, vec3 dir, vec2 spread)
+{
+  vec3 sum = vec3(0.0);
+#ifdef TF_LAMPS
+  float alpha = tf_object.material.x * tf_object.material.x;
+  vec2 a2 = spread * alpha * alpha;
+  if (a2.x <= 0.0 || a2.y <= 0.0) {
+    return sum;
+  }
+  float c2 = TF_GLASS_TAIL_CORE * TF_GLASS_TAIL_CORE;
+  vec2 wide = a2 + vec2(c2);
+  float scale = sqrt(a2.x * a2.y) / (TF_PI * wide.x * wide.y);
+  vec3 chord = o - p;
+  /* the plane's axis, else (the chord along dir) one across dir */
+  vec3 across = tf_safe_normalize(cross(dir, vec3(0.0, 0.0, 1.0)), vec3(1.0, 0.0, 0.0));
+  vec3 e1 = tf_safe_normalize(chord - dot(chord, dir) * dir, across);
+  vec3 e2 = cross(dir, e1);
+  int count = int(tf_lighting.lamps[0].x);
+  for (int k = 0; k < TF_MAX_LAMPS; k++) {
+    if (k >= count) {
+      break;
+    }
+    vec3 l = tf_lighting.lamps[1 + 2 * k].xyz;
+    float along = dot(l, dir);
+    if (along <= 0.0) {
+      continue;
+    }
+    vec2 slope = vec2(dot(l, e1), dot(l, e2)) / along;
+    float s2 = dot(slope, slope);
+    float q = 1.0 + dot(slope * slope, vec2(1.0) / wide);
+    sum += tf_lighting.lamps[2 + 2 * k].rgb * (scale / (q * q) * s2 / (s2 + c2));
+  }
+#endif
+  return sum;
+}
+
 /* What the ray from o along dir sees: the scene behind where it meets it, else the World along it
- * (TF_SPLIT_SUM), else nothing. */
-vec3 tf_refract_seen(vec3 o, vec3 dir)
+ * (TF_SPLIT_SUM) with the lamps in its tails (tf_lamp_tails: a rough glass path that entered at p
+ * and spreads spread; vec2(0.0): none), else nothing. */
+vec3 tf_refract_seen(vec3 o, vec3 dir, vec3 p, vec2 spread)
 {
   vec3 colour;
   if (tf_refract_march(o, dir, colour)) {
@@ -95,7 +158,7 @@ vec3 tf_refract_seen(vec3 o, vec3 dir)
 #ifdef TF_SPLIT_SUM
   vec3 unused_moment;
   float unused_weight;
-  return tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight);
+  return tf_prefiltered_lookup(dir, 0.0, unused_moment, unused_weight) + tf_lamp_tails(p, o, dir, spread);
 #else
   return vec3(0.0);
 #endif
@@ -120,7 +183,7 @@ vec3 tf_glass_branch(TFGlassBranch b, bool in_air, TFLerp r)
     float s_in;
     vec3 in_n, in_g;
     if (!tf_glass_enter(o, d, reach, own, s_in, in_n, in_g) || dot(in_g, -d) <= 0.0) {
-      return carried * tf_refract_seen(o, d);
+      return carried * tf_refract_seen(o, d, o, vec2(0.0));
     }
     vec3 n_in, d_in;
     if (!tf_glass_refract_in(in_g, -d, (dot(in_n, -d) < 0.0) ? -in_n : in_n, eta, n_in, d_in)) {
@@ -134,19 +197,20 @@ vec3 tf_glass_branch(TFGlassBranch b, bool in_air, TFLerp r)
   vec2 cosines;
   TFGlassBranch unused_mirror, unused_inner;
   if (!tf_glass_follow(o, d, reach, eta, own, 0, r, carried, exit_point, dir, cosines, unused_mirror, unused_inner)) {
-    return in_air ? b.carried * tf_refract_seen(b.point, b.dir) : vec3(0.0);
+    return in_air ? b.carried * tf_refract_seen(b.point, b.dir, b.point, vec2(0.0)) : vec3(0.0);
   }
-  return carried * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own)) * tf_refract_seen(exit_point, dir);
+  vec3 seen = tf_refract_seen(exit_point, dir, exit_point, vec2(0.0)); /* the branches' tails: not drawn */
+  return carried * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own)) * seen;
 }
 
 /* What solid glass shows behind it (tf_refract.glsl, tf_glass_exit.glsl): the scene behind where
  * the exit ray (through the real mesh, tf_glass_exit, else the sphere about the origin) hits it,
- * else the World along
- * the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level), else the scene straight behind
- * the pixel, times what the path carries (0 where Cycles ends it); g: the face's geometric
- * normal; cosines: inside the glass at the first face and the face it leaves through; side: what
- * the film reflects where the ray enters the glass again and leaves it (a wine glass's far wall:
- * its mirror in the bowl, its reflection inside; tf_glass_branch). */
+ * else the World along the ray (TF_SPLIT_SUM: the prefiltered World's sharpest level, and its
+ * lamps in the rough path's tails, tf_lamp_tails), else the scene straight behind the pixel, times
+ * what the path carries (0 where Cycles ends it); g: the face's geometric normal; cosines: inside
+ * the glass at the first face and the face it leaves through; side: what the film reflects where
+ * the ray enters the glass again and leaves it (a wine glass's far wall: its mirror in the bowl, its
+ * reflection inside; tf_glass_branch). */
 vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines, out vec3 side)
 {
   vec3 exit_point, dir, carried;
@@ -155,7 +219,8 @@ vec3 tf_refracted(vec3 n, vec3 g, vec3 v, TFLerp r, out vec2 cosines, out vec3 s
                 exit_point, dir, cosines, carried, mirror, inner);
   side = tf_glass_branch(mirror, true, r) + tf_glass_branch(inner, false, r);
 #ifdef TF_SPLIT_SUM
-  return carried * tf_refract_seen(exit_point, dir);
+  vec2 spread = tf_glass_spread(dot(n, v), cosines.y, tf_object.material.w, 0);
+  return carried * tf_refract_seen(exit_point, dir, tf_world_pos, spread);
 #else
   vec3 colour;
   if (tf_refract_march(exit_point, dir, colour)) {
@@ -194,7 +259,7 @@ vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
       return t_in * r_in * (vec3(1.0) - r_in) *
              tf_prefiltered_lookup(tf_solid_internal(n, v, eta), 0.0, unused_moment, unused_weight);
     }
-    vec3 seen = tf_refract_seen(exit_point, dir);
+    vec3 seen = tf_refract_seen(exit_point, dir, tf_world_pos, tf_glass_spread(dot(n, v), cosines.y, eta, k));
     total += carried * (vec3(1.0) - tf_glass_back_r(cosines.y, r, eta, own)) * seen;
   }
   return t_in * total;

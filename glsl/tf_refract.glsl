@@ -91,14 +91,57 @@ float tf_behind_depth_at(inout vec2 uv)
   return 1.0 / mix(mix(inv.x, inv.y, f.x), mix(inv.z, inv.w, f.x), f.y);
 }
 
-/* The colour behind at uv, bilinear between texel centres. */
-vec3 tf_behind_colour_at(vec2 uv)
+/* The colour behind at uv, bilinear between texel centres (shading.glass.refract.bilinear). */
+vec3 tf_behind_bilinear(vec2 uv)
 {
   ivec2 lo, hi;
   vec2 f;
   tf_behind_corners(uv, lo, hi, f);
   return mix(mix(texelFetch(tf_behind, lo, 0).rgb, texelFetch(tf_behind, ivec2(hi.x, lo.y), 0).rgb, f.x),
              mix(texelFetch(tf_behind, ivec2(lo.x, hi.y), 0).rgb, texelFetch(tf_behind, hi, 0).rgb, f.x), f.y);
+}
+
+/* Catmull-Rom's four weights at fraction t between the middle two samples. */
+vec4 tf_catmull_rom(float t)
+{
+  float t2 = t * t, t3 = t2 * t;
+  return vec4(-0.5 * t3 + t2 - 0.5 * t, 1.5 * t3 - 2.5 * t2 + 1.0, -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2);
+}
+
+/* The colour behind at uv (shading.glass.refract.sharp): Catmull-Rom between the 4 x 4 texel
+ * centres around it, held within the range of the four nearest, where the sixteen lie on one
+ * surface (depths within 1 + TF_REFRACT_THICKNESS of each other) inside the picture; else
+ * bilinear (tf_behind_bilinear). */
+vec3 tf_behind_colour_at(vec2 uv)
+{
+  vec2 size = tf_behind_view.size.xy;
+  vec2 p = uv * size - 0.5;
+  vec2 base = floor(p);
+  vec2 f = p - base;
+  if (any(lessThan(base, vec2(1.0))) || any(greaterThan(base, size - 3.0))) {
+    return tf_behind_bilinear(uv);
+  }
+  ivec2 b = ivec2(base) - 1;
+  float d_min = 1e30, d_max = 0.0;
+  vec3 lo = vec3(1e30), hi = vec3(-1e30);
+  vec4 wx = tf_catmull_rom(f.x), wy = tf_catmull_rom(f.y);
+  vec3 sum = vec3(0.0);
+  for (int j = 0; j < 4; j++) {
+    for (int i = 0; i < 4; i++) {
+      vec4 t = texelFetch(tf_behind, b + ivec2(i, j), 0);
+      d_min = min(d_min, t.a);
+      d_max = max(d_max, t.a);
+      sum += wx[i] * wy[j] * t.rgb;
+      if ((i == 1 || i == 2) && (j == 1 || j == 2)) { /* the four nearest */
+        lo = min(lo, t.rgb);
+        hi = max(hi, t.rgb);
+      }
+    }
+  }
+  if (d_max > (1.0 + TF_REFRACT_THICKNESS) * d_min) {
+    return tf_behind_bilinear(uv);
+  }
+  return clamp(sum, lo, hi);
 }
 
 /* Whether the ray o + s w passes behind the scene at s against the depth between texel centres

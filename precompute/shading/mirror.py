@@ -95,12 +95,20 @@ MIRROR = (
             "shading.glass.refract.exit_ray",
             "shading.glass.refract.march",
             "shading.glass.refract.seen",
+            "shading.glass.refract.sharp",
             "shading.glass.refract.bilinear",
         ),
         "tf_refract.glsl",
-        ("tf_solid_exit_ray", "tf_refract_march", "tf_behind_depth_at", "tf_behind_colour_at"),
+        (
+            "tf_solid_exit_ray",
+            "tf_refract_march",
+            "tf_behind_depth_at",
+            "tf_behind_colour_at",
+            "tf_behind_bilinear",
+        ),
         numpy_note="solid glass refracting the scene behind: the ray through the glass, "
-        "its screen-space march, the hit's depth and colour between texel centres",
+        "its screen-space march, the hit's depth and colour between texel centres (Catmull–Rom "
+        "over one surface, else bilinear)",
         glsl_note="`TF_REFRACT`; `tf_refracted` in `tf_main_frag.glsl`",
     ),
     Mirror(
@@ -137,6 +145,14 @@ MIRROR = (
         "reflection followed back through it",
         glsl_note="`TF_REFRACT` with the glass buffers; `tf_glass_glint` and `tf_glass_branch` in "
         "`tf_main_frag.glsl`",
+    ),
+    Mirror(
+        ("shading.glass.tails.path_spread", "shading.glass.tails.lamp_tails"),
+        "tf_main_frag.glsl",
+        ("tf_glass_spread", "tf_lamp_tails"),
+        numpy_note="rough solid glass: how far a path spreads, and the World's lamps in its tails",
+        glsl_note="`TF_REFRACT` with `TF_LAMPS`; read by `tf_refract_seen` for the refracted path and "
+        "the glints",
     ),
     Mirror(
         ("shading.glass.glass_exit.octahedral",),

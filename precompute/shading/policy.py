@@ -320,6 +320,12 @@ GLASS_FRONT_SLACK = 1e-3
 #: wine glass's rim glints by pixels (docs/transparent-films.md#solid-glass-refraction).
 GLASS_BLEND_COS = 0.94
 GLASS_BLEND_DEPTH = 0.02
+#: Rough solid glass: the World's lamps in the tails of its paths' lobes (shading.glass.tails).
+#: A lamp's own image (the World's sharp level shows it) is taken as this radius (radians): the
+#: tails are counted outside it (the studio HDRI's lamps: about 2°; docs/tuning.md#glass-tail-core).
+GLASS_TAIL_CORE = 0.035
+#: A path leaving near the critical angle magnifies every earlier turn without bound: at most this.
+GLASS_TAIL_MAX_GAIN = 30.0
 #: Solid glass's shadow and caustics in EEVEE's background pass (precompute/optics/caustics.py):
 #: each sun's photons on a CAUSTIC_GRID² grid over the glass's bounding sphere; a cell of four
 #: photons spread over its image on the receiver unless it is wider than CAUSTIC_MAX_EXTENT
@@ -469,7 +475,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       ``TF_GLASS_BOUNCES``, ``TF_GLASS_FRONT_SLACK``, ``TF_GLASS_LAYERS``, ``TF_GLASS_PEEL``,
       ``TF_GLASS_BLEND_COS``, ``TF_GLASS_BLEND_DEPTH``:
       the exit through the real mesh (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints
-      (:data:`GLASS_ORDERS`);
+      (:data:`GLASS_ORDERS`); ``TF_GLASS_TAIL_CORE``, ``TF_GLASS_TAIL_MAX_GAIN``: the lamps in a
+      rough path's tails (:data:`GLASS_TAIL_CORE`, :data:`GLASS_TAIL_MAX_GAIN`);
       ``TF_VALID_REFLECTION_SCALE``, ``TF_VALID_REFLECTION_RISE``: Cycles' rule at a
       smooth-shaded face (:data:`VALID_REFLECTION_SCALE`, :data:`VALID_REFLECTION_RISE`).
     """
@@ -531,5 +538,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "GLASS_BLEND_COS",
             "GLASS_BLEND_DEPTH",
             "GLASS_ORDERS",
+            "GLASS_TAIL_CORE",
+            "GLASS_TAIL_MAX_GAIN",
         ),
     )

@@ -97,7 +97,7 @@ def with_scene_mirror(expected, surface, scene, pre, roughness, t):
         points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
     )
     world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
-    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m)
+    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m, depth)
     weight = refract.mirror_weight(roughness)
     return np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0), m_hit, weight
 
@@ -125,7 +125,7 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd, tint):
     hit, rows, cols = refract.march(
         exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
     )
-    seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
+    seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))), depth)
     glint = (
         t
         * (1.0 - np.sqrt(t))

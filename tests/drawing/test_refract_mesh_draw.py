@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 from _extension import linked_extension
 from _glass_mesh import Box
-from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item
+from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item, world_sh
 from test_refract_draw import as_solid_glass, glass_lighting, with_scene_mirror
 
 from precompute.output import render
 from precompute.shading import lamps, policy, split_sum, transmit
-from precompute.shading.glass import glass_exit, refract
+from precompute.shading.glass import glass_exit, refract, tails
+from precompute.world.lamps import Lamps
 
 pytestmark = pytest.mark.blender
 assert linked_extension  # the fixture's module imports it
@@ -129,14 +130,23 @@ def test_the_glass_buffers_hold_the_cubes_faces(gd):  # noqa: F811
 
 
 @pytest.mark.parametrize(
-    ("colour_mode", "shape"),
-    [("spectral", "cube"), ("per_channel", "cube"), ("spectral", "pair"), ("per_channel", "smooth")],
+    ("colour_mode", "shape", "with_lamps"),
+    [
+        ("spectral", "cube", False),
+        ("per_channel", "cube", False),
+        ("spectral", "pair", False),
+        ("per_channel", "smooth", False),
+        ("spectral", "smooth", True),
+    ],
 )
-def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape, monkeypatch):
+def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape, with_lamps, monkeypatch):
     """The refraction, the film from inside (spectral: the front film at the Snell-related angle;
     per channel: Cycles' back face, its table) and the glints through the mesh, per pixel; a mesh
     of two cubes, one behind the other, shows only its nearest front face (the far cube's faces
-    seen through the near one are inside the glass's span, not drawn over it)."""
+    seen through the near one are inside the glass's span, not drawn over it). With lamps: four
+    World lamps a few degrees off the directions paths leave in, seen in the rough paths' tails
+    (tails.lamp_tails) where the refracted ray and the glints see the World, and reflected by the
+    film outside (shading.lamps.shade)."""
     from thinfilm_sh.addon.gpu import glass_buffers
 
     result, lighting, pre, film = glass_lighting(gd, colour_mode)
@@ -154,7 +164,6 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     back_table = transmit.cycles_back_table(result.material)
     assert (back_table is None) == (colour_mode == "spectral")
     behind.film = glass_buffers.film_texture([back_table])
-    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, behind=behind)
 
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
     eye = np.array([0.0, -DISTANCE, 0.0])
@@ -180,7 +189,28 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     )
     kept = ~np.isnan(cosines[:, 1])  # a path Cycles ends carries nothing
     hit, rows, cols = refract.march(exit_points, dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
-    seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))))
+    found_lamps = None
+    if with_lamps:  # four lamps 4°–7° off the directions four paths that see the World leave in
+        world_paths = np.flatnonzero(kept & found & ~hit)
+        picks = dirs[world_paths[np.arange(1, 5) * len(world_paths) // 5]]
+        off = np.cross(picks, [0.0, 0.0, 1.0])
+        off /= np.linalg.norm(off, axis=-1, keepdims=True)
+        angles = np.radians([4.0, 6.0, 5.0, 7.0])[:, None]
+        power = np.array([[40.0, 30.0, 20.0], [20, 30, 40], [30, 30, 30], [40, 20, 30]])
+        found_lamps = Lamps(np.cos(angles) * picks + np.sin(angles) * off, power)
+        item.lighting = gd.resources.Lighting.from_sh(
+            world_sh()[0], 8, result.material.roughness, found_lamps
+        )
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, behind=behind)
+    cos_o = np.sum(n * views, -1)
+
+    def world(d, points_out, spread):  # the World along d, and the lamps in the path's tails
+        return split_sum.lookup(pre, d, np.zeros(len(n))) + tails.lamp_tails(
+            points, points_out, d, spread, result.material.roughness, found_lamps
+        )
+
+    spread = tails.path_spread(cos_o, np.nan_to_num(cosines[:, 1], nan=1.0), 1.5)
+    seen = refract.seen(hit, rows, cols, colour, world(dirs, exit_points, spread), depth)
     with monkeypatch.context() as m:  # every ray that leaves the picture over a surface takes its edge
         m.setattr(refract, "_meets_ahead", lambda o, *_a: np.ones(len(o), bool))
         edge_hit, _r, _c = refract.march(exit_points, dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
@@ -208,7 +238,8 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
             points, n, views, centre, 1.5, 0, *args, reflections=k, **rules
         )
         g_hit, g_rows, g_cols = refract.march(g_points, g_dirs, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
-        g_seen = refract.seen(g_hit, g_rows, g_cols, colour, split_sum.lookup(pre, g_dirs, np.zeros(len(n))))
+        g_spread = tails.path_spread(cos_o, np.nan_to_num(g_cos[:, 1], nan=1.0), 1.5, k)
+        g_seen = refract.seen(g_hit, g_rows, g_cols, colour, world(g_dirs, g_points, g_spread), depth)
         chosen = g_cos[:, 2 : 2 + k]  # NaN where the path met no more faces to reflect at
         carried = crossed(g_cos[:, 2 + k :]) * np.prod(
             [np.where(np.isnan(c)[:, None], 1.0, back(np.nan_to_num(c, nan=1.0))) for c in chosen.T], axis=0
@@ -226,7 +257,7 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     def sees(q, d):
         q, d = np.nan_to_num(q), np.nan_to_num(d, nan=1.0)
         b_hit, b_rows, b_cols = refract.march(q, d, depth, vp, cam, vd, (1.0, 1.0, 0.0, 0.0))
-        return refract.seen(b_hit, b_rows, b_cols, colour, split_sum.lookup(pre, d, np.zeros(len(n))))
+        return refract.seen(b_hit, b_rows, b_cols, colour, split_sum.lookup(pre, d, np.zeros(len(n))), depth)
 
     def onward(cos):  # through the further spans the branch entered, then out through the film
         return crossed(cos[:, 2:]) * np.where(
@@ -256,6 +287,16 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
     side += np.where((inner & i_followed)[:, None], i_carried * onward(i_cos) * sees(i_q, i_d), 0.0)
     through += side
     expected = s * split_sum.shade_split_sum(result, pre, n, views) + through
+    if with_lamps:  # the film's reflection of the lamps outside, weighted as the split sum's levels
+        lo, frac = split_sum.level_blend(
+            policy.effective_roughness(result.material.roughness, cos_o), pre.roughness
+        )
+        lamp_w = lamps.lamp_weight(lo, frac, len(pre.levels))
+        expected += s * lamp_w[:, None] * lamps.shade(film, found_lamps, result.material.roughness, n, views)
+        tt_tails = tails.lamp_tails(points, exit_points, dirs, spread, result.material.roughness, found_lamps)
+        shown = np.max(np.where((kept & found & ~hit)[:, None], tt_tails, 0.0)) / np.max(expected)
+        print(f"lamps: the World's radiance in the refracted path's tails up to {shown:.2f} of the peak")
+        assert shown > 0.05
     expected, _m_hit, _w = with_scene_mirror(
         expected + glint, (points, n, views), (colour, depth), pre, item.roughness, t
     )
@@ -292,6 +333,14 @@ def test_glass_leaving_through_its_mesh_draws_like_numpy(gd, colour_mode, shape,
         print(f"pair: the far cube's mirror up to {side.max() / np.max(expected):.1e} of the peak")
         assert np.percentile(side.max(-1)[mirrored], 50) / np.max(expected) > 1e-3
         assert both > 0.05
+    if with_lamps:  # where the tails show, they agree (a few pixels over the whole would hide them)
+        share = tt_tails.max(-1) / np.max(expected)
+        tail_px = kept & found & ~hit & (share > 1e-4)
+        of_tails = np.percentile(err[tail_px] / share[tail_px], 95)
+        print(
+            f"lamps: {tail_px.sum()} px show the tails, error 95th percentile {of_tails:.1e} of their tails"
+        )
+        assert tail_px.sum() > 20 and of_tails < 1e-2
     # float32 on the GPU may step to the neighbouring texel (a face's edge, a pattern's texel): a
     # few pixels differ, the rest agree to float32
     assert np.median(err) < 1e-4 and np.percentile(err, 95) < 2e-2

@@ -225,9 +225,9 @@ def test_a_ray_meets_a_receding_floor_where_the_floor_is():
     d_row, d_col = rows[m] - want_rows[m], cols[m] - want_cols[m]
     assert abs(np.mean(d_row)) < 0.05 and abs(np.mean(d_col)) < 0.05
     assert np.mean(np.abs(d_row)) < 0.1 and np.mean(np.abs(d_col)) < 0.1
-    # and the colour seen there is the picture's, bilinear between texel centres: a ramp reads true
+    # and the colour seen there is the picture's, between texel centres: a ramp reads true
     ramp = np.broadcast_to((np.arange(SIZE) + 0.5)[:, None, None], (SIZE, SIZE, 3))
-    seen = refract.seen(hit[m], rows[m], cols[m], ramp, np.zeros((m.sum(), 3)))
+    seen = refract.seen(hit[m], rows[m], cols[m], ramp, np.zeros((m.sum(), 3)), depth)
     inner = (rows[m] > 0.5) & (rows[m] < SIZE - 0.5)
     assert np.max(np.abs(seen[inner, 0] - rows[m][inner])) < 1e-9
 
@@ -249,4 +249,39 @@ def test_one_reflection_inside_a_sphere_matches_a_ray_trace(eta):
     # straight back towards the viewer at normal incidence
     assert np.allclose(
         transmit.solid_internal([[0.0, -1.0, 0.0]], [[0.0, -1.0, 0.0]], eta), [[0.0, -1.0, 0.0]]
+    )
+
+
+def test_the_picture_behind_is_read_sharp_between_texel_centres():
+    """refract.sharp (tf_behind_colour_at): a linear ramp reads true, a step is crossed within
+    a texel as Catmull–Rom crosses it (slope 1.25 per texel at its middle against bilinear's 1,
+    never past its two sides), and across a depth edge, near the picture's edge or over two
+    surfaces, the read is bilinear."""
+    size = 16
+    ramp = np.broadcast_to((np.arange(size) + 0.5)[None, :, None] * 0.1, (size, size, 3)).copy()
+    depth = np.full((size, size), 2.0)
+    rows = np.full(50, 8.3)
+    cols = np.linspace(2.5, 13.5, 50)
+    np.testing.assert_allclose(refract.sharp(ramp, depth, rows, cols)[:, 0], 0.1 * cols, atol=1e-12)
+    step = np.zeros((size, size, 3))
+    step[:, 8:] = 1.0
+    mid = np.array([7.5, 8.0, 8.5])  # texel centre 7.5 (0), the edge, texel centre 8.5 (1)
+    sharp = refract.sharp(step, depth, np.full(3, 8.0), mid)[:, 0]
+    linear = refract.bilinear(step, np.full(3, 8.0), mid)[:, 0]
+    np.testing.assert_allclose(sharp, [0.0, 0.5, 1.0], atol=1e-12)
+    np.testing.assert_allclose(linear, [0.0, 0.5, 1.0], atol=1e-12)
+    h = 1e-3
+    slope = (refract.sharp(step, depth, np.full(2, 8.0), [8.0 - h, 8.0 + h])[:, 0] @ [-1, 1]) / (2 * h)
+    assert slope == pytest.approx(1.25, abs=1e-5)
+    quarter = refract.sharp(step, depth, np.full(1, 8.0), [7.75])[0, 0]
+    assert 0.0 <= quarter < 0.25  # sharper than bilinear's 0.25, no undershoot (held at 0)
+    # two surfaces among the sixteen texels (a depth edge a texel past the four): bilinear
+    near = depth.copy()
+    near[:, 9:] = 1.0
+    np.testing.assert_allclose(
+        refract.sharp(step, near, [8.0], [8.25]), refract.bilinear(step, [8.0], [8.25])
+    )
+    # the picture's edge: bilinear
+    np.testing.assert_allclose(
+        refract.sharp(step, depth, [0.9], [8.25]), refract.bilinear(step, [0.9], [8.25])
     )
