@@ -194,7 +194,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     if variant.transmit:
         roots.append("tf_transmit.glsl")
     if variant.refract:
-        roots.append("tf_glass_exit.glsl")  # and tf_refract.glsl, which it includes
+        roots.append("tf_glass_tails.glsl")  # and tf_glass_exit.glsl and tf_refract.glsl, which it includes
     rest = chunk_order([*roots, "tf_main_frag.glsl"], search, done=joined)
     info.fragment_source(library + "\n" + join_chunks(rest, search))
     return info, iface

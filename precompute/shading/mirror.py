@@ -148,11 +148,11 @@ MIRROR = (
     ),
     Mirror(
         ("shading.glass.tails.path_spread", "shading.glass.tails.lamp_tails"),
-        "tf_main_frag.glsl",
+        "tf_glass_tails.glsl",
         ("tf_glass_spread", "tf_lamp_tails"),
         numpy_note="rough solid glass: how far a path spreads, and the World's lamps in its tails",
-        glsl_note="`TF_REFRACT` with `TF_LAMPS`; read by `tf_refract_seen` for the refracted path and "
-        "the glints",
+        glsl_note="`TF_REFRACT` with `TF_LAMPS`; read by `tf_refract_seen` in `tf_main_frag.glsl` for "
+        "the refracted path and the glints",
     ),
     Mirror(
         ("shading.glass.glass_exit.octahedral",),

@@ -1,4 +1,4 @@
-"""The World's lamps in the tails of rough solid glass's paths (glsl/tf_main_frag.glsl
+"""The World's lamps in the tails of rough solid glass's paths (glsl/tf_glass_tails.glsl
 ``tf_glass_spread``, ``tf_lamp_tails``).
 
 Solid glass's paths are followed as smooth glass (:mod:`.glass_exit`); a rough face (GGX, α =
