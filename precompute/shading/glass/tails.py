@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..policy import DIVISION_FLOOR, GLASS_TAIL_CORE, GLASS_TAIL_MAX_GAIN, MIN_COS, WALL_GUARD
-from .refract import inner_cosine
+from .refract import _unit, inner_cosine
 
 __all__ = ["lamp_tails", "path_spread"]
 
@@ -94,13 +94,3 @@ def lamp_tails(entry, exits, dirs, spread, roughness: float, lamps) -> np.ndarra
         weight = np.where(ahead & (a2[:, 0] > 0.0) & (a2[:, 1] > 0.0), scale / (q * q) * s2 / (s2 + c2), 0.0)
         out += weight[:, None] * power
     return out
-
-
-def _unit(v, fallback) -> np.ndarray:
-    """``v`` (N, 3) normalised, ``fallback`` where its squared length is at most DIVISION_FLOOR
-    (GLSL ``tf_safe_normalize``)."""
-    v = np.asarray(v, dtype=np.float64)
-    n2 = np.sum(v * v, -1, keepdims=True)
-    return np.where(
-        n2 > DIVISION_FLOOR, v / np.sqrt(np.maximum(n2, DIVISION_FLOOR)), np.broadcast_to(fallback, v.shape)
-    )
