@@ -84,13 +84,14 @@ int tf_glass_own()
   return int(floor(tf_object.glass.x + 0.5));
 }
 
-/* What the ray from o along dir sees: the scene behind where it meets it, else the World along it
- * (TF_SPLIT_SUM) with the lamps in its tails (tf_lamp_tails: a rough glass path that entered at p
- * and spreads spread; vec2(0.0): none), else nothing. */
+/* What the ray from o along dir sees: the scene behind where it meets it, else the scene around
+ * the glass where the probe shows it (tf_probe_seen), else the World along it (TF_SPLIT_SUM) with
+ * the lamps in its tails (tf_lamp_tails: a rough glass path that entered at p and spreads spread;
+ * vec2(0.0): none), else nothing. */
 vec3 tf_refract_seen(vec3 o, vec3 dir, vec3 p, vec2 spread)
 {
   vec3 colour;
-  if (tf_refract_march(o, dir, colour)) {
+  if (tf_refract_march(o, dir, colour) || tf_probe_seen(o, dir, colour)) {
     return colour;
   }
 #ifdef TF_SPLIT_SUM
@@ -203,15 +204,16 @@ vec3 tf_glass_glint(vec3 n, vec3 g, vec3 v, vec3 t_in, TFLerp r)
   return t_in * total;
 }
 
-/* Smooth solid glass reflects the scene behind where its mirror ray meets it, in place of the
- * World: w r (scene - World) along reflect(-v, n), r = 1 - sqrt(T), w falling from 1 at roughness
- * 0 to 0 at TF_REFRACT_MIRROR_ROUGHNESS (shading.glass.refract.mirror_weight). */
+/* Smooth solid glass reflects the scene behind where its mirror ray meets it (else the scene
+ * around it where the probe shows it), in place of the World: w r (scene - World) along
+ * reflect(-v, n), r = 1 - sqrt(T), w falling from 1 at roughness 0 to 0 at
+ * TF_REFRACT_MIRROR_ROUGHNESS (shading.glass.refract.mirror_weight). */
 vec3 tf_scene_mirror(vec3 n, vec3 v, vec3 wall_t)
 {
   float w = clamp(1.0 - tf_object.material.x / TF_REFRACT_MIRROR_ROUGHNESS, 0.0, 1.0);
   vec3 mirror = reflect(-v, n);
   vec3 scene;
-  if (w <= 0.0 || !tf_refract_march(tf_world_pos, mirror, scene)) {
+  if (w <= 0.0 || !(tf_refract_march(tf_world_pos, mirror, scene) || tf_probe_seen(tf_world_pos, mirror, scene))) {
     return vec3(0.0);
   }
   vec3 unused_moment;

@@ -388,6 +388,7 @@ def submit(prepared: PreparedDraw) -> None:
                     shader.uniform_sampler(layout.GLASS_BACK_SAMPLER.name, back)
                     shader.uniform_sampler(layout.GLASS_FILM_SAMPLER.name, film)
                     shader.uniform_sampler(layout.GLASS_GEOM_SAMPLER.name, geom)
+                    shader.uniform_sampler(layout.PROBE_SAMPLER.name, prepared.behind.probe_texture())
             _bind_group(shader, group)
             for batch, object_ubo in group.draws:
                 shader.uniform_block(layout.OBJECT.name, object_ubo)

@@ -254,6 +254,7 @@ BEHIND = Block(
     (
         Member("screen", None, "xy: scale, zw: offset from the drawn window's [0, 1] to the texture's uv"),
         Member("size", None, "xy: the texture's width and height in texels"),
+        Member("probe", None, "xyz: the scene probe's point (world), w: 1 if rendered (tf_probe.glsl)"),
     ),
 )
 #: The GLSL structs of every block, declared by every shader.
@@ -281,6 +282,8 @@ GLASS_FILM_SAMPLER = Sampler(11, "FLOAT_2D", "tf_glass_film")
 #: The geometric normals of those faces (.xy the front face's, .zw the back face's, octahedral;
 #: tf_glass_exit.glsl tf_glass_outside), for Cycles' rules at smooth-shaded faces.
 GLASS_GEOM_SAMPLER = Sampler(12, "FLOAT_2D_ARRAY", "tf_glass_geom")
+#: The scene around solid glass seen from one point (:class:`BehindTexture` ``probe``, tf_probe.glsl).
+PROBE_SAMPLER = Sampler(13, "FLOAT_2D", "tf_probe")
 #: The glass buffers' shader's only texture (``TF_GLASS_FURTHER``, :mod:`.glass_buffers`): the
 #: layer before, whose faces a further layer's lie behind.
 GLASS_PEEL_SAMPLER = Sampler(0, "FLOAT_2D", "tf_glass_peel")

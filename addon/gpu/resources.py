@@ -490,6 +490,31 @@ class BehindTexture:
     film: gpu.types.GPUTexture | None = None
     #: The glass buffers' geometric normals (:mod:`.glass_buffers`: .xy front, .zw back).
     geom: gpu.types.GPUTexture | None = None
+    #: The scene around the glass seen from one point (:meth:`with_probe`; tf_probe.glsl), or None.
+    probe: gpu.types.GPUTexture | None = None
+    #: The window → uv map the buffer was packed with (:meth:`screen`).
+    window: tuple = (1.0, 1.0, 0.0, 0.0)
+
+    def probe_texture(self) -> gpu.types.GPUTexture:
+        """The probe's texture, a 2 × 1 empty one (no distance: the World) where none was given."""
+        if self.probe is None:
+            empty = float_buffer(np.zeros((1, 2, 4)))
+            self.probe = gpu.types.GPUTexture((2, 1), format="RGBA32F", data=empty)
+        return self.probe
+
+    def with_probe(self, probe, centre) -> BehindTexture:
+        """This texture with the scene probe ``probe`` (rows, 2 rows, 4: colour and distance from
+        ``centre``, 0 where the World; shading.glass.probe.from_faces) uploaded, row 0 its top."""
+        probe = np.asarray(probe, dtype=np.float64)
+        if probe.ndim != 3 or probe.shape[2] != 4 or probe.shape[1] != 2 * probe.shape[0]:
+            raise ValueError(f"a scene probe is an equirect panorama (rows, 2 rows, 4), got {probe.shape}")
+        texels = np.nan_to_num(probe, nan=0.0, posinf=0.0, neginf=0.0)
+        size = (probe.shape[1], probe.shape[0])
+        self.probe = gpu.types.GPUTexture(size, format="RGBA32F", data=float_buffer(texels))
+        centre = [float(v) for v in np.asarray(centre, dtype=np.float64).reshape(3)]
+        content = BEHIND.pack(screen=self.window, size=(self.width, self.height, 0, 0), probe=(*centre, 1.0))
+        self.ubo = gpu.types.GPUUniformBuf(float_buffer(content))
+        return self
 
     def glass_textures(self) -> tuple:
         """(front, back, film, geom): the glass buffers, back-face films and the buffers'
@@ -533,4 +558,4 @@ class BehindTexture:
         texture = gpu.types.GPUTexture((width, height), format="RGBA32F", data=float_buffer(texels))
         content = BEHIND.pack(screen=screen, size=(width, height, 0, 0))
         ubo = gpu.types.GPUUniformBuf(float_buffer(content))
-        return cls(texture, ubo, width, height)
+        return cls(texture, ubo, width, height, window=tuple(float(v) for v in screen))

@@ -152,6 +152,7 @@ def declare_shading_resources(info, variant: Variant) -> None:
         _declare(info, layout.GLASS_BACK_SAMPLER)
         _declare(info, layout.GLASS_FILM_SAMPLER)
         _declare(info, layout.GLASS_GEOM_SAMPLER)
+        _declare(info, layout.PROBE_SAMPLER)
     info.typedef_source(layout.TYPEDEFS)
     _declare(info, layout.LIGHTING)
     _declare(info, layout.TABLE if variant.table_ubo else layout.TABLE_SAMPLER)
@@ -195,6 +196,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         roots.append("tf_transmit.glsl")
     if variant.refract:
         roots.append("tf_glass_tails.glsl")  # and tf_glass_exit.glsl and tf_refract.glsl, which it includes
+        roots.append("tf_probe.glsl")
     rest = chunk_order([*roots, "tf_main_frag.glsl"], search, done=joined)
     info.fragment_source(library + "\n" + join_chunks(rest, search))
     return info, iface

@@ -170,7 +170,6 @@ def render_background(
     if engine not in ENGINES:
         raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
     render = scene.render
-    settings = render.image_settings
     layer = bpy.context.view_layer
     objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
     glass = dict(glass or {}) if engine == "EEVEE" else {}
@@ -183,21 +182,10 @@ def render_background(
     with tempfile.TemporaryDirectory(prefix="thinfilm_sh_bg_") as folder:
         path = pathlib.Path(folder) / "background.exr"
         changes = [
-            (render, "engine", ENGINES[engine]),
             *_overscan(scene, width, height, margin),
-            (render, "resolution_x", int(width) + 2 * margin),
-            (render, "resolution_y", int(height) + 2 * margin),
-            (render, "resolution_percentage", 100),
-            (render, "use_border", False),
+            *_pass_settings(scene, engine, (int(width) + 2 * margin, int(height) + 2 * margin), path),
             (render, "film_transparent", bool(transparent) or render.film_transparent),
-            (render, "filepath", str(path)),
-            (render, "use_file_extension", False),
-            (settings, "media_type", "MULTI_LAYER_IMAGE"),
-            (settings, "file_format", "OPEN_EXR_MULTILAYER"),
-            (settings, "color_depth", "32"),
-            (layer, "use_pass_z", True),
-            *((obj, "visible_camera", False) for obj in objects),
-            *((obj, "visible_shadow", False) for obj in objects if obj.name in shadowless),
+            *_pass_visibility(objects, shadowless),
         ]
         caustic = bool(etas) and caustics.applies(scene, etas)
         if caustic:
@@ -220,6 +208,58 @@ def render_background(
     crop = (slice(m, m + height), slice(m, m + width))
     wide = (rgba, depth) if m else None
     return Background(rgba[crop], depth[crop], engine, time.perf_counter() - t0, m, wide)
+
+
+def _pass_settings(scene, engine: str, size: tuple, path) -> list:
+    """The render settings of a pass by ``engine`` of ``size`` (w, h) pixels written to ``path``
+    (a 32-bit multilayer EXR with its Z pass), as :func:`_changed` triples."""
+    render = scene.render
+    settings = render.image_settings
+    return [
+        (render, "engine", ENGINES[engine]),
+        (render, "resolution_x", int(size[0])),
+        (render, "resolution_y", int(size[1])),
+        (render, "resolution_percentage", 100),
+        (render, "use_border", False),
+        (render, "filepath", str(path)),
+        (render, "use_file_extension", False),
+        (settings, "media_type", "MULTI_LAYER_IMAGE"),
+        (settings, "file_format", "OPEN_EXR_MULTILAYER"),
+        (settings, "color_depth", "32"),
+        (bpy.context.view_layer, "use_pass_z", True),
+    ]
+
+
+def _pass_visibility(objects, shadowless) -> list:
+    """``objects`` hidden from the pass's camera, those named in ``shadowless`` casting no shadow."""
+    return [
+        *((obj, "visible_camera", False) for obj in objects),
+        *((obj, "visible_shadow", False) for obj in objects if obj.name in shadowless),
+    ]
+
+
+def render_views(scene, size: int, cameras, *, engine="EEVEE", hidden=(), shadowless=(), world=None) -> list:
+    """[(RGBA, depth), …] of ``scene`` seen by its camera placed at each of the ``cameras``
+    (4 × 4 world matrices, mathutils) in turn, ``size``² pixels each, as one setup of
+    :func:`render_background` (the World's lamps as suns, the objects named in ``hidden`` and
+    ``shadowless``; no overscan, no caustics): the suns and the settings are made once, not per
+    view (addon/headless/probe.py's six views)."""
+    if engine not in ENGINES:
+        raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
+    shadowless = set() if engine == "CYCLES" else set(shadowless)
+    out = []
+    with tempfile.TemporaryDirectory(prefix="thinfilm_sh_bg_") as folder:
+        path = pathlib.Path(folder) / "view.exr"
+        changes = [*_pass_settings(scene, engine, (size, size), path), *_pass_visibility(objects, shadowless)]
+        layer = bpy.context.view_layer
+        with _changed(changes), world_lamps_as_suns(scene, world if engine == "EEVEE" else None):
+            for matrix in cameras:
+                scene.camera.matrix_world = matrix
+                bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
+                rgba, z = _read_layers(path)
+                out.append((rgba, np.where(z >= FAR, np.inf, z)))
+    return out
 
 
 def view_depth(ndc_depth, projection) -> np.ndarray:

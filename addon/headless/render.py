@@ -27,6 +27,7 @@ import numpy as np
 from mathutils import Matrix
 
 from ...precompute.output import image_io, pixel_filter
+from ...precompute.shading.policy import PROBE_FACE
 from ..colour_space import working_space
 from ..drawing import display, scene_draw
 from ..gpu.context import ensure_gpu_context
@@ -44,7 +45,10 @@ from .background import (
     wall_objects,
 )
 from .caustics import glass_optics
+from .probe import glass_centre, render_probe
 
+#: The background engines the scene probe is rendered with (:func:`_probe`).
+PROBE_ENGINES = ("EEVEE", "CYCLES")
 #: The message of a render made while the *Show Thin Film Overlay* preference is off.
 OVERLAY_OFF = "the Show Thin Film Overlay preference is off: no thin film is drawn"
 
@@ -68,11 +72,12 @@ def holdout_objects(view_layer) -> set:
     return names
 
 
-def _films_over(behind, items, view, proj, size, sampling, messages):
+def _films_over(behind, items, view, proj, size, sampling, messages, probe=None):
     """The final frame over the background pass ``behind``: the films' layers (opaque, walls)
     depth-tested and filtered over it, holdout films cutting transparent holes (:func:`holdout_objects`);
     (RGBA, non-finite samples zeroed). ``size``: the films' pass (w, h); ``sampling``: (filter
-    kind, width, supersampling factor, pad)."""
+    kind, width, supersampling factor, pad); ``probe``: the scene around solid glass
+    (:class:`.probe.Probe`) or None."""
     ensure_gpu_context()
     holdouts = holdout_objects(bpy.context.view_layer)
     hole_items = [  # drawn as opaque surfaces: only their depth is used
@@ -80,6 +85,8 @@ def _films_over(behind, items, view, proj, size, sampling, messages):
     ]
     items = [item for item in items if item.name.split("/")[0] not in holdouts]
     refracted = behind_texture(behind, items, sampling[3])
+    if refracted is not None and probe is not None:
+        refracted.with_probe(probe.image, probe.centre)
     films, transmit, depth = film_layers(items, view, proj, *size, behind=refracted)
     films, nonfinite = _finite(films.astype(np.float64), messages)
     holes = None
@@ -247,8 +254,9 @@ def render_scene(
             glass=glass_optics(items, messages),
             messages=messages,
         )
+        around = _probe(scene, items, engine, film_objects, lighting, messages)
         rgba, nonfinite = _films_over(
-            behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages
+            behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages, around
         )
     out = pathlib.Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -273,6 +281,25 @@ def render_scene(
         "messages": messages,
         "seconds": time.perf_counter() - t0,
     }
+
+
+def _probe(scene, items, engine, film_objects, lighting, messages):
+    """The scene around the frame's solid glass (:func:`.probe.render_probe` at their centre),
+    or None where there is none or the engine is Workbench (which draws the objects hidden from
+    its camera: the probe would see the glass); its time noted in ``messages``."""
+    centre = glass_centre(items)
+    if centre is None or engine not in PROBE_ENGINES:
+        return None
+    around = render_probe(
+        scene,
+        centre,
+        engine=engine,
+        hidden=film_objects,
+        shadowless=film_objects,  # the glass too: its light through to the floor is not traced here
+        world=lighting.background() if lighting is not None else None,
+    )
+    messages.append(f"scene probe: six {PROBE_FACE}² views from the glass's centre, {around.seconds:.1f} s")
+    return around
 
 
 def _finite(rgba, messages) -> tuple[np.ndarray, int]:

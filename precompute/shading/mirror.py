@@ -155,6 +155,14 @@ MIRROR = (
         "the refracted path and the glints",
     ),
     Mirror(
+        ("shading.glass.probe.lookup",),
+        "tf_probe.glsl",
+        ("tf_probe_seen",),
+        numpy_note="the scene around solid glass, seen from its centre, for paths that leave the picture",
+        glsl_note="`TF_REFRACT`; read by `tf_refract_seen` and `tf_scene_mirror` in `tf_main_frag.glsl` "
+        "where the march meets nothing",
+    ),
+    Mirror(
         ("shading.glass.glass_exit.octahedral",),
         "tf_glass_frag.glsl",
         ("tf_oct_encode",),

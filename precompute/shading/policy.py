@@ -326,6 +326,23 @@ GLASS_BLEND_DEPTH = 0.02
 GLASS_TAIL_CORE = 0.035
 #: A path leaving near the critical angle magnifies every earlier turn without bound: at most this.
 GLASS_TAIL_MAX_GAIN = 30.0
+#: The scene around solid glass (shading.glass.probe): where a path leaves the picture (towards
+#: the camera, or off its edges) it sees the scene as six PROBE_FACE² views from the glass's centre
+#: show it, resampled to a PROBE_ROWS × 2 PROBE_ROWS panorama of colour and distance. The path is
+#: marched through it: PROBE_STEPS samples at distances growing by PROBE_GROWTH from PROBE_FIRST ×
+#: its origin's distance from the probe's point, the first that passes behind the probe's surface
+#: bisected PROBE_REFINE times; where it passes behind none, the World (docs/tuning.md#scene-probe).
+PROBE_FACE = 64
+PROBE_ROWS = 128
+PROBE_STEPS = 32
+PROBE_FIRST = 0.1
+PROBE_GROWTH = 1.25
+PROBE_REFINE = 6
+#: EEVEE's samples per probe view (its TAA; the frame's pass keeps the scene's own): each costs
+#: about as much as the view's own setup on llvmpipe, and the views are blurred by the resampling.
+PROBE_SAMPLES = 2
+#: Cycles' samples per probe view at most (a Cycles background pass; the scene's own where fewer).
+PROBE_CYCLES_SAMPLES = 64
 #: Solid glass's shadow and caustics in EEVEE's background pass (precompute/optics/caustics.py):
 #: each sun's photons on a CAUSTIC_GRID² grid over the glass's bounding sphere; a cell of four
 #: photons spread over its image on the receiver unless it is wider than CAUSTIC_MAX_EXTENT
@@ -477,6 +494,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       the exit through the real mesh (:data:`GLASS_STEPS` …); ``TF_GLASS_ORDERS``: its glints
       (:data:`GLASS_ORDERS`); ``TF_GLASS_TAIL_CORE``, ``TF_GLASS_TAIL_MAX_GAIN``: the lamps in a
       rough path's tails (:data:`GLASS_TAIL_CORE`, :data:`GLASS_TAIL_MAX_GAIN`);
+      ``TF_PROBE_STEPS``, ``TF_PROBE_FIRST``, ``TF_PROBE_GROWTH``, ``TF_PROBE_REFINE``: the march
+      through the scene probe (:data:`PROBE_STEPS` …);
       ``TF_VALID_REFLECTION_SCALE``, ``TF_VALID_REFLECTION_RISE``: Cycles' rule at a
       smooth-shaded face (:data:`VALID_REFLECTION_SCALE`, :data:`VALID_REFLECTION_RISE`).
     """
@@ -540,5 +559,9 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "GLASS_ORDERS",
             "GLASS_TAIL_CORE",
             "GLASS_TAIL_MAX_GAIN",
+            "PROBE_STEPS",
+            "PROBE_FIRST",
+            "PROBE_GROWTH",
+            "PROBE_REFINE",
         ),
     )

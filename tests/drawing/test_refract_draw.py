@@ -13,7 +13,7 @@ from test_gpu_draw import DISTANCE, FOV, PROJ, SIZE, VIEW, Item, baked, rotation
 from precompute.colour import film_colour
 from precompute.output import render
 from precompute.shading import policy, split_sum, transmit
-from precompute.shading.glass import refract
+from precompute.shading.glass import probe, refract
 from precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY
 from precompute.world import prefilter
 
@@ -84,11 +84,25 @@ def as_solid_glass(gd, item, result, pre, film):
     return colour, depth, gd.resources.BehindTexture.from_image(colour, depth)
 
 
-def with_scene_mirror(expected, surface, scene, pre, roughness, t):
+def refracted_paths(item, film, depth):
+    """The quad's pixels (inside mask), their (points, normals, views), the film's (T, R) there,
+    the exit rays (points, directions) and their march over ``depth`` (hit, rows, columns)."""
+    inside, points, n, views = quad_hits(item.model_matrix)
+    t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
+    exit_points, dirs = refract.exit_ray(points, n, views, item.model_matrix[:3, 3], 1.5)
+    inv_view = np.linalg.inv(VIEW)
+    marched = refract.march(
+        exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    )
+    return inside, (points, n, views), (t, s), (exit_points, dirs), marched
+
+
+def with_scene_mirror(expected, surface, scene, pre, roughness, t, around=None):
     """(``expected`` + the scene mirrored in place of the World where the mirror ray meets it,
     clamped at 0; which mirror rays met it; the mirror's weight) at the pixels ``surface`` =
     (points, normals, views) of solid glass of transmittance ``t``, over ``scene`` = (colour, depth)
-    seen from VIEW, PROJ."""
+    seen from VIEW, PROJ; ``around``: the scene probe (image, centre) where the march meets
+    nothing, or None."""
     points, n, views = surface
     colour, depth = scene
     inv_view = np.linalg.inv(VIEW)
@@ -97,7 +111,11 @@ def with_scene_mirror(expected, surface, scene, pre, roughness, t):
         points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
     )
     world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
-    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, world_m, depth)
+    fallback = world_m
+    if around is not None:  # where the march meets nothing, the probe where it shows something
+        p_colour, p_seen = probe.lookup(*around, points, mirror, covered=picture(depth))
+        fallback = np.where(p_seen[:, None], p_colour, world_m)
+    scene_m = refract.seen(m_hit, m_rows, m_cols, colour, fallback, depth)
     weight = refract.mirror_weight(roughness)
     return np.maximum(expected + weight * (1.0 - np.sqrt(t)) * (scene_m - world_m), 0.0), m_hit, weight
 
@@ -118,13 +136,8 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd, tint):
     ] * 2
     image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, behind=behind)
 
-    inside, points, n, views = quad_hits(item.model_matrix)
-    t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
-    exit_points, dirs = refract.exit_ray(points, n, views, item.model_matrix[:3, 3], 1.5)
-    inv_view = np.linalg.inv(VIEW)
-    hit, rows, cols = refract.march(
-        exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
-    )
+    inside, (points, n, views), (t, s), (exit_points, dirs), marched = refracted_paths(item, film, depth)
+    hit, rows, cols = marched
     seen = refract.seen(hit, rows, cols, colour, split_sum.lookup(pre, dirs, np.zeros(len(n))), depth)
     glint = (
         t
@@ -151,6 +164,72 @@ def test_solid_glass_refracts_the_scene_behind_like_numpy(gd, tint):
     # the refracted picture is not the picture straight behind
     straight = colour[np.nonzero(inside)]
     assert np.median(np.abs(seen[hit] - straight[hit])) > 0.02
+
+
+def picture(depth):
+    """Whether world points lie in the picture of the scene behind (``depth``'s shape), seen from
+    VIEW, PROJ: there the march is read, not the probe."""
+    return lambda q: refract.on_picture(q, PROJ @ VIEW, (1.0, 1.0, 0.0, 0.0), depth.shape)
+
+
+def probe_around():
+    """(image, centre) of a scene probe: a smooth colour over every direction at distance 5 from
+    a point beside the quad, the World (no distance) in a cap about +z."""
+    from precompute.world import hdri
+
+    dirs = hdri.equirect_directions(32, 64)
+    x, y, z = dirs[..., 0], dirs[..., 1], dirs[..., 2]
+    distance = np.where(z < 0.5, 5.0, 0.0)
+    image = np.stack([0.4 + 0.3 * x, 0.5 + 0.2 * np.sin(3 * y), 0.3 + 0.25 * z, distance], -1)
+    return image, np.array([0.2, 0.5, -0.3])
+
+
+def test_paths_that_leave_the_picture_see_the_probe_like_numpy(gd):
+    """Where the refracted ray's march and the mirror's meet nothing, the scene probe
+    (tf_probe.glsl ↔ shading.glass.probe.lookup) stands in for the World where it shows
+    something off the picture (in it, the march has read the picture and the World stands): per
+    pixel as numpy, and not the World there."""
+    result, lighting, pre, film = glass_lighting(gd, "spectral")
+    item = quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
+    colour, depth, behind = as_solid_glass(gd, item, result, pre, film)
+    depth[: SIZE // 2] = np.inf  # the upper half of the picture empty: more paths leave it
+    behind = gd.resources.BehindTexture.from_image(colour, depth)
+    around = probe_around()
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, behind=behind.with_probe(*around))
+
+    inside, (points, n, views), (t, s), (exit_points, dirs), marched = refracted_paths(item, film, depth)
+    hit, rows, cols = marched
+    world = split_sum.lookup(pre, dirs, np.zeros(len(n)))
+    p_colour, p_seen = probe.lookup(*around, exit_points, dirs, covered=picture(depth))
+    _c, p_any = probe.lookup(*around, exit_points, dirs)
+    seen = refract.seen(hit, rows, cols, colour, np.where(p_seen[:, None], p_colour, world), depth)
+    glint = (
+        t
+        * (1.0 - np.sqrt(t))
+        * split_sum.lookup(pre, transmit.solid_internal(n, views, 1.5), np.zeros(len(n)))
+    )
+    expected = s * split_sum.shade_split_sum(result, pre, n, views) + t * seen + glint
+    expected, _m_hit, _w = with_scene_mirror(
+        expected, (points, n, views), (colour, depth), pre, item.roughness, t, around
+    )
+    err = np.abs(image[inside][:, :3] - expected).max(axis=-1) / np.max(expected)
+    shown = ~hit & p_seen
+    print(
+        f"probe: {inside.sum()} px, {shown.mean():.0%} see it, {(~hit & ~p_seen).mean():.0%} the World;"
+        f" error median {np.median(err):.1e}, 99th percentile {np.percentile(err, 99):.1e}"
+    )
+    mirror = -views + 2.0 * np.sum(n * views, -1, keepdims=True) * n
+    _c, mirror_seen = probe.lookup(*around, points, mirror, covered=picture(depth))
+    print(
+        f"probe: {(~hit & p_any & ~p_seen).mean():.0%} meet it in the picture (the World stands);"
+        f" the mirror rays: {mirror_seen.mean():.0%} see it"
+    )
+    assert shown.sum() > 20 and (~hit & ~p_seen).any() and (~hit & p_any & ~p_seen).any()
+    assert mirror_seen.mean() > 0.2
+    assert np.median(err) < 1e-4 and np.percentile(err, 99) < 2e-2
+    # the probe is not the World where it is seen
+    assert np.median(np.abs(p_colour[shown] - world[shown]).max(-1)) > 0.05
+    assert np.median(np.abs(image[inside][:, :3] - expected).max(axis=-1)) < 1e-4
 
 
 def test_the_scene_behind_is_placed_in_the_widened_window_and_checked(gd):

@@ -25,7 +25,8 @@ Two steps, both per pixel:
    :data:`..policy.REFRACT_THICKNESS` × its depth behind the surface (else the ray passed behind
    an occluder and marches on), and sees the image's colour at the hit point, bilinear between
    texel centres. A ray that leaves the image or the march sees nothing: the caller falls back to
-   the World along w (the prefiltered World's sharpest level).
+   the headless frame's scene probe (:mod:`.probe`), else the World along w (the prefiltered
+   World's sharpest level).
 
 Smooth solid glass also reflects the scene behind where its mirror ray reflect(−v, n) meets it
 (the same march from the shaded point): its film reflection gains
@@ -111,6 +112,12 @@ def _project(q, view_proj, screen, shape):
     col = np.clip(col, 0, width - 1).astype(np.int64)
     row = (h - 1 - np.clip(row_up, 0, h - 1)).astype(np.int64)
     return row, col, inside
+
+
+def on_picture(q, view_proj, screen, shape) -> np.ndarray:
+    """(N,) whether world points ``q`` (N, 3) lie in the picture of ``shape`` (H, W) in front of
+    the camera (``tf_refract_sample``'s test)."""
+    return _project(np.asarray(q, dtype=np.float64), view_proj, screen, shape)[2]
 
 
 def bilinear(image, rows, cols, spread: bool = False) -> np.ndarray:
