@@ -290,14 +290,18 @@ def _probe(scene, items, engine, film_objects, lighting, messages):
     centre = glass_centre(items)
     if centre is None or engine not in PROBE_ENGINES:
         return None
-    around = render_probe(
-        scene,
-        centre,
-        engine=engine,
-        hidden=film_objects,
-        shadowless=film_objects,  # the glass too: its light through to the floor is not traced here
-        world=lighting.background() if lighting is not None else None,
-    )
+    try:
+        around = render_probe(
+            scene,
+            centre,
+            engine=engine,
+            hidden=film_objects,
+            shadowless=film_objects,  # the glass too: its light through to the floor is not traced here
+            world=lighting.background() if lighting is not None else None,
+        )
+    except RuntimeError as error:  # the frame is still drawn, its paths off the picture seeing the World
+        messages.append(f"scene probe not rendered ({error}): paths that leave the picture see the World")
+        return None
     messages.append(f"scene probe: six {PROBE_FACE}² views from the glass's centre, {around.seconds:.1f} s")
     return around
 
