@@ -118,6 +118,7 @@ def run_render(args, scene) -> int:
                 background=not args.no_background,
                 supersample=args.supersample,
                 engine=engine,
+                scene_probe=not args.no_scene_probe,
             )
             result["frame"] = scene.frame_current
             results.append(result)

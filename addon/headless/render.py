@@ -156,6 +156,7 @@ def render_scene(
     background: bool = True,
     supersample: int | None = None,
     engine: str | None = None,
+    scene_probe: bool = True,
 ) -> dict:
     """Render the camera view with the thin-film shader; writes ``out_path`` (.png) and a .exr beside it.
 
@@ -168,6 +169,8 @@ def render_scene(
     are drawn over it, depth-tested per sample (:func:`.background.composite`); ``background``
     False makes its film transparent. None: Blender's Solid drawing and the World's panorama
     behind the films (the preview's look, what the tests' reference images hold).
+    ``scene_probe``: where the frame has solid glass, render the scene around it for the paths
+    that leave the picture (:func:`.probe.render_probe`); False: they see the World.
     """
     ensure_gpu_context()
     scale = scene.render.resolution_percentage / 100.0
@@ -254,7 +257,7 @@ def render_scene(
             glass=glass_optics(items, messages),
             messages=messages,
         )
-        around = _probe(scene, items, engine, film_objects, lighting, messages)
+        around = _probe(scene, items, engine, film_objects, lighting, messages) if scene_probe else None
         rgba, nonfinite = _films_over(
             behind, items, view, proj, (frame_w, frame_h), (kind, filter_width, factor, pad), messages, around
         )
