@@ -226,7 +226,9 @@ def test_paths_that_leave_the_picture_see_the_probe_like_numpy(gd):
     )
     assert shown.sum() > 20 and (~hit & ~p_seen).any() and (~hit & p_any & ~p_seen).any()
     assert mirror_seen.mean() > 0.2
-    assert np.median(err) < 1e-4 and np.percentile(err, 99) < 2e-2
+    # the probe is smooth: no texel of a pattern to pick differently (read by the path's direction
+    # instead of the point it meets, the 99th percentile is 1.8e-2)
+    assert np.median(err) < 1e-4 and np.percentile(err, 99) < 2e-3
     # the probe is not the World where it is seen
     assert np.median(np.abs(p_colour[shown] - world[shown]).max(-1)) > 0.05
     assert np.median(np.abs(image[inside][:, :3] - expected).max(axis=-1)) < 1e-4
