@@ -17,8 +17,7 @@ vec4 tf_probe_texel(vec3 u)
   ivec2 size = textureSize(tf_probe, 0);
   float x = (0.5 - atan(u.y, u.x) / (2.0 * TF_PI)) * float(size.x);
   float y = acos(clamp(u.z, -1.0, 1.0)) / TF_PI * float(size.y);
-  int col = int(floor(x));
-  col = ((col % size.x) + size.x) % size.x;
+  int col = int(floor(x)) % size.x; /* x lies in [0, width]: % on non-negative ints only */
   int row = clamp(int(floor(y)), 0, size.y - 1);
   return vec4(float(col), float(row), x, y);
 }
@@ -41,7 +40,7 @@ vec3 tf_probe_colour(vec3 u)
   float fx = x - x0;
   float fy = clamp(y - float(y0), 0.0, 1.0);
   int y1 = min(y0 + 1, size.y - 1);
-  int c0 = ((int(x0) % size.x) + size.x) % size.x;
+  int c0 = (int(x0) + size.x) % size.x; /* x0 >= -1: both operands of % stay non-negative */
   int c1 = (c0 + 1) % size.x;
   vec3 top = mix(texelFetch(tf_probe, ivec2(c0, y0), 0).rgb, texelFetch(tf_probe, ivec2(c1, y0), 0).rgb, fx);
   vec3 bottom = mix(texelFetch(tf_probe, ivec2(c0, y1), 0).rgb, texelFetch(tf_probe, ivec2(c1, y1), 0).rgb, fx);
@@ -76,16 +75,16 @@ bool tf_probe_seen(vec3 o, vec3 d, out vec3 colour)
   float hi = 0.0;
   bool found = false;
   float previous = 0.0;
-  float step = scale * TF_PROBE_FIRST;
+  float reach = scale * TF_PROBE_FIRST; /* not "step": the built-in function's name */
   for (int k = 0; k < TF_PROBE_STEPS; k++) {
-    if (tf_probe_behind(o + step * d)) {
+    if (tf_probe_behind(o + reach * d)) {
       lo = previous;
-      hi = step;
+      hi = reach;
       found = true;
       break;
     }
-    previous = step;
-    step *= TF_PROBE_GROWTH;
+    previous = reach;
+    reach *= TF_PROBE_GROWTH;
   }
   if (!found) {
     return false;

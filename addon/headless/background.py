@@ -167,11 +167,9 @@ def render_background(
     """
     import time
 
-    if engine not in ENGINES:
-        raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    _check_engine(engine)
     render = scene.render
     layer = bpy.context.view_layer
-    objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
     glass = dict(glass or {}) if engine == "EEVEE" else {}
     optics = {name: v if isinstance(v, GlassOptics) else plain_glass(float(v)) for name, v in glass.items()}
     etas = {name: o.eta for name, o in optics.items()}
@@ -185,7 +183,7 @@ def render_background(
             *_overscan(scene, width, height, margin),
             *_pass_settings(scene, engine, (int(width) + 2 * margin, int(height) + 2 * margin), path),
             (render, "film_transparent", bool(transparent) or render.film_transparent),
-            *_pass_visibility(objects, shadowless),
+            *_pass_visibility(hidden, shadowless),
         ]
         caustic = bool(etas) and caustics.applies(scene, etas)
         if caustic:
@@ -230,8 +228,16 @@ def _pass_settings(scene, engine: str, size: tuple, path) -> list:
     ]
 
 
-def _pass_visibility(objects, shadowless) -> list:
-    """``objects`` hidden from the pass's camera, those named in ``shadowless`` casting no shadow."""
+def _check_engine(engine: str) -> None:
+    """A ValueError naming the engines where ``engine`` is none of :data:`ENGINES`."""
+    if engine not in ENGINES:
+        raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+
+
+def _pass_visibility(hidden, shadowless) -> list:
+    """The objects named in ``hidden`` hidden from the pass's camera, those also named in
+    ``shadowless`` casting no shadow, as :func:`_changed` triples."""
+    objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
     return [
         *((obj, "visible_camera", False) for obj in objects),
         *((obj, "visible_shadow", False) for obj in objects if obj.name in shadowless),
@@ -244,14 +250,12 @@ def render_views(scene, size: int, cameras, *, engine="EEVEE", hidden=(), shadow
     :func:`render_background` (the World's lamps as suns, the objects named in ``hidden`` and
     ``shadowless``; no overscan, no caustics): the suns and the settings are made once, not per
     view (addon/headless/probe.py's six views)."""
-    if engine not in ENGINES:
-        raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    objects = [bpy.data.objects[name] for name in sorted(set(hidden)) if name in bpy.data.objects]
+    _check_engine(engine)
     shadowless = set() if engine == "CYCLES" else set(shadowless)
     out = []
     with tempfile.TemporaryDirectory(prefix="thinfilm_sh_bg_") as folder:
         path = pathlib.Path(folder) / "view.exr"
-        changes = [*_pass_settings(scene, engine, (size, size), path), *_pass_visibility(objects, shadowless)]
+        changes = [*_pass_settings(scene, engine, (size, size), path), *_pass_visibility(hidden, shadowless)]
         layer = bpy.context.view_layer
         with _changed(changes), world_lamps_as_suns(scene, world if engine == "EEVEE" else None):
             for matrix in cameras:

@@ -72,14 +72,8 @@ def render_probe(scene, centre, *, engine: str, hidden=(), shadowless=(), world=
     data.sensor_fit = "HORIZONTAL"
     data.clip_start, data.clip_end = CLIP
     scene.collection.objects.link(cam)
-    matrices = []
-    for rotation in probe_math.FACES:
-        m = Matrix.Identity(4)
-        for i in range(3):
-            for j in range(3):
-                m[i][j] = float(rotation[i, j])
-            m[i][3] = float(centre[i])
-        matrices.append(m)
+    at = Matrix.Translation([float(v) for v in centre])
+    matrices = [at @ Matrix(rotation.tolist()).to_4x4() for rotation in probe_math.FACES]
     try:
         samples = [(scene, "camera", cam), (scene.eevee, "taa_render_samples", PROBE_SAMPLES)]
         if engine == "CYCLES":
