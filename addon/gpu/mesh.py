@@ -17,13 +17,15 @@ class MeshBatch:
 
     ``inside``: a thin transparent wall's mesh, whether it is closed and its thickness's linear fit
     (:func:`precompute.shading.transmit.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
-    None: no reflections inside are drawn."""
+    None: no reflections inside are drawn. ``bounds``: the positions' (2, 3) minimum and maximum,
+    in the mesh's own space (where an instance's matrix places it)."""
 
     batch: gpu.types.GPUBatch
     vertex_count: int
     triangle_count: int
     has_thickness: bool
     inside: Inside | None = None
+    bounds: np.ndarray | None = None
 
     @classmethod
     def from_arrays(cls, positions, normals, indices, thickness=None, wall: bool = False) -> MeshBatch | None:
@@ -59,7 +61,8 @@ class MeshBatch:
         ibo = gpu.types.GPUIndexBuf(type="TRIS", seq=idx)
         batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
         inside = mesh_inside(pos, idx, th) if wall else None
-        return cls(batch, pos.shape[0], idx.shape[0], th is not None, inside)
+        bounds = np.stack([pos.min(axis=0), pos.max(axis=0)]).astype(np.float64)
+        return cls(batch, pos.shape[0], idx.shape[0], th is not None, inside, bounds)
 
 
 def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):
