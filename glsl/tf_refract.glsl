@@ -12,8 +12,9 @@
  * TF_REFRACT_FIRST x the exit point's depth (nearest texels), the first crossing of the depth behind
  * bisected TF_REFRACT_REFINE times against the depth between texel centres (tf_behind_depth_at),
  * accepted within TF_REFRACT_THICKNESS x its depth, its colour bilinear there; a ray that leaves
- * the picture takes the texel of its last sample inside (TF_REFRACT_EDGE); false where it hits
- * nothing (the caller reads the World along it). The exit through the real mesh (the glass
+ * the picture takes the texel of its last sample inside (TF_REFRACT_EDGE), unless a scene probe
+ * was rendered (tf_behind_view.probe.w): that knows where the scene beyond the edge ends; false
+ * where it hits nothing (the caller reads the probe or the World along it). The exit through the real mesh (the glass
  * buffers) is tf_glass_exit.glsl's.
  */
 
@@ -205,8 +206,9 @@ bool tf_refract_march(vec3 o, vec3 w, out vec3 colour)
     if (!inside) {
 #if TF_REFRACT_EDGE
       vec4 edge = texelFetch(tf_behind, last, 0);
-      /* left the picture: the surface at its edge (policy.REFRACT_EDGE), if the ray heads into it */
-      if (k > 0 && edge.a < TF_REFRACT_FAR &&
+      /* left the picture: the surface at its edge (policy.REFRACT_EDGE), if the ray heads into it
+       * and no scene probe shows what lies beyond (a floor that ends) */
+      if (k > 0 && edge.a < TF_REFRACT_FAR && tf_behind_view.probe.w < 0.5 &&
           (prev_behind || tf_refract_meets_ahead(o, w, last_s, prev_pt, last_pt, last_known && prev_known)))
       {
         colour = edge.rgb;

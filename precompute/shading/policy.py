@@ -332,8 +332,8 @@ GLASS_TAIL_MAX_GAIN = 30.0
 #: marched through it: PROBE_STEPS samples at distances growing by PROBE_GROWTH from PROBE_FIRST ×
 #: its origin's distance from the probe's point, the first that passes behind the probe's surface
 #: bisected PROBE_REFINE times; where it passes behind none, the World (docs/tuning.md#scene-probe).
-PROBE_FACE = 64
-PROBE_ROWS = 128
+PROBE_FACE = 128
+PROBE_ROWS = 256
 PROBE_STEPS = 32
 PROBE_FIRST = 0.1
 PROBE_GROWTH = 1.25

@@ -84,15 +84,16 @@ def as_solid_glass(gd, item, result, pre, film):
     return colour, depth, gd.resources.BehindTexture.from_image(colour, depth)
 
 
-def refracted_paths(item, film, depth):
+def refracted_paths(item, film, depth, edge: bool = True):
     """The quad's pixels (inside mask), their (points, normals, views), the film's (T, R) there,
-    the exit rays (points, directions) and their march over ``depth`` (hit, rows, columns)."""
+    the exit rays (points, directions) and their march over ``depth`` (hit, rows, columns;
+    ``edge``: the picture's edge taken as the scene beyond it, as where no probe is drawn)."""
     inside, points, n, views = quad_hits(item.model_matrix)
     t, s = transmit.shade(film, n, views, transmit.WALL_SOLID, 1.5)
     exit_points, dirs = refract.exit_ray(points, n, views, item.model_matrix[:3, 3], 1.5)
     inv_view = np.linalg.inv(VIEW)
     marched = refract.march(
-        exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+        exit_points, dirs, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0), edge
     )
     return inside, (points, n, views), (t, s), (exit_points, dirs), marched
 
@@ -107,8 +108,15 @@ def with_scene_mirror(expected, surface, scene, pre, roughness, t, around=None):
     colour, depth = scene
     inv_view = np.linalg.inv(VIEW)
     mirror = -views + 2.0 * np.sum(n * views, -1, keepdims=True) * n
-    m_hit, m_rows, m_cols = refract.march(
-        points, mirror, depth, PROJ @ VIEW, inv_view[:3, 3], inv_view[:3, 2], (1.0, 1.0, 0.0, 0.0)
+    m_hit, m_rows, m_cols = refract.march(  # with a probe, it shows what lies beyond the edge
+        points,
+        mirror,
+        depth,
+        PROJ @ VIEW,
+        inv_view[:3, 3],
+        inv_view[:3, 2],
+        (1.0, 1.0, 0.0, 0.0),
+        around is None,
     )
     world_m = split_sum.lookup(pre, mirror, np.zeros(len(n)))
     fallback = world_m
@@ -197,10 +205,18 @@ def test_paths_that_leave_the_picture_see_the_probe_like_numpy(gd):
     around = probe_around()
     image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE, behind=behind.with_probe(*around))
 
-    inside, (points, n, views), (t, s), (exit_points, dirs), marched = refracted_paths(item, film, depth)
+    inside, (points, n, views), (t, s), (exit_points, dirs), marched = refracted_paths(
+        item, film, depth, False
+    )
     hit, rows, cols = marched
     world = split_sum.lookup(pre, dirs, np.zeros(len(n)))
     p_colour, p_seen = probe.lookup(*around, exit_points, dirs, covered=picture(depth))
+    # without a probe the picture's edge stands for the scene beyond it (policy.REFRACT_EDGE);
+    # with one, the probe (or the World) does
+    edge_hit, edge_rows, edge_cols = refracted_paths(item, film, depth)[4]
+    by_edge = edge_hit & ~hit
+    fallback = np.where(p_seen[:, None], p_colour, world)
+    edge_seen = refract.seen(edge_hit, edge_rows, edge_cols, colour, fallback, depth)
     _c, p_any = probe.lookup(*around, exit_points, dirs)
     seen = refract.seen(hit, rows, cols, colour, np.where(p_seen[:, None], p_colour, world), depth)
     glint = (
@@ -225,6 +241,11 @@ def test_paths_that_leave_the_picture_see_the_probe_like_numpy(gd):
         f" the mirror rays: {mirror_seen.mean():.0%} see it"
     )
     assert shown.sum() > 20 and (~hit & ~p_seen).any() and (~hit & p_any & ~p_seen).any()
+    # where the edge rule would have met the picture's edge, the draw is numpy's without it
+    edge_err = np.abs(t * (edge_seen - seen))[by_edge].max(axis=-1) / np.max(expected)
+    print(f"probe: {by_edge.sum()} px the edge rule would take; it would be off by {np.median(edge_err):.1e}")
+    assert by_edge.sum() >= 10 and np.median(edge_err) > 1e-2
+    assert np.percentile(err[by_edge], 99) < 2e-3
     assert mirror_seen.mean() > 0.2
     # the probe is smooth: no texel of a pattern to pick differently (read by the path's direction
     # instead of the point it meets, the 99th percentile is 1.8e-2)

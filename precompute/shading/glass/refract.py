@@ -259,7 +259,9 @@ def march(origins, dirs, depth, view_proj, camera, view_dir, screen, edge: bool 
     of its last sample inside where that texel is a surface (the scene beyond the edge taken as
     the scene at the edge: a floor goes on), counted as a hit; else (the World there) it sees
     nothing. A ray in front of that surface must also be heading into it (:func:`_meets_ahead`):
-    one that climbs away from a floor sees the World, not the floor's edge."""
+    one that climbs away from a floor sees the World, not the floor's edge. The headless frame
+    passes False where it has a scene probe (:mod:`.probe`, GLSL ``tf_behind_view.probe.w``): the
+    probe shows where the scene beyond the edge ends (a floor 20 m long does not go on)."""
     scene = _Scene(depth, view_proj, camera, view_dir, screen)
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     w = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
