@@ -56,6 +56,19 @@ def set_cache_preference(bpy, prefs, cache_dir) -> None:
     prefs.preferences().cache_dir = str(cache_dir)
 
 
+def empty_file(bpy, ns, size):
+    """An empty factory file with the extension ``ns`` (:func:`registered_extension`, with its
+    ``prefs``) registered again and its private cache chosen; the scene's resolution ``size``
+    (width, height) at 100 %. Returns the scene."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    ns.package.register()
+    set_cache_preference(bpy, ns.prefs, ns.cache_dir)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    return scene
+
+
 @contextlib.contextmanager
 def registered_extension(bpy, root: Path, modules, *, cache_preference: bool = True, gpu: bool = False):
     """The extension imported from ``root`` and registered, as a namespace: ``package``,

@@ -29,7 +29,7 @@ pytestmark = pytest.mark.blender
 
 import _blender_scene  # noqa: E402
 from _blender_scene import read_exr, white_world  # noqa: E402
-from _extension import EXTENSION_ID, REPO, linked_extension, set_cache_preference  # noqa: E402
+from _extension import EXTENSION_ID, REPO, empty_file, linked_extension, set_cache_preference  # noqa: E402
 
 #: This file's spheres are coarser (32 × 16) and its camera farther (7) than test_headless.py's.
 sphere = functools.partial(_blender_scene.sphere, segments=(32, 16))
@@ -77,12 +77,7 @@ def tf(bpy, tmp_path_factory):
 @pytest.fixture
 def fresh(bpy, tf):
     """An empty factory file with the extension registered and its private cache chosen."""
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    tf.package.register()
-    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
+    scene = empty_file(bpy, tf, SIZE)
     scene.view_settings.view_transform = "Standard"
     tf.scene_draw.CACHES.clear()
     return scene

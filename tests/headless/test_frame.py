@@ -14,7 +14,7 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-from _extension import registered_extension, set_cache_preference  # noqa: E402
+from _extension import empty_file, registered_extension  # noqa: E402
 
 SIZE = (64, 48)
 SAMPLES = 4
@@ -37,12 +37,7 @@ def tf(bpy, tmp_path_factory):
 
 
 def _scene(bpy, tf):
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    tf.package.register()
-    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
+    scene = empty_file(bpy, tf, SIZE)
     scene.view_settings.view_transform = "Standard"
     scene.eevee.taa_render_samples = SAMPLES
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-0.7, 0.0, 0.0), segments=32, ring_count=16)

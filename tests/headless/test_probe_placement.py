@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 import pytest
-from _extension import registered_extension, set_cache_preference
+from _extension import empty_file, registered_extension
 
 pytestmark = pytest.mark.blender
 
@@ -46,12 +46,7 @@ def solid_glass(bpy):
 
 
 def fresh_scene(bpy, tf):
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    tf.package.register()
-    set_cache_preference(bpy, tf.prefs, tf.cache_dir)
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
+    scene = empty_file(bpy, tf, SIZE)
     scene.eevee.taa_render_samples = 1
     scene.world = bpy.data.worlds.new("World")
     scene.world.color = (0.2, 0.25, 0.3)

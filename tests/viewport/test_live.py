@@ -402,9 +402,13 @@ def test_a_ten_step_drag_leaves_one_bake(bpy, tf, scene, monkeypatch):
 @pytest.mark.blender
 def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, monkeypatch):
     """The real draw callback in the start-up file's 3D viewport and the real timer, from a cold
-    material to its settled frame: every bake and film table ran on a worker thread."""
+    material to its settled frame: every bake and film table ran on a worker thread. The film's
+    thickness is this test's own, and the workers are idle first: in a fresh clone's run on a
+    loaded machine (2026-12-07) the earlier tests' 500 nm table came without a call to the
+    patched bake."""
     vp = tf.viewport
     bj = tf.bake_jobs
+    wait_for(lambda: not bj.BAKES.running, "the earlier tests' bakes")
     calls = []
     real_bake, real_film = tf.bake.bake, tf.film_colour.film_table
 
@@ -424,7 +428,7 @@ def test_no_bake_and_no_film_table_runs_in_the_draw_callback(bpy, tf, scene, mon
         "draw_items",
         lambda items, *a, **k: drawn.append(tf.draw.render_offscreen(items, VIEW, PROJ, 8, 8)),
     )
-    film(bpy, scene)
+    film(bpy, scene, 437.0)  # no other test's: its table is baked here or nowhere
     window = bpy.context.window_manager.windows[0]
     area = next(a for a in window.screen.areas if a.type == "VIEW_3D")
     region = next(r for r in area.regions if r.type == "WINDOW")
