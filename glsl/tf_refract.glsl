@@ -14,8 +14,8 @@
  * accepted within TF_REFRACT_THICKNESS x its depth, its colour bilinear there; a ray that leaves
  * the picture takes the texel of its last sample inside (TF_REFRACT_EDGE), unless a scene probe
  * was rendered (tf_behind_view.probe.w): that knows where the scene beyond the edge ends; false
- * where it hits nothing (the caller reads the probe or the World along it). The exit through the real mesh (the glass
- * buffers) is tf_glass_exit.glsl's.
+ * where it hits nothing (the caller reads the probe or the World along it). The exit through the
+ * real mesh (the glass buffers) is tf_glass_exit.glsl's.
  */
 
 /* Exit point and direction of the ray from the viewer (v) entering glass of index eta at p with

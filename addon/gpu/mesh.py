@@ -25,7 +25,7 @@ class MeshBatch:
     triangle_count: int
     has_thickness: bool
     inside: Inside | None = None
-    bounds: np.ndarray | None = None
+    bounds: np.ndarray | None = None  # set by from_arrays, the only maker
 
     @classmethod
     def from_arrays(cls, positions, normals, indices, thickness=None, wall: bool = False) -> MeshBatch | None:

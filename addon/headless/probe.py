@@ -48,32 +48,21 @@ class Probe:
 def glass_centre(items) -> np.ndarray | None:
     """The centre of the world-space bounding box of the items that are solid glass, or None.
 
-    Each item's mesh bounds (:attr:`.gpu.mesh.MeshBatch.bounds`, else its object's bounding box)
-    are placed by the item's own matrix: an instance of a glass (a collection instance, a
-    particle or Geometry Nodes instance) where it is drawn, not where its prototype stands."""
+    Each item's mesh bounds (:attr:`.gpu.mesh.MeshBatch.bounds`) are placed by the item's own
+    matrix: an instance of a glass (a collection instance, a particle or Geometry Nodes instance)
+    where it is drawn, not where its prototype stands."""
     corners = []
     for item in items:
         if not (is_wall(item) and int(item.wall[0]) == WALL_SOLID):
             continue
-        local = _local_corners(item)
-        if local is None:
-            continue
+        lo, hi = np.asarray(item.batch.bounds, dtype=np.float64)
+        box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         matrix = np.asarray(item.model_matrix, dtype=np.float64)
-        corners.append(local @ matrix[:3, :3].T + matrix[:3, 3])
+        corners.append(box @ matrix[:3, :3].T + matrix[:3, 3])
     if not corners:
         return None
     points = np.concatenate(corners)
     return (points.min(axis=0) + points.max(axis=0)) / 2.0
-
-
-def _local_corners(item) -> np.ndarray | None:
-    """The corners of ``item``'s mesh bounds in its own space (8, 3), or None."""
-    bounds = getattr(item.batch, "bounds", None)
-    if bounds is not None:
-        lo, hi = np.asarray(bounds, dtype=np.float64)
-        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    obj = bpy.data.objects.get(item.name.split("/")[0])
-    return None if obj is None else np.array([list(c) for c in obj.bound_box], dtype=np.float64)
 
 
 def render_probe(scene, centre, *, engine: str, hidden=(), shadowless=(), world=None, size: int = PROBE_FACE):

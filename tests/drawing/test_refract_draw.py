@@ -218,7 +218,7 @@ def test_paths_that_leave_the_picture_see_the_probe_like_numpy(gd):
     fallback = np.where(p_seen[:, None], p_colour, world)
     edge_seen = refract.seen(edge_hit, edge_rows, edge_cols, colour, fallback, depth)
     _c, p_any = probe.lookup(*around, exit_points, dirs)
-    seen = refract.seen(hit, rows, cols, colour, np.where(p_seen[:, None], p_colour, world), depth)
+    seen = refract.seen(hit, rows, cols, colour, fallback, depth)
     glint = (
         t
         * (1.0 - np.sqrt(t))
