@@ -44,6 +44,9 @@ import _cycles_scenes as cc  # noqa: E402
 CACHE = pathlib.Path(common.ROOT) / "benchmarks" / ".cache" / "transparent_films"
 SIZE = 256
 SAMPLES = 1024
+#: The seed of the second Cycles render that ``--seed-check`` scores against the reference (whose
+#: seed is 1): the reference's own noise.
+OTHER_SEED = 2
 HDRI = "studio"
 #: Issue 34's acceptance: mean ΔE2000 over the object, per scene, in the default frame (EEVEE
 #: behind) and over a Cycles background pass.
@@ -210,11 +213,14 @@ def _lamps(bpy) -> None:
     background.inputs["Strength"].default_value = LAMP_WORLD
 
 
-def build(name: str, path, size: int, samples: int, unbiased: bool = True, denoise: bool = False):
+def build(
+    name: str, path, size: int, samples: int, unbiased: bool = True, denoise: bool = False, seed: int = 1
+):
     """The scene ``name`` (:data:`SCENES`) saved as a .blend; returns its path.
     ``unbiased``: Cycles' sample clamps off (the reference); else Blender's defaults (the
     headless frame's Cycles background pass, less noisy). ``denoise``: Cycles' denoiser on, as
-    Blender sets it for a new scene's renders (OpenImageDenoise on the image, albedo and normal)."""
+    Blender sets it for a new scene's renders (OpenImageDenoise on the image, albedo and normal).
+    ``seed``: Cycles' seed (the references' is 1; :data:`OTHER_SEED` for their noise floor)."""
     import bpy
 
     path = cc.build_sphere_blend(
@@ -227,6 +233,7 @@ def build(name: str, path, size: int, samples: int, unbiased: bool = True, denoi
     if unbiased:
         scene.cycles.sample_clamp_direct = scene.cycles.sample_clamp_indirect = 0.0
     scene.cycles.use_denoising = bool(denoise)
+    scene.cycles.seed = int(seed)
     mat = bpy.data.materials["film"]
     (_bubble if name == "bubble" else _glass)(mat.node_tree.nodes["Principled BSDF"], mat.node_tree)
     _shape(bpy, name)
@@ -239,13 +246,16 @@ def build(name: str, path, size: int, samples: int, unbiased: bool = True, denoi
 
 
 def cycles_image(
-    blend, name: str, size: int, samples: int, denoise: bool = False
+    blend, name: str, size: int, samples: int, denoise: bool = False, seed: int = 1
 ) -> tuple[np.ndarray, float]:
-    """Cycles' render of ``blend`` (built with ``denoise``), cached: (RGB, seconds; 0 if cached)."""
+    """Cycles' render of ``blend`` (built with ``denoise`` and ``seed``), cached: (RGB, seconds; 0
+    if cached)."""
     import bpy
 
     key = json.dumps(
-        [name, size, samples, bpy.app.version_string, SCENE_VERSION[name]] + (["denoised"] if denoise else [])
+        [name, size, samples, bpy.app.version_string, SCENE_VERSION[name]]
+        + (["denoised"] if denoise else [])
+        + ([f"seed {seed}"] if seed != 1 else [])
     )
     path = CACHE / f"{name}_{hashlib.sha256(key.encode()).hexdigest()[:12]}.npz"
     if path.is_file():
@@ -305,9 +315,13 @@ def compare(
     engine: str = "EEVEE",
     background_samples: int = 256,
     denoise: bool = False,
+    seed_check: bool = False,
 ) -> dict:
     """ΔE2000 of one scene over the sphere's pixels; ``engine`` renders the rest of the scene
-    (Cycles at ``background_samples``); ``denoise``: the reference through Cycles' denoiser."""
+    (Cycles at ``background_samples``); ``denoise``: the reference through Cycles' denoiser;
+    ``seed_check``: also the reference's own noise, ``noise``: the mean ΔE2000 of Cycles' render
+    of the same file at the same samples with :data:`OTHER_SEED` against it (what Cycles itself
+    scores; a converged picture would score about 1/√2 of it)."""
     blend = build(name, pathlib.Path(workdir) / f"{name}.blend", size, samples, denoise=denoise)
     ref, cycles_s = cycles_image(blend, name, size, samples, denoise)
     if engine == "CYCLES":
@@ -324,6 +338,23 @@ def compare(
         key: float(np.sum(full[where & mask]) / max(mask.sum(), 1))
         for key, where in regions(name, ours, ref, size).items()
     }
+    noise = None
+    if seed_check:
+        other = build(
+            name,
+            pathlib.Path(workdir) / f"{name}_seed.blend",
+            size,
+            samples,
+            denoise=denoise,
+            seed=OTHER_SEED,
+        )
+        noise = float(
+            np.mean(
+                delta_e_2000(
+                    cycles_image(other, name, size, samples, denoise, OTHER_SEED)[0][mask], ref[mask], xyz="E"
+                )
+            )
+        )
     around = ~mask
     around[: size // 2] = False  # the ground beside and in front of the object
     parts["ground"] = float(np.mean(delta_e_2000(ours[around], ref[around], xyz="E")))
@@ -339,6 +370,7 @@ def compare(
         cycles=ref,
         delta_e=full,
         parts=parts,
+        noise=noise,
     )
 
 
@@ -436,6 +468,15 @@ this machine at a load average of 6–8.
 """
 
 
+#: The report's note on ``--seed-check``'s column.
+SEED_NOTE = """\
+*Cycles, another seed*: Cycles' render of the same file at the same samples with seed {seed}
+instead of 1, scored against the reference as ours is: the reference's own noise. A converged
+picture would score about 1/√2 of it against the reference (two independent renders' noise adds
+in quadrature), and a mean ΔE2000 limit below that figure asks a render to be nearer the
+reference than Cycles is to itself."""
+
+
 def report(
     rows,
     size: int,
@@ -446,6 +487,7 @@ def report(
 ) -> str:
     """The markdown report."""
     noise = "Cycles' denoiser (OpenImageDenoise, Blender's default)" if denoise else "no denoising"
+    seeded = any(r.get("noise") is not None for r in rows)
     lines = [
         "# Transparent films against Cycles",
         "",
@@ -458,10 +500,11 @@ def report(
         f"Code: {common.git_describe(('precompute', 'addon', 'glsl', 'benchmarks'))}.",
         "",
         "| scene | background pass | mean ΔE2000 | p95 | limit | glints | rim | upper | lower"
-        " | Cycles s | ours s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        " | Cycles s | ours s |" + (" Cycles, another seed |" if seeded else ""),
+        "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if seeded else ""),
     ]
     for r in rows:
+        noise = r.get("noise")
         lines.append(
             f"| {r['name']} | {r['engine']} | {r['mean']:.2f} | {r['p95']:.2f} | {r['limit']:.0f} | "
             + " | ".join(
@@ -469,7 +512,10 @@ def report(
                 for k in ("glints", "rim", "upper", "lower")
             )
             + f" | {r['cycles_s']:.0f} | {r['ours_s']:.1f} |"
+            + ((f" {noise:.2f} |" if noise is not None else " – |") if seeded else "")
         )
+    if seeded:
+        lines += ["", SEED_NOTE.format(seed=OTHER_SEED)]
     lines += ["", NOTES, f"![ours | Cycles | ΔE/10, one row per scene](images/{picture})", ""]
     return "\n".join(lines)
 
@@ -493,6 +539,12 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--denoise", action="store_true", help="the references through Cycles' denoiser (cached apart)"
     )
+    parser.add_argument(
+        "--seed-check",
+        action="store_true",
+        help=f"also render each reference with seed {OTHER_SEED} (cached) and score it against the "
+        "reference: the reference's own noise",
+    )
     args = parser.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -505,9 +557,15 @@ def main(argv=None) -> int:
                 args.engine,
                 args.background_samples,
                 args.denoise,
+                args.seed_check,
             )
             split = ", ".join(f"{k} {v:.2f}" for k, v in row["parts"].items())
-            print(f"{name}: mean ΔE2000 {row['mean']:.2f}, p95 {row['p95']:.2f} ({split})", flush=True)
+            seeded = (
+                f"; Cycles with seed {OTHER_SEED}: {row['noise']:.2f}" if row["noise"] is not None else ""
+            )
+            print(
+                f"{name}: mean ΔE2000 {row['mean']:.2f}, p95 {row['p95']:.2f} ({split}){seeded}", flush=True
+            )
             rows.append(row)
             if args.dump:
                 keep = {k: row[k] for k in ("ours", "cycles", "delta_e")}
