@@ -1,6 +1,6 @@
 """Blender's light objects on a film sphere: the headless frame against Cycles, and frame time.
 
-Three scenes (issue 18), each built once in bpy and rendered twice — by Cycles (CPU, box pixel
+Four scenes (issue 18), each built once in bpy and rendered twice — by Cycles (CPU, box pixel
 filter) and by the extension's headless ``render`` (the GLSL path on whatever OpenGL is present,
 rendered at 2× and box-averaged to Cycles' pixel filter) — and compared by mean ΔE2000 over the
 sphere (``precompute.colour.colour_difference.delta_e_2000``, ``"E"`` white, as
@@ -11,7 +11,9 @@ benchmarks/cycles_compare.py):
 - ``point_area``: the same kind of sphere lit by a point lamp and a rectangular area lamp in a
   dark grey World;
 - ``spot_metal``: a film on a metal (Principled Metallic 1) lit by a spot lamp whose cone edge
-  crosses the sphere, and a dim HDRI.
+  crosses the sphere, and a dim HDRI;
+- ``paint``: a film over a diffuse base (Principled Base Color) lit by a point lamp in a dark
+  grey World: the base under the film, which the light objects light as Cycles does.
 
 The frame time with 1 / 8 / 32 point lights is measured on the same sphere (viewport draw path,
 :func:`time_lights`).
@@ -72,6 +74,19 @@ CASES = {
                 {"energy": 150.0, "shape": "RECTANGLE", "size": 1.0, "size_y": 0.4, "color": (0.8, 0.9, 1.0)},
             ),
         ],
+    },
+    "paint": {
+        "what": "a painted sphere under a film (Principled Base Color (0.6, 0.3, 0.15), film 300 nm, "
+        "IOR 1.33 on IOR 1.5, roughness 0.4), point 300 W (r 0.1 m), grey World 0.02",
+        "material": {
+            "Base Color": (0.6, 0.3, 0.15, 1.0),
+            "Roughness": 0.4,
+            "IOR": 1.5,
+            "Thin Film Thickness": 300.0,
+            "Thin Film IOR": 1.33,
+        },
+        "world": ("grey", 0.02),
+        "lights": [("POINT", (2.5, -2.5, 2.0), None, {"energy": 300.0, "shadow_soft_size": 0.1})],
     },
     "spot_metal": {
         "what": "film 300 nm, IOR 1.45 on a metal (Metallic 1, base (0.9, 0.6, 0.3), roughness 0.25), "
@@ -366,10 +381,18 @@ STATIC_TEXT = [
     "Up to 32 lights (`policy.MAX_LIGHTS`) in a uniform buffer; moving or editing a light changes",
     "only that buffer (no bake, no World analysis: tests/viewport/test_scene_lights_viewport.py).",
     "",
+    "**A diffuse base** under the film (a Principled BSDF's Base Color, the panel's *Diffuse Base*)",
+    "is lit by every sample too: E⊥ cos θi times the base's BRDF at the view",
+    "(`film_colour.diffuse_view`, a layer of the film texture): Base Color / π × the specular",
+    "layer's layering weight at the view angle, as Cycles' Principled BSDF layers it (per-channel",
+    "mode; spectral mode: Base Color / π × (1 − R) per channel on the way in and out). A Principled",
+    "plane under a sun against Cycles: tests/parity/test_scene_lights.py (≤ 3 %; the film's",
+    "specular layer alone is 1–6 % of it); the `paint` case above.",
+    "",
     "**Not yet:** shadows cast by other objects (every light reaches every film surface facing it);",
-    "light from light objects through the film into a diffuse base (only the film's specular layer",
-    "is lit by them); blocker and shadow linking; Cycles' soft falloff of a point light closer than",
-    "its radius; a spot's non-uniform scale.",
+    "a light's Diffuse factor (the base takes its Specular factor; both 1 by default); blocker and",
+    "shadow linking; Cycles' soft falloff of a point light closer than its radius; a spot's",
+    "non-uniform scale.",
     "",
     "## Linearly transformed cosines: not used",
     "",

@@ -20,6 +20,11 @@ int tf_film_count()
   return int(tf_film_data.size.x);
 }
 
+int tf_film_layers()
+{
+  return int(tf_film_data.size.z);
+}
+
 vec3 tf_film_texel(int column, int row, int layer)
 {
   ivec3 size = ivec3(tf_film_data.size.xyz);
@@ -29,6 +34,11 @@ vec3 tf_film_texel(int column, int row, int layer)
 int tf_film_count()
 {
   return textureSize(tf_film, 0).x;
+}
+
+int tf_film_layers()
+{
+  return textureSize(tf_film, 0).z;
 }
 
 vec3 tf_film_texel(int column, int row, int layer)
@@ -63,7 +73,7 @@ vec3 tf_film_response(float u, TFLerp r, vec3 e)
 #endif
 }
 
-/* The multiple-scattering factor at the view (the film texture's last layer). */
+/* The multiple-scattering factor at the view (the film texture's layer after the reflectance). */
 vec3 tf_film_multiscatter(float cos_o, TFLerp r)
 {
 #ifdef TF_SPECTRAL
@@ -71,6 +81,29 @@ vec3 tf_film_multiscatter(float cos_o, TFLerp r)
 #else
   return tf_film_at(cos_o, r, 1);
 #endif
+}
+
+/* The film texture's layer of a diffuse base (film_colour.FilmTable.diffuse), after the
+ * multiple-scattering factor; a film without a diffuse base has none. */
+int tf_film_diffuse_layer()
+{
+#ifdef TF_SPECTRAL
+  return 4;
+#else
+  return 2;
+#endif
+}
+
+/* Whether the film has a diffuse base (its texture holds the layer). */
+bool tf_film_has_diffuse()
+{
+  return tf_film_layers() > tf_film_diffuse_layer();
+}
+
+/* The diffuse base's BRDF at the view (film_colour.diffuse_view). */
+vec3 tf_film_diffuse(float cos_o, TFLerp r)
+{
+  return tf_film_at(cos_o, r, tf_film_diffuse_layer());
 }
 
 vec3 tf_shade_lamps(TFFrame f, TFLerp r, vec3 n, vec3 v, float roughness)

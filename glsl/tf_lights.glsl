@@ -13,7 +13,9 @@
  * [5k+3] axis_u, spot_smooth | normalize_spread; [5k+4] axis_v, ellipse.
  * Film reflectance from tf_film_response (tf_lamps.glsl). Each sample: D_alpha' G2 F(v.h) /
  * (4 cos_o) x E_perp (tf_ggx_weight, tf_brdf.glsl), alpha'^2 = alpha^2 + rho^2 (the sample's
- * footprint, lights.footprint).
+ * footprint, lights.footprint); under a film with a diffuse base also E_perp cos_i (times
+ * 1 - R(cos_i) for a spectral film, lights.diffuse_in) into the base, whose BRDF at the view is
+ * tf_film_diffuse.
  * No shadows from other objects.
  */
 
@@ -59,12 +61,21 @@ vec2 tf_area_cell(int i, int j, bool ellipse)
   return 0.5 * r * vec2(cos(phi), sin(phi));
 }
 
-/* One sample: lights.sample_weight times the film at its half vector times e. */
-vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, TFGgxView g)
+/* One sample: lights.sample_weight times the film at its half vector times e; with a diffuse
+ * base (base) what it brings the base is added to diffuse (lights.diffuse_in). */
+vec3 tf_light_sample(TFLerp r, vec3 n, vec3 v, vec3 l, vec3 e, float rho2, TFGgxView g, bool base,
+                     inout vec3 diffuse)
 {
   float cos_i = dot(n, l);
   if (cos_i <= 0.0) {
     return vec3(0.0);
+  }
+  if (base) {
+#ifdef TF_SPECTRAL
+    diffuse += cos_i * e * clamp(vec3(1.0) - tf_film_response(min(cos_i, 1.0), r, vec3(1.0)), 0.0, 1.0);
+#else
+    diffuse += cos_i * e;
+#endif
   }
   vec3 h = tf_safe_normalize(v + l, n);
   float nh = clamp(dot(n, h), 0.0, 1.0);
@@ -88,7 +99,7 @@ void tf_lobe_edges(float c, float w, out float edges[TF_AREA_SAMPLES + 1])
 }
 
 /* One area light: lights._area_samples with lights.area_lobe (rectangles) or the concentric grid. */
-vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, TFGgxView g)
+vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, TFGgxView g, bool base, inout vec3 diffuse)
 {
   vec4 s0 = tf_lights.light[TF_LIGHT_VEC4 * k];
   vec4 s1 = tf_lights.light[TF_LIGHT_VEC4 * k + 1];
@@ -137,7 +148,7 @@ vec3 tf_area_light(int k, TFLerp r, vec3 p, vec3 n, vec3 v, TFGgxView g)
       }
       float omega = cell * cos_l / d2;
       float scale = omega * tf_spread_attenuation(cos_l, s2.w, s3.w);
-      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * omega, g);
+      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * omega, g, base, diffuse);
     }
   }
   return sum;
@@ -148,6 +159,8 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
   int count = int(tf_lights.count.x);
   TFGgxView g = tf_ggx_view(roughness, f.cos_o);
   vec3 sum = vec3(0.0);
+  bool base = tf_film_has_diffuse();
+  vec3 diffuse = vec3(0.0);
   for (int k = 0; k < TF_MAX_LIGHTS; k++) {
     if (k >= count) {
       break;
@@ -159,7 +172,7 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
     vec3 axis = s1.xyz;
     if (kind == TF_LIGHT_SUN) {
       float s = sin(s1.w);
-      sum += tf_light_sample(r, n, v, -axis, s2.rgb, 0.25 * s * s, g);
+      sum += tf_light_sample(r, n, v, -axis, s2.rgb, 0.25 * s * s, g, base, diffuse);
     }
     else if (kind == TF_LIGHT_POINT || kind == TF_LIGHT_SPOT) {
       vec3 to = s0.xyz - p;
@@ -170,11 +183,12 @@ vec3 tf_shade_lights(TFFrame f, TFLerp r, vec3 p, vec3 n, vec3 v, float roughnes
       if (kind == TF_LIGHT_SPOT) {
         scale *= tf_spot_attenuation(-dot(l, axis), s2.w, tf_lights.light[TF_LIGHT_VEC4 * k + 3].w);
       }
-      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, g);
+      sum += tf_light_sample(r, n, v, l, scale * s2.rgb, 0.25 * radius * radius / d2, g, base, diffuse);
     }
     else if (kind == TF_LIGHT_AREA) {
-      sum += tf_area_light(k, r, p, n, v, g);
+      sum += tf_area_light(k, r, p, n, v, g, base, diffuse);
     }
   }
-  return sum * tf_film_multiscatter(g.cos_o, r);
+  sum *= tf_film_multiscatter(g.cos_o, r);
+  return base ? sum + diffuse * tf_film_diffuse(g.cos_o, r) : sum;
 }

@@ -291,7 +291,9 @@ class FilmTexture:
     ``texture`` (:data:`FILM_SAMPLER`, RGBA32F): width U = u uniform 0…1 inclusive, height T =
     the table's thickness rows; spectral films: layers 0…2 = rows of the film's 3×3 reflectance,
     layer 3 = the multiple-scattering factor at view cosine u; per-channel films: layer 0 = the RGB
-    reflectance, layer 1 = the factor. Interpolated in full float32 like the table (tf_lamps.glsl).
+    reflectance, layer 1 = the factor; a film with a diffuse base then one more layer, the base's
+    BRDF at view cosine u (``FilmTable.diffuse``, tf_film_diffuse). Interpolated in full float32
+    like the table (tf_lamps.glsl).
     """
 
     texture: gpu.types.GPUTexture
@@ -304,10 +306,13 @@ class FilmTexture:
 
     @staticmethod
     def layer_array(film) -> np.ndarray:
-        """(layers, T, U, 4) float32: the reflectance rows, then the multiple-scattering factor."""
+        """(layers, T, U, 4) float32: the reflectance rows, then the multiple-scattering factor,
+        then the diffuse base's BRDF where the film has a base."""
         r = np.asarray(film.reflectance, dtype=np.float32)
         rows = [r[:, :, k, :] for k in range(3)] if r.ndim == 4 else [r]
         rows.append(np.asarray(film.multiscatter, dtype=np.float32))
+        if getattr(film, "diffuse", None) is not None:
+            rows.append(np.asarray(film.diffuse, dtype=np.float32))
         out = np.zeros((len(rows),) + r.shape[:2] + (4,), dtype=np.float32)
         for i, row in enumerate(rows):
             out[i, ..., :3] = row

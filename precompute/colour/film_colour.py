@@ -91,11 +91,14 @@ class FilmTable:
     ``reflectance``: (T, U, 3, 3) spectral (row = output RGB, column = light RGB) or (T, U, 3)
     per channel, T = the bake's thickness rows. ``multiscatter``: (T, U, 3) the factor the
     bake applied at view cosine u (1 without multiple scattering), so lamps match the table.
+    ``diffuse``: (T, U, 3), the diffuse base's BRDF at view cosine u as the light objects light it
+    (:func:`diffuse_view`), or None without a diffuse base.
     """
 
     reflectance: np.ndarray
     multiscatter: np.ndarray
     thicknesses_nm: np.ndarray
+    diffuse: np.ndarray | None = None
 
     @property
     def spectral(self) -> bool:
@@ -124,7 +127,9 @@ def film_table(result, samples: int = FILM_SAMPLES) -> FilmTable:
     rg = _interpolated_rows(result.material, nodes, result.u_nodes, u)
     thicknesses = np.atleast_1d(np.asarray(result.thicknesses_nm, dtype=float))
     ms = _multiscatter(result.material, u, rg)
-    return FilmTable(np.ascontiguousarray(rg), np.ascontiguousarray(ms), thicknesses)
+    return FilmTable(
+        np.ascontiguousarray(rg), np.ascontiguousarray(ms), thicknesses, diffuse_view(result.material, u, rg)
+    )
 
 
 def _interpolated_rows(material, nodes: np.ndarray, degree: int, u: np.ndarray) -> np.ndarray:
@@ -159,7 +164,34 @@ def _film_table(material, thicknesses_nm, spectral: bool, samples: int) -> FilmT
     rg = _film_rows(material, thicknesses, u)  # (T, U, 3, 3)
     reflectance = rg if spectral else np.einsum("tukk->tuk", rg)
     ms = _multiscatter(material, u, rg)
-    return FilmTable(np.ascontiguousarray(reflectance), np.ascontiguousarray(ms), thicknesses)
+    return FilmTable(
+        np.ascontiguousarray(reflectance),
+        np.ascontiguousarray(ms),
+        thicknesses,
+        diffuse_view(material, u, rg),
+    )
+
+
+def diffuse_view(material, u: np.ndarray, rg: np.ndarray) -> np.ndarray | None:
+    """(T, U, 3): the diffuse base's BRDF at view cosine u, for the light objects
+    (shading.lights.shade); None without a diffuse base. The World lights the base through the
+    table (bake._channel_diffuse_term, bake._diffuse_term); a light object's sample adds this
+    times its irradiance E cos θi.
+
+    Per channel, as Cycles' Principled BSDF layers it: Base Color / π × the specular layer's
+    :func:`bake.layering_weight` at the view angle (no film on the light's way in). Spectral:
+    Base Color / π × (1 − R(u)) per channel, R the film's reflectance of white light (the
+    light's way in, 1 − R(cos θi), is applied per sample): the spectral product of
+    brdf.diffuse_under_film taken per colour channel.
+    """
+    if material.base_color is None:
+        return None
+    base = np.asarray(material.base_color, dtype=float) / np.pi
+    if material.colour_mode == "per_channel":
+        film_o = np.einsum("tukk->tuk", rg)
+        weight = bake.layering_weight(material, film_o, np.asarray(u, dtype=float))
+        return np.ascontiguousarray(weight[..., None] * base)
+    return np.ascontiguousarray(np.clip(1.0 - rg.sum(axis=-1), 0.0, 1.0) * base)
 
 
 def _film_rows(material, thicknesses: np.ndarray, u: np.ndarray) -> np.ndarray:

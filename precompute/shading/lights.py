@@ -393,17 +393,20 @@ def sample_weight(n, v, l, alpha: float, rho2, cos_o) -> np.ndarray:
 def shade(
     film, lights: Lights, roughness: float, positions, normals, views, thickness_position=None
 ) -> np.ndarray:
-    """Σ_lights Σ_samples D_α' G₂ F(ωo·h) / (4 cos θo) × E⊥ × multiscatter(cos θo): (N, 3).
+    """Σ_lights Σ_samples D_α' G₂ F(ωo·h) / (4 cos θo) × E⊥ × multiscatter(cos θo), plus a diffuse
+    base's Σ E⊥ cos θi (× (1 − R(cos θi)) per channel, spectral) × film.diffuse(cos θo): (N, 3).
 
     Mirrored by tf_lights.glsl ``tf_shade_lights``. ``film``: a
-    :class:`precompute.colour.film_colour.FilmTable`; ``positions``, ``normals``, ``views`` (N, 3),
-    world space, normals facing the viewer; ``thickness_position`` in [0, 1] along the film
-    table's rows (None: the first), as shading.lamps.shade.
+    :class:`precompute.colour.film_colour.FilmTable` (its ``diffuse``: the base, None without one);
+    ``positions``, ``normals``, ``views`` (N, 3), world space, normals facing the viewer;
+    ``thickness_position`` in [0, 1] along the film table's rows (None: the first), as
+    shading.lamps.shade.
     """
     n, v, alpha, t, cos_o = lit_pixels(film, lights.count, roughness, normals, views, thickness_position)
     out = np.zeros((n.shape[0], 3))
     if alpha is None:
         return out
+    base = np.zeros((n.shape[0], 3)) if film.diffuse is not None else None
     for k in range(lights.count):
         lobe = area_lobe(lights, k, positions, n, v, alpha) if lights.kind[k] == AREA else None
         for l, e, rho2 in light_samples(lights, k, positions, lobe):
@@ -411,7 +414,22 @@ def shade(
             f = film_at(film, film.reflectance, t, u)
             rgb = np.einsum("nij,nj->ni", f, e) if film.spectral else f * e
             out += weight[:, None] * rgb
-    return out * film_at(film, film.multiscatter, t, cos_o)
+            if base is not None:
+                base += diffuse_in(film, t, np.sum(n * l, axis=-1), e)
+    out = out * film_at(film, film.multiscatter, t, cos_o)
+    return out if base is None else out + base * film_at(film, film.diffuse, t, cos_o)
+
+
+def diffuse_in(film, rows, cos_i, e) -> np.ndarray:
+    """(N, 3): what a sample of light ``e`` (N, 3) at cosines ``cos_i`` (N,) brings the diffuse
+    base under the film: E⊥ cos θi, times 1 − R(cos θi) per channel for a spectral film (Cycles'
+    per-channel layering puts no film on the light's way in); 0 below the horizon."""
+    c = np.maximum(np.asarray(cos_i, dtype=np.float64), 0.0)
+    through = np.asarray(e, dtype=np.float64) * c[:, None]
+    if film.spectral:
+        white = film_at(film, film.reflectance, rows, np.clip(c, 0.0, 1.0)).sum(axis=-1)
+        through = through * np.clip(1.0 - white, 0.0, 1.0)
+    return through
 
 
 def irradiance(lights: Lights, positions, normals) -> np.ndarray:

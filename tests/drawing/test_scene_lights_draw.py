@@ -155,3 +155,43 @@ def test_no_lights_no_loop(gd):
     item.film = gd.resources.FilmTexture.from_film(film_colour.film_table(result))
     (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
     assert not group.variant.lights
+
+
+@pytest.mark.parametrize("colour_mode, film_ubo", [("spectral", False), ("per_channel", True)])
+def test_a_diffuse_base_is_lit_by_the_lights_as_numpy_lights_it(gd, colour_mode, film_ubo):
+    """A film over a diffuse base (Base Color): tf_lights.glsl's base term against
+    shading.lights.shade per pixel, 1e-4 of the peak; without the term the picture would be
+    off by far more (the base carries most of what the lights bring)."""
+    from precompute.bakes import bake
+
+    result = bake.bake(baked(5, colour_mode, False).material.with_(base_color=(0.7, 0.35, 0.15)))
+    film = film_colour.film_table(result)
+    assert film.diffuse is not None
+    table = gd.resources.TableTexture.from_result(result)
+    coeffs, _img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(coeffs * 0.05, 5, result.material.roughness)
+    item = tilted_quad_item(gd, table, lighting)
+    item.roughness = result.material.roughness
+    item.sh_weight = 1.0
+    item.film = gd.resources.FilmTexture.from_film(film)
+    if not film_ubo:
+        item.film = dataclasses.replace(item.film, ubo=None)
+    item.prefiltered = None
+    found = scene_lights()
+    item.lights = gd.resources.lights_content(found)
+    (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    assert group.variant.lights and group.variant.film_ubo == film_ubo
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+
+    inside, n, views = quad_pixels(item.model_matrix)
+    p = quad_positions(item.model_matrix)[inside]
+    lit = light_shading.shade(film, found, result.material.roughness, p, n, views)
+    bare = light_shading.shade(
+        dataclasses.replace(film, diffuse=None), found, result.material.roughness, p, n, views
+    )
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, views) + lit
+    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    base = np.max(np.abs(lit - bare)) / np.max(expected)
+    print(f"diffuse base {colour_mode} ubo {film_ubo}: {err:.1e} of the peak, the base term {base:.2f}")
+    assert inside.sum() > 300 and err < 1e-4, err
+    assert base > 0.2

@@ -10,6 +10,7 @@ falloff, the spot's cone and blend, lights behind the surface, 10⁵ W lamps.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import pathlib
 import tempfile
@@ -31,8 +32,11 @@ HEIGHT = 5.0  # camera height
 ORTHO = 2.0  # the camera sees a 2 m × 2 m patch of the plane
 
 
-def cycles_plane(light_kind, light_matrix, settings, *, mirror=False, samples=64, size=SIZE, ortho=ORTHO):
-    """Render the plane z = 0 (white diffuse, or a white mirror) lit by one light; (H, W, 3)."""
+def cycles_plane(
+    light_kind, light_matrix, settings, *, mirror=False, samples=64, size=SIZE, ortho=ORTHO, principled=None
+):
+    """Render the plane z = 0 (white diffuse, or a white mirror, or a Principled BSDF of the
+    ``principled`` inputs) lit by one light; (H, W, 3)."""
     import bpy
     import mathutils
 
@@ -48,12 +52,17 @@ def cycles_plane(light_kind, light_matrix, settings, *, mirror=False, samples=64
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     out = nt.nodes["Material Output"]  # fetched after the removal (node pointers move)
-    if mirror:
+    if principled is not None:
+        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        for key, value in principled.items():
+            bsdf.inputs[key].default_value = value
+    elif mirror:
         bsdf = nt.nodes.new("ShaderNodeBsdfGlossy")
         bsdf.inputs["Roughness"].default_value = 0.0
     else:
         bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (1, 1, 1, 1)
+    if principled is None:
+        bsdf.inputs["Color"].default_value = (1, 1, 1, 1)
     nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
     plane.data.materials.append(mat)
     light = bpy.data.lights.new("light", light_kind)
@@ -217,6 +226,39 @@ def test_radiance_matches_cycles_in_a_mirror(bpy, case):
     ratio = ref.reshape(-1, 3).mean(0) / ours
     print(f"mirror {case}: Cycles / ours = {ratio}")
     assert np.all(np.abs(ratio - 1.0) <= SCALE_TOLERANCE), ratio
+
+
+#: A painted base under a film (Principled Base Color with a thin film), lit by a sun at 40°.
+PAINT = {"Base Color": (0.6, 0.3, 0.15, 1.0), "Roughness": 0.4, "IOR": 1.5, "Thin Film Thickness": 300.0}
+PAINT_SUN = ("SUN", tilted(0, 0, 3, 40.0), {"energy": 3.0, "angle": math.radians(5.0)})
+
+
+@pytest.mark.blender
+def test_a_diffuse_base_under_the_film_is_lit_as_cycles_lights_it(bpy):
+    """A Principled BSDF's Base Color under its film, lit by a sun: Cycles' plane against
+    :func:`~precompute.shading.lights.shade` with the film table's diffuse base, ≤ 3 % per
+    channel; the film's specular layer alone (no base) would be a small part of it."""
+    kind, matrix, settings = PAINT_SUN
+    ref = cycles_plane(kind, matrix, settings, samples=64, principled=dict(PAINT, **{"Thin Film IOR": 1.33}))
+    material = Material(
+        layers=(Layer(1.33, 300.0),),
+        substrate=1.5,
+        roughness=0.4,
+        base_color=PAINT["Base Color"][:3],
+        colour_mode="per_channel",
+        multiscatter="cycles",
+        quality=Quality(sh_order=4, view_samples=16, wavelength_count=48),
+    )
+    film = film_colour.film_table_of(material)
+    lights = L.Lights.from_rows([row_of(kind, matrix, settings)])
+    p = plane_points().reshape(-1, 3)
+    up = np.tile([0.0, 0.0, 1.0], (p.shape[0], 1))
+    ours = L.shade(film, lights, 0.4, p, up, up).mean(axis=0)
+    bare = L.shade(dataclasses.replace(film, diffuse=None), lights, 0.4, p, up, up).mean(axis=0)
+    ratio = ref.reshape(-1, 3).mean(0) / ours
+    print(f"paint under a film: Cycles / ours = {ratio}, the film alone {bare / ours}")
+    assert np.all(np.abs(ratio - 1.0) <= 0.03), ratio
+    assert np.all(bare < 0.5 * ours)
 
 
 def test_specular_factor_visibility_and_exposure_scale():
