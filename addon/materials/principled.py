@@ -60,6 +60,59 @@ _CYCLES_PARITY = {"multiscatter": "cycles"} if "multiscatter" in Material.__data
 BLACK_BASE_COLOR = 1e-5
 
 
+#: Principled inputs the film's preview and its EEVEE output leave out, each with the value at
+#: which it has no effect and what it is (Cycles renders them).
+UNRENDERED = (
+    ("Coat Weight", 0.0, "a clear coat over the film"),
+    ("Sheen Weight", 0.0, "sheen"),
+    ("Emission Strength", 0.0, "emission"),
+    ("Anisotropic", 0.0, "anisotropic roughness"),
+    ("Specular IOR Level", 0.5, "a specular level other than 0.5"),
+    ("Alpha", 1.0, "alpha below 1"),
+)
+#: What only a diffuse base uses, left out the same way.
+UNRENDERED_UNDER_BASE = (
+    ("Subsurface Weight", 0.0, "subsurface scattering (the base is Lambertian)"),
+    ("Diffuse Roughness", 0.0, "the base's roughness (the base is Lambertian)"),
+)
+
+
+def unrendered(node, base: bool, dielectric: bool) -> list[str]:
+    """Notes naming the inputs of the Principled BSDF ``node`` that are set (or linked) to
+    something the film's preview and its EEVEE output leave out (:data:`UNRENDERED`; with a
+    diffuse ``base`` also :data:`UNRENDERED_UNDER_BASE`; a ``dielectric``'s Specular Tint)."""
+    checks = UNRENDERED + (UNRENDERED_UNDER_BASE if base else ())
+    if dielectric:
+        checks += ((SOCKET_SPECULAR_TINT, (1.0, 1.0, 1.0), "a tinted specular reflection"),)
+    notes = []
+    for name, neutral, what in checks:
+        socket = node.inputs.get(name)
+        if socket is None:
+            continue
+        value = socket.default_value
+        value = tuple(value)[: len(neutral)] if isinstance(neutral, tuple) else float(value)
+        if name == "Emission Strength" and not socket.is_linked:
+            colour = node.inputs.get("Emission Color")
+            if colour is not None and not colour.is_linked and max(tuple(colour.default_value)[:3]) <= 0.0:
+                continue
+        far = (
+            max(abs(a - b) for a, b in zip(value, neutral, strict=True))
+            if isinstance(neutral, tuple)
+            else abs(value - neutral)
+        )
+        if socket.is_linked or far > 1e-6:
+            shown = (
+                "linked"
+                if socket.is_linked
+                else (", ".join(f"{v:g}" for v in value) if isinstance(value, tuple) else f"{value:g}")
+            )
+            notes.append(
+                f"'{name}' of '{node.name}' ({shown}): {what} is rendered by Cycles, not by the film's "
+                "preview or its EEVEE output"
+            )
+    return notes
+
+
 def diffuse_base(base_color, transmission: float) -> tuple | None:
     """The diffuse base a dielectric Principled BSDF shows under its film, or None.
 
@@ -189,6 +242,7 @@ def read_principled(bpy_material) -> tuple[Material | None, list[str]]:
             notes.append(f"Metallic {metallic:g} is previewed as a dielectric (Metallic 0)")
         if 0.0 < transmission < 1.0:
             notes.append(f"Transmission {transmission:g} is previewed as {round(transmission):d}")
+    notes += unrendered(node, base_color is not None, metallic <= 0.5)
     desc = Material(
         layers=(Layer(film_ior, thickness),),
         substrate=substrate,

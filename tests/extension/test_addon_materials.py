@@ -235,6 +235,42 @@ def test_principled_linked_socket_without_users_uses_its_value_and_warns(bpy, de
     assert len(notes) == 1 and "Thin Film Thickness" in notes[0] and "320" in notes[0]
 
 
+def test_principled_inputs_the_film_leaves_out_are_named(bpy, description_mod):
+    """A coat, sheen, emission, specular level, alpha, anisotropy, a dielectric's specular tint
+    and (under a diffuse base) subsurface and diffuse roughness: the film's preview and EEVEE
+    output leave them out, and the panel's notes name each; Blender's defaults name none."""
+    plain, _ = _principled(bpy, "plain", **{"Thin Film Thickness": 300.0})
+    assert description_mod.warnings(plain) == []
+    set_to = {
+        "Coat Weight": 0.4,
+        "Sheen Weight": 0.2,
+        "Emission Strength": 3.0,
+        "Anisotropic": 0.5,
+        "Specular IOR Level": 0.8,
+        "Alpha": 0.5,
+        "Specular Tint": (1.0, 0.5, 0.5, 1.0),
+        "Subsurface Weight": 0.3,
+        "Diffuse Roughness": 0.6,
+    }
+    mat, node = _principled(bpy, "coated", **{"Thin Film Thickness": 300.0}, **set_to)
+    notes = description_mod.warnings(mat)
+    for name in set_to:
+        assert sum(f"'{name}'" in note for note in notes) == 1, (name, notes)
+    assert description_mod.description(mat).base_color is not None  # still previewed, with its base
+    # a link counts as set; emission of a black colour is none; a metal's tint is its F82 tint
+    mat2, node2 = _principled(
+        bpy, "metal", **{"Thin Film Thickness": 300.0, "Metallic": 1.0, "Specular Tint": (1.0, 0.5, 0.5, 1.0)}
+    )
+    node2.inputs["Emission Strength"].default_value = 5.0
+    node2.inputs["Emission Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    value = mat2.node_tree.nodes.new("ShaderNodeValue")
+    mat2.node_tree.links.new(value.outputs[0], node2.inputs["Coat Weight"])
+    notes = description_mod.warnings(mat2)
+    assert [n for n in notes if "'" in n and "rendered by Cycles" in n] == [
+        n for n in notes if "'Coat Weight'" in n
+    ] and len([n for n in notes if "'Coat Weight'" in n and "linked" in n]) == 1, notes
+
+
 def test_shading_path_names_the_path_the_roughness_selects(tables_mod):
     from precompute.shading import policy
 
