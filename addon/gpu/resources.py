@@ -311,7 +311,7 @@ class FilmTexture:
         r = np.asarray(film.reflectance, dtype=np.float32)
         rows = [r[:, :, k, :] for k in range(3)] if r.ndim == 4 else [r]
         rows.append(np.asarray(film.multiscatter, dtype=np.float32))
-        if getattr(film, "diffuse", None) is not None:
+        if film.diffuse is not None:
             rows.append(np.asarray(film.diffuse, dtype=np.float32))
         out = np.zeros((len(rows),) + r.shape[:2] + (4,), dtype=np.float32)
         for i, row in enumerate(rows):

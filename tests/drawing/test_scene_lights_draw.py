@@ -92,6 +92,42 @@ def quad_positions(model):
     return cam + t[..., None] * rays
 
 
+def draw_lit_quad(gd, result, film_ubo: bool, sh_weight: float = 1.0, prefiltered=None):
+    """The tilted quad of ``result``'s film under :func:`test_gpu_draw.world_sh` × 0.05 and
+    :func:`scene_lights`, drawn with its film table in its uniform buffer (``film_ubo``) or its
+    texture: a namespace of the draw's group and image, the film table, the lights, the lighting
+    and the quad's inside pixels (mask, normals, views, world positions)."""
+    from types import SimpleNamespace
+
+    coeffs, _img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(coeffs * 0.05, 5, result.material.roughness)
+    film = film_colour.film_table(result)
+    item = tilted_quad_item(gd, gd.resources.TableTexture.from_result(result), lighting)
+    item.roughness = result.material.roughness
+    item.sh_weight = sh_weight
+    item.film = gd.resources.FilmTexture.from_film(film)
+    if not film_ubo:
+        item.film = dataclasses.replace(item.film, ubo=None)
+    item.prefiltered = prefiltered
+    found = scene_lights()
+    item.lights = gd.resources.lights_content(found)
+    (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
+    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    inside, n, views = quad_pixels(item.model_matrix)
+    p = quad_positions(item.model_matrix)[inside]
+    return SimpleNamespace(
+        group=group,
+        image=image,
+        film=film,
+        lights=found,
+        lighting=lighting,
+        inside=inside,
+        n=n,
+        views=views,
+        p=p,
+    )
+
+
 @pytest.mark.parametrize(
     "colour_mode, film_ubo, split",
     [("spectral", True, False), ("per_channel", False, False), ("per_channel", True, True)],
@@ -102,45 +138,30 @@ def test_lights_variant_matches_numpy_per_pixel(gd, colour_mode, film_ubo, split
     from precompute.world import prefilter
 
     result = baked(5, colour_mode, False)
-    table = gd.resources.TableTexture.from_result(result)
-    coeffs, img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(coeffs * 0.05, 5, result.material.roughness)
-    film = film_colour.film_table(result)
-    item = tilted_quad_item(gd, table, lighting)
-    item.roughness = result.material.roughness
-    item.sh_weight = 0.5 if split else 1.0
-    item.film = gd.resources.FilmTexture.from_film(film)
-    if not film_ubo:
-        item.film = dataclasses.replace(item.film, ubo=None)
-    pre = None
+    pre = prefiltered = None
     if split:
+        _coeffs, img = world_sh()
         full = prefilter.prefilter(img * 0.05, width=64)
         levels, moments = full.resampled(64), full.resampled_moments(64)
-        item.prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
+        prefiltered = gd.resources.PrefilterTexture.from_levels(levels, moments)
         pre = prefilter.Prefiltered(
             tuple(levels), np.asarray(policy.ROUGHNESS_LEVELS), 0, tuple(moments), None
         )
-    else:
-        item.prefiltered = None
-    found = scene_lights()
-    item.lights = gd.resources.lights_content(found)
-    (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
-    assert group.variant.lights and group.variant.film_ubo == film_ubo and not group.variant.lamps
-    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    d = draw_lit_quad(gd, result, film_ubo, 0.5 if split else 1.0, prefiltered)
+    assert d.group.variant.lights and d.group.variant.film_ubo == film_ubo and not d.group.variant.lamps
 
-    inside, n, views = quad_pixels(item.model_matrix)
-    p = quad_positions(item.model_matrix)[inside]
-    lit = light_shading.shade(film, found, result.material.roughness, p, n, views)
-    world = sh_sum.shade_sh(result, lighting.coefficients, n, views)
+    roughness = result.material.roughness
+    lit = light_shading.shade(d.film, d.lights, roughness, d.p, d.n, d.views)
+    world = sh_sum.shade_sh(result, d.lighting.coefficients, d.n, d.views)
     if split:
         if not policy.uses_moment(5, False):
             pre = dataclasses.replace(pre, moments=None)
-        world = 0.5 * split_sum.shade_split_sum(result, pre, n, views) + 0.5 * world
+        world = 0.5 * split_sum.shade_split_sum(result, pre, d.n, d.views) + 0.5 * world
     expected = world + lit
     assert np.max(lit) > 0.5 * np.max(expected)  # the lights dominate
-    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    err = np.max(np.abs(d.image[d.inside][:, :3] - expected)) / np.max(expected)
     print(f"lights variant {colour_mode} ubo {film_ubo} split {split}: {err:.1e} of the peak")
-    assert inside.sum() > 300 and err < 1e-4, err
+    assert d.inside.sum() > 300 and err < 1e-4, err
 
 
 def test_no_lights_no_loop(gd):
@@ -165,33 +186,18 @@ def test_a_diffuse_base_is_lit_by_the_lights_as_numpy_lights_it(gd, colour_mode,
     from precompute.bakes import bake
 
     result = bake.bake(baked(5, colour_mode, False).material.with_(base_color=(0.7, 0.35, 0.15)))
-    film = film_colour.film_table(result)
-    assert film.diffuse is not None
-    table = gd.resources.TableTexture.from_result(result)
-    coeffs, _img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(coeffs * 0.05, 5, result.material.roughness)
-    item = tilted_quad_item(gd, table, lighting)
-    item.roughness = result.material.roughness
-    item.sh_weight = 1.0
-    item.film = gd.resources.FilmTexture.from_film(film)
-    if not film_ubo:
-        item.film = dataclasses.replace(item.film, ubo=None)
-    item.prefiltered = None
-    found = scene_lights()
-    item.lights = gd.resources.lights_content(found)
-    (group,) = gd.draw.prepare_draw([item], VIEW, PROJ, display_srgb=False).groups
-    assert group.variant.lights and group.variant.film_ubo == film_ubo
-    image = gd.draw.render_offscreen([item], VIEW, PROJ, SIZE, SIZE)
+    d = draw_lit_quad(gd, result, film_ubo)
+    assert d.film.diffuse is not None
+    assert d.group.variant.lights and d.group.variant.film_ubo == film_ubo
 
-    inside, n, views = quad_pixels(item.model_matrix)
-    p = quad_positions(item.model_matrix)[inside]
-    lit = light_shading.shade(film, found, result.material.roughness, p, n, views)
+    roughness = result.material.roughness
+    lit = light_shading.shade(d.film, d.lights, roughness, d.p, d.n, d.views)
     bare = light_shading.shade(
-        dataclasses.replace(film, diffuse=None), found, result.material.roughness, p, n, views
+        dataclasses.replace(d.film, diffuse=None), d.lights, roughness, d.p, d.n, d.views
     )
-    expected = sh_sum.shade_sh(result, lighting.coefficients, n, views) + lit
-    err = np.max(np.abs(image[inside][:, :3] - expected)) / np.max(expected)
+    expected = sh_sum.shade_sh(result, d.lighting.coefficients, d.n, d.views) + lit
+    err = np.max(np.abs(d.image[d.inside][:, :3] - expected)) / np.max(expected)
     base = np.max(np.abs(lit - bare)) / np.max(expected)
     print(f"diffuse base {colour_mode} ubo {film_ubo}: {err:.1e} of the peak, the base term {base:.2f}")
-    assert inside.sum() > 300 and err < 1e-4, err
+    assert d.inside.sum() > 300 and err < 1e-4, err
     assert base > 0.2
