@@ -89,6 +89,9 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   made from; entries unused for ``keep_frames`` frames are recycled (at most ``max_spare``
   spare buffers per size); filled by ``gpu.draw.prepare_draw``; SESSION (registered by
   ``scene_draw``).
+- ``fullscreen_triangle`` — ``gpu.draw.FULLSCREEN_TRIANGLE``: the ``functools.cache`` memo of the
+  full-screen triangle batch (one); filled by the background and test draws; SESSION (registered
+  by ``scene_draw``): a GPU batch left to interpreter exit is freed after Blender and crashes it.
 
 - ``display_luts`` — ``display.LUTS``: the viewport's display LUT (N³ RGB, the scene's view,
   look, display and gamma baked through OCIO) by ``display.DisplaySettings`` without exposure;
@@ -98,7 +101,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
 
 Not registered, because they never go stale: ``functools.cache`` memos of values computed from
 the code alone (the parsed GLSL chunks of ``gpu.shaders``, ``banded_source``,
-``x_rotation_scalars``, the full-screen triangle of ``gpu.draw``) and the bounded
+``x_rotation_scalars``) and the bounded
 ``functools.lru_cache`` kernels inside ``precompute``.
 """
 

@@ -163,6 +163,7 @@ class Caches:
 CACHES = caches.register("scene_draw", Caches(), scope=caches.FILE)
 caches.register("shaders", shaders.SHADERS, scope=caches.SESSION)
 caches.register("uniforms", draw.UNIFORMS, scope=caches.SESSION)
+caches.register("fullscreen_triangle", draw.FULLSCREEN_TRIANGLE, scope=caches.SESSION)
 
 
 def on_depsgraph_update(scene, depsgraph) -> None:

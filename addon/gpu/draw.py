@@ -427,6 +427,22 @@ def _fullscreen_triangle():
     return gpu.types.GPUBatch(type="TRIS", buf=vbo)
 
 
+class _Memo:
+    """``clear()`` of a ``functools.cache`` memo (the add-on's cache registry calls it)."""
+
+    def __init__(self, memo):
+        self.memo = memo
+
+    def clear(self) -> None:
+        self.memo.cache_clear()
+
+
+#: The full-screen triangle's memo: a GPU batch, which must be freed while Blender runs (one
+#: collected at interpreter exit, after Blender's own, crashes the process: exit code -11), so
+#: it is emptied with the SESSION caches on unregister (registered by ``scene_draw``).
+FULLSCREEN_TRIANGLE = _Memo(_fullscreen_triangle)
+
+
 def draw_background(
     environment,
     view_matrix,

@@ -16,3 +16,9 @@ def gd(bpy, tmp_path_factory):
         layer = gpu_layer()
         layer.context.ensure_gpu_context()
         yield layer
+        # the GPU objects this copy of the layer keeps, freed while Blender runs (the extension
+        # is not registered here, so its unregister does not empty them; one collected at
+        # interpreter exit, after Blender's own, crashes the process)
+        layer.draw.FULLSCREEN_TRIANGLE.clear()
+        layer.draw.UNIFORMS.clear()
+        layer.shaders.SHADERS.clear()
