@@ -44,6 +44,11 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   ``linked.tree_key`` of the linked graph); LRU of 64; filled by ``linked.evaluate`` (direct
   numpy or a Cycles bake, the latter never inside the draw: ``linked.run_pending`` from the
   viewport's timer); FILE.
+- ``thickness_maps`` — ``maps.MAPS``: a varying thickness per pixel (``maps.ThicknessMap``:
+  nm at a map's texel centres over one UV map, or None and why not) by the key of the field it
+  belongs to (a linked thickness's, or the Blender Noise source's); LRU of 16 (a 1024² map is
+  4 MB); filled by ``maps.field_map``: at once in background mode, else by the viewport's
+  timer once the edits have settled (``maps.SETTLE_S``); FILE.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by
   ``world_key.world_key`` (the World's node tree, image files' path/size/mtime, l_max, working
   space); LRU of ``world.DEFAULT_CACHE_SIZE`` (16); filled by ``world.world_sh``; SESSION.

@@ -232,6 +232,10 @@ class Deferred:
         with self.lock:
             return bool(self._calls)
 
+    def __len__(self) -> int:
+        with self.lock:
+            return len(self._calls)
+
     def run(self, errors=(Exception,)) -> list:
         """Run the queued calls (main thread); returns ``(key, exception)`` of each that raised
         one of ``errors`` (others propagate)."""

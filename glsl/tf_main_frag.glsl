@@ -15,7 +15,9 @@
  * thin wall's far side adds its reflections inside (tf_wall_inside, shading.transmit; TF_SPLIT_SUM).
  * tf_lamps.glsl (TF_LAMPS), tf_lights.glsl (TF_LIGHTS), tf_split_sum.glsl (TF_SPLIT_SUM) and
  * tf_glass_exit.glsl with tf_refract.glsl (TF_REFRACT) are joined before this chunk for the
- * variants that have them (addon/gpu/shaders.py).
+ * variants that have them (addon/gpu/shaders.py). With TF_THICKNESS_MAP the thickness parameter
+ * is read per pixel from tf_thickness_map at the interpolated UV tf_uv (bilinear, numpy:
+ * thickness.maps.sample_bilinear), else interpolated from the corners (tf_thickness).
  */
 
 #if defined(TF_TRANSMIT) && defined(TF_SPLIT_SUM)
@@ -248,7 +250,11 @@ void main()
     n = tf_valid_normal(g, v, (dot(smooth_n, g) < 0.0) ? -smooth_n : smooth_n);
   }
 #endif
-#ifdef TF_VARY_THICKNESS
+#if defined(TF_THICKNESS_MAP)
+  /* the thickness parameter per pixel from the film's thickness map at the mesh's UVs
+   * (addon/thickness/maps.py: a texture's detail between the mesh's corners) */
+  float thickness01 = clamp(texture(tf_thickness_map, tf_uv).r, 0.0, 1.0);
+#elif defined(TF_VARY_THICKNESS)
   float thickness01 = tf_thickness;
 #else
   float thickness01 = 0.0;

@@ -2,8 +2,8 @@
  *
  * numpy counterpart: none (geometry); the normal matrix is inverse-transpose(model) 3x3,
  * computed in Python (addon/gpu/draw.py object_uniforms). Vertex inputs: pos, nor (object space)
- * and, with TF_VARY_THICKNESS, thickness in [0, 1]. Uniform buffers: tf_view, tf_object (layouts:
- * addon/gpu/resources.py VIEW, OBJECT).
+ * and, with TF_VARY_THICKNESS, thickness in [0, 1]; with TF_THICKNESS_MAP, uv (the thickness
+ * map's). Uniform buffers: tf_view, tf_object (layouts: addon/gpu/resources.py VIEW, OBJECT).
  */
 
 void main()
@@ -16,6 +16,9 @@ void main()
   tf_world_nor = normal_matrix * nor;
 #ifdef TF_VARY_THICKNESS
   tf_thickness = thickness;
+#endif
+#ifdef TF_THICKNESS_MAP
+  tf_uv = uv;
 #endif
   gl_Position = view_proj * world;
 }

@@ -18,7 +18,7 @@ import numpy as np
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
-from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
+from ..thickness.thickness import NAN_PARAMETER, image_map, non_finite_note, thickness_field, thickness_inputs
 
 __all__ = ["BatchEntry", "batch_thickness", "slot_batch", "thickness_source"]
 
@@ -56,33 +56,39 @@ def thickness_source(bpy_material, props, desc):
 
 
 def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
-    """(per-corner thickness parameter or None, notes, whether a bake is awaited) of a batch:
-    from the extension's source (``props``; BLENDER_NOISE: :func:`.linked.noise_parameters`),
-    or from the link into a Principled BSDF's Thin Film Thickness
-    (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`)."""
+    """(per-corner thickness parameter or None, notes, whether a bake or a map is awaited, the
+    thickness map or None) of a batch: from the extension's source (``props``; BLENDER_NOISE:
+    :func:`.linked.noise_parameters`), or from the link into a Principled BSDF's Thin Film
+    Thickness (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`). The
+    map, (corner UVs, parameters (H, W), repeat), is read per pixel (:mod:`..thickness.maps`)
+    where a texture or a bake gives one."""
     notes = []
     if not desc.varies:
-        return None, notes, False
+        return None, notes, False, None
+    thickness_map, waiting = None, False
     try:
         if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
-            thickness, nan_count = linked.noise_parameters(obj_eval, mesh, props.id_data)
+            thickness, nan_count, thickness_map, waiting = linked.noise_parameters(
+                obj_eval, mesh, props.id_data
+            )
         elif props is not None and props.enabled:
             thickness, nan_count = thickness_field(obj_eval, mesh, props)
+            thickness_map = image_map(obj_eval, mesh, props)
         elif linked_source is not None:
-            thickness, nan_count = linked.corner_parameters(
+            thickness, nan_count, thickness_map, waiting = linked.corner_parameters(
                 obj_eval, mesh, *linked_source, desc.thickness_range_nm
             )
         else:
-            return None, notes, False
+            return None, notes, False, None
     except linked.Pending as exc:  # built again on the next frame, after the timer's bake
         notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
-        return None, notes, True
+        return None, notes, True, None
     except ValueError as exc:
         notes.append(f"{name}: {exc}; using the middle of the thickness range")
-        return None, notes, False
+        return None, notes, False, None
     if nan_count:
         notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
-    return thickness, notes, False
+    return thickness, notes, waiting, thickness_map  # waiting: for a map (drawn per corner meanwhile)
 
 
 def slot_batch(
@@ -110,14 +116,18 @@ def slot_batch(
         triangles = triangles[poly_mat[tri_poly] == slot]
     if triangles.shape[0] == 0:
         return BatchEntry(signature, None)
-    thickness, notes, waiting = batch_thickness(name, obj_eval, mesh, props, desc, linked_source)
+    thickness, notes, waiting, thickness_map = batch_thickness(
+        name, obj_eval, mesh, props, desc, linked_source
+    )
     if desc.varies and thickness is None:
         thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
     if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
         thickness = np.nan_to_num(
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
-    batch = MeshBatch.from_arrays(positions, normals, triangles, thickness, wall=wall)
+    batch = MeshBatch.from_arrays(
+        positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map
+    )
     if waiting:
         signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))

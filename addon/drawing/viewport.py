@@ -122,10 +122,11 @@ def _service() -> float | None:
     if _drawn.is_set():
         bake_helper.warm()  # a few ms once: warm (kernels too) by the first edit
     jobs = bake_jobs.start_queued()
-    baked = linked.has_pending()
-    if baked:  # Cycles bakes of linked thicknesses: main thread, never inside the draw
+    queued = linked.pending_count()
+    if queued:  # Cycles bakes and maps of thicknesses: main thread, never inside the draw
         for error in linked.run_pending():
             log.error("Thin Film SH: linked thickness: %s", error)
+    baked = linked.pending_count() < queued  # a map waits maps.SETTLE_S after its last edit
     _world_stale = False
     try:  # the World: read here (bpy), analysed on a worker; a finished worker redraws
         world_done = world_job.service(bpy.context.scene)
@@ -140,7 +141,7 @@ def _service() -> float | None:
         _tag_header()  # progress only
     if bake_jobs.busy() or bake_jobs.BAKES.finished():
         return bake_jobs.POLL_S  # a bake ends within ~0.05–0.3 s: looked for often, at µs a look
-    return 0.1 if world_job.busy() or display.baking() else None
+    return 0.1 if world_job.busy() or display.baking() or linked.has_pending() else None
 
 
 def _schedule() -> None:
@@ -177,7 +178,7 @@ def draw_callback() -> None:
             items, messages = scene_draw.collect(
                 depsgraph, allow_bake=False, allow_world=False, bake_later=True
             )
-        if linked.has_pending():
+        if linked.baking():
             messages.append("a linked Thin Film Thickness is being baked with Cycles")
         _messages[:] = messages
         _drawn.set()

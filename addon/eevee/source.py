@@ -203,7 +203,7 @@ def spec(material, scene=None, world: WorldRef | None = None, lights=None) -> Sp
     objects as the film sees them (:class:`precompute.bakes.eevee_table.LobeLights`, None: none)."""
     props = getattr(material, "thinfilm_sh", None)
     own = props is not None and props.enabled
-    if not own and principled.linked_thickness_socket(material) is not None and linked.has_pending():
+    if not own and principled.linked_thickness_socket(material) is not None and linked.baking():
         desc = description.description(material)
         if desc is None:
             raise linked.Pending(f"material {material.name!r}: its linked thickness is being baked")

@@ -328,7 +328,7 @@ def _service() -> float | None:
                     unknown.append(name)
             except Exception as exc:  # a timer must never raise
                 log.error("Thin Film SH: EEVEE film of %r: %s", name, exc)
-    if unknown and linked.has_pending():  # a linked thickness's Cycles bake: here, not in a draw
+    if unknown and linked.baking():  # a linked thickness's Cycles bake: here, not in a draw
         for error in linked.run_pending():
             log.error("Thin Film SH: linked thickness: %s", error)
         with _lock:

@@ -93,11 +93,12 @@ def object_uniforms(
 
 
 def _batch_of(item):
-    """(GPUBatch, has_thickness) of a draw item whose ``batch`` is a MeshBatch or a GPUBatch."""
+    """(GPUBatch, has_thickness, thickness map texture or None) of a draw item whose ``batch``
+    is a MeshBatch or a GPUBatch."""
     batch = item.batch
     if isinstance(batch, MeshBatch):
-        return batch.batch, batch.has_thickness
-    return batch, bool(getattr(item, "has_thickness", False))
+        return batch.batch, batch.has_thickness, batch.thickness_map
+    return batch, bool(getattr(item, "has_thickness", False)), None
 
 
 class _SavedState:
@@ -136,7 +137,7 @@ class DrawGroup:
     lighting: gpu.types.GPUUniformBuf
     table: gpu.types.GPUTexture | gpu.types.GPUUniformBuf  # the texture, or the UBO (table_ubo)
     prefiltered: gpu.types.GPUTexture | None
-    draws: list  # (GPUBatch, object GPUUniformBuf)
+    draws: list  # (GPUBatch, object GPUUniformBuf, thickness map texture or None)
     film: gpu.types.GPUTexture | gpu.types.GPUUniformBuf | None = None  # texture, or UBO (film_ubo)
     lights: gpu.types.GPUUniformBuf | None = None  # Blender's light objects (variant.lights)
     grid: gpu.types.GPUTexture | None = None  # the outgoing-radiance grid (variant.grid)
@@ -170,11 +171,12 @@ class PreparedDraw:
         )
 
 
-def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
+def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thickness_map=None):
     """Add one item's draw to ``groups`` (keyed by what its group binds). ``options``:
     (display_srgb, shaders, uniforms, display_lut, compile_now) of :func:`prepare_draw`;
     ``transmit``: the blend pass of a transparent film (variant.TRANSMIT_PASSES), 0 for an opaque
-    one; ``behind`` (in ``options``): the scene-behind texture solid glass refracts, or None."""
+    one; ``thickness_map``: the batch's thickness map texture (``TF_THICKNESS_MAP``), or None;
+    ``behind`` (in ``options``): the scene-behind texture solid glass refracts, or None."""
     display_srgb, shaders, uniforms, display_lut, compile_now, behind = options
     table = item.table
     prefiltered = getattr(item, "prefiltered", None)
@@ -200,6 +202,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
         transmit=transmit,
         grid=grid is not None,
         refract=behind is not None and transmit != 0 and int(item.wall[0]) == WALL_SOLID,
+        thickness_map=thickness_map is not None,
     )
     if not compile_now and not shaders.compiled(variant):
         if not getattr(item, "grid_pending", False):  # a grid variant replaces it soon: not wanted
@@ -244,7 +247,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0):
             lights_ubo,
             grid=grid.texture if variant.grid else None,
         )
-    group.draws.append((batch, object_ubo))
+    group.draws.append((batch, object_ubo, thickness_map if variant.thickness_map else None))
 
 
 def _ordered(groups: dict) -> list:
@@ -307,15 +310,15 @@ def prepare_draw(
     groups: dict = {}
     walls: dict = {TRANSMIT_MULTIPLY: {}, TRANSMIT_ADD: {}}
     for item in items:
-        batch, has_thickness = _batch_of(item)
+        batch, has_thickness, thickness_map = _batch_of(item)
         if batch is None:
             continue
         options = (display_srgb, shaders, uniforms, display_lut, compile_now, behind)
         if is_wall(item):
             for transmit, found in walls.items():
-                _add_item(found, item, batch, has_thickness, options, transmit)
+                _add_item(found, item, batch, has_thickness, options, transmit, thickness_map)
         else:
-            _add_item(groups, item, batch, has_thickness, options)
+            _add_item(groups, item, batch, has_thickness, options, thickness_map=thickness_map)
     if not groups and not walls[TRANSMIT_MULTIPLY]:
         return PreparedDraw(None, [])
     ordered = _ordered(groups)
@@ -390,8 +393,10 @@ def submit(prepared: PreparedDraw) -> None:
                     shader.uniform_sampler(layout.GLASS_GEOM_SAMPLER.name, geom)
                     shader.uniform_sampler(layout.PROBE_SAMPLER.name, prepared.behind.probe_texture())
             _bind_group(shader, group)
-            for batch, object_ubo in group.draws:
+            for batch, object_ubo, thickness_map in group.draws:
                 shader.uniform_block(layout.OBJECT.name, object_ubo)
+                if thickness_map is not None:
+                    shader.uniform_sampler(layout.THICKNESS_MAP_SAMPLER.name, thickness_map)
                 batch.draw(shader)
     finally:
         gpu.state.face_culling_set("NONE")

@@ -266,6 +266,9 @@ assert TABLE.nbytes == FILM.nbytes == UBO_LIMIT_BYTES  # the tables use all of i
 TABLE_SAMPLER = Sampler(0, "FLOAT_2D_ARRAY", "tf_table")
 PREFILTERED_SAMPLER = Sampler(3, "FLOAT_3D", "tf_prefiltered")
 FILM_SAMPLER = Sampler(4, "FLOAT_2D_ARRAY", "tf_film")
+#: A film's thickness parameter in [0, 1] over the mesh's UVs (``TF_THICKNESS_MAP``, R32F, bilinear,
+#: edges extended; :mod:`..thickness.maps`), bound per draw.
+THICKNESS_MAP_SAMPLER = Sampler(5, "FLOAT_2D", "tf_thickness_map")
 RADIANCE_GRID_SAMPLER = Sampler(6, "FLOAT_2D_ARRAY", "tf_radiance_grid")
 #: The background shader's only texture.
 ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")

@@ -13,7 +13,8 @@ from .context import ensure_gpu_context
 
 @dataclass
 class MeshBatch:
-    """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1]).
+    """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1])
+    and ``uv`` with the R32F ``thickness_map`` read there per pixel (``TF_THICKNESS_MAP``).
 
     ``inside``: a thin transparent wall's mesh, whether it is closed and its thickness's linear fit
     (:func:`precompute.shading.transmit.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
@@ -26,11 +27,16 @@ class MeshBatch:
     has_thickness: bool
     inside: Inside | None = None
     bounds: np.ndarray | None = None  # set by from_arrays, the only maker
+    thickness_map: gpu.types.GPUTexture | None = None
 
     @classmethod
-    def from_arrays(cls, positions, normals, indices, thickness=None, wall: bool = False) -> MeshBatch | None:
+    def from_arrays(
+        cls, positions, normals, indices, thickness=None, wall: bool = False, thickness_map=None
+    ) -> MeshBatch | None:
         """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness;
-        ``wall``: a thin transparent wall's, with its :attr:`inside` (a pass over its edges).
+        ``wall``: a thin transparent wall's, with its :attr:`inside` (a pass over its edges);
+        ``thickness_map`` (with ``thickness``): (uv (V, 2), map (H, W) of parameters in [0, 1],
+        repeat), uploaded as :attr:`thickness_map` (:func:`thickness_map_texture`).
 
         Everything is converted to float32 / int32. Returns None for an empty mesh.
         """
@@ -52,17 +58,42 @@ class MeshBatch:
             if th.shape[0] != pos.shape[0]:
                 raise ValueError(f"thickness {th.shape} must have one value per vertex ({pos.shape[0]})")
             fmt.attr_add(id="thickness", comp_type="F32", len=1, fetch_mode="FLOAT")
+        uv = None
+        if thickness_map is not None and th is not None:
+            uv = np.ascontiguousarray(np.asarray(thickness_map[0], dtype=np.float32).reshape(-1, 2))
+            if uv.shape[0] != pos.shape[0]:
+                raise ValueError(f"uv {uv.shape} must have one value per vertex ({pos.shape[0]})")
+            fmt.attr_add(id="uv", comp_type="F32", len=2, fetch_mode="FLOAT")
         ensure_gpu_context()
         vbo = gpu.types.GPUVertBuf(fmt, pos.shape[0])
         vbo.attr_fill("pos", pos)
         vbo.attr_fill("nor", nor)
         if th is not None:
             vbo.attr_fill("thickness", th)
+        if uv is not None:
+            vbo.attr_fill("uv", uv)
         ibo = gpu.types.GPUIndexBuf(type="TRIS", seq=idx)
         batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
         inside = mesh_inside(pos, idx, th) if wall else None
         bounds = np.stack([pos.min(axis=0), pos.max(axis=0)]).astype(np.float64)
-        return cls(batch, pos.shape[0], idx.shape[0], th is not None, inside, bounds)
+        texture = thickness_map_texture(thickness_map[1], thickness_map[2]) if uv is not None else None
+        return cls(batch, pos.shape[0], idx.shape[0], th is not None, inside, bounds, texture)
+
+
+def thickness_map_texture(values, repeat: bool = False) -> gpu.types.GPUTexture:
+    """An (H, W) map of thickness parameters as an R32F texture (row 0 at v = 0), filtered
+    bilinearly, its edges repeated or extended (:data:`.layout.THICKNESS_MAP_SAMPLER`)."""
+    data = np.ascontiguousarray(
+        np.clip(np.nan_to_num(np.asarray(values, dtype=np.float32), nan=0.5), 0.0, 1.0)
+    )
+    if data.ndim != 2 or min(data.shape) < 1:
+        raise ValueError(f"a thickness map must be (H, W), got {data.shape}")
+    h, w = data.shape
+    ensure_gpu_context()
+    texture = gpu.types.GPUTexture((w, h), format="R32F", data=gpu.types.Buffer("FLOAT", w * h, data.ravel()))
+    texture.filter_mode(True)
+    texture.extend_mode("REPEAT" if repeat else "EXTEND")
+    return texture
 
 
 def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):

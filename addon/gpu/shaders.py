@@ -181,6 +181,10 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     if variant.vary_thickness:
         info.vertex_in(2, "FLOAT", "thickness")
         iface.smooth("FLOAT", "tf_thickness")
+    if variant.thickness_map:
+        info.vertex_in(3, "VEC2", "uv")
+        iface.smooth("VEC2", "tf_uv")
+        _declare(info, layout.THICKNESS_MAP_SAMPLER)
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))

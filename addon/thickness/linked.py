@@ -21,7 +21,9 @@ epoch (bumped by :func:`mark_geometry` on depsgraph geometry updates) and
 :func:`tree_key`, a hash of the linked graph's content (nodes, their settings, unlinked input
 values, images' identity): editing a node re-evaluates (re-bakes), anything else is cached.
 :func:`material_range` is the range the material's table covers: the evaluated values' min and
-max over the scene's objects that use it.
+max over the scene's objects that use it, widened by their thickness maps where a texture gives
+one (:func:`linked_map`, :mod:`.maps`: the thickness per pixel at the mesh's UVs, made apart from
+the corners and never inside the draw).
 """
 
 from __future__ import annotations
@@ -35,27 +37,32 @@ import bpy
 import numpy as np
 
 from .. import caches, workers
-from . import linked_nodes, thickness_nodes
-from .thickness import image_stamp
+from . import linked_nodes, maps, thickness_nodes
+from .thickness import corner_order, image_stamp
 
 __all__ = [
     "FIELDS",
     "STATS",
     "Field",
     "Pending",
+    "bake_map",
+    "baking",
     "corner_parameters",
     "deferring",
     "evaluate",
+    "has_pending",
+    "linked_map",
     "mark_geometry",
     "material_range",
+    "pending_count",
     "run_pending",
     "tree_key",
 ]
 
 #: Per-corner fields kept: (object, mesh sizes, geometry epoch, tree key) → Field.
 FIELDS = caches.register("linked_thickness", caches.LRU(64), scope=caches.FILE)
-#: Counters the tests read: direct evaluations and Cycles bakes run.
-STATS = {"direct": 0, "bakes": 0}
+#: Counters the tests read: direct evaluations, Cycles bakes per corner and into images run.
+STATS = {"direct": 0, "bakes": 0, "image_bakes": 0}
 #: Material name used for the temporary bake copies (removed after each bake).
 _BAKE_PREFIX = ".thinfilm_sh_bake"
 
@@ -64,6 +71,7 @@ _geometry_epoch: dict[str, int] = {}
 #: field, run by the viewport's timer (:func:`run_pending`).
 PENDING = workers.Deferred("linked thickness bakes")
 _defer = False  # True inside the draw callback: bakes are queued, never run
+_maps_later = False  # True while the timer runs queued bakes: their maps are queued in turn
 
 
 class Pending(Exception):
@@ -202,6 +210,19 @@ def _direct(mesh, socket) -> Field:
     return _field(np.array(values, dtype=np.float64), how)
 
 
+def _direct_map(mesh, socket) -> tuple[maps.ThicknessMap | None, str | None]:
+    """(the link's map at its images' pixels, None) or (None, None) where it reads no image or
+    images at two UV maps or modes (:func:`.linked_nodes.link_map`)."""
+    grid = linked_nodes.link_map(mesh, socket)
+    if grid is None:
+        return None, None
+    values, _, layer, repeat = grid
+    uv = linked_nodes.corner_uv(mesh, mesh.uv_layers[layer])
+    h, w = values.shape
+    how = f"per pixel from a {w}×{h} map at UV map {layer!r}"
+    return maps.make(values, uv, corner_order(mesh), layer, repeat, how), None
+
+
 # ----------------------------------------------------------------------------------------------
 # Cycles bake (any node graph)
 # ----------------------------------------------------------------------------------------------
@@ -231,9 +252,45 @@ def _bake(obj, bpy_material, socket) -> Field:
     return _field(values, how, baked=True)
 
 
-def _bake_emission(obj, material, image=None) -> np.ndarray | None:
+#: What a baked map's texels hold before the bake: texels no triangle (or margin) reaches keep it.
+_UNBAKED = -1.0e30
+
+
+def bake_map(obj, make_material, corner_values, size: int = maps.BAKE_SIZE):
+    """(:class:`.maps.ThicknessMap` of the Emission of ``make_material()`` baked by Cycles into a
+    float image of ``size``² at ``obj``'s active UV map, or None; why not, or None). None where
+    the mesh has no UV map, or where the map disagrees with ``corner_values`` (the per-corner bake
+    of the same graph) at the corners' UVs: overlapping UV islands, UVs outside [0, 1]."""
+    mesh = _mesh_of(obj.name)
+    layer = mesh.uv_layers.active
+    if layer is None:
+        return None, "no UV map: per corner"
+    image = bpy.data.images.new(_BAKE_PREFIX, size, size, float_buffer=True)
+    try:
+        image.colorspace_settings.name = "Non-Color"
+        image.pixels.foreach_set(np.full(size * size * 4, _UNBAKED, dtype=np.float32))
+        _bake_emission(obj, make_material(), image, clear=False)
+        pixels = np.empty(size * size * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+    values = pixels.reshape(size, size, 4)[..., 0].astype(np.float64)
+    values[values <= 0.5 * _UNBAKED] = np.nan
+    uv = linked_nodes.corner_uv(mesh, layer)
+    how = f"per pixel from a {size}² Cycles bake at UV map {layer.name!r}"
+    try:
+        found = maps.make(values, uv, corner_order(mesh), layer.name, False, how)
+    except ValueError:
+        return None, f"the bake at UV map {layer.name!r} wrote nothing: per corner"
+    if not maps.agrees(found, corner_values):
+        return None, f"UV map {layer.name!r} overlaps itself or leaves [0, 1]: per corner"
+    return found, None
+
+
+def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray | None:
     """Bake ``material``'s Emission colour (red) per face corner of a copy of ``obj``'s evaluated
-    mesh, or into ``image`` at its active UV map (returns None); the copy, a temporary scene and
+    mesh, or into ``image`` at its active UV map (returns None; ``clear``: cleared first, else
+    the texels no triangle reaches keep their values); the copy, a temporary scene and
     ``material`` are removed afterwards."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
@@ -268,7 +325,9 @@ def _bake_emission(obj, material, image=None) -> np.ndarray | None:
                 target.image = image
                 material.node_tree.nodes.active = target
             result = bpy.ops.object.bake(
-                type="EMIT", target="IMAGE_TEXTURES" if image is not None else "VERTEX_COLORS", use_clear=True
+                type="EMIT",
+                target="IMAGE_TEXTURES" if image is not None else "VERTEX_COLORS",
+                use_clear=clear,
             )
         if "FINISHED" not in result:
             raise RuntimeError(f"Cycles bake of the thickness returned {result}")
@@ -282,7 +341,7 @@ def _bake_emission(obj, material, image=None) -> np.ndarray | None:
         bpy.data.meshes.remove(mesh)
         bpy.data.materials.remove(material)
         bpy.data.scenes.remove(scene)
-    STATS["bakes"] += 1
+    STATS["bakes" if image is None else "image_bakes"] += 1
     return values
 
 
@@ -299,8 +358,9 @@ def _noise_material(props):
     return material
 
 
-def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
-    """(per-corner parameter in [0, 1], 0) of the extension's BLENDER_NOISE source: Blender's own
+def noise_parameters(obj, mesh, bpy_material):
+    """(per-corner parameter in [0, 1], 0, the map for the batch or None: :func:`corner_parameters`)
+    of the extension's BLENDER_NOISE source: Blender's own
     Noise Texture, baked with Cycles from the graph write-back writes
     (:func:`.thickness_nodes.build`), so the preview and Cycles see the same values. Cached by
     the noise settings and the mesh; queued (:class:`Pending`) inside :func:`deferring`."""
@@ -326,7 +386,19 @@ def noise_parameters(obj, mesh, bpy_material) -> tuple[np.ndarray, int]:
             values, f"Blender's Noise Texture baked with Cycles at {values.size} face corners", True
         )
         FIELDS[cache_key] = found
-    return np.clip(found.values, 0.0, 1.0), 0
+
+    def make():
+        return bake_map(bpy.data.objects[name], lambda: _noise_material(props), found.values)
+
+    found_map, _, waiting = maps.field_map(cache_key, name, make, defer=_defer or _maps_later)
+    return np.clip(found.values, 0.0, 1.0), 0, _batch_map(found_map, (0.0, 1.0)), waiting
+
+
+def _batch_map(found_map: maps.ThicknessMap | None, thickness_range):
+    """(corner UVs, parameter map, repeat) of a map for the batch, or None."""
+    if found_map is None:
+        return None
+    return found_map.uv, maps.parameters(found_map, thickness_range), found_map.repeat
 
 
 def bake_thickness_image(obj, bpy_material, thickness_range, size: int = 512):
@@ -432,20 +504,48 @@ def material_range(bpy_material, socket) -> tuple[float, float, str] | None:
         mesh = obj.evaluated_get(depsgraph).data
         field = evaluate(obj, mesh, bpy_material, socket, key)
         lo, hi = min(lo, field.lo), max(hi, field.hi)
-        hows.append(f"{obj.name}: {field.how}")
+        found_map, why, _ = linked_map(obj, mesh, bpy_material, socket, key)
+        if found_map is not None:  # a texture's peaks between the corners
+            lo, hi = min(lo, found_map.lo), max(hi, found_map.hi)
+        extra = found_map.how if found_map is not None else why
+        hows.append(f"{obj.name}: {field.how}" + (f"; {extra}" if extra else ""))
     if not hows:
         return None
     return lo, hi, "; ".join(hows)
 
 
-def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range) -> tuple[np.ndarray, int]:
-    """(per-corner parameter in [0, 1] along the table's range, non-finite count) for the batch."""
+def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
+    """(map or None, why not or None, being waited for) of the link into ``socket`` over
+    ``obj``'s evaluated ``mesh`` (:func:`.maps.field_map`): at the images' pixels where the link reads
+    images, else a Cycles bake at the UVs where the corners are baked too."""
+    key = key if key is not None else tree_key(socket)
+    name = obj.original.name if hasattr(obj, "original") else obj.name
+    found = evaluate(obj, mesh, bpy_material, socket, key)
+    node_name, socket_id = socket.node.name, socket.identifier
+
+    def make():
+        node = bpy_material.node_tree.nodes[node_name]
+        live = next(s for s in node.inputs if s.identifier == socket_id)
+        if not found.baked:
+            return _direct_map(_mesh_of(name), live)
+        return bake_map(
+            bpy.data.objects[name], lambda: _bake_material(bpy_material, node_name, socket_id), found.values
+        )
+
+    return maps.field_map(_field_key(name, mesh, key), name, make, defer=_defer or _maps_later)
+
+
+def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):
+    """(per-corner parameter in [0, 1] along the table's range, non-finite count, the map for
+    the batch: (corner UVs, parameter map, repeat) or None, whether a map is awaited)."""
     field = evaluate(obj_eval, mesh, bpy_material, socket)
     lo, hi = thickness_range
     values = field.values
     finite = np.isfinite(values)
     param = np.where(finite, (np.where(finite, values, lo) - lo) / max(hi - lo, 1e-9), 0.5)
-    return np.clip(param, 0.0, 1.0), int(values.size - np.count_nonzero(finite))
+    nan_count = int(values.size - np.count_nonzero(finite))
+    found_map, _, waiting = linked_map(obj_eval, mesh, bpy_material, socket)
+    return np.clip(param, 0.0, 1.0), nan_count, _batch_map(found_map, thickness_range), waiting
 
 
 @contextlib.contextmanager
@@ -460,8 +560,18 @@ def deferring():
 
 
 def has_pending() -> bool:
-    """Whether bakes wait for :func:`run_pending`."""
+    """Whether bakes or maps wait for :func:`run_pending`."""
+    return bool(PENDING) or bool(maps.PENDING)
+
+
+def baking() -> bool:
+    """Whether Cycles bakes of the corners wait (the film is not drawn yet; maps aside)."""
     return bool(PENDING)
+
+
+def pending_count() -> int:
+    """Bakes and maps queued: the timer redraws when it falls."""
+    return len(PENDING) + len(maps.PENDING)
 
 
 def _run_linked(name: str, bpy_material, node_name: str, socket_id: str) -> None:
@@ -471,6 +581,14 @@ def _run_linked(name: str, bpy_material, node_name: str, socket_id: str) -> None
 
 
 def run_pending() -> list[str]:
-    """Run the queued bakes (main thread, outside drawing); returns the errors met."""
-    failed = PENDING.run((ValueError, ReferenceError, KeyError, StopIteration, RuntimeError))
-    return [f"{name}: {exc}" for (_, name), exc in failed]
+    """Run the queued bakes (main thread, outside drawing), and the queued maps once settled
+    (:data:`.maps.SETTLE_S`; else they stay queued: :func:`has_pending`); returns the errors met."""
+    global _maps_later
+    errors = (ValueError, ReferenceError, KeyError, StopIteration, RuntimeError)
+    _maps_later = True  # a bake's map waits for its own turn (the edits settled)
+    try:
+        failed = PENDING.run(errors)
+    finally:
+        _maps_later = False
+    failed += maps.run_settled(errors)
+    return [f"{key[1]}: {exc}" for key, exc in failed]

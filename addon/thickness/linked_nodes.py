@@ -11,7 +11,20 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DIRECT_NODES", "Unsupported", "link_values"]
+__all__ = [
+    "DIRECT_NODES",
+    "MAP_MAX_SIZE",
+    "Unsupported",
+    "corner_uv",
+    "link_map",
+    "link_values",
+    "sample",
+    "uv_layer",
+]
+
+#: The largest side of a thickness map evaluated from images (:func:`link_map`): a larger image is
+#: sampled at this many texel centres (bilinearly) instead of at each of its pixels.
+MAP_MAX_SIZE = 1024
 
 #: Node types evaluated directly (exact numpy mirrors of Blender's SVM nodes); anything else is baked.
 DIRECT_NODES = (
@@ -31,6 +44,25 @@ class Unsupported(Exception):
     """A node the direct evaluator does not mirror: the caller bakes with Cycles instead."""
 
 
+def uv_layer(mesh, name: str):
+    """The UV map an Image Texture reads: ``name`` (a UV Map node's), else the one active for
+    rendering, else the active one; ValueError where the mesh has none."""
+    layers = mesh.uv_layers
+    layer = layers.get(name) if name else None
+    if layer is None and not name:
+        layer = next((u for u in layers if u.active_render), None) or layers.active
+    if layer is None:
+        raise ValueError(f"mesh {mesh.name!r} has no UV map {name or '(active)'} for the thickness image")
+    return layer
+
+
+def corner_uv(mesh, layer) -> np.ndarray:
+    """(corners, 2) float64 UVs of ``layer`` (a UV map of ``mesh``)."""
+    uv = np.empty(2 * len(mesh.loops), dtype=np.float32)
+    layer.data.foreach_get("uv", uv)
+    return uv.reshape(-1, 2).astype(np.float64)
+
+
 class _Context:
     """What the direct evaluator reads from the mesh: corner count, UV maps, notes on resolution."""
 
@@ -40,17 +72,26 @@ class _Context:
         self.notes: list[str] = []
 
     def uv(self, name: str) -> np.ndarray:
-        layer = self.mesh.uv_layers.get(name) if name else None
-        layers = self.mesh.uv_layers
-        if layer is None and not name:
-            layer = next((u for u in layers if u.active_render), None) or layers.active
-        if layer is None:
-            raise ValueError(
-                f"mesh {self.mesh.name!r} has no UV map {name or '(active)'} for the thickness image"
-            )
-        uv = np.empty(2 * self.n, dtype=np.float32)
-        layer.data.foreach_get("uv", uv)
-        return uv.reshape(-1, 2).astype(np.float64)
+        return corner_uv(self.mesh, uv_layer(self.mesh, name))
+
+
+class _GridContext(_Context):
+    """The direct evaluator at the texel centres of a (height, width) map over UV map ``layer``
+    instead of at the mesh's corners (:func:`link_map`)."""
+
+    def __init__(self, mesh, layer: str, shape: tuple[int, int]):
+        self.mesh = mesh
+        self.layer = layer
+        height, width = shape
+        self.n = height * width
+        self.notes = []
+        u, v = np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height)
+        self.grid = np.stack([u.ravel(), v.ravel()], axis=1)
+
+    def uv(self, name: str) -> np.ndarray:
+        if uv_layer(self.mesh, name).name != self.layer:
+            raise Unsupported("images at two UV maps")
+        return self.grid
 
 
 def _as_float(value: np.ndarray) -> np.ndarray:
@@ -121,15 +162,16 @@ def _image_node(node, socket, ctx):
     image.pixels.foreach_get(pixels)
     pixels = pixels.reshape(height, width, channels).astype(np.float64)
     ctx.notes.append(f"image {image.name!r} {width}×{height}")
-    sampled = _sample(pixels, uv, node.interpolation == "Closest", node.extension == "REPEAT")
+    sampled = sample(pixels, uv, node.interpolation == "Closest", node.extension == "REPEAT")
     if socket.identifier == "Alpha":
         return sampled[:, 3] if channels == 4 else np.ones(ctx.n)
     rgb = sampled[:, :3] if channels >= 3 else np.repeat(sampled[:, :1], 3, axis=1)
     return rgb
 
 
-def _sample(pixels: np.ndarray, uv: np.ndarray, closest: bool, repeat: bool) -> np.ndarray:
-    """Pixels (H, W, C), row 0 at the bottom, at UVs (N, 2): bilinear between pixel centres."""
+def sample(pixels: np.ndarray, uv: np.ndarray, closest: bool, repeat: bool) -> np.ndarray:
+    """Pixels (H, W, C), row 0 at the bottom, at UVs (N, 2): bilinear between pixel centres
+    (a GPU texture's linear filter; edges repeated or extended)."""
     height, width = pixels.shape[:2]
 
     def wrap(i, size):
@@ -234,3 +276,49 @@ def link_values(mesh, socket) -> tuple[np.ndarray, list[str], int]:
     ctx = _Context(mesh)
     link = socket.links[0]
     return _as_float(_output(link.from_node, link.from_socket, ctx)), ctx.notes, ctx.n
+
+
+def _images(socket) -> list:
+    """The Image Texture nodes upstream of ``socket`` (through any depth)."""
+    seen, found, stack = set(), [], [link.from_node for link in socket.links if link.is_valid]
+    while stack:
+        node = stack.pop()
+        if node.name in seen:
+            continue
+        seen.add(node.name)
+        if node.bl_idname == "ShaderNodeTexImage" and node.image is not None:
+            found.append(node)
+        stack.extend(link.from_node for inp in node.inputs for link in inp.links if link.is_valid)
+    return found
+
+
+def link_map(mesh, socket) -> tuple[np.ndarray, list[str], str, bool] | None:
+    """(the value linked into ``socket`` at the texel centres of a map over one UV map, shape
+    (H, W), row 0 at v = 0; notes; that UV map's name; whether the map repeats) where the link
+    reads images at one UV map with one extension mode, else None (a constant, or images at two
+    UV maps or modes: the corners alone). The map has the largest image's size, each side at
+    most :data:`MAP_MAX_SIZE`: where it is the image's, its texels are the image's pixels run
+    through the graph, and a GPU's bilinear filter of it is Cycles' of the image wherever the
+    graph is linear. Raises :class:`Unsupported` as :func:`link_values` does."""
+    images = _images(socket)
+    if not images:
+        return None
+    layers, modes = set(), set()
+    for node in images:
+        vector = node.inputs["Vector"]
+        name = vector.links[0].from_node.uv_map if vector.is_linked else ""
+        if vector.is_linked and vector.links[0].from_node.bl_idname != "ShaderNodeUVMap":
+            raise Unsupported("an image texture at mapped coordinates")
+        layers.add(uv_layer(mesh, name).name)
+        modes.add(node.extension)
+    if len(layers) != 1 or len(modes) != 1:
+        return None
+    width = min(MAP_MAX_SIZE, max(int(n.image.size[0]) for n in images))
+    height = min(MAP_MAX_SIZE, max(int(n.image.size[1]) for n in images))
+    if width * height == 0:
+        return None
+    layer = layers.pop()
+    ctx = _GridContext(mesh, layer, (height, width))
+    link = socket.links[0]
+    values = _as_float(_output(link.from_node, link.from_socket, ctx))
+    return values.reshape(height, width), ctx.notes, layer, modes.pop() == "REPEAT"

@@ -22,11 +22,13 @@ import numpy as np
 from ...precompute.materials.noise import value_noise
 from .. import caches
 from ..world.world_key import describe_image
+from .linked_nodes import MAP_MAX_SIZE, sample
 
 __all__ = [
     "IMAGE_RECHECK_S",
     "NAN_PARAMETER",
     "corner_order",
+    "image_map",
     "image_stamp",
     "thickness_field",
     "thickness_inputs",
@@ -107,7 +109,9 @@ def _attribute_values(obj, mesh, name: str) -> np.ndarray:
     )
 
 
-def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
+def _image_source(obj, mesh, image, uv_map: str) -> tuple[np.ndarray, np.ndarray]:
+    """(the image's first channel (H, W), row 0 at the bottom; the corners' UVs (N, 2)) of the
+    IMAGE source; ValueError naming what is missing."""
     where = f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
     if image is None:
         raise ValueError(f"{where}: thickness source IMAGE needs an image")
@@ -131,6 +135,12 @@ def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
     pixels = np.empty(width * height * channels, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     first = pixels.reshape(height, width, channels)[:, :, 0].astype(np.float64)  # row 0 = bottom
+    return first, uv
+
+
+def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
+    first, uv = _image_source(obj, mesh, image, uv_map)
+    height, width = first.shape
     # Bilinear between pixel centres ((i + ½)/W, (j + ½)/H), repeating like Image Texture's default.
     x = uv[:, 0] * width - 0.5
     y = uv[:, 1] * height - 0.5
@@ -190,6 +200,25 @@ def thickness_inputs(props):
     if source == "IMAGE":
         return source, props.thickness_uv_map, image_stamp(props.thickness_image)
     return (source,)
+
+
+def image_map(obj, mesh, props):
+    """The IMAGE source per pixel: (the corners' UVs (N, 2) float32, the image's first channel as
+    the parameter map (H, W) in [0, 1] float32 (NaN at :data:`NAN_PARAMETER`), True: it
+    repeats) for the batch (:mod:`.maps`, ``TF_THICKNESS_MAP``), or None for another source.
+    An image larger than :data:`.linked_nodes.MAP_MAX_SIZE` a side is read at that many texel
+    centres. Raises ValueError as :func:`thickness_field` does."""
+    if not props.vary_thickness or props.thickness_source != "IMAGE":
+        return None
+    first, uv = _image_source(obj, mesh, props.thickness_image, props.thickness_uv_map)
+    height, width = first.shape
+    if max(height, width) > MAP_MAX_SIZE:
+        height, width = min(height, MAP_MAX_SIZE), min(width, MAP_MAX_SIZE)
+        u, v = np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height)
+        grid = np.stack([u.ravel(), v.ravel()], axis=1)
+        first = sample(first[..., None], grid, False, True)[:, 0].reshape(height, width)
+    values = np.clip(np.where(np.isfinite(first), first, NAN_PARAMETER), 0.0, 1.0)
+    return uv.astype(np.float32), values.astype(np.float32), True
 
 
 def thickness_per_vertex(obj, mesh, props, notes: list | None = None) -> np.ndarray | None:

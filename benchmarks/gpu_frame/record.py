@@ -342,7 +342,7 @@ class Writer:
                     else self.upload(group.prefiltered, "prefiltered"),
                     "film": None if group.film is None else self.upload(group.film, "film"),
                     "grid": None if getattr(group, "grid", None) is None else self.upload(group.grid, "grid"),
-                    "draws": [[self.mesh(batch), self.store.add(ubo.data)] for batch, ubo in group.draws],
+                    "draws": [[self.mesh(batch), self.store.add(ubo.data)] for batch, ubo, *_ in group.draws],
                 }
             )
         return {**meta, "view": self.store.add(prepared.view.data), "groups": groups}

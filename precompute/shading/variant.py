@@ -66,6 +66,9 @@ class Variant(NamedTuple):
     #: Solid glass sees the scene behind along its exit ray (``TF_REFRACT``, tf_refract.glsl, the
     #: scene-behind texture): a transparent film's passes over a frame drawn without the films.
     refract: bool = False
+    #: With ``vary_thickness``: the thickness parameter read per pixel from the batch's thickness
+    #: map at its UVs (``TF_THICKNESS_MAP``; addon/thickness/maps.py), not from the corners.
+    thickness_map: bool = False
 
     @property
     def film(self) -> bool:
@@ -97,6 +100,7 @@ class Variant(NamedTuple):
             int(self.transmit) if int(self.transmit) in TRANSMIT_PASSES else 0,
             bool(self.grid and not self.split_only),
             bool(self.refract and int(self.transmit) in TRANSMIT_PASSES),
+            bool(self.vary_thickness and self.thickness_map),
         )
 
     def _display_switches(self) -> list[tuple[str, str]]:
@@ -118,6 +122,8 @@ class Variant(NamedTuple):
             out.append(("TF_SPECTRAL", "1"))
         if self.vary_thickness:
             out.append(("TF_VARY_THICKNESS", "1"))
+            if self.thickness_map:
+                out.append(("TF_THICKNESS_MAP", "1"))
         out += self._display_switches()
         if self.split_sum:
             out.append(("TF_SPLIT_SUM", "1"))
@@ -162,6 +168,7 @@ def choose_variant(
     transmit: int = 0,
     grid: bool = False,
     refract: bool = False,
+    thickness_map: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -183,6 +190,7 @@ def choose_variant(
       policy.uses_grid says so (constant thickness, l_max ≥ GRID_MIN_L, an SH half drawn).
     - ``refract``: solid glass over a scene-behind texture (the headless frame's background pass):
       its passes march the exit ray over it (shading/glass/refract.py).
+    - ``thickness_map``: the batch carries a thickness map and UVs (with a varying thickness).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -204,6 +212,7 @@ def choose_variant(
         transmit=int(transmit) if bool(film) else 0,
         grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
         refract=bool(refract) and bool(film) and int(transmit) in TRANSMIT_PASSES,
+        thickness_map=vary and bool(thickness_map),
     )
 
 

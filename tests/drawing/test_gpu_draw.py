@@ -745,6 +745,45 @@ def test_varying_thickness_attribute_reaches_the_shader(gd, bpy):
     assert np.max(np.abs(got - expected)) / np.max(expected) < 1e-4
 
 
+@pytest.mark.parametrize("texels", [32, 8])
+def test_thickness_map_is_read_per_pixel(gd, bpy, texels):
+    """The same quad with a constant corner thickness and a thickness map over its UVs that runs
+    up and down along u: each pixel shades the map's bilinear value at its UV (``TF_THICKNESS_MAP``),
+    not the corners'. 32 texels: one per pixel, read at its centre; 8: four pixels per texel,
+    between centres (the GPU's linear filter)."""
+    result = baked(2, "per_channel", True)
+    table = gd.resources.TableTexture.from_result(result)
+    world, _img = world_sh()
+    lighting = gd.resources.Lighting.from_sh(world, 2, result.material.roughness)
+    pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
+    nor = np.tile([0.0, -1.0, 0.0], (4, 1))
+    uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    centres = (np.arange(texels) + 0.5) / texels
+    row = 0.5 + 0.45 * np.sin(2 * np.pi * 2.5 * centres) * np.cos(2 * np.pi * 0.7 * centres)
+    values = np.tile(row, (3, 1))  # three rows of v, all alike
+    thickness = np.full(4, 0.5)
+    tris = [[0, 1, 2], [0, 2, 3]]
+    batch = gd.mesh.MeshBatch.from_arrays(pos, nor, tris, thickness, thickness_map=(uv, values, False))
+    plain = gd.mesh.MeshBatch.from_arrays(pos, nor, tris, thickness)
+    assert batch.thickness_map is not None and plain.thickness_map is None
+    half = 1.0
+    img = gd.draw.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(half), 32, 4)
+    flat = gd.draw.render_offscreen([Item(plain, table, lighting)], VIEW, orthographic(half), 32, 4)
+    u = (np.arange(32) + 0.5) / 32
+    t01 = np.interp(u, centres, row)  # bilinear along u, edges extended; v constant
+    thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
+    n = np.tile([0.0, -1.0, 0.0], (32, 1))
+    expected = sh_sum.shade_sh(result, lighting.coefficients, n, n, thick_nm)
+    got = img[1, :, :3]
+    err = np.max(np.abs(got - expected)) / np.max(expected)
+    # Measured on llvmpipe: 2.6e-7 (32 texels) and 2.5e-7 (8), float32 rounding: its linear
+    # filter weighs in float. A GPU that weighs with 8 fractional bits errs by up to 1/256 of a
+    # texel step in thickness; a wrong row, UV or channel shows up as ≥ 1e-2.
+    assert err < 1e-4, err
+    # the corners alone (0.5 everywhere) would draw one colour: the map is what varies it
+    assert np.max(np.abs(flat[1, :, :3] - expected)) / np.max(expected) > 50 * max(err, 1e-4)
+
+
 # ----------------------------------------------------------------------------------------------
 # Context creation without gpu.init (fresh process)
 # ----------------------------------------------------------------------------------------------

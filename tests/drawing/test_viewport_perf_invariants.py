@@ -199,7 +199,7 @@ def test_draws_are_grouped_by_variant_in_item_order(tf, drawn):
     assert len(prepared.groups) == 2 and prepared.shader_binds == 2
     first, second = prepared.groups
     assert first.table is drawn.tables[0].ubo and second.table is drawn.tables[1].ubo  # small: UBO tables
-    assert [b for b, _ in first.draws] == [items[k].batch.batch for k in (0, 2, 4)]
+    assert [b for b, *_ in first.draws] == [items[k].batch.batch for k in (0, 2, 4)]
     # An empty list prepares nothing and submits nothing.
     assert gd.draw.prepare_draw([], VIEW, PROJ, display_srgb=True).groups == []
 

@@ -737,6 +737,17 @@ def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, thickness_mod):
     settings.thickness_image = image
     values = thickness_mod.thickness_per_vertex(obj, mesh, settings)
     np.testing.assert_allclose(values, [0.0, 0.5, 0.3, 0.15], atol=1e-6)
+    # per pixel (TF_THICKNESS_MAP): the map is the first channel itself, read at the same UVs,
+    # and repeats as Image Texture does; its bilinear read at the corners is the corners' value
+    uv_out, values_map, repeat = thickness_mod.image_map(obj, mesh, settings)
+    np.testing.assert_array_equal(values_map, first.astype(np.float32))
+    np.testing.assert_allclose(uv_out, uvs, atol=1e-7)
+    assert repeat
+    maps = importlib.import_module(f"{EXTENSION_ID}.addon.thickness.maps")
+    np.testing.assert_allclose(maps.sample_bilinear(values_map, uv_out, repeat), values, atol=1e-6)
+    settings.thickness_source = "ATTRIBUTE"
+    assert thickness_mod.image_map(obj, mesh, settings) is None
+    settings.thickness_source = "IMAGE"
     settings.thickness_uv_map = "Missing"
     with pytest.raises(ValueError, match="no UV map 'Missing'"):
         thickness_mod.thickness_per_vertex(obj, mesh, settings)

@@ -40,6 +40,7 @@ def tf(bpy, package, tmp_path):
     mods["prefs"].preferences().cache_dir = str(tmp_path / "cache")
     mods["tables"].clear_memory_cache()
     mods["linked"].FIELDS.clear()
+    importlib.import_module(f"{EXTENSION_ID}.addon.thickness.maps").MAPS.clear()
     try:
         yield type("TF", (), mods)
     finally:
@@ -179,6 +180,100 @@ def test_image_driven_thickness_reproduces_the_image_at_the_vertices(bpy, tf):
     assert np.max(np.abs(baked.values - direct.values)) < BAKE_TOLERANCE_NM * hi
     assert np.max(np.abs(direct.values - expected)) < 1e-4
     assert "6×5" in direct.how
+    # per pixel: the map holds the graph at the image's pixels (its own size), at the grid's UVs
+    found, why, waiting = tf.linked.linked_map(obj, obj.data, mat, socket)
+    assert found is not None and why is None and not waiting
+    assert found.values.shape == (height, width) and "6×5 map" in found.how
+    assert np.max(np.abs(found.values - (lo + (hi - lo) * green))) < 1e-3
+    assert entry.batch.thickness_map is not None
+
+
+def test_a_noise_thickness_map_holds_the_noise_between_the_corners(bpy, tf):
+    """On a coarse sphere (24 × 12) the Noise Texture is also baked into a map at the UVs: read
+    at the corners of the same sphere subdivided twice (flat: the same surface, UVs interpolated),
+    it gives what Cycles bakes at those corners, where the coarse corners alone cannot."""
+    import bmesh  # Blender's mesh editing module
+
+    mat = _noise_material(bpy, scale=5.0)
+    coarse = _sphere(bpy, mat)
+    bm = bmesh.new()  # triangles: subdividing one keeps its UV → surface map affine (a quad's
+    bm.from_mesh(coarse.data)  # bilinear patch would put a UV elsewhere than its two triangles)
+    bmesh.ops.triangulate(bm, faces=bm.faces[:])
+    bm.to_mesh(coarse.data)
+    bm.free()
+    fine = coarse.copy()
+    fine.data = coarse.data.copy()
+    fine.name = "Fine"
+    bpy.context.scene.collection.objects.link(fine)
+    modifier = fine.modifiers.new("subdivide", "SUBSURF")
+    modifier.subdivision_type, modifier.levels, modifier.render_levels = "SIMPLE", 2, 2
+    socket = tf.principled.principled_node(mat).inputs["Thin Film Thickness"]
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    found, why, _ = tf.linked.linked_map(coarse, coarse.evaluated_get(depsgraph).data, mat, socket)
+    assert found is not None, why
+    assert "1024² Cycles bake" in found.how
+    fine_mesh = fine.evaluated_get(depsgraph).data
+    truth = tf.linked._bake(fine, mat, socket).values
+    uv = tf.linked.linked_nodes.corner_uv(fine_mesh, fine_mesh.uv_layers.active)
+    maps = importlib.import_module(f"{EXTENSION_ID}.addon.thickness.maps")
+    read = maps.sample_bilinear(found.values, uv)
+    span = np.ptp(truth)
+    error = np.abs(read - truth)
+    assert np.percentile(error, 99) < 0.01 * span, np.percentile(error, 99) / span
+    assert found.lo <= truth.min() + 0.01 * span and found.hi >= truth.max() - 0.01 * span
+    lo, hi = tf.description.description(mat).thickness_range_nm  # the table spans the map's peaks
+    assert lo <= found.lo and hi >= found.hi
+    entry, _ = _batch_thickness_nm(bpy, tf, "Sphere")
+    assert entry.batch.thickness_map is not None
+
+
+def test_the_draw_draws_the_corners_and_the_timer_makes_the_map_once_edits_settle(bpy, tf, monkeypatch):
+    """Inside the draw a map is never made: the film is drawn per corner at once and the map is
+    queued; the timer leaves it queued until the key has waited SETTLE_S (a slider being
+    dragged), then makes it (a 1024² bake: ≈ 0.5 s of the main thread), and the next frame has it."""
+    mat = _noise_material(bpy, scale=5.0)
+    _sphere(bpy, mat)
+    before = tf.linked.STATS["image_bakes"]
+    with tf.linked.deferring():
+        assert tf.description.description(mat) is None  # the corners' bake is queued first
+    assert tf.linked.baking()
+    tf.linked.run_pending()  # the corners (a bake per corner: ms)
+    with tf.linked.deferring():
+        assert tf.description.description(mat).varies
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    entry = tf.scene_draw.batch_entry("Sphere")
+    assert entry.batch is not None and entry.batch.thickness_map is None  # per corner meanwhile
+    assert tf.linked.has_pending() and not tf.linked.baking()
+    monkeypatch.setattr(tf.linked.maps, "SETTLE_S", 3600.0)
+    tf.linked.run_pending()
+    assert tf.linked.STATS["image_bakes"] == before and tf.linked.has_pending(), "not settled: kept"
+    monkeypatch.setattr(tf.linked.maps, "SETTLE_S", 0.0)
+    assert tf.linked.run_pending() == []
+    assert tf.linked.STATS["image_bakes"] == before + 1 and not tf.linked.has_pending()
+    with tf.linked.deferring():
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert tf.scene_draw.batch_entry("Sphere").batch.thickness_map is not None
+
+
+def test_overlapping_uvs_keep_the_thickness_per_corner(bpy, tf):
+    """UV islands folded onto each other (the sphere's two halves mirrored in u): a bake writes
+    each texel once, so the map would give one half the other's noise; it disagrees with the
+    per-corner bake, is dropped, and the panel says why."""
+    mat = _noise_material(bpy, scale=5.0)
+    obj = _sphere(bpy, mat)
+    layer = obj.data.uv_layers.active
+    uv = np.empty(2 * len(obj.data.loops), dtype=np.float32)
+    layer.data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    uv[:, 0] = np.minimum(uv[:, 0], 1.0 - uv[:, 0])
+    layer.data.foreach_set("uv", uv.ravel())
+    socket = tf.principled.principled_node(mat).inputs["Thin Film Thickness"]
+    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    found, why, waiting = tf.linked.linked_map(obj, mesh, mat, socket)
+    assert found is None and not waiting and "overlaps itself" in why and "per corner" in why
+    assert any("overlaps itself" in n for n in tf.description.warnings(mat))
+    entry, _ = _batch_thickness_nm(bpy, tf, "Sphere")
+    assert entry.batch.thickness_map is None
 
 
 def test_noise_thickness_is_baked_once_and_rebaked_when_its_scale_changes(bpy, tf):

@@ -145,6 +145,8 @@ def tf(bpy, tmp_path_factory):
         "addon.world.world_job",
         "addon.world.world_state",
         "addon.bakes.bake_jobs",
+        "addon.thickness.linked",
+        "addon.thickness.maps",
     ]
     modules += ["precompute.bakes.bake", "precompute.colour.film_colour", "addon.gpu.draw"]
     root = tmp_path_factory.mktemp("extension")
@@ -486,3 +488,64 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
         vp.draw_callback()
     assert tf.world_job.busy() and not bj._pending  # the draw asked for the prefilter alone …
     assert bpy.app.timers.is_registered(vp._service)  # … and started the timer that serves it
+
+
+@pytest.mark.blender
+def test_a_noise_thickness_map_is_made_by_the_timer_once_edits_settle(bpy, tf, scene, monkeypatch):
+    """The real draw callback and timer, a Blender Noise thickness on a UV sphere: the draw bakes
+    nothing (the corners' bake, then the map, are queued); the timer bakes the corners at once and
+    keeps the map queued, asking to be called again, until the edits have settled
+    (``maps.SETTLE_S``: a dragged slider bakes no map per step); then it bakes the map and
+    redraws, and the next frame's batch reads the thickness per pixel."""
+    vp, linked, maps = tf.viewport, tf.linked, tf.maps
+    mat = bpy.data.materials.new("Noise film")
+    s = mat.thinfilm_sh
+    s.preset = "SOAP_FILM"
+    s.enabled = True
+    s.transparency = "OPAQUE"
+    s.roughness = 0.4
+    s.sh_order, s.view_samples, s.thickness_samples, s.wavelength_count = "2", 4, 4, 32
+    s.vary_thickness = True
+    s.thickness_source = "BLENDER_NOISE"
+    s.noise_scale = 4.0
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12)
+    sphere = bpy.context.active_object
+    sphere.data.materials.append(mat)
+    monkeypatch.setattr(vp, "draw_items", lambda *args, **kwargs: None)
+    redraws = []
+    monkeypatch.setattr(vp, "_tag_redraw", lambda: redraws.append(1))
+    window = bpy.context.window_manager.windows[0]
+    area = next(a for a in window.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+
+    def draw():
+        bpy.context.view_layer.update()
+        with bpy.context.temp_override(window=window, area=area, region=region):
+            vp.draw_callback()
+
+    corners, images = linked.STATS["bakes"], linked.STATS["image_bakes"]
+    monkeypatch.setattr(maps, "SETTLE_S", 3600.0)
+    for _ in range(8):  # the film's table first: no batch until it is there
+        draw()
+        if linked.baking():
+            break
+        vp._service()
+        wait_for(lambda: not tf.bake_jobs.BAKES.running, "the film's table bake")
+    assert linked.STATS["bakes"] == corners and linked.baking(), "the draw queues the corners' bake"
+    vp._service()
+    assert linked.STATS["bakes"] == corners + 1 and not linked.baking()
+    draw()  # the corners are drawn; the map is queued
+    entry = tf.scene_draw.batch_entry(sphere.name)
+    assert entry is not None and entry.batch is not None and entry.batch.thickness_map is None
+    assert linked.has_pending() and linked.STATS["image_bakes"] == images
+    wait_for(lambda: not tf.bake_jobs.BAKES.running, "the film's table bake")
+    vp._service()
+    assert vp._service() is not None, "the timer stopped while a map waits for the edits to settle"
+    assert linked.STATS["image_bakes"] == images and linked.has_pending()
+    monkeypatch.setattr(maps, "SETTLE_S", 0.0)
+    redraws.clear()
+    vp._service()
+    assert linked.STATS["image_bakes"] == images + 1 and not linked.has_pending()
+    assert redraws, "the map was made, but no redraw was asked for"
+    draw()
+    assert tf.scene_draw.batch_entry(sphere.name).batch.thickness_map is not None
