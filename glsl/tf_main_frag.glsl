@@ -17,7 +17,8 @@
  * tf_glass_exit.glsl with tf_refract.glsl (TF_REFRACT) are joined before this chunk for the
  * variants that have them (addon/gpu/shaders.py). With TF_THICKNESS_MAP the thickness parameter
  * is read per pixel from tf_thickness_map at the interpolated UV tf_uv (bilinear, numpy:
- * thickness.maps.sample_bilinear), else interpolated from the corners (tf_thickness).
+ * thickness.maps.sample_bilinear), with TF_THICKNESS_NOISE computed from the object-space position
+ * (tf_noise.glsl), else interpolated from the corners (tf_thickness).
  */
 
 #if defined(TF_TRANSMIT) && defined(TF_SPLIT_SUM)
@@ -250,7 +251,10 @@ void main()
     n = tf_valid_normal(g, v, (dot(smooth_n, g) < 0.0) ? -smooth_n : smooth_n);
   }
 #endif
-#if defined(TF_THICKNESS_MAP)
+#if defined(TF_THICKNESS_NOISE)
+  /* the Noise source per pixel at the object-space position (tf_noise.glsl) */
+  float thickness01 = tf_value_noise(tf_object_pos, tf_object.noise.x, int(tf_object.noise.y));
+#elif defined(TF_THICKNESS_MAP)
   /* the thickness parameter per pixel from the film's thickness map at the mesh's UVs
    * (addon/thickness/maps.py: a texture's detail between the mesh's corners) */
   float thickness01 = clamp(texture(tf_thickness_map, tf_uv).r, 0.0, 1.0);

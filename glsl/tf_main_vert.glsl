@@ -3,7 +3,7 @@
  * numpy counterpart: none (geometry); the normal matrix is inverse-transpose(model) 3x3,
  * computed in Python (addon/gpu/draw.py object_uniforms). Vertex inputs: pos, nor (object space)
  * and, with TF_VARY_THICKNESS, thickness in [0, 1]; with TF_THICKNESS_MAP, uv (the thickness
- * map's). Uniform buffers: tf_view, tf_object (layouts: addon/gpu/resources.py VIEW, OBJECT).
+ * map's); TF_THICKNESS_NOISE passes the object-space position on. Uniform buffers: tf_view, tf_object (layouts: addon/gpu/resources.py VIEW, OBJECT).
  */
 
 void main()
@@ -19,6 +19,9 @@ void main()
 #endif
 #ifdef TF_THICKNESS_MAP
   tf_uv = uv;
+#endif
+#ifdef TF_THICKNESS_NOISE
+  tf_object_pos = pos;
 #endif
   gl_Position = view_proj * world;
 }

@@ -91,6 +91,12 @@ def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
     return thickness, notes, waiting, thickness_map  # waiting: for a map (drawn per corner meanwhile)
 
 
+def _noise_source(props) -> bool:
+    """Whether the extension's Noise source gives the thickness: drawn per pixel from the
+    object-space position (tf_noise.glsl), its corners the same function's values."""
+    return props is not None and props.enabled and props.vary_thickness and props.thickness_source == "NOISE"
+
+
 def slot_batch(
     name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None, wall: bool = False
 ) -> BatchEntry:
@@ -128,6 +134,8 @@ def slot_batch(
     batch = MeshBatch.from_arrays(
         positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map
     )
+    if batch is not None and thickness is not None and _noise_source(props):  # per pixel (TF_THICKNESS_NOISE)
+        batch.noise = (float(props.noise_scale), int(props.noise_seed))
     if waiting:
         signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))

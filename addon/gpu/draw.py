@@ -66,6 +66,7 @@ def object_uniforms(
     wall: tuple = (0.0, 1.0),
     glass: int = -1,
     inside: Inside | None = None,
+    noise: tuple | None = None,
 ) -> np.ndarray:
     """:data:`.layout.OBJECT` content, flat float32: model matrix, normal matrix (inverse
     transpose of its 3×3), material parameters (roughness, SH weight and a transparent film's
@@ -89,6 +90,7 @@ def object_uniforms(
         glass=[float(glass), *(float(c) for c in wall_tint(wall))],
         fit=world_fit(inside.fit, model) if inside is not None else [0.0] * 4,
         inside=[float(inside is not None and inside.drawn), 0.0, 0.0, 0.0],
+        noise=[float(noise[0]), float(noise[1]), 0.0, 0.0] if noise is not None else [0.0] * 4,
     ).reshape(-1)
 
 
@@ -99,6 +101,11 @@ def _batch_of(item):
     if isinstance(batch, MeshBatch):
         return batch.batch, batch.has_thickness, batch.thickness_map
     return batch, bool(getattr(item, "has_thickness", False)), None
+
+
+def _noise_of(item):
+    """(scale, seed) of the Noise source drawn per pixel (``MeshBatch.noise``), or None."""
+    return getattr(item.batch, "noise", None) if isinstance(item.batch, MeshBatch) else None
 
 
 class _SavedState:
@@ -203,6 +210,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thi
         grid=grid is not None,
         refract=behind is not None and transmit != 0 and int(item.wall[0]) == WALL_SOLID,
         thickness_map=thickness_map is not None,
+        thickness_noise=_noise_of(item) is not None,
     )
     if not compile_now and not shaders.compiled(variant):
         if not getattr(item, "grid_pending", False):  # a grid variant replaces it soon: not wanted
@@ -215,9 +223,10 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thi
     model = _matrix(item.model_matrix)
     glass = behind.ids.get(id(item), -1) if variant.refract else -1
     inside = getattr(item.batch, "inside", None) if variant.transmit else None  # both passes: one buffer
+    noise = _noise_of(item) if variant.thickness_noise else None
     object_ubo = uniforms.get(
-        ("object", model.tobytes(), roughness, weight, wall, glass, inside),
-        lambda: object_uniforms(model, roughness, weight, wall, glass, inside),
+        ("object", model.tobytes(), roughness, weight, wall, glass, inside, noise),
+        lambda: object_uniforms(model, roughness, weight, wall, glass, inside, noise),
     )
     table_data = table.ubo if variant.table_ubo else table.texture
     film_data = (film.ubo if variant.film_ubo else film.texture) if variant.film else None

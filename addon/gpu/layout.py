@@ -199,6 +199,11 @@ OBJECT = Block(
             None,
             "x: 1 where a closed thin wall draws its reflections inside (shading.transmit.Inside.drawn)",
         ),
+        Member(
+            "noise",
+            None,
+            "the Noise thickness source per pixel (TF_THICKNESS_NOISE, tf_noise.glsl): x scale, y seed",
+        ),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).

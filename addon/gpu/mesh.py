@@ -28,6 +28,8 @@ class MeshBatch:
     inside: Inside | None = None
     bounds: np.ndarray | None = None  # set by from_arrays, the only maker
     thickness_map: gpu.types.GPUTexture | None = None
+    #: The Noise source's (scale, seed), computed per pixel from the positions (``TF_THICKNESS_NOISE``).
+    noise: tuple | None = None
 
     @classmethod
     def from_arrays(

@@ -185,6 +185,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         info.vertex_in(3, "VEC2", "uv")
         iface.smooth("VEC2", "tf_uv")
         _declare(info, layout.THICKNESS_MAP_SAMPLER)
+    if variant.thickness_noise:
+        iface.smooth("VEC3", "tf_object_pos")
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
@@ -198,6 +200,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         roots.append("tf_split_sum.glsl")
     if variant.transmit:
         roots.append("tf_transmit.glsl")
+    if variant.thickness_noise:
+        roots.append("tf_noise.glsl")
     if variant.refract:
         roots.append("tf_glass_tails.glsl")  # and tf_glass_exit.glsl and tf_refract.glsl, which it includes
         roots.append("tf_probe.glsl")

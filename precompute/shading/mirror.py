@@ -54,6 +54,12 @@ MIRROR = (
     ),
     Mirror(("shading.sh_sum.shade_sh",), "tf_shade.glsl", ("tf_shade_at",)),
     Mirror(
+        ("materials.noise.value_noise",),
+        "tf_noise.glsl",
+        ("tf_noise_hash01", "tf_value_noise"),
+        glsl_note="the Noise thickness source per pixel (`TF_THICKNESS_NOISE`)",
+    ),
+    Mirror(
         (
             "shading.split_sum.shade_split_sum",
             "shading.split_sum.shade_combined",

@@ -69,6 +69,9 @@ class Variant(NamedTuple):
     #: With ``vary_thickness``: the thickness parameter read per pixel from the batch's thickness
     #: map at its UVs (``TF_THICKNESS_MAP``; addon/thickness/maps.py), not from the corners.
     thickness_map: bool = False
+    #: With ``vary_thickness``: the Noise source computed per pixel from the object-space position
+    #: (``TF_THICKNESS_NOISE``, tf_noise.glsl: materials.noise.value_noise), not from the corners.
+    thickness_noise: bool = False
 
     @property
     def film(self) -> bool:
@@ -101,7 +104,19 @@ class Variant(NamedTuple):
             bool(self.grid and not self.split_only),
             bool(self.refract and int(self.transmit) in TRANSMIT_PASSES),
             bool(self.vary_thickness and self.thickness_map),
+            bool(self.vary_thickness and self.thickness_noise),
         )
+
+    def _thickness_switches(self) -> list[tuple[str, str]]:
+        """A varying thickness's ``#define``s: over the rows, and read per pixel (map or noise)."""
+        if not self.vary_thickness:
+            return []
+        out = [("TF_VARY_THICKNESS", "1")]
+        if self.thickness_map:
+            out.append(("TF_THICKNESS_MAP", "1"))
+        if self.thickness_noise:
+            out.append(("TF_THICKNESS_NOISE", "1"))
+        return out
 
     def _display_switches(self) -> list[tuple[str, str]]:
         """The display encoding's ``#define``s: Standard sRGB, and the scene's view LUT."""
@@ -120,10 +135,7 @@ class Variant(NamedTuple):
         out = [("TF_L_MAX", str(int(self.l_max)))]
         if self.spectral:
             out.append(("TF_SPECTRAL", "1"))
-        if self.vary_thickness:
-            out.append(("TF_VARY_THICKNESS", "1"))
-            if self.thickness_map:
-                out.append(("TF_THICKNESS_MAP", "1"))
+        out += self._thickness_switches()
         out += self._display_switches()
         if self.split_sum:
             out.append(("TF_SPLIT_SUM", "1"))
@@ -169,6 +181,7 @@ def choose_variant(
     grid: bool = False,
     refract: bool = False,
     thickness_map: bool = False,
+    thickness_noise: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -190,7 +203,8 @@ def choose_variant(
       policy.uses_grid says so (constant thickness, l_max ≥ GRID_MIN_L, an SH half drawn).
     - ``refract``: solid glass over a scene-behind texture (the headless frame's background pass):
       its passes march the exit ray over it (shading/glass/refract.py).
-    - ``thickness_map``: the batch carries a thickness map and UVs (with a varying thickness).
+    - ``thickness_map``: the batch carries a thickness map and UVs (with a varying thickness);
+      ``thickness_noise``: its thickness is the Noise source, computed per pixel.
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -213,6 +227,7 @@ def choose_variant(
         grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
         refract=bool(refract) and bool(film) and int(transmit) in TRANSMIT_PASSES,
         thickness_map=vary and bool(thickness_map),
+        thickness_noise=vary and bool(thickness_noise),
     )
 
 

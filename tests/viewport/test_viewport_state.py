@@ -191,6 +191,7 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene):
     expected = tf.thickness.thickness_per_vertex(obj, obj.data, settings)
     np.testing.assert_array_equal(first, expected.astype(np.float32))  # what the draw uploads
     entry, builds = sd.batch_entry("Sheet"), sd.CACHES.stats["batch_builds"]
+    assert sd.batch_entry("Sheet").batch.noise == (2.0, 1)  # and per pixel (TF_THICKNESS_NOISE)
 
     collect(bpy, tf)  # nothing changed: nothing rebuilt
     assert sd.CACHES.stats["batch_builds"] == builds and sd.batch_entry("Sheet") is entry
@@ -209,6 +210,7 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene):
     settings.noise_seed = 2
     collect(bpy, tf)
     assert sd.CACHES.stats["batch_builds"] == builds + 2
+    assert sd.batch_entry("Sheet").batch.noise == (5.0, 2)
     assert np.abs(uploaded(tf, "Sheet") - scaled).max() > 0.05
 
 
