@@ -161,24 +161,11 @@ def _node_settings(node) -> list:
     return out
 
 
-def _upstream(socket):
-    """The nodes feeding ``socket`` (through any depth), in a stable order."""
-    seen, order, stack = set(), [], [link.from_node for link in socket.links if link.is_valid]
-    while stack:
-        node = stack.pop()
-        if node.name in seen:
-            continue
-        seen.add(node.name)
-        order.append(node)
-        stack.extend(link.from_node for inp in node.inputs for link in inp.links if link.is_valid)
-    return sorted(order, key=lambda n: n.name)
-
-
 def tree_key(socket) -> str:
     """A hash of everything that decides the value reaching ``socket``: the upstream nodes'
     types and settings, their unlinked input values, the links between them, images' identity."""
     parts = []
-    for node in _upstream(socket):
+    for node in linked_nodes.upstream(socket):
         parts.append((node.name, _node_settings(node)))
         for inp in node.inputs:
             if inp.is_linked:

@@ -19,6 +19,7 @@ __all__ = [
     "link_map",
     "link_values",
     "sample",
+    "upstream",
     "uv_layer",
 ]
 
@@ -278,18 +279,22 @@ def link_values(mesh, socket) -> tuple[np.ndarray, list[str], int]:
     return _as_float(_output(link.from_node, link.from_socket, ctx)), ctx.notes, ctx.n
 
 
-def _images(socket) -> list:
-    """The Image Texture nodes upstream of ``socket`` (through any depth)."""
-    seen, found, stack = set(), [], [link.from_node for link in socket.links if link.is_valid]
+def upstream(socket) -> list:
+    """The nodes feeding ``socket`` (through any depth), sorted by name (a stable order)."""
+    seen, order, stack = set(), [], [link.from_node for link in socket.links if link.is_valid]
     while stack:
         node = stack.pop()
         if node.name in seen:
             continue
         seen.add(node.name)
-        if node.bl_idname == "ShaderNodeTexImage" and node.image is not None:
-            found.append(node)
+        order.append(node)
         stack.extend(link.from_node for inp in node.inputs for link in inp.links if link.is_valid)
-    return found
+    return sorted(order, key=lambda n: n.name)
+
+
+def _images(socket) -> list:
+    """The Image Texture nodes with an image upstream of ``socket``."""
+    return [n for n in upstream(socket) if n.bl_idname == "ShaderNodeTexImage" and n.image is not None]
 
 
 def link_map(mesh, socket) -> tuple[np.ndarray, list[str], str, bool] | None:

@@ -725,25 +725,42 @@ def test_mesh_arrays_of_a_smooth_sphere_and_attributes(gd, bpy):
         gd.mesh.MeshBatch.from_arrays(np.zeros((3, 3)), np.zeros((3, 3)), [[0, 1, 3]])
 
 
-def test_varying_thickness_attribute_reaches_the_shader(gd, bpy):
-    """A flat quad facing the camera whose thickness runs 0 → 1 left to right."""
+#: A 2 × 2 quad at the origin facing the camera (−y): corners, normals, triangles; with
+#: orthographic(1.0) it fills the frame.
+QUAD_POS = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
+QUAD_NOR = np.tile([0.0, -1.0, 0.0], (4, 1))
+QUAD_TRIS = [[0, 1, 2], [0, 2, 3]]
+
+
+def facing_quad(gd, width, height, **batch_options):
+    """(the :data:`QUAD_POS` quad's MeshBatch, its render (width × height, top row first) with a
+    varying-thickness table, the numpy shading of thickness parameters t01 (N,) at normal
+    incidence); ``batch_options``: ``thickness`` per corner and MeshBatch.from_arrays's others,
+    ``noise`` the batch's Noise source (scale, seed)."""
     result = baked(2, "per_channel", True)
     table = gd.resources.TableTexture.from_result(result)
     world, _img = world_sh()
     lighting = gd.resources.Lighting.from_sh(world, 2, result.material.roughness)
-    pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
-    nor = np.tile([0.0, -1.0, 0.0], (4, 1))
-    thickness = np.array([0.0, 1.0, 1.0, 0.0])
-    batch = gd.mesh.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]], thickness)
-    half = 1.0
-    img = gd.draw.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(half), 32, 4)
-    xs = ((np.arange(32) + 0.5) / 32 * 2 - 1) * half
-    t01 = (xs + 1) / 2
-    thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
-    n = np.tile([0.0, -1.0, 0.0], (32, 1))
-    expected = sh_sum.shade_sh(result, lighting.coefficients, n, n, thick_nm)
-    got = img[1, :, :3]
-    assert np.max(np.abs(got - expected)) / np.max(expected) < 1e-4
+    noise = batch_options.pop("noise", None)
+    thickness = batch_options.pop("thickness")
+    batch = gd.mesh.MeshBatch.from_arrays(QUAD_POS, QUAD_NOR, QUAD_TRIS, thickness, **batch_options)
+    batch.noise = noise
+    img = gd.draw.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(1.0), width, height)
+
+    def expected(t01):
+        thick_nm = THICKNESS_RANGE[0] + np.asarray(t01) * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
+        n = np.tile([0.0, -1.0, 0.0], (thick_nm.size, 1))
+        return sh_sum.shade_sh(result, lighting.coefficients, n, n, thick_nm)
+
+    return batch, img, expected
+
+
+def test_varying_thickness_attribute_reaches_the_shader(gd, bpy):
+    """A flat quad facing the camera whose thickness runs 0 → 1 left to right."""
+    _, img, expected = facing_quad(gd, 32, 4, thickness=np.array([0.0, 1.0, 1.0, 0.0]))
+    t01 = (np.arange(32) + 0.5) / 32
+    want = expected(t01)
+    assert np.max(np.abs(img[1, :, :3] - want)) / np.max(want) < 1e-4
 
 
 @pytest.mark.parametrize("texels", [32, 8])
@@ -752,31 +769,17 @@ def test_thickness_map_is_read_per_pixel(gd, bpy, texels):
     up and down along u: each pixel shades the map's bilinear value at its UV (``TF_THICKNESS_MAP``),
     not the corners'. 32 texels: one per pixel, read at its centre; 8: four pixels per texel,
     between centres (the GPU's linear filter)."""
-    result = baked(2, "per_channel", True)
-    table = gd.resources.TableTexture.from_result(result)
-    world, _img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(world, 2, result.material.roughness)
-    pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
-    nor = np.tile([0.0, -1.0, 0.0], (4, 1))
     uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     centres = (np.arange(texels) + 0.5) / texels
     row = 0.5 + 0.45 * np.sin(2 * np.pi * 2.5 * centres) * np.cos(2 * np.pi * 0.7 * centres)
     values = np.tile(row, (3, 1))  # three rows of v, all alike
     thickness = np.full(4, 0.5)
-    tris = [[0, 1, 2], [0, 2, 3]]
-    batch = gd.mesh.MeshBatch.from_arrays(pos, nor, tris, thickness, thickness_map=(uv, values, False))
-    plain = gd.mesh.MeshBatch.from_arrays(pos, nor, tris, thickness)
+    batch, img, shade = facing_quad(gd, 32, 4, thickness=thickness, thickness_map=(uv, values, False))
+    plain, flat, _ = facing_quad(gd, 32, 4, thickness=thickness)
     assert batch.thickness_map is not None and plain.thickness_map is None
-    half = 1.0
-    img = gd.draw.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(half), 32, 4)
-    flat = gd.draw.render_offscreen([Item(plain, table, lighting)], VIEW, orthographic(half), 32, 4)
     u = (np.arange(32) + 0.5) / 32
-    t01 = np.interp(u, centres, row)  # bilinear along u, edges extended; v constant
-    thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
-    n = np.tile([0.0, -1.0, 0.0], (32, 1))
-    expected = sh_sum.shade_sh(result, lighting.coefficients, n, n, thick_nm)
-    got = img[1, :, :3]
-    err = np.max(np.abs(got - expected)) / np.max(expected)
+    expected = shade(np.interp(u, centres, row))  # bilinear along u, edges extended; v constant
+    err = np.max(np.abs(img[1, :, :3] - expected)) / np.max(expected)
     # Measured on llvmpipe: 2.6e-7 (32 texels) and 2.5e-7 (8), float32 rounding: its linear
     # filter weighs in float. A GPU that weighs with 8 fractional bits errs by up to 1/256 of a
     # texel step in thickness; a wrong row, UV or channel shows up as ≥ 1e-2.
@@ -789,24 +792,15 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy):
     """The Noise source per pixel (``TF_THICKNESS_NOISE``, tf_noise.glsl): a quad facing the
     camera filling a 32² orthographic frame, each pixel shaded at materials.noise.value_noise of
     its object-space position, where the corners alone would interpolate four values."""
-    result = baked(2, "per_channel", True)
-    table = gd.resources.TableTexture.from_result(result)
-    world, _img = world_sh()
-    lighting = gd.resources.Lighting.from_sh(world, 2, result.material.roughness)
-    pos = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
-    nor = np.tile([0.0, -1.0, 0.0], (4, 1))
-    scale, seed = 3.7, 5
-    batch = gd.mesh.MeshBatch.from_arrays(pos, nor, [[0, 1, 2], [0, 2, 3]], value_noise(pos, scale, seed))
-    batch.noise = (scale, seed)
-    size = 32
-    img = gd.draw.render_offscreen([Item(batch, table, lighting)], VIEW, orthographic(1.0), size, size)
+    scale, seed, size = 3.7, 5, 32
+    _, img, shade = facing_quad(
+        gd, size, size, thickness=value_noise(QUAD_POS, scale, seed), noise=(scale, seed)
+    )
     centres = (np.arange(size) + 0.5) / size * 2 - 1
     z, x = np.meshgrid(-centres, centres, indexing="ij")  # top row first: z from +1 down
     points = np.stack([x, np.zeros_like(x), z], axis=-1).reshape(-1, 3)
     t01 = value_noise(points, scale, seed)
-    thick_nm = THICKNESS_RANGE[0] + t01 * (THICKNESS_RANGE[1] - THICKNESS_RANGE[0])
-    n = np.tile([0.0, -1.0, 0.0], (points.shape[0], 1))
-    expected = sh_sum.shade_sh(result, lighting.coefficients, n, n, thick_nm)
+    expected = shade(t01)
     got = img[..., :3].reshape(-1, 3)
     per_pixel = np.max(np.abs(got - expected), axis=-1) / np.max(expected)
     # Measured on llvmpipe: max 3.0e-6, median 3.4e-7 (float32 positions and fade; the hash is
@@ -848,11 +842,7 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
 def tilted_quad_item(gd, table, lighting):
     """A 2×2 quad facing −y, tilted 35° about x and 25° about z: many view angles in one frame."""
     return Item(
-        gd.mesh.MeshBatch.from_arrays(
-            np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], np.float32),
-            np.tile([0.0, -1.0, 0.0], (4, 1)),
-            [[0, 1, 2], [0, 2, 3]],
-        ),
+        gd.mesh.MeshBatch.from_arrays(QUAD_POS, QUAD_NOR, QUAD_TRIS),
         table,
         lighting,
         rotation(0, 35.0) @ rotation(2, 25.0),

@@ -499,15 +499,21 @@ def test_a_noise_thickness_map_is_made_by_the_timer_once_edits_settle(bpy, tf, s
     redraws, and the next frame's batch reads the thickness per pixel."""
     vp, linked, maps = tf.viewport, tf.linked, tf.maps
     mat = bpy.data.materials.new("Noise film")
-    s = mat.thinfilm_sh
-    s.preset = "SOAP_FILM"
-    s.enabled = True
-    s.transparency = "OPAQUE"
-    s.roughness = 0.4
-    s.sh_order, s.view_samples, s.thickness_samples, s.wavelength_count = "2", 4, 4, 32
-    s.vary_thickness = True
-    s.thickness_source = "BLENDER_NOISE"
-    s.noise_scale = 4.0
+    settings = {  # a tiny-quality opaque soap film whose thickness is Blender's Noise Texture
+        "preset": "SOAP_FILM",
+        "enabled": True,
+        "transparency": "OPAQUE",
+        "roughness": 0.4,
+        "sh_order": "2",
+        "view_samples": 4,
+        "thickness_samples": 4,
+        "wavelength_count": 32,
+        "vary_thickness": True,
+        "thickness_source": "BLENDER_NOISE",
+        "noise_scale": 4.0,
+    }
+    for name, value in settings.items():  # in this order: the preset first
+        setattr(mat.thinfilm_sh, name, value)
     bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12)
     sphere = bpy.context.active_object
     sphere.data.materials.append(mat)
