@@ -468,7 +468,8 @@ def report(res: dict) -> str:
         "| dispersion | an index depends on λ (Cauchy B/C ≠ 0, Sellmeier, tables, metals) | the model is"
         " evaluated per wavelength; off: `ConstantIndex` only, no model runs |",
         "| thickness_axis | the top layer's thickness varies | a 2-D table (T rows), `TF_VARY_THICKNESS`"
-        " (4 taps instead of 2), a per-vertex thickness attribute; off: a 1-D table (T = 1) |",
+        " (4 taps instead of 2), a per-vertex thickness attribute (per pixel: `TF_THICKNESS_MAP`,"
+        " `TF_THICKNESS_NOISE`); off: a 1-D table (T = 1) |",
         "| illuminant_lines | a fluorescent illuminant (FL1–FL12) | one wavelength node per emission line"
         " (Composite Model) |",
         "| diffuse_base | a base colour under the film | the diffuse kernel and film transmission on the"

@@ -287,7 +287,8 @@ def material_plan(
         lo, hi = material.thickness_range_nm
         reasons["thickness_axis"] = (
             f"top layer varies {lo:g}–{hi:g} nm: 2-D table with {p.thickness_samples} rows, "
-            "shader TF_VARY_THICKNESS (4 taps) and a per-vertex thickness attribute"
+            "shader TF_VARY_THICKNESS (4 taps) and a per-vertex thickness attribute (read per pixel "
+            "from a thickness map or the Noise source where one drives it)"
         )
     else:
         reasons["thickness_axis"] = "constant thickness: 1-D table (T = 1), 2 taps per coefficient"
