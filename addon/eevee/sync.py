@@ -31,7 +31,7 @@ from ...precompute.bakes import eevee_table
 from ...precompute.world import prefilter
 from .. import caches, workers
 from ..bakes import bake_helper, tables
-from ..thickness import linked
+from ..thickness import linked, maps
 from ..world import world_state
 from . import image as film_image_store
 from . import lights as light_objects
@@ -58,6 +58,7 @@ POLL_S = 0.02
 WORLD_POLL_S = 0.5
 _world_key: str | None = None  # the World analysis the films were last read with
 _lights_signature: tuple | None = None  # the light objects they were last read with (.lights)
+_maps_seen = 0  # thickness maps made when the films were last read (maps.STATS["made"])
 #: The EEVEE films' background work: one worker job (key :data:`_WORKER`) that drains
 #: :data:`_queue`. Its lock guards the dictionaries below (never held while the worker computes).
 WORK = workers.Lane("EEVEE film")
@@ -313,10 +314,13 @@ def _service() -> float | None:
     scene = bpy.context.scene
     world = world_of(scene)
     current = None if world is None else world.key
-    global _world_key, _lights_signature
+    global _world_key, _lights_signature, _maps_seen
     lit = light_objects.signature(scene)
-    if current != _world_key or lit != _lights_signature:  # a new World analysis or a light edit
-        _world_key, _lights_signature = current, lit
+    made = maps.STATS["made"]
+    # a new World analysis, a light edit, or a thickness map (made by the viewport's timer once
+    # edits settled: it may widen a textured thickness's range, the rows of the film's table)
+    if current != _world_key or lit != _lights_signature or made != _maps_seen:
+        _world_key, _lights_signature, _maps_seen = current, lit, made
         names = sorted(set(names) | {m.name for m in bpy.data.materials if nodes.find(m.node_tree)[0]})
     lights = light_objects.SceneLights(scene) if names else None  # read once for them all
     unknown = []

@@ -38,9 +38,11 @@ __all__ = [
     "MAPS",
     "PENDING",
     "SETTLE_S",
+    "STATS",
     "ThicknessMap",
     "agrees",
     "field_map",
+    "inline_allowed",
     "make",
     "parameters",
     "run_settled",
@@ -153,6 +155,14 @@ MAPS = caches.register("thickness_maps", caches.LRU(16), scope=caches.FILE)
 PENDING = workers.Deferred("thickness maps")
 SETTLE_S = 0.5
 _map_asked: dict = {}  # key → time.monotonic() of the first ask
+#: Maps made so far: a reader of the thickness range (the EEVEE film) reads it again when it grows.
+STATS = {"made": 0}
+
+
+def inline_allowed() -> bool:
+    """Whether a map is made where it is asked for: in background mode (a headless render,
+    ``blender -b``), where nothing waits for the main thread; else the viewport's timer makes it."""
+    return bool(bpy.app.background)
 
 
 def field_map(cache_key, name: str, make, defer: bool):
@@ -164,7 +174,7 @@ def field_map(cache_key, name: str, make, defer: bool):
     made = MAPS.get(cache_key)
     if made is not None:
         return made[0], made[1], False
-    if defer or not bpy.app.background:
+    if defer or not inline_allowed():
         _map_asked.setdefault(cache_key, time.monotonic())
         PENDING.defer(("map", name, cache_key), lambda: _make_map(cache_key, make))
         return None, None, True
@@ -179,6 +189,7 @@ def _make_map(cache_key, make):
     except (ValueError, RuntimeError, Unsupported) as exc:
         made = (None, f"no map per pixel ({exc}): per corner")
     MAPS[cache_key] = made
+    STATS["made"] += 1
     return made
 
 

@@ -470,3 +470,44 @@ def test_a_glossy_film_under_a_sun_weighs_it_against_the_world(bpy, ext):
     assert share[cosine < np.cos(np.radians(30.0))].max() < 0.01, "away from the sun the World holds the lobe"
     nearest = np.unravel_index(np.argmax(cosine), cosine.shape)
     assert share[nearest] > 0.95 and c[nearest] @ toward > np.cos(np.radians(1.0))
+
+
+def test_a_thickness_map_made_later_widens_the_films_rows(bpy, ext, monkeypatch):
+    """Outside background mode a thickness map is made by the viewport's timer once edits
+    settle, not where the EEVEE sync reads the film's range: the film is first written with the
+    corners' range (a Noise Texture's peaks between the corners of a coarse sphere left out),
+    and the sync's timer reads every film again when a map has been made, so its rows widen."""
+    maps, linked = ext.sync.maps, ext.sync.linked
+    monkeypatch.setattr(maps, "inline_allowed", lambda: False)  # as in the interface
+    monkeypatch.setattr(maps, "SETTLE_S", 0.0)
+    scene = eevee_scene(bpy)
+    mat = bpy.data.materials.new("noise film")
+    tree = mat.node_tree
+    bsdf = tree.nodes["Principled BSDF"]
+    bsdf.inputs["Roughness"].default_value = 0.4
+    bsdf.inputs["Thin Film Thickness"].default_value = 0.0
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 6.0
+    ranged = tree.nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 150.0, 850.0
+    tree.links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    tree.links.new(ranged.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
+    bpy.context.active_object.data.materials.append(mat)
+    world = ext.sync.world_of(scene)
+    assert ext.sync.sync_material(mat, scene, world=world) == "written"
+    for _ in range(2):  # the sync's timer settles (its World, lights and maps seen), nothing to do
+        ext.sync._service()
+        assert ext.sync.wait_idle(120.0)
+    corners = ext.source.spec(mat, scene, world).film.thickness_range_nm
+    written = ext.sync._current_key(mat)
+    assert linked.has_pending(), "the map is queued, not made in the sync"
+    assert linked.run_pending() == [] and not linked.has_pending()  # the viewport's timer
+    widened = ext.source.spec(mat, scene, world).film.thickness_range_nm
+    assert widened[0] < corners[0] - 1.0 or widened[1] > corners[1] + 1.0, (corners, widened)
+    with ext.sync._lock:
+        ext.sync._dirty.clear()  # no edit: only the map is new
+    ext.sync._service()  # the sync's timer: a map was made, every film is read again
+    assert ext.sync.wait_idle(120.0), "the worker must finish the film's table"
+    ext.sync._service()
+    assert ext.sync._current_key(mat) == ext.source.spec(mat, scene, world).key != written
