@@ -337,6 +337,9 @@ def _service() -> float | None:
             log.error("Thin Film SH: linked thickness: %s", error)
         with _lock:
             _dirty.update(unknown)  # known now: read again at the next tick
+    elif linked.has_pending():  # thickness maps, once edits settled (no viewport may draw them)
+        for error in linked.run_pending():
+            log.error("Thin Film SH: thickness map: %s", error)
     _finish()
     if pending():
         return POLL_S
