@@ -377,7 +377,8 @@ def noise_parameters(obj, mesh, bpy_material):
     def make():
         return bake_map(bpy.data.objects[name], lambda: _noise_material(props), found.values)
 
-    found_map, _, waiting = maps.field_map(cache_key, name, make, defer=_defer or _maps_later)
+    job = (name, bpy_material.name, "Blender Noise")
+    found_map, _, waiting = maps.field_map(cache_key, job, make, defer=_defer or _maps_later)
     return np.clip(found.values, 0.0, 1.0), 0, _batch_map(found_map, (0.0, 1.0)), waiting
 
 
@@ -519,7 +520,8 @@ def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
             bpy.data.objects[name], lambda: _bake_material(bpy_material, node_name, socket_id), found.values
         )
 
-    return maps.field_map(_field_key(name, mesh, key), name, make, defer=_defer or _maps_later)
+    job = (name, bpy_material.name, "linked")
+    return maps.field_map(_field_key(name, mesh, key), job, make, defer=_defer or _maps_later)
 
 
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):

@@ -165,18 +165,19 @@ def inline_allowed() -> bool:
     return bool(bpy.app.background)
 
 
-def field_map(cache_key, name: str, make, defer: bool):
+def field_map(cache_key, job: tuple, make, defer: bool):
     """(the map of the field under ``cache_key`` or None, why not or None, whether it is being
     waited for): made by ``make()`` → (map or None, why) now in background mode (a headless
     render, ``blender -b``: nothing waits for the main thread), else queued for the viewport's
     timer (:func:`.linked.run_pending`); a draw, a panel or an EEVEE sync draws the corners
-    meanwhile."""
+    meanwhile. ``job`` names what the map is of, (object name, material, source), not its
+    content: a newer field's map replaces a queued one, so a dragged slider makes one map."""
     made = MAPS.get(cache_key)
     if made is not None:
         return made[0], made[1], False
     if defer or not inline_allowed():
         _map_asked.setdefault(cache_key, time.monotonic())
-        PENDING.defer(("map", name, cache_key), lambda: _make_map(cache_key, make))
+        PENDING.defer(("map", *job), lambda: _make_map(cache_key, make))
         return None, None, True
     return (*_make_map(cache_key, make), False)
 

@@ -230,7 +230,8 @@ def test_a_noise_thickness_map_holds_the_noise_between_the_corners(bpy, tf):
 def test_the_draw_draws_the_corners_and_the_timer_makes_the_map_once_edits_settle(bpy, tf, monkeypatch):
     """Inside the draw a map is never made: the film is drawn per corner at once and the map is
     queued; the timer leaves it queued until the key has waited SETTLE_S (a slider being
-    dragged), then makes it (a 1024² bake: ≈ 0.5 s of the main thread), and the next frame has it."""
+    dragged: a newer field's map replaces the queued one), then makes it (a 1024² bake: ≈ 0.5 s
+    of the main thread), and the next frame has it."""
     mat = _noise_material(bpy, scale=5.0)
     _sphere(bpy, mat)
     before = tf.linked.STATS["image_bakes"]
@@ -247,6 +248,14 @@ def test_the_draw_draws_the_corners_and_the_timer_makes_the_map_once_edits_settl
     monkeypatch.setattr(tf.linked.maps, "SETTLE_S", 3600.0)
     tf.linked.run_pending()
     assert tf.linked.STATS["image_bakes"] == before and tf.linked.has_pending(), "not settled: kept"
+    for scale in (5.5, 6.0):  # a slider dragged on: each step's corners, the maps still unsettled
+        mat.node_tree.nodes["Noise"].inputs["Scale"].default_value = scale
+        for _ in range(2):  # the corners' bake is queued, then run; the next frame queues the map
+            with tf.linked.deferring():
+                tf.description.description(mat)
+                tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+            tf.linked.run_pending()
+    assert tf.linked.STATS["image_bakes"] == before and tf.linked.pending_count() == 1, "one map queued"
     monkeypatch.setattr(tf.linked.maps, "SETTLE_S", 0.0)
     assert tf.linked.run_pending() == []
     assert tf.linked.STATS["image_bakes"] == before + 1 and not tf.linked.has_pending()
