@@ -57,7 +57,8 @@ def tag_view3d() -> None:
     """Tag every 3D view of every window for a redraw (none in background mode).
 
     Shared by the viewport's timer (:mod:`.drawing.viewport`), the radiance-grid worker's timer
-    (:mod:`.bakes.radiance_grids`) and the idle shader compile (:mod:`.drawing.shader_warmup`);
+    (:mod:`.bakes.radiance_grids`), the idle shader compile (:mod:`.drawing.shader_warmup`) and
+    the EEVEE sync's timer when it made a thickness map (:mod:`.eevee.sync`);
     each imports it as its own ``_tag_redraw``, so a test or benchmark can replace one module's.
     """
     for window in getattr(bpy.context.window_manager, "windows", []):

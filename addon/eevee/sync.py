@@ -32,6 +32,7 @@ from ...precompute.world import prefilter
 from .. import caches, workers
 from ..bakes import bake_helper, tables
 from ..thickness import linked, maps
+from ..workers import tag_view3d as _tag_redraw
 from ..world import world_state
 from . import image as film_image_store
 from . import lights as light_objects
@@ -338,8 +339,11 @@ def _service() -> float | None:
         with _lock:
             _dirty.update(unknown)  # known now: read again at the next tick
     elif linked.has_pending():  # thickness maps, once edits settled (no viewport may draw them)
+        queued = linked.pending_count()
         for error in linked.run_pending():
             log.error("Thin Film SH: thickness map: %s", error)
+        if linked.pending_count() < queued:
+            _tag_redraw()  # the overlay's batches read the new map at their next frame
     _finish()
     if pending():
         return POLL_S

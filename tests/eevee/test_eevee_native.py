@@ -506,8 +506,11 @@ def test_a_thickness_map_made_later_widens_the_films_rows(bpy, ext, monkeypatch)
     assert linked.has_pending(), "the map is queued, not made in the sync"
     with ext.sync._lock:
         ext.sync._dirty.clear()
+    redraws = []
+    monkeypatch.setattr(ext.sync, "_tag_redraw", lambda: redraws.append(1))
     ext.sync._service()  # the sync's timer makes it (a session that never draws the overlay)
     assert not linked.has_pending()
+    assert redraws, "a map was made but the 3D views were not asked to redraw (the overlay reads it)"
     widened = ext.source.spec(mat, scene, world).film.thickness_range_nm
     assert widened[0] < corners[0] - 1.0 or widened[1] > corners[1] + 1.0, (corners, widened)
     with ext.sync._lock:
