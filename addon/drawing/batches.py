@@ -18,7 +18,14 @@ import numpy as np
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
-from ..thickness.thickness import NAN_PARAMETER, image_map, non_finite_note, thickness_field, thickness_inputs
+from ..thickness.thickness import (
+    NAN_PARAMETER,
+    image_map,
+    image_source,
+    non_finite_note,
+    thickness_field,
+    thickness_inputs,
+)
 
 __all__ = ["BatchEntry", "batch_thickness", "slot_batch", "thickness_source"]
 
@@ -72,8 +79,9 @@ def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
                 obj_eval, mesh, props.id_data
             )
         elif props is not None and props.enabled:
-            thickness, nan_count = thickness_field(obj_eval, mesh, props)
-            thickness_map = image_map(obj_eval, mesh, props)
+            image = image_source(obj_eval, mesh, props)  # the pixels, read once for both
+            thickness, nan_count = thickness_field(obj_eval, mesh, props, image)
+            thickness_map = image_map(obj_eval, mesh, props, image)
         elif linked_source is not None:
             thickness, nan_count, thickness_map, waiting = linked.corner_parameters(
                 obj_eval, mesh, *linked_source, desc.thickness_range_nm

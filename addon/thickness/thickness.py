@@ -29,6 +29,7 @@ __all__ = [
     "NAN_PARAMETER",
     "corner_order",
     "image_map",
+    "image_source",
     "image_stamp",
     "thickness_field",
     "thickness_inputs",
@@ -138,23 +139,12 @@ def _image_source(obj, mesh, image, uv_map: str) -> tuple[np.ndarray, np.ndarray
     return first, uv
 
 
-def _image_values(obj, mesh, image, uv_map: str) -> np.ndarray:
-    first, uv = _image_source(obj, mesh, image, uv_map)
-    height, width = first.shape
-    # Bilinear between pixel centres ((i + ½)/W, (j + ½)/H), repeating like Image Texture's default.
-    x = uv[:, 0] * width - 0.5
-    y = uv[:, 1] * height - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = x - x0, y - y0
-    x0 = x0.astype(np.int64) % width
-    y0 = y0.astype(np.int64) % height
-    x1, y1 = (x0 + 1) % width, (y0 + 1) % height
-    return (
-        first[y0, x0] * (1 - fx) * (1 - fy)
-        + first[y0, x1] * fx * (1 - fy)
-        + first[y1, x0] * (1 - fx) * fy
-        + first[y1, x1] * fx * fy
-    )
+def image_source(obj, mesh, props) -> tuple[np.ndarray, np.ndarray] | None:
+    """(the IMAGE source's first channel (H, W), the corners' UVs (N, 2)), its pixels read once
+    for :func:`thickness_field` and :func:`image_map`, or None for another source."""
+    if not props.vary_thickness or props.thickness_source != "IMAGE":
+        return None
+    return _image_source(obj, mesh, props.thickness_image, props.thickness_uv_map)
 
 
 def _pixel_print(image) -> int:
@@ -202,15 +192,17 @@ def thickness_inputs(props):
     return (source,)
 
 
-def image_map(obj, mesh, props):
+def image_map(obj, mesh, props, image=None):
     """The IMAGE source per pixel: (the corners' UVs (N, 2) float32, the image's first channel as
     the parameter map (H, W) in [0, 1] float32 (NaN at :data:`NAN_PARAMETER`), True: it
     repeats) for the batch (:mod:`.maps`, ``TF_THICKNESS_MAP``), or None for another source.
-    An image larger than :data:`.linked_nodes.MAP_MAX_SIZE` a side is read at that many texel
-    centres. Raises ValueError as :func:`thickness_field` does."""
-    if not props.vary_thickness or props.thickness_source != "IMAGE":
+    ``image``: :func:`image_source`'s, already read. An image larger than
+    :data:`.linked_nodes.MAP_MAX_SIZE` a side is read at that many texel centres. Raises
+    ValueError as :func:`thickness_field` does."""
+    image = image_source(obj, mesh, props) if image is None else image
+    if image is None:
         return None
-    first, uv = _image_source(obj, mesh, props.thickness_image, props.thickness_uv_map)
+    first, uv = image
     height, width = first.shape
     if max(height, width) > MAP_MAX_SIZE:
         height, width = min(height, MAP_MAX_SIZE), min(width, MAP_MAX_SIZE)
@@ -243,9 +235,10 @@ def _where(obj, mesh) -> str:
     return f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
 
 
-def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
+def thickness_field(obj, mesh, props, image=None) -> tuple[np.ndarray | None, int]:
     """(per-corner (loop) thickness parameter in [0, 1], how many values were not finite), or
-    (None, 0) when the thickness is constant.
+    (None, 0) when the thickness is constant. ``image``: the IMAGE source's
+    :func:`image_source`, already read (the batch reads its pixels once for the map too).
 
     The top layer's thickness at a corner is min + value·(max − min). Sources:
 
@@ -278,8 +271,9 @@ def thickness_field(obj, mesh, props) -> tuple[np.ndarray | None, int]:
         mesh.vertices.foreach_get("co", co)
         per_vertex = value_noise(co.reshape(-1, 3), props.noise_scale, props.noise_seed)
         values = per_vertex[_corner_vertices(mesh)]
-    elif source == "IMAGE":
-        values = _image_values(obj, mesh, props.thickness_image, props.thickness_uv_map)
+    elif source == "IMAGE":  # bilinear between pixel centres, repeating as Image Texture does
+        first, uv = image_source(obj, mesh, props) if image is None else image
+        values = sample(first[..., None], uv, False, True)[:, 0]
     elif source == "BLENDER_NOISE":  # a Cycles bake: .linked.noise_parameters, on the main thread
         raise ValueError(f"{where}: thickness source BLENDER_NOISE is evaluated by linked.noise_parameters")
     else:
