@@ -19,6 +19,7 @@ __all__ = [
     "link_map",
     "link_values",
     "sample",
+    "texel_centres",
     "upstream",
     "uv_layer",
 ]
@@ -76,6 +77,13 @@ class _Context:
         return corner_uv(self.mesh, uv_layer(self.mesh, name))
 
 
+def texel_centres(height: int, width: int) -> np.ndarray:
+    """UVs ((i + ½)/W, (j + ½)/H) of a (height, width) map's texel centres, (H·W, 2), row-major
+    from v = 0."""
+    u, v = np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height)
+    return np.stack([u.ravel(), v.ravel()], axis=1)
+
+
 class _GridContext(_Context):
     """The direct evaluator at the texel centres of a (height, width) map over UV map ``layer``
     instead of at the mesh's corners (:func:`link_map`)."""
@@ -86,8 +94,7 @@ class _GridContext(_Context):
         height, width = shape
         self.n = height * width
         self.notes = []
-        u, v = np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height)
-        self.grid = np.stack([u.ravel(), v.ravel()], axis=1)
+        self.grid = texel_centres(height, width)
 
     def uv(self, name: str) -> np.ndarray:
         if uv_layer(self.mesh, name).name != self.layer:

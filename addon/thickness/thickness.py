@@ -22,7 +22,7 @@ import numpy as np
 from ...precompute.materials.noise import value_noise
 from .. import caches
 from ..world.world_key import describe_image
-from .linked_nodes import MAP_MAX_SIZE, sample
+from .linked_nodes import MAP_MAX_SIZE, sample, texel_centres
 
 __all__ = [
     "IMAGE_RECHECK_S",
@@ -206,9 +206,8 @@ def image_map(obj, mesh, props, image=None):
     height, width = first.shape
     if max(height, width) > MAP_MAX_SIZE:
         height, width = min(height, MAP_MAX_SIZE), min(width, MAP_MAX_SIZE)
-        u, v = np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height)
-        grid = np.stack([u.ravel(), v.ravel()], axis=1)
-        first = sample(first[..., None], grid, False, True)[:, 0].reshape(height, width)
+        first = sample(first[..., None], texel_centres(height, width), False, True)[:, 0]
+        first = first.reshape(height, width)
     values = np.clip(np.where(np.isfinite(first), first, NAN_PARAMETER), 0.0, 1.0)
     return uv.astype(np.float32), values.astype(np.float32), True
 

@@ -745,6 +745,17 @@ def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, thickness_mod):
     assert repeat
     maps = importlib.import_module(f"{EXTENSION_ID}.addon.thickness.maps")
     np.testing.assert_allclose(maps.sample_bilinear(values_map, uv_out, repeat), values, atol=1e-6)
+    wide = bpy.data.images.new("Wide", 1100, 2, float_buffer=True)  # over MAP_MAX_SIZE (1024)
+    ramp = np.zeros((2, 1100, 4), dtype=np.float32)
+    ramp[..., 0] = np.arange(1100) / 1099.0
+    wide.pixels.foreach_set(ramp.ravel())
+    settings.thickness_image = wide
+    _, resampled, _ = thickness_mod.image_map(obj, mesh, settings)
+    u = (np.arange(1024) + 0.5) / 1024  # read at the 1024 texel centres, bilinearly
+    inner = slice(1, -1)  # the end texels blend with the other end (the image repeats)
+    assert resampled.shape == (2, 1024)
+    np.testing.assert_allclose(resampled[0, inner], ((u * 1100 - 0.5) / 1099.0)[inner], atol=1e-6)
+    settings.thickness_image = image
     settings.thickness_source = "ATTRIBUTE"
     assert thickness_mod.image_map(obj, mesh, settings) is None
     settings.thickness_source = "IMAGE"
