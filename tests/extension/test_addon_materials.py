@@ -755,6 +755,13 @@ def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, thickness_mod):
     inner = slice(1, -1)  # the end texels blend with the other end (the image repeats)
     assert resampled.shape == (2, 1024)
     np.testing.assert_allclose(resampled[0, inner], ((u * 1100 - 0.5) / 1099.0)[inner], atol=1e-6)
+    double = bpy.data.images.new("Double", 2048, 2, float_buffer=True)  # 2:1, each pair averaged
+    ramp = np.zeros((2, 2048, 4), dtype=np.float32)
+    ramp[..., 0] = np.arange(2048) / 2047.0
+    double.pixels.foreach_set(ramp.ravel())
+    settings.thickness_image = double
+    _, halved, _ = thickness_mod.image_map(obj, mesh, settings)
+    np.testing.assert_allclose(halved[0], (2 * np.arange(1024) + 0.5) / 2047.0, atol=1e-6)
     settings.thickness_image = image
     settings.thickness_source = "ATTRIBUTE"
     assert thickness_mod.image_map(obj, mesh, settings) is None
