@@ -99,7 +99,7 @@ def _batch_of(item):
     is a MeshBatch or a GPUBatch."""
     batch = item.batch
     if isinstance(batch, MeshBatch):
-        return batch.batch, batch.has_thickness, batch.thickness_map
+        return batch.batch, batch.has_thickness, batch.map_texture()
     return batch, bool(getattr(item, "has_thickness", False)), None
 
 
@@ -109,7 +109,8 @@ def _noise_of(item):
 
 
 class _SavedState:
-    """The gpu.state values we change and can read back (face culling has no getter)."""
+    """The gpu.state values we change and can read back (face culling has no getter); restoring
+    them also unbinds our shader (:func:`unbind_shader`)."""
 
     def __init__(self):
         self.depth_test = gpu.state.depth_test_get()
@@ -120,6 +121,15 @@ class _SavedState:
         gpu.state.depth_test_set(self.depth_test)
         gpu.state.depth_mask_set(self.depth_mask)
         gpu.state.blend_set(self.blend)
+        unbind_shader()
+
+
+def unbind_shader() -> None:
+    """Leave no shader of ours bound after a draw. Blender keeps the last bound shader in its GPU
+    context; once the add-on frees it (unregister, a cache's eviction) Blender's next bind
+    calls into the freed shader: a headless frame, then the add-on unregistered, then Blender
+    making an image's mipmaps crashed ("pure virtual method called")."""
+    gpu.shader.unbind()
 
 
 #: The shared uniform-buffer cache used when none is passed.

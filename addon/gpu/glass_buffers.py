@@ -37,7 +37,7 @@ import numpy as np
 from ...precompute.shading.policy import GLASS_LAYERS
 from ...precompute.shading.transmit import WALL_SOLID
 from . import layout
-from .draw import _batch_of, _matrix, object_uniforms, read_framebuffer, view_ubo
+from .draw import _batch_of, _matrix, object_uniforms, read_framebuffer, unbind_shader, view_ubo
 from .resources import float_buffer
 from .shaders import glass_shader_info
 
@@ -108,6 +108,7 @@ def _draw_pass(fb, glass, ubos, view, cull: str, geometric: bool, peel) -> None:
             shader.uniform_block(layout.OBJECT.name, ubo)
             _batch_of(item)[0].draw(shader)
     finally:
+        unbind_shader()
         gpu.state.face_culling_set("NONE")
         gpu.state.depth_test_set("NONE")
         gpu.state.depth_mask_set(False)

@@ -839,6 +839,54 @@ def test_workbench_render_creates_the_context_and_cleans_up(tmp_path):
     assert "CONTEXT_OK" in proc.stdout, proc.stdout + proc.stderr
 
 
+def test_no_shader_of_ours_stays_bound_once_freed(tmp_path):
+    """A frame drawn off-screen, the add-on unregistered (its shaders freed), then Blender making
+    an image's GPU texture (its mipmaps bind a shader of Blender's): a fresh process, as a
+    headless frame followed by disabling the add-on. With our shader left bound in Blender's
+    context this aborted ("pure virtual method called"); the draws now unbind it."""
+    os.symlink(REPO, tmp_path / EXTENSION_ID, target_is_directory=True)
+    script = textwrap.dedent(
+        f"""
+        import gc, importlib, sys
+        import numpy as np
+        sys.path.insert(0, {str(tmp_path)!r})
+        import bpy, gpu
+        view = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, -4.0], [0, 0, 0, 1]], dtype=float)
+        proj = np.array([[3.5, 0, 0, 0], [0, 3.5, 0, 0], [0, 0, -1.002, -0.2002], [0, 0, -1, 0]])
+        for attempt in range(4):  # a freed shader is reused memory: not every round would crash
+            ext = importlib.import_module("{EXTENSION_ID}")
+            ext.register()
+            bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+            ext.register()
+            bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
+            mat = bpy.data.materials.new("film")
+            s = mat.thinfilm_sh
+            s.preset, s.enabled, s.sh_order = "SOAP_FILM", True, "2"
+            s.view_samples, s.wavelength_count = 4, 32
+            bpy.context.active_object.data.materials.append(mat)
+            bpy.context.view_layer.update()
+            scene_draw = importlib.import_module("{EXTENSION_ID}.addon.drawing.scene_draw")
+            items, _ = scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+            assert items
+            draw = importlib.import_module("{EXTENSION_ID}.addon.gpu.draw")
+            draw.render_offscreen(items, view, proj, 16, 16)
+            del items, scene_draw, draw
+            ext.unregister()
+            for name in [n for n in sys.modules if n.startswith("{EXTENSION_ID}")]:
+                del sys.modules[name]
+            del ext
+            gc.collect()
+            image = bpy.data.images.new("after", 64, 64, float_buffer=True)
+            print("TEXTURE", gpu.texture.from_image(image).format)
+        """
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False
+    )
+    drawn = proc.stdout.count("TEXTURE RGBA16F")
+    assert proc.returncode == 0 and drawn == 4, proc.stdout + proc.stderr[-2000:]
+
+
 def tilted_quad_item(gd, table, lighting):
     """A 2×2 quad facing −y, tilted 35° about x and 25° about z: many view angles in one frame."""
     return Item(
