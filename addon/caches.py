@@ -35,9 +35,15 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
 - ``hidden_viewports`` — ``viewport.HIDDEN_IN``: the 3D viewports (their space's address)
   whose Thin Film SH overlay is switched off; a set, one entry per viewport switched off; filled
   by the *Thin Film SH* toggle in the Overlays popover; FILE.
-- ``thickness_images`` — ``thickness._PRINTS``: pixel fingerprints of thickness images with
-  unsaved edits, by image name, refreshed at most every ``thickness.IMAGE_RECHECK_S``; LRU of
-  16; filled by ``thickness.image_stamp``; FILE.
+- ``thickness_images`` — ``thickness._PRINTS``: pixel fingerprints of images with unsaved edits
+  in a node graph linked into a film's thickness, by image name, refreshed at most every
+  ``thickness.IMAGE_RECHECK_S``; LRU of 16; filled by ``thickness.image_stamp``; FILE.
+- ``image_thickness`` — ``image_source.CORNERS``: the *Image* source's per-corner parameters
+  (with the non-finite count, and a map of the pixels where they hold NaN or ±∞), or why there
+  are none, by (object name, its evaluated mesh's vertex and corner counts, geometry epoch,
+  ``thickness.thickness_inputs``: the UV map and the image's identity); LRU of 16; filled by
+  ``image_source.image_parameters`` (at once in background mode, else by the viewport's timer
+  through ``linked.PENDING``); FILE.
 - ``linked_thickness`` — ``linked.FIELDS``: a Principled BSDF's linked Thin Film Thickness
   per face corner (``linked.Field``: nm, how it was obtained) by (object name, its evaluated
   mesh's vertex and corner counts, a geometry epoch bumped on depsgraph geometry updates,

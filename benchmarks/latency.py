@@ -6,6 +6,8 @@ Usage (from the repository root)::
     .venv/bin/python -m benchmarks.latency                  # → docs/latency.md
     .venv/bin/python -m benchmarks.latency --quick          # one scene, cheap edits; writes nothing
     .venv/bin/python -m benchmarks.latency --scenes soap_bubble --edits thickness_step film_ior
+    .venv/bin/python -m benchmarks.latency --scenes soap_bubble --edits thickness_image paint_stroke \
+        --out /tmp/paint.md                                 # the report elsewhere
 
 One bpy process. Each scene is built by ``sample_scenes/make_scenes.py`` (its file replaces the
 open one, as opening it would) and loaded into the factory start-up's 3D viewport; the table
@@ -39,8 +41,12 @@ Edits (each repeated ``--repeats`` times with a new value; World and cold edits 
 33 ms, timed from the last), film IOR (+0.02), base IOR (+0.02), roughness step (+0.04, a new
 kernel), preset change, add layer, World strength (×1.2), World rotation (a Mapping node about
 Z, +0.3 rad), HDRI swap (another of Blender's studio lights), procedural sky (a Sky Texture in
-place of the image), first open (the file loaded with every cache empty). Edits a scene's
-material has no control for (a Principled BSDF has no preset or layers) are skipped.
+place of the image), first open (the file loaded with every cache empty), thickness image (the
+film's thickness from a new 2048² float image at the active UV map, the *Image* source), paint
+stroke (a 64² square of that image set from Python, the pixels a Texture Paint stroke
+changes: the film must follow, nothing of ours may stall the frame). Edits a scene's material
+has no control for (a Principled BSDF has no preset or layers) are skipped, and so is a paint
+stroke where the film's thickness comes from no image.
 """
 
 from __future__ import annotations
@@ -69,7 +75,17 @@ DRAG_STEPS, DRAG_INTERVAL_S = 10, 0.033
 DEFAULT_SCENES = ("soap_bubble", "principled_film")
 QUICK_EDITS = ("thickness_step", "thickness_drag", "film_ior", "world_strength")
 #: Edits run once per scene (slow or cold by nature) unless --repeats-cold says otherwise.
-COLD_EDITS = ("first_open", "roughness_step", "preset", "add_layer", "hdri_swap", "procedural_sky")
+COLD_EDITS = (
+    "first_open",
+    "roughness_step",
+    "preset",
+    "add_layer",
+    "hdri_swap",
+    "procedural_sky",
+    "thickness_image",
+)
+#: The thickness image's side (texels): a texture an artist paints at.
+PAINT_SIZE = 2048
 
 
 # ----------------------------------------------------------------------------------------------
@@ -406,6 +422,56 @@ def edit_thickness(mat, delta: float):
         s.layers[0].thickness_nm += delta
 
 
+def ensure_uvs(mat) -> None:
+    """A UV map on every mesh using ``mat`` that has none (the sample scenes' bmesh spheres and
+    grids have none): each corner's position projected on the unit sphere about the mesh's
+    centre, longitude and latitude. Part of the scene, not of the thickness image's edit."""
+    import bpy
+
+    for mesh in bpy.data.meshes:
+        if mat.name not in mesh.materials or len(mesh.uv_layers) or not len(mesh.loops):
+            continue
+        co = np.empty(3 * len(mesh.vertices), dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        corner = np.empty(len(mesh.loops), dtype=np.int32)
+        mesh.loops.foreach_get("vertex_index", corner)
+        p = co.reshape(-1, 3)[corner]
+        p = p - p.mean(axis=0)
+        p /= np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-9)
+        uv = np.stack([0.5 + np.arctan2(p[:, 1], p[:, 0]) / (2 * np.pi), 0.5 + np.arcsin(p[:, 2]) / np.pi], 1)
+        mesh.uv_layers.new(name="UVMap").data.foreach_set("uv", uv.astype(np.float32).ravel())
+        mesh.update()
+
+
+def edit_thickness_image(mat, i: int):
+    """The film's thickness from a new PAINT_SIZE² float image (Non-Color, soft stripes) at the
+    active UV map: the *Image* source."""
+    import bpy
+
+    image = bpy.data.images.new(f"Painted thickness {i}", PAINT_SIZE, PAINT_SIZE, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    u = (np.arange(PAINT_SIZE) + 0.5) / PAINT_SIZE
+    pixels = np.ones((PAINT_SIZE, PAINT_SIZE, 4), dtype=np.float32)
+    pixels[..., 0] = 0.5 + 0.4 * np.sin(2 * np.pi * (3 * u[None, :] + 2 * u[:, None] + 0.1 * i))
+    image.pixels.foreach_set(pixels.ravel())
+    s = _film(mat)
+    s.vary_thickness = True
+    s.thickness_source, s.thickness_uv_map, s.thickness_image = "IMAGE", "", image
+
+
+def edit_paint_stroke(mat, i: int):
+    """A 64² square of the film's thickness image set to another value, as a stroke changes it
+    (set from Python: the whole buffer is written, which is the edit's own time, not ours)."""
+    image = _film(mat).thickness_image
+    width, height = image.size
+    pixels = np.empty(width * height * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    square = pixels.reshape(height, width, 4)
+    x, y = (97 * (i + 1)) % (width - 64), (61 * (i + 1)) % (height - 64)
+    square[y : y + 64, x : x + 64, 0] = 0.05 + 0.3 * (i % 3)
+    image.pixels.foreach_set(pixels)
+
+
 def edit_film_ior(mat, delta: float = 0.02):
     s = _film(mat)
     if s is None:
@@ -517,6 +583,12 @@ EDITS = {
     "hdri_swap": ("HDRI swap", False, lambda sc, m, i: edit_hdri(sc.world, i)),
     "procedural_sky": ("procedural sky", False, lambda sc, m, i: edit_sky(sc.world, i)),
     "first_open": ("first open (cold caches)", False, None),
+    "thickness_image": (
+        f"thickness image ({PAINT_SIZE}² float)",
+        True,
+        lambda sc, m, i: edit_thickness_image(m, i),
+    ),
+    "paint_stroke": ("paint stroke (64² texels)", True, lambda sc, m, i: edit_paint_stroke(m, i)),
 }
 
 
@@ -587,12 +659,20 @@ def run_scene(ext: Extension, name: str, path: Path, edits, repeats: int, repeat
         loop.tagged = True
         loop.run(time.perf_counter() + EDIT_TIMEOUT_S)
         loop.settle()
+    if "thickness_image" in edits:
+        ensure_uvs(mat)  # as the Mapping node: the scene's, not the edit's
+        loop.tagged = True
+        loop.run(time.perf_counter() + EDIT_TIMEOUT_S)
+        loop.settle()
     for edit in edits:
         if edit == "first_open":
             continue
         label, needs_settings, apply = EDITS[edit]
         if needs_settings and _film(mat) is None:
             print(f"{name:18s} {edit:16s} skipped (a Principled BSDF has no such control)", flush=True)
+            continue
+        if edit == "paint_stroke" and _film(mat).thickness_image is None:
+            print(f"{name:18s} {edit:16s} skipped (no thickness image: run thickness_image first)")
             continue
         count = repeats_cold if edit in COLD_EDITS else repeats
         for i in range(count):
@@ -689,7 +769,7 @@ def against_limits(results: list[Result]) -> list[str]:
     ]
 
 
-def write_report(results: list[Result], scenes, started: str, wall_s: float) -> str:
+def write_report(results: list[Result], scenes, started: str, wall_s: float, out: str = "latency.md") -> str:
     stalled = sum(r.stalled for r in results)
     worst = max(results, key=lambda r: r.block_s)
     lines = [
@@ -733,7 +813,7 @@ def write_report(results: list[Result], scenes, started: str, wall_s: float) -> 
         *against_limits(results),
         "",
     ]
-    return common.write_doc("latency.md", "\n".join(lines))
+    return common.write_doc(out, "\n".join(lines))
 
 
 def main(argv=None) -> int:
@@ -743,6 +823,7 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--repeats-cold", type=int, default=1)
     parser.add_argument("--quick", action="store_true", help="one scene, cheap edits, no report")
+    parser.add_argument("--out", default="latency.md", help="the report, relative to docs/ (or absolute)")
     args = parser.parse_args(argv)
     if args.quick:
         args.scenes, args.edits, args.repeats = ["principled_film"], list(QUICK_EDITS), 1
@@ -758,7 +839,7 @@ def main(argv=None) -> int:
     stalled = sum(r.stalled for r in results)
     print(f"stalled edits: {stalled} of {len(results)}; load average now {common.load_average()}")
     if not args.quick:
-        print("wrote", write_report(results, args.scenes, started, time.perf_counter() - begin))
+        print("wrote", write_report(results, args.scenes, started, time.perf_counter() - begin, args.out))
     return 0
 
 

@@ -2,7 +2,8 @@
 
 :func:`slot_batch` builds the :class:`BatchEntry` of an (object, material slot): positions,
 normals and, for a film whose thickness varies, the thickness parameter per corner
-(:func:`batch_thickness`: from the extension's source, :mod:`..thickness.thickness`, Blender's
+(:func:`batch_thickness`: from the extension's source, :mod:`..thickness.thickness`, its
+*Image* source read per pixel from Blender's texture, :mod:`..thickness.image_source`, Blender's
 Noise Texture or a linked Principled thickness, :mod:`..thickness.linked`).
 :func:`thickness_source` is what the batches' thickness is made of, part of their signature: a
 change rebuilds them. :mod:`.scene_draw` keeps the batches (``CACHES.batches``) and decides when
@@ -18,14 +19,8 @@ import numpy as np
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
-from ..thickness.thickness import (
-    NAN_PARAMETER,
-    image_map,
-    image_source,
-    non_finite_note,
-    thickness_field,
-    thickness_inputs,
-)
+from ..thickness.image_source import image_parameters
+from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
 __all__ = ["BatchEntry", "batch_thickness", "slot_batch", "thickness_source"]
 
@@ -78,10 +73,10 @@ def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
             thickness, nan_count, thickness_map, waiting = linked.noise_parameters(
                 obj_eval, mesh, props.id_data
             )
+        elif props is not None and props.enabled and props.thickness_source == "IMAGE":
+            thickness, nan_count, thickness_map, waiting = image_parameters(obj_eval, mesh, props)
         elif props is not None and props.enabled:
-            image = image_source(obj_eval, mesh, props)  # the pixels, read once for both
-            thickness, nan_count = thickness_field(obj_eval, mesh, props, image)
-            thickness_map = image_map(obj_eval, mesh, props, image)
+            thickness, nan_count = thickness_field(obj_eval, mesh, props)
         elif linked_source is not None:
             thickness, nan_count, thickness_map, waiting = linked.corner_parameters(
                 obj_eval, mesh, *linked_source, desc.thickness_range_nm

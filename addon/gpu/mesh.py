@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import bpy
 import gpu
 import numpy as np
 
@@ -11,10 +12,46 @@ from ...precompute.shading.transmit import Inside, mesh_inside
 from .context import ensure_gpu_context
 
 
+@dataclass(frozen=True)
+class ImageTexture:
+    """A Blender image read per pixel through Blender's own GPU texture of it
+    (``gpu.texture.from_image``), looked up at each draw by name and library: painting the image,
+    or setting its pixels from Python, shows on the next frame without a rebuild. Kept by name,
+    not as the ``bpy.types.Image``, which an undo would leave dangling."""
+
+    name: str
+    library: str | None = None
+
+    @classmethod
+    def of(cls, image) -> ImageTexture:
+        """The texture of ``image`` (a ``bpy.types.Image``), by name and library."""
+        return cls(image.name, image.library.filepath if image.library is not None else None)
+
+    def texture(self) -> gpu.types.GPUTexture | None:
+        """The image's GPU texture now (its first channel scene linear: an 8-bit sRGB image
+        decoded, Non-Color as stored; straight alpha), or None when the image is gone or empty."""
+        image = bpy.data.images.get((self.name, self.library))
+        if image is None or 0 in tuple(image.size):
+            return None
+        try:
+            texture = gpu.texture.from_image(image)
+        except (RuntimeError, SystemError, ValueError):
+            return None
+        # Its sampler as the shader's own maps (:func:`thickness_map_texture`), repeating as Image
+        # Texture does: Blender turns anisotropic filtering on, and llvmpipe's then weighs even
+        # magnified texels off the bilinear weights (2 % of the texels' step, measured); Blender's
+        # own draws bind the texture with their own sampler states.
+        texture.anisotropic_filter(False)
+        texture.filter_mode(True)
+        texture.extend_mode("REPEAT")
+        return texture
+
+
 @dataclass
 class MeshBatch:
     """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1])
-    and ``uv`` with the R32F ``thickness_map`` read there per pixel (``TF_THICKNESS_MAP``).
+    and ``uv`` with the ``thickness_map`` read there per pixel (``TF_THICKNESS_MAP``): an R32F
+    texture made from a map, or an :class:`ImageTexture` (:meth:`map_texture`).
 
     ``inside``: a thin transparent wall's mesh, whether it is closed and its thickness's linear fit
     (:func:`precompute.shading.transmit.mesh_inside`, asked for by ``from_arrays(..., wall=True)``);
@@ -27,7 +64,7 @@ class MeshBatch:
     has_thickness: bool
     inside: Inside | None = None
     bounds: np.ndarray | None = None  # set by from_arrays, the only maker
-    thickness_map: gpu.types.GPUTexture | None = None
+    thickness_map: gpu.types.GPUTexture | ImageTexture | None = None
     #: The Noise source's (scale, seed), computed per pixel from the positions (``TF_THICKNESS_NOISE``).
     noise: tuple | None = None
 
@@ -38,7 +75,8 @@ class MeshBatch:
         """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness;
         ``wall``: a thin transparent wall's, with its :attr:`inside` (a pass over its edges);
         ``thickness_map`` (with ``thickness``): (uv (V, 2), map (H, W) of parameters in [0, 1],
-        repeat), uploaded as :attr:`thickness_map` (:func:`thickness_map_texture`).
+        repeat), uploaded as :attr:`thickness_map` (:func:`thickness_map_texture`), or (uv,
+        :class:`ImageTexture`, repeat), read from Blender's texture at each draw.
 
         Everything is converted to float32 / int32. Returns None for an empty mesh.
         """
@@ -78,8 +116,17 @@ class MeshBatch:
         batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
         inside = mesh_inside(pos, idx, th) if wall else None
         bounds = np.stack([pos.min(axis=0), pos.max(axis=0)]).astype(np.float64)
-        texture = thickness_map_texture(thickness_map[1], thickness_map[2]) if uv is not None else None
+        texture = None
+        if uv is not None:
+            texture = thickness_map[1]
+            if not isinstance(texture, ImageTexture):
+                texture = thickness_map_texture(texture, thickness_map[2])
         return cls(batch, pos.shape[0], idx.shape[0], th is not None, inside, bounds, texture)
+
+    def map_texture(self) -> gpu.types.GPUTexture | None:
+        """The texture the shader reads the thickness from now, or None (drawn per corner)."""
+        found = self.thickness_map
+        return found.texture() if isinstance(found, ImageTexture) else found
 
 
 def thickness_map_texture(values, repeat: bool = False) -> gpu.types.GPUTexture:

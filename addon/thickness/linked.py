@@ -50,7 +50,9 @@ __all__ = [
     "corner_parameters",
     "deferring",
     "evaluate",
+    "field_key",
     "has_pending",
+    "is_deferring",
     "linked_map",
     "mark_geometry",
     "material_range",
@@ -184,7 +186,9 @@ def mark_geometry(object_name: str) -> None:
     _geometry_epoch[object_name] = _geometry_epoch.get(object_name, 0) + 1
 
 
-def _field_key(obj_name: str, mesh, key: str) -> tuple:
+def field_key(obj_name: str, mesh, key: str) -> tuple:
+    """What a field of an object's mesh is cached by: the object, its mesh's sizes, its geometry
+    epoch (:func:`mark_geometry`) and ``key``, what the field is of."""
     return obj_name, len(mesh.vertices), len(mesh.loops), _geometry_epoch.get(obj_name, 0), key
 
 
@@ -354,7 +358,7 @@ def noise_parameters(obj, mesh, bpy_material):
     props = bpy_material.thinfilm_sh
     name = obj.original.name if hasattr(obj, "original") else obj.name
     settings = ("BLENDER_NOISE", round(float(props.noise_scale), 7), int(props.noise_seed))
-    cache_key = _field_key(name, mesh, repr(settings))
+    cache_key = field_key(name, mesh, repr(settings))
     found = FIELDS.get(cache_key)
     if found is None:
         if _defer:
@@ -443,7 +447,7 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
     """
     key = key if key is not None else tree_key(socket)
     name = obj.original.name if hasattr(obj, "original") else obj.name
-    cache_key = _field_key(name, mesh, key)
+    cache_key = field_key(name, mesh, key)
     found = FIELDS.get(cache_key)
     if found is not None:
         return found
@@ -521,7 +525,7 @@ def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
         )
 
     job = (name, bpy_material.name, "linked")
-    return maps.field_map(_field_key(name, mesh, key), job, make, defer=_defer or _maps_later)
+    return maps.field_map(field_key(name, mesh, key), job, make, defer=_defer or _maps_later)
 
 
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):
@@ -546,6 +550,11 @@ def deferring():
         yield
     finally:
         _defer = previous
+
+
+def is_deferring() -> bool:
+    """Whether work that must not run in the draw is queued instead (inside :func:`deferring`)."""
+    return _defer
 
 
 def has_pending() -> bool:

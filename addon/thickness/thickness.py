@@ -7,9 +7,10 @@ image at the UVs) and counts the NaN values it met; :func:`thickness_per_vertex`
 ``thickness_per_vertex(...)[corner_order(mesh)]`` gives one value per triangle corner.
 
 :func:`thickness_inputs` is what the field depends on besides the mesh itself (the source and
-its settings, the image's identity and, while it is edited, its pixels): the draw keys its
-batches by it, so an edit to any of them reaches the preview. Edits to the mesh (and so to a
-thickness attribute) arrive as depsgraph geometry updates.
+its settings, the image's identity): the draw keys its batches by it, so an edit to any of them
+reaches the preview. The *Image* source is drawn per pixel from Blender's own texture of the
+image (:mod:`.image_source`), so painting it reaches the preview without a rebuild. Edits to
+the mesh (and so to a thickness attribute) arrive as depsgraph geometry updates.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 
 from ...precompute.materials.noise import value_noise
 from .. import caches
+from ..world.world_image import srgb_to_linear
 from ..world.world_key import describe_image
 from .linked_nodes import MAP_MAX_SIZE, sample, texel_centres
 
@@ -28,6 +30,8 @@ __all__ = [
     "IMAGE_RECHECK_S",
     "NAN_PARAMETER",
     "corner_order",
+    "corner_uv",
+    "image_identity",
     "image_map",
     "image_source",
     "image_stamp",
@@ -39,9 +43,10 @@ __all__ = [
 #: Where a NaN thickness value is drawn: the middle of the material's range (finite, as far
 #: from either end as possible). The NaN values are counted and reported, never hidden.
 NAN_PARAMETER = 0.5
-#: An image with unsaved edits (painted, or pixels set from Python) has its pixels
-#: fingerprinted at most this often (a 2048² float image: ≈ 35 ms), so a stroke reaches the
-#: preview within this time without hashing the image on every frame.
+#: An image with unsaved edits (painted, or pixels set from Python) in a node graph linked into
+#: a film's thickness has its pixels fingerprinted at most this often (a 2048² float image:
+#: ≈ 35 ms), so a stroke reaches the preview within this time without hashing the image on every
+#: frame. (The *Image* source needs no fingerprint: it is drawn from the image's GPU texture.)
 IMAGE_RECHECK_S = 0.5
 #: Pixel fingerprints of edited thickness images by image name: (identity, time, crc).
 _PRINTS = caches.register("thickness_images", caches.LRU(16), scope=caches.FILE)
@@ -110,16 +115,10 @@ def _attribute_values(obj, mesh, name: str) -> np.ndarray:
     )
 
 
-def _image_source(obj, mesh, image, uv_map: str) -> tuple[np.ndarray, np.ndarray]:
-    """(the image's first channel (H, W), row 0 at the bottom; the corners' UVs (N, 2)) of the
-    IMAGE source; ValueError naming what is missing."""
+def corner_uv(obj, mesh, uv_map: str) -> np.ndarray:
+    """The corners' UVs (N, 2) float64 in UV map ``uv_map`` (empty: the active render map);
+    ValueError naming what is missing."""
     where = f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
-    if image is None:
-        raise ValueError(f"{where}: thickness source IMAGE needs an image")
-    width, height = int(image.size[0]), int(image.size[1])
-    channels = int(image.channels)
-    if width * height == 0 or channels == 0:
-        raise ValueError(f"{where}: image {image.name!r} has no pixels (is its file missing?)")
     layer = mesh.uv_layers.get(uv_map) if uv_map else None
     if uv_map and layer is None:
         raise ValueError(
@@ -132,11 +131,34 @@ def _image_source(obj, mesh, image, uv_map: str) -> tuple[np.ndarray, np.ndarray
         raise ValueError(f"{where}: mesh {mesh.name!r} has no UV map for the thickness image")
     uv = np.empty(2 * len(mesh.loops), dtype=np.float32)
     layer.data.foreach_get("uv", uv)
-    uv = uv.reshape(-1, 2).astype(np.float64)
+    return uv.reshape(-1, 2).astype(np.float64)
+
+
+def _decoded(image, first: np.ndarray) -> np.ndarray:
+    """The first channel as Blender's GPU texture and Cycles' Image Texture read it: an 8-bit
+    image in the sRGB space decoded to linear; float images (linear when loaded) and data
+    (Non-Color) as stored."""
+    settings = image.colorspace_settings
+    if image.is_float or settings.is_data or settings.name != "sRGB":
+        return first
+    return srgb_to_linear(first)
+
+
+def _image_source(obj, mesh, image, uv_map: str) -> tuple[np.ndarray, np.ndarray]:
+    """(the image's first channel (H, W), row 0 at the bottom; the corners' UVs (N, 2)) of the
+    IMAGE source; ValueError naming what is missing."""
+    where = f"object {obj.name!r}" if obj is not None else f"mesh {mesh.name!r}"
+    if image is None:
+        raise ValueError(f"{where}: thickness source IMAGE needs an image")
+    width, height = int(image.size[0]), int(image.size[1])
+    channels = int(image.channels)
+    if width * height == 0 or channels == 0:
+        raise ValueError(f"{where}: image {image.name!r} has no pixels (is its file missing?)")
+    uv = corner_uv(obj, mesh, uv_map)
     pixels = np.empty(width * height * channels, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     first = pixels.reshape(height, width, channels)[:, :, 0].astype(np.float64)  # row 0 = bottom
-    return first, uv
+    return _decoded(image, first), uv
 
 
 def image_source(obj, mesh, props) -> tuple[np.ndarray, np.ndarray] | None:
@@ -155,6 +177,13 @@ def _pixel_print(image) -> int:
     return zlib.crc32(np.ascontiguousarray(pixels[::channels]))
 
 
+def image_identity(image) -> str:
+    """The image's identity without reading its pixels (:func:`.world_key.describe_image`: name,
+    source, file path with the file's size and mtime, packed size, generated settings, whether it
+    has unsaved edits), its size and channels."""
+    return repr((sorted(describe_image(image).items()), tuple(image.size), int(image.channels)))
+
+
 def image_stamp(image, now: float | None = None):
     """What identifies a thickness image's pixels, as a hashable value (None for no image).
 
@@ -165,7 +194,7 @@ def image_stamp(image, now: float | None = None):
     """
     if image is None:
         return None
-    identity = repr((sorted(describe_image(image).items()), tuple(image.size), int(image.channels)))
+    identity = image_identity(image)
     if not image.is_dirty:
         return identity
     now = time.monotonic() if now is None else now
@@ -179,7 +208,8 @@ def image_stamp(image, now: float | None = None):
 def thickness_inputs(props):
     """What the thickness field of ``props`` depends on besides the mesh (hashable), or None
     when the thickness is constant: the source and its settings (attribute name; noise scale
-    and seed; image :func:`image_stamp` and UV map)."""
+    and seed; image :func:`image_identity` and UV map: painting is drawn from the image's GPU
+    texture, :mod:`.image_source`)."""
     if not props.vary_thickness:
         return None
     source = props.thickness_source
@@ -188,17 +218,19 @@ def thickness_inputs(props):
     if source in {"NOISE", "BLENDER_NOISE"}:
         return source, float(props.noise_scale), int(props.noise_seed)
     if source == "IMAGE":
-        return source, props.thickness_uv_map, image_stamp(props.thickness_image)
+        image = props.thickness_image
+        return source, props.thickness_uv_map, None if image is None else image_identity(image)
     return (source,)
 
 
 def image_map(obj, mesh, props, image=None):
-    """The IMAGE source per pixel: (the corners' UVs (N, 2) float32, the image's first channel as
-    the parameter map (H, W) in [0, 1] float32 (NaN at :data:`NAN_PARAMETER`), True: it
-    repeats) for the batch (:mod:`.maps`, ``TF_THICKNESS_MAP``), or None for another source.
-    ``image``: :func:`image_source`'s, already read. An image larger than
-    :data:`.linked_nodes.MAP_MAX_SIZE` a side is read at that many texel centres. Raises
-    ValueError as :func:`thickness_field` does."""
+    """The IMAGE source per pixel from its pixels, where Blender's texture of it cannot stand in
+    (:mod:`.image_source`: the image holds NaN or ±∞): (the corners' UVs (N, 2) float32, the
+    image's first channel as the parameter map (H, W) in [0, 1] float32 (NaN at
+    :data:`NAN_PARAMETER`), True: it repeats) for the batch (:mod:`.maps`,
+    ``TF_THICKNESS_MAP``), or None for another source. ``image``: :func:`image_source`'s,
+    already read. An image larger than :data:`.linked_nodes.MAP_MAX_SIZE` a side is read at
+    that many texel centres. Raises ValueError as :func:`thickness_field` does."""
     image = image_source(obj, mesh, props) if image is None else image
     if image is None:
         return None

@@ -16,7 +16,7 @@ from ...precompute.sh import projection
 from ...precompute.world import hdri
 from .world_nodes import Fallback
 
-__all__ = ["MAX_PROJECTION_WIDTH", "image_pixels", "project_image"]
+__all__ = ["MAX_PROJECTION_WIDTH", "image_pixels", "project_image", "srgb_to_linear"]
 
 #: Images wider than this are downsampled (solid-angle-correct, :func:`hdri.downsample`) before
 #: projection. 1024 px across 2π resolves bands far beyond the l ≤ 12 the preview uses.
@@ -25,7 +25,7 @@ MAX_PROJECTION_WIDTH = 1024
 _LINEAR_SPACES = ("Linear Rec.709", "Linear Rec.2020", "ACEScg")
 
 
-def _srgb_to_linear(values: np.ndarray) -> np.ndarray:
+def srgb_to_linear(values: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB decoding (the piecewise curve of Blender's "sRGB" space)."""
     v = np.asarray(values, dtype=np.float64)
     return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4)
@@ -74,7 +74,7 @@ def image_pixels(image, space: str):
     if image.colorspace_settings.is_data or name == "Non-Color":
         return rgb, None  # data: the numbers are used as they are
     if name == "sRGB":
-        decode, primaries = _srgb_to_linear, "Linear Rec.709"
+        decode, primaries = srgb_to_linear, "Linear Rec.709"
     elif name in _LINEAR_SPACES:
         decode, primaries = None, name
     else:

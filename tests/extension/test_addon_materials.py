@@ -763,6 +763,17 @@ def test_thickness_from_an_image_samples_bilinearly_at_uvs(bpy, thickness_mod):
     _, halved, _ = thickness_mod.image_map(obj, mesh, settings)
     np.testing.assert_allclose(halved[0], (2 * np.arange(1024) + 0.5) / 2047.0, atol=1e-6)
     settings.thickness_image = image
+    srgb = bpy.data.images.new("Thickness sRGB", 4, 2)  # 8-bit, sRGB: decoded as Cycles reads it
+    pixels[:, :, 0] = np.round(first * 255) / 255
+    srgb.pixels.foreach_set(pixels.ravel())
+    settings.thickness_image = srgb
+    decoded = np.where(first <= 0.04045, first / 12.92, ((first + 0.055) / 1.055) ** 2.4)
+    want = [decoded[0, 0], decoded[1, 2], np.mean(decoded[0, 1:3]), np.mean(decoded[:, :2])]
+    np.testing.assert_allclose(thickness_mod.thickness_per_vertex(obj, mesh, settings), want, atol=2e-3)
+    srgb.colorspace_settings.name = "Non-Color"  # data: as stored
+    srgb.pixels.foreach_set(pixels.ravel())
+    np.testing.assert_allclose(thickness_mod.thickness_per_vertex(obj, mesh, settings), values, atol=2e-3)
+    settings.thickness_image = image
     settings.thickness_source = "ATTRIBUTE"
     assert thickness_mod.image_map(obj, mesh, settings) is None
     settings.thickness_source = "IMAGE"

@@ -23,6 +23,8 @@ def tf(bpy, tmp_path_factory):
         "addon.bakes.tables",
         "addon.bakes.bake_jobs",
         "addon.thickness.thickness",
+        "addon.thickness.linked",
+        "addon.thickness.image_source",
         "addon.world.panorama",
         "addon.world.world",
         "addon.world.world_state",

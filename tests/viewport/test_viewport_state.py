@@ -214,7 +214,7 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene):
     assert np.abs(uploaded(tf, "Sheet") - scaled).max() > 0.05
 
 
-def test_editing_the_thickness_attribute_or_image_changes_the_preview(bpy, tf, scene, monkeypatch):
+def test_editing_the_thickness_attribute_or_image_changes_the_preview(bpy, tf, scene):
     sd = tf.scene_draw
     mat = film(bpy, tf, "Mapped", vary=True)
     settings = mat.thinfilm_sh
@@ -237,8 +237,8 @@ def test_editing_the_thickness_attribute_or_image_changes_the_preview(bpy, tf, s
         uploaded(tf, "Sheet"), np.array([0.9, 0.8, 0.7, 0.6])[corner_vertices], rtol=1e-6
     )
 
-    # An image: its pixels (edited, not saved) are fingerprinted, at most every IMAGE_RECHECK_S.
-    monkeypatch.setattr(tf.thickness, "IMAGE_RECHECK_S", 0.0)
+    # An image: drawn per pixel from Blender's own texture of it, which follows an edit of its
+    # pixels with no rebuild; the corners are read again when the image's identity changes.
     uv = mesh.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", np.full(2 * len(mesh.loops), 0.5, dtype=np.float32))
     image = bpy.data.images.new("Thickness", 2, 2, float_buffer=True)
@@ -247,12 +247,70 @@ def test_editing_the_thickness_attribute_or_image_changes_the_preview(bpy, tf, s
     settings.thickness_image = image
     collect(bpy, tf)
     np.testing.assert_allclose(uploaded(tf, "Sheet"), 0.25)
+
+    def drawn_texel():
+        texture = sd.batch_entry("Sheet").batch.map_texture()
+        return np.asarray(texture.read().to_list(), dtype=np.float64)[0, 0, 0]
+
+    assert drawn_texel() == 0.25
     builds = sd.CACHES.stats["batch_builds"]
-    image.pixels.foreach_set(np.full(16, 0.75, dtype=np.float32))
+    image.pixels.foreach_set(np.full(16, 0.75, dtype=np.float32))  # as a paint stroke does
     collect(bpy, tf)
-    np.testing.assert_allclose(uploaded(tf, "Sheet"), 0.75)
-    collect(bpy, tf)  # unchanged pixels: the fingerprint matches, nothing rebuilt
+    assert sd.CACHES.stats["batch_builds"] == builds  # nothing read or rebuilt in the draw
+    assert drawn_texel() == 0.75
+    image.scale(4, 4)  # the image's identity changed: the corners are read again
+    collect(bpy, tf)
     assert sd.CACHES.stats["batch_builds"] == builds + 1
+    np.testing.assert_allclose(uploaded(tf, "Sheet"), 0.75)
+    assert drawn_texel() == 0.75
+
+
+def test_an_image_thickness_is_drawn_per_pixel_while_the_timer_reads_its_corners(bpy, tf, scene):
+    """In the viewport's draw (``linked.deferring``) the Image source reads no pixels: the film is
+    drawn from Blender's texture of the image at once, the corners at the middle of the range,
+    and the timer (``linked.run_pending``) reads the corners. An image holding NaN is drawn from a
+    map of its pixels instead (Blender's texture turns NaN into 0), those pixels mid-range."""
+    sd, nan_parameter = tf.scene_draw, tf.thickness.NAN_PARAMETER
+    mat = film(bpy, tf, "Painted", vary=True)
+    settings = mat.thinfilm_sh
+    obj = grid(bpy, scene, "Canvas", mat, n=2)
+    corners = np.array([obj.data.vertices[loop.vertex_index].co[0] for loop in obj.data.loops])
+    uv = obj.data.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", np.stack([0.5 + 0.4 * corners, np.full_like(corners, 0.5)], 1).ravel())
+    image = bpy.data.images.new("Ramp", 8, 1, float_buffer=True)
+    ramp = np.zeros((1, 8, 4), dtype=np.float32)
+    ramp[..., 0] = np.linspace(0.1, 0.8, 8)
+    image.pixels.foreach_set(ramp.ravel())
+    settings.thickness_source, settings.thickness_image = "IMAGE", image
+    with tf.linked.deferring():
+        collect(bpy, tf)
+    entry = sd.batch_entry("Canvas")
+    assert type(entry.batch.thickness_map).__name__ == "ImageTexture"
+    assert entry.batch.map_texture() is not None  # Blender's own texture, drawn per pixel now
+    np.testing.assert_array_equal(entry.thickness, nan_parameter)  # the corners: queued
+    assert tf.linked.has_pending()
+    assert tf.linked.run_pending() == []  # the viewport's timer
+    with tf.linked.deferring():
+        collect(bpy, tf)
+    expected = tf.thickness.thickness_per_vertex(obj, obj.data, settings)
+    assert np.ptp(expected) > 0.3
+    np.testing.assert_allclose(uploaded(tf, "Canvas"), expected, rtol=1e-6)
+    assert type(sd.batch_entry("Canvas").batch.thickness_map).__name__ == "ImageTexture"
+
+    ramp[0, 0, 0] = np.nan
+    holed = bpy.data.images.new("Holed", 8, 1, float_buffer=True)
+    holed.pixels.foreach_set(ramp.ravel())
+    settings.thickness_image = holed
+    with tf.linked.deferring():
+        collect(bpy, tf)
+    assert tf.linked.run_pending() == []
+    with tf.linked.deferring():
+        _, messages = collect(bpy, tf)
+    texture = sd.batch_entry("Canvas").batch.map_texture()
+    assert texture.format == "R32F"  # the pixels' map, NaN at the middle of the range
+    texels = np.asarray(texture.read().to_list(), dtype=np.float64).reshape(-1)
+    np.testing.assert_allclose(texels, [nan_parameter, *np.linspace(0.1, 0.8, 8)[1:]], rtol=1e-6)
+    assert any("'Canvas'" in m and "NaN" in m for m in messages), messages
 
 
 def test_nan_thickness_values_are_reported_and_drawn_mid_range(bpy, tf, scene):
