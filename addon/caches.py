@@ -38,12 +38,14 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
 - ``thickness_images`` — ``thickness._PRINTS``: pixel fingerprints of images with unsaved edits
   in a node graph linked into a film's thickness, by image name, refreshed at most every
   ``thickness.IMAGE_RECHECK_S``; LRU of 16; filled by ``thickness.image_stamp``; FILE.
-- ``image_thickness`` — ``image_source.CORNERS``: the *Image* source's per-corner parameters
-  (with the non-finite count, and a map of the pixels where they hold NaN or ±∞), or why there
-  are none, by (object name, its evaluated mesh's vertex and corner counts, geometry epoch,
-  ``thickness.thickness_inputs``: the UV map and the image's identity); LRU of 16; filled by
-  ``image_source.image_parameters`` (at once in background mode, else by the viewport's timer
-  through ``linked.PENDING``); FILE.
+- ``deferred_corners`` — ``corners.CORNERS``: the *Image* source's per-corner parameters (with
+  the non-finite count, and a map of the pixels where they hold NaN or ±∞), and the *Blender
+  Noise* source's on a mesh of more than ``corners.INLINE_VERTICES`` vertices, or why there are
+  none, by (object name, its evaluated mesh's vertex and corner counts, geometry epoch,
+  ``thickness.thickness_inputs``: the UV map and the image's identity, the noise's scale and
+  seed); LRU of 16; filled by ``corners.image_parameters`` / ``corners.noise_parameters`` (at
+  once in background mode or for a small mesh, else by the viewport's timer through
+  ``linked.PENDING``); FILE.
 - ``linked_thickness`` — ``linked.FIELDS``: a Principled BSDF's linked Thin Film Thickness
   per face corner (``linked.Field``: nm, how it was obtained) by (object name, its evaluated
   mesh's vertex and corner counts, a geometry epoch bumped on depsgraph geometry updates,
@@ -52,7 +54,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   viewport's timer); FILE.
 - ``thickness_maps`` — ``maps.MAPS``: a varying thickness per pixel (``maps.ThicknessMap``:
   nm at a map's texel centres over one UV map, or None and why not) by the key of the field it
-  belongs to (a linked thickness's, or the Blender Noise source's); LRU of 16 (a 1024² map is
+  belongs to (a linked thickness's); LRU of 16 (a 1024² map is
   4 MB); filled by ``maps.field_map``: at once in background mode, else by the viewport's
   timer once the edits have settled (``maps.SETTLE_S``); FILE.
 - ``world_sh`` — ``world.SH_CACHE``: the World's SH radiance (``world.WorldSH``) by

@@ -46,7 +46,9 @@ film's thickness from a new 2048² float image at the active UV map, the *Image*
 stroke (a 64² square of that image set from Python, the pixels a Texture Paint stroke
 changes: the film must follow, nothing of ours may stall the frame). Edits a scene's material
 has no control for (a Principled BSDF has no preset or layers) are skipped, and so is a paint
-stroke where the film's thickness comes from no image.
+stroke where the film's thickness comes from no image; Blender noise scale (the film's
+thickness from the *Blender Noise* source, Blender's Noise Texture: its scale +0.5; the scene
+gets the same spherical UV map first, which the map a Cycles bake made before needed).
 """
 
 from __future__ import annotations
@@ -472,6 +474,14 @@ def edit_paint_stroke(mat, i: int):
     image.pixels.foreach_set(pixels)
 
 
+def edit_blender_noise(mat, delta: float = 0.5):
+    """The *Blender Noise* source (set on the first edit), its scale + ``delta``."""
+    s = _film(mat)
+    s.vary_thickness = True
+    s.thickness_source = "BLENDER_NOISE"
+    s.noise_scale += delta
+
+
 def edit_film_ior(mat, delta: float = 0.02):
     s = _film(mat)
     if s is None:
@@ -589,6 +599,7 @@ EDITS = {
         lambda sc, m, i: edit_thickness_image(m, i),
     ),
     "paint_stroke": ("paint stroke (64² texels)", True, lambda sc, m, i: edit_paint_stroke(m, i)),
+    "blender_noise": ("Blender noise scale (+0.5)", True, lambda sc, m, i: edit_blender_noise(m)),
 }
 
 
@@ -659,7 +670,7 @@ def run_scene(ext: Extension, name: str, path: Path, edits, repeats: int, repeat
         loop.tagged = True
         loop.run(time.perf_counter() + EDIT_TIMEOUT_S)
         loop.settle()
-    if "thickness_image" in edits:
+    if "thickness_image" in edits or "blender_noise" in edits:
         ensure_uvs(mat)  # as the Mapping node: the scene's, not the edit's
         loop.tagged = True
         loop.run(time.perf_counter() + EDIT_TIMEOUT_S)

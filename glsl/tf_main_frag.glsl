@@ -18,7 +18,7 @@
  * variants that have them (addon/gpu/shaders.py). With TF_THICKNESS_MAP the thickness parameter
  * is read per pixel from tf_thickness_map at the interpolated UV tf_uv (bilinear, numpy:
  * thickness.maps.sample_bilinear), with TF_THICKNESS_NOISE computed from the object-space position
- * (tf_noise.glsl), else interpolated from the corners (tf_thickness).
+ * (tf_noise.glsl, tf_perlin.glsl), else interpolated from the corners (tf_thickness).
  */
 
 #if defined(TF_TRANSMIT) && defined(TF_SPLIT_SUM)
@@ -251,7 +251,10 @@ void main()
     n = tf_valid_normal(g, v, (dot(smooth_n, g) < 0.0) ? -smooth_n : smooth_n);
   }
 #endif
-#if defined(TF_THICKNESS_NOISE)
+#if defined(TF_THICKNESS_PERLIN)
+  /* the Blender Noise source per pixel: Blender's Noise Texture, Map Range clamped (tf_perlin.glsl) */
+  float thickness01 = clamp(tf_blender_noise(tf_object_pos, tf_object.noise.x, tf_object.noise.y), 0.0, 1.0);
+#elif defined(TF_THICKNESS_NOISE)
   /* the Noise source per pixel at the object-space position (tf_noise.glsl) */
   float thickness01 = tf_value_noise(tf_object_pos, tf_object.noise.x, int(tf_object.noise.y));
 #elif defined(TF_THICKNESS_MAP)

@@ -3,7 +3,8 @@
 :func:`slot_batch` builds the :class:`BatchEntry` of an (object, material slot): positions,
 normals and, for a film whose thickness varies, the thickness parameter per corner
 (:func:`batch_thickness`: from the extension's source, :mod:`..thickness.thickness`, its
-*Image* source read per pixel from Blender's texture, :mod:`..thickness.image_source`, Blender's
+*Image* source read per pixel from Blender's texture and Blender's noise on a large mesh, their
+corners computed off the draw, :mod:`..thickness.corners`, Blender's
 Noise Texture or a linked Principled thickness, :mod:`..thickness.linked`).
 :func:`thickness_source` is what the batches' thickness is made of, part of their signature: a
 change rebuilds them. :mod:`.scene_draw` keeps the batches (``CACHES.batches``) and decides when
@@ -19,7 +20,7 @@ import numpy as np
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
-from ..thickness.image_source import image_parameters
+from ..thickness.corners import image_parameters, noise_parameters
 from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
 __all__ = ["BatchEntry", "batch_thickness", "slot_batch", "thickness_source"]
@@ -59,22 +60,21 @@ def thickness_source(bpy_material, props, desc):
 
 def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
     """(per-corner thickness parameter or None, notes, whether a bake or a map is awaited, the
-    thickness map or None) of a batch: from the extension's source (``props``; BLENDER_NOISE:
-    :func:`.linked.noise_parameters`), or from the link into a Principled BSDF's Thin Film
-    Thickness (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`). The
-    map, (corner UVs, parameters (H, W), repeat), is read per pixel (:mod:`..thickness.maps`)
-    where a texture or a bake gives one."""
+    thickness map or None) of a batch: from the extension's source (``props``: the *Image*
+    and *Blender Noise* sources, :mod:`.corners`; the rest, :func:`.thickness.thickness_field`),
+    or from the link into a Principled BSDF's Thin Film Thickness (``linked_source`` =
+    (material, socket), :func:`.linked.corner_parameters`). The map, (corner UVs, parameters
+    (H, W) or an image's texture, repeat), is read per pixel (:mod:`..thickness.maps`) where a
+    texture or a bake gives one; the noise sources are computed per pixel (``MeshBatch.noise``)."""
     notes = []
     if not desc.varies:
         return None, notes, False, None
     thickness_map, waiting = None, False
     try:
-        if props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
-            thickness, nan_count, thickness_map, waiting = linked.noise_parameters(
-                obj_eval, mesh, props.id_data
-            )
-        elif props is not None and props.enabled and props.thickness_source == "IMAGE":
+        if props is not None and props.enabled and props.thickness_source == "IMAGE":
             thickness, nan_count, thickness_map, waiting = image_parameters(obj_eval, mesh, props)
+        elif props is not None and props.enabled and props.thickness_source == "BLENDER_NOISE":
+            thickness, nan_count, waiting = noise_parameters(obj_eval, mesh, props)
         elif props is not None and props.enabled:
             thickness, nan_count = thickness_field(obj_eval, mesh, props)
         elif linked_source is not None:
@@ -94,10 +94,17 @@ def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
     return thickness, notes, waiting, thickness_map  # waiting: for a map (drawn per corner meanwhile)
 
 
-def _noise_source(props) -> bool:
-    """Whether the extension's Noise source gives the thickness: drawn per pixel from the
-    object-space position (tf_noise.glsl), its corners the same function's values."""
-    return props is not None and props.enabled and props.vary_thickness and props.thickness_source == "NOISE"
+#: The noise sources drawn per pixel, and the kind the shader computes (``MeshBatch.noise``).
+NOISE_KINDS = {"NOISE": 0.0, "BLENDER_NOISE": 1.0}
+
+
+def _noise_kind(props) -> float | None:
+    """The kind of noise that gives the thickness (:data:`NOISE_KINDS`), computed per pixel from
+    the object-space position (the value noise, tf_noise.glsl; Blender's Noise Texture,
+    tf_perlin.glsl) and at the corners by the same function, or None for another source."""
+    if props is None or not props.enabled or not props.vary_thickness:
+        return None
+    return NOISE_KINDS.get(props.thickness_source)
 
 
 def slot_batch(
@@ -137,8 +144,9 @@ def slot_batch(
     batch = MeshBatch.from_arrays(
         positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map
     )
-    if batch is not None and thickness is not None and _noise_source(props):  # per pixel (TF_THICKNESS_NOISE)
-        batch.noise = (float(props.noise_scale), int(props.noise_seed))
+    kind = _noise_kind(props)
+    if batch is not None and kind is not None:  # per pixel (TF_THICKNESS_NOISE)
+        batch.noise = (float(props.noise_scale), int(props.noise_seed), kind)
     if waiting:
         signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))

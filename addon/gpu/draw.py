@@ -17,7 +17,15 @@ import gpu
 import numpy as np
 
 from ...precompute.shading.transmit import WALL_SOLID, Inside, wall_tint, world_fit
-from ...precompute.shading.variant import TRANSMIT_ADD, TRANSMIT_MULTIPLY, Variant, choose_variant, stand_in
+from ...precompute.shading.variant import (
+    NOISE_BLENDER,
+    NOISE_VALUE,
+    TRANSMIT_ADD,
+    TRANSMIT_MULTIPLY,
+    Variant,
+    choose_variant,
+    stand_in,
+)
 from . import layout, resources
 from .context import ensure_gpu_context
 from .mesh import MeshBatch
@@ -74,7 +82,8 @@ def object_uniforms(
     the glass buffers (−1: none, its exit through the sphere about its origin), the wall's
     transmission tint (``wall``'s last three entries, :func:`~precompute.shading.transmit.wall_tint`;
     1 without) and what a closed wall's reflections inside read (``inside``, the mesh's
-    :class:`~precompute.shading.transmit.Inside`; None: none drawn)."""
+    :class:`~precompute.shading.transmit.Inside`; None: none drawn) and the noise computed per
+    pixel (``noise``: ``MeshBatch.noise``)."""
     model = _matrix(model_matrix)
     m3 = model[:3, :3]
     try:
@@ -103,8 +112,16 @@ def _batch_of(item):
     return batch, bool(getattr(item, "has_thickness", False)), None
 
 
+def _noise_variant(noise) -> int:
+    """``Variant.thickness_noise`` of a batch's ``noise`` (scale, seed[, kind]): 0 none, else the
+    value noise or, kind 1, Blender's Noise Texture."""
+    if noise is None:
+        return 0
+    return NOISE_BLENDER if len(noise) > 2 and float(noise[2]) > 0.5 else NOISE_VALUE
+
+
 def _noise_of(item):
-    """(scale, seed) of the Noise source drawn per pixel (``MeshBatch.noise``), or None."""
+    """(scale, seed, kind) of the noise drawn per pixel (``MeshBatch.noise``), or None."""
     return getattr(item.batch, "noise", None) if isinstance(item.batch, MeshBatch) else None
 
 
@@ -220,7 +237,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thi
         grid=grid is not None,
         refract=behind is not None and transmit != 0 and int(item.wall[0]) == WALL_SOLID,
         thickness_map=thickness_map is not None,
-        thickness_noise=_noise_of(item) is not None,
+        thickness_noise=_noise_variant(_noise_of(item)),
     )
     if not compile_now and not shaders.compiled(variant):
         if not getattr(item, "grid_pending", False):  # a grid variant replaces it soon: not wanted

@@ -65,7 +65,9 @@ class MeshBatch:
     inside: Inside | None = None
     bounds: np.ndarray | None = None  # set by from_arrays, the only maker
     thickness_map: gpu.types.GPUTexture | ImageTexture | None = None
-    #: The Noise source's (scale, seed), computed per pixel from the positions (``TF_THICKNESS_NOISE``).
+    #: A noise source's (scale, seed, kind), computed per pixel from the positions
+    #: (``TF_THICKNESS_NOISE``): kind 0 the *Noise* source's value noise, 1 Blender's Noise Texture
+    #: (the *Blender Noise* source); (scale, seed) alone is kind 0.
     noise: tuple | None = None
 
     @classmethod

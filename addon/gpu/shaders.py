@@ -21,7 +21,7 @@ import gpu
 
 from ...precompute.shading import policy
 from ...precompute.shading.codegen import X90_GENERATED, banded_source, define_block
-from ...precompute.shading.variant import Variant
+from ...precompute.shading.variant import NOISE_BLENDER, Variant
 from . import layout
 from .context import ensure_gpu_context
 
@@ -201,7 +201,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     if variant.transmit:
         roots.append("tf_transmit.glsl")
     if variant.thickness_noise:
-        roots.append("tf_noise.glsl")
+        roots.append("tf_perlin.glsl" if variant.thickness_noise == NOISE_BLENDER else "tf_noise.glsl")
     if variant.refract:
         roots.append("tf_glass_tails.glsl")  # and tf_glass_exit.glsl and tf_refract.glsl, which it includes
         roots.append("tf_probe.glsl")

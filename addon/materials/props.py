@@ -69,8 +69,8 @@ THICKNESS_SOURCE_ITEMS = _items(
     "ATTRIBUTE | Attribute | A float mesh attribute in [0, 1] (points, corners or faces)",
     "NOISE | Noise | Procedural 3-D value noise of object-space positions",
     "IMAGE | Image | First channel of an image at the mesh's UVs",
-    "BLENDER_NOISE | Blender Noise | Blender's own Noise Texture of object-space positions (baked "
-    "with Cycles): written back to the Principled BSDF as nodes, so Cycles renders the same variation",
+    "BLENDER_NOISE | Blender Noise | Blender's own Noise Texture of object-space positions, computed "
+    "as Cycles does: written back to the Principled BSDF as nodes, so Cycles renders the same variation",
 )
 
 SUBSTRATE_MODE_ITEMS = _items(

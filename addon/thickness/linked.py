@@ -336,56 +336,6 @@ def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray 
     return values
 
 
-def _noise_material(props):
-    """A temporary material whose Emission is the BLENDER_NOISE source's value in [0, 1]."""
-    material = bpy.data.materials.new(_BAKE_PREFIX)
-    tree = material.node_tree
-    tree.nodes.clear()
-    value = thickness_nodes.build(tree, props, 0.0, 1.0)
-    emission = tree.nodes.new("ShaderNodeEmission")
-    tree.links.new(value, emission.inputs["Color"])
-    output = tree.nodes.new("ShaderNodeOutputMaterial")
-    tree.links.new(emission.outputs["Emission"], output.inputs["Surface"])
-    return material
-
-
-def noise_parameters(obj, mesh, bpy_material):
-    """(per-corner parameter in [0, 1], 0, the map for the batch or None: :func:`corner_parameters`)
-    of the extension's BLENDER_NOISE source: Blender's own
-    Noise Texture, baked with Cycles from the graph write-back writes
-    (:func:`.thickness_nodes.build`), so the preview and Cycles see the same values. Cached by
-    the noise settings and the mesh; queued (:class:`Pending`) inside :func:`deferring`."""
-    props = bpy_material.thinfilm_sh
-    name = obj.original.name if hasattr(obj, "original") else obj.name
-    settings = ("BLENDER_NOISE", round(float(props.noise_scale), 7), int(props.noise_seed))
-    cache_key = field_key(name, mesh, repr(settings))
-    found = FIELDS.get(cache_key)
-    if found is None:
-        if _defer:
-            PENDING.defer(
-                ("noise", name),
-                lambda: noise_parameters(bpy.data.objects[name], _mesh_of(name), bpy_material),
-            )
-            raise Pending("Blender's Noise Texture is being baked with Cycles")
-        try:
-            values = _bake_emission(bpy.data.objects[name], _noise_material(props))
-        except RuntimeError as exc:
-            raise ValueError(f"Blender's Noise Texture could not be baked: {exc}") from None
-        if values.size != len(mesh.loops):
-            raise ValueError("the baked noise does not match the mesh's corners")
-        found = _field(
-            values, f"Blender's Noise Texture baked with Cycles at {values.size} face corners", True
-        )
-        FIELDS[cache_key] = found
-
-    def make():
-        return bake_map(bpy.data.objects[name], lambda: _noise_material(props), found.values)
-
-    job = (name, bpy_material.name, "Blender Noise")
-    found_map, _, waiting = maps.field_map(cache_key, job, make, defer=_defer or _maps_later)
-    return np.clip(found.values, 0.0, 1.0), 0, _batch_map(found_map, (0.0, 1.0)), waiting
-
-
 def _batch_map(found_map: maps.ThicknessMap | None, thickness_range):
     """(corner UVs, parameter map, repeat) of a map for the batch, or None."""
     if found_map is None:

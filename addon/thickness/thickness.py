@@ -9,7 +9,7 @@ image at the UVs) and counts the NaN values it met; :func:`thickness_per_vertex`
 :func:`thickness_inputs` is what the field depends on besides the mesh itself (the source and
 its settings, the image's identity): the draw keys its batches by it, so an edit to any of them
 reaches the preview. The *Image* source is drawn per pixel from Blender's own texture of the
-image (:mod:`.image_source`), so painting it reaches the preview without a rebuild. Edits to
+image (:mod:`.corners`), so painting it reaches the preview without a rebuild. Edits to
 the mesh (and so to a thickness attribute) arrive as depsgraph geometry updates.
 """
 
@@ -21,6 +21,7 @@ import zlib
 import numpy as np
 
 from ...precompute.materials.noise import value_noise
+from ...precompute.materials.perlin import blender_noise
 from .. import caches
 from ..world.world_image import srgb_to_linear
 from ..world.world_key import describe_image
@@ -209,7 +210,7 @@ def thickness_inputs(props):
     """What the thickness field of ``props`` depends on besides the mesh (hashable), or None
     when the thickness is constant: the source and its settings (attribute name; noise scale
     and seed; image :func:`image_identity` and UV map: painting is drawn from the image's GPU
-    texture, :mod:`.image_source`)."""
+    texture, :mod:`.corners`)."""
     if not props.vary_thickness:
         return None
     source = props.thickness_source
@@ -225,7 +226,7 @@ def thickness_inputs(props):
 
 def image_map(obj, mesh, props, image=None):
     """The IMAGE source per pixel from its pixels, where Blender's texture of it cannot stand in
-    (:mod:`.image_source`: the image holds NaN or ±∞): (the corners' UVs (N, 2) float32, the
+    (:mod:`.corners`: the image holds NaN or ±∞): (the corners' UVs (N, 2) float32, the
     image's first channel as the parameter map (H, W) in [0, 1] float32 (NaN at
     :data:`NAN_PARAMETER`), True: it repeats) for the batch (:mod:`.maps`,
     ``TF_THICKNESS_MAP``), or None for another source. ``image``: :func:`image_source`'s,
@@ -277,9 +278,11 @@ def thickness_field(obj, mesh, props, image=None) -> tuple[np.ndarray | None, in
       (values clipped to [0, 1]); a missing attribute raises ValueError naming it.
     - NOISE: :func:`precompute.materials.noise.value_noise` of the object-space vertex positions,
       ``noise_scale`` (in [0, :data:`MAX_NOISE_SCALE`]) and ``noise_seed``; deterministic.
+    - BLENDER_NOISE: Blender's Noise Texture as write-back writes it, the same positions, scale
+      and seed (:func:`precompute.materials.perlin.blender_noise`, what Cycles computes).
     - IMAGE: the first channel of ``props.thickness_image`` at the corners' UVs (UV map
-      ``props.thickness_uv_map``, empty = the active render map), bilinear, repeating, raw pixel
-      values (use Non-Color images).
+      ``props.thickness_uv_map``, empty = the active render map), bilinear, repeating, as
+      Cycles' Image Texture reads it (an 8-bit sRGB image decoded; Non-Color as stored).
 
     A NaN or infinite value (an attribute or a float image can hold them) is counted and drawn
     at :data:`NAN_PARAMETER`, the middle of the range; a source with no finite value at all
@@ -292,7 +295,7 @@ def thickness_field(obj, mesh, props, image=None) -> tuple[np.ndarray | None, in
     source = props.thickness_source
     if source == "ATTRIBUTE":
         values = _attribute_values(obj, mesh, props.thickness_attribute)
-    elif source == "NOISE":
+    elif source in {"NOISE", "BLENDER_NOISE"}:
         if not 0.0 <= props.noise_scale <= MAX_NOISE_SCALE:
             raise ValueError(
                 f"{where}: the thickness noise scale is {props.noise_scale!r}; it must lie in "
@@ -300,13 +303,12 @@ def thickness_field(obj, mesh, props, image=None) -> tuple[np.ndarray | None, in
             )
         co = np.empty(3 * len(mesh.vertices), dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
-        per_vertex = value_noise(co.reshape(-1, 3), props.noise_scale, props.noise_seed)
+        noise = value_noise if source == "NOISE" else blender_noise
+        per_vertex = noise(co.reshape(-1, 3), props.noise_scale, props.noise_seed)
         values = per_vertex[_corner_vertices(mesh)]
     elif source == "IMAGE":  # bilinear between pixel centres, repeating as Image Texture does
         first, uv = image_source(obj, mesh, props) if image is None else image
         values = sample(first[..., None], uv, False, True)[:, 0]
-    elif source == "BLENDER_NOISE":  # a Cycles bake: .linked.noise_parameters, on the main thread
-        raise ValueError(f"{where}: thickness source BLENDER_NOISE is evaluated by linked.noise_parameters")
     else:
         raise ValueError(f"unknown thickness source {source!r}")
     values = np.asarray(values, dtype=np.float64)

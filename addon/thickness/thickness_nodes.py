@@ -5,9 +5,10 @@ variation the preview draws, so Cycles renders it too (write-back,
 :func:`.principled.write_back_to_principled`):
 
 - BLENDER_NOISE and NOISE: Texture Coordinate (Object) → Noise Texture (4-D, W = seed, the
-  scale) → Map Range (0–1 → min–max). BLENDER_NOISE *is* this node's value in the preview (a
-  Cycles bake of the same graph, :func:`.linked.noise_parameters`), so the two match; the
-  extension's own value noise (NOISE) has another pattern of the same scale.
+  scale) → Map Range (0–1 → min–max). BLENDER_NOISE *is* this node's value in the preview
+  (``precompute.materials.perlin``, ``glsl/tf_perlin.glsl``: the node as Cycles computes it),
+  so the two match; the extension's own value noise (NOISE) has another pattern of the same
+  scale.
 - IMAGE: UV Map → Image Texture (Linear, Repeat) → Separate Color (Red) → Map Range: exactly
   the preview's bilinear first channel.
 - ATTRIBUTE: Attribute (the name) → Map Range (clamped, as the preview clips to [0, 1]).

@@ -61,6 +61,17 @@ MIRROR = (
     ),
     Mirror(
         (
+            "materials.perlin.blender_noise",
+            "materials.perlin.fbm",
+            "materials.perlin.perlin",
+            "materials.perlin.hash4",
+        ),
+        "tf_perlin.glsl",
+        ("tf_perlin_hash", "tf_perlin", "tf_blender_noise"),
+        glsl_note="the Blender Noise thickness source per pixel (`TF_THICKNESS_PERLIN`)",
+    ),
+    Mirror(
+        (
             "shading.split_sum.shade_split_sum",
             "shading.split_sum.shade_combined",
             "shading.split_sum.level_blend",

@@ -24,6 +24,8 @@ UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
 TRANSMIT_MULTIPLY = 1
 TRANSMIT_ADD = 2
 TRANSMIT_PASSES = (TRANSMIT_MULTIPLY, TRANSMIT_ADD)
+#: ``Variant.thickness_noise``: the *Noise* source's value noise, Blender's Noise Texture.
+NOISE_VALUE, NOISE_BLENDER = 1, 2
 
 
 def fits_uniform_buffer(layers: int, rows: int, columns: int) -> bool:
@@ -69,9 +71,12 @@ class Variant(NamedTuple):
     #: With ``vary_thickness``: the thickness parameter read per pixel from the batch's thickness
     #: map at its UVs (``TF_THICKNESS_MAP``; addon/thickness/maps.py), not from the corners.
     thickness_map: bool = False
-    #: With ``vary_thickness``: the Noise source computed per pixel from the object-space position
-    #: (``TF_THICKNESS_NOISE``, tf_noise.glsl: materials.noise.value_noise), not from the corners.
-    thickness_noise: bool = False
+    #: With ``vary_thickness``: a noise source computed per pixel from the object-space position
+    #: (``TF_THICKNESS_NOISE``), not from the corners: :data:`NOISE_VALUE` the Noise source
+    #: (tf_noise.glsl: materials.noise.value_noise), :data:`NOISE_BLENDER` the Blender Noise
+    #: source (``TF_THICKNESS_PERLIN`` too, tf_perlin.glsl: materials.perlin.blender_noise); 0
+    #: none (True and False read as 1 and 0).
+    thickness_noise: int = 0
 
     @property
     def film(self) -> bool:
@@ -104,7 +109,7 @@ class Variant(NamedTuple):
             bool(self.grid and not self.split_only),
             bool(self.refract and int(self.transmit) in TRANSMIT_PASSES),
             bool(self.vary_thickness and self.thickness_map),
-            bool(self.vary_thickness and self.thickness_noise),
+            int(self.thickness_noise) if self.vary_thickness else 0,
         )
 
     def _thickness_switches(self) -> list[tuple[str, str]]:
@@ -116,6 +121,8 @@ class Variant(NamedTuple):
             out.append(("TF_THICKNESS_MAP", "1"))
         if self.thickness_noise:
             out.append(("TF_THICKNESS_NOISE", "1"))
+        if int(self.thickness_noise) == NOISE_BLENDER:
+            out.append(("TF_THICKNESS_PERLIN", "1"))
         return out
 
     def _display_switches(self) -> list[tuple[str, str]]:
@@ -181,7 +188,7 @@ def choose_variant(
     grid: bool = False,
     refract: bool = False,
     thickness_map: bool = False,
-    thickness_noise: bool = False,
+    thickness_noise: int = 0,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -204,7 +211,8 @@ def choose_variant(
     - ``refract``: solid glass over a scene-behind texture (the headless frame's background pass):
       its passes march the exit ray over it (shading/glass/refract.py).
     - ``thickness_map``: the batch carries a thickness map and UVs (with a varying thickness);
-      ``thickness_noise``: its thickness is the Noise source, computed per pixel.
+      ``thickness_noise``: its thickness is a noise source computed per pixel (:data:`NOISE_VALUE`,
+      :data:`NOISE_BLENDER`; 0 none).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -227,7 +235,7 @@ def choose_variant(
         grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
         refract=bool(refract) and bool(film) and int(transmit) in TRANSMIT_PASSES,
         thickness_map=vary and bool(thickness_map),
-        thickness_noise=vary and bool(thickness_noise),
+        thickness_noise=int(thickness_noise) if vary else 0,
     )
 
 

@@ -390,9 +390,11 @@ def _blender_noise_material(bpy, lo=200.0, hi=700.0):
 
 
 def test_write_back_of_blender_noise_is_the_node_graph_the_preview_draws(bpy, tf):
-    """The Blender Noise source is previewed from a Cycles bake of Blender's Noise Texture; write-
-    back links that same graph (Noise Texture → Map Range min–max) into Thin Film Thickness, and
-    the Principled preview of the written material reads back the same thickness per corner."""
+    """The Blender Noise source is previewed from Blender's Noise Texture computed as Cycles does
+    (precompute.materials.perlin); write-back links that graph (Noise Texture → Map Range
+    min–max) into Thin Film Thickness, and Cycles' bake of the written material at the corners
+    is the preview's thickness to within the bake's own spread (Cycles shades each corner a
+    little off its face, so two faces' corners at one vertex differ by as much)."""
     lo, hi = 200.0, 700.0
     mat = _blender_noise_material(bpy, lo, hi)
     _sphere(bpy, mat)
@@ -413,9 +415,16 @@ def test_write_back_of_blender_noise_is_the_node_graph_the_preview_draws(bpy, tf
     assert sum(n.bl_idname == "ShaderNodeTexNoise" for n in mat.node_tree.nodes) == 1
 
     mat.thinfilm_sh.enabled = False
-    field = tf.linked.evaluate(bpy.data.objects["Sphere"], bpy.data.objects["Sphere"].data, mat, socket)
+    sphere = bpy.data.objects["Sphere"]
+    field = tf.linked.evaluate(sphere, sphere.data, mat, socket)
     assert field.baked
-    assert np.max(np.abs(field.values - preview_nm)) < 0.05  # float32 parameter over 500 nm
+    error = np.abs(field.values - preview_nm)
+    vertex = np.array([loop.vertex_index for loop in sphere.data.loops])
+    spread = max(np.ptp(field.values[vertex == v]) for v in np.unique(vertex))  # Cycles vs itself
+    # Measured: max 0.20 nm, median 0.042 nm of 500; Cycles' own corners at one vertex differ
+    # by up to 0.36 nm. One octave fewer is 34 nm off, another hash or gradient 170 nm.
+    assert error.max() < 0.0015 * (hi - lo) and error.max() <= spread, (error.max(), spread)
+    assert np.median(error) < 3e-4 * (hi - lo), np.median(error)
 
 
 def _render_centre(bpy, mat, size=48, samples=8):

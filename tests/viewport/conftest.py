@@ -24,7 +24,7 @@ def tf(bpy, tmp_path_factory):
         "addon.bakes.bake_jobs",
         "addon.thickness.thickness",
         "addon.thickness.linked",
-        "addon.thickness.image_source",
+        "addon.thickness.corners",
         "addon.world.panorama",
         "addon.world.world",
         "addon.world.world_state",

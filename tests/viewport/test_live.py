@@ -492,28 +492,23 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
 
 @pytest.mark.blender
 def test_a_noise_thickness_map_is_made_by_the_timer_once_edits_settle(bpy, tf, scene, monkeypatch):
-    """The real draw callback and timer, a Blender Noise thickness on a UV sphere: the draw bakes
+    """The real draw callback and timer, a Noise Texture linked into a Principled BSDF's Thin Film
+    Thickness on a UV sphere: the draw bakes
     nothing (the corners' bake, then the map, are queued); the timer bakes the corners at once and
     keeps the map queued, asking to be called again, until the edits have settled
     (``maps.SETTLE_S``: a dragged slider bakes no map per step); then it bakes the map and
     redraws, and the next frame's batch reads the thickness per pixel."""
     vp, linked, maps = tf.viewport, tf.linked, tf.maps
-    mat = bpy.data.materials.new("Noise film")
-    settings = {  # a tiny-quality opaque soap film whose thickness is Blender's Noise Texture
-        "preset": "SOAP_FILM",
-        "enabled": True,
-        "transparency": "OPAQUE",
-        "roughness": 0.4,
-        "sh_order": "2",
-        "view_samples": 4,
-        "thickness_samples": 4,
-        "wavelength_count": 32,
-        "vary_thickness": True,
-        "thickness_source": "BLENDER_NOISE",
-        "noise_scale": 4.0,
-    }
-    for name, value in settings.items():  # in this order: the preset first
-        setattr(mat.thinfilm_sh, name, value)
+    mat = bpy.data.materials.new("Noise film")  # an opaque Principled film, its thickness linked
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf = next(n for n in nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Roughness"].default_value = 0.4
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    ranged = nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 200.0, 700.0
+    links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    links.new(ranged.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
     bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12)
     sphere = bpy.context.active_object
     sphere.data.materials.append(mat)
@@ -540,7 +535,12 @@ def test_a_noise_thickness_map_is_made_by_the_timer_once_edits_settle(bpy, tf, s
     assert linked.STATS["bakes"] == corners and linked.baking(), "the draw queues the corners' bake"
     vp._service()
     assert linked.STATS["bakes"] == corners + 1 and not linked.baking()
-    draw()  # the corners are drawn; the map is queued
+    for _ in range(8):  # the corners are drawn (once the film's table is there); the map is queued
+        draw()
+        if tf.scene_draw.batch_entry(sphere.name) is not None:
+            break
+        vp._service()
+        wait_for(lambda: not tf.bake_jobs.BAKES.running, "the film's table bake")
     entry = tf.scene_draw.batch_entry(sphere.name)
     assert entry is not None and entry.batch is not None and entry.batch.thickness_map is None
     assert linked.has_pending() and linked.STATS["image_bakes"] == images
