@@ -13,6 +13,17 @@ uint tf_perlin_rot(uint x, uint k)
   return (x << k) | (x >> (32u - k));
 }
 
+/* Half of lookup3's mix: three subtract-xor-rotate steps with the rotations r. */
+void tf_perlin_mix3(inout uint a, inout uint b, inout uint c, uvec3 r)
+{
+  a = (a - c) ^ tf_perlin_rot(c, r.x);
+  c += b;
+  b = (b - a) ^ tf_perlin_rot(a, r.y);
+  a += c;
+  c = (c - b) ^ tf_perlin_rot(b, r.z);
+  b += a;
+}
+
 /* lookup3's hashword of the four lattice coordinates (materials.perlin.hash4). */
 uint tf_perlin_hash(uvec4 k)
 {
@@ -20,18 +31,8 @@ uint tf_perlin_hash(uvec4 k)
   uint a = k.x + start;
   uint b = k.y + start;
   uint c = k.z + start;
-  a = (a - c) ^ tf_perlin_rot(c, 4u);
-  c += b;
-  b = (b - a) ^ tf_perlin_rot(a, 6u);
-  a += c;
-  c = (c - b) ^ tf_perlin_rot(b, 8u);
-  b += a;
-  a = (a - c) ^ tf_perlin_rot(c, 16u);
-  c += b;
-  b = (b - a) ^ tf_perlin_rot(a, 19u);
-  a += c;
-  c = (c - b) ^ tf_perlin_rot(b, 4u);
-  b += a;
+  tf_perlin_mix3(a, b, c, uvec3(4u, 6u, 8u)); /* mix */
+  tf_perlin_mix3(a, b, c, uvec3(16u, 19u, 4u));
   a += k.w;
   c = (c ^ b) - tf_perlin_rot(b, 14u);
   a = (a ^ c) - tf_perlin_rot(c, 11u);

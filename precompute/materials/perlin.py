@@ -44,6 +44,16 @@ def _rot(x, k: int):
     return (x << _U32(k)) | (x >> _U32(32 - k))
 
 
+def _mix3(a, b, c, r: tuple):
+    """Half of lookup3's ``mix``: three subtract-xor-rotate steps with the rotations ``r``."""
+    a = (a - c) ^ _rot(c, r[0])
+    c = c + b
+    b = (b - a) ^ _rot(a, r[1])
+    a = a + c
+    c = (c - b) ^ _rot(b, r[2])
+    return a, b + a, c
+
+
 def hash4(kx, ky, kz, kw) -> np.ndarray:
     """lookup3's ``hashword`` of four uint32 words (wrapping arithmetic), as uint32."""
     with np.errstate(over="ignore"):
@@ -51,18 +61,8 @@ def hash4(kx, ky, kz, kw) -> np.ndarray:
         a = np.asarray(kx, dtype=_U32) + start
         b = np.asarray(ky, dtype=_U32) + start
         c = np.asarray(kz, dtype=_U32) + start
-        a = (a - c) ^ _rot(c, 4)  # mix
-        c = c + b
-        b = (b - a) ^ _rot(a, 6)
-        a = a + c
-        c = (c - b) ^ _rot(b, 8)
-        b = b + a
-        a = (a - c) ^ _rot(c, 16)
-        c = c + b
-        b = (b - a) ^ _rot(a, 19)
-        a = a + c
-        c = (c - b) ^ _rot(b, 4)
-        b = b + a
+        a, b, c = _mix3(a, b, c, (4, 6, 8))  # mix
+        a, b, c = _mix3(a, b, c, (16, 19, 4))
         a = a + np.asarray(kw, dtype=_U32)
         c = (c ^ b) - _rot(b, 14)  # final
         a = (a ^ c) - _rot(c, 11)
