@@ -192,9 +192,18 @@ def field_key(obj_name: str, mesh, key: str) -> tuple:
     return obj_name, len(mesh.vertices), len(mesh.loops), _geometry_epoch.get(obj_name, 0), key
 
 
-def _direct(mesh, socket) -> Field:
+def _texspace(obj):
+    """(location, size) of the object's texture space where its mesh's Generated coordinates are
+    its positions in it (no modifiers), else None."""
+    original = obj.original if hasattr(obj, "original") else obj
+    if original.modifiers or original.type != "MESH":
+        return None
+    return tuple(original.data.texspace_location), tuple(original.data.texspace_size)
+
+
+def _direct(mesh, socket, texspace=None) -> Field:
     """Evaluate the link into ``socket`` with numpy (raises Unsupported for other nodes)."""
-    values, notes, corners = linked_nodes.link_values(mesh, socket)
+    values, notes, corners = linked_nodes.link_values(mesh, socket, texspace)
     STATS["direct"] += 1
     sources = ", ".join(dict.fromkeys(notes)) or "constant nodes"
     how = f"evaluated directly from {sources} at {corners} face corners"
@@ -402,7 +411,7 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
     if found is not None:
         return found
     try:
-        found = _direct(mesh, socket)
+        found = _direct(mesh, socket, _texspace(obj))
     except linked_nodes.Unsupported as why:
         found = _bake_or_queue(name, mesh, bpy_material, socket, why)
     FIELDS[cache_key] = found
@@ -459,7 +468,8 @@ def material_range(bpy_material, socket) -> tuple[float, float, str] | None:
 def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
     """(map or None, why not or None, being waited for) of the link into ``socket`` over
     ``obj``'s evaluated ``mesh`` (:func:`.maps.field_map`): at the images' pixels where the link reads
-    images, else a Cycles bake at the UVs where the corners are baked too."""
+    images, else a Cycles bake at the UVs where the corners are baked or read the surface's
+    positions (a Noise Texture: :func:`.linked_nodes.positional`)."""
     key = key if key is not None else tree_key(socket)
     name = obj.original.name if hasattr(obj, "original") else obj.name
     found = evaluate(obj, mesh, bpy_material, socket, key)
@@ -468,7 +478,7 @@ def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
     def make():
         node = bpy_material.node_tree.nodes[node_name]
         live = next(s for s in node.inputs if s.identifier == socket_id)
-        if not found.baked:
+        if not found.baked and not linked_nodes.positional(live):
             return _direct_map(_mesh_of(name), live)
         return bake_map(
             bpy.data.objects[name], lambda: _bake_material(bpy_material, node_name, socket_id), found.values

@@ -2,8 +2,10 @@
 
 The nodes in :data:`DIRECT_NODES` — Value, Image Texture at a UV map (Non-Color or linear float
 pixels, Linear or Closest, Repeat or Extend), Map Range (linear), Math (the common operations),
-Mix (float, or colour Mix), Separate Color (RGB), Reroute — are evaluated per face corner
-exactly as Blender's SVM nodes compute them (:func:`link_values`); any other node raises
+Mix (float, or colour Mix), Separate Color (RGB), Reroute, Noise Texture (3-D or 4-D fBm,
+normalized, no distortion: :func:`precompute.materials.perlin.noise_texture`) at Texture
+Coordinate's Object or Generated coordinates — are evaluated per face corner exactly as
+Blender's SVM nodes compute them (:func:`link_values`); any other node raises
 :class:`Unsupported`, and :mod:`.linked` bakes the link with Cycles instead.
 """
 
@@ -11,13 +13,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...precompute.materials.perlin import noise_texture
+
 __all__ = [
     "DIRECT_NODES",
     "MAP_MAX_SIZE",
+    "POSITIONAL_NODES",
     "Unsupported",
     "corner_uv",
     "link_map",
     "link_values",
+    "positional",
     "sample",
     "texel_centres",
     "upstream",
@@ -37,7 +43,12 @@ DIRECT_NODES = (
     "ShaderNodeMix",
     "ShaderNodeSeparateColor",
     "NodeReroute",
+    "ShaderNodeTexNoise",
+    "ShaderNodeTexCoord",
 )
+#: Nodes whose value depends on the position on the surface, not on the UVs: a map of them is
+#: baked at the UVs (:func:`positional`).
+POSITIONAL_NODES = ("ShaderNodeTexNoise", "ShaderNodeTexCoord")
 #: Image colour spaces whose pixels Blender reads unchanged (so numpy sees what Cycles sees).
 _RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear CIE-XYZ E", "Raw"}
 
@@ -66,15 +77,34 @@ def corner_uv(mesh, layer) -> np.ndarray:
 
 
 class _Context:
-    """What the direct evaluator reads from the mesh: corner count, UV maps, notes on resolution."""
+    """What the direct evaluator reads from the mesh: corner count, UV maps, positions, notes on
+    resolution. ``texspace``: the mesh's texture space (location, size), which Generated
+    coordinates are relative to, or None where they are not its positions (a modified mesh's
+    Generated coordinates are its original's)."""
 
-    def __init__(self, mesh):
+    def __init__(self, mesh, texspace=None):
         self.mesh = mesh
         self.n = len(mesh.loops)
         self.notes: list[str] = []
+        self.texspace = texspace
 
     def uv(self, name: str) -> np.ndarray:
         return corner_uv(self.mesh, uv_layer(self.mesh, name))
+
+    def positions(self) -> np.ndarray:
+        """The corners' object-space positions (N, 3)."""
+        co = np.empty(3 * len(self.mesh.vertices), dtype=np.float32)
+        self.mesh.vertices.foreach_get("co", co)
+        corner = np.empty(self.n, dtype=np.int32)
+        self.mesh.loops.foreach_get("vertex_index", corner)
+        return co.reshape(-1, 3)[corner].astype(np.float64)
+
+    def generated(self) -> np.ndarray:
+        """The corners' Generated coordinates: positions in the texture space, 0–1 across it."""
+        if self.texspace is None:
+            raise Unsupported("Generated coordinates of a modified mesh")
+        location, size = (np.asarray(v, dtype=np.float64) for v in self.texspace)
+        return (self.positions() - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
 
 
 def texel_centres(height: int, width: int) -> np.ndarray:
@@ -95,6 +125,9 @@ class _GridContext(_Context):
         self.n = height * width
         self.notes = []
         self.grid = texel_centres(height, width)
+
+    def positions(self) -> np.ndarray:
+        raise Unsupported("positions between the corners")
 
     def uv(self, name: str) -> np.ndarray:
         if uv_layer(self.mesh, name).name != self.layer:
@@ -267,6 +300,58 @@ def _separate_colour(node, socket, ctx):
     return colour[:, {"Red": 0, "Green": 1, "Blue": 2}[socket.identifier]]
 
 
+def _constant(node, name: str, ctx) -> float:
+    """An input's value, the same at every corner (a linked one evaluated), else Unsupported."""
+    value = _as_float(_input(node, name, ctx))
+    if value.size and np.ptp(value) != 0.0:
+        raise Unsupported(f"a varying {name} of {node.name!r}")
+    return float(value.flat[0]) if value.size else 0.0
+
+
+def _identity_mapping(node) -> bool:
+    mapping = node.texture_mapping
+    return (
+        tuple(mapping.translation) == (0.0, 0.0, 0.0)
+        and tuple(mapping.rotation) == (0.0, 0.0, 0.0)
+        and tuple(mapping.scale) == (1.0, 1.0, 1.0)
+        and (mapping.mapping_x, mapping.mapping_y, mapping.mapping_z) == ("X", "Y", "Z")
+        and not (mapping.use_min or mapping.use_max)
+    )
+
+
+def _noise_node(node, socket, ctx):
+    """Blender's Noise Texture *Fac*: 3-D or 4-D fBm, normalized, without distortion."""
+    if socket.identifier != "Fac":
+        raise Unsupported("a Noise Texture's Color")
+    dimensions = {"3D": 3, "4D": 4}.get(node.noise_dimensions)
+    if dimensions is None or node.noise_type != "FBM" or not node.normalize:
+        raise Unsupported(f"a {node.noise_dimensions} {node.noise_type} Noise Texture")
+    if not _identity_mapping(node) or _constant(node, "Distortion", ctx) != 0.0:
+        raise Unsupported("a mapped or distorted Noise Texture")
+    vector = node.inputs["Vector"]
+    points = _as_colour(_input(node, "Vector", ctx)) if vector.is_linked else ctx.generated()
+    w = _constant(node, "W", ctx) if dimensions == 4 else 0.0
+    ctx.notes.append(f"a {dimensions}-D Noise Texture")
+    return noise_texture(
+        points,
+        w,
+        dimensions,
+        _constant(node, "Scale", ctx),
+        _constant(node, "Detail", ctx),
+        _constant(node, "Roughness", ctx),
+        _constant(node, "Lacunarity", ctx),
+    )
+
+
+def _texture_coordinate(node, socket, ctx):
+    """Texture Coordinate's Object (of the mesh's own object) or Generated output."""
+    if socket.identifier == "Object" and node.object is None and not node.from_instancer:
+        return ctx.positions()
+    if socket.identifier == "Generated" and not node.from_instancer:
+        return ctx.generated()
+    raise Unsupported(f"Texture Coordinate {socket.identifier}")
+
+
 _HANDLERS = {
     "ShaderNodeValue": _value_node,
     "NodeReroute": _reroute,
@@ -275,13 +360,16 @@ _HANDLERS = {
     "ShaderNodeMath": _math,
     "ShaderNodeMix": _mix,
     "ShaderNodeSeparateColor": _separate_colour,
+    "ShaderNodeTexNoise": _noise_node,
+    "ShaderNodeTexCoord": _texture_coordinate,
 }
 
 
-def link_values(mesh, socket) -> tuple[np.ndarray, list[str], int]:
+def link_values(mesh, socket, texspace=None) -> tuple[np.ndarray, list[str], int]:
     """(the value linked into ``socket`` per face corner of ``mesh``, what it was sampled from,
-    the corner count); raises :class:`Unsupported` for a node it does not mirror."""
-    ctx = _Context(mesh)
+    the corner count); ``texspace``: :class:`_Context`'s. Raises :class:`Unsupported` for a node
+    it does not mirror."""
+    ctx = _Context(mesh, texspace)
     link = socket.links[0]
     return _as_float(_output(link.from_node, link.from_socket, ctx)), ctx.notes, ctx.n
 
@@ -297,6 +385,12 @@ def upstream(socket) -> list:
         order.append(node)
         stack.extend(link.from_node for inp in node.inputs for link in inp.links if link.is_valid)
     return sorted(order, key=lambda n: n.name)
+
+
+def positional(socket) -> bool:
+    """Whether the value reaching ``socket`` depends on the surface position (a Noise Texture, a
+    Texture Coordinate): a map of it is baked at the UVs, not evaluated at texels."""
+    return any(n.bl_idname in POSITIONAL_NODES for n in upstream(socket))
 
 
 def _images(socket) -> list:

@@ -31,7 +31,17 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DETAIL", "LACUNARITY", "ROUGHNESS", "blender_noise", "fbm", "hash4", "perlin"]
+__all__ = [
+    "DETAIL",
+    "LACUNARITY",
+    "ROUGHNESS",
+    "blender_noise",
+    "fbm",
+    "hash3",
+    "hash4",
+    "noise_texture",
+    "perlin",
+]
 
 #: The written node's Detail, Roughness and Lacunarity (Blender's defaults).
 DETAIL, ROUGHNESS, LACUNARITY = 2.0, 0.5, 2.0
@@ -64,14 +74,18 @@ def hash4(kx, ky, kz, kw) -> np.ndarray:
         a, b, c = _mix3(a, b, c, (4, 6, 8))  # mix
         a, b, c = _mix3(a, b, c, (16, 19, 4))
         a = a + np.asarray(kw, dtype=_U32)
-        c = (c ^ b) - _rot(b, 14)  # final
-        a = (a ^ c) - _rot(c, 11)
-        b = (b ^ a) - _rot(a, 25)
-        c = (c ^ b) - _rot(b, 16)
-        a = (a ^ c) - _rot(c, 4)
-        b = (b ^ a) - _rot(a, 14)
-        c = (c ^ b) - _rot(b, 24)
-    return c
+        return _final(a, b, c)
+
+
+def _final(a, b, c):
+    """lookup3's ``final``: c of the last avalanche."""
+    c = (c ^ b) - _rot(b, 14)
+    a = (a ^ c) - _rot(c, 11)
+    b = (b ^ a) - _rot(a, 25)
+    c = (c ^ b) - _rot(b, 16)
+    a = (a ^ c) - _rot(c, 4)
+    b = (b ^ a) - _rot(a, 14)
+    return (c ^ b) - _rot(b, 24)
 
 
 def _gradient(h, x, y, z, w):
@@ -84,6 +98,15 @@ def _gradient(h, x, y, z, w):
     return np.where(h & 1, -u, u) + np.where(h & 2, -v, v) + np.where(h & 4, -s, s)
 
 
+def _gradient3(h, x, y, z):
+    """The dot product of the position in a 3-D cell with gradient ``h & 15`` (two of the three
+    axes, each ±1; Perlin's 12 edges and 4 repeats)."""
+    h = h & _U32(15)
+    u = np.where(h < 8, x, y)
+    v = np.where(h < 4, y, np.where((h == 12) | (h == 14), x, z))
+    return np.where(h & 1, -u, u) + np.where(h & 2, -v, v)
+
+
 def _fade(t):
     return t * t * t * (t * (t * np.float32(6.0) - np.float32(15.0)) + np.float32(10.0))
 
@@ -92,14 +115,34 @@ def _fade(t):
 _CORNERS = np.array([[(c >> k) & 1 for k in range(4)] for c in range(16)], dtype=np.uint32)
 
 
+#: The 8 corners of a 3-D lattice cell, as offsets (8, 3).
+_CORNERS3 = np.array([[(c >> k) & 1 for k in range(3)] for c in range(8)], dtype=np.uint32)
+#: Blender's ``noise_scale3``: the 3-D gradient noise into about [−1, 1].
+_SCALE3 = np.float32(0.9820)
+
+
+def _perlin3(p: np.ndarray) -> np.ndarray:
+    """:func:`perlin` of (N, 3) points: 3-D gradient noise, :func:`hash3`, scaled by 0.9820."""
+    cell = np.floor(p)
+    f = (p - cell).astype(np.float32)
+    corners = cell.astype(np.int64).astype(np.uint32)[..., None, :] + _CORNERS3  # (N, 8, 3)
+    h = hash3(corners[..., 0], corners[..., 1], corners[..., 2])
+    q = f[..., None, :] - _CORNERS3.astype(np.float32)
+    g = _gradient3(h, q[..., 0], q[..., 1], q[..., 2])
+    t = _fade(f)[..., None, :]
+    weights = np.prod(np.where(_CORNERS3 == 1, t, np.float32(1.0) - t), axis=-1)
+    value = np.sum(weights * g, axis=-1, dtype=np.float32)
+    return _SCALE3 * np.where(np.isfinite(value), value, np.float32(0.0))
+
+
 #: Points per block of :func:`perlin` (its (block, 16, 4) temporaries stay in the cache).
 _BLOCK = 1024
 
 
 def perlin(points) -> np.ndarray:
-    """Signed 4-D gradient noise of (N, 4) points, scaled as Blender's (about [−1, 1]): the 16
-    corners' gradients weighted by the products of their fades (the nested blends of
-    ``tf_perlin.glsl``, multiplied out)."""
+    """Signed gradient noise of (N, 4) points (or (N, 3): Blender's 3-D noise), scaled as
+    Blender's (about [−1, 1]): the 16 (8) corners' gradients weighted by the products of their
+    fades (the nested blends of ``tf_perlin.glsl``, multiplied out)."""
     p = np.asarray(points, dtype=np.float32)
     if p.ndim == 2 and p.shape[0] > _BLOCK:
         return np.concatenate([_perlin(p[i : i + _BLOCK]) for i in range(0, p.shape[0], _BLOCK)])
@@ -107,6 +150,8 @@ def perlin(points) -> np.ndarray:
 
 
 def _perlin(p: np.ndarray) -> np.ndarray:
+    if p.shape[-1] == 3:
+        return _perlin3(p)
     cell = np.floor(p)
     f = (p - cell).astype(np.float32)
     lattice = cell.astype(np.int64).astype(np.uint32)  # wraps below zero as C's int → uint
@@ -141,10 +186,36 @@ def fbm(points, detail: float = DETAIL, roughness: float = ROUGHNESS, lacunarity
     return np.float32(1.0 - rest) * value + np.float32(rest) * value_more
 
 
+def noise_texture(
+    vectors,
+    w: float = 0.0,
+    dimensions: int = 3,
+    scale: float = 5.0,
+    detail: float = DETAIL,
+    roughness: float = ROUGHNESS,
+    lacunarity: float = LACUNARITY,
+) -> np.ndarray:
+    """A Noise Texture node's *Fac* (fBm, normalized, no distortion) at (N, 3) ``vectors``: 3-D
+    noise of vector · scale, or 4-D of (vector, ``w``) · scale (float64 (N,))."""
+    v = np.asarray(vectors, dtype=np.float32).reshape(-1, 3)
+    if int(dimensions) == 4:
+        v = np.concatenate([v, np.full((v.shape[0], 1), np.float32(w), dtype=np.float32)], axis=1)
+    elif int(dimensions) != 3:
+        raise ValueError(f"a Noise Texture of {dimensions} dimensions is not mirrored (3 or 4)")
+    return fbm(v * np.float32(scale), detail, roughness, lacunarity).astype(np.float64)
+
+
 def blender_noise(positions, scale: float, seed: float) -> np.ndarray:
     """The *Blender Noise* source's node at (N, 3) object-space ``positions``: 4-D noise at
     (position, ``seed``) · ``scale``, its *Fac* (float64 (N,), about [0, 1])."""
-    pos = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
-    w = np.full((pos.shape[0], 1), np.float32(seed), dtype=np.float32)
-    p = np.concatenate([pos, w], axis=1) * np.float32(scale)
-    return fbm(p).astype(np.float64)
+    return noise_texture(positions, seed, 4, scale)
+
+
+def hash3(kx, ky, kz) -> np.ndarray:
+    """lookup3's ``hashword`` of three uint32 words (no ``mix``: only the ``final``), as uint32."""
+    with np.errstate(over="ignore"):
+        start = _U32(0xDEADBEEF + (3 << 2) + 13)
+        a = np.asarray(kx, dtype=_U32) + start
+        b = np.asarray(ky, dtype=_U32) + start
+        c = np.asarray(kz, dtype=_U32) + start
+        return _final(a, b, c)

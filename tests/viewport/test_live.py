@@ -492,8 +492,8 @@ def test_a_prefilter_the_draw_asks_for_starts_the_timer(bpy, tf, scene, monkeypa
 
 @pytest.mark.blender
 def test_a_noise_thickness_map_is_made_by_the_timer_once_edits_settle(bpy, tf, scene, monkeypatch):
-    """The real draw callback and timer, a Noise Texture linked into a Principled BSDF's Thin Film
-    Thickness on a UV sphere: the draw bakes
+    """The real draw callback and timer, a (distorted) Noise Texture linked into a Principled
+    BSDF's Thin Film Thickness on a UV sphere: the draw bakes
     nothing (the corners' bake, then the map, are queued); the timer bakes the corners at once and
     keeps the map queued, asking to be called again, until the edits have settled
     (``maps.SETTLE_S``: a dragged slider bakes no map per step); then it bakes the map and
@@ -505,6 +505,7 @@ def test_a_noise_thickness_map_is_made_by_the_timer_once_edits_settle(bpy, tf, s
     bsdf.inputs["Roughness"].default_value = 0.4
     noise = nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 4.0
+    noise.inputs["Distortion"].default_value = 0.3  # not mirrored in numpy: Cycles bakes it
     ranged = nodes.new("ShaderNodeMapRange")
     ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 200.0, 700.0
     links.new(noise.outputs["Fac"], ranged.inputs["Value"])
