@@ -252,8 +252,8 @@ void main()
   }
 #endif
 #if defined(TF_THICKNESS_PERLIN)
-  /* the Blender Noise source per pixel: Blender's Noise Texture, Map Range clamped (tf_perlin.glsl) */
-  float thickness01 = clamp(tf_blender_noise(tf_object_pos, tf_object.noise.x, tf_object.noise.y), 0.0, 1.0);
+  /* a Noise Texture per pixel (tf_perlin.glsl): the Blender Noise source, or a linked one */
+  float thickness01 = tf_noise_texture(tf_object_pos);
 #elif defined(TF_THICKNESS_NOISE)
   /* the Noise source per pixel at the object-space position (tf_noise.glsl) */
   float thickness01 = tf_value_noise(tf_object_pos, tf_object.noise.x, int(tf_object.noise.y));

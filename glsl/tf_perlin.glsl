@@ -1,11 +1,11 @@
-/* tf_perlin.glsl: the Blender Noise thickness source per pixel (TF_THICKNESS_PERLIN).
+/* tf_perlin.glsl: a Noise Texture per pixel (TF_THICKNESS_PERLIN): the Blender Noise thickness
+ * source, and a Noise Texture linked into a Principled BSDF's Thin Film Thickness.
  *
- * numpy counterpart: materials.perlin (blender_noise, fbm, perlin, hash4): Blender's Noise
- * Texture, 4-D, of (object-space position, seed) times the scale, Detail 2, Roughness 0.5,
- * Lacunarity 2, normalized. Gradient noise on the 4-D integer lattice, each point's gradient
- * picked by Bob Jenkins' lookup3 hash of its four coordinates (wrapping uint arithmetic),
- * blended with the quintic fade, scaled by 0.8344; three octaves of fBm. float32 as numpy's
- * mirror computes it. Uniform: tf_object.noise (x: scale, y: seed).
+ * numpy counterpart: materials.perlin (NoiseSpec, noise_texture, fbm, perlin, hash3, hash4):
+ * Blender's Noise Texture, fBm, normalized. Gradient noise on the 3-D or 4-D integer lattice,
+ * each point's gradient picked by Bob Jenkins' lookup3 hash of its coordinates (wrapping uint
+ * arithmetic), blended with the quintic fade, scaled by 0.9820 (3-D) or 0.8344 (4-D). float32
+ * as numpy's mirror computes it. Uniforms: tf_object's noise members (addon/gpu/layout.py).
  */
 
 uint tf_perlin_rot(uint x, uint k)
@@ -75,19 +75,87 @@ float tf_perlin(vec4 p)
   return 0.8344 * mix(tf_perlin_cube(c, f, t, 0u), tf_perlin_cube(c, f, t, 1u), t.w);
 }
 
-/* The Blender Noise source's Fac at object-space point pos (materials.perlin.blender_noise). */
-float tf_blender_noise(vec3 pos, float scale, float seed)
+/* lookup3's hashword of three lattice coordinates: the final alone (materials.perlin.hash3). */
+uint tf_perlin_hash3(uvec3 k)
 {
-  vec4 p = vec4(pos, seed) * scale;
-  float total = 0.0;
+  uint start = 0xDEADBEEFu + 25u; /* 0xdeadbeef + (3 << 2) + 13 */
+  uint a = k.x + start;
+  uint b = k.y + start;
+  uint c = k.z + start;
+  c = (c ^ b) - tf_perlin_rot(b, 14u);
+  a = (a ^ c) - tf_perlin_rot(c, 11u);
+  b = (b ^ a) - tf_perlin_rot(a, 25u);
+  c = (c ^ b) - tf_perlin_rot(b, 16u);
+  a = (a ^ c) - tf_perlin_rot(c, 4u);
+  b = (b ^ a) - tf_perlin_rot(a, 14u);
+  c = (c ^ b) - tf_perlin_rot(b, 24u);
+  return c;
+}
+
+/* A 3-D lattice corner c + d's gradient (Perlin's 12 edges) dotted with f - d. */
+float tf_perlin_corner3(uvec3 c, vec3 f, uvec3 d)
+{
+  uint h = tf_perlin_hash3(c + d) & 15u;
+  vec3 q = f - vec3(d);
+  float u = (h < 8u) ? q.x : q.y;
+  float v = (h < 4u) ? q.y : (((h == 12u) || (h == 14u)) ? q.x : q.z);
+  return (((h & 1u) != 0u) ? -u : u) + (((h & 2u) != 0u) ? -v : v);
+}
+
+/* Signed 3-D gradient noise scaled as Blender's (materials.perlin.perlin of (N, 3) points). */
+float tf_perlin3(vec3 p)
+{
+  vec3 cell = floor(p);
+  vec3 f = p - cell;
+  vec3 t = f * f * f * (f * (f * 6.0 - 15.0) + 10.0);
+  uvec3 c = uvec3(ivec3(cell));
+  float x00 = mix(tf_perlin_corner3(c, f, uvec3(0u, 0u, 0u)), tf_perlin_corner3(c, f, uvec3(1u, 0u, 0u)), t.x);
+  float x10 = mix(tf_perlin_corner3(c, f, uvec3(0u, 1u, 0u)), tf_perlin_corner3(c, f, uvec3(1u, 1u, 0u)), t.x);
+  float x01 = mix(tf_perlin_corner3(c, f, uvec3(0u, 0u, 1u)), tf_perlin_corner3(c, f, uvec3(1u, 0u, 1u)), t.x);
+  float x11 = mix(tf_perlin_corner3(c, f, uvec3(0u, 1u, 1u)), tf_perlin_corner3(c, f, uvec3(1u, 1u, 1u)), t.x);
+  return 0.9820 * mix(mix(x00, x10, t.y), mix(x01, x11, t.y), t.z);
+}
+
+/* One octave: 3-D noise of p.xyz, or 4-D of p where four dimensions. */
+float tf_perlin_octave(vec4 p, bool four)
+{
+  return four ? tf_perlin(p) : tf_perlin3(p.xyz);
+}
+
+/* A Noise Texture's Fac, normalized fBm (materials.perlin.fbm): floor(detail) + 1 octaves at
+ * frequencies lacunarity^i with amplitudes roughness^i, the fraction of detail blending one more. */
+float tf_fbm(vec4 p, bool four, float detail, float roughness, float lacunarity)
+{
+  float frequency = 1.0;
   float amplitude = 1.0;
   float weight = 0.0;
-  float frequency = 1.0;
-  for (int octave = 0; octave < 3; octave++) {
-    total += amplitude * tf_perlin(frequency * p);
+  float total = 0.0;
+  int octaves = int(detail);
+  for (int i = 0; i <= octaves; i++) {
+    total += amplitude * tf_perlin_octave(frequency * p, four);
     weight += amplitude;
-    amplitude *= 0.5;
-    frequency *= 2.0;
+    amplitude *= roughness;
+    frequency *= lacunarity;
   }
-  return 0.5 * total / weight + 0.5;
+  float value = 0.5 * total / weight + 0.5;
+  float rest = detail - float(octaves);
+  if (rest > 0.0) {
+    float more = total + amplitude * tf_perlin_octave(frequency * p, four);
+    value = mix(value, 0.5 * more / (weight + amplitude) + 0.5, rest);
+  }
+  return value;
+}
+
+/* The thickness parameter in [0, 1] of the item's Noise Texture at object-space point pos
+ * (materials.perlin.NoiseSpec.parameter): tf_object.noise (x scale, y w), noise_fbm (detail,
+ * roughness, lacunarity, dimensions), noise_space / noise_offset (its coordinates from pos),
+ * noise_map (gain, bias, low, high: Fac to the parameter). */
+float tf_noise_texture(vec3 pos)
+{
+  vec3 v = pos * tf_object.noise_space.xyz + tf_object.noise_offset.xyz;
+  vec4 p = vec4(v, tf_object.noise.y) * tf_object.noise.x;
+  vec4 fbm = tf_object.noise_fbm;
+  float fac = tf_fbm(p, fbm.w > 3.5, fbm.x, fbm.y, fbm.z);
+  vec4 m = tf_object.noise_map;
+  return clamp(clamp(m.x * fac + m.y, m.z, m.w), 0.0, 1.0);
 }

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...precompute.materials.perlin import NoiseSpec
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import linked
@@ -60,16 +61,17 @@ def thickness_source(bpy_material, props, desc):
 
 def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
     """(per-corner thickness parameter or None, notes, whether a bake or a map is awaited, the
-    thickness map or None) of a batch: from the extension's source (``props``: the *Image*
-    and *Blender Noise* sources, :mod:`.corners`; the rest, :func:`.thickness.thickness_field`),
-    or from the link into a Principled BSDF's Thin Film Thickness (``linked_source`` =
-    (material, socket), :func:`.linked.corner_parameters`). The map, (corner UVs, parameters
-    (H, W) or an image's texture, repeat), is read per pixel (:mod:`..thickness.maps`) where a
-    texture or a bake gives one; the noise sources are computed per pixel (``MeshBatch.noise``)."""
+    thickness map or None, the noise computed per pixel or None) of a batch: from the
+    extension's source (``props``: the *Image* and *Blender Noise* sources, :mod:`.corners`; the
+    rest, :func:`.thickness.thickness_field`), or from the link into a Principled BSDF's Thin
+    Film Thickness (``linked_source`` = (material, socket), :func:`.linked.corner_parameters`).
+    The map, (corner UVs, parameters (H, W) or an image's texture, repeat), is read per pixel
+    (:mod:`..thickness.maps`) where a texture or a bake gives one; the noise sources and a
+    linked Noise Texture are computed per pixel (``MeshBatch.noise``)."""
     notes = []
     if not desc.varies:
-        return None, notes, False, None
-    thickness_map, waiting = None, False
+        return None, notes, False, None, None
+    thickness_map, waiting, noise = None, False, _source_noise(props)
     try:
         if props is not None and props.enabled and props.thickness_source == "IMAGE":
             thickness, nan_count, thickness_map, waiting = image_parameters(obj_eval, mesh, props)
@@ -78,33 +80,33 @@ def batch_thickness(name: str, obj_eval, mesh, props, desc, linked_source):
         elif props is not None and props.enabled:
             thickness, nan_count = thickness_field(obj_eval, mesh, props)
         elif linked_source is not None:
-            thickness, nan_count, thickness_map, waiting = linked.corner_parameters(
+            thickness, nan_count, thickness_map, waiting, noise = linked.corner_parameters(
                 obj_eval, mesh, *linked_source, desc.thickness_range_nm
             )
         else:
-            return None, notes, False, None
+            return None, notes, False, None, None
     except linked.Pending as exc:  # built again on the next frame, after the timer's bake
         notes.append(f"{name}: {exc}; using the middle of the thickness range meanwhile")
-        return None, notes, True, None
+        return None, notes, True, None, None
     except ValueError as exc:
         notes.append(f"{name}: {exc}; using the middle of the thickness range")
-        return None, notes, False, None
+        return None, notes, False, None, None
     if nan_count:
         notes.append(non_finite_note(f"object {name!r}", nan_count, thickness.size))
-    return thickness, notes, waiting, thickness_map  # waiting: for a map (drawn per corner meanwhile)
+    return thickness, notes, waiting, thickness_map, noise  # waiting: for a map or the corners
 
 
-#: The noise sources drawn per pixel, and the kind the shader computes (``MeshBatch.noise``).
-NOISE_KINDS = {"NOISE": 0.0, "BLENDER_NOISE": 1.0}
-
-
-def _noise_kind(props) -> float | None:
-    """The kind of noise that gives the thickness (:data:`NOISE_KINDS`), computed per pixel from
-    the object-space position (the value noise, tf_noise.glsl; Blender's Noise Texture,
-    tf_perlin.glsl) and at the corners by the same function, or None for another source."""
+def _source_noise(props):
+    """The extension's noise source computed per pixel from the object-space position
+    (``MeshBatch.noise``), its corners by the same function: the *Noise* source's (scale, seed)
+    (tf_noise.glsl), the *Blender Noise* source's Noise Texture (tf_perlin.glsl), else None."""
     if props is None or not props.enabled or not props.vary_thickness:
         return None
-    return NOISE_KINDS.get(props.thickness_source)
+    if props.thickness_source == "NOISE":
+        return float(props.noise_scale), int(props.noise_seed)
+    if props.thickness_source == "BLENDER_NOISE":
+        return NoiseSpec(4, float(props.noise_scale), float(props.noise_seed))
+    return None
 
 
 def slot_batch(
@@ -132,7 +134,7 @@ def slot_batch(
         triangles = triangles[poly_mat[tri_poly] == slot]
     if triangles.shape[0] == 0:
         return BatchEntry(signature, None)
-    thickness, notes, waiting, thickness_map = batch_thickness(
+    thickness, notes, waiting, thickness_map, noise = batch_thickness(
         name, obj_eval, mesh, props, desc, linked_source
     )
     if desc.varies and thickness is None:
@@ -144,9 +146,8 @@ def slot_batch(
     batch = MeshBatch.from_arrays(
         positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map
     )
-    kind = _noise_kind(props)
-    if batch is not None and kind is not None:  # per pixel (TF_THICKNESS_NOISE)
-        batch.noise = (float(props.noise_scale), int(props.noise_seed), kind)
+    if batch is not None and noise is not None:  # per pixel (TF_THICKNESS_NOISE)
+        batch.noise = noise
     if waiting:
         signature = ("waiting for a bake", signature)  # never equal: rebuilt on the next frame
     return BatchEntry(signature, batch, thickness, tuple(notes))

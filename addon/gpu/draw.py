@@ -99,8 +99,18 @@ def object_uniforms(
         glass=[float(glass), *(float(c) for c in wall_tint(wall))],
         fit=world_fit(inside.fit, model) if inside is not None else [0.0] * 4,
         inside=[float(inside is not None and inside.drawn), 0.0, 0.0, 0.0],
-        noise=[float(noise[0]), float(noise[1]), 0.0, 0.0] if noise is not None else [0.0] * 4,
+        **_noise_members(noise),
     ).reshape(-1)
+
+
+def _noise_members(noise) -> dict:
+    """The object block's noise members: a ``precompute.materials.perlin.NoiseSpec``'s, the
+    value noise's (scale, seed), or zeros."""
+    if hasattr(noise, "uniforms"):  # a NoiseSpec (tests import precompute under another package)
+        return noise.uniforms()
+    zeros = {name: [0.0] * 4 for name in ("noise_fbm", "noise_map", "noise_space", "noise_offset")}
+    head = [float(noise[0]), float(noise[1]), 0.0, 0.0] if noise is not None else [0.0] * 4
+    return {"noise": head, **zeros}
 
 
 def _batch_of(item):
@@ -113,15 +123,15 @@ def _batch_of(item):
 
 
 def _noise_variant(noise) -> int:
-    """``Variant.thickness_noise`` of a batch's ``noise`` (scale, seed[, kind]): 0 none, else the
-    value noise or, kind 1, Blender's Noise Texture."""
+    """``Variant.thickness_noise`` of a batch's ``noise``: 0 none, the value noise's (scale,
+    seed), or a Noise Texture (``precompute.materials.perlin.NoiseSpec``)."""
     if noise is None:
         return 0
-    return NOISE_BLENDER if len(noise) > 2 and float(noise[2]) > 0.5 else NOISE_VALUE
+    return NOISE_BLENDER if hasattr(noise, "uniforms") else NOISE_VALUE
 
 
 def _noise_of(item):
-    """(scale, seed, kind) of the noise drawn per pixel (``MeshBatch.noise``), or None."""
+    """The noise drawn per pixel (``MeshBatch.noise``), or None."""
     return getattr(item.batch, "noise", None) if isinstance(item.batch, MeshBatch) else None
 
 

@@ -202,8 +202,13 @@ OBJECT = Block(
         Member(
             "noise",
             None,
-            "the Noise thickness source per pixel (TF_THICKNESS_NOISE, tf_noise.glsl): x scale, y seed",
+            "a noise thickness per pixel (TF_THICKNESS_NOISE): x scale, y seed (tf_noise.glsl) or W "
+            "(a Noise Texture, TF_THICKNESS_PERLIN, tf_perlin.glsl)",
         ),
+        Member("noise_fbm", None, "TF_THICKNESS_PERLIN: detail, roughness, lacunarity, dimensions (3, 4)"),
+        Member("noise_map", None, "TF_THICKNESS_PERLIN: gain, bias, low, high (Fac to the parameter)"),
+        Member("noise_space", None, "TF_THICKNESS_PERLIN: xyz the coordinates' scale from object space"),
+        Member("noise_offset", None, "TF_THICKNESS_PERLIN: xyz the coordinates' offset"),
     ),
 )
 #: A small table instead of its texture (``TF_TABLE_UBO``, :attr:`TableTexture.ubo`).

@@ -65,10 +65,10 @@ class MeshBatch:
     inside: Inside | None = None
     bounds: np.ndarray | None = None  # set by from_arrays, the only maker
     thickness_map: gpu.types.GPUTexture | ImageTexture | None = None
-    #: A noise source's (scale, seed, kind), computed per pixel from the positions
-    #: (``TF_THICKNESS_NOISE``): kind 0 the *Noise* source's value noise, 1 Blender's Noise Texture
-    #: (the *Blender Noise* source); (scale, seed) alone is kind 0.
-    noise: tuple | None = None
+    #: A noise computed per pixel from the positions (``TF_THICKNESS_NOISE``): the *Noise*
+    #: source's (scale, seed), or a Noise Texture (``precompute.materials.perlin.NoiseSpec``: the
+    #: *Blender Noise* source, a linked Noise Texture).
+    noise: object = None
 
     @classmethod
     def from_arrays(

@@ -37,7 +37,7 @@ import bpy
 import numpy as np
 
 from .. import caches, workers
-from . import linked_nodes, maps, thickness_nodes
+from . import linked_nodes, maps, noise_graph, thickness_nodes
 from .thickness import corner_order, image_stamp
 
 __all__ = [
@@ -56,6 +56,7 @@ __all__ = [
     "linked_map",
     "mark_geometry",
     "material_range",
+    "noise_graph_of",
     "pending_count",
     "run_pending",
     "tree_key",
@@ -455,6 +456,11 @@ def material_range(bpy_material, socket) -> tuple[float, float, str] | None:
         mesh = obj.evaluated_get(depsgraph).data
         field = evaluate(obj, mesh, bpy_material, socket, key)
         lo, hi = min(lo, field.lo), max(hi, field.hi)
+        graph = noise_graph_of(obj, socket)
+        if graph is not None:  # per pixel: the thickness over the noise's whole range
+            lo, hi = min(lo, graph.nm_range()[0]), max(hi, graph.nm_range()[1])
+            hows.append(f"{obj.name}: {field.how}; per pixel (the Noise Texture computed in the shader)")
+            continue
         found_map, why, _ = linked_map(obj, mesh, bpy_material, socket, key)
         if found_map is not None:  # a texture's peaks between the corners
             lo, hi = min(lo, found_map.lo), max(hi, found_map.hi)
@@ -488,17 +494,26 @@ def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
     return maps.field_map(field_key(name, mesh, key), job, make, defer=_defer or _maps_later)
 
 
+def noise_graph_of(obj, socket):
+    """The link as a Noise Texture the shader computes per pixel (:mod:`.noise_graph`), or None."""
+    return noise_graph.recognise(socket, _texspace(obj))
+
+
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):
     """(per-corner parameter in [0, 1] along the table's range, non-finite count, the map for
-    the batch: (corner UVs, parameter map, repeat) or None, whether a map is awaited)."""
+    the batch: (corner UVs, parameter map, repeat) or None, whether a map is awaited, the
+    Noise Texture the shader computes per pixel instead of a map, or None)."""
     field = evaluate(obj_eval, mesh, bpy_material, socket)
     lo, hi = thickness_range
     values = field.values
     finite = np.isfinite(values)
     param = np.where(finite, (np.where(finite, values, lo) - lo) / max(hi - lo, 1e-9), 0.5)
     nan_count = int(values.size - np.count_nonzero(finite))
+    graph = noise_graph_of(obj_eval, socket)
+    if graph is not None:
+        return np.clip(param, 0.0, 1.0), nan_count, None, False, graph.spec(thickness_range)
     found_map, _, waiting = linked_map(obj_eval, mesh, bpy_material, socket)
-    return np.clip(param, 0.0, 1.0), nan_count, _batch_map(found_map, thickness_range), waiting
+    return np.clip(param, 0.0, 1.0), nan_count, _batch_map(found_map, thickness_range), waiting, None
 
 
 @contextlib.contextmanager

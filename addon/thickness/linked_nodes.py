@@ -22,6 +22,7 @@ __all__ = [
     "Unsupported",
     "corner_uv",
     "link_map",
+    "identity_mapping",
     "link_values",
     "positional",
     "sample",
@@ -308,7 +309,8 @@ def _constant(node, name: str, ctx) -> float:
     return float(value.flat[0]) if value.size else 0.0
 
 
-def _identity_mapping(node) -> bool:
+def identity_mapping(node) -> bool:
+    """Whether a texture node's hidden mapping leaves its coordinates as they are."""
     mapping = node.texture_mapping
     return (
         tuple(mapping.translation) == (0.0, 0.0, 0.0)
@@ -326,7 +328,7 @@ def _noise_node(node, socket, ctx):
     dimensions = {"3D": 3, "4D": 4}.get(node.noise_dimensions)
     if dimensions is None or node.noise_type != "FBM" or not node.normalize:
         raise Unsupported(f"a {node.noise_dimensions} {node.noise_type} Noise Texture")
-    if not _identity_mapping(node) or _constant(node, "Distortion", ctx) != 0.0:
+    if not identity_mapping(node) or _constant(node, "Distortion", ctx) != 0.0:
         raise Unsupported("a mapped or distorted Noise Texture")
     vector = node.inputs["Vector"]
     points = _as_colour(_input(node, "Vector", ctx)) if vector.is_linked else ctx.generated()

@@ -29,12 +29,15 @@ Blender manual, *Noise Texture* node (Detail, Roughness, Lacunarity, Normalize).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 __all__ = [
     "DETAIL",
     "LACUNARITY",
     "ROUGHNESS",
+    "NoiseSpec",
     "blender_noise",
     "fbm",
     "hash3",
@@ -219,3 +222,56 @@ def hash3(kx, ky, kz) -> np.ndarray:
         b = np.asarray(ky, dtype=_U32) + start
         c = np.asarray(kz, dtype=_U32) + start
         return _final(a, b, c)
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """A Noise Texture that gives a film's thickness, as the shader computes it per pixel
+    (``tf_perlin.glsl``: ``tf_noise_texture``, ``TF_THICKNESS_PERLIN``).
+
+    The node's settings (:func:`noise_texture`) read at ``space_scale`` · p + ``space_offset``
+    of the object-space position p (Object coordinates: 1 and 0; Generated: the texture space);
+    its *Fac* becomes the table's thickness parameter as ``gain`` · Fac + ``bias`` clamped to
+    [``low``, ``high``] and to [0, 1] (a Map Range, and the table's range, folded in).
+    """
+
+    dimensions: int = 4
+    scale: float = 5.0
+    w: float = 0.0
+    detail: float = DETAIL
+    roughness: float = ROUGHNESS
+    lacunarity: float = LACUNARITY
+    space_scale: tuple = (1.0, 1.0, 1.0)
+    space_offset: tuple = (0.0, 0.0, 0.0)
+    gain: float = 1.0
+    bias: float = 0.0
+    low: float = 0.0
+    high: float = 1.0
+
+    def fac(self, positions) -> np.ndarray:
+        """The node's *Fac* at (N, 3) object-space ``positions``."""
+        p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        v = p * np.asarray(self.space_scale) + np.asarray(self.space_offset)
+        return noise_texture(
+            v, self.w, self.dimensions, self.scale, self.detail, self.roughness, self.lacunarity
+        )
+
+    def parameter(self, positions) -> np.ndarray:
+        """The thickness parameter in [0, 1] at (N, 3) object-space ``positions``."""
+        value = np.clip(self.gain * self.fac(positions) + self.bias, self.low, self.high)
+        return np.clip(value, 0.0, 1.0)
+
+    def uniforms(self) -> dict:
+        """The object block's noise members (``addon/gpu/layout.py`` OBJECT), vec4s."""
+        return {
+            "noise": [float(self.scale), float(self.w), 0.0, 0.0],
+            "noise_fbm": [
+                float(np.clip(self.detail, 0.0, 15.0)),
+                max(float(self.roughness), 0.0),
+                float(self.lacunarity),
+                float(self.dimensions),
+            ],
+            "noise_map": [float(self.gain), float(self.bias), float(self.low), float(self.high)],
+            "noise_space": [*(float(v) for v in self.space_scale), 0.0],
+            "noise_offset": [*(float(v) for v in self.space_offset), 0.0],
+        }

@@ -61,14 +61,16 @@ MIRROR = (
     ),
     Mirror(
         (
-            "materials.perlin.blender_noise",
+            "materials.perlin.NoiseSpec",
+            "materials.perlin.noise_texture",
             "materials.perlin.fbm",
             "materials.perlin.perlin",
+            "materials.perlin.hash3",
             "materials.perlin.hash4",
         ),
         "tf_perlin.glsl",
-        ("tf_perlin_hash", "tf_perlin", "tf_blender_noise"),
-        glsl_note="the Blender Noise thickness source per pixel (`TF_THICKNESS_PERLIN`)",
+        ("tf_perlin_hash3", "tf_perlin_hash", "tf_perlin3", "tf_perlin", "tf_fbm", "tf_noise_texture"),
+        glsl_note="a Noise Texture per pixel (`TF_THICKNESS_PERLIN`): Blender Noise, a linked one",
     ),
     Mirror(
         (

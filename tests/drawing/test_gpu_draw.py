@@ -21,7 +21,7 @@ from precompute.bakes import bake
 from precompute.colour import film_colour
 from precompute.materials.material import Layer, Material, Quality
 from precompute.materials.noise import value_noise
-from precompute.materials.perlin import blender_noise
+from precompute.materials.perlin import NoiseSpec
 from precompute.output import image_io, render
 from precompute.sh import projection
 from precompute.shading import codegen, policy, sh_rotation, sh_sum, split_sum
@@ -824,31 +824,36 @@ def test_an_image_thickness_is_read_per_pixel_from_blenders_texture(gd, bpy, sto
     assert batch.map_texture() is None  # the image is gone: drawn per corner, nothing dangles
 
 
-@pytest.mark.parametrize("kind", ["value", "blender"])
+#: A linked Noise Texture as tf_perlin.glsl computes it: 3-D, Generated-like coordinates,
+#: fractional Detail, a clamped Map Range folded into gain, bias, low and high.
+LINKED_NOISE = NoiseSpec(3, 2.3, 0.0, 2.4, 0.6, 2.2, (0.5, 0.4, 0.6), (0.5, 0.5, 0.5), 1.6, -0.3, 0.1, 0.9)
+
+
+@pytest.mark.parametrize("kind", ["value", "blender", "linked"])
 def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
-    """The noise sources per pixel (``TF_THICKNESS_NOISE``): a quad facing the camera filling a
-    32² orthographic frame, each pixel shaded at its object-space position's noise, where the
+    """The noise thicknesses per pixel (``TF_THICKNESS_NOISE``): a quad facing the camera filling
+    a 32² orthographic frame, each pixel shaded at its object-space position's noise, where the
     corners alone would interpolate four values. *value*: the Noise source,
     materials.noise.value_noise (tf_noise.glsl); *blender*: the Blender Noise source,
-    materials.perlin.blender_noise (tf_perlin.glsl), Blender's Noise Texture."""
+    materials.perlin.blender_noise (tf_perlin.glsl), Blender's 4-D Noise Texture; *linked*: a
+    linked 3-D Noise Texture (:data:`LINKED_NOISE`, materials.perlin.NoiseSpec.parameter)."""
     scale, seed, size = 3.7, 5, 32
-    noise = value_noise if kind == "value" else blender_noise
-    _, img, shade = facing_quad(
-        gd,
-        size,
-        size,
-        thickness=noise(QUAD_POS, scale, seed),
-        noise=(scale, seed, 0.0 if kind == "value" else 1.0),
-    )
+    if kind == "value":
+        spec, noise = (scale, seed), lambda p: value_noise(p, scale, seed)
+    else:
+        spec = NoiseSpec(4, scale, seed) if kind == "blender" else LINKED_NOISE
+        noise = spec.parameter
+    _, img, shade = facing_quad(gd, size, size, thickness=noise(QUAD_POS), noise=spec)
     centres = (np.arange(size) + 0.5) / size * 2 - 1
     z, x = np.meshgrid(-centres, centres, indexing="ij")  # top row first: z from +1 down
     points = np.stack([x, np.zeros_like(x), z], axis=-1).reshape(-1, 3)
-    t01 = np.clip(noise(points, scale, seed), 0.0, 1.0)
+    t01 = np.clip(noise(points), 0.0, 1.0)
     expected = shade(t01)
     got = img[..., :3].reshape(-1, 3)
     per_pixel = np.max(np.abs(got - expected), axis=-1) / np.max(expected)
-    # Measured on llvmpipe: value noise max 3.0e-6, median 3.4e-7; Blender's noise max 3.4e-7,
-    # median 6.0e-8 (float32 positions and fades; the hashes are exact integer arithmetic). A wrong hash
+    # Measured on llvmpipe: value noise max 3.0e-6, median 3.4e-7; Blender's noise max 3.5e-7,
+    # median 6.2e-8; the linked 3-D one max 1.9e-6, median 2.5e-7 (float32 positions and fades;
+    # the hashes are exact integer arithmetic). A wrong hash
     # constant, octave, seed or fade shows up as ≥ 1e-2 at most pixels.
     assert np.max(per_pixel) < 1e-4, np.max(per_pixel)
     assert np.ptp(t01) > 0.3  # the noise varies across the quad: the check has something to see

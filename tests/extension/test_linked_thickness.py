@@ -471,6 +471,46 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     assert np.ptp(direct.values) > 200.0  # the noise varies: the check has something to see
 
 
+def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf):
+    """Noise Texture → Map Range → Thin Film Thickness (the usual procedural film): the batch
+    carries the Noise Texture for the shader (tf_perlin.glsl) and no map; nothing is baked or
+    queued; the table's range covers the Map Range's whole output, the noise's peaks between the
+    corners included. A distorted noise, which the shader does not compute, keeps its map."""
+    mat, node = _principled(bpy, "Plain noise")
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    ranged = nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 150.0, 850.0
+    links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    links.new(ranged.outputs["Result"], node.inputs["Thin Film Thickness"])
+    _sphere(bpy, mat)
+    bakes, images = tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]
+    tf.linked.PENDING.clear()  # what earlier tests left queued
+    tf.linked.maps.PENDING.clear()
+    with tf.linked.deferring():
+        desc = tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert desc.thickness_range_nm == (150.0, 850.0)  # the Map Range's ends, clamped or not
+    entry = tf.scene_draw.batch_entry("Sphere")
+    assert entry.batch.thickness_map is None and hasattr(entry.batch.noise, "uniforms")
+    assert entry.batch.noise.dimensions == 3 and entry.batch.noise.scale == 4.0
+    assert not tf.linked.has_pending()
+    assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == (bakes, images)
+    sphere = bpy.data.objects["Sphere"]
+    corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
+    np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-6)
+
+    noise.inputs["Distortion"].default_value = 0.3
+    with tf.linked.deferring():  # the corners' bake queued (the last entry drawn meanwhile)
+        assert tf.description.description(mat) is None and tf.linked.baking()
+    tf.linked.run_pending()
+    with tf.linked.deferring():  # the corners drawn; the map queued
+        tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert tf.scene_draw.batch_entry("Sphere").batch.noise is None and tf.linked.has_pending()
+
+
 def _render_centre(bpy, mat, size=48, samples=8):
     """Cycles render of a sphere with ``mat`` under a white World; the central pixels (near
     normal incidence, where a constant film has one colour)."""

@@ -191,7 +191,7 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene, mo
     expected = tf.thickness.thickness_per_vertex(obj, obj.data, settings)
     np.testing.assert_array_equal(first, expected.astype(np.float32))  # what the draw uploads
     entry, builds = sd.batch_entry("Sheet"), sd.CACHES.stats["batch_builds"]
-    assert sd.batch_entry("Sheet").batch.noise == (2.0, 1, 0.0)  # and per pixel (TF_THICKNESS_NOISE)
+    assert sd.batch_entry("Sheet").batch.noise == (2.0, 1)  # and per pixel (TF_THICKNESS_NOISE)
 
     collect(bpy, tf)  # nothing changed: nothing rebuilt
     assert sd.CACHES.stats["batch_builds"] == builds and sd.batch_entry("Sheet") is entry
@@ -210,7 +210,7 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene, mo
     settings.noise_seed = 2
     collect(bpy, tf)
     assert sd.CACHES.stats["batch_builds"] == builds + 2
-    assert sd.batch_entry("Sheet").batch.noise == (5.0, 2, 0.0)
+    assert sd.batch_entry("Sheet").batch.noise == (5.0, 2)
     assert np.abs(uploaded(tf, "Sheet") - scaled).max() > 0.05
 
     # Blender's Noise Texture: computed the same way, per pixel (kind 1) and at the corners, with
@@ -218,7 +218,8 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene, mo
     settings.thickness_source = "BLENDER_NOISE"
     collect(bpy, tf)
     assert sd.CACHES.stats["batch_builds"] == builds + 3 and not tf.linked.has_pending()
-    assert sd.batch_entry("Sheet").batch.noise == (5.0, 2, 1.0)
+    blender_noise = sd.batch_entry("Sheet").batch.noise  # Blender's 4-D Noise Texture, W = the seed
+    assert (blender_noise.dimensions, blender_noise.scale, blender_noise.w) == (4, 5.0, 2.0)
     blender = uploaded(tf, "Sheet")
     np.testing.assert_array_equal(
         blender, tf.thickness.thickness_per_vertex(obj, obj.data, settings).astype(np.float32)
@@ -231,7 +232,7 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene, mo
     settings.noise_seed = 3
     with tf.linked.deferring():
         collect(bpy, tf)
-    assert sd.batch_entry("Sheet").batch.noise == (5.0, 3, 1.0)
+    assert sd.batch_entry("Sheet").batch.noise.w == 3.0
     np.testing.assert_array_equal(uploaded(tf, "Sheet"), tf.thickness.NAN_PARAMETER)
     assert tf.linked.has_pending() and tf.linked.run_pending() == []
     with tf.linked.deferring():

@@ -1,0 +1,145 @@
+"""A Noise Texture linked into a Principled BSDF's Thin Film Thickness, drawn per pixel.
+
+The usual procedural film, Noise Texture (→ Map Range) → *Thin Film Thickness*, needs no map:
+the shader computes Blender's Noise Texture at each pixel from the object-space position
+(``tf_perlin.glsl``, :class:`precompute.materials.perlin.NoiseSpec`), with no bake, no UVs and
+no resolution limit. :func:`recognise` reads such a link: a Noise Texture the direct evaluator
+mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, undistorted, identity mapping; its
+inputs unlinked), at Texture Coordinate's Object or Generated coordinates (Generated, the
+default, from the texture space of an unmodified mesh), optionally through one linear Map
+Range with unlinked inputs, and Reroutes. Anything else is evaluated per corner and baked into
+a map as before (:mod:`.linked`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...precompute.materials.perlin import NoiseSpec
+from .linked_nodes import identity_mapping
+
+__all__ = ["NoiseGraph", "recognise"]
+
+
+@dataclass(frozen=True)
+class NoiseGraph:
+    """A recognised link: the Noise Texture (``noise``: its Fac, gain 1, bias 0, unclamped) and
+    the thickness it gives, ``a`` · Fac + ``b`` nm, clamped to [``low``, ``high``] nm."""
+
+    noise: NoiseSpec
+    a: float = 1.0
+    b: float = 0.0
+    low: float = -math.inf
+    high: float = math.inf
+
+    def nm_range(self) -> tuple[float, float]:
+        """The thickness over Fac in [0, 1] (the normalized fBm's range), in nm."""
+        ends = np.clip([self.b, self.a + self.b], self.low, self.high)
+        return float(ends.min()), float(ends.max())
+
+    def spec(self, thickness_range) -> NoiseSpec:
+        """The noise for the shader: Fac to the parameter along the table's ``thickness_range``."""
+        lo, hi = (float(v) for v in thickness_range)
+        span = max(hi - lo, 1e-9)
+        low = -1e30 if math.isinf(self.low) else (self.low - lo) / span
+        high = 1e30 if math.isinf(self.high) else (self.high - lo) / span
+        return replace(self.noise, gain=self.a / span, bias=(self.b - lo) / span, low=low, high=high)
+
+
+def _source(socket):
+    """The node and output socket feeding ``socket`` through Reroutes, or None."""
+    while socket.is_linked:
+        link = socket.links[0]
+        if not link.is_valid or link.is_muted or link.from_node.mute:
+            return None
+        node = link.from_node
+        if node.bl_idname != "NodeReroute":
+            return node, link.from_socket
+        socket = node.inputs[0]
+    return None
+
+
+def _constants(node, names) -> list[float] | None:
+    """The inputs' values, or None where one is linked (an input the node lacks reads 0)."""
+    sockets = [node.inputs.get(name) for name in names]
+    if any(s is not None and s.is_linked for s in sockets):
+        return None
+    return [0.0 if s is None else float(s.default_value) for s in sockets]
+
+
+def _map_range(node) -> tuple[float, float, float, float] | None:
+    """(a, b, low, high): a linear float Map Range's output as a · value + b, clamped or not."""
+    if node.data_type != "FLOAT" or node.interpolation_type != "LINEAR":
+        return None
+    values = _constants(node, ("From Min", "From Max", "To Min", "To Max"))
+    if values is None or values[1] == values[0]:
+        return None
+    from_min, from_max, to_min, to_max = values
+    a = (to_max - to_min) / (from_max - from_min)
+    low, high = (min(to_min, to_max), max(to_min, to_max)) if node.clamp else (-math.inf, math.inf)
+    return a, to_min - from_min * a, low, high
+
+
+def _coordinates(noise, texspace) -> tuple[tuple, tuple] | None:
+    """(scale, offset) of the Noise Texture's coordinates from object space, or None."""
+    found = _source(noise.inputs["Vector"])
+    if noise.inputs["Vector"].is_linked:
+        if found is None or found[0].bl_idname != "ShaderNodeTexCoord":
+            return None
+        coords, output = found
+        if coords.object is not None or coords.from_instancer:
+            return None
+        if output.identifier == "Object":
+            return (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)
+        if output.identifier != "Generated":
+            return None
+    if texspace is None:  # Generated coordinates of a modified mesh: its original's
+        return None
+    location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
+    scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
+    return tuple(float(v) for v in scale), tuple(float(v) for v in -(location - size) * scale)
+
+
+def recognise(socket, texspace) -> NoiseGraph | None:
+    """The link into ``socket`` as a :class:`NoiseGraph`, or None where the shader cannot compute
+    it per pixel. ``texspace``: (location, size) of the mesh's texture space where its Generated
+    coordinates are its positions in it (``linked._texspace``), else None."""
+    found = _source(socket)
+    a, b, low, high = 1.0, 0.0, -math.inf, math.inf
+    if found is not None and found[0].bl_idname == "ShaderNodeMapRange":
+        ranged = _map_range(found[0])
+        value = found[0].inputs["Value"]
+        if ranged is None or found[1].identifier != "Result":
+            return None
+        a, b, low, high = ranged
+        found = _source(value)
+    if found is None or found[0].bl_idname != "ShaderNodeTexNoise" or found[1].identifier != "Fac":
+        return None
+    noise = found[0]
+    dimensions = {"3D": 3, "4D": 4}.get(noise.noise_dimensions)
+    if dimensions is None or noise.noise_type != "FBM" or not noise.normalize or not identity_mapping(noise):
+        return None
+    names = ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion", "W")
+    values = _constants(noise, names)
+    coordinates = _coordinates(noise, texspace)
+    if values is None or values[4] != 0.0 or coordinates is None:
+        return None
+    scale, detail, roughness, lacunarity, _, w = values
+    spec = NoiseSpec(
+        dimensions,
+        scale,
+        w if dimensions == 4 else 0.0,
+        detail,
+        roughness,
+        lacunarity,
+        coordinates[0],
+        coordinates[1],
+        1.0,
+        0.0,
+        -1e30,
+        1e30,
+    )
+    return NoiseGraph(spec, a, b, low, high)
