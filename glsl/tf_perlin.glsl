@@ -24,6 +24,19 @@ void tf_perlin_mix3(inout uint a, inout uint b, inout uint c, uvec3 r)
   b += a;
 }
 
+/* lookup3's final avalanche of (a, b, c): its c (materials.perlin._final). */
+uint tf_perlin_final(uint a, uint b, uint c)
+{
+  c = (c ^ b) - tf_perlin_rot(b, 14u);
+  a = (a ^ c) - tf_perlin_rot(c, 11u);
+  b = (b ^ a) - tf_perlin_rot(a, 25u);
+  c = (c ^ b) - tf_perlin_rot(b, 16u);
+  a = (a ^ c) - tf_perlin_rot(c, 4u);
+  b = (b ^ a) - tf_perlin_rot(a, 14u);
+  c = (c ^ b) - tf_perlin_rot(b, 24u);
+  return c;
+}
+
 /* lookup3's hashword of the four lattice coordinates (materials.perlin.hash4). */
 uint tf_perlin_hash(uvec4 k)
 {
@@ -34,14 +47,7 @@ uint tf_perlin_hash(uvec4 k)
   tf_perlin_mix3(a, b, c, uvec3(4u, 6u, 8u)); /* mix */
   tf_perlin_mix3(a, b, c, uvec3(16u, 19u, 4u));
   a += k.w;
-  c = (c ^ b) - tf_perlin_rot(b, 14u);
-  a = (a ^ c) - tf_perlin_rot(c, 11u);
-  b = (b ^ a) - tf_perlin_rot(a, 25u);
-  c = (c ^ b) - tf_perlin_rot(b, 16u);
-  a = (a ^ c) - tf_perlin_rot(c, 4u);
-  b = (b ^ a) - tf_perlin_rot(a, 14u);
-  c = (c ^ b) - tf_perlin_rot(b, 24u);
-  return c;
+  return tf_perlin_final(a, b, c);
 }
 
 /* The lattice corner c + d's gradient dotted with the position f - d in the cell. */
@@ -82,14 +88,7 @@ uint tf_perlin_hash3(uvec3 k)
   uint a = k.x + start;
   uint b = k.y + start;
   uint c = k.z + start;
-  c = (c ^ b) - tf_perlin_rot(b, 14u);
-  a = (a ^ c) - tf_perlin_rot(c, 11u);
-  b = (b ^ a) - tf_perlin_rot(a, 25u);
-  c = (c ^ b) - tf_perlin_rot(b, 16u);
-  a = (a ^ c) - tf_perlin_rot(c, 4u);
-  b = (b ^ a) - tf_perlin_rot(a, 14u);
-  c = (c ^ b) - tf_perlin_rot(b, 24u);
-  return c;
+  return tf_perlin_final(a, b, c);
 }
 
 /* A 3-D lattice corner c + d's gradient (Perlin's 12 edges) dotted with f - d. */
