@@ -411,6 +411,10 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
     found = FIELDS.get(cache_key)
     if found is not None:
         return found
+    if _defer and len(mesh.vertices) > linked_nodes.INLINE_VERTICES and linked_nodes.positional(socket):
+        node_name, socket_id = socket.node.name, socket.identifier  # a large mesh's noise: ≥ 30 ms
+        PENDING.defer(("linked", name), lambda: _run_linked(name, bpy_material, node_name, socket_id))
+        raise Pending(f"the thickness at {len(mesh.vertices)} vertices is being computed")
     try:
         found = _direct(mesh, socket, _texspace(obj))
     except linked_nodes.Unsupported as why:

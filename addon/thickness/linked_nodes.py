@@ -17,6 +17,7 @@ from ...precompute.materials.perlin import noise_texture
 
 __all__ = [
     "DIRECT_NODES",
+    "INLINE_VERTICES",
     "MAP_MAX_SIZE",
     "POSITIONAL_NODES",
     "Unsupported",
@@ -50,6 +51,9 @@ DIRECT_NODES = (
 #: Nodes whose value depends on the position on the surface, not on the UVs: a map of them is
 #: baked at the UVs (:func:`positional`).
 POSITIONAL_NODES = ("ShaderNodeTexNoise", "ShaderNodeTexCoord")
+#: A positional link is evaluated inside the draw up to this many vertices (a Noise Texture in
+#: numpy: ≈ 30 ms); past it the viewport's timer evaluates it (``linked.evaluate``).
+INLINE_VERTICES = 4096
 #: Image colour spaces whose pixels Blender reads unchanged (so numpy sees what Cycles sees).
 _RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear CIE-XYZ E", "Raw"}
 
@@ -334,15 +338,16 @@ def _noise_node(node, socket, ctx):
     points = _as_colour(_input(node, "Vector", ctx)) if vector.is_linked else ctx.generated()
     w = _constant(node, "W", ctx) if dimensions == 4 else 0.0
     ctx.notes.append(f"a {dimensions}-D Noise Texture")
+    unique, corner = np.unique(points, axis=0, return_inverse=True)  # a vertex's corners share it
     return noise_texture(
-        points,
+        unique,
         w,
         dimensions,
         _constant(node, "Scale", ctx),
         _constant(node, "Detail", ctx),
         _constant(node, "Roughness", ctx),
         _constant(node, "Lacunarity", ctx),
-    )
+    )[corner.reshape(-1)]
 
 
 def _texture_coordinate(node, socket, ctx):

@@ -471,7 +471,7 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     assert np.ptp(direct.values) > 200.0  # the noise varies: the check has something to see
 
 
-def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf):
+def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeypatch):
     """Noise Texture → Map Range → Thin Film Thickness (the usual procedural film): the batch
     carries the Noise Texture for the shader (tf_perlin.glsl) and no map; nothing is baked or
     queued; the table's range covers the Map Range's whole output, the noise's peaks between the
@@ -500,6 +500,18 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf):
     sphere = bpy.data.objects["Sphere"]
     corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
     np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-6)
+
+    # a mesh past linked_nodes.INLINE_VERTICES: its corners are computed by the timer, not the draw
+    monkeypatch.setattr(tf.linked.linked_nodes, "INLINE_VERTICES", 10)
+    noise.inputs["Scale"].default_value = 4.5
+    with tf.linked.deferring():
+        assert tf.description.description(mat) is None and tf.linked.baking()
+    tf.linked.run_pending()
+    with tf.linked.deferring():
+        tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert tf.scene_draw.batch_entry("Sphere").batch.noise.scale == 4.5
+    assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == (bakes, images)
 
     noise.inputs["Distortion"].default_value = 0.3
     with tf.linked.deferring():  # the corners' bake queued (the last entry drawn meanwhile)
