@@ -16,7 +16,8 @@ the noise's scale and seed) and mesh, queued for the viewport's timer while the 
 film per pixel and the corners at the middle of the range; in background mode at once. An image
 holding NaN or infinite values is drawn from a map of its pixels instead
 (:func:`.thickness.image_map`, those pixels at the middle of the range, as the panel's note
-says): Blender's GPU texture turns NaN into 0.
+says): Blender's GPU texture turns NaN into 0. So is a tiled (UDIM) image's first tile, what
+the corners read: Blender's texture of it is an array of tiles.
 """
 
 from __future__ import annotations
@@ -48,12 +49,19 @@ def _read(obj, mesh, props):
     try:
         image = image_source(obj, mesh, props)
         values, bad = thickness_field(obj, mesh, props, image)
-        finite = image is None or bool(np.isfinite(image[0]).all())
-        found = (values, bad, None if finite else image_map(obj, mesh, props, image))
+        texture_reads = image is None or (bool(np.isfinite(image[0]).all()) and not _tiled(props))
+        found = (values, bad, None if texture_reads else image_map(obj, mesh, props, image))
     except ValueError as exc:
         found = str(exc)
     CORNERS[key] = found
     return found
+
+
+def _tiled(props) -> bool:
+    """Whether the Image source's image is tiled (UDIM): Blender's texture of it is an array of
+    tiles, which the shader's map does not read; its first tile is drawn from its pixels."""
+    image = props.thickness_image
+    return image is not None and image.source == "TILED"
 
 
 def _corners(obj, mesh, props, inline: bool):
@@ -80,7 +88,7 @@ def image_parameters(obj, mesh, props):
         name = obj.original.name if hasattr(obj, "original") else obj.name
         raise ValueError(f"object {name!r}: thickness source IMAGE needs an image")
     uv = corner_uv(obj, mesh, props.thickness_uv_map).astype(np.float32)
-    texture = (uv, ImageTexture.of(image), True)
+    texture = None if _tiled(props) else (uv, ImageTexture.of(image), True)
     found = _corners(obj, mesh, props, inline=False)
     if found is None:
         return None, 0, texture, True

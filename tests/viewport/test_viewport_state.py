@@ -340,6 +340,21 @@ def test_an_image_thickness_is_drawn_per_pixel_while_the_timer_reads_its_corners
     np.testing.assert_allclose(texels, [nan_parameter, *np.linspace(0.1, 0.8, 8)[1:]], rtol=1e-6)
     assert any("'Canvas'" in m and "NaN" in m for m in messages), messages
 
+    tiled = bpy.data.images.new("Tiles", 8, 1, float_buffer=True, tiled=True)  # UDIM: its 1001 tile
+    ramp[0, 0, 0] = 0.1
+    tiled.pixels.foreach_set(ramp.ravel())
+    settings.thickness_image = tiled
+    with tf.linked.deferring():
+        collect(bpy, tf)
+    assert sd.batch_entry("Canvas").batch.map_texture() is None  # per corner until the timer
+    assert tf.linked.run_pending() == []
+    with tf.linked.deferring():
+        collect(bpy, tf)
+    texture = sd.batch_entry("Canvas").batch.map_texture()
+    assert texture.format == "R32F"  # the first tile's pixels, not Blender's array of tiles
+    texels = np.asarray(texture.read().to_list(), dtype=np.float64).reshape(-1)
+    np.testing.assert_allclose(texels, np.linspace(0.1, 0.8, 8), rtol=1e-6)
+
 
 def test_nan_thickness_values_are_reported_and_drawn_mid_range(bpy, tf, scene):
     mat = film(bpy, tf, "Holes", vary=True)
