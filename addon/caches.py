@@ -40,7 +40,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   ``thickness.IMAGE_RECHECK_S``; LRU of 16; filled by ``thickness.image_stamp``; FILE.
 - ``deferred_corners`` — ``corners.CORNERS``: the *Image* source's per-corner parameters (with
   the non-finite count, and a map of the pixels where they hold NaN or ±∞), and the *Blender
-  Noise* source's on a mesh of more than ``corners.INLINE_VERTICES`` vertices, or why there are
+  Noise* source's on a mesh of more than ``linked_nodes.INLINE_VERTICES`` vertices, or why there are
   none, by (object name, its evaluated mesh's vertex and corner counts, geometry epoch,
   ``thickness.thickness_inputs``: the UV map and the image's identity, the noise's scale and
   seed); LRU of 16; filled by ``corners.image_parameters`` / ``corners.noise_parameters`` (at

@@ -10,7 +10,8 @@ Noise* source is computed in the shader (``tf_perlin.glsl``, ``MeshBatch.noise``
 Their corners (the batch's ``thickness``: the film of solid glass's inner faces, a bubble's
 inside fit, the panel's NaN count) cost more than a frame can spare: the image's pixels read on
 the CPU (:func:`.thickness.image_source`: ≈ 0.1–0.3 s for a 2048² float image), Blender's noise
-at more than :data:`INLINE_VERTICES` vertices (numpy, ≈ 7 µs a vertex). They are computed once
+at more than :data:`.linked_nodes.INLINE_VERTICES` vertices (numpy, ≈ 7 µs a vertex), the
+threshold a linked Noise Texture's corners share. They are computed once
 per input (:func:`.thickness.thickness_inputs`: the image's identity, not every painted stroke;
 the noise's scale and seed) and mesh, queued for the viewport's timer while the draw draws the
 film per pixel and the corners at the middle of the range; in background mode at once. An image
@@ -29,14 +30,12 @@ from ..gpu.mesh import ImageTexture
 from . import linked
 from .thickness import corner_uv, image_map, image_source, thickness_field, thickness_inputs
 
-__all__ = ["CORNERS", "INLINE_VERTICES", "image_parameters", "noise_parameters"]
+__all__ = ["CORNERS", "image_parameters", "noise_parameters"]
 
 #: Corners by (object, mesh sizes, geometry epoch, the source's inputs): (parameters (N,) in
 #: [0, 1], non-finite count, a map of the image's pixels where they hold NaN or ±∞, else None),
 #: or the ValueError's message when the source could not give any.
 CORNERS = caches.register("deferred_corners", caches.LRU(16), scope=caches.FILE)
-#: Blender's noise is computed at the corners in the draw up to this many vertices (≈ 30 ms).
-INLINE_VERTICES = 4096
 
 
 def _key(name: str, mesh, props) -> tuple:
@@ -99,7 +98,7 @@ def image_parameters(obj, mesh, props):
 def noise_parameters(obj, mesh, props):
     """(per-corner parameter in [0, 1] or None while queued, non-finite count, whether the
     corners are awaited) of the BLENDER_NOISE source (drawn per pixel meanwhile)."""
-    found = _corners(obj, mesh, props, inline=len(mesh.vertices) <= INLINE_VERTICES)
+    found = _corners(obj, mesh, props, inline=len(mesh.vertices) <= linked.linked_nodes.INLINE_VERTICES)
     if found is None:
         return None, 0, True
     return found[0], found[1], False

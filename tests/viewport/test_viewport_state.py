@@ -226,9 +226,9 @@ def test_changing_the_noise_scale_or_seed_changes_the_preview(bpy, tf, scene, mo
     )
     assert np.ptp(blender) > 0.1  # it varies over the sheet
 
-    # on a mesh past corners.INLINE_VERTICES the draw computes no corner: drawn per pixel at once,
+    # on a mesh past linked_nodes.INLINE_VERTICES the draw computes no corner: per pixel at once,
     # the corners at the middle of the range until the viewport's timer has computed them
-    monkeypatch.setattr(tf.corners, "INLINE_VERTICES", 10)
+    monkeypatch.setattr(tf.linked.linked_nodes, "INLINE_VERTICES", 10)
     settings.noise_seed = 3
     with tf.linked.deferring():
         collect(bpy, tf)
