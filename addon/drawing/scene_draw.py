@@ -341,16 +341,17 @@ def _material_entry(
     In the viewport (``bake_later``) a table not in memory is asked of the bake queue
     (:func:`.bake_asks.ask`, for ``owner``: :func:`material_identity`, so a newer value
     replaces the older request) and the
-    entry the material was last drawn with is drawn meanwhile (:func:`_previous_entry`).
+    entry the material was last drawn with is drawn meanwhile (:func:`_previous_entry`), as it is
+    while a linked thickness's Cycles bake is queued (:func:`.description.described`).
     """
     try:
-        desc = description.description(bpy_material)
+        desc, pending = description.described(bpy_material)
     except ValueError as exc:  # description() names the material and the parameter
         return _fallback_entry(bpy_material, str(exc), lighting, allow_bake, bake_later, messages, errors)
-    if desc is None:
-        return None
-    name = bpy_material.name
     owner = material_identity(bpy_material)
+    if desc is None:  # a linked thickness being baked: the material as last drawn meanwhile
+        return _previous_entry(owner, lighting) if pending else None
+    name = bpy_material.name
     key = description.description_key(desc)  # ≈ 1 ms: once per material per frame
     result = tables.MEMORY.get(key)  # tables.peek_table, by the key at hand
     if result is None:

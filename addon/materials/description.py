@@ -21,7 +21,7 @@ from ..thickness.linked import Pending
 from .conversion import description_from_props
 from .principled import read_principled
 
-__all__ = ["description", "description_key", "warnings"]
+__all__ = ["described", "description", "description_key", "warnings"]
 
 
 def description(bpy_material) -> Material | None:
@@ -46,16 +46,22 @@ def description(bpy_material) -> Material | None:
     value is checked when the Material is built (precompute.materials.validate), so nothing invalid
     reaches a bake. The draw shows such a material as the magenta fallback.
     """
+    return described(bpy_material)[0]
+
+
+def described(bpy_material) -> tuple[Material | None, bool]:
+    """(:func:`description`, whether it is None only because a linked thickness is being
+    evaluated: queued for the viewport's timer, the draw shows the material's last entry)."""
     props = getattr(bpy_material, "thinfilm_sh", None)
     try:
         if props is not None and props.enabled:
-            return policy.drawn_material(description_from_props(props))
+            return policy.drawn_material(description_from_props(props)), False
         if props is not None and not props.preview_principled:
-            return None  # the artist switched the Principled film's preview off
+            return None, False  # the artist switched the Principled film's preview off
         found = read_principled(bpy_material)[0]
-        return None if found is None else policy.drawn_material(found)
+        return (None if found is None else policy.drawn_material(found)), False
     except Pending:  # a linked thickness is being baked: drawn when it is done
-        return None
+        return None, True
     except ValueError as exc:
         raise ValueError(f"material {bpy_material.name!r}: {exc}") from None
 

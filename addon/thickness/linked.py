@@ -457,14 +457,14 @@ def material_range(bpy_material, socket) -> tuple[float, float, str] | None:
     depsgraph = bpy.context.evaluated_depsgraph_get()
     lo, hi, hows = math.inf, -math.inf, []
     for obj in _users(bpy_material):
+        graph = noise_graph_of(obj, socket)
+        if graph is not None:  # per pixel: the thickness over the noise's whole range, which
+            lo, hi = min(lo, graph.nm_range()[0]), max(hi, graph.nm_range()[1])  # holds the corners
+            hows.append(f"{obj.name}: per pixel (the Noise Texture computed in the shader)")
+            continue
         mesh = obj.evaluated_get(depsgraph).data
         field = evaluate(obj, mesh, bpy_material, socket, key)
         lo, hi = min(lo, field.lo), max(hi, field.hi)
-        graph = noise_graph_of(obj, socket)
-        if graph is not None:  # per pixel: the thickness over the noise's whole range
-            lo, hi = min(lo, graph.nm_range()[0]), max(hi, graph.nm_range()[1])
-            hows.append(f"{obj.name}: {field.how}; per pixel (the Noise Texture computed in the shader)")
-            continue
         found_map, why, _ = linked_map(obj, mesh, bpy_material, socket, key)
         if found_map is not None:  # a texture's peaks between the corners
             lo, hi = min(lo, found_map.lo), max(hi, found_map.hi)
@@ -506,14 +506,22 @@ def noise_graph_of(obj, socket):
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):
     """(per-corner parameter in [0, 1] along the table's range, non-finite count, the map for
     the batch: (corner UVs, parameter map, repeat) or None, whether a map is awaited, the
-    Noise Texture the shader computes per pixel instead of a map, or None)."""
-    field = evaluate(obj_eval, mesh, bpy_material, socket)
+    Noise Texture the shader computes per pixel instead of a map, or None). A Noise Texture's
+    corners that are being computed (:class:`Pending`, a large mesh) are the middle of the range
+    meanwhile: the shader draws the noise per pixel without them."""
+    graph = noise_graph_of(obj_eval, socket)
+    try:
+        field = evaluate(obj_eval, mesh, bpy_material, socket)
+    except Pending:
+        if graph is None:
+            raise
+        middle = np.full(len(mesh.loops), 0.5)
+        return middle, 0, None, True, graph.spec(thickness_range)
     lo, hi = thickness_range
     values = field.values
     finite = np.isfinite(values)
     param = np.where(finite, (np.where(finite, values, lo) - lo) / max(hi - lo, 1e-9), 0.5)
     nan_count = int(values.size - np.count_nonzero(finite))
-    graph = noise_graph_of(obj_eval, socket)
     if graph is not None:
         return np.clip(param, 0.0, 1.0), nan_count, None, False, graph.spec(thickness_range)
     found_map, _, waiting = linked_map(obj_eval, mesh, bpy_material, socket)

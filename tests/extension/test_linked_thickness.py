@@ -501,21 +501,30 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeyp
     corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
     np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-6)
 
-    # a mesh past linked_nodes.INLINE_VERTICES: its corners are computed by the timer, not the draw
+    # a mesh past linked_nodes.INLINE_VERTICES: its corners are computed by the timer, not the
+    # draw, which draws the new noise per pixel at once (no frame without the film meanwhile)
     monkeypatch.setattr(tf.linked.linked_nodes, "INLINE_VERTICES", 10)
     noise.inputs["Scale"].default_value = 4.5
     with tf.linked.deferring():
-        assert tf.description.description(mat) is None and tf.linked.baking()
+        assert tf.description.description(mat) is not None
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    waiting = tf.scene_draw.batch_entry("Sphere")
+    assert waiting.batch.noise.scale == 4.5 and tf.linked.baking()
+    np.testing.assert_allclose(waiting.thickness, 0.5)  # the corners: the range's middle meanwhile
     tf.linked.run_pending()
     with tf.linked.deferring():
         tf.description.description(mat)
         tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
-    assert tf.scene_draw.batch_entry("Sphere").batch.noise.scale == 4.5
+    entry = tf.scene_draw.batch_entry("Sphere")
+    assert entry.batch.noise.scale == 4.5 and not tf.linked.has_pending()
+    np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-6)
     assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == (bakes, images)
 
     noise.inputs["Distortion"].default_value = 0.3
-    with tf.linked.deferring():  # the corners' bake queued (the last entry drawn meanwhile)
+    with tf.linked.deferring():  # the corners' bake queued, the film as last drawn meanwhile
         assert tf.description.description(mat) is None and tf.linked.baking()
+        items, _ = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert [item.batch.noise.scale for item in items if item.name.startswith("Sphere")] == [4.5]
     tf.linked.run_pending()
     with tf.linked.deferring():  # the corners drawn; the map queued
         tf.description.description(mat)
