@@ -145,16 +145,39 @@ float tf_fbm(vec4 p, bool four, float detail, float roughness, float lacunarity)
   return value;
 }
 
+#ifdef TF_THICKNESS_RAMP
+/* A Color Ramp at fac as Cycles reads it (materials.ramp.lookup): its table (the luminance of
+ * its Color, or its Alpha, at 0, 1/256, ..., 1) at fac clamped to [0, 1] times 256, the entry at
+ * the integer part blended with the next by the fraction unless the ramp is Constant
+ * (tf_object.noise.z 0). */
+float tf_ramp(float fac)
+{
+  int last = textureSize(tf_thickness_ramp, 0).x - 1;
+  float f = clamp(fac, 0.0, 1.0) * float(last);
+  int i = clamp(int(f), 0, last);
+  float t = f - float(i);
+  float a = texelFetch(tf_thickness_ramp, ivec2(i, 0), 0).r;
+  if (tf_object.noise.z > 0.5 && t > 0.0) {
+    a = mix(a, texelFetch(tf_thickness_ramp, ivec2(min(i + 1, last), 0), 0).r, t);
+  }
+  return a;
+}
+#endif
+
 /* The thickness parameter in [0, 1] of the item's Noise Texture at object-space point pos
  * (materials.perlin.NoiseSpec.parameter): tf_object.noise (x scale, y w), noise_fbm (detail,
  * roughness, lacunarity, dimensions), noise_space / noise_offset (its coordinates from pos),
- * noise_map (gain, bias, low, high: Fac to the parameter). */
+ * noise_map (gain, bias, low, high: Fac, or with TF_THICKNESS_RAMP a Color Ramp's value at it,
+ * to the parameter). */
 float tf_noise_texture(vec3 pos)
 {
   vec3 v = pos * tf_object.noise_space.xyz + tf_object.noise_offset.xyz;
   vec4 p = vec4(v, tf_object.noise.y) * tf_object.noise.x;
   vec4 fbm = tf_object.noise_fbm;
   float fac = tf_fbm(p, fbm.w > 3.5, fbm.x, fbm.y, fbm.z);
+#ifdef TF_THICKNESS_RAMP
+  fac = tf_ramp(fac);
+#endif
   vec4 m = tf_object.noise_map;
   return clamp(clamp(m.x * fac + m.y, m.z, m.w), 0.0, 1.0);
 }

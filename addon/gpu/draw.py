@@ -19,6 +19,7 @@ import numpy as np
 from ...precompute.shading.transmit import WALL_SOLID, Inside, wall_tint, world_fit
 from ...precompute.shading.variant import (
     NOISE_BLENDER,
+    NOISE_RAMP,
     NOISE_VALUE,
     TRANSMIT_ADD,
     TRANSMIT_MULTIPLY,
@@ -127,7 +128,9 @@ def _noise_variant(noise) -> int:
     seed), or a Noise Texture (``precompute.materials.perlin.NoiseSpec``)."""
     if noise is None:
         return 0
-    return NOISE_BLENDER if hasattr(noise, "uniforms") else NOISE_VALUE
+    if not hasattr(noise, "uniforms"):
+        return NOISE_VALUE
+    return NOISE_RAMP if getattr(noise, "ramp", ()) else NOISE_BLENDER
 
 
 def _noise_of(item):
@@ -293,7 +296,10 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thi
             lights_ubo,
             grid=grid.texture if variant.grid else None,
         )
-    group.draws.append((batch, object_ubo, thickness_map if variant.thickness_map else None))
+    texture = thickness_map if variant.thickness_map else None
+    if variant.thickness_noise == NOISE_RAMP:
+        texture = item.batch.ramp_texture()
+    group.draws.append((batch, object_ubo, texture))
 
 
 def _ordered(groups: dict) -> list:
@@ -439,10 +445,12 @@ def submit(prepared: PreparedDraw) -> None:
                     shader.uniform_sampler(layout.GLASS_GEOM_SAMPLER.name, geom)
                     shader.uniform_sampler(layout.PROBE_SAMPLER.name, prepared.behind.probe_texture())
             _bind_group(shader, group)
-            for batch, object_ubo, thickness_map in group.draws:
+            ramp = group.variant.thickness_noise == NOISE_RAMP
+            sampler = (layout.THICKNESS_RAMP_SAMPLER if ramp else layout.THICKNESS_MAP_SAMPLER).name
+            for batch, object_ubo, texture in group.draws:
                 shader.uniform_block(layout.OBJECT.name, object_ubo)
-                if thickness_map is not None:
-                    shader.uniform_sampler(layout.THICKNESS_MAP_SAMPLER.name, thickness_map)
+                if texture is not None:  # the thickness map, or a ramp variant's table
+                    shader.uniform_sampler(sampler, texture)
                 batch.draw(shader)
     finally:
         gpu.state.face_culling_set("NONE")

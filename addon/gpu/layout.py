@@ -203,7 +203,8 @@ OBJECT = Block(
             "noise",
             None,
             "a noise thickness per pixel (TF_THICKNESS_NOISE): x scale, y seed (tf_noise.glsl) or W "
-            "(a Noise Texture, TF_THICKNESS_PERLIN, tf_perlin.glsl)",
+            "(a Noise Texture, TF_THICKNESS_PERLIN, tf_perlin.glsl), z 1 where its Color Ramp "
+            "interpolates (TF_THICKNESS_RAMP)",
         ),
         Member("noise_fbm", None, "TF_THICKNESS_PERLIN: detail, roughness, lacunarity, dimensions (3, 4)"),
         Member("noise_map", None, "TF_THICKNESS_PERLIN: gain, bias, low, high (Fac to the parameter)"),
@@ -279,6 +280,9 @@ FILM_SAMPLER = Sampler(4, "FLOAT_2D_ARRAY", "tf_film")
 #: A film's thickness parameter in [0, 1] over the mesh's UVs (``TF_THICKNESS_MAP``, R32F, bilinear,
 #: edges extended; :mod:`..thickness.maps`), bound per draw.
 THICKNESS_MAP_SAMPLER = Sampler(5, "FLOAT_2D", "tf_thickness_map")
+#: A Color Ramp's table (``TF_THICKNESS_RAMP``, 257 × 1 R32F, read with texelFetch;
+#: :func:`.mesh.ramp_texture`), bound per draw; a ramp variant has no map, so it takes the map's slot.
+THICKNESS_RAMP_SAMPLER = Sampler(5, "FLOAT_2D", "tf_thickness_ramp")
 RADIANCE_GRID_SAMPLER = Sampler(6, "FLOAT_2D_ARRAY", "tf_radiance_grid")
 #: The background shader's only texture.
 ENVIRONMENT_SAMPLER = Sampler(0, "FLOAT_2D", "tf_environment")

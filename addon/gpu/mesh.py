@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 import gpu
@@ -69,6 +69,8 @@ class MeshBatch:
     #: source's (scale, seed), or a Noise Texture (``precompute.materials.perlin.NoiseSpec``: the
     #: *Blender Noise* source, a linked Noise Texture).
     noise: object = None
+    #: (the noise's Color Ramp table, its texture) once :meth:`ramp_texture` made it.
+    _ramp: tuple = field(default=((), None), repr=False, compare=False)
 
     @classmethod
     def from_arrays(
@@ -130,6 +132,16 @@ class MeshBatch:
         found = self.thickness_map
         return found.texture() if isinstance(found, ImageTexture) else found
 
+    def ramp_texture(self) -> gpu.types.GPUTexture | None:
+        """The texture of the noise's Color Ramp table (``TF_THICKNESS_RAMP``), made once per
+        table, or None where the noise has no ramp."""
+        table = getattr(self.noise, "ramp", ())
+        if not table:
+            return None
+        if self._ramp[0] is not table and self._ramp[0] != table:
+            self._ramp = (table, ramp_texture(table))
+        return self._ramp[1]
+
 
 def thickness_map_texture(values, repeat: bool = False) -> gpu.types.GPUTexture:
     """An (H, W) map of thickness parameters as an R32F texture (row 0 at v = 0), filtered
@@ -145,6 +157,17 @@ def thickness_map_texture(values, repeat: bool = False) -> gpu.types.GPUTexture:
     texture.filter_mode(True)
     texture.extend_mode("REPEAT" if repeat else "EXTEND")
     return texture
+
+
+def ramp_texture(table) -> gpu.types.GPUTexture:
+    """A Color Ramp's table (``precompute.materials.ramp``: (N,) values at 0 … 1) as an N × 1
+    R32F texture, read entry by entry (:data:`.layout.THICKNESS_RAMP_SAMPLER`, texelFetch)."""
+    data = np.ascontiguousarray(np.nan_to_num(np.asarray(table, dtype=np.float32).reshape(-1)))
+    if data.size < 2:
+        raise ValueError(f"a ramp table needs at least 2 entries, got {data.size}")
+    ensure_gpu_context()
+    buffer = gpu.types.Buffer("FLOAT", data.size, data)
+    return gpu.types.GPUTexture((data.size, 1), format="R32F", data=buffer)
 
 
 def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):

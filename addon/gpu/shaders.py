@@ -21,7 +21,7 @@ import gpu
 
 from ...precompute.shading import policy
 from ...precompute.shading.codegen import X90_GENERATED, banded_source, define_block
-from ...precompute.shading.variant import NOISE_BLENDER, Variant
+from ...precompute.shading.variant import NOISE_RAMP, NOISE_VALUE, Variant
 from . import layout
 from .context import ensure_gpu_context
 
@@ -187,6 +187,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         _declare(info, layout.THICKNESS_MAP_SAMPLER)
     if variant.thickness_noise:
         iface.smooth("VEC3", "tf_object_pos")
+    if variant.thickness_noise == NOISE_RAMP:
+        _declare(info, layout.THICKNESS_RAMP_SAMPLER)
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))
@@ -201,7 +203,7 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     if variant.transmit:
         roots.append("tf_transmit.glsl")
     if variant.thickness_noise:
-        roots.append("tf_perlin.glsl" if variant.thickness_noise == NOISE_BLENDER else "tf_noise.glsl")
+        roots.append("tf_noise.glsl" if variant.thickness_noise == NOISE_VALUE else "tf_perlin.glsl")
     if variant.refract:
         roots.append("tf_glass_tails.glsl")  # and tf_glass_exit.glsl and tf_refract.glsl, which it includes
         roots.append("tf_probe.glsl")

@@ -161,6 +161,11 @@ def _node_settings(node) -> list:
                     ],
                 )
             )
+    colour_ramp = getattr(node, "color_ramp", None)  # a Color Ramp's stops are not its settings
+    if colour_ramp is not None:
+        stops = [(_value_repr(e.position), _value_repr(e.color)) for e in colour_ramp.elements]
+        modes = (colour_ramp.interpolation, colour_ramp.color_mode, colour_ramp.hue_interpolation)
+        out.append(("color_ramp", modes, stops))
     return out
 
 
@@ -234,6 +239,12 @@ def _bake_material(bpy_material, node_name: str, socket_id: str):
     tree = copy.node_tree
     target = next(s for s in tree.nodes[node_name].inputs if s.identifier == socket_id)
     source = target.links[0].from_socket
+    if source.type != "VALUE":  # converted as the thickness input converts it (its luminance)
+        value = tree.nodes.new("ShaderNodeMath")
+        value.operation = "ADD"
+        value.inputs[1].default_value = 0.0
+        tree.links.new(source, value.inputs[0])
+        source = value.outputs[0]
     emission = tree.nodes.new("ShaderNodeEmission")
     emission.inputs["Strength"].default_value = 1.0
     tree.links.new(source, emission.inputs["Color"])
@@ -460,7 +471,8 @@ def material_range(bpy_material, socket) -> tuple[float, float, str] | None:
         graph = noise_graph_of(obj, socket)
         if graph is not None:  # per pixel: the thickness over the noise's whole range, which
             lo, hi = min(lo, graph.nm_range()[0]), max(hi, graph.nm_range()[1])  # holds the corners
-            hows.append(f"{obj.name}: per pixel (the Noise Texture computed in the shader)")
+            through = " through a Color Ramp" if graph.noise.ramp else ""
+            hows.append(f"{obj.name}: per pixel (the Noise Texture{through} computed in the shader)")
             continue
         mesh = obj.evaluated_get(depsgraph).data
         field = evaluate(obj, mesh, bpy_material, socket, key)

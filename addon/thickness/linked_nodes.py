@@ -4,16 +4,22 @@ The nodes in :data:`DIRECT_NODES` — Value, Image Texture at a UV map (Non-Colo
 pixels, Linear or Closest, Repeat or Extend), Map Range (linear), Math (the common operations),
 Mix (float, or colour Mix), Separate Color (RGB), Reroute, Noise Texture (3-D or 4-D fBm,
 normalized, no distortion: :func:`precompute.materials.perlin.noise_texture`) at Texture
-Coordinate's Object or Generated coordinates — are evaluated per face corner exactly as
-Blender's SVM nodes compute them (:func:`link_values`); any other node raises
-:class:`Unsupported`, and :mod:`.linked` bakes the link with Cycles instead.
+Coordinate's Object or Generated coordinates, Color Ramp (any interpolation and colour mode:
+sampled through Blender's own ``ColorRamp.evaluate`` into Cycles' table,
+:mod:`precompute.materials.ramp`) — are evaluated per face corner exactly as Blender's SVM nodes
+compute them (:func:`link_values`); any other node raises :class:`Unsupported`, and
+:mod:`.linked` bakes the link with Cycles instead. A colour reaching a float input is converted
+as Blender converts it (:func:`converted`): its luminance, a vector's average.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ...precompute.colour import rgb_spaces
+from ...precompute.materials import ramp
 from ...precompute.materials.perlin import noise_texture
+from ..colour_space import working_space
 
 __all__ = [
     "DIRECT_NODES",
@@ -21,11 +27,14 @@ __all__ = [
     "MAP_MAX_SIZE",
     "POSITIONAL_NODES",
     "Unsupported",
+    "converted",
     "corner_uv",
     "link_map",
     "identity_mapping",
     "link_values",
+    "luminance_weights",
     "positional",
+    "ramp_table",
     "sample",
     "texel_centres",
     "upstream",
@@ -47,6 +56,7 @@ DIRECT_NODES = (
     "NodeReroute",
     "ShaderNodeTexNoise",
     "ShaderNodeTexCoord",
+    "ShaderNodeValToRGB",
 )
 #: Nodes whose value depends on the position on the surface, not on the UVs: a map of them is
 #: baked at the UVs (:func:`positional`).
@@ -141,8 +151,26 @@ class _GridContext(_Context):
 
 
 def _as_float(value: np.ndarray) -> np.ndarray:
-    if value.ndim == 2:  # Blender's colour → float conversion is the luminance: not mirrored
-        raise Unsupported("colour to float conversion")
+    if value.ndim == 2:  # a colour reaches a float input converted (:func:`converted`)
+        raise Unsupported("an unconverted colour where a float is read")
+    return value
+
+
+def luminance_weights() -> np.ndarray:
+    """The weights of Blender's colour → float conversion in the file's working space: the Y row
+    of its RGB → XYZ (D65) matrix, Cycles' ``rgb_to_y`` ((0.2126, 0.7152, 0.0722) in Linear
+    Rec.709)."""
+    return np.linalg.inv(rgb_spaces.scene_linear_matrix(working_space()))[1]
+
+
+def converted(value: np.ndarray, source, target) -> np.ndarray:
+    """The value of a link from ``source`` as the ``target`` socket receives it, as Blender
+    converts it implicitly: a colour into a float input is its luminance
+    (:func:`luminance_weights`), a vector its average; anything else unchanged."""
+    if value.ndim == 2 and getattr(target, "type", "") == "VALUE":
+        if getattr(source, "type", "") == "RGBA":
+            return value @ luminance_weights()
+        return value.mean(axis=1)
     return value
 
 
@@ -157,7 +185,7 @@ def _input(node, key, ctx) -> np.ndarray:
         link = socket.links[0]
         if not link.is_valid or link.is_muted:
             raise Unsupported("a muted or invalid link")
-        return _output(link.from_node, link.from_socket, ctx)
+        return converted(_output(link.from_node, link.from_socket, ctx), link.from_socket, socket)
     value = socket.default_value
     if hasattr(value, "__len__"):
         return np.broadcast_to(np.asarray(tuple(value)[:3], dtype=np.float64), (ctx.n, 3))
@@ -350,6 +378,25 @@ def _noise_node(node, socket, ctx):
     )[corner.reshape(-1)]
 
 
+def ramp_table(node) -> tuple[np.ndarray, bool]:
+    """(a Color Ramp node's table: (:data:`precompute.materials.ramp.TABLE_SIZE`, 4) RGBA at
+    :func:`precompute.materials.ramp.table_positions`, by Blender's own evaluation; whether it
+    is read interpolated, as Cycles reads it: not for a *Constant* ramp)."""
+    colour_ramp = node.color_ramp
+    table = np.array([tuple(colour_ramp.evaluate(float(t))) for t in ramp.table_positions()])
+    return table, colour_ramp.interpolation != "CONSTANT"
+
+
+def _colour_ramp(node, socket, ctx):
+    """Color Ramp: its Color or Alpha at Fac, from Cycles' table (:func:`ramp_table`)."""
+    table, interpolate = ramp_table(node)
+    fac = _as_float(_input(node, "Fac", ctx))
+    ctx.notes.append("a Color Ramp")
+    if socket.identifier == "Alpha":
+        return ramp.lookup(table[:, 3], fac, interpolate)
+    return ramp.lookup(table[:, :3], fac, interpolate)
+
+
 def _texture_coordinate(node, socket, ctx):
     """Texture Coordinate's Object (of the mesh's own object) or Generated output."""
     if socket.identifier == "Object" and node.object is None and not node.from_instancer:
@@ -369,6 +416,7 @@ _HANDLERS = {
     "ShaderNodeSeparateColor": _separate_colour,
     "ShaderNodeTexNoise": _noise_node,
     "ShaderNodeTexCoord": _texture_coordinate,
+    "ShaderNodeValToRGB": _colour_ramp,
 }
 
 
@@ -378,7 +426,8 @@ def link_values(mesh, socket, texspace=None) -> tuple[np.ndarray, list[str], int
     it does not mirror."""
     ctx = _Context(mesh, texspace)
     link = socket.links[0]
-    return _as_float(_output(link.from_node, link.from_socket, ctx)), ctx.notes, ctx.n
+    value = converted(_output(link.from_node, link.from_socket, ctx), link.from_socket, socket)
+    return _as_float(value), ctx.notes, ctx.n
 
 
 def upstream(socket) -> list:
@@ -433,5 +482,5 @@ def link_map(mesh, socket) -> tuple[np.ndarray, list[str], str, bool] | None:
     layer = layers.pop()
     ctx = _GridContext(mesh, layer, (height, width))
     link = socket.links[0]
-    values = _as_float(_output(link.from_node, link.from_socket, ctx))
+    values = _as_float(converted(_output(link.from_node, link.from_socket, ctx), link.from_socket, socket))
     return values.reshape(height, width), ctx.notes, layer, modes.pop() == "REPEAT"

@@ -6,9 +6,10 @@ the shader computes Blender's Noise Texture at each pixel from the object-space 
 no resolution limit. :func:`recognise` reads such a link: a Noise Texture the direct evaluator
 mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, undistorted, identity mapping; its
 inputs unlinked), at Texture Coordinate's Object or Generated coordinates (Generated, the
-default, from the texture space of an unmodified mesh), optionally through one linear Map
-Range with unlinked inputs, and Reroutes. Anything else is evaluated per corner and baked into
-a map as before (:mod:`.linked`).
+default, from the texture space of an unmodified mesh), optionally through a Color Ramp (its
+Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
+optionally one linear Map Range with unlinked inputs, and Reroutes. Anything else is evaluated
+per corner and baked into a map as before (:mod:`.linked`).
 """
 
 from __future__ import annotations
@@ -19,15 +20,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...precompute.materials.perlin import NoiseSpec
-from .linked_nodes import identity_mapping
+from .linked_nodes import identity_mapping, luminance_weights, ramp_table
 
 __all__ = ["NoiseGraph", "recognise"]
 
 
 @dataclass(frozen=True)
 class NoiseGraph:
-    """A recognised link: the Noise Texture (``noise``: its Fac, gain 1, bias 0, unclamped) and
-    the thickness it gives, ``a`` · Fac + ``b`` nm, clamped to [``low``, ``high``] nm."""
+    """A recognised link: the Noise Texture (``noise``: its Fac, or its Color Ramp's value at Fac
+    where ``noise.ramp`` holds the table; gain 1, bias 0, unclamped) and the thickness it gives,
+    ``a`` · x + ``b`` nm, clamped to [``low``, ``high``] nm, of that value x."""
 
     noise: NoiseSpec
     a: float = 1.0
@@ -36,8 +38,10 @@ class NoiseGraph:
     high: float = math.inf
 
     def nm_range(self) -> tuple[float, float]:
-        """The thickness over Fac in [0, 1] (the normalized fBm's range), in nm."""
-        ends = np.clip([self.b, self.a + self.b], self.low, self.high)
+        """The thickness over Fac in [0, 1] (the normalized fBm's range; a ramp's values there),
+        in nm."""
+        x = (min(self.noise.ramp), max(self.noise.ramp)) if self.noise.ramp else (0.0, 1.0)
+        ends = np.clip([self.a * x[0] + self.b, self.a * x[1] + self.b], self.low, self.high)
         return float(ends.min()), float(ends.max())
 
     def spec(self, thickness_range) -> NoiseSpec:
@@ -116,6 +120,12 @@ def recognise(socket, texspace) -> NoiseGraph | None:
             return None
         a, b, low, high = ranged
         found = _source(value)
+    table, interpolate = (), True
+    if found is not None and found[0].bl_idname == "ShaderNodeValToRGB":
+        rgba, interpolate = ramp_table(found[0])
+        x = rgba[:, 3] if found[1].identifier == "Alpha" else rgba[:, :3] @ luminance_weights()
+        table = tuple(float(v) for v in x)
+        found = _source(found[0].inputs["Fac"])
     if found is None or found[0].bl_idname != "ShaderNodeTexNoise" or found[1].identifier != "Fac":
         return None
     noise = found[0]
@@ -141,5 +151,7 @@ def recognise(socket, texspace) -> NoiseGraph | None:
         0.0,
         -1e30,
         1e30,
+        table,
+        interpolate,
     )
     return NoiseGraph(spec, a, b, low, high)

@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import ramp
+
 __all__ = [
     "DETAIL",
     "LACUNARITY",
@@ -231,8 +233,11 @@ class NoiseSpec:
 
     The node's settings (:func:`noise_texture`) read at ``space_scale`` · p + ``space_offset``
     of the object-space position p (Object coordinates: 1 and 0; Generated: the texture space);
-    its *Fac* becomes the table's thickness parameter as ``gain`` · Fac + ``bias`` clamped to
-    [``low``, ``high``] and to [0, 1] (a Map Range, and the table's range, folded in).
+    its *Fac* becomes the table's thickness parameter as ``gain`` · x + ``bias`` clamped to
+    [``low``, ``high``] and to [0, 1] (a Map Range, and the table's range, folded in), where x
+    is *Fac*, or a Color Ramp's value at *Fac* where ``ramp`` holds its table
+    (:func:`.ramp.lookup`: the luminance of its Color, or its Alpha, at
+    :func:`.ramp.table_positions`; ``ramp_interpolate`` False for a *Constant* ramp).
     """
 
     dimensions: int = 4
@@ -247,6 +252,8 @@ class NoiseSpec:
     bias: float = 0.0
     low: float = 0.0
     high: float = 1.0
+    ramp: tuple = ()
+    ramp_interpolate: bool = True
 
     def fac(self, positions) -> np.ndarray:
         """The node's *Fac* at (N, 3) object-space ``positions``."""
@@ -258,13 +265,16 @@ class NoiseSpec:
 
     def parameter(self, positions) -> np.ndarray:
         """The thickness parameter in [0, 1] at (N, 3) object-space ``positions``."""
-        value = np.clip(self.gain * self.fac(positions) + self.bias, self.low, self.high)
+        x = self.fac(positions)
+        if self.ramp:
+            x = ramp.lookup(self.ramp, x, self.ramp_interpolate)
+        value = np.clip(self.gain * x + self.bias, self.low, self.high)
         return np.clip(value, 0.0, 1.0)
 
     def uniforms(self) -> dict:
         """The object block's noise members (``addon/gpu/layout.py`` OBJECT), vec4s."""
         return {
-            "noise": [float(self.scale), float(self.w), 0.0, 0.0],
+            "noise": [float(self.scale), float(self.w), float(bool(self.ramp_interpolate)), 0.0],
             "noise_fbm": [
                 float(np.clip(self.detail, 0.0, 15.0)),
                 max(float(self.roughness), 0.0),

@@ -67,10 +67,20 @@ MIRROR = (
             "materials.perlin.perlin",
             "materials.perlin.hash3",
             "materials.perlin.hash4",
+            "materials.ramp.lookup",
         ),
         "tf_perlin.glsl",
-        ("tf_perlin_hash3", "tf_perlin_hash", "tf_perlin3", "tf_perlin", "tf_fbm", "tf_noise_texture"),
-        glsl_note="a Noise Texture per pixel (`TF_THICKNESS_PERLIN`): Blender Noise, a linked one",
+        (
+            "tf_perlin_hash3",
+            "tf_perlin_hash",
+            "tf_perlin3",
+            "tf_perlin",
+            "tf_fbm",
+            "tf_ramp",
+            "tf_noise_texture",
+        ),
+        glsl_note="a Noise Texture per pixel (`TF_THICKNESS_PERLIN`): Blender Noise, a linked one, "
+        "through a Color Ramp's table (`TF_THICKNESS_RAMP`)",
     ),
     Mirror(
         (

@@ -24,8 +24,9 @@ UBO_TEXELS = UBO_LIMIT_BYTES // 16 - 1
 TRANSMIT_MULTIPLY = 1
 TRANSMIT_ADD = 2
 TRANSMIT_PASSES = (TRANSMIT_MULTIPLY, TRANSMIT_ADD)
-#: ``Variant.thickness_noise``: the *Noise* source's value noise, Blender's Noise Texture.
-NOISE_VALUE, NOISE_BLENDER = 1, 2
+#: ``Variant.thickness_noise``: the *Noise* source's value noise, Blender's Noise Texture, and a
+#: Noise Texture read through a Color Ramp's table (``TF_THICKNESS_RAMP``).
+NOISE_VALUE, NOISE_BLENDER, NOISE_RAMP = 1, 2, 3
 
 
 def fits_uniform_buffer(layers: int, rows: int, columns: int) -> bool:
@@ -74,8 +75,10 @@ class Variant(NamedTuple):
     #: With ``vary_thickness``: a noise source computed per pixel from the object-space position
     #: (``TF_THICKNESS_NOISE``), not from the corners: :data:`NOISE_VALUE` the Noise source
     #: (tf_noise.glsl: materials.noise.value_noise), :data:`NOISE_BLENDER` the Blender Noise
-    #: source (``TF_THICKNESS_PERLIN`` too, tf_perlin.glsl: materials.perlin.blender_noise); 0
-    #: none (True and False read as 1 and 0).
+    #: source (``TF_THICKNESS_PERLIN`` too, tf_perlin.glsl: materials.perlin.blender_noise),
+    #: :data:`NOISE_RAMP` a linked Noise Texture through a Color Ramp (``TF_THICKNESS_RAMP`` too:
+    #: materials.ramp.lookup of the ramp's table, a texture); 0 none (True and False read as 1
+    #: and 0).
     thickness_noise: int = 0
 
     @property
@@ -121,8 +124,10 @@ class Variant(NamedTuple):
             out.append(("TF_THICKNESS_MAP", "1"))
         if self.thickness_noise:
             out.append(("TF_THICKNESS_NOISE", "1"))
-        if int(self.thickness_noise) == NOISE_BLENDER:
+        if int(self.thickness_noise) in (NOISE_BLENDER, NOISE_RAMP):
             out.append(("TF_THICKNESS_PERLIN", "1"))
+        if int(self.thickness_noise) == NOISE_RAMP:
+            out.append(("TF_THICKNESS_RAMP", "1"))
         return out
 
     def _display_switches(self) -> list[tuple[str, str]]:
@@ -212,7 +217,7 @@ def choose_variant(
       its passes march the exit ray over it (shading/glass/refract.py).
     - ``thickness_map``: the batch carries a thickness map and UVs (with a varying thickness);
       ``thickness_noise``: its thickness is a noise source computed per pixel (:data:`NOISE_VALUE`,
-      :data:`NOISE_BLENDER`; 0 none).
+      :data:`NOISE_BLENDER`, :data:`NOISE_RAMP`; 0 none).
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0

@@ -19,6 +19,7 @@ from _extension import EXTENSION_ID, REFERENCE_ROTATION, REPO
 
 from precompute.bakes import bake
 from precompute.colour import film_colour
+from precompute.materials import ramp
 from precompute.materials.material import Layer, Material, Quality
 from precompute.materials.noise import value_noise
 from precompute.materials.perlin import NoiseSpec
@@ -827,21 +828,34 @@ def test_an_image_thickness_is_read_per_pixel_from_blenders_texture(gd, bpy, sto
 #: A linked Noise Texture as tf_perlin.glsl computes it: 3-D, Generated-like coordinates,
 #: fractional Detail, a clamped Map Range folded into gain, bias, low and high.
 LINKED_NOISE = NoiseSpec(3, 2.3, 0.0, 2.4, 0.6, 2.2, (0.5, 0.4, 0.6), (0.5, 0.5, 0.5), 1.6, -0.3, 0.1, 0.9)
+_RAMP_AT = ramp.table_positions()
+_SWINGS = np.clip((_RAMP_AT - 0.3) / 0.4, 0, 1)
+#: Color Ramp tables (materials.ramp): a smooth one with two swings over Fac 0.3–0.7, read
+#: interpolated, and four constant steps, read as a Constant ramp.
+RAMPS = {
+    "linked_ramp": (tuple(0.2 + 0.6 * np.sin(2.5 * np.pi * _SWINGS) ** 2), True),
+    "linked_steps": (tuple(np.floor(np.clip(_RAMP_AT - 0.35, 0, 0.299) / 0.075) / 4 + 0.1), False),
+}
 
 
-@pytest.mark.parametrize("kind", ["value", "blender", "linked"])
+@pytest.mark.parametrize("kind", ["value", "blender", "linked", *RAMPS])
 def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     """The noise thicknesses per pixel (``TF_THICKNESS_NOISE``): a quad facing the camera filling
     a 32² orthographic frame, each pixel shaded at its object-space position's noise, where the
     corners alone would interpolate four values. *value*: the Noise source,
     materials.noise.value_noise (tf_noise.glsl); *blender*: the Blender Noise source,
     materials.perlin.blender_noise (tf_perlin.glsl), Blender's 4-D Noise Texture; *linked*: a
-    linked 3-D Noise Texture (:data:`LINKED_NOISE`, materials.perlin.NoiseSpec.parameter)."""
+    linked 3-D Noise Texture (:data:`LINKED_NOISE`, materials.perlin.NoiseSpec.parameter);
+    *linked_ramp*, *linked_steps*: the same through a Color Ramp's table (:data:`RAMPS`,
+    ``TF_THICKNESS_RAMP``, materials.ramp.lookup), interpolated and Constant."""
     scale, seed, size = 3.7, 5, 32
     if kind == "value":
         spec, noise = (scale, seed), lambda p: value_noise(p, scale, seed)
     else:
         spec = NoiseSpec(4, scale, seed) if kind == "blender" else LINKED_NOISE
+        if kind in RAMPS:
+            table, interpolate = RAMPS[kind]
+            spec = dataclasses.replace(spec, gain=1.0, bias=0.0, ramp=table, ramp_interpolate=interpolate)
         noise = spec.parameter
     _, img, shade = facing_quad(gd, size, size, thickness=noise(QUAD_POS), noise=spec)
     centres = (np.arange(size) + 0.5) / size * 2 - 1
@@ -853,10 +867,14 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     per_pixel = np.max(np.abs(got - expected), axis=-1) / np.max(expected)
     # Measured on llvmpipe: value noise max 3.0e-6, median 3.4e-7; Blender's noise max 3.5e-7,
     # median 6.2e-8; the linked 3-D one max 1.9e-6, median 2.5e-7 (float32 positions and fades;
-    # the hashes are exact integer arithmetic). A wrong hash
-    # constant, octave, seed or fade shows up as ≥ 1e-2 at most pixels.
+    # the hashes are exact integer arithmetic); through the ramps max 1.7e-5 and 1.6e-7 (the
+    # smooth ramp multiplies Fac's float32 error by its slope, up to 12). A wrong hash
+    # constant, octave, seed or fade shows up as ≥ 1e-2 at most pixels; the ramp read without
+    # its table, interpolated where Constant or one entry off, as ≥ 1e-2 at many.
     assert np.max(per_pixel) < 1e-4, np.max(per_pixel)
     assert np.ptp(t01) > 0.3  # the noise varies across the quad: the check has something to see
+    if kind == "linked_steps":  # the steps: each of the four levels is drawn
+        assert len(np.unique(np.round(t01, 6))) == 4, np.unique(np.round(t01, 6))
 
 
 # ----------------------------------------------------------------------------------------------

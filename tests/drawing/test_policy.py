@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from precompute.shading import codegen, policy, sh_rotation
-from precompute.shading.variant import NOISE_BLENDER, NOISE_VALUE, Variant, choose_variant
+from precompute.shading.variant import NOISE_BLENDER, NOISE_RAMP, NOISE_VALUE, Variant, choose_variant
 
 REPO = Path(__file__).resolve().parents[2]  # tests/<feature>/this file
 GLSL = REPO / "glsl"
@@ -49,7 +49,7 @@ def every_variant():
     for transmit in (1, 2):  # a transparent film's blend passes (TF_TRANSMIT), solid glass's TF_REFRACT
         for refract in (False, True):
             yield Variant(5, True, True, False, transmit=transmit, refract=refract).normalised()
-    for noise in (NOISE_VALUE, NOISE_BLENDER):  # the noise sources per pixel (an int switch)
+    for noise in (NOISE_VALUE, NOISE_BLENDER, NOISE_RAMP):  # the noise sources per pixel (an int switch)
         yield Variant(5, True, True, False, thickness_noise=noise).normalised()
 
 
