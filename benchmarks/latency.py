@@ -482,6 +482,41 @@ def edit_blender_noise(mat, delta: float = 0.5):
     s.noise_scale += delta
 
 
+def ensure_ramp_graph(mat) -> None:
+    """Noise Texture (Scale 3) → Color Ramp (three coloured stops, Ease) → Map Range 150–850 nm
+    linked into the Principled BSDF's Thin Film Thickness, where nothing is linked there yet: the
+    film artists shape with a ramp. Part of the scene, not of the ramp's edit."""
+    bsdf = _bsdf(mat)
+    socket = bsdf.inputs["Thin Film Thickness"]
+    if socket.is_linked:
+        return
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    ramp = nodes.new("ShaderNodeValToRGB")
+    ramp.name = "Thickness ramp"
+    ramp.color_ramp.interpolation = "EASE"
+    ramp.color_ramp.elements.new(0.5)
+    for stop, position, colour in zip(
+        ramp.color_ramp.elements,
+        (0.35, 0.5, 0.62),
+        ((0.05, 0.1, 0.02), (0.9, 0.6, 1.0), (0.2, 0.35, 0.1)),
+        strict=True,
+    ):
+        stop.position, stop.color = position, (*colour, 1.0)
+    ranged = nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 150.0, 850.0
+    links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    links.new(ramp.outputs["Color"], ranged.inputs["Value"])
+    links.new(ranged.outputs["Result"], socket)
+
+
+def edit_ramp_stop(mat, i: int):
+    """The thickness ramp's middle stop moved by ±0.02 (alternately), as a drag of it."""
+    stop = mat.node_tree.nodes["Thickness ramp"].color_ramp.elements[1]
+    stop.position += 0.02 if i % 2 == 0 else -0.02
+
+
 def edit_film_ior(mat, delta: float = 0.02):
     s = _film(mat)
     if s is None:
@@ -600,6 +635,7 @@ EDITS = {
     ),
     "paint_stroke": ("paint stroke (64² texels)", True, lambda sc, m, i: edit_paint_stroke(m, i)),
     "blender_noise": ("Blender noise scale (+0.5)", True, lambda sc, m, i: edit_blender_noise(m)),
+    "ramp_stop": ("linked Color Ramp stop (±0.02)", False, lambda sc, m, i: edit_ramp_stop(m, i)),
 }
 
 
@@ -675,10 +711,18 @@ def run_scene(ext: Extension, name: str, path: Path, edits, repeats: int, repeat
         loop.tagged = True
         loop.run(time.perf_counter() + EDIT_TIMEOUT_S)
         loop.settle()
+    if "ramp_stop" in edits and _film(mat) is None:
+        ensure_ramp_graph(mat)  # the scene's: its first evaluation is not the edit's
+        loop.tagged = True
+        loop.run(time.perf_counter() + EDIT_TIMEOUT_S)
+        loop.settle()
     for edit in edits:
         if edit == "first_open":
             continue
         label, needs_settings, apply = EDITS[edit]
+        if edit == "ramp_stop" and _film(mat) is not None:
+            print(f"{name:18s} {edit:16s} skipped (the extension's own thickness source is drawn)")
+            continue
         if needs_settings and _film(mat) is None:
             print(f"{name:18s} {edit:16s} skipped (a Principled BSDF has no such control)", flush=True)
             continue

@@ -72,8 +72,9 @@ def _sphere(bpy):
     return sphere
 
 
-def build_noise(bpy, folder):
-    """The opaque film sphere driven by Noise Texture → Map Range 150–850 nm (socket value 0)."""
+def build_noise(bpy, folder, ramp: bool = False):
+    """The opaque film sphere driven by Noise Texture → Map Range 150–850 nm (socket value 0);
+    ``ramp``: through a Color Ramp of three coloured stops (Ease) between them."""
     sphere = _sphere(bpy)
     mat = bpy.data.materials.new("noise film")
     tree = mat.node_tree
@@ -89,8 +90,24 @@ def build_noise(bpy, folder):
     ranged.inputs["To Min"].default_value = 150.0
     ranged.inputs["To Max"].default_value = 850.0
     tree.links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    if ramp:  # the film's bands shaped by a ramp: thin and thick stripes, a colour's luminance
+        node = tree.nodes.new("ShaderNodeValToRGB")
+        stops = node.color_ramp.elements
+        stops.new(0.5)
+        node.color_ramp.interpolation = "EASE"
+        for stop, position, colour in zip(
+            stops, (0.35, 0.5, 0.62), ((0.05, 0.1, 0.02), (0.9, 0.6, 1.0), (0.2, 0.35, 0.1)), strict=True
+        ):
+            stop.position, stop.color = position, (*colour, 1.0)
+        tree.links.new(noise.outputs["Fac"], node.inputs["Fac"])
+        tree.links.new(node.outputs["Color"], ranged.inputs["Value"])
     tree.links.new(ranged.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
     sphere.data.materials.append(mat)
+
+
+def build_ramp(bpy, folder):
+    """The noise sphere with a Color Ramp between the Noise Texture and the Map Range."""
+    build_noise(bpy, folder, ramp=True)
 
 
 def _stripes(size=256) -> np.ndarray:
@@ -140,7 +157,7 @@ def build_gltf(bpy, folder):
             obj.data.shade_smooth()
 
 
-CASES = {"noise": build_noise, "gltf": build_gltf}
+CASES = {"noise": build_noise, "ramp": build_ramp, "gltf": build_gltf}
 
 
 def run_case(bpy, package, name, size, samples, folder):
@@ -191,6 +208,7 @@ def main(argv=None) -> int:
     parser.add_argument("--roughness", type=float, default=ROUGHNESS)
     parser.add_argument("--segments", type=int, default=SEGMENTS, help="UV sphere segments (rings: half)")
     parser.add_argument("--out", default="texture-thickness.md", help="the report, relative to docs/")
+    parser.add_argument("--cases", nargs="+", choices=sorted(CASES), default=list(CASES))
     args = parser.parse_args(argv)
     globals()["ROUGHNESS"] = args.roughness  # read by the scene builders
     globals()["SEGMENTS"] = args.segments
@@ -198,7 +216,7 @@ def main(argv=None) -> int:
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp, linked_extension(pathlib.Path(tmp)) as package:
-        for name in CASES:
+        for name in args.cases:
             folder = pathlib.Path(tmp) / name
             folder.mkdir()
             ref, ours, mask, times, messages = run_case(bpy, package, name, args.size, args.samples, folder)
@@ -218,7 +236,7 @@ def main(argv=None) -> int:
         f" --segments {args.segments}` (issue 21).",
         f"Code: {common.code_version()}.",
         "",
-        "Two spheres whose film thickness varies through a texture, each rendered by Cycles (CPU,",
+        "Spheres whose film thickness varies through a texture, each rendered by Cycles (CPU,",
         f"{args.samples} samples, box filter, one bounce) and by the extension's headless frame",
         "(`addon/headless/render.py`, `render_scene`: the viewport's shader on Mesa llvmpipe, default "
         "quality, the",
@@ -227,9 +245,11 @@ def main(argv=None) -> int:
         f"`{HDRI}` studio light, roughness {args.roughness:g}. ΔE2000 (route E) over the sphere, its edge",
         f"pixel eroded; a UV sphere of {args.segments} × {args.segments // 2} segments. The extension",
         "evaluates the linked thickness per face corner and per pixel (`addon/thickness/linked.py`,",
-        "`maps.py`): the Noise Texture by Cycles bakes of the linked value (at the corners, and into a",
-        "1024² map at the UVs), the glTF import graph (Image → Separate Color G → Mix) directly in",
-        "numpy (at the corners, and at the image's pixels: the map).",
+        "`noise_graph.py`, `maps.py`): the Noise Texture (→ Map Range 150–850 nm; *ramp*: through a",
+        "Color Ramp of three coloured stops first, its Color's luminance) computed in the shader per",
+        "pixel (`tf_perlin.glsl`, the ramp from Cycles' table of it) and in numpy at the corners, with",
+        "no bake and no map; the glTF import graph (Image → Separate Color G → Mix) directly in numpy",
+        "(at the corners, and at the image's pixels: the map).",
         "",
         "| Scene | mean ΔE2000 | 95th pct | limit | Cycles | ours (incl. bake) |",
         "|---|---|---|---|---|---|",
