@@ -429,6 +429,18 @@ def test_write_back_of_blender_noise_is_the_node_graph_the_preview_draws(bpy, tf
     assert np.median(error) < 3e-4 * (hi - lo), np.median(error)
 
 
+def _against_cycles_bake(tf, obj, mat, socket, source: str):
+    """(the link into ``socket`` evaluated directly, which must name ``source``; its difference
+    from Cycles' bake of the link at each corner; Cycles' own spread: the largest difference
+    between its corners at one vertex, since it shades each corner a little off its face)."""
+    direct = tf.linked.evaluate(obj, obj.data, mat, socket)
+    baked = tf.linked._bake(obj, mat, socket)
+    assert not direct.baked and source in direct.how, direct.how
+    vertex = np.array([loop.vertex_index for loop in obj.data.loops])
+    spread = max(np.ptp(baked.values[vertex == v]) for v in np.unique(vertex))
+    return direct, np.abs(direct.values - baked.values), spread
+
+
 @pytest.mark.parametrize("graph", ["noise_3d_generated", "noise_4d_object", "noise_3d_fractional"])
 def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, graph):
     """A Noise Texture (fBm, normalized; 3-D at Generated coordinates, the node's default, or
@@ -456,13 +468,9 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     obj = bpy.context.active_object
     obj.scale = (1.0, 0.7, 1.2)
     obj.data.materials.append(mat)
-    socket = node.inputs["Thin Film Thickness"]
-    direct = tf.linked.evaluate(obj, obj.data, mat, socket)
-    baked = tf.linked._bake(obj, mat, socket)
-    assert not direct.baked and "Noise Texture" in direct.how
-    error = np.abs(direct.values - baked.values)
-    vertex = np.array([loop.vertex_index for loop in obj.data.loops])
-    spread = max(np.ptp(baked.values[vertex == v]) for v in np.unique(vertex))  # Cycles vs itself
+    direct, error, spread = _against_cycles_bake(
+        tf, obj, mat, node.inputs["Thin Film Thickness"], "Noise Texture"
+    )
     # Measured: max 0.34, 0.69, 0.29 nm (median 0.054, 0.12, 0.042) of 800, where Cycles' own
     # corners at one vertex differ by 0.57, 1.25, 0.53 nm; one octave fewer, another hash or a
     # wrong texture space is tens of nm.
@@ -606,13 +614,9 @@ def test_a_noise_texture_through_a_colour_ramp_is_drawn_per_pixel(bpy, tf, outpu
     corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
     np.testing.assert_allclose(entry.thickness, spec.parameter(corners), atol=1e-6)
 
-    socket = node.inputs["Thin Film Thickness"]
-    direct = tf.linked.evaluate(sphere, sphere.data, mat, socket)
-    baked = tf.linked._bake(sphere, mat, socket)
-    assert not direct.baked and "Color Ramp" in direct.how
-    error = np.abs(direct.values - baked.values)
-    vertex = np.array([loop.vertex_index for loop in sphere.data.loops])
-    spread = max(np.ptp(baked.values[vertex == v]) for v in np.unique(vertex))  # Cycles vs itself
+    direct, error, spread = _against_cycles_bake(
+        tf, sphere, mat, node.inputs["Thin Film Thickness"], "Color Ramp"
+    )
     # Measured: max 0.15 nm (Color) and 0.19 (Alpha) of 700, Cycles' own corners at one vertex
     # differing by 0.31 and 0.37; the red channel for the luminance is 100s of nm off.
     assert error.max() <= max(spread, 1e-3 * 700.0), (error.max(), spread)
@@ -736,17 +740,7 @@ def test_direct_evaluation_equals_cycles_bake_of_the_same_link(bpy, tf, graph):
             math_node.inputs[1].default_value = b
             links.new(value, math_node.inputs[0])
             value = math_node.outputs[0]
-    elif graph == "mix_colour":
-        mix = nodes.new("ShaderNodeMix")
-        mix.data_type = "RGBA"
-        by_id = {s.identifier: s for s in (*mix.inputs, *mix.outputs)}
-        by_id["A_Color"].default_value = (100.0, 200.0, 300.0, 1.0)
-        by_id["B_Color"].default_value = (800.0, 700.0, 600.0, 1.0)
-        links.new(sep.outputs["Red"], by_id["Factor_Float"])
-        sep2 = nodes.new("ShaderNodeSeparateColor")
-        links.new(by_id["Result_Color"], sep2.inputs["Color"])
-        value = sep2.outputs["Green"]
-    elif graph == "colour_to_thickness":
+    elif graph in ("mix_colour", "colour_to_thickness"):  # the Mix's colour: its Green, or itself
         mix = nodes.new("ShaderNodeMix")
         mix.data_type = "RGBA"
         by_id = {s.identifier: s for s in (*mix.inputs, *mix.outputs)}
@@ -754,6 +748,10 @@ def test_direct_evaluation_equals_cycles_bake_of_the_same_link(bpy, tf, graph):
         by_id["B_Color"].default_value = (800.0, 200.0, 900.0, 1.0)
         links.new(sep.outputs["Red"], by_id["Factor_Float"])
         value = by_id["Result_Color"]
+        if graph == "mix_colour":
+            sep2 = nodes.new("ShaderNodeSeparateColor")
+            links.new(value, sep2.inputs["Color"])
+            value = sep2.outputs["Green"]
     elif graph == "reroute_value":
         constant = nodes.new("ShaderNodeValue")
         constant.outputs[0].default_value = 333.0
