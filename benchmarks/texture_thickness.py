@@ -72,9 +72,10 @@ def _sphere(bpy):
     return sphere
 
 
-def build_noise(bpy, folder, ramp: bool = False):
+def build_noise(bpy, folder, ramp: bool = False, distortion: float = 0.0):
     """The opaque film sphere driven by Noise Texture → Map Range 150–850 nm (socket value 0);
-    ``ramp``: through a Color Ramp of three coloured stops (Ease) between them."""
+    ``ramp``: through a Color Ramp of three coloured stops (Ease) between them; ``distortion``:
+    the Noise Texture's."""
     sphere = _sphere(bpy)
     mat = bpy.data.materials.new("noise film")
     tree = mat.node_tree
@@ -86,6 +87,7 @@ def build_noise(bpy, folder, ramp: bool = False):
     bsdf.inputs["Thin Film Thickness"].default_value = 0.0
     noise = tree.nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 3.0
+    noise.inputs["Distortion"].default_value = distortion
     ranged = tree.nodes.new("ShaderNodeMapRange")
     ranged.inputs["To Min"].default_value = 150.0
     ranged.inputs["To Max"].default_value = 850.0
@@ -108,6 +110,11 @@ def build_noise(bpy, folder, ramp: bool = False):
 def build_ramp(bpy, folder):
     """The noise sphere with a Color Ramp between the Noise Texture and the Map Range."""
     build_noise(bpy, folder, ramp=True)
+
+
+def build_distorted(bpy, folder):
+    """The noise sphere with the Noise Texture's Distortion at 1 (the swirls of oil on water)."""
+    build_noise(bpy, folder, distortion=1.0)
 
 
 def _stripes(size=256) -> np.ndarray:
@@ -157,7 +164,7 @@ def build_gltf(bpy, folder):
             obj.data.shade_smooth()
 
 
-CASES = {"noise": build_noise, "ramp": build_ramp, "gltf": build_gltf}
+CASES = {"noise": build_noise, "ramp": build_ramp, "distorted": build_distorted, "gltf": build_gltf}
 
 
 def run_case(bpy, package, name, size, samples, folder):
@@ -246,7 +253,8 @@ def main(argv=None) -> int:
         f"pixel eroded; a UV sphere of {args.segments} × {args.segments // 2} segments. The extension",
         "evaluates the linked thickness per face corner and per pixel (`addon/thickness/linked.py`,",
         "`noise_graph.py`, `maps.py`): the Noise Texture (→ Map Range 150–850 nm; *ramp*: through a",
-        "Color Ramp of three coloured stops first, its Color's luminance) computed in the shader per",
+        "Color Ramp of three coloured stops first, its Color's luminance; *distorted*: Distortion 1)",
+        "computed in the shader per",
         "pixel (`tf_perlin.glsl`, the ramp from Cycles' table of it) and in numpy at the corners, with",
         "no bake and no map; the glTF import graph (Image → Separate Color G → Mix) directly in numpy",
         "(at the corners, and at the image's pixels: the map).",

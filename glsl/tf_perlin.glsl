@@ -165,7 +165,7 @@ float tf_ramp(float fac)
 #endif
 
 /* The thickness parameter in [0, 1] of the item's Noise Texture at object-space point pos
- * (materials.perlin.NoiseSpec.parameter): tf_object.noise (x scale, y w), noise_fbm (detail,
+ * (materials.perlin.NoiseSpec.parameter): tf_object.noise (x scale, y w, w distortion), noise_fbm (detail,
  * roughness, lacunarity, dimensions), noise_space / noise_offset (its coordinates from pos),
  * noise_map (gain, bias, low, high: Fac, or with TF_THICKNESS_RAMP a Color Ramp's value at it,
  * to the parameter). */
@@ -174,7 +174,21 @@ float tf_noise_texture(vec3 pos)
   vec3 v = pos * tf_object.noise_space.xyz + tf_object.noise_offset.xyz;
   vec4 p = vec4(v, tf_object.noise.y) * tf_object.noise.x;
   vec4 fbm = tf_object.noise_fbm;
-  float fac = tf_fbm(p, fbm.w > 3.5, fbm.x, fbm.y, fbm.z);
+  bool four = fbm.w > 3.5;
+  float distortion = tf_object.noise.w;
+  if (distortion != 0.0) { /* one octave per axis at its fixed offset (materials.perlin.noise_texture) */
+    if (four) {
+      mat4 o = TF_NOISE_DISTORT4;
+      p += vec4(tf_perlin(p + o[0]), tf_perlin(p + o[1]), tf_perlin(p + o[2]), tf_perlin(p + o[3])) *
+           distortion;
+    }
+    else {
+      mat3 o = TF_NOISE_DISTORT3;
+      p.xyz += vec3(tf_perlin3(p.xyz + o[0]), tf_perlin3(p.xyz + o[1]), tf_perlin3(p.xyz + o[2])) *
+               distortion;
+    }
+  }
+  float fac = tf_fbm(p, four, fbm.x, fbm.y, fbm.z);
 #ifdef TF_THICKNESS_RAMP
   fac = tf_ramp(fac);
 #endif

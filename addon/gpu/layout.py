@@ -204,7 +204,7 @@ OBJECT = Block(
             None,
             "a noise thickness per pixel (TF_THICKNESS_NOISE): x scale, y seed (tf_noise.glsl) or W "
             "(a Noise Texture, TF_THICKNESS_PERLIN, tf_perlin.glsl), z 1 where its Color Ramp "
-            "interpolates (TF_THICKNESS_RAMP)",
+            "interpolates (TF_THICKNESS_RAMP), w its Distortion",
         ),
         Member("noise_fbm", None, "TF_THICKNESS_PERLIN: detail, roughness, lacunarity, dimensions (3, 4)"),
         Member("noise_map", None, "TF_THICKNESS_PERLIN: gain, bias, low, high (Fac to the parameter)"),

@@ -3,7 +3,7 @@
 The nodes in :data:`DIRECT_NODES` — Value, Image Texture at a UV map (Non-Color or linear float
 pixels, Linear or Closest, Repeat or Extend), Map Range (linear), Math (the common operations),
 Mix (float, or colour Mix), Separate Color (RGB), Reroute, Noise Texture (3-D or 4-D fBm,
-normalized, no distortion: :func:`precompute.materials.perlin.noise_texture`) at Texture
+normalized, distorted or not: :func:`precompute.materials.perlin.noise_texture`) at Texture
 Coordinate's Object or Generated coordinates, Color Ramp (any interpolation and colour mode:
 sampled through Blender's own ``ColorRamp.evaluate`` into Cycles' table,
 :mod:`precompute.materials.ramp`) — are evaluated per face corner exactly as Blender's SVM nodes
@@ -354,14 +354,14 @@ def identity_mapping(node) -> bool:
 
 
 def _noise_node(node, socket, ctx):
-    """Blender's Noise Texture *Fac*: 3-D or 4-D fBm, normalized, without distortion."""
+    """Blender's Noise Texture *Fac*: 3-D or 4-D fBm, normalized, distorted or not."""
     if socket.identifier != "Fac":
         raise Unsupported("a Noise Texture's Color")
     dimensions = {"3D": 3, "4D": 4}.get(node.noise_dimensions)
     if dimensions is None or node.noise_type != "FBM" or not node.normalize:
         raise Unsupported(f"a {node.noise_dimensions} {node.noise_type} Noise Texture")
-    if not identity_mapping(node) or _constant(node, "Distortion", ctx) != 0.0:
-        raise Unsupported("a mapped or distorted Noise Texture")
+    if not identity_mapping(node):
+        raise Unsupported("a mapped Noise Texture")
     vector = node.inputs["Vector"]
     points = _as_colour(_input(node, "Vector", ctx)) if vector.is_linked else ctx.generated()
     w = _constant(node, "W", ctx) if dimensions == 4 else 0.0
@@ -375,6 +375,7 @@ def _noise_node(node, socket, ctx):
         _constant(node, "Detail", ctx),
         _constant(node, "Roughness", ctx),
         _constant(node, "Lacunarity", ctx),
+        _constant(node, "Distortion", ctx),
     )[corner.reshape(-1)]
 
 

@@ -4,8 +4,8 @@ The usual procedural film, Noise Texture (→ Map Range) → *Thin Film Thicknes
 the shader computes Blender's Noise Texture at each pixel from the object-space position
 (``tf_perlin.glsl``, :class:`precompute.materials.perlin.NoiseSpec`), with no bake, no UVs and
 no resolution limit. :func:`recognise` reads such a link: a Noise Texture the direct evaluator
-mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, undistorted, identity mapping; its
-inputs unlinked), at Texture Coordinate's Object or Generated coordinates (Generated, the
+mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, distorted or not, identity mapping;
+its inputs unlinked), at Texture Coordinate's Object or Generated coordinates (Generated, the
 default, from the texture space of an unmodified mesh), optionally through a Color Ramp (its
 Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
 optionally one linear Map Range with unlinked inputs, and Reroutes. Anything else is evaluated
@@ -135,9 +135,9 @@ def recognise(socket, texspace) -> NoiseGraph | None:
     names = ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion", "W")
     values = _constants(noise, names)
     coordinates = _coordinates(noise, texspace)
-    if values is None or values[4] != 0.0 or coordinates is None:
+    if values is None or coordinates is None:
         return None
-    scale, detail, roughness, lacunarity, _, w = values
+    scale, detail, roughness, lacunarity, distortion, w = values
     spec = NoiseSpec(
         dimensions,
         scale,
@@ -153,5 +153,6 @@ def recognise(socket, texspace) -> NoiseGraph | None:
         1e30,
         table,
         interpolate,
+        distortion,
     )
     return NoiseGraph(spec, a, b, low, high)

@@ -42,6 +42,8 @@ __all__ = [
     "NoiseSpec",
     "blender_noise",
     "fbm",
+    "distortion_offsets",
+    "hash2",
     "hash3",
     "hash4",
     "noise_texture",
@@ -199,15 +201,42 @@ def noise_texture(
     detail: float = DETAIL,
     roughness: float = ROUGHNESS,
     lacunarity: float = LACUNARITY,
+    distortion: float = 0.0,
 ) -> np.ndarray:
-    """A Noise Texture node's *Fac* (fBm, normalized, no distortion) at (N, 3) ``vectors``: 3-D
-    noise of vector · scale, or 4-D of (vector, ``w``) · scale (float64 (N,))."""
+    """A Noise Texture node's *Fac* (fBm, normalized) at (N, 3) ``vectors``: 3-D noise of
+    vector · scale, or 4-D of (vector, ``w``) · scale (float64 (N,)). A ``distortion`` d ≠ 0
+    first moves the scaled point p by d times one octave of the noise per axis, each read at p
+    plus that axis's fixed offset (:func:`distortion_offsets`), as Blender does."""
     v = np.asarray(vectors, dtype=np.float32).reshape(-1, 3)
     if int(dimensions) == 4:
         v = np.concatenate([v, np.full((v.shape[0], 1), np.float32(w), dtype=np.float32)], axis=1)
     elif int(dimensions) != 3:
         raise ValueError(f"a Noise Texture of {dimensions} dimensions is not mirrored (3 or 4)")
-    return fbm(v * np.float32(scale), detail, roughness, lacunarity).astype(np.float64)
+    p = v * np.float32(scale)
+    if float(distortion) != 0.0:
+        moved = [perlin(p + offset) * np.float32(distortion) for offset in distortion_offsets(p.shape[1])]
+        p = p + np.stack(moved, axis=1)
+    return fbm(p, detail, roughness, lacunarity).astype(np.float64)
+
+
+def hash2(kx, ky) -> np.ndarray:
+    """lookup3's ``hashword`` of two uint32 words (no ``mix``: only the ``final``), as uint32."""
+    with np.errstate(over="ignore"):
+        start = _U32(0xDEADBEEF + (2 << 2) + 13)
+        a = np.asarray(kx, dtype=_U32) + start
+        b = np.asarray(ky, dtype=_U32) + start
+        return _final(a, b, np.full_like(a, start))
+
+
+def distortion_offsets(dimensions: int) -> np.ndarray:
+    """The fixed offsets at which a distorted Noise Texture reads its distortion, one row per
+    axis ((dimensions, dimensions) float32): component k of axis i's is 100 + 100 h, h the
+    two-word hash of the bits of the floats i and k over 2³² (Blender's ``random_floatN_offset``
+    of seed i), so each axis reads an unrelated part of the noise."""
+    seed, k = np.meshgrid(np.arange(dimensions), np.arange(dimensions), indexing="ij")
+    bits = [np.asarray(x, dtype=np.float32).view(_U32) for x in (seed, k)]
+    h = hash2(*bits).astype(np.float32) / np.float32(0xFFFFFFFF)
+    return np.float32(100.0) + h * np.float32(100.0)
 
 
 def blender_noise(positions, scale: float, seed: float) -> np.ndarray:
@@ -254,13 +283,21 @@ class NoiseSpec:
     high: float = 1.0
     ramp: tuple = ()
     ramp_interpolate: bool = True
+    distortion: float = 0.0
 
     def fac(self, positions) -> np.ndarray:
         """The node's *Fac* at (N, 3) object-space ``positions``."""
         p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         v = p * np.asarray(self.space_scale) + np.asarray(self.space_offset)
         return noise_texture(
-            v, self.w, self.dimensions, self.scale, self.detail, self.roughness, self.lacunarity
+            v,
+            self.w,
+            self.dimensions,
+            self.scale,
+            self.detail,
+            self.roughness,
+            self.lacunarity,
+            self.distortion,
         )
 
     def parameter(self, positions) -> np.ndarray:
@@ -274,7 +311,12 @@ class NoiseSpec:
     def uniforms(self) -> dict:
         """The object block's noise members (``addon/gpu/layout.py`` OBJECT), vec4s."""
         return {
-            "noise": [float(self.scale), float(self.w), float(bool(self.ramp_interpolate)), 0.0],
+            "noise": [
+                float(self.scale),
+                float(self.w),
+                float(bool(self.ramp_interpolate)),
+                float(self.distortion),
+            ],
             "noise_fbm": [
                 float(np.clip(self.detail, 0.0, 15.0)),
                 max(float(self.roughness), 0.0),

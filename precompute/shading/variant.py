@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from ..materials.perlin import distortion_offsets
 from . import policy
 
 #: Minimum uniform-buffer size every backend guarantees (GL_MAX_UNIFORM_BLOCK_SIZE ≥ 16 KiB).
@@ -27,6 +28,16 @@ TRANSMIT_PASSES = (TRANSMIT_MULTIPLY, TRANSMIT_ADD)
 #: ``Variant.thickness_noise``: the *Noise* source's value noise, Blender's Noise Texture, and a
 #: Noise Texture read through a Color Ramp's table (``TF_THICKNESS_RAMP``).
 NOISE_VALUE, NOISE_BLENDER, NOISE_RAMP = 1, 2, 3
+
+
+def _distortion_offsets() -> list[tuple[str, str]]:
+    """A distorted Noise Texture's fixed offsets (materials.perlin.distortion_offsets) as GLSL
+    matrices, one column per axis: ``TF_NOISE_DISTORT3`` (mat3), ``TF_NOISE_DISTORT4`` (mat4)."""
+    out = []
+    for n in (3, 4):
+        values = ", ".join(repr(float(x)) for x in distortion_offsets(n).ravel())
+        out.append((f"TF_NOISE_DISTORT{n}", f"mat{n}({values})"))
+    return out
 
 
 def fits_uniform_buffer(layers: int, rows: int, columns: int) -> bool:
@@ -126,6 +137,7 @@ class Variant(NamedTuple):
             out.append(("TF_THICKNESS_NOISE", "1"))
         if int(self.thickness_noise) in (NOISE_BLENDER, NOISE_RAMP):
             out.append(("TF_THICKNESS_PERLIN", "1"))
+            out += _distortion_offsets()
         if int(self.thickness_noise) == NOISE_RAMP:
             out.append(("TF_THICKNESS_RAMP", "1"))
         return out

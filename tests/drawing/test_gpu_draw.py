@@ -838,7 +838,9 @@ RAMPS = {
 }
 
 
-@pytest.mark.parametrize("kind", ["value", "blender", "linked", *RAMPS])
+@pytest.mark.parametrize(
+    "kind", ["value", "blender", "linked", *RAMPS, "blender_distorted", "linked_distorted"]
+)
 def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     """The noise thicknesses per pixel (``TF_THICKNESS_NOISE``): a quad facing the camera filling
     a 32² orthographic frame, each pixel shaded at its object-space position's noise, where the
@@ -847,12 +849,15 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     materials.perlin.blender_noise (tf_perlin.glsl), Blender's 4-D Noise Texture; *linked*: a
     linked 3-D Noise Texture (:data:`LINKED_NOISE`, materials.perlin.NoiseSpec.parameter);
     *linked_ramp*, *linked_steps*: the same through a Color Ramp's table (:data:`RAMPS`,
-    ``TF_THICKNESS_RAMP``, materials.ramp.lookup), interpolated and Constant."""
+    ``TF_THICKNESS_RAMP``, materials.ramp.lookup), interpolated and Constant; *…_distorted*: the
+    4-D and the 3-D noise with Distortion 0.8 (``TF_NOISE_DISTORT4``, ``TF_NOISE_DISTORT3``)."""
     scale, seed, size = 3.7, 5, 32
     if kind == "value":
         spec, noise = (scale, seed), lambda p: value_noise(p, scale, seed)
     else:
-        spec = NoiseSpec(4, scale, seed) if kind == "blender" else LINKED_NOISE
+        spec = NoiseSpec(4, scale, seed) if kind.startswith("blender") else LINKED_NOISE
+        if kind.endswith("distorted"):  # 4-D and 3-D, materials.perlin.distortion_offsets
+            spec = dataclasses.replace(spec, distortion=0.8)
         if kind in RAMPS:
             table, interpolate = RAMPS[kind]
             spec = dataclasses.replace(spec, gain=1.0, bias=0.0, ramp=table, ramp_interpolate=interpolate)

@@ -488,10 +488,11 @@ def test_a_thickness_map_made_later_widens_the_films_rows(bpy, ext, monkeypatch)
     bsdf.inputs["Thin Film Thickness"].default_value = 0.0
     noise = tree.nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 6.0
-    noise.inputs["Distortion"].default_value = 0.3  # baked by Cycles, into a map (not per pixel)
+    red = tree.nodes.new("ShaderNodeSeparateColor")  # its Color's red is its Fac, but the Color
+    tree.links.new(noise.outputs["Color"], red.inputs["Color"])  # output is baked, into a map
     ranged = tree.nodes.new("ShaderNodeMapRange")
     ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 150.0, 850.0
-    tree.links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    tree.links.new(red.outputs["Red"], ranged.inputs["Value"])
     tree.links.new(ranged.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
     bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
     bpy.context.active_object.data.materials.append(mat)

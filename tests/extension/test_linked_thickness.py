@@ -72,14 +72,15 @@ def _principled(bpy, name="Linked"):
 
 
 def _noise_material(bpy, scale=5.0):
-    """Noise Texture (Distortion 0.3) → Map Range 150–850 nm → Thin Film Thickness (socket value
-    0): a graph the direct evaluator does not mirror (a distorted noise), so Cycles bakes it."""
+    """Noise Texture (its hidden mapping moved) → Map Range 150–850 nm → Thin Film Thickness
+    (socket value 0): a graph the direct evaluator does not mirror (a mapped noise), so Cycles
+    bakes it."""
     mat, node = _principled(bpy, "Noise")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     noise = nodes.new("ShaderNodeTexNoise")
     noise.name = "Noise"
     noise.inputs["Scale"].default_value = scale
-    noise.inputs["Distortion"].default_value = 0.3
+    noise.texture_mapping.translation = (0.25, 0.0, 0.0)
     ranged = nodes.new("ShaderNodeMapRange")
     ranged.inputs["To Min"].default_value = 150.0
     ranged.inputs["To Max"].default_value = 850.0
@@ -441,19 +442,30 @@ def _against_cycles_bake(tf, obj, mat, socket, source: str):
     return direct, np.abs(direct.values - baked.values), spread
 
 
-@pytest.mark.parametrize("graph", ["noise_3d_generated", "noise_4d_object", "noise_3d_fractional"])
+@pytest.mark.parametrize(
+    "graph",
+    [
+        "noise_3d_generated",
+        "noise_4d_object",
+        "noise_3d_fractional",
+        "noise_3d_distorted",
+        "noise_4d_object_distorted",
+    ],
+)
 def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, graph):
     """A Noise Texture (fBm, normalized; 3-D at Generated coordinates, the node's default, or
-    4-D at Object coordinates; Detail 3 or 2.4, Roughness 0.6, Lacunarity 2.2) → Map Range →
-    Thin Film Thickness is evaluated in numpy at the corners, with no Cycles bake, to within the
-    bake's own spread: Cycles shades each corner a little off its face, so two faces' corners at
-    one vertex differ by as much."""
+    4-D at Object coordinates; Detail 3 or 2.4, Roughness 0.6, Lacunarity 2.2; Distortion 0 or
+    0.8) → Map Range → Thin Film Thickness is evaluated in numpy at the corners, with no Cycles
+    bake, to within the bake's own spread: Cycles shades each corner a little off its face, so
+    two faces' corners at one vertex differ by as much."""
     mat, node = _principled(bpy, graph)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     noise = nodes.new("ShaderNodeTexNoise")
     noise.noise_dimensions = "4D" if "4d" in graph else "3D"
     values = {"Scale": 3.7, "Detail": 2.4 if "fractional" in graph else 3.0, "Roughness": 0.6}
     values["Lacunarity"] = 2.2
+    if "distorted" in graph:
+        values["Distortion"] = 0.8
     if "4d" in graph:
         values["W"] = 1.7
     for name, value in values.items():
@@ -471,9 +483,9 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     direct, error, spread = _against_cycles_bake(
         tf, obj, mat, node.inputs["Thin Film Thickness"], "Noise Texture"
     )
-    # Measured: max 0.34, 0.69, 0.29 nm (median 0.054, 0.12, 0.042) of 800, where Cycles' own
-    # corners at one vertex differ by 0.57, 1.25, 0.53 nm; one octave fewer, another hash or a
-    # wrong texture space is tens of nm.
+    # Measured: max 0.34, 0.69, 0.29, 0.41, 0.95 nm (median 0.054, 0.12, 0.042, 0.058, 0.14) of
+    # 800, where Cycles' own corners at one vertex differ by 0.57, 1.25, 0.53, 0.76, 1.77 nm; one
+    # octave fewer, another hash or a wrong texture space or distortion offset is tens of nm.
     assert error.max() <= max(spread, 1e-3 * 800.0), (error.max(), spread)
     assert np.median(error) < 3e-4 * 800.0, np.median(error)
     assert np.ptp(direct.values) > 200.0  # the noise varies: the check has something to see
@@ -483,7 +495,8 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeyp
     """Noise Texture → Map Range → Thin Film Thickness (the usual procedural film): the batch
     carries the Noise Texture for the shader (tf_perlin.glsl) and no map; nothing is baked or
     queued; the table's range covers the Map Range's whole output, the noise's peaks between the
-    corners included. A distorted noise, which the shader does not compute, keeps its map."""
+    corners included. A distorted noise is drawn per pixel too; a mapped one, which the shader
+    does not compute, keeps its map."""
     mat, node = _principled(bpy, "Plain noise")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     noise = nodes.new("ShaderNodeTexNoise")
@@ -528,11 +541,26 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeyp
     np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-6)
     assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == (bakes, images)
 
-    noise.inputs["Distortion"].default_value = 0.3
+    noise.inputs["Distortion"].default_value = 0.3  # distorted: per pixel too, nothing baked
+    with tf.linked.deferring():
+        tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    tf.linked.run_pending()  # the corners (past the inline limit still)
+    with tf.linked.deferring():
+        tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    entry = tf.scene_draw.batch_entry("Sphere")
+    assert entry.batch.noise.distortion == pytest.approx(0.3) and not tf.linked.has_pending()
+    np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-6)
+    assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == (bakes, images)
+
+    noise.texture_mapping.translation = (0.25, 0.0, 0.0)  # mapped: not mirrored, Cycles bakes it
     with tf.linked.deferring():  # the corners' bake queued, the film as last drawn meanwhile
         assert tf.description.description(mat) is None and tf.linked.baking()
         items, _ = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
-    assert [item.batch.noise.scale for item in items if item.name.startswith("Sphere")] == [4.5]
+    assert [item.batch.noise.distortion for item in items if item.name.startswith("Sphere")] == [
+        pytest.approx(0.3)
+    ]
     tf.linked.run_pending()
     with tf.linked.deferring():  # the corners drawn; the map queued
         tf.description.description(mat)
