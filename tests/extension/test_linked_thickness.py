@@ -288,6 +288,28 @@ def test_overlapping_uvs_keep_the_thickness_per_corner(bpy, tf):
     assert entry.batch.thickness_map is None
 
 
+def test_a_coarse_sphere_keeps_the_map_of_a_steep_texture(bpy, tf):
+    """A 16 × 8 UV sphere with a baked noise of scale 6: the corners at its poles sit on the
+    map's edge row, which only the poles' slivers reach, and the noise changes by several per
+    cent of its range across one texel there, so the bilinear read at 1.0 % of the corners
+    missed them by more than 2 % and the map was dropped as if its UVs overlapped. The texels
+    around each corner hold its value: the map is kept, and still matches the corners' bake."""
+    mat = _noise_material(bpy, scale=6.0)
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
+    obj = bpy.context.active_object
+    obj.data.materials.append(mat)
+    socket = tf.principled.principled_node(mat).inputs["Thin Film Thickness"]
+    field = tf.linked.evaluate(obj, obj.data, mat, socket)
+    found, why, _ = tf.linked.linked_map(obj, obj.data, mat, socket)
+    assert found is not None, why
+    at_corners = tf.linked.maps.sample_bilinear(found.values, found.uv, found.repeat)
+    error = np.abs(at_corners - field.values) / np.ptp(field.values)
+    assert np.median(error) < 0.005 and np.mean(error > 0.02) < 0.02, (
+        np.median(error),
+        np.mean(error > 0.02),
+    )
+
+
 def test_noise_thickness_is_baked_once_and_rebaked_when_its_scale_changes(bpy, tf):
     """A Noise Texture is baked with Cycles; asking again (the description, the warnings, a
     frame) reuses the bake; a new noise scale bakes again and the field changes."""
