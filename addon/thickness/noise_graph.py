@@ -8,8 +8,10 @@ mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, distorted or not, id
 its inputs unlinked), at Texture Coordinate's Object or Generated coordinates (Generated, the
 default, from the texture space of an unmodified mesh), optionally through a Color Ramp (its
 Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
-optionally one linear Map Range with unlinked inputs, and Reroutes. Anything else is evaluated
-per corner and baked into a map as before (:mod:`.linked`).
+through any chain of linear Map Ranges and affine Math nodes (Add, Subtract, Multiply, Divide by
+a constant, Multiply Add; clamped or not) with unlinked other inputs, folded into one gain, bias
+and clamp, and Reroutes. Anything else is evaluated per corner and baked into a map as before
+(:mod:`.linked`).
 """
 
 from __future__ import annotations
@@ -87,6 +89,45 @@ def _map_range(node) -> tuple[float, float, float, float] | None:
     return a, to_min - from_min * a, low, high
 
 
+def _math(node):
+    """(a, b, low, high, the linked input) of a Math node that is affine in its one linked
+    input (Add, Subtract, Multiply, Divide by a constant, Multiply Add; its Clamp to [0, 1]), or
+    None."""
+    count = 3 if node.operation == "MULTIPLY_ADD" else 2
+    inputs = list(node.inputs)[:count]
+    linked = [i for i, s in enumerate(inputs) if s.is_linked]
+    if node.operation not in _AFFINE or len(linked) != 1:
+        return None
+    k = linked[0]
+    c = [0.0 if s.is_linked else float(s.default_value) for s in inputs]
+    found = _AFFINE[node.operation](k, c)
+    if found is None:
+        return None
+    low, high = (0.0, 1.0) if node.use_clamp else (-math.inf, math.inf)
+    return (*found, low, high, inputs[k])
+
+
+#: Math operations affine in input k, the others' values c: (a, b) of a · x + b, or None.
+_AFFINE = {
+    "ADD": lambda k, c: (1.0, c[1 - k]),
+    "SUBTRACT": lambda k, c: (1.0, -c[1]) if k == 0 else (-1.0, c[0]),
+    "MULTIPLY": lambda k, c: (c[1 - k], 0.0),
+    "DIVIDE": lambda k, c: (1.0 / c[1], 0.0) if k == 0 and c[1] != 0.0 else None,
+    "MULTIPLY_ADD": lambda k, c: (c[1], c[2]) if k == 0 else ((c[0], c[2]) if k == 1 else (0.0, c[0] * c[1])),
+}
+
+
+def _inner(outer: tuple, inner: tuple) -> tuple:
+    """The composition g ∘ f of g(y) = clamp(a y + b, low, high) (``outer``) and f (``inner``,
+    the same form) as that form: the inner clamp's ends mapped through g and clamped by g's."""
+    a, b, low, high = outer
+    a1, b1, l1, h1 = inner
+    if a == 0.0:
+        return outer
+    ends = sorted(a * e + b for e in (l1, h1))
+    return a * a1, a * b1 + b, min(max(ends[0], low), high), min(max(ends[1], low), high)
+
+
 def _coordinates(noise, texspace) -> tuple[tuple, tuple] | None:
     """(scale, offset) of the Noise Texture's coordinates from object space, or None."""
     found = _source(noise.inputs["Vector"])
@@ -112,14 +153,21 @@ def recognise(socket, texspace) -> NoiseGraph | None:
     it per pixel. ``texspace``: (location, size) of the mesh's texture space where its Generated
     coordinates are its positions in it (``linked._texspace``), else None."""
     found = _source(socket)
-    a, b, low, high = 1.0, 0.0, -math.inf, math.inf
-    if found is not None and found[0].bl_idname == "ShaderNodeMapRange":
-        ranged = _map_range(found[0])
-        value = found[0].inputs["Value"]
-        if ranged is None or found[1].identifier != "Result":
-            return None
-        a, b, low, high = ranged
+    affine = (1.0, 0.0, -math.inf, math.inf)
+    while found is not None and found[0].bl_idname in ("ShaderNodeMapRange", "ShaderNodeMath"):
+        node = found[0]
+        if node.bl_idname == "ShaderNodeMapRange":
+            step, value = _map_range(node), node.inputs["Value"]
+            if step is None or found[1].identifier != "Result":
+                return None
+        else:
+            math_step = _math(node)
+            if math_step is None:
+                return None
+            step, value = math_step[:4], math_step[4]
+        affine = _inner(affine, step)
         found = _source(value)
+    a, b, low, high = affine
     table, interpolate = (), True
     if found is not None and found[0].bl_idname == "ShaderNodeValToRGB":
         rgba, interpolate = ramp_table(found[0])

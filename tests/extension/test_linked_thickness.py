@@ -590,6 +590,61 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeyp
     assert tf.scene_draw.batch_entry("Sphere").batch.noise is None and tf.linked.has_pending()
 
 
+def _math(nodes, links, operation, value, *constants, clamp=False):
+    """A Math node of ``operation`` reading ``value`` in its first input, ``constants`` after."""
+    node = nodes.new("ShaderNodeMath")
+    node.operation, node.use_clamp = operation, clamp
+    for socket, constant in zip(list(node.inputs)[1:], constants, strict=False):
+        socket.default_value = constant
+    links.new(value, node.inputs[0])
+    return node.outputs[0]
+
+
+@pytest.mark.parametrize("chain", ["multiply_add", "ramp_multiply_add", "clamped_map_range", "divide"])
+def test_linear_nodes_after_the_noise_are_folded_into_the_per_pixel_noise(bpy, tf, chain):
+    """Artists scale a noise or a ramp into nanometres with Math nodes as often as with a Map
+    Range: Multiply then Add, Multiply Add, a clamped Math into a Map Range, Divide by a
+    constant. Any such chain is folded into the per-pixel noise's gain, bias and clamp: the
+    batch computes the noise per pixel with no bake, its corners (numpy's evaluation of the
+    graph, node by node) equal the folded noise's, and the table's range holds them."""
+    mat, node = _principled(bpy, chain)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    value = noise.outputs["Fac"]
+    if chain == "multiply_add":
+        value = _math(nodes, links, "ADD", _math(nodes, links, "MULTIPLY", value, 700.0), 150.0)
+    elif chain == "ramp_multiply_add":
+        ramp = _colour_ramp(nodes)
+        links.new(value, ramp.inputs["Fac"])
+        value = _math(nodes, links, "MULTIPLY_ADD", ramp.outputs["Color"], 900.0, 120.0)
+    elif chain == "clamped_map_range":  # 3 · Fac − 1 clamped to [0, 1], then 200–800 nm
+        value = _math(nodes, links, "SUBTRACT", _math(nodes, links, "MULTIPLY", value, 3.0), 1.0, clamp=True)
+        ranged = nodes.new("ShaderNodeMapRange")
+        ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 200.0, 800.0
+        links.new(value, ranged.inputs["Value"])
+        value = ranged.outputs["Result"]
+    else:
+        value = _math(nodes, links, "DIVIDE", value, 0.002)
+    links.new(value, node.inputs["Thin Film Thickness"])
+    sphere = _sphere(bpy, mat)
+    bakes = tf.linked.STATS["bakes"]
+    with tf.linked.deferring():
+        desc = tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    entry = tf.scene_draw.batch_entry("Sphere")
+    spec = entry.batch.noise
+    assert spec is not None and hasattr(spec, "uniforms"), "not computed per pixel"
+    assert tf.linked.STATS["bakes"] == bakes and not tf.linked.has_pending()
+    corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
+    np.testing.assert_allclose(entry.thickness, spec.parameter(corners), atol=1e-6)
+    field = tf.linked.evaluate(sphere, sphere.data, mat, node.inputs["Thin Film Thickness"])
+    lo, hi = desc.thickness_range_nm
+    assert lo - 0.01 <= field.lo and field.hi <= hi + 0.01 and np.ptp(field.values) > 100.0
+    if chain == "clamped_map_range":  # the clamp reached: the corners touch its ends
+        assert (lo, hi) == (200.0, 800.0) and np.isclose(field.values, 200.0).any()
+
+
 def test_a_constant_colour_ramp_steps_where_cycles_table_does(bpy, tf):
     """Cycles reads a Color Ramp from a table of 257 entries at 0, 1/256, …, 1 (a Constant
     ramp: the entry at ⌊256 · Fac⌋), so a stop at 0.45 steps at 116/256 = 0.453125, not at
