@@ -629,6 +629,8 @@ def test_linear_nodes_after_the_noise_are_folded_into_the_per_pixel_noise(bpy, t
     links.new(value, node.inputs["Thin Film Thickness"])
     sphere = _sphere(bpy, mat)
     bakes = tf.linked.STATS["bakes"]
+    tf.linked.PENDING.clear()  # what earlier tests left queued
+    tf.linked.maps.PENDING.clear()
     with tf.linked.deferring():
         desc = tf.description.description(mat)
         tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
