@@ -590,6 +590,23 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeyp
     assert tf.scene_draw.batch_entry("Sphere").batch.noise is None and tf.linked.has_pending()
 
 
+def _drawn_with_no_bake(bpy, tf, mat):
+    """(the description, the batch entry, the sphere, its corners' positions) of a sphere with
+    ``mat`` after one frame's collection in the viewport's deferring mode, the queues emptied
+    of what earlier tests left first; asserts that nothing was baked or queued."""
+    sphere = _sphere(bpy, mat)
+    bakes = (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"])
+    tf.linked.PENDING.clear()
+    tf.linked.maps.PENDING.clear()
+    with tf.linked.deferring():
+        desc = tf.description.description(mat)
+        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
+    assert not tf.linked.has_pending()
+    assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == bakes
+    corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
+    return desc, tf.scene_draw.batch_entry("Sphere"), sphere, corners
+
+
 def _math(nodes, links, operation, value, *constants, clamp=False):
     """A Math node of ``operation`` reading ``value`` in its first input, ``constants`` after."""
     node = nodes.new("ShaderNodeMath")
@@ -627,18 +644,9 @@ def test_linear_nodes_after_the_noise_are_folded_into_the_per_pixel_noise(bpy, t
     else:
         value = _math(nodes, links, "DIVIDE", value, 0.002)
     links.new(value, node.inputs["Thin Film Thickness"])
-    sphere = _sphere(bpy, mat)
-    bakes = tf.linked.STATS["bakes"]
-    tf.linked.PENDING.clear()  # what earlier tests left queued
-    tf.linked.maps.PENDING.clear()
-    with tf.linked.deferring():
-        desc = tf.description.description(mat)
-        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
-    entry = tf.scene_draw.batch_entry("Sphere")
+    desc, entry, sphere, corners = _drawn_with_no_bake(bpy, tf, mat)
     spec = entry.batch.noise
     assert spec is not None and hasattr(spec, "uniforms"), "not computed per pixel"
-    assert tf.linked.STATS["bakes"] == bakes and not tf.linked.has_pending()
-    corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
     np.testing.assert_allclose(entry.thickness, spec.parameter(corners), atol=1e-6)
     field = tf.linked.evaluate(sphere, sphere.data, mat, node.inputs["Thin Film Thickness"])
     lo, hi = desc.thickness_range_nm
@@ -702,23 +710,13 @@ def test_a_noise_texture_through_a_colour_ramp_is_drawn_per_pixel(bpy, tf, outpu
     links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
     links.new(ramp.outputs[output], ranged.inputs["Value"])
     links.new(ranged.outputs["Result"], node.inputs["Thin Film Thickness"])
-    sphere = _sphere(bpy, mat)
-    bakes, images = tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]
-    tf.linked.PENDING.clear()
-    tf.linked.maps.PENDING.clear()
-    with tf.linked.deferring():
-        desc = tf.description.description(mat)
-        tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())
-    entry = tf.scene_draw.batch_entry("Sphere")
+    desc, entry, sphere, corners = _drawn_with_no_bake(bpy, tf, mat)
     spec = entry.batch.noise
     assert entry.batch.thickness_map is None and len(spec.ramp) == 257 and spec.ramp_interpolate
-    assert not tf.linked.has_pending()
-    assert (tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]) == (bakes, images)
     stops = np.array([tuple(e.color) for e in ramp.color_ramp.elements])
     ends = stops[:, 3] if output == "Alpha" else stops[:, :3] @ tf.linked.linked_nodes.luminance_weights()
     expected_nm = 150.0 + 700.0 * np.array([ends.min(), ends.max()])
     np.testing.assert_allclose(desc.thickness_range_nm, expected_nm, atol=0.01)  # shown to 0.01 nm
-    corners = np.array([sphere.data.vertices[loop.vertex_index].co for loop in sphere.data.loops])
     np.testing.assert_allclose(entry.thickness, spec.parameter(corners), atol=1e-6)
 
     direct, error, spread = _against_cycles_bake(
