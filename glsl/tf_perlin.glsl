@@ -166,12 +166,16 @@ float tf_ramp(float fac)
 
 /* The thickness parameter in [0, 1] of the item's Noise Texture at object-space point pos
  * (materials.perlin.NoiseSpec.parameter): tf_object.noise (x scale, y w, w distortion), noise_fbm (detail,
- * roughness, lacunarity, dimensions), noise_space / noise_offset (its coordinates from pos),
+ * roughness, lacunarity, dimensions), noise_space_x/y/z / noise_offset (its coordinates from
+ * pos: a matrix's rows and an offset),
  * noise_map (gain, bias, low, high: Fac, or with TF_THICKNESS_RAMP a Color Ramp's value at it,
  * to the parameter). */
 float tf_noise_texture(vec3 pos)
 {
-  vec3 v = pos * tf_object.noise_space.xyz + tf_object.noise_offset.xyz;
+  vec3 v = vec3(dot(tf_object.noise_space_x.xyz, pos),
+                dot(tf_object.noise_space_y.xyz, pos),
+                dot(tf_object.noise_space_z.xyz, pos)) +
+           tf_object.noise_offset.xyz;
   vec4 p = vec4(v, tf_object.noise.y) * tf_object.noise.x;
   vec4 fbm = tf_object.noise_fbm;
   bool four = fbm.w > 3.5;

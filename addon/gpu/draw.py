@@ -109,7 +109,8 @@ def _noise_members(noise) -> dict:
     value noise's (scale, seed), or zeros."""
     if hasattr(noise, "uniforms"):  # a NoiseSpec (tests import precompute under another package)
         return noise.uniforms()
-    zeros = {name: [0.0] * 4 for name in ("noise_fbm", "noise_map", "noise_space", "noise_offset")}
+    names = ("noise_fbm", "noise_map", "noise_space_x", "noise_space_y", "noise_space_z", "noise_offset")
+    zeros = {name: [0.0] * 4 for name in names}
     head = [float(noise[0]), float(noise[1]), 0.0, 0.0] if noise is not None else [0.0] * 4
     return {"noise": head, **zeros}
 

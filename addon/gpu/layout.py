@@ -208,7 +208,13 @@ OBJECT = Block(
         ),
         Member("noise_fbm", None, "TF_THICKNESS_PERLIN: detail, roughness, lacunarity, dimensions (3, 4)"),
         Member("noise_map", None, "TF_THICKNESS_PERLIN: gain, bias, low, high (Fac to the parameter)"),
-        Member("noise_space", None, "TF_THICKNESS_PERLIN: xyz the coordinates' scale from object space"),
+        Member(
+            "noise_space_x",
+            None,
+            "TF_THICKNESS_PERLIN: xyz row x of the coordinates' matrix from object space",
+        ),
+        Member("noise_space_y", None, "TF_THICKNESS_PERLIN: xyz its row y"),
+        Member("noise_space_z", None, "TF_THICKNESS_PERLIN: xyz its row z"),
         Member("noise_offset", None, "TF_THICKNESS_PERLIN: xyz the coordinates' offset"),
     ),
 )

@@ -4,7 +4,8 @@ The nodes in :data:`DIRECT_NODES` — Value, Image Texture at a UV map (Non-Colo
 pixels, Linear or Closest, Repeat or Extend), Map Range (linear), Math (the common operations),
 Mix (float, or colour Mix), Separate Color (RGB), Reroute, Noise Texture (3-D or 4-D fBm,
 normalized, distorted or not: :func:`precompute.materials.perlin.noise_texture`) at Texture
-Coordinate's Object or Generated coordinates, Color Ramp (any interpolation and colour mode:
+Coordinate's Object or Generated coordinates, Mapping (Point, Texture, Vector), Color Ramp
+(any interpolation and colour mode:
 sampled through Blender's own ``ColorRamp.evaluate`` into Cycles' table,
 :mod:`precompute.materials.ramp`) — are evaluated per face corner exactly as Blender's SVM nodes
 compute them (:func:`link_values`); any other node raises :class:`Unsupported`, and
@@ -28,11 +29,13 @@ __all__ = [
     "POSITIONAL_NODES",
     "Unsupported",
     "converted",
+    "euler_matrix",
     "corner_uv",
     "link_map",
     "identity_mapping",
     "link_values",
     "luminance_weights",
+    "mapping_affine",
     "positional",
     "ramp_table",
     "sample",
@@ -57,6 +60,7 @@ DIRECT_NODES = (
     "ShaderNodeTexNoise",
     "ShaderNodeTexCoord",
     "ShaderNodeValToRGB",
+    "ShaderNodeMapping",
 )
 #: Nodes whose value depends on the position on the surface, not on the UVs: a map of them is
 #: baked at the UVs (:func:`positional`).
@@ -398,6 +402,53 @@ def _colour_ramp(node, socket, ctx):
     return ramp.lookup(table[:, :3], fac, interpolate)
 
 
+def euler_matrix(rotation) -> np.ndarray:
+    """Blender's rotation matrix of XYZ Euler angles (radians): Rz · Ry · Rx."""
+    (cx, cy, cz), (sx, sy, sz) = np.cos(rotation), np.sin(rotation)
+    return np.array(
+        [
+            [cy * cz, sy * sx * cz - cx * sz, sy * cx * cz + sx * sz],
+            [cy * sz, sy * sx * sz + cx * cz, sy * cx * sz - sx * cz],
+            [-sy, cy * sx, cy * cx],
+        ]
+    )
+
+
+def mapping_affine(vector_type: str, location, rotation, scale) -> tuple[np.ndarray, np.ndarray] | None:
+    """(M (3, 3), t (3,)) with a Mapping node's output = M · vector + t, as Cycles' mapping
+    computes it: *Point* R (S v) + L, *Texture* (Rᵀ (v − L)) / S (a zero scale gives 0),
+    *Vector* R (S v); None for *Normal* (normalized: not affine)."""
+    rot = euler_matrix(np.asarray(rotation, dtype=np.float64))
+    s = np.asarray(scale, dtype=np.float64)
+    loc = np.asarray(location, dtype=np.float64)
+    if vector_type == "POINT":
+        return rot @ np.diag(s), loc
+    if vector_type == "VECTOR":
+        return rot @ np.diag(s), np.zeros(3)
+    if vector_type == "TEXTURE":
+        inverse = np.diag(np.divide(1.0, s, out=np.zeros(3), where=s != 0.0)) @ rot.T
+        return inverse, -(inverse @ loc)
+    return None
+
+
+def _vector_constant(node, name: str, ctx) -> np.ndarray:
+    """A vector input's value, the same at every corner, else Unsupported."""
+    value = _as_colour(_input(node, name, ctx))
+    if value.shape[0] and np.ptp(value, axis=0).any():
+        raise Unsupported(f"a varying {name} of {node.name!r}")
+    return value[0] if value.shape[0] else np.zeros(3)
+
+
+def _mapping(node, socket, ctx):
+    """Mapping (Point, Texture, Vector) of its Vector input, its other inputs constant."""
+    names = ("Location", "Rotation", "Scale")
+    values = [_vector_constant(node, n, ctx) if node.inputs[n].enabled else np.zeros(3) for n in names]
+    found = mapping_affine(node.vector_type, *values)
+    if found is None:
+        raise Unsupported(f"Mapping {node.vector_type}")
+    return _as_colour(_input(node, "Vector", ctx)) @ found[0].T + found[1]  # unlinked: its value
+
+
 def _texture_coordinate(node, socket, ctx):
     """Texture Coordinate's Object (of the mesh's own object) or Generated output."""
     if socket.identifier == "Object" and node.object is None and not node.from_instancer:
@@ -418,6 +469,7 @@ _HANDLERS = {
     "ShaderNodeTexNoise": _noise_node,
     "ShaderNodeTexCoord": _texture_coordinate,
     "ShaderNodeValToRGB": _colour_ramp,
+    "ShaderNodeMapping": _mapping,
 }
 
 

@@ -5,7 +5,8 @@ the shader computes Blender's Noise Texture at each pixel from the object-space 
 (``tf_perlin.glsl``, :class:`precompute.materials.perlin.NoiseSpec`), with no bake, no UVs and
 no resolution limit. :func:`recognise` reads such a link: a Noise Texture the direct evaluator
 mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, distorted or not, identity mapping;
-its inputs unlinked), at Texture Coordinate's Object or Generated coordinates (Generated, the
+its inputs unlinked), at Texture Coordinate's Object or Generated coordinates, through Mapping
+nodes (Point, Texture, Vector; folded into a matrix) or not (Generated, the
 default, from the texture space of an unmodified mesh), optionally through a Color Ramp (its
 Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
 through any chain of linear Map Ranges and affine Math nodes (Add, Subtract, Multiply, Divide by
@@ -22,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...precompute.materials.perlin import NoiseSpec
-from .linked_nodes import identity_mapping, luminance_weights, ramp_table
+from .linked_nodes import identity_mapping, luminance_weights, mapping_affine, ramp_table
 
 __all__ = ["NoiseGraph", "recognise"]
 
@@ -128,24 +129,43 @@ def _inner(outer: tuple, inner: tuple) -> tuple:
     return a * a1, a * b1 + b, min(max(ends[0], low), high), min(max(ends[1], low), high)
 
 
-def _coordinates(noise, texspace) -> tuple[tuple, tuple] | None:
-    """(scale, offset) of the Noise Texture's coordinates from object space, or None."""
-    found = _source(noise.inputs["Vector"])
-    if noise.inputs["Vector"].is_linked:
+def _mapping(node) -> tuple[np.ndarray, np.ndarray] | None:
+    """(M, t) of a Mapping node with unlinked Location, Rotation and Scale
+    (:func:`.linked_nodes.mapping_affine`), or None."""
+    names = [n for n in ("Location", "Rotation", "Scale") if node.inputs[n].enabled]
+    if any(node.inputs[n].is_linked for n in names):
+        return None
+    values = {n: tuple(node.inputs[n].default_value) for n in names}
+    zero = (0.0, 0.0, 0.0)
+    return mapping_affine(node.vector_type, *(values.get(n, zero) for n in ("Location", "Rotation", "Scale")))
+
+
+def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray] | None:
+    """(M (3, 3), t (3,)): the coordinates reaching the Noise Texture's ``vector`` input as
+    M · p + t of the object-space position p, through Mappings, or None."""
+    found = _source(vector)
+    if found is not None and found[0].bl_idname == "ShaderNodeMapping":
+        inner_vector = found[0].inputs["Vector"]  # unlinked: a constant, not Generated
+        inner = _coordinates(inner_vector, texspace) if inner_vector.is_linked else None
+        outer = _mapping(found[0])
+        if outer is None or inner is None:
+            return None
+        return outer[0] @ inner[0], outer[0] @ inner[1] + outer[1]
+    if vector.is_linked:
         if found is None or found[0].bl_idname != "ShaderNodeTexCoord":
             return None
         coords, output = found
         if coords.object is not None or coords.from_instancer:
             return None
         if output.identifier == "Object":
-            return (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)
+            return np.eye(3), np.zeros(3)
         if output.identifier != "Generated":
             return None
     if texspace is None:  # Generated coordinates of a modified mesh: its original's
         return None
     location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
     scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
-    return tuple(float(v) for v in scale), tuple(float(v) for v in -(location - size) * scale)
+    return np.diag(scale), -(location - size) * scale
 
 
 def recognise(socket, texspace) -> NoiseGraph | None:
@@ -182,7 +202,7 @@ def recognise(socket, texspace) -> NoiseGraph | None:
         return None
     names = ("Scale", "Detail", "Roughness", "Lacunarity", "Distortion", "W")
     values = _constants(noise, names)
-    coordinates = _coordinates(noise, texspace)
+    coordinates = _coordinates(noise.inputs["Vector"], texspace)
     if values is None or coordinates is None:
         return None
     scale, detail, roughness, lacunarity, distortion, w = values
@@ -193,8 +213,8 @@ def recognise(socket, texspace) -> NoiseGraph | None:
         detail,
         roughness,
         lacunarity,
-        coordinates[0],
-        coordinates[1],
+        (1.0, 1.0, 1.0),
+        tuple(float(v) for v in coordinates[1]),
         1.0,
         0.0,
         -1e30,
@@ -202,5 +222,6 @@ def recognise(socket, texspace) -> NoiseGraph | None:
         table,
         interpolate,
         distortion,
+        tuple(float(v) for v in coordinates[0].ravel()),
     )
     return NoiseGraph(spec, a, b, low, high)

@@ -261,7 +261,8 @@ class NoiseSpec:
     (``tf_perlin.glsl``: ``tf_noise_texture``, ``TF_THICKNESS_PERLIN``).
 
     The node's settings (:func:`noise_texture`) read at ``space_scale`` · p + ``space_offset``
-    of the object-space position p (Object coordinates: 1 and 0; Generated: the texture space);
+    of the object-space position p (Object coordinates: 1 and 0; Generated: the texture space),
+    or at M · p + ``space_offset`` with M = ``space_matrix`` (a Mapping node folded in);
     its *Fac* becomes the table's thickness parameter as ``gain`` · x + ``bias`` clamped to
     [``low``, ``high``] and to [0, 1] (a Map Range, and the table's range, folded in), where x
     is *Fac*, or a Color Ramp's value at *Fac* where ``ramp`` holds its table
@@ -284,11 +285,20 @@ class NoiseSpec:
     ramp: tuple = ()
     ramp_interpolate: bool = True
     distortion: float = 0.0
+    space_matrix: tuple = ()
+
+    def space(self) -> np.ndarray:
+        """The coordinates' linear part (3, 3): ``space_matrix`` (9 floats, row-major: a Mapping
+        node's rotation and scale folded in) where given, else diag(``space_scale``); the
+        coordinates of p are space() · p + ``space_offset``."""
+        if self.space_matrix:
+            return np.asarray(self.space_matrix, dtype=np.float64).reshape(3, 3)
+        return np.diag(np.asarray(self.space_scale, dtype=np.float64))
 
     def fac(self, positions) -> np.ndarray:
         """The node's *Fac* at (N, 3) object-space ``positions``."""
         p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-        v = p * np.asarray(self.space_scale) + np.asarray(self.space_offset)
+        v = p @ self.space().T + np.asarray(self.space_offset)
         return noise_texture(
             v,
             self.w,
@@ -324,6 +334,9 @@ class NoiseSpec:
                 float(self.dimensions),
             ],
             "noise_map": [float(self.gain), float(self.bias), float(self.low), float(self.high)],
-            "noise_space": [*(float(v) for v in self.space_scale), 0.0],
+            **{
+                f"noise_space_{axis}": [*(float(v) for v in row), 0.0]
+                for axis, row in zip("xyz", self.space(), strict=True)
+            },
             "noise_offset": [*(float(v) for v in self.space_offset), 0.0],
         }

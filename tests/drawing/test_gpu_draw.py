@@ -838,8 +838,12 @@ RAMPS = {
 }
 
 
+#: A Mapping node folded into the linked noise's coordinates: a rotation and an uneven scale.
+MAPPED = tuple((np.array([[0.8, -0.9, 0.3], [0.7, 0.5, -1.1], [0.2, 1.2, 0.6]]) * 1.3).ravel())
+
+
 @pytest.mark.parametrize(
-    "kind", ["value", "blender", "linked", *RAMPS, "blender_distorted", "linked_distorted"]
+    "kind", ["value", "blender", "linked", *RAMPS, "blender_distorted", "linked_distorted", "linked_mapped"]
 )
 def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     """The noise thicknesses per pixel (``TF_THICKNESS_NOISE``): a quad facing the camera filling
@@ -850,7 +854,8 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     linked 3-D Noise Texture (:data:`LINKED_NOISE`, materials.perlin.NoiseSpec.parameter);
     *linked_ramp*, *linked_steps*: the same through a Color Ramp's table (:data:`RAMPS`,
     ``TF_THICKNESS_RAMP``, materials.ramp.lookup), interpolated and Constant; *…_distorted*: the
-    4-D and the 3-D noise with Distortion 0.8 (``TF_NOISE_DISTORT4``, ``TF_NOISE_DISTORT3``)."""
+    4-D and the 3-D noise with Distortion 0.8 (``TF_NOISE_DISTORT4``, ``TF_NOISE_DISTORT3``);
+    *linked_mapped*: its coordinates through a full matrix (a Mapping node, :data:`MAPPED`)."""
     scale, seed, size = 3.7, 5, 32
     if kind == "value":
         spec, noise = (scale, seed), lambda p: value_noise(p, scale, seed)
@@ -858,6 +863,8 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
         spec = NoiseSpec(4, scale, seed) if kind.startswith("blender") else LINKED_NOISE
         if kind.endswith("distorted"):  # 4-D and 3-D, materials.perlin.distortion_offsets
             spec = dataclasses.replace(spec, distortion=0.8)
+        if kind == "linked_mapped":  # the coordinates through a full matrix (noise_space_x/y/z)
+            spec = dataclasses.replace(spec, space_matrix=MAPPED)
         if kind in RAMPS:
             table, interpolate = RAMPS[kind]
             spec = dataclasses.replace(spec, gain=1.0, bias=0.0, ramp=table, ramp_interpolate=interpolate)

@@ -472,14 +472,19 @@ def _against_cycles_bake(tf, obj, mat, socket, source: str):
         "noise_3d_fractional",
         "noise_3d_distorted",
         "noise_4d_object_distorted",
+        "noise_3d_mapped_point",
+        "noise_4d_object_mapped_texture",
     ],
 )
 def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, graph):
     """A Noise Texture (fBm, normalized; 3-D at Generated coordinates, the node's default, or
     4-D at Object coordinates; Detail 3 or 2.4, Roughness 0.6, Lacunarity 2.2; Distortion 0 or
-    0.8) → Map Range → Thin Film Thickness is evaluated in numpy at the corners, with no Cycles
-    bake, to within the bake's own spread: Cycles shades each corner a little off its face, so
-    two faces' corners at one vertex differ by as much."""
+    0.8; through a Mapping node, Point at the default coordinates or Texture at Object ones,
+    each with a location, a rotation about all three axes and an uneven scale) → Map Range →
+    Thin Film Thickness is evaluated in numpy at the corners, with no Cycles bake, to within the
+    bake's own spread: Cycles shades each corner a little off its face, so two faces' corners at
+    one vertex differ by as much. The per-pixel noise the link is recognised as
+    (``noise_graph``: the Mapping folded into a matrix) gives the same corners."""
     mat, node = _principled(bpy, graph)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     noise = nodes.new("ShaderNodeTexNoise")
@@ -492,8 +497,21 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
         values["W"] = 1.7
     for name, value in values.items():
         noise.inputs[name].default_value = value
+    vector = None
     if "object" in graph:
-        links.new(nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
+        vector = nodes.new("ShaderNodeTexCoord").outputs["Object"]
+    elif "mapped" in graph:
+        vector = nodes.new("ShaderNodeTexCoord").outputs["Generated"]
+    if "mapped" in graph:
+        mapping = nodes.new("ShaderNodeMapping")
+        mapping.vector_type = "TEXTURE" if graph.endswith("texture") else "POINT"
+        mapping.inputs["Location"].default_value = (0.3, -0.7, 1.1)
+        mapping.inputs["Rotation"].default_value = (0.4, -0.9, 1.3)
+        mapping.inputs["Scale"].default_value = (1.5, 0.6, 2.2)
+        links.new(vector, mapping.inputs["Vector"])
+        vector = mapping.outputs["Vector"]
+    if vector is not None:
+        links.new(vector, noise.inputs["Vector"])
     ranged = nodes.new("ShaderNodeMapRange")
     ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 100.0, 900.0
     links.new(noise.outputs["Fac"], ranged.inputs["Value"])
@@ -505,12 +523,19 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     direct, error, spread = _against_cycles_bake(
         tf, obj, mat, node.inputs["Thin Film Thickness"], "Noise Texture"
     )
-    # Measured: max 0.34, 0.69, 0.29, 0.41, 0.95 nm (median 0.054, 0.12, 0.042, 0.058, 0.14) of
-    # 800, where Cycles' own corners at one vertex differ by 0.57, 1.25, 0.53, 0.76, 1.77 nm; one
-    # octave fewer, another hash or a wrong texture space or distortion offset is tens of nm.
+    # Measured: max 0.34, 0.69, 0.29, 0.41, 0.95, 0.41, 0.99 nm (median 0.054–0.14) of 800,
+    # where Cycles' own corners at one vertex differ by 0.57, 1.25, 0.53, 0.76, 1.77, 0.76, 1.93
+    # nm; one octave fewer, another hash or a wrong texture space, distortion offset or Euler
+    # order is tens of nm.
     assert error.max() <= max(spread, 1e-3 * 800.0), (error.max(), spread)
     assert np.median(error) < 3e-4 * 800.0, np.median(error)
     assert np.ptp(direct.values) > 200.0  # the noise varies: the check has something to see
+    graph_found = tf.linked.noise_graph_of(obj, node.inputs["Thin Film Thickness"])
+    corners = np.array([obj.data.vertices[loop.vertex_index].co for loop in obj.data.loops])
+    folded = np.clip(
+        graph_found.a * graph_found.noise.fac(corners) + graph_found.b, graph_found.low, graph_found.high
+    )
+    np.testing.assert_allclose(folded, direct.values, atol=1e-3)  # nm: float32 coordinates
 
 
 def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeypatch):
