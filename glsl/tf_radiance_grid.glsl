@@ -22,7 +22,18 @@ vec3 tf_grid_fetch(vec2 uv, int layer)
   return texture(tf_radiance_grid, vec3(uv, float(layer))).rgb;
 }
 
-vec3 tf_shade_grid(TFFrame f)
+/* Where a pixel reads the grid: its mirror direction's uv, the view-angle nodes j0, j0 + 1 of
+ * view_count and their weight, the azimuths k0, k1 and theirs. */
+struct TFGridAt {
+  vec2 uv;
+  int j0;
+  float wj;
+  int k0;
+  int k1;
+  float wk;
+};
+
+TFGridAt tf_grid_at(TFFrame f, int view_count)
 {
   /* (cos, sin) theta_o, cos >= 0; r = reflect(-v, n) and e1 = d r / d(2 theta_o) in the frame's
    * xz plane (v = cos n + sin x) */
@@ -40,7 +51,6 @@ vec3 tf_shade_grid(TFFrame f)
   float along = r.z * dot(e1.xy, p) - e1.z * rho; /* e1 . a1 */
   float across = e1.y * p.x - e1.x * p.y;         /* e1 . a2 */
 
-  int view_count = textureSize(tf_radiance_grid, 0).z / TF_GRID_AZIMUTHS;
   float views = float(view_count - 1);
   float jp = clamp(atan(cs.y, cs.x) / TF_HALF_PI * views, 0.0, views);
   int j0 = min(int(floor(jp)), view_count - 2);
@@ -51,10 +61,19 @@ vec3 tf_shade_grid(TFFrame f)
   float wk = kp - float(k0);
   int k1 = (k0 + 1 == TF_GRID_AZIMUTHS) ? 0 : k0 + 1;
 
-  int l0 = j0 * TF_GRID_AZIMUTHS;
-  int l1 = l0 + TF_GRID_AZIMUTHS;
-  vec3 lo = mix(tf_grid_fetch(uv, l0 + k0), tf_grid_fetch(uv, l0 + k1), wk);
-  vec3 hi = mix(tf_grid_fetch(uv, l1 + k0), tf_grid_fetch(uv, l1 + k1), wk);
-  return tf_lighting.world[0].w * mix(lo, hi, wj);
+  return TFGridAt(uv, j0, wj, k0, k1, wk);
+}
+
+/* The grid at view node j of the block starting at layer base, between the two azimuths. */
+vec3 tf_grid_node(TFGridAt g, int base, int j)
+{
+  int l = base + j * TF_GRID_AZIMUTHS;
+  return mix(tf_grid_fetch(g.uv, l + g.k0), tf_grid_fetch(g.uv, l + g.k1), g.wk);
+}
+
+vec3 tf_shade_grid(TFFrame f)
+{
+  TFGridAt g = tf_grid_at(f, textureSize(tf_radiance_grid, 0).z / TF_GRID_AZIMUTHS);
+  return tf_lighting.world[0].w * mix(tf_grid_node(g, 0, g.j0), tf_grid_node(g, 0, g.j0 + 1), g.wj);
 }
 #endif

@@ -16,8 +16,9 @@
  *
  * n, v: unit normal and unit direction towards the viewer (world space); thickness01: the
  * position on the table's thickness axis in [0, 1] (ignored without TF_VARY_THICKNESS).
- * With TF_RADIANCE_GRID (constant thickness, policy.uses_grid) the sum is read from the
- * outgoing-radiance grid instead (tf_radiance_grid.glsl) and no SH code is compiled.
+ * With TF_RADIANCE_GRID (policy.uses_grid) the sum is read from the outgoing-radiance grid
+ * instead (tf_radiance_grid.glsl; a varying thickness from its film-free basis,
+ * tf_grid_basis.glsl) and no SH code is compiled.
  */
 
 /* sum += M_k L for kept coefficient k (table layers 3k..3k+2, or layer k) and the local
@@ -44,12 +45,19 @@ void tf_accumulate(inout vec3 sum, TFLerp r, int k, int i)
  * (codegen.banded_source): only one band's coefficients are live at a time. */
 vec3 tf_banded_sum(TFLerp r, vec2 a, vec2 b, vec2 c);
 #endif
+#if defined(TF_RADIANCE_GRID) && defined(TF_VARY_THICKNESS)
+/* A varying film's grid: the film-free basis read with its thickness (tf_grid_basis.glsl,
+ * joined after this file). */
+vec3 tf_shade_grid_basis(TFFrame f, TFLerp r);
+#endif
 
 /* The SH sum for a frame and table position already computed (shared with the split sum in
  * tf_shade_combined, so the combined path does not build them twice). */
 vec3 tf_shade_at(TFFrame f, TFLerp r)
 {
-#if defined(TF_RADIANCE_GRID)
+#if defined(TF_RADIANCE_GRID) && defined(TF_VARY_THICKNESS)
+  return tf_shade_grid_basis(f, r); /* shading.lobe_grid.lookup_basis: the exact lobe, any thickness */
+#elif defined(TF_RADIANCE_GRID)
   return tf_shade_grid(f); /* shading.radiance_grid.lookup: the same sum, tabulated */
 #elif TF_L_MAX > 2 && defined(TF_X90_GENERATED)
   vec2 a, b, c;

@@ -37,10 +37,14 @@ log = logging.getLogger(__name__)
 
 #: Uploaded grids kept (4.5–9 MiB each on the GPU).
 GRID_CACHE_SIZE = 8
+#: Uploaded basis grids kept (varying films, one per World content and roughness: 63 MiB each).
+BASIS_CACHE_SIZE = 2
 #: Requests waiting for the worker; older ones are dropped (the newest is built first).
 QUEUE_SIZE = 4
 #: The end of an integrated grid's key (:func:`lobe_build`): 15–100 s, so built after SH grids.
 LOBE_SUFFIX = "|lobe"
+#: The end of a varying film's basis grid's key (:func:`basis_build`): integrated as well.
+BASIS_SUFFIX = "|basis" + LOBE_SUFFIX
 #: Seconds between the timer's looks while grids are built: a grid takes 0.05–0.3 s, so a
 #: 0.1 s poll added up to a third to the edit's wait; a look that finds nothing costs µs.
 POLL_S = 0.01
@@ -52,6 +56,7 @@ class _Grids:
 
     def __init__(self):
         self.textures = caches.LRU(GRID_CACHE_SIZE)
+        self.bases = caches.LRU(BASIS_CACHE_SIZE)  # varying films' basis grids: 63 MiB each
         self.work = workers.Lane("radiance grid")
         self.lock = self.work.lock
         self.queue: dict = {}  # key → a call that builds the grid, oldest first
@@ -63,6 +68,7 @@ class _Grids:
         """Forget the uploaded grids, the queue and the built-but-not-uploaded ones."""
         with self.lock:
             self.textures.clear()
+            self.bases.clear()
             self.queue.clear()
             self.built.clear()
 
@@ -247,6 +253,18 @@ def lobe_build(film, roughness: float, panorama, view_count: int, lamp_mask=None
     return build
 
 
+def basis_build(roughness: float, panorama, view_count: int, lamp_mask=None):
+    """The call that builds a varying film's film-free basis grid
+    (precompute.shading.lobe_grid.build_basis), as :func:`lobe_build` builds a film's grid."""
+    shape = (*policy.GRID_BASIS_MIRROR, int(view_count), policy.GRID_AZIMUTHS)
+
+    def build():
+        image = panorama if lamp_mask is None else lamp_extraction.remove(np.asarray(panorama), lamp_mask)
+        return lobe_grid.build_basis(float(roughness), image, shape)
+
+    return build
+
+
 def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTexture | None:
     """The uploaded grid of ``key`` (description and lighting keys), built by ``build()``
     (:func:`sh_build`, :func:`lobe_build`), or None while the worker builds it (``wait``: build it
@@ -255,7 +273,8 @@ def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTe
     Only the upload (4.5–9 MiB) runs on the calling thread; a failed build leaves the film on the
     per-pixel SH.
     """
-    found = GRIDS.textures.get(key)
+    cache = GRIDS.bases if key.endswith(BASIS_SUFFIX) else GRIDS.textures
+    found = cache.get(key)
     if found is not None:
         return found
     with GRIDS.lock:
@@ -266,7 +285,7 @@ def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTe
         _request(key, build)
         return None
     found = resources.RadianceGridTexture.from_grid(grid)
-    GRIDS.textures[key] = found
+    cache[key] = found
     return found
 
 
@@ -283,6 +302,8 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
     content's frame and strength: the lighting buffer's ``world`` block turns and scales the
     lookup.
     """
+    if policy.table_uses_basis_grid(desc, result, lighting.textures is not None):
+        return _basis_grid(desc, lighting, lamps, film, wait=wait)
     if not applies(desc, result, lighting):
         return None, False
     source, coeffs = lighting.grid_source(lamps)
@@ -303,6 +324,27 @@ def film_grid(desc_key: str, desc, result, lighting, lamps: bool, film=None, *, 
     return _sh_grid(key, result, coeffs, roughness, wait=wait), False
 
 
+def _basis_grid(desc, lighting, lamps: bool, film, *, wait: bool):
+    """(grid, integrated) of a varying film in the hand-over: the film-free basis grid of its
+    roughness under the World's content (without the lamps where they are shaded per direction),
+    shared by every varying film of that roughness; (None, False) where the film is not drawn
+    from the exact lobe (``film`` None: a diffuse base, a wall) or while the worker builds it
+    (the per-pixel SH meanwhile)."""
+    env = lighting.environment
+    if film is None or env is None:
+        return None, False
+    source = lighting.grid_source(lamps)[0]
+    roughness = float(desc.roughness)
+    mask = env.lamp_mask if lamps and env.lamps is not None else None
+    key = f"{source}|{round(roughness, 6)}{BASIS_SUFFIX}"
+    build = basis_build(roughness, env.panorama, policy.GRID_BASIS_VIEWS, mask)
+    if wait or _ready(key):
+        found = grid_for(key, build, wait=wait)
+        return found, found is not None
+    _request(key, build)
+    return None, False
+
+
 def _sh_grid(key: str, result, coeffs, roughness: float, *, wait: bool):
     """:func:`grid_for` of a film's SH grid; its windowed lighting is made only when it is built."""
     found = GRIDS.textures.get(key)
@@ -315,10 +357,14 @@ def _sh_grid(key: str, result, coeffs, roughness: float, *, wait: bool):
 def _ready(key: str) -> bool:
     """Whether the grid of ``key`` is uploaded or built (waiting for its upload)."""
     with GRIDS.lock:
-        return key in GRIDS.textures or key in GRIDS.built
+        return key in GRIDS.textures or key in GRIDS.bases or key in GRIDS.built
 
 
-def applies(desc, result, lighting) -> bool:
+def applies(desc, result, lighting, integrated: bool = False) -> bool:
     """Whether the film draws its SH half from a grid (policy.uses_grid): a constant thickness,
-    an SH half at l_max ≥ GRID_MIN_L."""
-    return policy.table_uses_grid(desc, result, lighting.textures is not None)
+    an SH half at l_max ≥ GRID_MIN_L; a varying one in the hand-over where its film table is
+    there to read the basis grid with (``integrated``: policy.uses_lobe_grid)."""
+    prefiltered = lighting.textures is not None
+    if integrated and policy.table_uses_basis_grid(desc, result, prefiltered):
+        return True
+    return policy.table_uses_grid(desc, result, prefiltered)

@@ -426,7 +426,7 @@ def _fresh_entry(bpy_material, desc, key: str, result, lighting, lights, allow_b
         wall=wall,
         grid=grid,
         grid_source=lighting.grid_source(lamps)[0],
-        grid_wanted=radiance_grids.applies(desc, result, lighting),
+        grid_wanted=radiance_grids.applies(desc, result, lighting, film_table is not None),
     )
 
 

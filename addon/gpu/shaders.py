@@ -196,6 +196,8 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
     roots = []  # joined only where the variant declares their resources
     if variant.lamps:
         roots.append("tf_lamps.glsl")
+    if variant.grid and variant.vary_thickness:
+        roots.append("tf_grid_basis.glsl")  # and tf_lamps.glsl, which it includes
     if variant.lights:
         roots.append("tf_lights.glsl")
     if variant.split_sum:

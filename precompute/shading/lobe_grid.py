@@ -23,8 +23,8 @@ import numpy as np
 
 from .. import brdf
 from .lamps import film_at
-from .policy import LOBE_GRID_SAMPLES, MIN_COS
-from .radiance_grid import _check_shape, mirror_frames, view_angles
+from .policy import GRID_HATS, LOBE_GRID_SAMPLES, MIN_COS
+from .radiance_grid import _bilinear, _check_shape, coordinates, mirror_frames, view_angles
 
 #: Panorama lookups per numpy block in :func:`build` (bounds the temporaries to ≈ 100 MB).
 BLOCK_LOOKUPS = 2_000_000
@@ -127,3 +127,116 @@ def build(
         out[j] = acc * ms * float(scale)
     grid = out.reshape(t, h, w, p, 3).transpose(0, 3, 1, 2, 4)  # (T, Ψ, H, W, 3)
     return np.ascontiguousarray(np.maximum(grid, 0.0).reshape(t * p, h, w, 3), dtype=np.float32)
+
+
+# ----------------------------------------------------------------------------------------------
+# A film-free basis: the grid of any thickness (a varying film's)
+# ----------------------------------------------------------------------------------------------
+def hat_weights(u, hats: int = GRID_HATS) -> np.ndarray:
+    """(hats, N): the piecewise-linear hats over u ∈ [0, 1] at nodes k / (hats − 1) at ``u``."""
+    u = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
+    x = u * (hats - 1)
+    k = np.minimum(np.floor(x).astype(int), hats - 2)
+    t = x - k
+    out = np.zeros((int(hats), u.size))
+    out[k, np.arange(u.size)] += 1.0 - t
+    out[k + 1, np.arange(u.size)] += t
+    return out
+
+
+def build_basis(
+    roughness: float, panorama, shape, rotation=None, scale: float = 1.0, samples=LOBE_GRID_SAMPLES
+):
+    """The film-free grid of a varying film: ((T + 1)·Ψ, H, K·(W + 2), 3) float32, K = GRID_HATS.
+
+    Hat k's columns k·(W + 2) + 1 … k·(W + 2) + W of layer j·Ψ + ψ (a column of padding each
+    side, the mirror cells' wrap, so a bilinear read repeats within the hat: an array texture
+    holds at most 2048 layers) hold H_k = Σ_s w_s b_k(u_s) L_env(ω_s), b_k the hat of
+    u node k / (K − 1) (:func:`hat_weights`): the lobe's integral with the film's reflectance
+    F(u) linear between its values at the nodes, so that a film of any thickness d reads
+    Σ_k F(u_k, d) H_k (:func:`lookup_basis`, times its multiple-scattering factor). Texel
+    (row 0, column j) of the last Ψ layers holds the first and last hat that view node j's lobe
+    reaches (the shader reads those alone). Parameters as :func:`build` without the film."""
+    w, h, t, p = _check_shape(shape)
+    if w < t:
+        raise ValueError(f"a basis grid needs W ≥ T to hold its hat ranges, got {shape}")
+    image = np.asarray(panorama, dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] < 3:
+        raise ValueError(f"panorama must be (h, w, 3), got {image.shape}")
+    ph, pw = image.shape[:2]
+    flat = np.ascontiguousarray(image[..., :3].reshape(-1, 3))
+    frames = mirror_frames((w, h, t, p)).reshape(-1, 3, 3)
+    if rotation is not None:
+        frames = frames @ np.asarray(rotation, dtype=float).T
+    frames = frames.astype(np.float32)
+    k_count = GRID_HATS
+    out = np.zeros((k_count, t, frames.shape[0], 3), dtype=np.float32)
+    ranges = np.zeros((t, 2), dtype=np.float32)
+    step = max(1, BLOCK_LOOKUPS // frames.shape[0])
+    for j, theta in enumerate(view_angles(t)):
+        wi, weight, u = node_samples(roughness, float(theta), samples)
+        if u.size == 0:
+            continue
+        basis = (hat_weights(u, k_count) * weight).astype(np.float32)  # (K, S)
+        used = np.flatnonzero(np.abs(basis).sum(axis=1) > 0.0)
+        ranges[j] = (used.min(), used.max())
+        c, s = float(np.cos(theta)), float(np.sin(theta))
+        coef = np.stack([wi[:, 0] * c + wi[:, 2] * s, wi[:, 1], wi[:, 2] * c - wi[:, 0] * s], -1)
+        coef = coef.astype(np.float32)
+        acc = np.zeros((k_count, frames.shape[0], 3), dtype=np.float64)
+        for start in range(0, u.size, step):
+            part = slice(start, start + step)
+            d = np.einsum("sk,nkc->snc", coef[part], frames)
+            radiance = _lookup(flat, ph, pw, d.reshape(-1, 3)).reshape(d.shape)
+            acc += np.einsum("ks,snc->knc", basis[:, part], radiance)
+        out[:, j] = acc * float(scale)
+    data = out.reshape(k_count, t, h, w, p, 3).transpose(1, 4, 2, 0, 3, 5)  # (T, Ψ, H, K, W, 3)
+    padded = np.concatenate([data[..., -1:, :], data, data[..., :1, :]], axis=4)  # REPEAT per hat
+    grid = padded.reshape(t * p, h, k_count * (w + 2), 3)
+    table = np.zeros((p, h, k_count * (w + 2), 3), dtype=np.float32)
+    table[0, 0, :t, :2] = ranges
+    return np.ascontiguousarray(np.concatenate([grid, table]), dtype=np.float32)
+
+
+def lookup_basis(grid, normals, views, film, rows, azimuths: int, rotation=None, scale: float = 1.0):
+    """A varying film's SH half per pixel from a :func:`build_basis` grid: (N, 3).
+
+    ``film`` (its FilmTable) at the thickness ``rows`` of :func:`.lamps.thickness_lerp`; per view
+    node j each hat's block read as :func:`.radiance_grid.lookup` reads a grid (bilinear in the
+    mirror direction, linear in ψ) and weighted by F(u_k), summed over the hats view node j's
+    lobe reaches, then linear in θo, times the film's multiple-scattering factor at cos θo
+    (tf_grid_basis.glsl)."""
+    g = np.asarray(grid, dtype=float)
+    p, k_count = int(azimuths), GRID_HATS
+    t = g.shape[0] // p - 1
+    w = g.shape[2] // k_count - 2
+    ranges = np.rint(g[t * p, 0, :t, :2]).astype(int)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    v = np.asarray(views, dtype=float).reshape(-1, 3)
+    if rotation is not None:
+        q = np.asarray(rotation, dtype=float).reshape(3, 3)
+        n, v = n @ q.T, v @ q.T
+    u, tt, theta_pos, psi_pos = coordinates(n, v, (w, g.shape[1], t, p))
+    j0 = np.minimum(np.floor(np.clip(theta_pos, 0, t - 1)).astype(int), t - 2)
+    wj = (np.clip(theta_pos, 0, t - 1) - j0)[:, None]
+    k0 = np.minimum(np.floor(psi_pos).astype(int), p - 1)
+    wk = (psi_pos - k0)[:, None]
+    k1 = np.mod(k0 + 1, p)
+
+    def at(j):
+        total = np.zeros((n.shape[0], 3))
+        for k in range(k_count):
+            used = (ranges[j, 0] <= k) & (k <= ranges[j, 1])
+            if not used.any():
+                continue
+            layer = j * p
+            x = (k * (w + 2) + 1 + u * w) / g.shape[2]  # within hat k's padded columns
+            h_k = (1 - wk) * _bilinear(g, layer + k0, x, tt) + wk * _bilinear(g, layer + k1, x, tt)
+            colour = film_at(film, film.reflectance, rows, np.full(n.shape[0], k / (k_count - 1)))
+            value = np.einsum("noc,nc->no", colour, h_k) if film.spectral else colour * h_k
+            total += np.where(used[:, None], value, 0.0)
+        return total
+
+    cos_o = np.clip(np.sum(n * v, axis=-1), MIN_COS, 1.0)
+    ms = film_at(film, film.multiscatter, rows, cos_o)
+    return float(scale) * ((1 - wj) * at(j0) + wj * at(j0 + 1)) * ms

@@ -207,6 +207,14 @@ MIRROR = (
         glsl_note="`TF_RADIANCE_GRID`: `tf_shade_at` reads the grid instead of the SH sum",
     ),
     Mirror(
+        ("shading.lobe_grid.lookup_basis",),
+        "tf_grid_basis.glsl",
+        ("tf_grid_basis_node", "tf_shade_grid_basis"),
+        numpy_note="the grid: `lobe_grid.build_basis`, film-free blocks weighted by hats over u "
+        "(`lobe_grid.hat_weights`, `policy.GRID_HATS`)",
+        glsl_note="`TF_RADIANCE_GRID` with `TF_VARY_THICKNESS`: a varying film's SH half in the hand-over",
+    ),
+    Mirror(
         (
             "shading.lights.shade",
             "shading.lights.light_samples",

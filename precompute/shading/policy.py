@@ -105,19 +105,31 @@ GRID_MIN_L = 3
 
 def uses_grid(l_max: int, vary_thickness: bool, sh_weight: float) -> bool:
     """Whether a film's SH half is read from the outgoing-radiance grid (see :data:`GRID_MIN_L`):
-    an SH half (``sh_weight`` > 0) at an order from GRID_MIN_L on, and one thickness (a varying
-    thickness keeps the per-pixel SH: one grid per thickness row would not fit)."""
-    return int(l_max) >= GRID_MIN_L and not vary_thickness and float(sh_weight) > 0.0
+    an SH half (``sh_weight`` > 0) at an order from GRID_MIN_L on; a varying thickness only in
+    the split-sum/SH hand-over (``sh_weight`` < 1), from the film-free basis grid of the exact
+    lobe (shading/lobe_grid.py ``build_basis``: one grid per thickness row would not fit), and
+    elsewhere keeps the per-pixel SH."""
+    weight = float(sh_weight)
+    return int(l_max) >= GRID_MIN_L and weight > 0.0 and (not vary_thickness or weight < 1.0)
 
 
 def table_uses_grid(material, result, prefiltered: bool) -> bool:
-    """:func:`uses_grid` for ``material``'s baked table ``result``: its SH order, whether its
-    thickness varies (a range and more than one row), its SH weight (1 while the World has no
-    prefilter: the split sum needs one). The viewport asks it, and so does the bake helper,
-    which builds the grid right after the table."""
+    """Whether ``material``'s baked table ``result`` reads an SH grid (:func:`uses_grid` of a
+    constant thickness): its SH order, its SH weight (1 while the World has no prefilter: the
+    split sum needs one). The viewport asks it, and so does the bake helper, which builds the
+    grid right after the table."""
     vary = bool(material.varies) and np.asarray(result.thicknesses_nm).size > 1
     weight = sh_weight(material.roughness) if prefiltered else 1.0
-    return uses_grid(result.sh_order, vary, weight)
+    return not vary and uses_grid(result.sh_order, vary, weight)
+
+
+def table_uses_basis_grid(material, result, prefiltered: bool) -> bool:
+    """Whether ``material``'s baked table ``result`` of a varying thickness reads the film-free
+    basis grid (:func:`uses_grid` with a varying thickness: the hand-over; the viewport's worker
+    builds it, shading/lobe_grid.py ``build_basis``)."""
+    vary = bool(material.varies) and np.asarray(result.thicknesses_nm).size > 1
+    weight = sh_weight(material.roughness) if prefiltered else 1.0
+    return vary and uses_grid(result.sh_order, vary, weight)
 
 
 #: Films in the hand-over (0 < sh_weight < 1, roughness 0.2–0.45) fill their grid by integrating
@@ -126,6 +138,15 @@ def table_uses_grid(material, result, prefiltered: bool) -> bool:
 #: (docs/tuning.md#lobe-grid).
 LOBE_GRID_SAMPLES = (16, 16)
 LOBE_GRID_VIEWS = 16
+#: A varying film's film-free basis grid (shading/lobe_grid.py ``build_basis``): GRID_HATS
+#: piecewise-linear hats over u = v·h ∈ [0, 1], each a block of GRID_BASIS_VIEWS × Ψ layers. The
+#: film's colour across the lobe as the hats interpolate it, against the exact lobe grid (800 nm,
+#: r 0.3, a smooth World): 8 hats 0.75 % median, 9.1 % of the peak at most (grazing); 12 hats
+#: 0.28 %, 3.6 %; 16 hats 0.16 %, 1.9 %; two nodes at each view's own mean u ± spread 30 % at
+#: grazing views (docs/texture-thickness.md). 12 × 8 × 32 layers: 28 MiB in RGBA16F.
+GRID_HATS = 12
+GRID_BASIS_VIEWS = 16
+GRID_BASIS_MIRROR = GRID_MIRROR
 #: The weight of an integrated grid against the split sum, reached at roughness LOBE_GRID_RAMP[1]
 #: by a smoothstep from LOBE_GRID_RAMP[0]: the grid's 7.5° mirror cells blur the sharpest lobes,
 #: so the split sum keeps a share, and all of it at the hand-over's start (docs/tuning.md#lobe-grid).
@@ -482,7 +503,8 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
       k / (J − 1), and ``TF_LADDER_POSITION(r)`` = r^(1 / LEVEL_EXPONENT), its inverse;
     - ``TF_DISPLAY_LUT_SIZE``, ``TF_DISPLAY_LUT_FLOOR``, ``TF_DISPLAY_LUT_MAX``: the display LUT
       (:data:`DISPLAY_LUT_SIZE` … :data:`DISPLAY_LUT_MAX`).
-    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`;
+    - ``TF_GRID_AZIMUTHS``: the grid's view azimuths :data:`GRID_AZIMUTHS`; ``TF_GRID_HATS``: a
+      varying film's basis grid's hats over u (:data:`GRID_HATS`);
     - ``TF_REFRACT_STEPS``, ``TF_REFRACT_FIRST``, ``TF_REFRACT_GROWTH``, ``TF_REFRACT_REFINE``,
       ``TF_REFRACT_THICKNESS``, ``TF_REFRACT_MIRROR_ROUGHNESS``: solid glass's screen-space march
       (:data:`REFRACT_STEPS` …) and its mirror of the scene; ``TF_REFRACT_EDGE``: 1 where
@@ -535,6 +557,7 @@ def glsl_defines() -> tuple[tuple[str, str], ...]:
             "DISPLAY_LUT_FLOOR",
             "DISPLAY_LUT_MAX",
             "GRID_AZIMUTHS",
+            "GRID_HATS",
             "REFRACT_STEPS",
             "REFRACT_FIRST",
             "REFRACT_GROWTH",

@@ -94,9 +94,9 @@ class Variant(NamedTuple):
 
     @property
     def film(self) -> bool:
-        """The film's reflectance table is read (for the World's lamps, the light objects or a
-        transparent film's transmittance)."""
-        return bool(self.lamps or self.lights or self.transmit)
+        """The film's reflectance table is read (for the World's lamps, the light objects, a
+        transparent film's transmittance, or a varying film's basis grid)."""
+        return bool(self.lamps or self.lights or self.transmit or (self.grid and self.vary_thickness))
 
     @property
     def moment(self) -> bool:
@@ -116,7 +116,10 @@ class Variant(NamedTuple):
             bool(self.table_ubo),
             bool(self.split_sum and self.split_only),
             bool(self.lamps),
-            bool((self.lamps or self.lights or self.transmit) and self.film_ubo),
+            bool(
+                (self.lamps or self.lights or self.transmit or (self.grid and self.vary_thickness))
+                and self.film_ubo
+            ),
             bool(self.lights),
             bool(self.display and self.display_lut),
             int(self.transmit) if int(self.transmit) in TRANSMIT_PASSES else 0,
@@ -236,6 +239,8 @@ def choose_variant(
     lights = bool(film) and int(light_count) > 0
     vary = bool(has_thickness) and int(thickness_rows) > 1
     weight = float(sh_weight) if split else 1.0
+    # a varying film's grid is its film-free basis, read with the film table
+    grid = bool(grid) and policy.uses_grid(l_max, vary, weight) and (bool(film) or not vary)
     return Variant(
         l_max=int(l_max),
         spectral=bool(spectral),
@@ -245,11 +250,11 @@ def choose_variant(
         table_ubo=bool(table_ubo),
         split_only=split and float(sh_weight) <= 0.0,
         lamps=lamps,
-        film_ubo=(lamps or lights or bool(transmit)) and bool(film_ubo),
+        film_ubo=(lamps or lights or bool(transmit) or (grid and vary)) and bool(film_ubo),
         lights=lights,
         display_lut=bool(display) and bool(display_lut),
         transmit=int(transmit) if bool(film) else 0,
-        grid=bool(grid) and policy.uses_grid(l_max, vary, weight),
+        grid=grid,
         refract=bool(refract) and bool(film) and int(transmit) in TRANSMIT_PASSES,
         thickness_map=vary and bool(thickness_map),
         thickness_noise=int(thickness_noise) if vary else 0,

@@ -976,15 +976,23 @@ def tilted_quad_item(gd, table, lighting):
     )
 
 
-def quad_pixels(model):
-    """(inside mask, normals, views) of the pixels that see :func:`tilted_quad_item`'s quad
-    (3 % from its edges), the normal flipped towards the viewer as the shader does."""
+def quad_local(model):
+    """(the quad's own coordinates where each pixel's ray meets its plane (SIZE, SIZE, 3), the
+    ray parameter, the ray hit points) of :func:`tilted_quad_item`'s quad."""
     rays = render.sphere_view(SIZE, SIZE, DISTANCE, FOV).rays
     cam = np.array([0.0, -DISTANCE, 0.0])
     normal = unit(np.linalg.inv(model[:3, :3]).T @ np.array([0.0, -1.0, 0.0]))
     t = ((model[:3, 3] - cam) @ normal) / (rays @ normal)
     hit = cam + t[..., None] * rays
-    local = (hit - model[:3, 3]) @ np.linalg.inv(model[:3, :3]).T
+    return (hit - model[:3, 3]) @ np.linalg.inv(model[:3, :3]).T, t, hit
+
+
+def quad_pixels(model):
+    """(inside mask, normals, views) of the pixels that see :func:`tilted_quad_item`'s quad
+    (3 % from its edges), the normal flipped towards the viewer as the shader does."""
+    cam = np.array([0.0, -DISTANCE, 0.0])
+    normal = unit(np.linalg.inv(model[:3, :3]).T @ np.array([0.0, -1.0, 0.0]))
+    local, t, hit = quad_local(model)
     inside = (np.abs(local[..., 0]) < 0.97) & (np.abs(local[..., 2]) < 0.97) & (t > 0)
     views = unit(cam - hit[inside])
     n = np.broadcast_to(normal, views.shape)

@@ -242,3 +242,56 @@ def test_the_sh_grid_stands_in_while_the_lobe_grid_is_built(bpy, tf, scene, monk
     wait_idle(rg)
     (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
     assert item.grid is not None and item.sh_weight == pytest.approx(policy.grid_weight(0.3, True))
+
+
+def test_a_varying_film_in_the_hand_over_reads_the_basis_grid(bpy, tf, scene, monkeypatch):
+    """A varying thickness at roughness 0.3: no grid per thickness row, but the film-free basis
+    grid of its roughness and World (precompute.shading.lobe_grid.build_basis), built in place
+    for a headless frame and on the worker for the viewport (the per-pixel SH meanwhile), read
+    with the film table at the integrated grid's weight; a second varying film of that roughness
+    reads the same basis, built once."""
+    from precompute.shading import policy
+
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    world = bpy.data.worlds.new("Grey")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
+    scene.world = world
+    calls = []
+    real_build = rg.lobe_grid.build_basis
+
+    def build(*args, **kwargs):
+        calls.append(args[0])  # the roughness
+        return real_build(*args, **{**kwargs, "samples": (4, 4)})  # cheap: what is drawn is tested
+
+    monkeypatch.setattr(rg.lobe_grid, "build_basis", build)
+    mats = []
+    for name in ("Film", "Other film"):
+        mat = rough_film(bpy, tf, name, roughness=0.3, vary=True)
+        mat.thinfilm_sh.preset = "ANODISED_TITANIUM"
+        mat.thinfilm_sh.vary_thickness = True
+        mat.thinfilm_sh.roughness = 0.3
+        mat.thinfilm_sh.sh_order = "3"
+        mats.append(mat)
+    quad_grid(bpy, scene, "Quad", mats[0])
+    (item,), messages = collect(bpy, tf)
+    assert item.grid is not None and item.film is not None, messages
+    assert calls == [pytest.approx(0.3)]
+    layers = (policy.GRID_BASIS_VIEWS + 1) * policy.GRID_AZIMUTHS
+    assert item.grid.shape == (
+        policy.GRID_HATS * (policy.GRID_MIRROR[0] + 2),
+        policy.GRID_MIRROR[1],
+        layers // policy.GRID_AZIMUTHS,
+        policy.GRID_AZIMUTHS,
+    )
+    assert item.sh_weight == pytest.approx(policy.grid_weight(0.3, True))
+    bpy.data.objects["Quad"].data.materials[0] = mats[1]
+    (item,), _ = collect(bpy, tf)
+    assert item.grid is not None and len(calls) == 1  # the same basis
+    rg.GRIDS.clear()
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)  # the viewport: the worker
+    assert item.grid is None and item.grid_pending
+    wait_idle(rg)
+    rg._poll()
+    (item,), _ = collect(bpy, tf, allow_bake=False, allow_world=False)
+    assert item.grid is not None and not item.grid_pending and len(calls) == 2
