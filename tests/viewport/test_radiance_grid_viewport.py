@@ -158,6 +158,26 @@ def test_the_idle_step_compiles_one_wanted_variant_and_says_so(bpy, tf):
     assert not bpy.app.timers.is_registered(warmup.step)
 
 
+def grey_world_and_cheap_builds(bpy, tf, scene, monkeypatch, name: str, roughness_arg: int):
+    """(the grids module, the roughness of each ``lobe_grid.<name>`` call from now on): the
+    grids emptied, a grey World, and the integrated builds at 4 × 4 nodes (cheap: what is drawn
+    is tested, not the quadrature)."""
+    rg = grids_module(tf)
+    rg.GRIDS.clear()
+    world = bpy.data.worlds.new("Grey")  # a node tree from Blender 5 on
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
+    scene.world = world
+    calls = []
+    real_build = getattr(rg.lobe_grid, name)
+
+    def build(*args, **kwargs):
+        calls.append(args[roughness_arg])
+        return real_build(*args, **{**kwargs, "samples": (4, 4)})
+
+    monkeypatch.setattr(rg.lobe_grid, name, build)
+    return rg, calls
+
+
 @pytest.mark.parametrize(
     "preset, roughness, integrated",
     [("ANODISED_TITANIUM", 0.3, True), ("ANODISED_TITANIUM", 0.6, False), ("SOAP_FILM", 0.3, False)],
@@ -177,19 +197,7 @@ def test_a_film_in_the_hand_over_integrates_its_grid(
     film's wall), whose table holds more than the lobe."""
     from precompute.shading import policy
 
-    rg = grids_module(tf)
-    rg.GRIDS.clear()
-    world = bpy.data.worlds.new("Grey")  # a node tree from Blender 5 on
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
-    scene.world = world
-    calls = []
-    real_build = rg.lobe_grid.build
-
-    def build(*args, **kwargs):
-        calls.append(args[1])  # the roughness
-        return real_build(*args, **{**kwargs, "samples": (4, 4)})  # cheap: what is drawn is tested
-
-    monkeypatch.setattr(rg.lobe_grid, "build", build)
+    rg, calls = grey_world_and_cheap_builds(bpy, tf, scene, monkeypatch, "build", 1)
     mat = rough_film(bpy, tf, "Film")
     mat.thinfilm_sh.preset = preset
     mat.thinfilm_sh.vary_thickness = False
@@ -252,19 +260,7 @@ def test_a_varying_film_in_the_hand_over_reads_the_basis_grid(bpy, tf, scene, mo
     reads the same basis, built once."""
     from precompute.shading import policy
 
-    rg = grids_module(tf)
-    rg.GRIDS.clear()
-    world = bpy.data.worlds.new("Grey")
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
-    scene.world = world
-    calls = []
-    real_build = rg.lobe_grid.build_basis
-
-    def build(*args, **kwargs):
-        calls.append(args[0])  # the roughness
-        return real_build(*args, **{**kwargs, "samples": (4, 4)})  # cheap: what is drawn is tested
-
-    monkeypatch.setattr(rg.lobe_grid, "build_basis", build)
+    rg, calls = grey_world_and_cheap_builds(bpy, tf, scene, monkeypatch, "build_basis", 0)
     mats = []
     for name in ("Film", "Other film"):
         mat = rough_film(bpy, tf, name, roughness=0.3, vary=True)
