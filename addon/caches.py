@@ -93,7 +93,7 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   grids on the GPU (``gpu.resources.RadianceGridTexture``, 4.5–9 MiB each) by (description key,
   World key, l_max, roughness, lamps), with the worker's queue (at most
   ``radiance_grids.QUEUE_SIZE``, newest first) and its built grids awaiting upload; LRU of
-  ``radiance_grids.GRID_CACHE_SIZE`` (8), and varying films' basis grids (60 MiB each, by World
+  ``radiance_grids.GRID_CACHE_SIZE`` (8), and varying films' basis grids (80 MiB each, by World
   content and roughness) apart, an LRU of ``radiance_grids.BASIS_CACHE_SIZE`` (2); filled by
   ``scene_draw.collect`` through
   ``radiance_grids.grid_for`` (built on a worker thread; headless frames build in place); FILE.

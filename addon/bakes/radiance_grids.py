@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 
 #: Uploaded grids kept (4.5–9 MiB each on the GPU).
 GRID_CACHE_SIZE = 8
-#: Uploaded basis grids kept (varying films, one per World content and roughness: 63 MiB each).
+#: Uploaded basis grids kept (varying films, one per World content and roughness: 80 MiB each).
 BASIS_CACHE_SIZE = 2
 #: Requests waiting for the worker; older ones are dropped (the newest is built first).
 QUEUE_SIZE = 4
@@ -56,7 +56,7 @@ class _Grids:
 
     def __init__(self):
         self.textures = caches.LRU(GRID_CACHE_SIZE)
-        self.bases = caches.LRU(BASIS_CACHE_SIZE)  # varying films' basis grids: 63 MiB each
+        self.bases = caches.LRU(BASIS_CACHE_SIZE)  # varying films' basis grids: 80 MiB each
         self.work = workers.Lane("radiance grid")
         self.lock = self.work.lock
         self.queue: dict = {}  # key → a call that builds the grid, oldest first
