@@ -14,12 +14,12 @@
  */
 
 #if defined(TF_RADIANCE_GRID) && defined(TF_VARY_THICKNESS)
-vec3 tf_grid_basis_node(TFGridAt g, int ranges, int j, TFLerp r)
+vec3 tf_grid_basis_node(TFGridAt g, ivec3 size, int j, TFLerp r)
 {
-  vec2 used = texelFetch(tf_radiance_grid, ivec3(j, 0, ranges), 0).xy;
+  vec2 used = texelFetch(tf_radiance_grid, ivec3(j, 0, size.z - TF_GRID_AZIMUTHS), 0).xy;
   int first = int(used.x + 0.5);
   int last = int(used.y + 0.5);
-  int width = textureSize(tf_radiance_grid, 0).x;
+  int width = size.x;
   int cells = width / TF_GRID_HATS - 2;
   vec3 sum = vec3(0.0);
   for (int k = 0; k < TF_GRID_HATS; k++) {
@@ -35,11 +35,10 @@ vec3 tf_grid_basis_node(TFGridAt g, int ranges, int j, TFLerp r)
 
 vec3 tf_shade_grid_basis(TFFrame f, TFLerp r)
 {
-  int view_count = textureSize(tf_radiance_grid, 0).z / TF_GRID_AZIMUTHS - 1;
-  int ranges = view_count * TF_GRID_AZIMUTHS;
-  TFGridAt g = tf_grid_at(f, view_count);
-  vec3 lo = tf_grid_basis_node(g, ranges, g.j0, r);
-  vec3 hi = tf_grid_basis_node(g, ranges, g.j0 + 1, r);
+  ivec3 size = textureSize(tf_radiance_grid, 0);
+  TFGridAt g = tf_grid_at(f, size.z / TF_GRID_AZIMUTHS - 1);
+  vec3 lo = tf_grid_basis_node(g, size, g.j0, r);
+  vec3 hi = tf_grid_basis_node(g, size, g.j0 + 1, r);
   float cos_o = clamp(f.cos_o, TF_MIN_COS, 1.0);
   return tf_lighting.world[0].w * mix(lo, hi, g.wj) * tf_film_multiscatter(cos_o, r);
 }

@@ -61,7 +61,14 @@ TFGridAt tf_grid_at(TFFrame f, int view_count)
   float wk = kp - float(k0);
   int k1 = (k0 + 1 == TF_GRID_AZIMUTHS) ? 0 : k0 + 1;
 
-  return TFGridAt(uv, j0, wj, k0, k1, wk);
+  TFGridAt g; /* set field by field: a struct constructor is not portable across backends */
+  g.uv = uv;
+  g.j0 = j0;
+  g.wj = wj;
+  g.k0 = k0;
+  g.k1 = k1;
+  g.wk = wk;
+  return g;
 }
 
 /* The grid at view node j of the block starting at layer base, between the two azimuths. */
