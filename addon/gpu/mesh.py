@@ -170,6 +170,28 @@ def ramp_texture(table) -> gpu.types.GPUTexture:
     return gpu.types.GPUTexture((data.size, 1), format="R32F", data=buffer)
 
 
+def corner_vertices(mesh) -> np.ndarray:
+    """Each face corner's vertex index (N,) int32, read through the mesh's ``.corner_vert``
+    attribute in one block (:func:`_attribute_array`)."""
+    n_loop = len(mesh.loops)
+    loop_vert = _attribute_array(mesh, ".corner_vert", "CORNER", "INT", n_loop, np.int32)
+    if loop_vert is None:
+        loop_vert = np.empty(n_loop, dtype=np.int32)
+        mesh.loops.foreach_get("vertex_index", loop_vert)
+    return loop_vert
+
+
+def corner_positions(mesh, loop_vert=None) -> np.ndarray:
+    """Each face corner's object-space position (N, 3) float32, read through the mesh's
+    ``position`` attribute in one block; ``loop_vert``: :func:`corner_vertices`, read if None."""
+    loop_vert = corner_vertices(mesh) if loop_vert is None else loop_vert
+    co = _attribute_array(mesh, "position", "POINT", "FLOAT_VECTOR", 3 * len(mesh.vertices), np.float32)
+    if co is None:
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)[loop_vert]
+
+
 def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dtype):
     """A mesh attribute's values read in one block, or None where the attribute is not there.
 
@@ -199,15 +221,8 @@ def mesh_arrays(mesh, thickness_attribute: str | None = None):
     n_tri, n_loop = len(tris), len(mesh.loops)
     if n_tri == 0 or n_loop == 0:
         return None
-    loop_vert = _attribute_array(mesh, ".corner_vert", "CORNER", "INT", n_loop, np.int32)
-    if loop_vert is None:
-        loop_vert = np.empty(n_loop, dtype=np.int32)
-        mesh.loops.foreach_get("vertex_index", loop_vert)
-    co = _attribute_array(mesh, "position", "POINT", "FLOAT_VECTOR", 3 * len(mesh.vertices), np.float32)
-    if co is None:
-        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", co)
-    positions = co.reshape(-1, 3)[loop_vert]
+    loop_vert = corner_vertices(mesh)
+    positions = corner_positions(mesh, loop_vert)
     normals = np.empty(n_loop * 3, dtype=np.float32)
     mesh.corner_normals.foreach_get("vector", normals)
     triangles = np.empty(n_tri * 3, dtype=np.int32)

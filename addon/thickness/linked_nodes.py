@@ -21,6 +21,7 @@ from ...precompute.colour import rgb_spaces
 from ...precompute.materials import ramp
 from ...precompute.materials.perlin import noise_texture
 from ..colour_space import working_space
+from ..gpu.mesh import corner_positions
 
 __all__ = [
     "DIRECT_NODES",
@@ -112,11 +113,7 @@ class _Context:
 
     def positions(self) -> np.ndarray:
         """The corners' object-space positions (N, 3)."""
-        co = np.empty(3 * len(self.mesh.vertices), dtype=np.float32)
-        self.mesh.vertices.foreach_get("co", co)
-        corner = np.empty(self.n, dtype=np.int32)
-        self.mesh.loops.foreach_get("vertex_index", corner)
-        return co.reshape(-1, 3)[corner].astype(np.float64)
+        return corner_positions(self.mesh).astype(np.float64)
 
     def generated(self) -> np.ndarray:
         """The corners' Generated coordinates: positions in the texture space, 0–1 across it."""

@@ -23,6 +23,7 @@ import numpy as np
 from ...precompute.materials.noise import value_noise
 from ...precompute.materials.perlin import blender_noise
 from .. import caches
+from ..gpu.mesh import corner_vertices
 from ..world.world_image import srgb_to_linear
 from ..world.world_key import describe_image
 from .linked_nodes import MAP_MAX_SIZE, sample, texel_centres
@@ -65,12 +66,6 @@ def corner_order(mesh) -> np.ndarray:
     return loops
 
 
-def _corner_vertices(mesh) -> np.ndarray:
-    out = np.empty(len(mesh.loops), dtype=np.int32)
-    mesh.loops.foreach_get("vertex_index", out)
-    return out
-
-
 def _corner_faces(mesh) -> np.ndarray:
     totals = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", totals)
@@ -105,7 +100,7 @@ def _attribute_values(obj, mesh, name: str) -> np.ndarray:
     attribute.data.foreach_get("value", values)
     values = values.astype(np.float64)
     if attribute.domain == "POINT":
-        return values[_corner_vertices(mesh)]
+        return values[corner_vertices(mesh)]
     if attribute.domain == "CORNER":
         return values
     if attribute.domain == "FACE":
@@ -305,7 +300,7 @@ def thickness_field(obj, mesh, props, image=None) -> tuple[np.ndarray | None, in
         mesh.vertices.foreach_get("co", co)
         noise = value_noise if source == "NOISE" else blender_noise
         per_vertex = noise(co.reshape(-1, 3), props.noise_scale, props.noise_seed)
-        values = per_vertex[_corner_vertices(mesh)]
+        values = per_vertex[corner_vertices(mesh)]
     elif source == "IMAGE":  # bilinear between pixel centres, repeating as Image Texture does
         first, uv = image_source(obj, mesh, props) if image is None else image
         values = sample(first[..., None], uv, False, True)[:, 0]
