@@ -24,7 +24,7 @@ import numpy as np
 from .. import brdf
 from .lamps import film_at
 from .policy import GRID_HATS, LOBE_GRID_SAMPLES, MIN_COS
-from .radiance_grid import _bilinear, _check_shape, coordinates, mirror_frames, view_angles
+from .radiance_grid import _bilinear, _check_shape, coordinates, mirror_frames, node_weights, view_angles
 
 #: Panorama lookups per numpy block in :func:`build` (bounds the temporaries to ≈ 100 MB).
 BLOCK_LOOKUPS = 2_000_000
@@ -65,6 +65,40 @@ def node_samples(roughness: float, theta: float, samples=LOBE_GRID_SAMPLES):
     return wi[ok], g2 * u[ok] / (cos_o * h[ok, 2]) * w[ok], u[ok]
 
 
+def _lobe_views(roughness: float, panorama, shape, rotation, samples):
+    """Per view-angle node j of ``shape`` whose lobe has quadrature nodes: (j, θo, weights (S,),
+    u (S,), the panorama along each node's ωi from every (H, W, Ψ) cell (the cell's rows e1, e2,
+    r turned by ``rotation`` into the content): an iterator of (a slice of the nodes, radiance
+    (s, H·W·Ψ, 3)) in blocks of at most :data:`BLOCK_LOOKUPS` lookups)."""
+    w, h, t, p = _check_shape(shape)
+    image = np.asarray(panorama, dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] < 3:
+        raise ValueError(f"panorama must be (h, w, 3), got {image.shape}")
+    ph, pw = image.shape[:2]
+    flat = np.ascontiguousarray(image[..., :3].reshape(-1, 3))
+    frames = mirror_frames((w, h, t, p)).reshape(-1, 3, 3)  # rows e1, e2, r per (H, W, Ψ) cell
+    if rotation is not None:
+        frames = frames @ np.asarray(rotation, dtype=float).T  # each row turned into the content
+    frames = frames.astype(np.float32)
+    step = max(1, BLOCK_LOOKUPS // frames.shape[0])
+
+    def blocks(coef, count):
+        for start in range(0, count, step):
+            part = slice(start, start + step)
+            d = np.einsum("sk,nkc->snc", coef[part], frames)  # (S, N, 3)
+            yield part, _lookup(flat, ph, pw, d.reshape(-1, 3)).reshape(d.shape)
+
+    for j, theta in enumerate(view_angles(t)):
+        wi, weight, u = node_samples(roughness, float(theta), samples)
+        if u.size == 0:
+            continue
+        # ωi in the view-aligned frame (x = cos θo e1 − sin θo r, y = e2, z = n = sin θo e1 +
+        # cos θo r) as a combination of the cell's rows (e1, e2, r)
+        c, s = float(np.cos(theta)), float(np.sin(theta))
+        coef = np.stack([wi[:, 0] * c + wi[:, 2] * s, wi[:, 1], wi[:, 2] * c - wi[:, 0] * s], -1)
+        yield j, theta, weight, u, blocks(coef.astype(np.float32), u.size)
+
+
 def build(
     film, roughness: float, panorama, shape, rotation=None, scale: float = 1.0, samples=LOBE_GRID_SAMPLES
 ):
@@ -89,37 +123,15 @@ def build(
         GGX quadrature nodes (θ × φ) per node (policy.LOBE_GRID_SAMPLES).
     """
     w, h, t, p = _check_shape(shape)
-    image = np.asarray(panorama, dtype=np.float32)
-    if image.ndim != 3 or image.shape[2] < 3:
-        raise ValueError(f"panorama must be (h, w, 3), got {image.shape}")
-    ph, pw = image.shape[:2]
-    flat = np.ascontiguousarray(image[..., :3].reshape(-1, 3))
-    frames = mirror_frames((w, h, t, p)).reshape(-1, 3, 3)  # rows e1, e2, r per (H, W, Ψ) cell
-    if rotation is not None:
-        frames = frames @ np.asarray(rotation, dtype=float).T  # each row turned into the content
-    frames = frames.astype(np.float32)
     rows = np.zeros(1, dtype=int)
-    out = np.zeros((t, frames.shape[0], 3), dtype=np.float32)
-    step = max(1, BLOCK_LOOKUPS // frames.shape[0])
-    for j, theta in enumerate(view_angles(t)):
-        wi, weight, u = node_samples(roughness, float(theta), samples)
-        count = u.size
-        if count == 0:
-            continue
-        zeros = np.zeros(count, dtype=int)
-        colour = film_at(film, film.reflectance, (zeros, zeros, np.zeros(count)), u)  # (S, 3[, 3])
+    out = np.zeros((t, h * w * p, 3), dtype=np.float32)
+    for j, theta, weight, u, blocks in _lobe_views(roughness, panorama, shape, rotation, samples):
+        zeros = np.zeros(u.size, dtype=int)
+        colour = film_at(film, film.reflectance, (zeros, zeros, np.zeros(u.size)), u)  # (S, 3[, 3])
         cos_o = np.array([max(float(np.cos(theta)), MIN_COS)])
         ms = film_at(film, film.multiscatter, (rows, rows, np.zeros(1)), cos_o)[0]
-        # ωi in the view-aligned frame (x = cos θo e1 − sin θo r, y = e2, z = n = sin θo e1 +
-        # cos θo r) as a combination of the cell's rows (e1, e2, r)
-        c, s = float(np.cos(theta)), float(np.sin(theta))
-        coef = np.stack([wi[:, 0] * c + wi[:, 2] * s, wi[:, 1], wi[:, 2] * c - wi[:, 0] * s], -1)
-        coef = coef.astype(np.float32)
-        acc = np.zeros((frames.shape[0], 3), dtype=np.float64)
-        for start in range(0, count, step):
-            part = slice(start, start + step)
-            d = np.einsum("sk,nkc->snc", coef[part], frames)  # (S, N, 3)
-            radiance = _lookup(flat, ph, pw, d.reshape(-1, 3)).reshape(d.shape)
+        acc = np.zeros((h * w * p, 3), dtype=np.float64)
+        for part, radiance in blocks:
             if film.spectral:
                 acc += np.einsum("s,soc,snc->no", weight[part], colour[part], radiance)
             else:
@@ -160,34 +172,15 @@ def build_basis(
     w, h, t, p = _check_shape(shape)
     if w < t:
         raise ValueError(f"a basis grid needs W ≥ T to hold its hat ranges, got {shape}")
-    image = np.asarray(panorama, dtype=np.float32)
-    if image.ndim != 3 or image.shape[2] < 3:
-        raise ValueError(f"panorama must be (h, w, 3), got {image.shape}")
-    ph, pw = image.shape[:2]
-    flat = np.ascontiguousarray(image[..., :3].reshape(-1, 3))
-    frames = mirror_frames((w, h, t, p)).reshape(-1, 3, 3)
-    if rotation is not None:
-        frames = frames @ np.asarray(rotation, dtype=float).T
-    frames = frames.astype(np.float32)
     k_count = GRID_HATS
-    out = np.zeros((k_count, t, frames.shape[0], 3), dtype=np.float32)
+    out = np.zeros((k_count, t, h * w * p, 3), dtype=np.float32)
     ranges = np.zeros((t, 2), dtype=np.float32)
-    step = max(1, BLOCK_LOOKUPS // frames.shape[0])
-    for j, theta in enumerate(view_angles(t)):
-        wi, weight, u = node_samples(roughness, float(theta), samples)
-        if u.size == 0:
-            continue
+    for j, _theta, weight, u, blocks in _lobe_views(roughness, panorama, shape, rotation, samples):
         basis = (hat_weights(u, k_count) * weight).astype(np.float32)  # (K, S)
         used = np.flatnonzero(np.abs(basis).sum(axis=1) > 0.0)
         ranges[j] = (used.min(), used.max())
-        c, s = float(np.cos(theta)), float(np.sin(theta))
-        coef = np.stack([wi[:, 0] * c + wi[:, 2] * s, wi[:, 1], wi[:, 2] * c - wi[:, 0] * s], -1)
-        coef = coef.astype(np.float32)
-        acc = np.zeros((k_count, frames.shape[0], 3), dtype=np.float64)
-        for start in range(0, u.size, step):
-            part = slice(start, start + step)
-            d = np.einsum("sk,nkc->snc", coef[part], frames)
-            radiance = _lookup(flat, ph, pw, d.reshape(-1, 3)).reshape(d.shape)
+        acc = np.zeros((k_count, h * w * p, 3), dtype=np.float64)
+        for part, radiance in blocks:
             acc += np.einsum("ks,snc->knc", basis[:, part], radiance)
         out[:, j] = acc * float(scale)
     data = out.reshape(k_count, t, h, w, p, 3).transpose(1, 4, 2, 0, 3, 5)  # (T, Ψ, H, K, W, 3)
@@ -217,11 +210,7 @@ def lookup_basis(grid, normals, views, film, rows, azimuths: int, rotation=None,
         q = np.asarray(rotation, dtype=float).reshape(3, 3)
         n, v = n @ q.T, v @ q.T
     u, tt, theta_pos, psi_pos = coordinates(n, v, (w, g.shape[1], t, p))
-    j0 = np.minimum(np.floor(np.clip(theta_pos, 0, t - 1)).astype(int), t - 2)
-    wj = (np.clip(theta_pos, 0, t - 1) - j0)[:, None]
-    k0 = np.minimum(np.floor(psi_pos).astype(int), p - 1)
-    wk = (psi_pos - k0)[:, None]
-    k1 = np.mod(k0 + 1, p)
+    j0, wj, k0, k1, wk = node_weights(theta_pos, psi_pos, t, p)
 
     def at(j):
         total = np.zeros((n.shape[0], 3))

@@ -237,6 +237,17 @@ def coordinates(normals, views, shape) -> tuple[np.ndarray, ...]:
     return u, t, theta_pos, psi_pos
 
 
+def node_weights(theta_pos, psi_pos, views_count: int, azimuths: int) -> tuple:
+    """(j0, wj, k0, k1, wk): the view-angle node below each pixel's θo position and the weight of
+    the one above ((N, 1)), the azimuths either side of its ψ position and the weight of the
+    second, as tf_radiance_grid.glsl's tf_grid_at interpolates them."""
+    j0 = np.minimum(np.floor(np.clip(theta_pos, 0, views_count - 1)).astype(int), views_count - 2)
+    wj = (np.clip(theta_pos, 0, views_count - 1) - j0)[:, None]
+    k0 = np.minimum(np.floor(psi_pos).astype(int), azimuths - 1)
+    wk = (psi_pos - k0)[:, None]
+    return j0, wj, k0, np.mod(k0 + 1, azimuths), wk
+
+
 def _bilinear(grid: np.ndarray, layers, u, t) -> np.ndarray:
     """GL LINEAR filtering of ``grid`` (L, H, W, 3) in per-pixel ``layers`` at (u, t): REPEAT in
     u, EXTEND in t."""
@@ -285,11 +296,7 @@ def _lookup(grid: np.ndarray, normals, views, azimuths: int) -> np.ndarray:
     u, t, theta_pos, psi_pos = coordinates(normals, views, shape)
     flat = [np.ravel(a) for a in (u, t, theta_pos, psi_pos)]
     u, t, theta_pos, psi_pos = flat
-    j0 = np.minimum(np.floor(np.clip(theta_pos, 0, views_count - 1)).astype(int), views_count - 2)
-    wj = (np.clip(theta_pos, 0, views_count - 1) - j0)[:, None]
-    k0 = np.minimum(np.floor(psi_pos).astype(int), azimuths - 1)
-    wk = (psi_pos - k0)[:, None]
-    k1 = np.mod(k0 + 1, azimuths)
+    j0, wj, k0, k1, wk = node_weights(theta_pos, psi_pos, views_count, azimuths)
 
     def fetch(j, k):
         return _bilinear(g, j * azimuths + k, u, t)
