@@ -270,7 +270,8 @@ def grid_for(key: str, build, *, wait: bool = False) -> resources.RadianceGridTe
     (:func:`sh_build`, :func:`lobe_build`), or None while the worker builds it (``wait``: build it
     here).
 
-    Only the upload (4.5–9 MiB) runs on the calling thread; a failed build leaves the film on the
+    Only the upload runs on the calling thread (4.5–9 MiB; a basis grid's 80 MiB took 117 ms on
+    llvmpipe, once per World content and roughness); a failed build leaves the film on the
     per-pixel SH.
     """
     cache = GRIDS.bases if key.endswith(BASIS_SUFFIX) else GRIDS.textures

@@ -338,7 +338,8 @@ class FilmTexture:
 class RadianceGridTexture:
     """A constant-thickness film's outgoing-radiance grid (precompute.shading.radiance_grid.build,
     precompute.shading.lobe_grid.build), or a varying film's film-free basis grid
-    (lobe_grid.build_basis: policy.GRID_HATS blocks of T·Ψ layers and Ψ more holding their ranges).
+    (lobe_grid.build_basis: policy.GRID_HATS hats side by side along the width, each W + 2 cells
+    with a column of padding each side, and Ψ more layers holding each view node's hat range).
 
     ``texture`` (:data:`RADIANCE_GRID_SAMPLER`, RGBA16F: 4.5–9 MiB, policy.grid_shape): a 2-D
     array of W × H mirror-direction cells, equirect, top row first; layer j·Ψ + k = θo node j and
