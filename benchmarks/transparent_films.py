@@ -315,13 +315,15 @@ def compare(
     engine: str = "EEVEE",
     background_samples: int = 256,
     denoise: bool = False,
-    seed_check: bool = False,
+    seeds: int = 0,
 ) -> dict:
     """ΔE2000 of one scene over the sphere's pixels; ``engine`` renders the rest of the scene
     (Cycles at ``background_samples``); ``denoise``: the reference through Cycles' denoiser;
-    ``seed_check``: also the reference's own noise, ``noise``: the mean ΔE2000 of Cycles' render
-    of the same file at the same samples with :data:`OTHER_SEED` against it (what Cycles itself
-    scores; a converged picture would score about 1/√2 of it)."""
+    ``seeds``: also render the same file with that many other seeds (:data:`OTHER_SEED` on):
+    ``noise``, the mean ΔE2000 of the first against the reference (what Cycles itself scores);
+    with two or more, ``floor``, their mean's against the reference (what a picture of that many
+    times the samples scores: near what a converged one would), and ``converged``, ours against
+    their mean."""
     blend = build(name, pathlib.Path(workdir) / f"{name}.blend", size, samples, denoise=denoise)
     ref, cycles_s = cycles_image(blend, name, size, samples, denoise)
     if engine == "CYCLES":
@@ -338,23 +340,31 @@ def compare(
         key: float(np.sum(full[where & mask]) / max(mask.sum(), 1))
         for key, where in regions(name, ours, ref, size).items()
     }
-    noise = None
-    if seed_check:
-        other = build(
-            name,
-            pathlib.Path(workdir) / f"{name}_seed.blend",
-            size,
-            samples,
-            denoise=denoise,
-            seed=OTHER_SEED,
-        )
-        noise = float(
-            np.mean(
-                delta_e_2000(
-                    cycles_image(other, name, size, samples, denoise, OTHER_SEED)[0][mask], ref[mask], xyz="E"
-                )
-            )
-        )
+    noise = floor = converged = None
+    if seeds:
+        others = [
+            cycles_image(
+                build(
+                    name,
+                    pathlib.Path(workdir) / f"{name}_seed{seed}.blend",
+                    size,
+                    samples,
+                    denoise=denoise,
+                    seed=seed,
+                ),
+                name,
+                size,
+                samples,
+                denoise,
+                seed,
+            )[0]
+            for seed in range(OTHER_SEED, OTHER_SEED + seeds)
+        ]
+        noise = float(np.mean(delta_e_2000(others[0][mask], ref[mask], xyz="E")))
+        if seeds > 1:
+            mean = np.mean(others, axis=0)
+            floor = float(np.mean(delta_e_2000(mean[mask], ref[mask], xyz="E")))
+            converged = float(np.mean(delta_e_2000(ours[mask], mean[mask], xyz="E")))
     around = ~mask
     around[: size // 2] = False  # the ground beside and in front of the object
     parts["ground"] = float(np.mean(delta_e_2000(ours[around], ref[around], xyz="E")))
@@ -371,6 +381,9 @@ def compare(
         delta_e=full,
         parts=parts,
         noise=noise,
+        floor=floor,
+        converged=converged,
+        seeds=seeds,
     )
 
 
@@ -468,13 +481,19 @@ this machine at a load average of 6–8.
 """
 
 
-#: The report's note on ``--seed-check``'s column.
+#: The report's note on ``--seed-check``'s column (``--seeds``' first).
 SEED_NOTE = """\
 *Cycles, another seed*: Cycles' render of the same file at the same samples with seed {seed}
-instead of 1, scored against the reference as ours is: the reference's own noise. A converged
-picture would score about 1/√2 of it against the reference (two independent renders' noise adds
-in quadrature), and a mean ΔE2000 limit below that figure asks a render to be nearer the
-reference than Cycles is to itself."""
+instead of 1, scored against the reference as ours is: the reference's own noise. A mean
+ΔE2000 limit below that figure asks a render to be nearer the reference than Cycles is to
+itself."""
+
+FLOOR_NOTE = """\
+*Cycles, {n} seeds' mean*: the mean of Cycles' renders with seeds {first}–{last} ({n} × the
+samples), scored against the reference: about what a converged picture scores against it, the
+lowest figure any renderer can reach there. *Ours against that mean*: ours scored against the
+nearly converged picture instead of the reference, its own error without most of the
+reference's noise."""
 
 
 def report(
@@ -488,6 +507,10 @@ def report(
     """The markdown report."""
     noise = "Cycles' denoiser (OpenImageDenoise, Blender's default)" if denoise else "no denoising"
     seeded = any(r.get("noise") is not None for r in rows)
+    floored = [r for r in rows if r.get("floor") is not None]
+    extra = (" Cycles, another seed |" if seeded else "") + (
+        f" Cycles, {floored[0]['seeds']} seeds' mean | ours against that mean |" if floored else ""
+    )
     lines = [
         "# Transparent films against Cycles",
         "",
@@ -500,11 +523,14 @@ def report(
         f"Code: {common.git_describe(('precompute', 'addon', 'glsl', 'benchmarks'))}.",
         "",
         "| scene | background pass | mean ΔE2000 | p95 | limit | glints | rim | upper | lower"
-        " | Cycles s | ours s |" + (" Cycles, another seed |" if seeded else ""),
-        "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if seeded else ""),
+        " | Cycles s | ours s |" + extra,
+        "|---|---|---|---|---|---|---|---|---|---|---|" + "---|" * extra.count("|"),
     ]
+
+    def figure(value) -> str:
+        return f" {value:.2f} |" if value is not None else " – |"
+
     for r in rows:
-        noise = r.get("noise")
         lines.append(
             f"| {r['name']} | {r['engine']} | {r['mean']:.2f} | {r['p95']:.2f} | {r['limit']:.0f} | "
             + " | ".join(
@@ -512,10 +538,14 @@ def report(
                 for k in ("glints", "rim", "upper", "lower")
             )
             + f" | {r['cycles_s']:.0f} | {r['ours_s']:.1f} |"
-            + ((f" {noise:.2f} |" if noise is not None else " – |") if seeded else "")
+            + (figure(r.get("noise")) if seeded else "")
+            + (figure(r.get("floor")) + figure(r.get("converged")) if floored else "")
         )
     if seeded:
         lines += ["", SEED_NOTE.format(seed=OTHER_SEED)]
+    if floored:
+        n = floored[0]["seeds"]
+        lines += ["", FLOOR_NOTE.format(n=n, first=OTHER_SEED, last=OTHER_SEED + n - 1)]
     lines += ["", NOTES, f"![ours | Cycles | ΔE/10, one row per scene](images/{picture})", ""]
     return "\n".join(lines)
 
@@ -543,7 +573,15 @@ def main(argv=None) -> int:
         "--seed-check",
         action="store_true",
         help=f"also render each reference with seed {OTHER_SEED} (cached) and score it against the "
-        "reference: the reference's own noise",
+        "reference: the reference's own noise (--seeds 1)",
+    )
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=0,
+        help=f"also render each reference with this many other seeds ({OTHER_SEED} on, cached); with "
+        "2 or more, their mean is scored against the reference (about a converged picture's figure) "
+        "and ours against their mean",
     )
     args = parser.parse_args(argv)
     rows = []
@@ -557,12 +595,17 @@ def main(argv=None) -> int:
                 args.engine,
                 args.background_samples,
                 args.denoise,
-                args.seed_check,
+                max(args.seeds, int(args.seed_check)),
             )
             split = ", ".join(f"{k} {v:.2f}" for k, v in row["parts"].items())
             seeded = (
                 f"; Cycles with seed {OTHER_SEED}: {row['noise']:.2f}" if row["noise"] is not None else ""
             )
+            if row["floor"] is not None:
+                seeded += (
+                    f"; the mean of {row['seeds']} seeds: {row['floor']:.2f}, ours against it "
+                    f"{row['converged']:.2f}"
+                )
             print(
                 f"{name}: mean ΔE2000 {row['mean']:.2f}, p95 {row['p95']:.2f} ({split}){seeded}", flush=True
             )
