@@ -198,13 +198,54 @@ def field_key(obj_name: str, mesh, key: str) -> tuple:
     return obj_name, len(mesh.vertices), len(mesh.loops), _geometry_epoch.get(obj_name, 0), key
 
 
-def _texspace(obj):
-    """(location, size) of the object's texture space where its mesh's Generated coordinates are
-    its positions in it (no modifiers), else None."""
+#: Modifiers after which a mesh's Generated coordinates are still its evaluated positions in the
+#: original mesh's texture space. Measured in Blender 5.2 (Cycles renders of Generated against
+#: Object coordinates mapped by that texture space, 2026-12-07): equal to 1e-4 for each of
+#: these, Geometry Nodes' Set Position included; 0.08–0.15 apart (the median of a rotated cube)
+#: for Displace, Simple Deform, Smooth and a shape key, whose Generated coordinates stay where
+#: the vertices were before the deformation.
+GENERATED_IS_POSITION = frozenset(
+    {
+        "ARRAY",
+        "BEVEL",
+        "DECIMATE",
+        "EDGE_SPLIT",
+        "MIRROR",
+        "MULTIRES",
+        "NODES",
+        "REMESH",
+        "SOLIDIFY",
+        "SUBSURF",
+        "TRIANGULATE",
+        "WEIGHTED_NORMAL",
+        "WELD",
+        "WIREFRAME",
+    }
+)
+
+
+def _original_texspace(obj):
+    """(location, size) of a mesh object's original mesh's texture space, else None: the space
+    Blender's renders read Generated coordinates in, whatever the modifiers (not the evaluated
+    mesh's own bounds, smaller than the cage under a Subdivision Surface)."""
     original = obj.original if hasattr(obj, "original") else obj
-    if original.modifiers or original.type != "MESH":
+    if original.type != "MESH":
         return None
     return tuple(original.data.texspace_location), tuple(original.data.texspace_size)
+
+
+def _texspace(obj):
+    """(location, size) of the texture space in which a mesh object's Generated coordinates are
+    its evaluated mesh's positions (:func:`_original_texspace`), or None where they are not: a
+    deforming modifier (one outside :data:`GENERATED_IS_POSITION`) or shape keys, or an object
+    that is not a mesh."""
+    original = obj.original if hasattr(obj, "original") else obj
+    if original.type != "MESH" or original.data.shape_keys is not None:
+        return None
+    used = [m for m in original.modifiers if m.show_viewport or m.show_render]
+    if any(m.type not in GENERATED_IS_POSITION for m in used):
+        return None
+    return _original_texspace(obj)
 
 
 def _direct(mesh, socket, texspace=None) -> Field:
@@ -307,6 +348,10 @@ def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray 
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True, depsgraph=depsgraph)
+    texspace = _original_texspace(obj)
+    if texspace is not None:  # Generated as the render reads them, not in the copy's own bounds
+        mesh.use_auto_texspace = False
+        mesh.texspace_location, mesh.texspace_size = texspace
     scene = bpy.data.scenes.new(_BAKE_PREFIX)
     temp = bpy.data.objects.new(_BAKE_PREFIX, mesh)
     try:

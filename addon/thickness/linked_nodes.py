@@ -98,9 +98,9 @@ def corner_uv(mesh, layer) -> np.ndarray:
 
 class _Context:
     """What the direct evaluator reads from the mesh: corner count, UV maps, positions, notes on
-    resolution. ``texspace``: the mesh's texture space (location, size), which Generated
-    coordinates are relative to, or None where they are not its positions (a modified mesh's
-    Generated coordinates are its original's)."""
+    resolution. ``texspace``: the texture space (location, size) in which the mesh's positions
+    are its Generated coordinates (the original mesh's: linked._texspace), or None where they
+    are not (a deforming modifier, shape keys, an object that is not a mesh)."""
 
     def __init__(self, mesh, texspace=None):
         self.mesh = mesh
@@ -118,7 +118,7 @@ class _Context:
     def generated(self) -> np.ndarray:
         """The corners' Generated coordinates: positions in the texture space, 0–1 across it."""
         if self.texspace is None:
-            raise Unsupported("Generated coordinates of a modified mesh")
+            raise Unsupported("Generated coordinates of a deformed mesh")
         location, size = (np.asarray(v, dtype=np.float64) for v in self.texspace)
         return (self.positions() - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
 

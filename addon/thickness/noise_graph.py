@@ -7,7 +7,8 @@ no resolution limit. :func:`recognise` reads such a link: a Noise Texture the di
 mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, distorted or not, identity mapping;
 its inputs unlinked), at Texture Coordinate's Object or Generated coordinates, through Mapping
 nodes (Point, Texture, Vector; folded into a matrix) or not (Generated, the
-default, from the texture space of an unmodified mesh), optionally through a Color Ramp (its
+default, in the original mesh's texture space, unless a modifier or shape key deforms the
+mesh: ``linked._texspace``), optionally through a Color Ramp (its
 Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
 through any chain of linear Map Ranges and affine Math nodes (Add, Subtract, Multiply, Divide by
 a constant, Multiply Add; clamped or not) with unlinked other inputs, folded into one gain, bias
@@ -161,7 +162,7 @@ def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray] | None:
             return np.eye(3), np.zeros(3)
         if output.identifier != "Generated":
             return None
-    if texspace is None:  # Generated coordinates of a modified mesh: its original's
+    if texspace is None:  # Generated coordinates that are not the positions (linked._texspace)
         return None
     location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
     scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
