@@ -21,7 +21,7 @@ from ...precompute.colour import rgb_spaces
 from ...precompute.materials import ramp
 from ...precompute.materials.perlin import noise_texture
 from ..colour_space import working_space
-from ..gpu.mesh import corner_positions
+from ..gpu.mesh import corner_positions, corner_vertices
 
 __all__ = [
     "DIRECT_NODES",
@@ -100,13 +100,16 @@ class _Context:
     """What the direct evaluator reads from the mesh: corner count, UV maps, positions, notes on
     resolution. ``texspace``: the texture space (location, size) in which the mesh's positions
     are its Generated coordinates (the original mesh's: linked._texspace), or None where they
-    are not (a deforming modifier, shape keys, an object that is not a mesh)."""
+    are not (a deforming modifier, shape keys, an object that is not a mesh); ``orco``: (V, 3)
+    the vertices' positions before a deformation, which Generated coordinates are then
+    (linked._generated_space)."""
 
-    def __init__(self, mesh, texspace=None):
+    def __init__(self, mesh, texspace=None, orco=None):
         self.mesh = mesh
         self.n = len(mesh.loops)
         self.notes: list[str] = []
         self.texspace = texspace
+        self.orco = orco
 
     def uv(self, name: str) -> np.ndarray:
         return corner_uv(self.mesh, uv_layer(self.mesh, name))
@@ -116,11 +119,13 @@ class _Context:
         return corner_positions(self.mesh).astype(np.float64)
 
     def generated(self) -> np.ndarray:
-        """The corners' Generated coordinates: positions in the texture space, 0–1 across it."""
+        """The corners' Generated coordinates: positions in the texture space, 0–1 across it (the
+        vertices' positions before the deformation where ``orco`` gives them)."""
         if self.texspace is None:
             raise Unsupported("Generated coordinates of a deformed mesh")
         location, size = (np.asarray(v, dtype=np.float64) for v in self.texspace)
-        return (self.positions() - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
+        points = self.positions() if self.orco is None else self.orco[corner_vertices(self.mesh)]
+        return (points - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
 
 
 def texel_centres(height: int, width: int) -> np.ndarray:
@@ -470,11 +475,11 @@ _HANDLERS = {
 }
 
 
-def link_values(mesh, socket, texspace=None) -> tuple[np.ndarray, list[str], int]:
+def link_values(mesh, socket, texspace=None, orco=None) -> tuple[np.ndarray, list[str], int]:
     """(the value linked into ``socket`` per face corner of ``mesh``, what it was sampled from,
-    the corner count); ``texspace``: :class:`_Context`'s. Raises :class:`Unsupported` for a node
-    it does not mirror."""
-    ctx = _Context(mesh, texspace)
+    the corner count); ``texspace``, ``orco``: :class:`_Context`'s. Raises :class:`Unsupported`
+    for a node it does not mirror."""
+    ctx = _Context(mesh, texspace, orco)
     link = socket.links[0]
     value = converted(_output(link.from_node, link.from_socket, ctx), link.from_socket, socket)
     return _as_float(value), ctx.notes, ctx.n

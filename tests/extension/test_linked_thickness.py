@@ -538,13 +538,14 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     np.testing.assert_allclose(folded, direct.values, atol=1e-3)  # nm: float32 coordinates
 
 
-def _modified(obj, deform: bool):
-    """Give ``obj`` a Subdivision Surface (its mesh shrinks inside its cage) and an Array, and
-    with ``deform`` a Displace along x after them."""
-    subdivide = obj.modifiers.new("subdivide", "SUBSURF")
-    subdivide.levels = subdivide.render_levels = 2
-    obj.modifiers.new("array", "ARRAY").relative_offset_displace = (1.2, 0.0, 0.0)
-    if deform:
+def _modified(obj, kind: str):
+    """Give ``obj`` modifiers of ``kind``: *build*, a Subdivision Surface (its mesh shrinks inside
+    its cage) and an Array; *deform*, a Displace along x; *build_then_deform*, all three."""
+    if kind.startswith("build"):
+        subdivide = obj.modifiers.new("subdivide", "SUBSURF")
+        subdivide.levels = subdivide.render_levels = 2
+        obj.modifiers.new("array", "ARRAY").relative_offset_displace = (1.2, 0.0, 0.0)
+    if kind.endswith("deform"):
         displace = obj.modifiers.new("displace", "DISPLACE")
         displace.direction, displace.strength, displace.mid_level = "X", 0.3, 0.0
     return obj
@@ -552,13 +553,20 @@ def _modified(obj, deform: bool):
 
 def _render_coordinates(bpy, obj, output: str, texspace=None, size: int = 48) -> np.ndarray:
     """Cycles' render (RGBA, one sample, no pixel filter, orthographic from above) of ``obj``
-    emitting its Texture Coordinate ``output``, mapped by the shader into ``texspace``
-    ((location, size): 0–1 across it; an Emission clamps negative values) if given."""
+    emitting its Texture Coordinate ``output`` (or its vector attribute of that name), mapped
+    by the shader into ``texspace`` ((location, size): 0–1 across it; an Emission clamps
+    negative values) if given."""
     mat = bpy.data.materials.get("Coordinates") or bpy.data.materials.new("Coordinates")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
     emission = nodes.new("ShaderNodeEmission")
-    value = nodes.new("ShaderNodeTexCoord").outputs[output]
+    coordinates = nodes.new("ShaderNodeTexCoord")
+    if output in coordinates.outputs:
+        value = coordinates.outputs[output]
+    else:  # a vector attribute of the mesh
+        attribute = nodes.new("ShaderNodeAttribute")
+        attribute.attribute_name = output
+        value = attribute.outputs["Vector"]
     if texspace is not None:
         location, extent = (np.asarray(v) for v in texspace)
         for operation, constant in (("SUBTRACT", location - extent), ("DIVIDE", 2.0 * extent)):
@@ -592,42 +600,58 @@ def _render_coordinates(bpy, obj, output: str, texspace=None, size: int = 48) ->
     return pixels.reshape(size, size, 4)
 
 
-@pytest.mark.parametrize("deform", [False, True])
-def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(bpy, tf, deform):
+@pytest.mark.parametrize("kind", ["build", "deform", "build_then_deform"])
+def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(bpy, tf, kind):
     """What Cycles renders as Generated on a subdivided, arrayed cube is its evaluated (Object)
     position in the original mesh's texture space, which ``linked._texspace`` gives the per-pixel
     noise; the evaluated mesh's own bounds, what the corner bake's copy used, are 0.1 off. After
-    a Displace, Generated stays where the vertices were before it, and ``_texspace`` says None
-    (the link is baked)."""
+    a Displace, Generated stays where the vertices were before it: ``_texspace`` says None, and
+    ``_generated_space`` gives those positions where only Deform modifiers ran (rendered here
+    through an attribute that follows the vertices), nothing where one ran after a Subdivision
+    Surface."""
     bpy.ops.mesh.primitive_cube_add(size=2.0, rotation=(0.5, 0.3, 0.2))
-    obj = _modified(bpy.context.active_object, deform)
-    generated = _render_coordinates(bpy, obj, "Generated")
+    obj = _modified(bpy.context.active_object, kind)
     texspace = tf.linked._original_texspace(obj)
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    space, orco = tf.linked._generated_space(obj, evaluated)
+    corners = np.array([v.co for v in evaluated.vertices])  # (the renders free the evaluated mesh)
+    if kind == "deform":  # the orco the corners and the bake read, carried to the render
+        obj.data.attributes.new("orco", "FLOAT_VECTOR", "POINT").data.foreach_set(
+            "vector", orco.astype(np.float32).ravel()
+        )
+    generated = _render_coordinates(bpy, obj, "Generated")
     mapped = _render_coordinates(bpy, obj, "Object", texspace)
     inside = (generated[..., 3] > 0.999) & (mapped[..., 3] > 0.999)
     generated, mapped = generated[..., :3][inside], mapped[..., :3][inside]
     error = np.abs(generated - mapped).max(axis=1)
     assert inside.sum() > 400, inside.sum()
-    if deform:
+    if kind != "build":
         assert tf.linked._texspace(obj) is None
         assert np.median(error) > 0.1, np.median(error)  # measured 0.15: the Displace's 0.3 / 2
+        if kind == "build_then_deform":
+            assert space is None and orco is None
+            return
+        assert space == texspace
+        before = _render_coordinates(bpy, obj, "orco", texspace)[..., :3][inside]
+        assert np.abs(generated - before).max() < 1e-3, np.abs(generated - before).max()
         return
-    assert tf.linked._texspace(obj) == texspace
+    assert tf.linked._texspace(obj) == texspace and space == texspace and orco is None
     assert error.max() < 1e-3, error.max()  # measured 7.9e-6
     location, extent = (np.asarray(v) for v in texspace)
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
-    corners = np.array([v.co for v in evaluated.vertices])
     low, high = corners.min(axis=0), corners.max(axis=0)
     own = (mapped * 2.0 * extent + location - extent - low) / (high - low)
     assert np.median(np.abs(generated - own).max(axis=1)) > 0.05  # measured 0.38: the Array
 
 
-def test_a_noise_on_a_subdivided_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, tf):
+@pytest.mark.parametrize("kind", ["subdivided", "displaced", "shape_key"])
+def test_a_noise_on_a_modified_mesh_is_evaluated_as_cycles_bakes_it(bpy, tf, kind):
     """A Noise Texture at Generated coordinates (the node's default) on a sphere under a
     Subdivision Surface is recognised for the per-pixel noise and evaluated at the corners with no
-    bake, in the original's texture space; Cycles' bake of the same link agrees within its own
-    spread (before, the link was baked, in the subdivided mesh's own smaller bounds)."""
-    mat, node = _principled(bpy, "SubdividedNoise")
+    bake, in the original's texture space (before, it was baked, in the subdivided mesh's own
+    smaller bounds). Under a Displace or a shape key it is evaluated at the corners from where
+    the vertices were before them, and Cycles' bake of the link reads them there too (an
+    attribute of the bake's copy). Either way Cycles' bake agrees within its own spread."""
+    mat, node = _principled(bpy, "ModifiedNoise")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     noise = nodes.new("ShaderNodeTexNoise")
     noise.inputs["Scale"].default_value = 3.7
@@ -637,17 +661,28 @@ def test_a_noise_on_a_subdivided_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy,
     socket = node.inputs["Thin Film Thickness"]
     links.new(ranged.outputs["Result"], socket)
     obj = _sphere(bpy, mat)
-    obj.modifiers.new("subdivide", "SUBSURF").levels = 1
+    if kind == "subdivided":
+        obj.modifiers.new("subdivide", "SUBSURF").levels = 1
+    elif kind == "displaced":
+        _modified(obj, "deform")
+    else:
+        obj.shape_key_add(name="Basis")
+        key = obj.shape_key_add(name="Lean")
+        key.data.foreach_set("co", (np.array([v.co for v in obj.data.vertices]) * (1.2, 0.8, 1.0)).ravel())
+        key.value = 1.0
     mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
     direct = tf.linked.evaluate(obj, mesh, mat, socket)
     assert not direct.baked and "Noise Texture" in direct.how, direct.how
-    assert tf.linked.noise_graph_of(obj, socket) is not None  # drawn per pixel
+    per_pixel = tf.linked.noise_graph_of(obj, socket) is not None
+    assert per_pixel == (kind == "subdivided")
     baked = tf.linked._bake(obj, mat, socket)
     vertex = np.array([loop.vertex_index for loop in mesh.loops])
     spread = max(np.ptp(baked.values[vertex == v]) for v in np.unique(vertex))
     error = np.abs(direct.values - baked.values)
-    # Measured: max 0.20 nm (median 0.036) of 800 where Cycles' own corners at one vertex differ by
-    # 0.34; with the bake's copy in its own bounds, as before, 38.9 nm (median 4.8).
+    # Measured: max 0.20, 0.16, 0.15 nm (median 0.034–0.036) of 800 where Cycles' own corners at
+    # one vertex differ by 0.29–0.34. With the bake's copy in its own bounds, as before, the
+    # subdivided sphere's bake was 38.9 nm away (median 4.8); without the copy's attribute the
+    # displaced and shape-keyed ones' were 259 and 190 nm away.
     assert error.max() <= max(spread, 1e-3 * 800.0), (error.max(), spread)
     assert np.ptp(direct.values) > 200.0
 
