@@ -3,7 +3,8 @@
  * numpy counterpart: none (geometry); the normal matrix is inverse-transpose(model) 3x3,
  * computed in Python (addon/gpu/draw.py object_uniforms). Vertex inputs: pos, nor (object space)
  * and, with TF_VARY_THICKNESS, thickness in [0, 1]; with TF_THICKNESS_MAP, uv (the thickness
- * map's); TF_THICKNESS_NOISE passes the object-space position on. Uniform buffers: tf_view, tf_object (layouts: addon/gpu/resources.py VIEW, OBJECT).
+ * map's); TF_THICKNESS_NOISE passes the object-space position on (TF_NOISE_ORCO: orco, the
+ * vertex's before a deformation). Uniform buffers: tf_view, tf_object (layouts: addon/gpu/resources.py VIEW, OBJECT).
  */
 
 void main()
@@ -20,7 +21,9 @@ void main()
 #ifdef TF_THICKNESS_MAP
   tf_uv = uv;
 #endif
-#ifdef TF_THICKNESS_NOISE
+#if defined(TF_NOISE_ORCO)
+  tf_object_pos = orco; /* Generated after a deformation: where the vertex was before it */
+#elif defined(TF_THICKNESS_NOISE)
   tf_object_pos = pos;
 #endif
   gl_Position = view_proj * world;

@@ -143,8 +143,9 @@ def slot_batch(
         thickness = np.nan_to_num(
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
+    orco = linked.orco_corners(obj_eval, mesh) if getattr(noise, "orco", False) else None
     batch = MeshBatch.from_arrays(
-        positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map
+        positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map, orco=orco
     )
     if batch is not None and noise is not None:  # per pixel (TF_THICKNESS_NOISE)
         batch.noise = noise

@@ -47,6 +47,15 @@ class ImageTexture:
         return texture
 
 
+def _per_vertex(name: str, values, count: int, width: int) -> np.ndarray:
+    """``values`` as a contiguous float32 (count, width) array of one row per vertex; ValueError
+    naming the attribute where there are not ``count`` rows."""
+    array = np.ascontiguousarray(np.asarray(values, dtype=np.float32).reshape(-1, width))
+    if array.shape[0] != count:
+        raise ValueError(f"{name} {array.shape} must have one value per vertex ({count})")
+    return array
+
+
 @dataclass
 class MeshBatch:
     """A triangle batch with attributes ``pos``, ``nor`` and optionally ``thickness`` (in [0, 1])
@@ -74,13 +83,15 @@ class MeshBatch:
 
     @classmethod
     def from_arrays(
-        cls, positions, normals, indices, thickness=None, wall: bool = False, thickness_map=None
+        cls, positions, normals, indices, thickness=None, wall: bool = False, thickness_map=None, orco=None
     ) -> MeshBatch | None:
         """Build from (V, 3) positions and normals, (F, 3) triangle indices, optional (V,) thickness;
         ``wall``: a thin transparent wall's, with its :attr:`inside` (a pass over its edges);
         ``thickness_map`` (with ``thickness``): (uv (V, 2), map (H, W) of parameters in [0, 1],
         repeat), uploaded as :attr:`thickness_map` (:func:`thickness_map_texture`), or (uv,
-        :class:`ImageTexture`, repeat), read from Blender's texture at each draw.
+        :class:`ImageTexture`, repeat), read from Blender's texture at each draw. ``orco``: (V, 3)
+        where the vertices were before a deformation, the attribute a Noise Texture at Generated
+        coordinates reads (``TF_NOISE_ORCO``).
 
         Everything is converted to float32 / int32. Returns None for an empty mesh.
         """
@@ -93,29 +104,21 @@ class MeshBatch:
             raise ValueError(f"normals {nor.shape} must match positions {pos.shape}")
         if idx.min() < 0 or idx.max() >= pos.shape[0]:
             raise ValueError("triangle indices out of range")
-        fmt = gpu.types.GPUVertFormat()
-        fmt.attr_add(id="pos", comp_type="F32", len=3, fetch_mode="FLOAT")
-        fmt.attr_add(id="nor", comp_type="F32", len=3, fetch_mode="FLOAT")
-        th = None
-        if thickness is not None:
-            th = np.ascontiguousarray(np.asarray(thickness, dtype=np.float32).reshape(-1))
-            if th.shape[0] != pos.shape[0]:
-                raise ValueError(f"thickness {th.shape} must have one value per vertex ({pos.shape[0]})")
-            fmt.attr_add(id="thickness", comp_type="F32", len=1, fetch_mode="FLOAT")
+        th = None if thickness is None else _per_vertex("thickness", thickness, pos.shape[0], 1)
         uv = None
         if thickness_map is not None and th is not None:
-            uv = np.ascontiguousarray(np.asarray(thickness_map[0], dtype=np.float32).reshape(-1, 2))
-            if uv.shape[0] != pos.shape[0]:
-                raise ValueError(f"uv {uv.shape} must have one value per vertex ({pos.shape[0]})")
-            fmt.attr_add(id="uv", comp_type="F32", len=2, fetch_mode="FLOAT")
+            uv = _per_vertex("uv", thickness_map[0], pos.shape[0], 2)
+        orco = None if orco is None else _per_vertex("orco", orco, pos.shape[0], 3)
+        attributes = {"pos": pos, "nor": nor, "thickness": th, "uv": uv, "orco": orco}
+        attributes = {name: values for name, values in attributes.items() if values is not None}
+        fmt = gpu.types.GPUVertFormat()
+        for name, values in attributes.items():
+            fmt.attr_add(id=name, comp_type="F32", len=values.shape[1], fetch_mode="FLOAT")
         ensure_gpu_context()
         vbo = gpu.types.GPUVertBuf(fmt, pos.shape[0])
-        vbo.attr_fill("pos", pos)
-        vbo.attr_fill("nor", nor)
-        if th is not None:
-            vbo.attr_fill("thickness", th)
-        if uv is not None:
-            vbo.attr_fill("uv", uv)
+        for name, values in attributes.items():
+            vbo.attr_fill(name, values[:, 0] if values.shape[1] == 1 else values)
+        th = None if th is None else th[:, 0]
         ibo = gpu.types.GPUIndexBuf(type="TRIS", seq=idx)
         batch = gpu.types.GPUBatch(type="TRIS", buf=vbo, elem=ibo)
         inside = mesh_inside(pos, idx, th) if wall else None

@@ -172,12 +172,10 @@ def declare_mesh_inputs(info, iface_name: str):
     return iface
 
 
-def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
-    """(create-info, stage interface) of a variant's mesh shader; the interface must outlive the
-    create-info until it is compiled."""
-    info = gpu.types.GPUShaderCreateInfo()
-    declare_shading_resources(info, variant)
-    iface = declare_mesh_inputs(info, "tf_mesh_iface")
+def _declare_thickness_inputs(info, iface, variant: Variant) -> None:
+    """A varying thickness's vertex inputs, what they pass to the fragment stage, and its
+    samplers: over the corners, a map at UVs, a noise per pixel (at positions, or before a
+    deformation: ``orco``), a noise's Color Ramp."""
     if variant.vary_thickness:
         info.vertex_in(2, "FLOAT", "thickness")
         iface.smooth("FLOAT", "tf_thickness")
@@ -187,8 +185,19 @@ def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
         _declare(info, layout.THICKNESS_MAP_SAMPLER)
     if variant.thickness_noise:
         iface.smooth("VEC3", "tf_object_pos")
+    if variant.noise_orco:
+        info.vertex_in(4, "VEC3", "orco")
     if variant.thickness_noise == NOISE_RAMP:
         _declare(info, layout.THICKNESS_RAMP_SAMPLER)
+
+
+def mesh_shader_info(variant: Variant, reference_rotation: Path | None = None):
+    """(create-info, stage interface) of a variant's mesh shader; the interface must outlive the
+    create-info until it is compiled."""
+    info = gpu.types.GPUShaderCreateInfo()
+    declare_shading_resources(info, variant)
+    iface = declare_mesh_inputs(info, "tf_mesh_iface")
+    _declare_thickness_inputs(info, iface, variant)
     info.vertex_out(iface)
     info.fragment_out(0, "VEC4", "tf_frag_color")
     info.vertex_source(join_chunks(chunk_order(["tf_main_vert.glsl"])))

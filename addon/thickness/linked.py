@@ -37,6 +37,7 @@ import bpy
 import numpy as np
 
 from .. import caches, workers
+from ..gpu.mesh import corner_vertices
 from . import linked_nodes, maps, noise_graph, thickness_nodes
 from .thickness import corner_order, image_stamp
 
@@ -57,6 +58,7 @@ __all__ = [
     "mark_geometry",
     "material_range",
     "noise_graph_of",
+    "orco_corners",
     "pending_count",
     "run_pending",
     "tree_key",
@@ -291,6 +293,22 @@ def _texspace(obj):
     return _original_texspace(obj)
 
 
+def _deformed_only(obj) -> bool:
+    """Whether only Deform modifiers (:data:`DEFORMS`) and shape keys move ``obj``'s mesh, which
+    keeps its original's vertices one for one."""
+    original = obj.original if hasattr(obj, "original") else obj
+    if original.type != "MESH":
+        return False
+    return all(m.type in DEFORMS for m in original.modifiers if m.show_viewport or m.show_render)
+
+
+def orco_corners(obj, mesh) -> np.ndarray | None:
+    """(N, 3) float32 where ``mesh``'s (``obj``'s evaluated mesh's) corners were before Deform
+    modifiers and shape keys moved them (:func:`_generated_space`), or None."""
+    orco = _generated_space(obj, mesh)[1]
+    return None if orco is None else orco[corner_vertices(mesh)].astype(np.float32)
+
+
 def _generated_space(obj, mesh) -> tuple:
     """(texture space, orco) in which ``mesh`` (``obj``'s evaluated mesh) has its Generated
     coordinates (:class:`.linked_nodes._Context`): (:func:`_texspace`, None) where they are its
@@ -301,9 +319,7 @@ def _generated_space(obj, mesh) -> tuple:
     if texspace is not None:
         return texspace, None
     original = obj.original if hasattr(obj, "original") else obj
-    if original.type != "MESH" or len(original.data.vertices) != len(mesh.vertices):
-        return None, None
-    if any(m.type not in DEFORMS for m in original.modifiers if m.show_viewport or m.show_render):
+    if not _deformed_only(obj) or len(original.data.vertices) != len(mesh.vertices):
         return None, None
     orco = np.empty(3 * len(mesh.vertices), dtype=np.float32)
     original.data.vertices.foreach_get("co", orco)  # the basis shape: what Generated reads
@@ -641,8 +657,13 @@ def linked_map(obj, mesh, bpy_material, socket, key: str | None = None):
 
 
 def noise_graph_of(obj, socket):
-    """The link as a Noise Texture the shader computes per pixel (:mod:`.noise_graph`), or None."""
-    return noise_graph.recognise(socket, _texspace(obj))
+    """The link as a Noise Texture the shader computes per pixel (:mod:`.noise_graph`), or None;
+    at Generated coordinates after Deform modifiers or shape keys, from where the vertices were
+    before them (the spec's ``orco``: the batch carries those positions)."""
+    texspace = _texspace(obj)
+    if texspace is not None:
+        return noise_graph.recognise(socket, texspace)
+    return noise_graph.recognise(socket, _original_texspace(obj) if _deformed_only(obj) else None, True)
 
 
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):

@@ -141,9 +141,10 @@ def _mapping(node) -> tuple[np.ndarray, np.ndarray] | None:
     return mapping_affine(node.vector_type, *(values.get(n, zero) for n in ("Location", "Rotation", "Scale")))
 
 
-def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray] | None:
-    """(M (3, 3), t (3,)): the coordinates reaching the Noise Texture's ``vector`` input as
-    M · p + t of the object-space position p, through Mappings, or None."""
+def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """(M (3, 3), t (3,), whether they are Generated): the coordinates reaching the Noise
+    Texture's ``vector`` input as M · p + t of the object-space position p, through Mappings, or
+    None."""
     found = _source(vector)
     if found is not None and found[0].bl_idname == "ShaderNodeMapping":
         inner_vector = found[0].inputs["Vector"]  # unlinked: a constant, not Generated
@@ -151,7 +152,7 @@ def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray] | None:
         outer = _mapping(found[0])
         if outer is None or inner is None:
             return None
-        return outer[0] @ inner[0], outer[0] @ inner[1] + outer[1]
+        return outer[0] @ inner[0], outer[0] @ inner[1] + outer[1], inner[2]
     if vector.is_linked:
         if found is None or found[0].bl_idname != "ShaderNodeTexCoord":
             return None
@@ -159,20 +160,21 @@ def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray] | None:
         if coords.object is not None or coords.from_instancer:
             return None
         if output.identifier == "Object":
-            return np.eye(3), np.zeros(3)
+            return np.eye(3), np.zeros(3), False
         if output.identifier != "Generated":
             return None
-    if texspace is None:  # Generated coordinates that are not the positions (linked._texspace)
+    if texspace is None:  # Generated coordinates of no mesh's (linked._generated_space)
         return None
     location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
     scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
-    return np.diag(scale), -(location - size) * scale
+    return np.diag(scale), -(location - size) * scale, True
 
 
-def recognise(socket, texspace) -> NoiseGraph | None:
+def recognise(socket, texspace, orco: bool = False) -> NoiseGraph | None:
     """The link into ``socket`` as a :class:`NoiseGraph`, or None where the shader cannot compute
-    it per pixel. ``texspace``: (location, size) of the mesh's texture space where its Generated
-    coordinates are its positions in it (``linked._texspace``), else None."""
+    it per pixel. ``texspace``: (location, size) of the texture space of the mesh's Generated
+    coordinates (``linked._generated_space``), or None; ``orco``: they are where the vertices
+    were before a deformation, not the positions (the spec's ``orco``)."""
     found = _source(socket)
     affine = (1.0, 0.0, -math.inf, math.inf)
     while found is not None and found[0].bl_idname in ("ShaderNodeMapRange", "ShaderNodeMath"):
@@ -224,5 +226,6 @@ def recognise(socket, texspace) -> NoiseGraph | None:
         interpolate,
         distortion,
         tuple(float(v) for v in coordinates[0].ravel()),
+        orco and coordinates[2],
     )
     return NoiseGraph(spec, a, b, low, high)

@@ -268,6 +268,9 @@ class NoiseSpec:
     is *Fac*, or a Color Ramp's value at *Fac* where ``ramp`` holds its table
     (:func:`.ramp.lookup`: the luminance of its Color, or its Alpha, at
     :func:`.ramp.table_positions`; ``ramp_interpolate`` False for a *Constant* ramp).
+    ``orco``: p is where the vertices were before a deformation (Generated coordinates after
+    Deform modifiers or shape keys: the batch's ``orco`` attribute, ``TF_NOISE_ORCO``), not
+    their positions.
     """
 
     dimensions: int = 4
@@ -286,6 +289,7 @@ class NoiseSpec:
     ramp_interpolate: bool = True
     distortion: float = 0.0
     space_matrix: tuple = ()
+    orco: bool = False
 
     def space(self) -> np.ndarray:
         """The coordinates' linear part (3, 3): ``space_matrix`` (9 floats, row-major: a Mapping

@@ -28,6 +28,8 @@ TRANSMIT_PASSES = (TRANSMIT_MULTIPLY, TRANSMIT_ADD)
 #: ``Variant.thickness_noise``: the *Noise* source's value noise, Blender's Noise Texture, and a
 #: Noise Texture read through a Color Ramp's table (``TF_THICKNESS_RAMP``).
 NOISE_VALUE, NOISE_BLENDER, NOISE_RAMP = 1, 2, 3
+#: The noises that are a Noise Texture (tf_perlin.glsl), which may read ``orco``.
+_TEXTURES = (NOISE_BLENDER, NOISE_RAMP)
 
 
 def _distortion_offsets() -> list[tuple[str, str]]:
@@ -91,6 +93,10 @@ class Variant(NamedTuple):
     #: materials.ramp.lookup of the ramp's table, a texture); 0 none (True and False read as 1
     #: and 0).
     thickness_noise: int = 0
+    #: With a Noise Texture per pixel: it reads where the vertices were before a deformation
+    #: (Generated coordinates after Deform modifiers or shape keys: the batch's ``orco``
+    #: attribute, ``TF_NOISE_ORCO``), not their positions.
+    noise_orco: bool = False
 
     @property
     def film(self) -> bool:
@@ -127,6 +133,7 @@ class Variant(NamedTuple):
             bool(self.refract and int(self.transmit) in TRANSMIT_PASSES),
             bool(self.vary_thickness and self.thickness_map),
             int(self.thickness_noise) if self.vary_thickness else 0,
+            bool(self.noise_orco and self.vary_thickness and int(self.thickness_noise) in _TEXTURES),
         )
 
     def _thickness_switches(self) -> list[tuple[str, str]]:
@@ -143,6 +150,8 @@ class Variant(NamedTuple):
             out += _distortion_offsets()
         if int(self.thickness_noise) == NOISE_RAMP:
             out.append(("TF_THICKNESS_RAMP", "1"))
+        if self.noise_orco and int(self.thickness_noise) in _TEXTURES:
+            out.append(("TF_NOISE_ORCO", "1"))
         return out
 
     def _display_switches(self) -> list[tuple[str, str]]:
@@ -209,6 +218,7 @@ def choose_variant(
     refract: bool = False,
     thickness_map: bool = False,
     thickness_noise: int = 0,
+    noise_orco: bool = False,
 ) -> Variant:
     """The variant that draws one item, from its facts.
 
@@ -232,7 +242,8 @@ def choose_variant(
       its passes march the exit ray over it (shading/glass/refract.py).
     - ``thickness_map``: the batch carries a thickness map and UVs (with a varying thickness);
       ``thickness_noise``: its thickness is a noise source computed per pixel (:data:`NOISE_VALUE`,
-      :data:`NOISE_BLENDER`, :data:`NOISE_RAMP`; 0 none).
+      :data:`NOISE_BLENDER`, :data:`NOISE_RAMP`; 0 none); ``noise_orco``: a Noise Texture's
+      coordinates are the batch's positions before a deformation.
     """
     split = bool(prefiltered) and float(sh_weight) < 1.0
     lamps = bool(film) and int(lamp_count) > 0
@@ -258,6 +269,7 @@ def choose_variant(
         refract=bool(refract) and bool(film) and int(transmit) in TRANSMIT_PASSES,
         thickness_map=vary and bool(thickness_map),
         thickness_noise=int(thickness_noise) if vary else 0,
+        noise_orco=vary and bool(noise_orco) and int(thickness_noise) in _TEXTURES,
     )
 
 

@@ -842,8 +842,23 @@ RAMPS = {
 MAPPED = tuple((np.array([[0.8, -0.9, 0.3], [0.7, 0.5, -1.1], [0.2, 1.2, 0.6]]) * 1.3).ravel())
 
 
+#: Where the quad's corners were before a deformation (``orco``): an affine map of QUAD_POS,
+#: so the triangles interpolate it exactly, and nowhere near the positions.
+ORCO_MAP = (np.array([[0.6, 0.2, 0.1], [-0.3, 0.9, 0.4], [0.2, -0.5, 1.1]]), np.array([0.35, -0.2, 0.45]))
+
+
 @pytest.mark.parametrize(
-    "kind", ["value", "blender", "linked", *RAMPS, "blender_distorted", "linked_distorted", "linked_mapped"]
+    "kind",
+    [
+        "value",
+        "blender",
+        "linked",
+        *RAMPS,
+        "blender_distorted",
+        "linked_distorted",
+        "linked_mapped",
+        "linked_orco",
+    ],
 )
 def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     """The noise thicknesses per pixel (``TF_THICKNESS_NOISE``): a quad facing the camera filling
@@ -855,7 +870,9 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     *linked_ramp*, *linked_steps*: the same through a Color Ramp's table (:data:`RAMPS`,
     ``TF_THICKNESS_RAMP``, materials.ramp.lookup), interpolated and Constant; *…_distorted*: the
     4-D and the 3-D noise with Distortion 0.8 (``TF_NOISE_DISTORT4``, ``TF_NOISE_DISTORT3``);
-    *linked_mapped*: its coordinates through a full matrix (a Mapping node, :data:`MAPPED`)."""
+    *linked_mapped*: its coordinates through a full matrix (a Mapping node, :data:`MAPPED`);
+    *linked_orco*: read at the batch's ``orco`` attribute, where a deformed mesh's vertices were
+    before it (``TF_NOISE_ORCO``, :data:`ORCO_MAP`), not at the positions."""
     scale, seed, size = 3.7, 5, 32
     if kind == "value":
         spec, noise = (scale, seed), lambda p: value_noise(p, scale, seed)
@@ -869,10 +886,17 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
             table, interpolate = RAMPS[kind]
             spec = dataclasses.replace(spec, gain=1.0, bias=0.0, ramp=table, ramp_interpolate=interpolate)
         noise = spec.parameter
-    _, img, shade = facing_quad(gd, size, size, thickness=noise(QUAD_POS), noise=spec)
+    options = {}
+    if kind == "linked_orco":
+        spec = dataclasses.replace(spec, orco=True)
+        options["orco"] = QUAD_POS @ ORCO_MAP[0].T + ORCO_MAP[1]
+    _, img, shade = facing_quad(gd, size, size, thickness=noise(QUAD_POS), noise=spec, **options)
     centres = (np.arange(size) + 0.5) / size * 2 - 1
     z, x = np.meshgrid(-centres, centres, indexing="ij")  # top row first: z from +1 down
     points = np.stack([x, np.zeros_like(x), z], axis=-1).reshape(-1, 3)
+    if kind == "linked_orco":  # read at orco; at the positions it would be another noise
+        assert np.abs(noise(points @ ORCO_MAP[0].T + ORCO_MAP[1]) - noise(points)).max() > 0.2
+        points = points @ ORCO_MAP[0].T + ORCO_MAP[1]
     t01 = np.clip(noise(points), 0.0, 1.0)
     expected = shade(t01)
     got = img[..., :3].reshape(-1, 3)
@@ -880,7 +904,8 @@ def test_noise_thickness_is_computed_per_pixel(gd, bpy, kind):
     # Measured on llvmpipe: value noise max 3.0e-6, median 3.4e-7; Blender's noise max 3.5e-7,
     # median 6.2e-8; the linked 3-D one max 1.9e-6, median 2.5e-7 (float32 positions and fades;
     # the hashes are exact integer arithmetic); through the ramps max 1.7e-5 and 1.6e-7 (the
-    # smooth ramp multiplies Fac's float32 error by its slope, up to 12). A wrong hash
+    # smooth ramp multiplies Fac's float32 error by its slope, up to 12); at orco 5.6e-6 (the
+    # positions read instead: 0.84). A wrong hash
     # constant, octave, seed or fade shows up as ≥ 1e-2 at most pixels; the ramp read without
     # its table, interpolated where Constant or one entry off, as ≥ 1e-2 at many.
     assert np.max(per_pixel) < 1e-4, np.max(per_pixel)

@@ -41,7 +41,8 @@ def macro_name(name: str) -> str:
 
 
 def every_variant():
-    switches = [f for f in Variant._fields if f not in ("l_max", "transmit", "refract")]  # the on/off ones
+    fixed = ("l_max", "transmit", "refract", "noise_orco")
+    switches = [f for f in Variant._fields if f not in fixed]  # the on/off ones
     for l_max, flags in itertools.product(
         (0, 2, 5, 12), itertools.product((False, True), repeat=len(switches))
     ):
@@ -50,7 +51,8 @@ def every_variant():
         for refract in (False, True):
             yield Variant(5, True, True, False, transmit=transmit, refract=refract).normalised()
     for noise in (NOISE_VALUE, NOISE_BLENDER, NOISE_RAMP):  # the noise sources per pixel (an int switch)
-        yield Variant(5, True, True, False, thickness_noise=noise).normalised()
+        for orco in (False, True):  # a Noise Texture at the positions or before a deformation
+            yield Variant(5, True, True, False, thickness_noise=noise, noise_orco=orco).normalised()
 
 
 def float_literals(text: str) -> list[float]:

@@ -644,13 +644,14 @@ def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(
 
 
 @pytest.mark.parametrize("kind", ["subdivided", "displaced", "shape_key"])
-def test_a_noise_on_a_modified_mesh_is_evaluated_as_cycles_bakes_it(bpy, tf, kind):
+def test_a_noise_on_a_modified_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, tf, kind):
     """A Noise Texture at Generated coordinates (the node's default) on a sphere under a
-    Subdivision Surface is recognised for the per-pixel noise and evaluated at the corners with no
-    bake, in the original's texture space (before, it was baked, in the subdivided mesh's own
-    smaller bounds). Under a Displace or a shape key it is evaluated at the corners from where
-    the vertices were before them, and Cycles' bake of the link reads them there too (an
-    attribute of the bake's copy). Either way Cycles' bake agrees within its own spread."""
+    Subdivision Surface is drawn per pixel and evaluated at the corners with no bake, in the
+    original's texture space (before, it was baked, in the subdivided mesh's own smaller bounds).
+    Under a Displace or a shape key it is drawn per pixel and evaluated at the corners from where
+    the vertices were before them (the batch's ``orco``), and Cycles' bake of the link reads
+    them there too (an attribute of the bake's copy). Either way Cycles' bake agrees within its
+    own spread."""
     mat, node = _principled(bpy, "ModifiedNoise")
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     noise = nodes.new("ShaderNodeTexNoise")
@@ -670,11 +671,21 @@ def test_a_noise_on_a_modified_mesh_is_evaluated_as_cycles_bakes_it(bpy, tf, kin
         key = obj.shape_key_add(name="Lean")
         key.data.foreach_set("co", (np.array([v.co for v in obj.data.vertices]) * (1.2, 0.8, 1.0)).ravel())
         key.value = 1.0
-    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    mesh = obj.evaluated_get(depsgraph).data
     direct = tf.linked.evaluate(obj, mesh, mat, socket)
     assert not direct.baked and "Noise Texture" in direct.how, direct.how
-    per_pixel = tf.linked.noise_graph_of(obj, socket) is not None
-    assert per_pixel == (kind == "subdivided")
+    graph = tf.linked.noise_graph_of(obj, socket)  # drawn per pixel, at orco where deformed
+    assert graph is not None and graph.noise.orco == (kind != "subdivided")
+    with tf.linked.deferring():
+        tf.description.description(mat)
+        tf.scene_draw.collect(depsgraph)
+    entry = tf.scene_draw.batch_entry("Sphere")
+    assert entry.batch.noise is not None and entry.batch.noise.orco == graph.noise.orco
+    corners = tf.linked.orco_corners(obj.evaluated_get(depsgraph), mesh)
+    if corners is None:
+        corners = np.array([v.co for v in mesh.vertices])[[loop.vertex_index for loop in mesh.loops]]
+    np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-5)
     baked = tf.linked._bake(obj, mat, socket)
     vertex = np.array([loop.vertex_index for loop in mesh.loops])
     spread = max(np.ptp(baked.values[vertex == v]) for v in np.unique(vertex))
