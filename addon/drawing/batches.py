@@ -20,7 +20,7 @@ import numpy as np
 from ...precompute.materials.perlin import NoiseSpec
 from ..gpu.mesh import MeshBatch, mesh_arrays
 from ..materials.principled import linked_thickness_socket
-from ..thickness import linked
+from ..thickness import generated, linked
 from ..thickness.corners import image_parameters, noise_parameters
 from ..thickness.thickness import NAN_PARAMETER, non_finite_note, thickness_field, thickness_inputs
 
@@ -143,7 +143,7 @@ def slot_batch(
         thickness = np.nan_to_num(
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
-    orco = linked.orco_corners(obj_eval, mesh) if getattr(noise, "orco", False) else None
+    orco = generated.orco_corners(obj_eval, mesh) if getattr(noise, "orco", False) else None
     batch = MeshBatch.from_arrays(
         positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map, orco=orco
     )

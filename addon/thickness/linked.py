@@ -37,8 +37,7 @@ import bpy
 import numpy as np
 
 from .. import caches, workers
-from ..gpu.mesh import corner_vertices
-from . import linked_nodes, maps, noise_graph, thickness_nodes
+from . import generated, linked_nodes, maps, noise_graph, thickness_nodes
 from .thickness import corner_order, image_stamp
 
 __all__ = [
@@ -58,7 +57,6 @@ __all__ = [
     "mark_geometry",
     "material_range",
     "noise_graph_of",
-    "orco_corners",
     "pending_count",
     "run_pending",
     "tree_key",
@@ -70,9 +68,6 @@ FIELDS = caches.register("linked_thickness", caches.LRU(64), scope=caches.FILE)
 STATS = {"direct": 0, "bakes": 0, "image_bakes": 0}
 #: Material name used for the temporary bake copies (removed after each bake).
 _BAKE_PREFIX = ".thinfilm_sh_bake"
-#: The corner bake copy's attribute of Generated coordinates before a deformation (a plain
-#: name: names that start with a dot are Blender's internal attributes).
-_ORCO_ATTRIBUTE = "thinfilm_sh_orco"
 
 _geometry_epoch: dict[str, int] = {}
 #: Cycles bakes queued inside the draw: (kind, object name) → a call that evaluates the wanted
@@ -203,144 +198,6 @@ def field_key(obj_name: str, mesh, key: str) -> tuple:
     return obj_name, len(mesh.vertices), len(mesh.loops), _geometry_epoch.get(obj_name, 0), key
 
 
-#: Modifiers after which a mesh's Generated coordinates are still its evaluated positions in the
-#: original mesh's texture space. Measured in Blender 5.2 (Cycles renders of Generated against
-#: Object coordinates mapped by that texture space, 2026-12-07): equal to 1e-4 for each of
-#: these, Geometry Nodes' Set Position included; 0.08–0.15 apart (the median of a rotated cube)
-#: for Displace, Simple Deform, Smooth and a shape key, whose Generated coordinates stay where
-#: the vertices were before the deformation.
-GENERATED_IS_POSITION = frozenset(
-    {
-        "ARRAY",
-        "BEVEL",
-        "DECIMATE",
-        "EDGE_SPLIT",
-        "MIRROR",
-        "MULTIRES",
-        "NODES",
-        "REMESH",
-        "SOLIDIFY",
-        "SUBSURF",
-        "TRIANGULATE",
-        "WEIGHTED_NORMAL",
-        "WELD",
-        "WIREFRAME",
-    }
-)
-
-
-def _original_texspace(obj):
-    """(location, size) of a mesh object's original mesh's texture space, else None: the space
-    Blender's renders read Generated coordinates in, whatever the modifiers (not the evaluated
-    mesh's own bounds, smaller than the cage under a Subdivision Surface)."""
-    original = obj.original if hasattr(obj, "original") else obj
-    if original.type != "MESH":
-        return None
-    return tuple(original.data.texspace_location), tuple(original.data.texspace_size)
-
-
-#: Blender's Deform modifiers: they move vertices and keep them, one for one. After them (and
-#: after shape keys) a mesh's Generated coordinates are its original vertices' positions
-#: (measured for Displace, Simple Deform, Smooth, Wave, Lattice, Armature and a shape key: the
-#: renders' Generated equal to them to 1e-6, 0.007–0.43 from the deformed positions).
-DEFORMS = frozenset(
-    {
-        "ARMATURE",
-        "CAST",
-        "CORRECTIVE_SMOOTH",
-        "CURVE",
-        "DISPLACE",
-        "HOOK",
-        "LAPLACIANDEFORM",
-        "LAPLACIANSMOOTH",
-        "LATTICE",
-        "MESH_DEFORM",
-        "SHRINKWRAP",
-        "SIMPLE_DEFORM",
-        "SMOOTH",
-        "SURFACE_DEFORM",
-        "WARP",
-        "WAVE",
-    }
-)
-
-#: Texture nodes whose unlinked Vector input reads Generated coordinates.
-_GENERATED_BY_DEFAULT = frozenset(
-    {
-        "ShaderNodeTexBrick",
-        "ShaderNodeTexChecker",
-        "ShaderNodeTexGabor",
-        "ShaderNodeTexGradient",
-        "ShaderNodeTexMagic",
-        "ShaderNodeTexNoise",
-        "ShaderNodeTexVoronoi",
-        "ShaderNodeTexWave",
-    }
-)
-
-
-def _texspace(obj):
-    """(location, size) of the texture space in which a mesh object's Generated coordinates are
-    its evaluated mesh's positions (:func:`_original_texspace`), or None where they are not: a
-    deforming modifier (one outside :data:`GENERATED_IS_POSITION`) or shape keys, or an object
-    that is not a mesh."""
-    original = obj.original if hasattr(obj, "original") else obj
-    if original.type != "MESH" or original.data.shape_keys is not None:
-        return None
-    used = [m for m in original.modifiers if m.show_viewport or m.show_render]
-    if any(m.type not in GENERATED_IS_POSITION for m in used):
-        return None
-    return _original_texspace(obj)
-
-
-def _deformed_only(obj) -> bool:
-    """Whether only Deform modifiers (:data:`DEFORMS`) and shape keys move ``obj``'s mesh, which
-    keeps its original's vertices one for one."""
-    original = obj.original if hasattr(obj, "original") else obj
-    if original.type != "MESH":
-        return False
-    return all(m.type in DEFORMS for m in original.modifiers if m.show_viewport or m.show_render)
-
-
-def orco_corners(obj, mesh) -> np.ndarray | None:
-    """(N, 3) float32 where ``mesh``'s (``obj``'s evaluated mesh's) corners were before Deform
-    modifiers and shape keys moved them (:func:`_generated_space`), or None."""
-    orco = _generated_space(obj, mesh)[1]
-    return None if orco is None else orco[corner_vertices(mesh)].astype(np.float32)
-
-
-def _generated_space(obj, mesh) -> tuple:
-    """(texture space, orco) in which ``mesh`` (``obj``'s evaluated mesh) has its Generated
-    coordinates (:class:`.linked_nodes._Context`): (:func:`_texspace`, None) where they are its
-    positions; (the original's, its original vertices' positions (V, 3)) where only Deform
-    modifiers (:data:`DEFORMS`) and shape keys moved them, vertex for vertex; (None, None)
-    otherwise (a Deform before a modifier that builds geometry)."""
-    texspace = _texspace(obj)
-    if texspace is not None:
-        return texspace, None
-    original = obj.original if hasattr(obj, "original") else obj
-    if not _deformed_only(obj) or len(original.data.vertices) != len(mesh.vertices):
-        return None, None
-    orco = np.empty(3 * len(mesh.vertices), dtype=np.float32)
-    original.data.vertices.foreach_get("co", orco)  # the basis shape: what Generated reads
-    return _original_texspace(obj), orco.reshape(-1, 3).astype(np.float64)
-
-
-def _generated_from(tree, orco_name: str) -> None:
-    """Make the nodes of ``tree`` that read Generated coordinates (a Texture Coordinate's
-    output, a texture's unlinked Vector) read the corner bake copy's attribute ``orco_name``
-    instead (top level only: a node group is shared with other materials)."""
-    attribute = tree.nodes.new("ShaderNodeAttribute")
-    attribute.attribute_type, attribute.attribute_name = "GEOMETRY", orco_name
-    vector = attribute.outputs["Vector"]
-    for node in list(tree.nodes):
-        if node.bl_idname == "ShaderNodeTexCoord":
-            for link in list(node.outputs["Generated"].links):
-                tree.links.new(vector, link.to_socket)
-        elif node.bl_idname in _GENERATED_BY_DEFAULT and not node.inputs["Vector"].is_linked:
-            tree.links.new(vector, node.inputs["Vector"])
-
-
 def _direct(mesh, socket, texspace=None, orco=None) -> Field:
     """Evaluate the link into ``socket`` with numpy (raises Unsupported for other nodes)."""
     values, notes, corners = linked_nodes.link_values(mesh, socket, texspace, orco)
@@ -441,18 +298,18 @@ def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray 
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True, depsgraph=depsgraph)
-    texspace, orco = _generated_space(obj, mesh)
-    texspace = texspace or _original_texspace(obj)
+    texspace, orco = generated.generated_space(obj, mesh)
+    texspace = texspace or generated.original_texspace(obj)
     if texspace is not None:  # Generated as the render reads them, not in the copy's own bounds
         mesh.use_auto_texspace = False
         mesh.texspace_location, mesh.texspace_size = texspace
     if orco is not None:  # ... and where the vertices were before a deformation
         location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
         mapped = (orco - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
-        mesh.attributes.new(_ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT").data.foreach_set(
+        mesh.attributes.new(generated.ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT").data.foreach_set(
             "vector", mapped.astype(np.float32).ravel()
         )
-        _generated_from(material.node_tree, _ORCO_ATTRIBUTE)
+        generated.read_orco_attribute(material.node_tree, generated.ORCO_ATTRIBUTE)
     scene = bpy.data.scenes.new(_BAKE_PREFIX)
     temp = bpy.data.objects.new(_BAKE_PREFIX, mesh)
     try:
@@ -573,7 +430,7 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
         PENDING.defer(("linked", name), lambda: _run_linked(name, bpy_material, node_name, socket_id))
         raise Pending(f"the thickness at {len(mesh.vertices)} vertices is being computed")
     try:
-        found = _direct(mesh, socket, *_generated_space(obj, mesh))
+        found = _direct(mesh, socket, *generated.generated_space(obj, mesh))
     except linked_nodes.Unsupported as why:
         found = _bake_or_queue(name, mesh, bpy_material, socket, why)
     FIELDS[cache_key] = found
@@ -660,10 +517,11 @@ def noise_graph_of(obj, socket):
     """The link as a Noise Texture the shader computes per pixel (:mod:`.noise_graph`), or None;
     at Generated coordinates after Deform modifiers or shape keys, from where the vertices were
     before them (the spec's ``orco``: the batch carries those positions)."""
-    texspace = _texspace(obj)
+    texspace = generated.texspace(obj)
     if texspace is not None:
         return noise_graph.recognise(socket, texspace)
-    return noise_graph.recognise(socket, _original_texspace(obj) if _deformed_only(obj) else None, True)
+    deformed = generated.deformed_only(obj)
+    return noise_graph.recognise(socket, generated.original_texspace(obj) if deformed else None, True)
 
 
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):

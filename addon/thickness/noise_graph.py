@@ -8,7 +8,7 @@ mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, distorted or not, id
 its inputs unlinked), at Texture Coordinate's Object or Generated coordinates, through Mapping
 nodes (Point, Texture, Vector; folded into a matrix) or not (Generated, the
 default, in the original mesh's texture space, unless a modifier or shape key deforms the
-mesh: ``linked._texspace``), optionally through a Color Ramp (its
+mesh: ``generated.texspace``), optionally through a Color Ramp (its
 Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
 through any chain of linear Map Ranges and affine Math nodes (Add, Subtract, Multiply, Divide by
 a constant, Multiply Add; clamped or not) with unlinked other inputs, folded into one gain, bias
@@ -163,7 +163,7 @@ def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray, bool] | None
             return np.eye(3), np.zeros(3), False
         if output.identifier != "Generated":
             return None
-    if texspace is None:  # Generated coordinates of no mesh's (linked._generated_space)
+    if texspace is None:  # Generated coordinates of no mesh's (generated.generated_space)
         return None
     location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
     scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
@@ -173,7 +173,7 @@ def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray, bool] | None
 def recognise(socket, texspace, orco: bool = False) -> NoiseGraph | None:
     """The link into ``socket`` as a :class:`NoiseGraph`, or None where the shader cannot compute
     it per pixel. ``texspace``: (location, size) of the texture space of the mesh's Generated
-    coordinates (``linked._generated_space``), or None; ``orco``: they are where the vertices
+    coordinates (``generated.generated_space``), or None; ``orco``: they are where the vertices
     were before a deformation, not the positions (the spec's ``orco``)."""
     found = _source(socket)
     affine = (1.0, 0.0, -math.inf, math.inf)

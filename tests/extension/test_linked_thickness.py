@@ -27,6 +27,7 @@ def tf(bpy, package, tmp_path):
     names = (
         "addon.materials.description",
         "addon.thickness.linked",
+        "addon.thickness.generated",
         "addon.drawing.scene_draw",
         "addon.bakes.tables",
         "addon.ui.prefs",
@@ -603,17 +604,17 @@ def _render_coordinates(bpy, obj, output: str, texspace=None, size: int = 48) ->
 @pytest.mark.parametrize("kind", ["build", "deform", "build_then_deform"])
 def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(bpy, tf, kind):
     """What Cycles renders as Generated on a subdivided, arrayed cube is its evaluated (Object)
-    position in the original mesh's texture space, which ``linked._texspace`` gives the per-pixel
+    position in the original mesh's texture space, which ``generated.texspace`` gives the per-pixel
     noise; the evaluated mesh's own bounds, what the corner bake's copy used, are 0.1 off. After
     a Displace, Generated stays where the vertices were before it: ``_texspace`` says None, and
-    ``_generated_space`` gives those positions where only Deform modifiers ran (rendered here
+    ``generated_space`` gives those positions where only Deform modifiers ran (rendered here
     through an attribute that follows the vertices), nothing where one ran after a Subdivision
     Surface."""
     bpy.ops.mesh.primitive_cube_add(size=2.0, rotation=(0.5, 0.3, 0.2))
     obj = _modified(bpy.context.active_object, kind)
-    texspace = tf.linked._original_texspace(obj)
+    texspace = tf.generated.original_texspace(obj)
     evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
-    space, orco = tf.linked._generated_space(obj, evaluated)
+    space, orco = tf.generated.generated_space(obj, evaluated)
     corners = np.array([v.co for v in evaluated.vertices])  # (the renders free the evaluated mesh)
     if kind == "deform":  # the orco the corners and the bake read, carried to the render
         obj.data.attributes.new("orco", "FLOAT_VECTOR", "POINT").data.foreach_set(
@@ -626,7 +627,7 @@ def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(
     error = np.abs(generated - mapped).max(axis=1)
     assert inside.sum() > 400, inside.sum()
     if kind != "build":
-        assert tf.linked._texspace(obj) is None
+        assert tf.generated.texspace(obj) is None
         assert np.median(error) > 0.1, np.median(error)  # measured 0.15: the Displace's 0.3 / 2
         if kind == "build_then_deform":
             assert space is None and orco is None
@@ -635,7 +636,7 @@ def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(
         before = _render_coordinates(bpy, obj, "orco", texspace)[..., :3][inside]
         assert np.abs(generated - before).max() < 1e-3, np.abs(generated - before).max()
         return
-    assert tf.linked._texspace(obj) == texspace and space == texspace and orco is None
+    assert tf.generated.texspace(obj) == texspace and space == texspace and orco is None
     assert error.max() < 1e-3, error.max()  # measured 7.9e-6
     location, extent = (np.asarray(v) for v in texspace)
     low, high = corners.min(axis=0), corners.max(axis=0)
@@ -682,7 +683,7 @@ def test_a_noise_on_a_modified_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, t
         tf.scene_draw.collect(depsgraph)
     entry = tf.scene_draw.batch_entry("Sphere")
     assert entry.batch.noise is not None and entry.batch.noise.orco == graph.noise.orco
-    corners = tf.linked.orco_corners(obj.evaluated_get(depsgraph), mesh)
+    corners = tf.generated.orco_corners(obj.evaluated_get(depsgraph), mesh)
     if corners is None:
         corners = np.array([v.co for v in mesh.vertices])[[loop.vertex_index for loop in mesh.loops]]
     np.testing.assert_allclose(entry.thickness, entry.batch.noise.parameter(corners), atol=1e-5)
