@@ -1,6 +1,6 @@
 """A thickness that varies through a texture: the extension's headless frame against Cycles.
 
-Two scenes, each built by script in bpy and rendered twice — by Cycles (CPU, box filter) and by
+Scenes, each built by script in bpy and rendered twice — by Cycles (CPU, box filter) and by
 the extension's headless ``render`` (:func:`addon.headless.render.render_scene`, the viewport's shader
 on Mesa) — and compared by mean ΔE2000 over the sphere
 (``precompute.colour.colour_difference.delta_e_2000``, route ``"E"``), in the Cycles-matching
@@ -10,7 +10,11 @@ on Mesa) — and compared by mean ΔE2000 over the sphere
   Thickness comes from Noise Texture → Map Range 150–850 nm, the socket's own value 0;
 - ``gltf``: a sphere written as glTF with KHR_materials_iridescence (150–820 nm, IOR 1.45, an
   ``iridescenceThicknessTexture`` of stripes and rings in G) and imported by Blender's bundled
-  importer (with the extension's import hook enabled).
+  importer (with the extension's import hook enabled);
+- ``ramp``, ``distorted``: the noise through a Color Ramp, and with Distortion 1;
+- ``subdivided``: the noise on a 32 × 16 sphere under a Subdivision Surface, and ``twisted``: on
+  the sphere twisted 90° about the camera's axis by a Simple Deform (Generated coordinates of a
+  modified mesh, addon/thickness/generated.py).
 
 The camera and the sphere are tests/_cycles_scenes.py's (pinhole on −y, 32°, radius 1).
 
@@ -65,18 +69,20 @@ def _world_and_camera(bpy, scene, hdri_path, size, samples):
     scene.camera = cam
 
 
-def _sphere(bpy):
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=SEGMENTS, ring_count=SEGMENTS // 2, radius=1.0)
+def _sphere(bpy, segments=None):
+    segments = segments or SEGMENTS
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=segments, ring_count=segments // 2, radius=1.0)
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
     return sphere
 
 
-def build_noise(bpy, folder, ramp: bool = False, distortion: float = 0.0):
+def build_noise(bpy, folder, ramp: bool = False, distortion: float = 0.0, segments=None):
     """The opaque film sphere driven by Noise Texture → Map Range 150–850 nm (socket value 0);
     ``ramp``: through a Color Ramp of three coloured stops (Ease) between them; ``distortion``:
-    the Noise Texture's."""
-    sphere = _sphere(bpy)
+    the Noise Texture's; ``segments``: the UV sphere's (default :data:`SEGMENTS`). Returns the
+    sphere."""
+    sphere = _sphere(bpy, segments)
     mat = bpy.data.materials.new("noise film")
     tree = mat.node_tree
     bsdf = tree.nodes["Principled BSDF"]
@@ -105,6 +111,7 @@ def build_noise(bpy, folder, ramp: bool = False, distortion: float = 0.0):
         tree.links.new(node.outputs["Color"], ranged.inputs["Value"])
     tree.links.new(ranged.outputs["Result"], bsdf.inputs["Thin Film Thickness"])
     sphere.data.materials.append(mat)
+    return sphere
 
 
 def build_ramp(bpy, folder):
@@ -164,7 +171,28 @@ def build_gltf(bpy, folder):
             obj.data.shade_smooth()
 
 
-CASES = {"noise": build_noise, "ramp": build_ramp, "distorted": build_distorted, "gltf": build_gltf}
+def build_subdivided(bpy, folder):
+    """The noise on a 32 × 16 sphere under a Subdivision Surface (2 levels): the Noise Texture's
+    Generated coordinates span the cage's texture space, not the smaller subdivided mesh's."""
+    subdivide = build_noise(bpy, folder, segments=32).modifiers.new("subdivide", "SUBSURF")
+    subdivide.levels = subdivide.render_levels = 2
+
+
+def build_twisted(bpy, folder):
+    """The noise sphere twisted 90° about the camera's axis (Simple Deform): still a sphere, but
+    Blender's renders read its Generated coordinates where the vertices were before the twist."""
+    twist = build_noise(bpy, folder).modifiers.new("twist", "SIMPLE_DEFORM")
+    twist.deform_method, twist.deform_axis, twist.angle = "TWIST", "Y", math.radians(90.0)
+
+
+CASES = {
+    "noise": build_noise,
+    "ramp": build_ramp,
+    "distorted": build_distorted,
+    "gltf": build_gltf,
+    "subdivided": build_subdivided,
+    "twisted": build_twisted,
+}
 
 
 def run_case(bpy, package, name, size, samples, folder):
