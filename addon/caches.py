@@ -52,6 +52,12 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   ``linked.tree_key`` of the linked graph); LRU of 64; filled by ``linked.evaluate`` (direct
   numpy or a Cycles bake, the latter never inside the draw: ``linked.run_pending`` from the
   viewport's timer); FILE.
+- ``generated_orco`` — ``generated.ORCOS``: a mesh's evaluated positions without its Deform
+  modifiers and shape keys, where building modifiers follow them (its Generated coordinates) by
+  ``generated.orco_key`` (the original mesh's name, sizes and a hash of its positions, the
+  building modifiers' settings; not the deformation, so an animated rig reuses it); LRU of 16;
+  filled by ``generated.evaluate_orco`` (a temporary scene: never inside the draw, queued on
+  ``linked.PENDING`` there); FILE.
 - ``thickness_maps`` — ``maps.MAPS``: a varying thickness per pixel (``maps.ThicknessMap``:
   nm at a map's texel centres over one UV map, or None and why not) by the key of the field it
   belongs to (a linked thickness's); LRU of 16 (a 1024² map is

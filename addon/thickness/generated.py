@@ -5,20 +5,33 @@ renders read them in the **original** mesh's texture space: as the evaluated pos
 modifiers that build geometry (:data:`GENERATED_IS_POSITION`), and as the original vertices'
 positions (``orco``) after Deform modifiers and shape keys (:data:`DEFORMS`), not in the
 evaluated mesh's own bounds (docs/texture-thickness.md, *Generated coordinates of a modified
-mesh*). :func:`generated_space` gives the numpy evaluator and the corner bake those
-coordinates; :func:`orco_corners` gives the batch the positions a Noise Texture drawn per pixel
-reads (``TF_NOISE_ORCO``); :func:`read_orco_attribute` makes a bake's material read them.
+mesh*). Where building modifiers follow the deformation (an Armature, then a Subdivision
+Surface), ``orco`` is the original object evaluated again without its Deform modifiers and
+shape keys (:func:`evaluate_orco`: a copy in a temporary scene, never inside a draw; cached by
+what it depends on, not by the deformation: :func:`orco_key`). :func:`generated_space` gives
+the numpy evaluator and the corner bake those coordinates; :func:`orco_corners` gives the batch
+the positions a Noise Texture drawn per pixel reads (``TF_NOISE_ORCO``);
+:func:`read_orco_attribute` makes a bake's material read them.
 """
 
 from __future__ import annotations
 
+import hashlib
+
+import bpy
 import numpy as np
 
+from .. import caches
 from ..gpu.mesh import corner_vertices
 
 #: The corner bake copy's attribute of Generated coordinates before a deformation (a plain
 #: name: names that start with a dot are Blender's internal attributes).
 ORCO_ATTRIBUTE = "thinfilm_sh_orco"
+#: The name of the temporary scene, object and mesh :func:`evaluate_orco` makes and removes.
+_ORCO_PREFIX = ".thinfilm_sh_orco"
+#: Evaluated positions without the Deform modifiers and shape keys ((V, 3) float64) by
+#: :func:`orco_key`.
+ORCOS = caches.register("generated_orco", caches.LRU(16), scope=caches.FILE)
 
 
 #: Modifiers after which a mesh's Generated coordinates are still its evaluated positions in the
@@ -111,18 +124,117 @@ def texspace(obj):
     return original_texspace(obj)
 
 
+def _used(original) -> list:
+    return [m for m in original.modifiers if m.show_viewport or m.show_render]
+
+
 def deformed_only(obj) -> bool:
     """Whether only Deform modifiers (:data:`DEFORMS`) and shape keys move ``obj``'s mesh, which
     keeps its original's vertices one for one."""
     original = obj.original if hasattr(obj, "original") else obj
     if original.type != "MESH":
         return False
-    return all(m.type in DEFORMS for m in original.modifiers if m.show_viewport or m.show_render)
+    return all(m.type in DEFORMS for m in _used(original))
+
+
+def built_after_deforms(obj) -> bool:
+    """Whether ``obj``'s mesh is deformed (Deform modifiers, shape keys) and built (modifiers of
+    :data:`GENERATED_IS_POSITION`), nothing else: its ``orco`` is :func:`evaluate_orco`'s."""
+    original = obj.original if hasattr(obj, "original") else obj
+    if original.type != "MESH" or texspace(obj) is not None or deformed_only(obj):
+        return False
+    return all(m.type in DEFORMS or m.type in GENERATED_IS_POSITION for m in _used(original))
+
+
+#: A modifier's RNA properties that are not its settings (its name, the interface's state).
+_NOT_SETTINGS = frozenset(
+    {
+        "rna_type",
+        "name",
+        "is_override_data",
+        "persistent_uid",
+        "is_active",
+        "show_expanded",
+        "use_pin_to_last",
+    }
+)
+
+
+def _settings(modifier) -> tuple:
+    """A modifier's type and RNA settings (pointers by name), for :func:`orco_key`."""
+    values = []
+    for prop in modifier.bl_rna.properties:
+        if prop.identifier in _NOT_SETTINGS or prop.type == "COLLECTION":
+            continue
+        value = getattr(modifier, prop.identifier, None)
+        values.append(
+            (prop.identifier, getattr(value, "name", None) if prop.type == "POINTER" else repr(value))
+        )
+    return modifier.type, tuple(values)
+
+
+def orco_key(obj) -> tuple:
+    """What :func:`evaluate_orco`'s result depends on: the original mesh's name, sizes and
+    positions (a hash), and its building modifiers' settings; not the deformation."""
+    original = obj.original if hasattr(obj, "original") else obj
+    mesh = original.data
+    positions = np.empty(3 * len(mesh.vertices), dtype=np.float32)
+    mesh.vertices.foreach_get("co", positions)
+    digest = hashlib.blake2b(positions.tobytes(), digest_size=16).hexdigest()
+    building = tuple(_settings(m) for m in _used(original) if m.type not in DEFORMS)
+    return original.name, mesh.name, len(mesh.vertices), len(mesh.loops), digest, building
+
+
+def needs_evaluation(obj) -> bool:
+    """Whether ``obj``'s Generated coordinates need :func:`evaluate_orco` and it has not run for
+    what they depend on (never inside a draw: it makes and removes data-blocks)."""
+    return built_after_deforms(obj) and ORCOS.get(orco_key(obj)) is None
+
+
+def evaluate_orco(obj) -> np.ndarray:
+    """(V, 3) the evaluated mesh's vertices without its Deform modifiers and shape keys: a copy
+    of the original object and mesh in a temporary scene, the Deform modifiers and shape keys
+    removed, evaluated there (the building modifiers keep the vertices' order). Cached
+    (:data:`ORCOS`); main thread, outside drawing. Measured against Cycles' renders of Generated
+    (2026-12-07: Subdivision Surface then Displace, shape keys then Subdivision Surface, Wave
+    then Subdivision Surface): 6e-6 of the texture space; 2–23 ms for 98–2402 vertices."""
+    key = orco_key(obj)
+    found = ORCOS.get(key)
+    if found is not None:
+        return found
+    original = obj.original if hasattr(obj, "original") else obj
+    scene = bpy.data.scenes.new(_ORCO_PREFIX)
+    mesh = original.data.copy()
+    temp = original.copy()
+    temp.name = mesh.name = _ORCO_PREFIX
+    temp.data = mesh
+    try:
+        scene.collection.objects.link(temp)
+        if mesh.shape_keys is not None:
+            temp.shape_key_clear()
+        for modifier in list(temp.modifiers):
+            if modifier.type in DEFORMS:
+                temp.modifiers.remove(modifier)
+        layer = scene.view_layers[0]
+        with bpy.context.temp_override(scene=scene, view_layer=layer):
+            evaluated = temp.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+            positions = np.empty(3 * len(evaluated.vertices), dtype=np.float32)
+            evaluated.vertices.foreach_get("co", positions)
+    finally:
+        bpy.data.objects.remove(temp)
+        bpy.data.meshes.remove(mesh)
+        bpy.data.scenes.remove(scene)
+    found = positions.reshape(-1, 3).astype(np.float64)
+    ORCOS[key] = found
+    return found
 
 
 def orco_corners(obj, mesh) -> np.ndarray | None:
     """(N, 3) float32 where ``mesh``'s (``obj``'s evaluated mesh's) corners were before Deform
-    modifiers and shape keys moved them (:func:`generated_space`), or None."""
+    modifiers and shape keys moved them (:func:`generated_space`), or None (also where
+    :func:`evaluate_orco` has not run: this never runs it, the draw calls it)."""
+    if needs_evaluation(obj):
+        return None
     orco = generated_space(obj, mesh)[1]
     return None if orco is None else orco[corner_vertices(mesh)].astype(np.float32)
 
@@ -130,18 +242,43 @@ def orco_corners(obj, mesh) -> np.ndarray | None:
 def generated_space(obj, mesh) -> tuple:
     """(texture space, orco) in which ``mesh`` (``obj``'s evaluated mesh) has its Generated
     coordinates (:class:`.linked_nodes._Context`): (:func:`texspace`, None) where they are its
-    positions; (the original's, its original vertices' positions (V, 3)) where only Deform
-    modifiers (:data:`DEFORMS`) and shape keys moved them, vertex for vertex; (None, None)
-    otherwise (a Deform before a modifier that builds geometry)."""
+    positions; (the original's, the vertices' positions before the deformation (V, 3)) where
+    Deform modifiers (:data:`DEFORMS`) and shape keys moved them: the original vertices where
+    nothing else ran, else :func:`evaluate_orco` (which this runs: not inside a draw); (None,
+    None) otherwise (a modifier of neither kind) or where the counts disagree."""
     found = texspace(obj)
     if found is not None:
         return found, None
     original = obj.original if hasattr(obj, "original") else obj
-    if not deformed_only(obj) or len(original.data.vertices) != len(mesh.vertices):
+    if deformed_only(obj):
+        orco = np.empty(3 * len(original.data.vertices), dtype=np.float32)
+        original.data.vertices.foreach_get("co", orco)  # the basis shape: what Generated reads
+        orco = orco.reshape(-1, 3).astype(np.float64)
+    elif built_after_deforms(obj):
+        orco = evaluate_orco(obj)
+    else:
         return None, None
-    orco = np.empty(3 * len(mesh.vertices), dtype=np.float32)
-    original.data.vertices.foreach_get("co", orco)  # the basis shape: what Generated reads
-    return original_texspace(obj), orco.reshape(-1, 3).astype(np.float64)
+    if len(orco) != len(mesh.vertices):
+        return None, None
+    return original_texspace(obj), orco
+
+
+def carry_generated(obj, copy, material) -> None:
+    """Give ``copy`` (a mesh made from ``obj``'s evaluated one, for a Cycles bake of
+    ``material``) the Generated coordinates Blender's renders read: the original's texture space,
+    not the copy's own bounds, and where a deformation moved the vertices their positions before
+    it, as the attribute :data:`ORCO_ATTRIBUTE` that ``material`` is made to read."""
+    space, orco = generated_space(obj, copy)
+    space = space or original_texspace(obj)
+    if space is not None:
+        copy.use_auto_texspace = False
+        copy.texspace_location, copy.texspace_size = space
+    if orco is not None:
+        location, size = (np.asarray(v, dtype=np.float64) for v in space)
+        mapped = (orco - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
+        attribute = copy.attributes.new(ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
+        attribute.data.foreach_set("vector", mapped.astype(np.float32).ravel())
+        read_orco_attribute(material.node_tree, ORCO_ATTRIBUTE)
 
 
 def read_orco_attribute(tree, orco_name: str) -> None:

@@ -298,18 +298,7 @@ def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray 
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True, depsgraph=depsgraph)
-    texspace, orco = generated.generated_space(obj, mesh)
-    texspace = texspace or generated.original_texspace(obj)
-    if texspace is not None:  # Generated as the render reads them, not in the copy's own bounds
-        mesh.use_auto_texspace = False
-        mesh.texspace_location, mesh.texspace_size = texspace
-    if orco is not None:  # ... and where the vertices were before a deformation
-        location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
-        mapped = (orco - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
-        mesh.attributes.new(generated.ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT").data.foreach_set(
-            "vector", mapped.astype(np.float32).ravel()
-        )
-        generated.read_orco_attribute(material.node_tree, generated.ORCO_ATTRIBUTE)
+    generated.carry_generated(obj, mesh, material)
     scene = bpy.data.scenes.new(_BAKE_PREFIX)
     temp = bpy.data.objects.new(_BAKE_PREFIX, mesh)
     try:
@@ -421,6 +410,11 @@ def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
     """
     key = key if key is not None else tree_key(socket)
     name = obj.original.name if hasattr(obj, "original") else obj.name
+    if linked_nodes.positional(socket) and generated.needs_evaluation(obj):
+        if _defer:  # it makes data-blocks: never inside the draw (the batch reads it too)
+            PENDING.defer(("orco", name), lambda: generated.evaluate_orco(bpy.data.objects[name]))
+            raise Pending("the positions before the deformation are being computed")
+        generated.evaluate_orco(obj)
     cache_key = field_key(name, mesh, key)
     found = FIELDS.get(cache_key)
     if found is not None:
@@ -520,7 +514,7 @@ def noise_graph_of(obj, socket):
     texspace = generated.texspace(obj)
     if texspace is not None:
         return noise_graph.recognise(socket, texspace)
-    deformed = generated.deformed_only(obj)
+    deformed = generated.deformed_only(obj) or generated.built_after_deforms(obj)
     return noise_graph.recognise(socket, generated.original_texspace(obj) if deformed else None, True)
 
 
@@ -534,8 +528,8 @@ def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):
     try:
         field = evaluate(obj_eval, mesh, bpy_material, socket)
     except Pending:
-        if graph is None:
-            raise
+        if graph is None or (graph.noise.orco and generated.needs_evaluation(obj_eval)):
+            raise  # (the per-pixel noise would need the positions being computed)
         middle = np.full(len(mesh.loops), 0.5)
         return middle, 0, None, True, graph.spec(thickness_range)
     lo, hi = thickness_range
