@@ -12,9 +12,9 @@ on Mesa) — and compared by mean ΔE2000 over the sphere
   ``iridescenceThicknessTexture`` of stripes and rings in G) and imported by Blender's bundled
   importer (with the extension's import hook enabled);
 - ``ramp``, ``distorted``: the noise through a Color Ramp, and with Distortion 1;
-- ``subdivided``: the noise on a 32 × 16 sphere under a Subdivision Surface, and ``twisted``: on
-  the sphere twisted 90° about the camera's axis by a Simple Deform (Generated coordinates of a
-  modified mesh, addon/thickness/generated.py).
+- ``subdivided``: the noise on a 32 × 16 sphere under a Subdivision Surface, ``twisted``: on
+  the sphere twisted 90° about the camera's axis by a Simple Deform, ``subdivided_twisted``: both
+  (Generated coordinates of a modified mesh, addon/thickness/generated.py).
 
 The camera and the sphere are tests/_cycles_scenes.py's (pinhole on −y, 32°, radius 1).
 
@@ -185,6 +185,14 @@ def build_twisted(bpy, folder):
     twist.deform_method, twist.deform_axis, twist.angle = "TWIST", "Y", math.radians(90.0)
 
 
+def build_subdivided_twisted(bpy, folder):
+    """The 32 × 16 sphere under a Subdivision Surface, then twisted as in :func:`build_twisted`
+    (a rig under a subdivision: Generated is the object evaluated again without the twist)."""
+    build_subdivided(bpy, folder)
+    twist = bpy.context.active_object.modifiers.new("twist", "SIMPLE_DEFORM")
+    twist.deform_method, twist.deform_axis, twist.angle = "TWIST", "Y", math.radians(90.0)
+
+
 CASES = {
     "noise": build_noise,
     "ramp": build_ramp,
@@ -192,6 +200,7 @@ CASES = {
     "gltf": build_gltf,
     "subdivided": build_subdivided,
     "twisted": build_twisted,
+    "subdivided_twisted": build_subdivided_twisted,
 }
 
 
