@@ -197,18 +197,21 @@ def evaluate_orco(obj) -> np.ndarray:
     removed, evaluated there (the building modifiers keep the vertices' order). Cached
     (:data:`ORCOS`); main thread, outside drawing. Measured against Cycles' renders of Generated
     (2026-12-07: Subdivision Surface then Displace, shape keys then Subdivision Surface, Wave
-    then Subdivision Surface): 6e-6 of the texture space; 2–23 ms for 98–2402 vertices."""
+    then Subdivision Surface): 6e-6 of the texture space; 2–23 ms for 98–2402 vertices. A
+    failure is remembered as no positions (:func:`generated_space` then gives none) and
+    raised."""
     key = orco_key(obj)
     found = ORCOS.get(key)
     if found is not None:
         return found
     original = obj.original if hasattr(obj, "original") else obj
-    scene = bpy.data.scenes.new(_ORCO_PREFIX)
-    mesh = original.data.copy()
-    temp = original.copy()
-    temp.name = mesh.name = _ORCO_PREFIX
-    temp.data = mesh
+    scene = temp = mesh = None
     try:
+        scene = bpy.data.scenes.new(_ORCO_PREFIX)
+        temp = original.copy()
+        mesh = original.data.copy()
+        temp.name = mesh.name = _ORCO_PREFIX
+        temp.data = mesh
         scene.collection.objects.link(temp)
         if mesh.shape_keys is not None:
             temp.shape_key_clear()
@@ -220,10 +223,13 @@ def evaluate_orco(obj) -> np.ndarray:
             evaluated = temp.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
             positions = np.empty(3 * len(evaluated.vertices), dtype=np.float32)
             evaluated.vertices.foreach_get("co", positions)
-    finally:
-        bpy.data.objects.remove(temp)
-        bpy.data.meshes.remove(mesh)
-        bpy.data.scenes.remove(scene)
+    except Exception:
+        ORCOS[key] = np.empty((0, 3))  # failed: no orco (the link is baked), not retried per frame
+        raise
+    finally:  # what was made, the object before its mesh
+        for block, where in ((temp, bpy.data.objects), (mesh, bpy.data.meshes), (scene, bpy.data.scenes)):
+            if block is not None:
+                where.remove(block)
     found = positions.reshape(-1, 3).astype(np.float64)
     ORCOS[key] = found
     return found

@@ -679,6 +679,42 @@ def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(
     assert np.median(np.abs(generated - own).max(axis=1)) > 0.05  # measured 0.38: the Array
 
 
+def test_the_positions_before_a_deformation_leave_nothing_behind(bpy, tf, monkeypatch):
+    """``generated.evaluate_orco`` removes its temporary scene, object and mesh, and leaves the
+    object's shape keys and modifiers as they were; it is cached until what it depends on
+    changes (a Subdivision Surface's level), not when the deformation does; a failure leaves
+    nothing behind either, and is remembered: no positions (the link is baked), not retried."""
+    bpy.ops.mesh.primitive_cube_add(size=2.0)
+    obj = _modified(bpy.context.active_object, "keyed_then_build")
+    counts = lambda: (len(bpy.data.scenes), len(bpy.data.objects), len(bpy.data.meshes))  # noqa: E731
+    before = counts()
+    assert tf.generated.needs_evaluation(obj)
+    orco = tf.generated.evaluate_orco(obj)
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert counts() == before and len(orco) == len(evaluated.vertices)
+    bend = obj.data.shape_keys.key_blocks["Bend"]
+    assert bend.value == 1.0 and [m.type for m in obj.modifiers] == ["SUBSURF"]
+    bend.value = 0.5  # the deformation: the positions before it hold
+    assert not tf.generated.needs_evaluation(obj)
+    obj.modifiers["subdivide"].levels = 1  # what they depend on
+    assert tf.generated.needs_evaluation(obj)
+
+    class _Failing:
+        def __getattr__(self, name):
+            return getattr(bpy.context, name)
+
+        def temp_override(self, **_):
+            raise RuntimeError("no depsgraph here")
+
+    monkeypatch.setattr(tf.generated, "bpy", type("bpy", (), {"data": bpy.data, "context": _Failing()}))
+    with pytest.raises(RuntimeError, match="no depsgraph"):
+        tf.generated.evaluate_orco(obj)
+    monkeypatch.undo()
+    assert counts() == before and not tf.generated.needs_evaluation(obj)
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert tf.generated.generated_space(obj, evaluated) == (None, None)
+
+
 @pytest.mark.parametrize("kind", ["subdivided", "twisted", "shape_key", "subdivided_then_twisted"])
 def test_a_noise_on_a_modified_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, tf, kind):
     """A Noise Texture at Generated coordinates (the node's default) on a sphere under a
@@ -711,7 +747,8 @@ def test_a_noise_on_a_modified_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, t
     mesh = obj.evaluated_get(depsgraph).data
     graph = tf.linked.noise_graph_of(obj, socket)  # drawn per pixel, at orco where deformed
     assert graph is not None and graph.noise.orco == (kind != "subdivided")
-    tf.linked.PENDING.clear()
+    tf.linked.PENDING.clear()  # what earlier tests left queued
+    tf.linked.maps.PENDING.clear()
     with tf.linked.deferring():
         tf.description.description(mat)
         tf.scene_draw.collect(depsgraph)
