@@ -539,6 +539,20 @@ def test_a_noise_texture_is_evaluated_directly_as_cycles_computes_it(bpy, tf, gr
     np.testing.assert_allclose(folded, direct.values, atol=1e-3)  # nm: float32 coordinates
 
 
+def _mapped_noise(bpy, name: str, scale: float, nm: tuple):
+    """(material, its Principled BSDF, the Noise Texture) of Noise Texture (at its default
+    coordinates, ``scale``) → Map Range to ``nm`` → Thin Film Thickness."""
+    mat, node = _principled(bpy, name)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = scale
+    ranged = nodes.new("ShaderNodeMapRange")
+    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = nm
+    links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    links.new(ranged.outputs["Result"], node.inputs["Thin Film Thickness"])
+    return mat, node, noise
+
+
 def _modified(obj, kind: str):
     """Give ``obj`` modifiers of ``kind``: *build*, a Subdivision Surface (its mesh shrinks inside
     its cage) and an Array; *deform*, a Simple Deform's twist; *build_then_deform*, all three;
@@ -607,9 +621,14 @@ def _render(bpy, obj, mat, size: int = 48) -> np.ndarray:
     scene.render.film_transparent = True
     scene.view_settings.view_transform = "Standard"  # the values as they are
     scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.filepath = "/tmp/tfsh_coordinates_render.exr"
+    return _rendered_pixels(bpy, scene, "/tmp/tfsh_coordinates_render.exr", size)
+
+
+def _rendered_pixels(bpy, scene, path: str, size: int) -> np.ndarray:
+    """``scene`` rendered to ``path`` and read back: RGBA (size, size, 4), bottom row first."""
+    scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(scene.render.filepath, check_existing=False)
+    image = bpy.data.images.load(path, check_existing=False)
     pixels = np.empty(size * size * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     bpy.data.images.remove(image)
@@ -725,15 +744,8 @@ def test_a_noise_on_a_modified_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, t
     evaluated again without the Displace, which the draw leaves to the timer), and Cycles' bake
     of the link reads them there too (an attribute of the bake's copy). Either way Cycles' bake
     agrees within its own spread."""
-    mat, node = _principled(bpy, "ModifiedNoise")
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    noise = nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 3.7
-    ranged = nodes.new("ShaderNodeMapRange")
-    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 100.0, 900.0
-    links.new(noise.outputs["Fac"], ranged.inputs["Value"])
+    mat, node, _ = _mapped_noise(bpy, "ModifiedNoise", 3.7, (100.0, 900.0))
     socket = node.inputs["Thin Film Thickness"]
-    links.new(ranged.outputs["Result"], socket)
     obj = _sphere(bpy, mat)
     if kind == "subdivided":
         obj.modifiers.new("subdivide", "SUBSURF").levels = 1
@@ -786,14 +798,7 @@ def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeyp
     queued; the table's range covers the Map Range's whole output, the noise's peaks between the
     corners included. A distorted noise is drawn per pixel too; a mapped one, which the shader
     does not compute, keeps its map."""
-    mat, node = _principled(bpy, "Plain noise")
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    noise = nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 4.0
-    ranged = nodes.new("ShaderNodeMapRange")
-    ranged.inputs["To Min"].default_value, ranged.inputs["To Max"].default_value = 150.0, 850.0
-    links.new(noise.outputs["Fac"], ranged.inputs["Value"])
-    links.new(ranged.outputs["Result"], node.inputs["Thin Film Thickness"])
+    mat, node, noise = _mapped_noise(bpy, "Plain noise", 4.0, (150.0, 850.0))
     _sphere(bpy, mat)
     bakes, images = tf.linked.STATS["bakes"], tf.linked.STATS["image_bakes"]
     tf.linked.PENDING.clear()  # what earlier tests left queued
@@ -1025,13 +1030,7 @@ def _render_centre(bpy, mat, size=48, samples=8):
         scene.camera = camera
     sphere = bpy.data.objects["Sphere"]
     sphere.data.materials[0] = mat
-    scene.render.filepath = "/tmp/tfsh_write_back_render.exr"
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(scene.render.filepath, check_existing=False)
-    pixels = np.empty(size * size * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    rgb = pixels.reshape(size, size, 4)[..., :3]
+    rgb = _rendered_pixels(bpy, scene, "/tmp/tfsh_write_back_render.exr", size)[..., :3]
     c = size // 2
     return rgb[c - 6 : c + 6, c - 6 : c + 6].reshape(-1, 3)
 
