@@ -118,13 +118,13 @@ def texspace(obj):
     original = obj.original if hasattr(obj, "original") else obj
     if original.type != "MESH" or original.data.shape_keys is not None:
         return None
-    used = [m for m in original.modifiers if m.show_viewport or m.show_render]
-    if any(m.type not in GENERATED_IS_POSITION for m in used):
+    if any(m.type not in GENERATED_IS_POSITION for m in _used(original)):
         return None
     return original_texspace(obj)
 
 
 def _used(original) -> list:
+    """The object's modifiers that the viewport or the render runs."""
     return [m for m in original.modifiers if m.show_viewport or m.show_render]
 
 
