@@ -64,7 +64,7 @@ def original_texspace(obj):
     """(location, size) of a mesh object's original mesh's texture space, else None: the space
     Blender's renders read Generated coordinates in, whatever the modifiers (not the evaluated
     mesh's own bounds, smaller than the cage under a Subdivision Surface)."""
-    original = obj.original if hasattr(obj, "original") else obj
+    original = _original(obj)
     if original.type != "MESH":
         return None
     return tuple(original.data.texspace_location), tuple(original.data.texspace_size)
@@ -110,17 +110,13 @@ _GENERATED_BY_DEFAULT = frozenset(
 )
 
 
-def texspace(obj):
-    """(location, size) of the texture space in which a mesh object's Generated coordinates are
-    its evaluated mesh's positions (:func:`original_texspace`), or None where they are not: a
-    deforming modifier (one outside :data:`GENERATED_IS_POSITION`) or shape keys, or an object
-    that is not a mesh."""
-    original = obj.original if hasattr(obj, "original") else obj
-    if original.type != "MESH" or original.data.shape_keys is not None:
-        return None
-    if any(m.type not in GENERATED_IS_POSITION for m in _used(original)):
-        return None
-    return original_texspace(obj)
+#: :func:`kind`'s answers: Generated coordinates are the evaluated positions, the original
+#: vertices' positions, or the positions of the object evaluated again without its deformation.
+POSITIONS, ORIGINAL, EVALUATED = "positions", "original", "evaluated"
+
+
+def _original(obj):
+    return obj.original if hasattr(obj, "original") else obj
 
 
 def _used(original) -> list:
@@ -128,22 +124,35 @@ def _used(original) -> list:
     return [m for m in original.modifiers if m.show_viewport or m.show_render]
 
 
-def deformed_only(obj) -> bool:
-    """Whether only Deform modifiers (:data:`DEFORMS`) and shape keys move ``obj``'s mesh, which
-    keeps its original's vertices one for one."""
-    original = obj.original if hasattr(obj, "original") else obj
+def kind(obj) -> str | None:
+    """How a mesh object's Generated coordinates are read: :data:`POSITIONS` (only modifiers of
+    :data:`GENERATED_IS_POSITION`, no shape keys), :data:`ORIGINAL` (only Deform modifiers,
+    :data:`DEFORMS`, and shape keys: the vertices kept one for one), :data:`EVALUATED` (both
+    kinds: :func:`evaluate_orco`), or None (another modifier, or not a mesh)."""
+    original = _original(obj)
     if original.type != "MESH":
-        return False
-    return all(m.type in DEFORMS for m in _used(original))
+        return None
+    types = {m.type for m in _used(original)}
+    if not types <= DEFORMS | GENERATED_IS_POSITION:
+        return None
+    if original.data.shape_keys is None and not types & DEFORMS:
+        return POSITIONS
+    return ORIGINAL if types <= DEFORMS else EVALUATED
 
 
-def built_after_deforms(obj) -> bool:
-    """Whether ``obj``'s mesh is deformed (Deform modifiers, shape keys) and built (modifiers of
-    :data:`GENERATED_IS_POSITION`), nothing else: its ``orco`` is :func:`evaluate_orco`'s."""
-    original = obj.original if hasattr(obj, "original") else obj
-    if original.type != "MESH" or texspace(obj) is not None or deformed_only(obj):
-        return False
-    return all(m.type in DEFORMS or m.type in GENERATED_IS_POSITION for m in _used(original))
+def texspace(obj):
+    """(location, size) of the texture space in which a mesh object's Generated coordinates are
+    its evaluated mesh's positions (:func:`original_texspace`, where :func:`kind` is
+    :data:`POSITIONS`), else None."""
+    return original_texspace(obj) if kind(obj) == POSITIONS else None
+
+
+def texspace_affine(space) -> tuple[np.ndarray, np.ndarray]:
+    """(scale (3,), offset (3,)) taking object-space points into the texture space ``space``
+    ((location, size)): 0–1 across it, Blender's Generated coordinates."""
+    location, size = (np.asarray(v, dtype=np.float64) for v in space)
+    scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
+    return scale, -(location - size) * scale
 
 
 #: A modifier's RNA properties that are not its settings (its name, the interface's state).
@@ -176,7 +185,7 @@ def _settings(modifier) -> tuple:
 def orco_key(obj) -> tuple:
     """What :func:`evaluate_orco`'s result depends on: the original mesh's name, sizes and
     positions (a hash), and its building modifiers' settings; not the deformation."""
-    original = obj.original if hasattr(obj, "original") else obj
+    original = _original(obj)
     mesh = original.data
     positions = np.empty(3 * len(mesh.vertices), dtype=np.float32)
     mesh.vertices.foreach_get("co", positions)
@@ -188,7 +197,7 @@ def orco_key(obj) -> tuple:
 def needs_evaluation(obj) -> bool:
     """Whether ``obj``'s Generated coordinates need :func:`evaluate_orco` and it has not run for
     what they depend on (never inside a draw: it makes and removes data-blocks)."""
-    return built_after_deforms(obj) and ORCOS.get(orco_key(obj)) is None
+    return kind(obj) == EVALUATED and ORCOS.get(orco_key(obj)) is None
 
 
 def evaluate_orco(obj) -> np.ndarray:
@@ -204,7 +213,7 @@ def evaluate_orco(obj) -> np.ndarray:
     found = ORCOS.get(key)
     if found is not None:
         return found
-    original = obj.original if hasattr(obj, "original") else obj
+    original = _original(obj)
     scene = temp = mesh = None
     try:
         scene = bpy.data.scenes.new(_ORCO_PREFIX)
@@ -239,9 +248,11 @@ def orco_corners(obj, mesh) -> np.ndarray | None:
     """(N, 3) float32 where ``mesh``'s (``obj``'s evaluated mesh's) corners were before Deform
     modifiers and shape keys moved them (:func:`generated_space`), or None (also where
     :func:`evaluate_orco` has not run: this never runs it, the draw calls it)."""
-    if needs_evaluation(obj):
-        return None
-    orco = generated_space(obj, mesh)[1]
+    if kind(obj) == EVALUATED:  # (one hash of the positions, not two)
+        orco = ORCOS.get(orco_key(obj))
+        orco = None if orco is None or len(orco) != len(mesh.vertices) else orco
+    else:
+        orco = generated_space(obj, mesh)[1]
     return None if orco is None else orco[corner_vertices(mesh)].astype(np.float32)
 
 
@@ -252,15 +263,15 @@ def generated_space(obj, mesh) -> tuple:
     Deform modifiers (:data:`DEFORMS`) and shape keys moved them: the original vertices where
     nothing else ran, else :func:`evaluate_orco` (which this runs: not inside a draw); (None,
     None) otherwise (a modifier of neither kind) or where the counts disagree."""
-    found = texspace(obj)
-    if found is not None:
-        return found, None
-    original = obj.original if hasattr(obj, "original") else obj
-    if deformed_only(obj):
+    how = kind(obj)
+    if how == POSITIONS:
+        return original_texspace(obj), None
+    if how == ORIGINAL:
+        original = _original(obj)
         orco = np.empty(3 * len(original.data.vertices), dtype=np.float32)
         original.data.vertices.foreach_get("co", orco)  # the basis shape: what Generated reads
         orco = orco.reshape(-1, 3).astype(np.float64)
-    elif built_after_deforms(obj):
+    elif how == EVALUATED:
         orco = evaluate_orco(obj)
     else:
         return None, None
@@ -280,8 +291,8 @@ def carry_generated(obj, copy, material) -> None:
         copy.use_auto_texspace = False
         copy.texspace_location, copy.texspace_size = space
     if orco is not None:
-        location, size = (np.asarray(v, dtype=np.float64) for v in space)
-        mapped = (orco - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
+        scale, offset = texspace_affine(space)
+        mapped = orco * scale + offset
         attribute = copy.attributes.new(ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
         attribute.data.foreach_set("vector", mapped.astype(np.float32).ravel())
         read_orco_attribute(material.node_tree, ORCO_ATTRIBUTE)

@@ -511,11 +511,9 @@ def noise_graph_of(obj, socket):
     """The link as a Noise Texture the shader computes per pixel (:mod:`.noise_graph`), or None;
     at Generated coordinates after Deform modifiers or shape keys, from where the vertices were
     before them (the spec's ``orco``: the batch carries those positions)."""
-    texspace = generated.texspace(obj)
-    if texspace is not None:
-        return noise_graph.recognise(socket, texspace)
-    deformed = generated.deformed_only(obj) or generated.built_after_deforms(obj)
-    return noise_graph.recognise(socket, generated.original_texspace(obj) if deformed else None, True)
+    how = generated.kind(obj)
+    space = generated.original_texspace(obj) if how is not None else None
+    return noise_graph.recognise(socket, space, how in (generated.ORIGINAL, generated.EVALUATED))
 
 
 def corner_parameters(obj_eval, mesh, bpy_material, socket, thickness_range):

@@ -22,6 +22,7 @@ from ...precompute.materials import ramp
 from ...precompute.materials.perlin import noise_texture
 from ..colour_space import working_space
 from ..gpu.mesh import corner_positions, corner_vertices
+from .generated import texspace_affine
 
 __all__ = [
     "DIRECT_NODES",
@@ -123,9 +124,9 @@ class _Context:
         vertices' positions before the deformation where ``orco`` gives them)."""
         if self.texspace is None:
             raise Unsupported("Generated coordinates of a deformed mesh")
-        location, size = (np.asarray(v, dtype=np.float64) for v in self.texspace)
+        scale, offset = texspace_affine(self.texspace)
         points = self.positions() if self.orco is None else self.orco[corner_vertices(self.mesh)]
-        return (points - (location - size)) / np.where(size != 0.0, 2.0 * size, 1.0)
+        return points * scale + offset
 
 
 def texel_centres(height: int, width: int) -> np.ndarray:

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...precompute.materials.perlin import NoiseSpec
+from .generated import texspace_affine
 from .linked_nodes import identity_mapping, luminance_weights, mapping_affine, ramp_table
 
 __all__ = ["NoiseGraph", "recognise"]
@@ -165,9 +166,8 @@ def _coordinates(vector, texspace) -> tuple[np.ndarray, np.ndarray, bool] | None
             return None
     if texspace is None:  # Generated coordinates of no mesh's (generated.generated_space)
         return None
-    location, size = (np.asarray(v, dtype=np.float64) for v in texspace)
-    scale = 1.0 / np.where(size != 0.0, 2.0 * size, 1.0)
-    return np.diag(scale), -(location - size) * scale, True
+    scale, offset = texspace_affine(texspace)
+    return np.diag(scale), offset, True
 
 
 def recognise(socket, texspace, orco: bool = False) -> NoiseGraph | None:
@@ -210,22 +210,19 @@ def recognise(socket, texspace, orco: bool = False) -> NoiseGraph | None:
         return None
     scale, detail, roughness, lacunarity, distortion, w = values
     spec = NoiseSpec(
-        dimensions,
-        scale,
-        w if dimensions == 4 else 0.0,
-        detail,
-        roughness,
-        lacunarity,
-        (1.0, 1.0, 1.0),
-        tuple(float(v) for v in coordinates[1]),
-        1.0,
-        0.0,
-        -1e30,
-        1e30,
-        table,
-        interpolate,
-        distortion,
-        tuple(float(v) for v in coordinates[0].ravel()),
-        orco and coordinates[2],
+        dimensions=dimensions,
+        scale=scale,
+        w=w if dimensions == 4 else 0.0,
+        detail=detail,
+        roughness=roughness,
+        lacunarity=lacunarity,
+        space_offset=tuple(float(v) for v in coordinates[1]),
+        low=-1e30,
+        high=1e30,
+        ramp=table,
+        ramp_interpolate=interpolate,
+        distortion=distortion,
+        space_matrix=tuple(float(v) for v in coordinates[0].ravel()),
+        orco=orco and coordinates[2],
     )
     return NoiseGraph(spec, a, b, low, high)
