@@ -233,6 +233,7 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thi
     film = getattr(item, "film", None)
     lights = getattr(item, "lights", None)
     grid = getattr(item, "grid", None)
+    noise = _noise_of(item)
     variant = choose_variant(
         l_max=table.l_max,
         spectral=table.spectral,
@@ -251,8 +252,8 @@ def _add_item(groups: dict, item, batch, has_thickness, options, transmit=0, thi
         grid=grid is not None,
         refract=behind is not None and transmit != 0 and int(item.wall[0]) == WALL_SOLID,
         thickness_map=thickness_map is not None,
-        thickness_noise=_noise_variant(_noise_of(item)),
-        noise_orco=bool(getattr(_noise_of(item), "orco", False)),
+        thickness_noise=_noise_variant(noise),
+        noise_orco=bool(getattr(noise, "orco", False)),
     )
     if not compile_now and not shaders.compiled(variant):
         if not getattr(item, "grid_pending", False):  # a grid variant replaces it soon: not wanted

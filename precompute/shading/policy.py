@@ -118,17 +118,21 @@ def table_uses_grid(material, result, prefiltered: bool) -> bool:
     constant thickness): its SH order, its SH weight (1 while the World has no prefilter: the
     split sum needs one). The viewport asks it, and so does the bake helper, which builds the
     grid right after the table."""
-    vary = bool(material.varies) and np.asarray(result.thicknesses_nm).size > 1
-    weight = sh_weight(material.roughness) if prefiltered else 1.0
+    vary, weight = _table_facts(material, result, prefiltered)
     return not vary and uses_grid(result.sh_order, vary, weight)
+
+
+def _table_facts(material, result, prefiltered: bool) -> tuple[bool, float]:
+    """(whether the table's thickness varies: a range and more than one row, its SH weight)."""
+    vary = bool(material.varies) and np.asarray(result.thicknesses_nm).size > 1
+    return vary, sh_weight(material.roughness) if prefiltered else 1.0
 
 
 def table_uses_basis_grid(material, result, prefiltered: bool) -> bool:
     """Whether ``material``'s baked table ``result`` of a varying thickness reads the film-free
     basis grid (:func:`uses_grid` with a varying thickness: the hand-over; the viewport's worker
     builds it, shading/lobe_grid.py ``build_basis``)."""
-    vary = bool(material.varies) and np.asarray(result.thicknesses_nm).size > 1
-    weight = sh_weight(material.roughness) if prefiltered else 1.0
+    vary, weight = _table_facts(material, result, prefiltered)
     return vary and uses_grid(result.sh_order, vary, weight)
 
 
