@@ -80,9 +80,11 @@ def main(argv=None) -> int:
             ("Cycles, Filter Glossy 0", tf.GLASS_ROUGHNESS, 0.0, 1),
             ("Cycles, roughness 0", 0.0, 1.0, 1),
         ):
-            blend = build(folder / "ball.blend", size, args.samples, roughness, filter_glossy, seed)
+            blend = build(
+                folder / f"ball{len(pictures)}.blend", size, args.samples, roughness, filter_glossy, seed
+            )
             pictures[label] = cc.cycles_render_blend(str(blend))
-        blend = build(folder / "ball.blend", size, args.samples, tf.GLASS_ROUGHNESS, 1.0)
+        blend = folder / "ball0.blend"  # the first: Filter Glossy 1, seed 1, as the references
         pictures["ours (Cycles pass)"] = tf.headless_image(blend, folder / "ours.png", "CYCLES")[0][..., :3]
     import thinfilm_headless
 

@@ -140,13 +140,6 @@ def kind(obj) -> str | None:
     return ORIGINAL if types <= DEFORMS else EVALUATED
 
 
-def texspace(obj):
-    """(location, size) of the texture space in which a mesh object's Generated coordinates are
-    its evaluated mesh's positions (:func:`original_texspace`, where :func:`kind` is
-    :data:`POSITIONS`), else None."""
-    return original_texspace(obj) if kind(obj) == POSITIONS else None
-
-
 def texspace_affine(space) -> tuple[np.ndarray, np.ndarray]:
     """(scale (3,), offset (3,)) taking object-space points into the texture space ``space``
     ((location, size)): 0–1 across it, Blender's Generated coordinates."""

@@ -99,10 +99,10 @@ def corner_uv(mesh, layer) -> np.ndarray:
 
 class _Context:
     """What the direct evaluator reads from the mesh: corner count, UV maps, positions, notes on
-    resolution. ``texspace``: the texture space (location, size) in which the mesh's positions
-    are its Generated coordinates (the original mesh's: generated.texspace), or None where they
-    are not (a deforming modifier, shape keys, an object that is not a mesh); ``orco``: (V, 3)
-    the vertices' positions before a deformation, which Generated coordinates are then
+    resolution. ``texspace``: the texture space (location, size) of the mesh's Generated
+    coordinates (the original mesh's), or None where they cannot be read (a modifier of neither
+    kind, an object that is not a mesh); ``orco``: (V, 3) the vertices' positions before a
+    deformation, which Generated coordinates are then, else the positions are
     (generated.generated_space)."""
 
     def __init__(self, mesh, texspace=None, orco=None):

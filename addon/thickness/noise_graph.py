@@ -7,8 +7,8 @@ no resolution limit. :func:`recognise` reads such a link: a Noise Texture the di
 mirrors (:mod:`.linked_nodes`: fBm, 3-D or 4-D, normalized, distorted or not, identity mapping;
 its inputs unlinked), at Texture Coordinate's Object or Generated coordinates, through Mapping
 nodes (Point, Texture, Vector; folded into a matrix) or not (Generated, the
-default, in the original mesh's texture space, unless a modifier or shape key deforms the
-mesh: ``generated.texspace``), optionally through a Color Ramp (its
+default, in the original mesh's texture space; after Deform modifiers or shape keys where the
+vertices were before them: ``generated.generated_space``), optionally through a Color Ramp (its
 Color's luminance or its Alpha, read from Cycles' table of it: ``TF_THICKNESS_RAMP``), then
 through any chain of linear Map Ranges and affine Math nodes (Add, Subtract, Multiply, Divide by
 a constant, Multiply Add; clamped or not) with unlinked other inputs, folded into one gain, bias
