@@ -57,7 +57,9 @@ The caches (name in the registry — the object; keyed by; bound; filled by; sco
   ``generated.orco_key`` (the original mesh's name, sizes and a hash of its positions, the
   building modifiers' settings; not the deformation, so an animated rig reuses it); LRU of 16;
   filled by ``generated.evaluate_orco`` (a temporary scene: never inside the draw, queued on
-  ``linked.PENDING`` there); FILE.
+  ``linked.PENDING`` there); FILE. The key itself is kept only for one pass
+  (``generated.one_pass``: a ``scene_draw.collect`` or one link's evaluation), so an edit of
+  the original mesh is seen at the next.
 - ``thickness_maps`` — ``maps.MAPS``: a varying thickness per pixel (``maps.ThicknessMap``:
   nm at a map's texel centres over one UV map, or None and why not) by the key of the field it
   belongs to (a linked thickness's); LRU of 16 (a 1024² map is

@@ -50,7 +50,7 @@ from ..bakes.bake_asks import material_identity
 from ..gpu import draw, layout, resources, shaders
 from ..gpu.mesh import MeshBatch
 from ..materials import description, transparency
-from ..thickness import linked
+from ..thickness import generated, linked
 from ..world import world_state
 from ..world.world_analysis import WorldLighting
 from . import batches
@@ -463,6 +463,7 @@ def _prefiltered_for(lighting: WorldLighting, entry, compute: bool = True):
     return world_state.prefilter(lighting, entry.lamps, compute)
 
 
+@generated.one_pass()  # an object's orco key hashed once per collect
 def collect(
     depsgraph, *, allow_bake: bool = True, allow_world: bool = True, bake_later: bool = False, errors=None
 ):

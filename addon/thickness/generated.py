@@ -16,6 +16,7 @@ the positions a Noise Texture drawn per pixel reads (``TF_NOISE_ORCO``);
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 
 import bpy
@@ -175,10 +176,42 @@ def _settings(modifier) -> tuple:
     return modifier.type, tuple(values)
 
 
+#: :func:`one_pass`'s memo of :func:`orco_key` by original object (None outside one).
+_keys: dict | None = None
+
+
+@contextlib.contextmanager
+def one_pass():
+    """Within it (a context manager or a decorator: one collect of the draw items), each
+    object's :func:`orco_key` reads and hashes its original positions once, not at each of the
+    up to three checks of a batch's rebuild (8.8 ms each at 203 401 vertices). Nothing inside
+    may edit an original mesh."""
+    global _keys
+    outer = _keys
+    _keys = {} if outer is None else outer
+    try:
+        yield
+    finally:
+        _keys = outer
+
+
 def orco_key(obj) -> tuple:
     """What :func:`evaluate_orco`'s result depends on: the original mesh's name, sizes and
-    positions (a hash), and its building modifiers' settings; not the deformation."""
+    positions (a hash), and its building modifiers' settings; not the deformation. Read once
+    per object inside :func:`one_pass`."""
     original = _original(obj)
+    memo = _keys
+    if memo is not None:
+        found = memo.get(original.as_pointer())
+        if found is not None:
+            return found
+    key = _orco_key(original)
+    if memo is not None:
+        memo[original.as_pointer()] = key
+    return key
+
+
+def _orco_key(original) -> tuple:
     mesh = original.data
     positions = np.empty(3 * len(mesh.vertices), dtype=np.float32)
     mesh.vertices.foreach_get("co", positions)
@@ -246,7 +279,9 @@ def orco_corners(obj, mesh) -> np.ndarray | None:
         orco = None if orco is None or len(orco) != len(mesh.vertices) else orco
     else:
         orco = generated_space(obj, mesh)[1]
-    return None if orco is None else orco[corner_vertices(mesh)].astype(np.float32)
+    if orco is None:
+        return None
+    return np.take(orco.astype(np.float32), corner_vertices(mesh), axis=0)  # 3× faster than indexing
 
 
 def generated_space(obj, mesh) -> tuple:

@@ -401,6 +401,7 @@ def _mesh_of(name: str):
 # ----------------------------------------------------------------------------------------------
 # Public
 # ----------------------------------------------------------------------------------------------
+@generated.one_pass()  # its two orco checks and generated_space: one hash
 def evaluate(obj, mesh, bpy_material, socket, key: str | None = None) -> Field:
     """The thickness (nm) per face corner of ``mesh`` (``obj``'s evaluated mesh) that the link
     into the material's Thin Film Thickness gives: cached; direct where exact, else baked.

@@ -23,7 +23,7 @@ import numpy as np
 from ...precompute.materials.noise import value_noise
 from ...precompute.materials.perlin import blender_noise
 from .. import caches
-from ..gpu.mesh import corner_vertices
+from ..gpu.mesh import corner_vertices, triangle_corners
 from ..world.world_image import srgb_to_linear
 from ..world.world_key import describe_image
 from .linked_nodes import MAP_MAX_SIZE, sample, texel_centres
@@ -61,9 +61,7 @@ def corner_order(mesh) -> np.ndarray:
     the order of ``mesh.loop_triangles``.
     """
     mesh.calc_loop_triangles()
-    loops = np.empty(3 * len(mesh.loop_triangles), dtype=np.int32)
-    mesh.loop_triangles.foreach_get("loops", loops)
-    return loops
+    return triangle_corners(mesh).ravel()
 
 
 def _corner_faces(mesh) -> np.ndarray:

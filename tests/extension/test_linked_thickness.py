@@ -792,6 +792,38 @@ def test_a_noise_on_a_modified_mesh_is_drawn_per_pixel_as_cycles_bakes_it(bpy, t
     assert np.ptp(direct.values) > 200.0
 
 
+def test_a_rebuild_hashes_the_positions_before_a_deformation_once(bpy, tf, monkeypatch):
+    """A deformed and subdivided mesh's batch is rebuilt with its orco key (a hash of the
+    original positions, 8.8 ms at 203 401 vertices) read once per collect: the link's
+    evaluation and the batch's corners asked it three times before. Outside a collect every
+    call reads the positions again, so an edit of the original mesh between two collects is
+    seen (the key changes and the positions before the deformation are computed again)."""
+    mat, _, _ = _mapped_noise(bpy, "HashedOnce", 3.7, (100.0, 900.0))
+    obj = _modified(_sphere(bpy, mat), "build_then_deform")
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    tf.linked.PENDING.clear()
+    tf.linked.maps.PENDING.clear()
+    tf.description.description(mat)
+    for _ in range(3):  # the positions before the twist, then the corners, in the timer
+        with tf.linked.deferring():
+            tf.scene_draw.collect(depsgraph)
+        tf.linked.run_pending()
+    reads = []
+    hashed = tf.generated._orco_key
+    monkeypatch.setattr(tf.generated, "_orco_key", lambda original: reads.append(1) or hashed(original))
+    tf.linked.mark_geometry("Sphere")  # what a depsgraph geometry update does
+    tf.scene_draw.CACHES.dirty.add("Sphere")
+    with tf.linked.deferring():
+        tf.scene_draw.collect(depsgraph)
+    entry = tf.scene_draw.batch_entry("Sphere")
+    assert entry.batch.noise is not None and entry.batch.noise.orco  # rebuilt at orco
+    assert len(reads) == 1, len(reads)  # 3 before (2 in the link's evaluation, 1 in the batch)
+    key = tf.generated.orco_key(obj)
+    obj.data.vertices[0].co.x += 0.25  # an edit of the original mesh
+    assert tf.generated.orco_key(obj) != key and tf.generated.needs_evaluation(obj)
+    assert len(reads) == 4
+
+
 def test_a_linked_noise_texture_is_drawn_per_pixel_with_no_bake(bpy, tf, monkeypatch):
     """Noise Texture → Map Range → Thin Film Thickness (the usual procedural film): the batch
     carries the Noise Texture for the shader (tf_perlin.glsl) and no map; nothing is baked or
