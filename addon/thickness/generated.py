@@ -308,28 +308,57 @@ def generated_space(obj, mesh) -> tuple:
     return original_texspace(obj), orco
 
 
-def carry_generated(obj, copy, material) -> None:
+def carry_generated(obj, copy, material) -> list:
     """Give ``copy`` (a mesh made from ``obj``'s evaluated one, for a Cycles bake of
     ``material``) the Generated coordinates Blender's renders read: the original's texture space,
     not the copy's own bounds, and where a deformation moved the vertices their positions before
-    it, as the attribute :data:`ORCO_ATTRIBUTE` that ``material`` is made to read."""
+    it, as the attribute :data:`ORCO_ATTRIBUTE` that ``material`` is made to read. Returns the
+    node groups copied for it (:func:`read_orco_attribute`), for the caller to remove with the
+    material."""
     space, orco = generated_space(obj, copy)
     space = space or original_texspace(obj)
     if space is not None:
         copy.use_auto_texspace = False
         copy.texspace_location, copy.texspace_size = space
-    if orco is not None:
-        scale, offset = texspace_affine(space)
-        mapped = orco * scale + offset
-        attribute = copy.attributes.new(ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
-        attribute.data.foreach_set("vector", mapped.astype(np.float32).ravel())
-        read_orco_attribute(material.node_tree, ORCO_ATTRIBUTE)
+    if orco is None:
+        return []
+    scale, offset = texspace_affine(space)
+    mapped = orco * scale + offset
+    attribute = copy.attributes.new(ORCO_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", mapped.astype(np.float32).ravel())
+    return read_orco_attribute(material.node_tree, ORCO_ATTRIBUTE)
 
 
-def read_orco_attribute(tree, orco_name: str) -> None:
+#: The name prefix of the node groups :func:`read_orco_attribute` copies.
+ORCO_GROUP_PREFIX = ".thinfilm_sh_orco "
+
+
+def read_orco_attribute(tree, orco_name: str) -> list:
     """Make the nodes of ``tree`` that read Generated coordinates (a Texture Coordinate's
     output, a texture's unlinked Vector) read the corner bake copy's attribute ``orco_name``
-    instead (top level only: a node group is shared with other materials)."""
+    instead. A node group that reads them, at any depth, is replaced in ``tree`` by a copy
+    rewired the same way (the group itself may be shared with other materials); returns the
+    copies (named :data:`ORCO_GROUP_PREFIX` + the group's name), for the caller to remove."""
+    made: list = []
+    _rewire(tree, orco_name, made, {})
+    return made
+
+
+def _reads_generated(tree) -> bool:
+    """Whether a node tree reads Generated coordinates itself or in a group it uses."""
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeTexCoord" and node.outputs["Generated"].is_linked:
+            return True
+        if node.bl_idname in _GENERATED_BY_DEFAULT and not node.inputs["Vector"].is_linked:
+            return True
+        group = node.node_tree if node.bl_idname == "ShaderNodeGroup" else None
+        if group is not None and _reads_generated(group):
+            return True
+    return False
+
+
+def _rewire(tree, orco_name: str, made: list, copies: dict) -> None:
+    """:func:`read_orco_attribute` in ``tree``; ``copies``: the groups copied so far by name."""
     attribute = tree.nodes.new("ShaderNodeAttribute")
     attribute.attribute_type, attribute.attribute_name = "GEOMETRY", orco_name
     vector = attribute.outputs["Vector"]
@@ -339,3 +368,11 @@ def read_orco_attribute(tree, orco_name: str) -> None:
                 tree.links.new(vector, link.to_socket)
         elif node.bl_idname in _GENERATED_BY_DEFAULT and not node.inputs["Vector"].is_linked:
             tree.links.new(vector, node.inputs["Vector"])
+        elif node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
+            group = node.node_tree
+            if group.name not in copies and _reads_generated(group):
+                copies[group.name] = group.copy()
+                copies[group.name].name = ORCO_GROUP_PREFIX + group.name
+                made.append(copies[group.name])
+                _rewire(copies[group.name], orco_name, made, copies)
+            node.node_tree = copies.get(group.name, group)

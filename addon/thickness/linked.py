@@ -294,14 +294,15 @@ def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray 
     """Bake ``material``'s Emission colour (red) per face corner of a copy of ``obj``'s evaluated
     mesh, or into ``image`` at its active UV map (returns None; ``clear``: cleared first, else
     the texels no triangle reaches keep their values); the copy, a temporary scene and
-    ``material`` are removed afterwards."""
+    ``material`` (with the node groups copied for it) are removed afterwards."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     obj_eval = obj.evaluated_get(depsgraph)
     mesh = bpy.data.meshes.new_from_object(obj_eval, preserve_all_data_layers=True, depsgraph=depsgraph)
-    generated.carry_generated(obj, mesh, material)
     scene = bpy.data.scenes.new(_BAKE_PREFIX)
     temp = bpy.data.objects.new(_BAKE_PREFIX, mesh)
+    groups = []  # the node groups copied to read the positions before a deformation
     try:
+        groups = generated.carry_generated(obj, mesh, material)
         mesh.materials.clear()
         mesh.materials.append(material)
         indices = np.zeros(len(mesh.polygons), dtype=np.int32)
@@ -344,6 +345,8 @@ def _bake_emission(obj, material, image=None, clear: bool = True) -> np.ndarray 
         bpy.data.objects.remove(temp)
         bpy.data.meshes.remove(mesh)
         bpy.data.materials.remove(material)
+        for group in groups:
+            bpy.data.node_groups.remove(group)
         bpy.data.scenes.remove(scene)
     STATS["bakes" if image is None else "image_bakes"] += 1
     return values
