@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...precompute.materials.perlin import NoiseSpec
-from ..gpu.mesh import MeshBatch, mesh_arrays
+from ..gpu.mesh import MeshBatch, mesh_arrays, vertex_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import generated, linked
 from ..thickness.corners import image_parameters, noise_parameters
@@ -120,7 +120,10 @@ def slot_batch(
     ``linked_source``: (material, Thin Film Thickness socket) of a Principled BSDF whose
     thickness is linked, or None.
     """
-    arrays = mesh_arrays(mesh)
+    arrays = None
+    if not desc.varies and len(obj_eval.material_slots) <= 1:  # one vertex per vertex where it can
+        arrays = vertex_arrays(mesh)
+    arrays = arrays or mesh_arrays(mesh)
     if arrays is None:
         return BatchEntry(signature, None)
     positions, normals, triangles, _ = arrays

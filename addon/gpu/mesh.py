@@ -97,7 +97,7 @@ class MeshBatch:
         """
         pos = np.ascontiguousarray(np.asarray(positions, dtype=np.float32).reshape(-1, 3))
         nor = np.ascontiguousarray(np.asarray(normals, dtype=np.float32).reshape(-1, 3))
-        idx = np.ascontiguousarray(np.asarray(indices).reshape(-1, 3).astype(np.int32))
+        idx = np.ascontiguousarray(np.asarray(indices, dtype=np.int32).reshape(-1, 3))  # no copy if int32
         if pos.shape[0] == 0 or idx.shape[0] == 0:
             return None
         if nor.shape != pos.shape:
@@ -185,15 +185,21 @@ def corner_vertices(mesh) -> np.ndarray:
     return loop_vert
 
 
-def corner_positions(mesh, loop_vert=None) -> np.ndarray:
-    """Each face corner's object-space position (N, 3) float32, read through the mesh's
-    ``position`` attribute in one block; ``loop_vert``: :func:`corner_vertices`, read if None."""
-    loop_vert = corner_vertices(mesh) if loop_vert is None else loop_vert
+def vertex_positions(mesh) -> np.ndarray:
+    """Each vertex's object-space position (V, 3) float32, read through the mesh's ``position``
+    attribute in one block."""
     co = _attribute_array(mesh, "position", "POINT", "FLOAT_VECTOR", 3 * len(mesh.vertices), np.float32)
     if co is None:
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
-    return np.take(co.reshape(-1, 3), loop_vert, axis=0)  # half the time of co[loop_vert]
+    return co.reshape(-1, 3)
+
+
+def corner_positions(mesh, loop_vert=None) -> np.ndarray:
+    """Each face corner's object-space position (N, 3) float32 (:func:`vertex_positions`);
+    ``loop_vert``: :func:`corner_vertices`, read if None."""
+    loop_vert = corner_vertices(mesh) if loop_vert is None else loop_vert
+    return np.take(vertex_positions(mesh), loop_vert, axis=0)  # half the time of co[loop_vert]
 
 
 #: A quad's two triangles' corners within it: split along its first diagonal (0–2), or along
@@ -202,15 +208,16 @@ _QUAD_SPLITS = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32)
 _FLIPPED_SPLITS = np.array([[0, 1, 3], [1, 2, 3]], dtype=np.int32)
 
 
-def triangle_corners(mesh, positions=None) -> np.ndarray:
+def triangle_corners(mesh, positions=None, loop_vert=None) -> np.ndarray:
     """(T, 3) int32 corner indices of ``mesh.loop_triangles``, in their order, equal to what
     ``foreach_get("loops")`` reads (one RNA item at a time: 145 ms for 1.6 M triangles). Where
     every face is a triangle or a quad they are worked out from ``loop_triangle_polygons`` (an
     array copy) as Blender's tessellation makes them (``mesh_tessellate.cc``): a quad is split
     along 0–2 unless that diagonal lies outside it (Blender's flip test, :func:`_quad_flips`),
-    then along 1–3. ``positions``: the corners' positions (N, 3) float32
-    (:func:`corner_positions`), read if None and a quad needs them. Meshes with n-gons (polyfill)
-    are read from RNA. Call ``mesh.calc_loop_triangles()`` first where they may be missing."""
+    then along 1–3. ``positions`` (:func:`vertex_positions`) and ``loop_vert``
+    (:func:`corner_vertices`) are read if None and a quad needs them. Meshes with n-gons
+    (polyfill) are read from RNA. Call ``mesh.calc_loop_triangles()`` first where they may be
+    missing."""
     n_tri = len(mesh.loop_triangles)
     faces = np.empty(n_tri, dtype=np.int32)
     mesh.loop_triangle_polygons.foreach_get("value", faces)  # each face's triangles in a row
@@ -220,47 +227,45 @@ def triangle_corners(mesh, positions=None) -> np.ndarray:
         mesh.loop_triangles.foreach_get("loops", corners)
         return corners.reshape(-1, 3)
     out = np.empty((n_tri, 3), dtype=np.int32)
-    if per_face.min() == 2:  # quads only (a Subdivision Surface's): views, no gathers
+    quads = np.flatnonzero(per_face == 2)
+    if quads.size:
+        positions = vertex_positions(mesh) if positions is None else positions
+        loop_vert = corner_vertices(mesh) if loop_vert is None else loop_vert
+    if quads.size == per_face.size:  # quads only (a Subdivision Surface's): views, no gathers
         starts = np.arange(0, len(mesh.loops), 4, dtype=np.int32)
-        corners = None if positions is None else positions.reshape(-1, 4, 3)
-        _split_quads(mesh, out.reshape(-1, 2, 3), starts, corners)
+        _split_quads(out.reshape(-1, 2, 3), starts, loop_vert.reshape(-1, 4), positions)
         return out
     sizes = per_face + 2
     face_start = np.cumsum(sizes, dtype=np.int32) - sizes
     first_tri = np.cumsum(per_face, dtype=np.int32) - per_face
     triangles = np.flatnonzero(per_face == 1)
     out[first_tri[triangles]] = face_start[triangles, None] + _QUAD_SPLITS[0]
-    quads = np.flatnonzero(per_face == 2)
     if quads.size:
         starts = face_start[quads]
-        corners = None
-        if positions is not None:
-            corners = np.take(positions, starts[:, None] + np.arange(4, dtype=np.int32), axis=0)
+        verts = np.take(loop_vert, starts[:, None] + np.arange(4, dtype=np.int32))
         split = np.empty((quads.size, 2, 3), dtype=np.int32)
-        _split_quads(mesh, split, starts, corners)
+        _split_quads(split, starts, verts, positions)
         at = first_tri[quads]
         out[at], out[at + 1] = split[:, 0], split[:, 1]
     return out
 
 
-def _split_quads(mesh, out, starts, corners) -> None:
-    """Fill ``out`` (Q, 2, 3) with the triangles of the quads whose first corners are ``starts``;
-    ``corners``: their positions (Q, 4, 3), or None to read them."""
-    if corners is None:
-        loops = starts[:, None] + np.arange(4, dtype=np.int32)
-        corners = corner_positions(mesh, np.take(corner_vertices(mesh), loops)).reshape(-1, 4, 3)
-    flip = np.flatnonzero(_quad_flips(corners))
+def _split_quads(out, starts, verts, positions) -> None:
+    """Fill ``out`` (Q, 2, 3) with the triangles of the quads whose first corners are ``starts``
+    and whose vertices are ``verts`` (Q, 4), at ``positions`` (V, 3)."""
+    columns = np.ascontiguousarray(np.asarray(positions, dtype=np.float32).T)  # (3, V)
+    flip = np.flatnonzero(_quad_flips([np.take(columns, verts[:, i], axis=1) for i in range(4)]))
     np.add(starts[:, None, None], _QUAD_SPLITS, out=out)
     out[flip] = starts[flip, None, None] + _FLIPPED_SPLITS
 
 
 def _quad_flips(corners) -> np.ndarray:
-    """Whether Blender splits each quad (``corners`` (Q, 4, 3), its four positions) along 1–3:
-    the normals of triangles (0, 1, 2) and (0, 3, 2) point the same way, so 0–2 lies outside
-    the quad. In float32, each product and sum in Blender's order (math_geom's first/third
-    test), so a quad flips exactly where Blender's does."""
-    p = np.ascontiguousarray(np.asarray(corners, dtype=np.float32).transpose(1, 2, 0))  # (4, 3, Q)
-    x1, y1, z1, x2, y2, z2, x3, y3, z3 = (p[i, k] - p[0, k] for i in (1, 2, 3) for k in range(3))
+    """Whether Blender splits each quad along 1–3 (``corners``: its four corners' positions,
+    each (3, Q) float32): the normals of triangles (0, 1, 2) and (0, 3, 2) point the same way,
+    so 0–2 lies outside the quad. In float32, each product and sum in Blender's order
+    (math_geom's first/third test), so a quad flips exactly where Blender's does."""
+    p0 = corners[0]
+    (x1, y1, z1), (x2, y2, z2), (x3, y3, z3) = (corners[i] - p0 for i in (1, 2, 3))
     a = (y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2)  # (p1 − p0) × (p2 − p0)
     b = (y3 * z2 - z3 * y2, z3 * x2 - x3 * z2, x3 * y2 - y3 * x2)  # (p3 − p0) × (p2 − p0)
     return (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) > np.float32(0.0)
@@ -280,6 +285,26 @@ def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dt
     return out
 
 
+def vertex_arrays(mesh):
+    """(positions (V, 3), normals (V, 3), triangles (T, 3) into them, None) of a mesh whose
+    normals are its vertices' (``normals_domain`` POINT: shaded smooth, no sharp edges or custom
+    normals), else None: a batch of a constant thickness then shares each vertex between its
+    corners, a quarter of :func:`mesh_arrays`' per-corner rows for a quad mesh, drawn the same.
+    None also for a mesh without triangles."""
+    if mesh.normals_domain != "POINT":
+        return None
+    if len(mesh.loop_triangles) == 0:
+        mesh.calc_loop_triangles()
+    if len(mesh.loop_triangles) == 0 or len(mesh.vertices) == 0:
+        return None
+    positions = vertex_positions(mesh)
+    normals = np.empty(positions.size, dtype=np.float32)
+    mesh.vertex_normals.foreach_get("vector", normals)
+    loop_vert = corner_vertices(mesh)
+    triangles = np.take(loop_vert, triangle_corners(mesh, positions, loop_vert))
+    return positions, normals.reshape(-1, 3), triangles, None
+
+
 def mesh_arrays(mesh, thickness_attribute: str | None = None):
     """(positions, normals, triangles, thickness | None) of a mesh, one vertex per face corner.
 
@@ -296,10 +321,11 @@ def mesh_arrays(mesh, thickness_attribute: str | None = None):
     if n_tri == 0 or n_loop == 0:
         return None
     loop_vert = corner_vertices(mesh)
-    positions = corner_positions(mesh, loop_vert)
+    co = vertex_positions(mesh)
+    positions = np.take(co, loop_vert, axis=0)
     normals = np.empty(n_loop * 3, dtype=np.float32)
     mesh.corner_normals.foreach_get("vector", normals)
-    triangles = triangle_corners(mesh, positions)
+    triangles = triangle_corners(mesh, co, loop_vert)
     thickness = None
     if thickness_attribute:
         attr = mesh.attributes.get(thickness_attribute)

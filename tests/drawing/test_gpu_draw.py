@@ -442,6 +442,38 @@ def test_sphere_render_silhouette_and_values(gd, sphere_scene):
     assert np.median(rel) < 1e-3 and np.max(rel) < 3e-2, (np.median(rel), np.max(rel))
 
 
+def test_a_smooth_mesh_shares_its_vertices_and_draws_the_same(gd, bpy, sphere_scene):
+    """A mesh shaded smooth (normals per vertex) gives ``vertex_arrays``: one row per vertex, a
+    quarter of the per-corner rows of its quads, and the same triangles through them; drawn
+    with the same table and lighting it gives the per-corner batch's picture to float
+    precision. Shaded flat (normals per face) it gives none: corners keep their own normals."""
+    s = sphere_scene
+    mesh = uv_sphere_mesh(bpy, name="tf_shared")
+    try:
+        shared = gd.mesh.vertex_arrays(mesh)
+        corners = gd.mesh.mesh_arrays(mesh)
+        assert shared is not None and len(shared[0]) == len(mesh.vertices) == 64 * 31 + 2
+        assert len(corners[0]) == len(mesh.loops) > 3.5 * len(mesh.vertices)
+        np.testing.assert_array_equal(shared[0][shared[2]], corners[0][corners[2]])  # same triangles
+        np.testing.assert_allclose(shared[1][shared[2]], corners[1][corners[2]], atol=1e-6)
+        pictures = [
+            gd.draw.render_offscreen(
+                [Item(gd.mesh.MeshBatch.from_arrays(*arrays[:3]), s["table"], s["lighting"])],
+                VIEW,
+                PROJ,
+                SIZE,
+                SIZE,
+            )
+            for arrays in (shared, corners)
+        ]
+        assert (pictures[0][..., 3] > 0.5).sum() > 0.4 * SIZE * SIZE / 4
+        np.testing.assert_allclose(pictures[0], pictures[1], atol=1e-6)
+        mesh.shade_flat()
+        assert gd.mesh.vertex_arrays(mesh) is None
+    finally:
+        bpy.data.meshes.remove(mesh)
+
+
 def rotation(axis: int, degrees: float) -> np.ndarray:
     c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
     i, j = [k for k in range(3) if k != axis]

@@ -320,6 +320,38 @@ def test_collect_splits_a_mesh_by_material_slot(tf, bpy):
     assert by_slot["slot0"].roughness != by_slot["slot1"].roughness
 
 
+def test_a_smooth_constant_film_is_batched_per_vertex(tf, bpy):
+    """A film of constant thickness on a mesh shaded smooth is batched one row per vertex (its
+    corners share them: a quarter of the rows of a quad mesh to read and upload); shaded flat it
+    is batched per corner again, after the depsgraph update rebuilds it."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    tf.package.register()
+    tf.prefs.preferences().cache_dir = tf.cache_dir
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16)
+    obj = bpy.context.active_object
+    mat = bpy.data.materials.new("smooth film")
+    tf.conversion.fill_from_material(mat.thinfilm_sh, FILM)
+    mat.thinfilm_sh.sh_order, mat.thinfilm_sh.view_samples, mat.thinfilm_sh.wavelength_count = "2", 8, 32
+    mat.thinfilm_sh.enabled = True
+    obj.data.materials.append(mat)
+    obj.data.shade_smooth()
+    bpy.context.view_layer.update()
+
+    def batch():
+        items = tf.scene_draw.collect(bpy.context.evaluated_depsgraph_get())[0]
+        assert len(items) == 1
+        return items[0].batch
+
+    smooth = batch()
+    assert smooth.vertex_count == len(obj.data.vertices) == 32 * 15 + 2
+    assert smooth.triangle_count == len(obj.data.loop_triangles) == 32 * 14 * 2 + 64
+    obj.data.shade_flat()
+    bpy.context.view_layer.update()
+    flat = batch()
+    assert flat is not smooth and flat.vertex_count == len(obj.data.loops)
+    assert flat.triangle_count == smooth.triangle_count
+
+
 @pytest.mark.parametrize("shape", ["jittered_subdivided", "mixed", "uv_sphere", "ngons"])
 def test_triangle_corners_are_blenders_loop_triangles(tf, bpy, shape):
     """``mesh.triangle_corners`` (worked out from the faces, 145 → 80 ms at 1.6 M triangles)
