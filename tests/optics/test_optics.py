@@ -93,7 +93,11 @@ def test_stack_and_airy_paths_agree_and_lossless_stacks_are_bounded(case):
         assert np.max(np.abs(reflectance(single, d[:1], wl, cos, pol) - s)) <= 1e-12
         return
     a = reflectance(single, d[:1], wl, cos, pol, method="airy")
-    assert np.max(np.abs(a - s)) <= 1e-12
+    # The real form's rounding grows as 1 / cos θ at grazing incidence where the film all but
+    # vanishes (a metal of 1 + 2i between two media of 1, p, 360 nm; measured 2026-12-08):
+    # 0–1e-6 nm at 89.99° (cos 1.7e-4) 5.2e-11–1.03e-10, at cos 1e-3 ≤ 1.6e-12, 0.1 nm 1.2e-12,
+    # 1 nm 2.3e-14. The default path drops a 0 nm film before the Airy sum.
+    assert np.max(np.abs(a - s)) <= 1e-12 + 2e-14 / min(cos), (np.max(np.abs(a - s)), min(cos))
 
 
 def test_agrees_with_colour_multilayer_tmm():
