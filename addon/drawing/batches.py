@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...precompute.materials.perlin import NoiseSpec
-from ..gpu.mesh import MeshBatch, mesh_arrays, vertex_arrays
+from ..gpu.mesh import MeshBatch, corner_vertices, mesh_arrays, vertex_arrays, vertex_values
 from ..materials.principled import linked_thickness_socket
 from ..thickness import generated, linked
 from ..thickness.corners import image_parameters, noise_parameters
@@ -109,6 +109,29 @@ def _source_noise(props):
     return None
 
 
+def _slot_triangles(mesh, triangles, slot: int) -> np.ndarray:
+    """The rows of ``triangles`` (one per loop triangle) whose faces use material slot ``slot``
+    (the faces' material indices and the triangles' faces read as arrays, not item by item)."""
+    tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+    mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
+    poly_mat = np.zeros(len(mesh.polygons), dtype=np.int32)
+    attr = mesh.attributes.get("material_index")  # absent: every face uses slot 0
+    if attr is not None and attr.domain == "FACE" and attr.data_type == "INT":
+        attr.data.foreach_get("value", poly_mat)
+    return triangles[poly_mat[tri_poly] == slot]
+
+
+def _shared_arrays(mesh, thickness) -> tuple:
+    """(:func:`.vertex_arrays`, the thickness per vertex) where nothing differs between a
+    vertex's corners (normals per vertex, ``thickness`` per corner None or equal at every corner
+    of a vertex: a quarter of the rows of a quad mesh to upload), else (None, None)."""
+    shared = vertex_arrays(mesh)
+    if shared is None or thickness is None:
+        return shared, None
+    upload = vertex_values(thickness, corner_vertices(mesh), len(mesh.vertices))
+    return (None, None) if upload is None else (shared, upload)
+
+
 def slot_batch(
     name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None, wall: bool = False
 ) -> BatchEntry:
@@ -120,35 +143,40 @@ def slot_batch(
     ``linked_source``: (material, Thin Film Thickness socket) of a Principled BSDF whose
     thickness is linked, or None.
     """
+    single = len(obj_eval.material_slots) <= 1
+    if single and len(mesh.loop_triangles) == 0:
+        mesh.calc_loop_triangles()
+    if single and len(mesh.loop_triangles) == 0:
+        return BatchEntry(signature, None)
     arrays = None
-    if not desc.varies and len(obj_eval.material_slots) <= 1:  # one vertex per vertex where it can
-        arrays = vertex_arrays(mesh)
-    arrays = arrays or mesh_arrays(mesh)
-    if arrays is None:
-        return BatchEntry(signature, None)
-    positions, normals, triangles, _ = arrays
-    if len(obj_eval.material_slots) > 1:
-        tri_poly = np.empty(len(mesh.loop_triangles), dtype=np.int32)
-        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)  # an array copy, not per item
-        poly_mat = np.zeros(len(mesh.polygons), dtype=np.int32)
-        attr = mesh.attributes.get("material_index")  # absent: every face uses slot 0
-        if attr is not None and attr.domain == "FACE" and attr.data_type == "INT":
-            attr.data.foreach_get("value", poly_mat)
-        triangles = triangles[poly_mat[tri_poly] == slot]
-    if triangles.shape[0] == 0:
-        return BatchEntry(signature, None)
+    if not single:  # the slot's triangles first: a slot without faces reads no thickness
+        arrays = mesh_arrays(mesh)
+        if arrays is None or not len(triangles := _slot_triangles(mesh, arrays[2], slot)):
+            return BatchEntry(signature, None)
+        arrays = (*arrays[:2], triangles, None)
     thickness, notes, waiting, thickness_map, noise = batch_thickness(
         name, obj_eval, mesh, props, desc, linked_source
     )
     if desc.varies and thickness is None:
-        thickness = np.full(positions.shape[0], NAN_PARAMETER, dtype=np.float32)
+        thickness = np.full(len(mesh.loops), NAN_PARAMETER, dtype=np.float32)
     if thickness is not None:  # thickness_field's values are finite and in [0, 1]: a last guard
         thickness = np.nan_to_num(
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
-    orco = generated.orco_corners(obj_eval, mesh) if getattr(noise, "orco", False) else None
+    shared, upload = _shared_arrays(mesh, thickness) if single and thickness_map is None else (None, None)
+    with_orco = getattr(noise, "orco", False)
+    if shared is not None:
+        arrays = shared
+        orco = generated.orco_vertices(obj_eval, mesh) if with_orco else None
+    else:
+        arrays = mesh_arrays(mesh) if single else arrays
+        upload = thickness
+        orco = generated.orco_corners(obj_eval, mesh) if with_orco else None
+    if arrays is None:
+        return BatchEntry(signature, None)
+    positions, normals, triangles, _ = arrays
     batch = MeshBatch.from_arrays(
-        positions, normals, triangles, thickness, wall=wall, thickness_map=thickness_map, orco=orco
+        positions, normals, triangles, upload, wall=wall, thickness_map=thickness_map, orco=orco
     )
     if batch is not None and noise is not None:  # per pixel (TF_THICKNESS_NOISE)
         batch.noise = noise

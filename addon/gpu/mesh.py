@@ -297,12 +297,27 @@ def vertex_arrays(mesh):
         mesh.calc_loop_triangles()
     if len(mesh.loop_triangles) == 0 or len(mesh.vertices) == 0:
         return None
+    loop_vert = corner_vertices(mesh)
+    used = np.zeros(len(mesh.vertices), dtype=bool)
+    used[loop_vert] = True
+    if not used.all():  # loose vertices: the batch's bounds would take them in
+        return None
     positions = vertex_positions(mesh)
     normals = np.empty(positions.size, dtype=np.float32)
     mesh.vertex_normals.foreach_get("vector", normals)
-    loop_vert = corner_vertices(mesh)
     triangles = np.take(loop_vert, triangle_corners(mesh, positions, loop_vert))
     return positions, normals.reshape(-1, 3), triangles, None
+
+
+def vertex_values(values, loop_vert, count: int) -> np.ndarray | None:
+    """``values`` given per face corner (N, ...) as one per vertex (``count``, ...), or None where
+    two corners of a vertex differ (a UV seam, a face attribute): the batch of
+    :func:`vertex_arrays` can carry them only where they agree (NaN equal to NaN)."""
+    values = np.asarray(values)
+    per_vertex = np.zeros((count, *values.shape[1:]), dtype=values.dtype)
+    per_vertex[loop_vert] = values
+    same = np.array_equal(np.take(per_vertex, loop_vert, axis=0), values, equal_nan=True)
+    return per_vertex if same else None
 
 
 def mesh_arrays(mesh, thickness_attribute: str | None = None):

@@ -270,8 +270,8 @@ def evaluate_orco(obj) -> np.ndarray:
     return found
 
 
-def orco_corners(obj, mesh) -> np.ndarray | None:
-    """(N, 3) float32 where ``mesh``'s (``obj``'s evaluated mesh's) corners were before Deform
+def orco_vertices(obj, mesh) -> np.ndarray | None:
+    """(V, 3) float32 where ``mesh``'s (``obj``'s evaluated mesh's) vertices were before Deform
     modifiers and shape keys moved them (:func:`generated_space`), or None (also where
     :func:`evaluate_orco` has not run: this never runs it, the draw calls it)."""
     if kind(obj) == EVALUATED:  # (one hash of the positions, not two)
@@ -279,9 +279,13 @@ def orco_corners(obj, mesh) -> np.ndarray | None:
         orco = None if orco is None or len(orco) != len(mesh.vertices) else orco
     else:
         orco = generated_space(obj, mesh)[1]
-    if orco is None:
-        return None
-    return np.take(orco.astype(np.float32), corner_vertices(mesh), axis=0)  # 3× faster than indexing
+    return None if orco is None else orco.astype(np.float32)
+
+
+def orco_corners(obj, mesh) -> np.ndarray | None:
+    """(N, 3) float32 :func:`orco_vertices` at ``mesh``'s corners, or None."""
+    orco = orco_vertices(obj, mesh)
+    return None if orco is None else np.take(orco, corner_vertices(mesh), axis=0)  # 3× faster than indexing
 
 
 def generated_space(obj, mesh) -> tuple:

@@ -34,6 +34,7 @@ def tf(bpy, package, tmp_path):
         "addon.headless.headless",
         "addon.materials.principled",
         "addon.ui.ui",
+        "addon.gpu.mesh",
     )
     mods = {n.rpartition(".")[2]: importlib.import_module(f"{EXTENSION_ID}.{n}") for n in names}
     entry = bpy.context.preferences.addons.new()
@@ -822,6 +823,45 @@ def test_a_rebuild_hashes_the_positions_before_a_deformation_once(bpy, tf, monke
     obj.data.vertices[0].co.x += 0.25  # an edit of the original mesh
     assert tf.generated.orco_key(obj) != key and tf.generated.needs_evaluation(obj)
     assert len(reads) == 4
+
+
+def test_a_smooth_mesh_with_a_noise_is_batched_per_vertex(bpy, tf):
+    """A Noise Texture at Generated coordinates on a twisted sphere shaded smooth: each vertex's
+    corners have the same thickness and the same position before the twist, so the batch holds
+    one row per vertex (its thickness and ``orco`` too), a quarter of the per-corner rows; the
+    entry keeps the thickness per corner, the noise at those positions. Shaded flat, the
+    corners keep their own normals: one row per corner again. ``vertex_values`` gives None where
+    two corners of a vertex differ."""
+    mat, _, _ = _mapped_noise(bpy, "SmoothNoise", 3.7, (100.0, 900.0))
+    obj = _modified(_sphere(bpy, mat), "deform")
+    obj.data.shade_smooth()
+    tf.linked.PENDING.clear()
+    tf.linked.maps.PENDING.clear()
+    tf.description.description(mat)
+
+    def entry():
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        with tf.linked.deferring():
+            tf.scene_draw.collect(depsgraph)
+        return tf.scene_draw.batch_entry("Sphere"), obj.evaluated_get(depsgraph)
+
+    smooth, obj_eval = entry()
+    mesh = obj_eval.data
+    assert smooth.batch.vertex_count == len(mesh.vertices) == 24 * 11 + 2
+    assert smooth.batch.noise is not None and smooth.batch.noise.orco
+    corners = tf.generated.orco_corners(obj_eval, mesh)
+    np.testing.assert_allclose(smooth.thickness, smooth.batch.noise.parameter(corners), atol=1e-6)
+    loops = np.array([loop.vertex_index for loop in mesh.loops])
+    per_vertex = tf.mesh.vertex_values(smooth.thickness, loops, len(mesh.vertices))
+    np.testing.assert_array_equal(per_vertex[loops], smooth.thickness)
+    split = smooth.thickness.copy()
+    split[np.flatnonzero(loops == loops[0])[1]] += 0.25  # one corner of vertex 0 differs
+    assert tf.mesh.vertex_values(split, loops, len(mesh.vertices)) is None
+    obj.data.shade_flat()
+    bpy.context.view_layer.update()
+    flat, obj_eval = entry()
+    assert flat.batch is not smooth.batch and flat.batch.vertex_count == len(obj_eval.data.loops)
+    np.testing.assert_array_equal(flat.thickness, smooth.thickness)
 
 
 def _grouped_noise(bpy, name: str, scale: float, nm: tuple):
