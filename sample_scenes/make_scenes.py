@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import itertools
 import math
 import os
 import pathlib
@@ -159,8 +160,31 @@ def bm_to_mesh(bm, name: str, smooth: bool = True):
 
 
 def uv_sphere(name: str, radius: float = 1.0, segments: int = 96, rings: int = 48):
+    """A UV sphere (poles on z, ``rings`` bands, ``segments`` around from +x), built vertex by
+    vertex and face by face, each face's corners in one order, its normal outward. Blender 5.2's
+    ``bmesh.ops.create_uvsphere`` gives the same vertices but starts a face's corners
+    differently from one call to the next at this size: the quads were split along other
+    diagonals, so two runs of this script rendered different glints."""
     bm = bmesh.new()
-    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+    top = bm.verts.new((0.0, 0.0, radius))
+    bands = []
+    for i in range(1, rings):
+        theta = math.pi * i / rings
+        z, r = radius * math.cos(theta), radius * math.sin(theta)
+        bands.append(
+            [
+                bm.verts.new((r * math.cos(phi), r * math.sin(phi), z))
+                for phi in (2.0 * math.pi * j / segments for j in range(segments))
+            ]
+        )
+    bottom = bm.verts.new((0.0, 0.0, -radius))
+    for j in range(segments):
+        k = (j + 1) % segments
+        bm.faces.new((top, bands[0][j], bands[0][k]))
+        for upper, lower in itertools.pairwise(bands):
+            bm.faces.new((upper[j], lower[j], lower[k], upper[k]))
+        bm.faces.new((bottom, bands[-1][k], bands[-1][j]))
+    bm.normal_update()
     return bm
 
 
