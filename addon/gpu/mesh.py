@@ -288,9 +288,10 @@ def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dt
 def vertex_arrays(mesh):
     """(positions (V, 3), normals (V, 3), triangles (T, 3) into them, None) of a mesh whose
     normals are its vertices' (``normals_domain`` POINT: shaded smooth, no sharp edges or custom
-    normals), else None: a batch of a constant thickness then shares each vertex between its
-    corners, a quarter of :func:`mesh_arrays`' per-corner rows for a quad mesh, drawn the same.
-    None also for a mesh without triangles."""
+    normals), else None: a batch then shares each vertex between its corners (where its
+    thickness does too, :func:`vertex_values`), a quarter of :func:`mesh_arrays`' per-corner rows
+    for a quad mesh, drawn the same. None also for a mesh without triangles or with loose
+    vertices."""
     if mesh.normals_domain != "POINT":
         return None
     if len(mesh.loop_triangles) == 0:
