@@ -176,6 +176,31 @@ def test_scene_files(bpy, tf, scenes):
         assert 0.0 <= values.min() and values.max() <= 1.0 and values.max() - values.min() > 0.5
 
 
+def test_the_scenes_spheres_are_the_same_each_time(bpy, tf):
+    """make_scenes' UV sphere (the bubble, the capsule, the shell) comes out with the same corners
+    in the same order each time, and Blender's own tessellation of it too: two runs of the
+    README's main command render the same picture. Blender 5.2's ``bmesh.ops.create_uvsphere``
+    does not (three calls gave three corner orders of the same vertices). Its faces face out."""
+
+    def built():
+        mesh = tf.make_scenes.bm_to_mesh(tf.make_scenes.uv_sphere("Same"), "Same")
+        corners = np.empty(len(mesh.loops), dtype=np.int32)
+        mesh.attributes[".corner_vert"].data.foreach_get("value", corners)
+        mesh.calc_loop_triangles()
+        triangles = np.empty(3 * len(mesh.loop_triangles), dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", triangles)
+        centres = np.array([p.center for p in mesh.polygons])
+        normals = np.array([p.normal for p in mesh.polygons])
+        bpy.data.meshes.remove(mesh)
+        return corners, triangles, np.einsum("ij,ij->i", centres, normals)
+
+    first, again = built(), built()
+    assert len(first[0]) == 96 * 46 * 4 + 2 * 96 * 3
+    np.testing.assert_array_equal(first[0], again[0])
+    np.testing.assert_array_equal(first[1], again[1])
+    assert first[2].min() > 0.0  # every face's normal points away from the centre
+
+
 def test_hdri_dir_option(bpy, tf, tmp_path):
     """make_scenes' --hdri-dir points the scenes' Worlds at the given folder (absolute path), for studios
     that keep HDRIs elsewhere."""
