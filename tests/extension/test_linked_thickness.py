@@ -7,6 +7,9 @@ cached by the node tree's content, and re-baked when its scale changes.
 """
 
 import importlib
+import os
+import pathlib
+import tempfile
 
 import numpy as np
 import pytest
@@ -622,17 +625,23 @@ def _render(bpy, obj, mat, size: int = 48) -> np.ndarray:
     scene.render.film_transparent = True
     scene.view_settings.view_transform = "Standard"  # the values as they are
     scene.render.image_settings.file_format = "OPEN_EXR"
-    return _rendered_pixels(bpy, scene, "/tmp/tfsh_coordinates_render.exr", size)
+    return _rendered_pixels(bpy, scene, "tfsh_coordinates_render.exr", size)
 
 
-def _rendered_pixels(bpy, scene, path: str, size: int) -> np.ndarray:
-    """``scene`` rendered to ``path`` and read back: RGBA (size, size, 4), bottom row first."""
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(path, check_existing=False)
-    pixels = np.empty(size * size * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
+def _rendered_pixels(bpy, scene, name: str, size: int) -> np.ndarray:
+    """``scene`` rendered to a file ``name`` of this process's own, read back and removed: RGBA
+    (size, size, 4), bottom row first. (A fixed path in /tmp let two workers on this file,
+    ``-n 2`` without ``--dist loadfile``, read each other's renders.)"""
+    path = pathlib.Path(tempfile.gettempdir()) / f"tfsh_{os.getpid()}_{name}"
+    scene.render.filepath = str(path)
+    try:
+        bpy.ops.render.render(write_still=True)
+        image = bpy.data.images.load(str(path), check_existing=False)
+        pixels = np.empty(size * size * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        bpy.data.images.remove(image)
+    finally:
+        path.unlink(missing_ok=True)
     return pixels.reshape(size, size, 4)
 
 
@@ -660,6 +669,18 @@ def _render_bake_copy(bpy, tf, obj) -> np.ndarray:
         bpy.data.objects.remove(copy)
 
 
+def _generated_mapped_copied(bpy, tf, obj, texspace):
+    """Cycles' renders of ``obj``'s Generated coordinates, of its Object coordinates mapped by
+    ``texspace``, and of the corner bake's copy's (:func:`_render_bake_copy`): (N, 3) each, at
+    the pixels all three cover (more than 200)."""
+    generated = _render_coordinates(bpy, obj, "Generated")
+    mapped = _render_coordinates(bpy, obj, "Object", texspace)
+    copied = _render_bake_copy(bpy, tf, obj)
+    inside = (generated[..., 3] > 0.999) & (mapped[..., 3] > 0.999) & (copied[..., 3] > 0.999)
+    assert inside.sum() > 200, inside.sum()
+    return tuple(image[..., :3][inside] for image in (generated, mapped, copied))
+
+
 @pytest.mark.parametrize("kind", ["build", "deform", "build_then_deform", "keyed_then_build"])
 def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(bpy, tf, kind):
     """What Cycles renders as Generated on a subdivided, arrayed cube is its evaluated (Object)
@@ -676,12 +697,7 @@ def test_generated_coordinates_are_the_positions_in_the_originals_texture_space(
     evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
     space, orco = tf.generated.generated_space(obj, evaluated)
     corners = np.array([v.co for v in evaluated.vertices])  # (the renders free the evaluated mesh)
-    generated = _render_coordinates(bpy, obj, "Generated")
-    mapped = _render_coordinates(bpy, obj, "Object", texspace)
-    copied = _render_bake_copy(bpy, tf, obj)
-    inside = (generated[..., 3] > 0.999) & (mapped[..., 3] > 0.999) & (copied[..., 3] > 0.999)
-    generated, mapped, copied = (image[..., :3][inside] for image in (generated, mapped, copied))
-    assert inside.sum() > 200, inside.sum()
+    generated, mapped, copied = _generated_mapped_copied(bpy, tf, obj, texspace)
     # Measured: 3.2e-6 to 6.8e-6 in each case; before, the copy's own bounds (and for the
     # deformed ones its deformed positions) were 0.1–0.4 off in the median.
     assert np.abs(generated - copied).max() < 1e-3, np.abs(generated - copied).max()
@@ -723,12 +739,7 @@ def test_generated_coordinates_after_a_boolean_screw_or_skin_are_the_positions(b
     texspace = tf.generated.original_texspace(obj)
     evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
     assert tf.generated.generated_space(obj, evaluated) == (texspace, None)
-    generated = _render_coordinates(bpy, obj, "Generated")
-    mapped = _render_coordinates(bpy, obj, "Object", texspace)
-    copied = _render_bake_copy(bpy, tf, obj)
-    inside = (generated[..., 3] > 0.999) & (mapped[..., 3] > 0.999) & (copied[..., 3] > 0.999)
-    generated, mapped, copied = (image[..., :3][inside] for image in (generated, mapped, copied))
-    assert inside.sum() > 200, inside.sum()
+    generated, mapped, copied = _generated_mapped_copied(bpy, tf, obj, texspace)
     # Measured: 4.4e-6, 6.1e-6, 7.3e-6 (max over the object).
     assert np.abs(generated - mapped).max() < 1e-3, np.abs(generated - mapped).max()
     assert np.abs(generated - copied).max() < 1e-3, np.abs(generated - copied).max()
@@ -750,13 +761,7 @@ def test_generated_coordinates_under_cloth_or_soft_body_stay_where_the_vertices_
     for frame in range(1, 12):
         bpy.context.scene.frame_set(frame)
     assert tf.generated.kind(obj) == tf.generated.ORIGINAL
-    texspace = tf.generated.original_texspace(obj)
-    generated = _render_coordinates(bpy, obj, "Generated")
-    simulated = _render_coordinates(bpy, obj, "Object", texspace)
-    copied = _render_bake_copy(bpy, tf, obj)
-    inside = (generated[..., 3] > 0.999) & (simulated[..., 3] > 0.999) & (copied[..., 3] > 0.999)
-    generated, simulated, copied = (image[..., :3][inside] for image in (generated, simulated, copied))
-    assert inside.sum() > 200, inside.sum()
+    generated, simulated, copied = _generated_mapped_copied(bpy, tf, obj, tf.generated.original_texspace(obj))
     assert np.abs(generated - copied).max() < 1e-3, np.abs(generated - copied).max()  # measured 0
     moved = np.median(np.abs(generated - simulated).max(axis=1))
     assert moved > 0.1, moved  # measured 0.22 and 0.24
@@ -1215,7 +1220,7 @@ def _render_centre(bpy, mat, size=48, samples=8):
         scene.camera = camera
     sphere = bpy.data.objects["Sphere"]
     sphere.data.materials[0] = mat
-    rgb = _rendered_pixels(bpy, scene, "/tmp/tfsh_write_back_render.exr", size)[..., :3]
+    rgb = _rendered_pixels(bpy, scene, "tfsh_write_back_render.exr", size)[..., :3]
     c = size // 2
     return rgb[c - 6 : c + 6, c - 6 : c + 6].reshape(-1, 3)
 
