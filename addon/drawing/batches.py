@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...precompute.materials.perlin import NoiseSpec
-from ..gpu.mesh import MeshBatch, corner_vertices, mesh_arrays, vertex_arrays, vertex_values
+from ..gpu.mesh import MeshBatch, mesh_arrays, vertex_arrays
 from ..materials.principled import linked_thickness_socket
 from ..thickness import generated, linked
 from ..thickness.corners import image_parameters, noise_parameters
@@ -121,17 +121,6 @@ def _slot_triangles(mesh, triangles, slot: int) -> np.ndarray:
     return triangles[poly_mat[tri_poly] == slot]
 
 
-def _shared_arrays(mesh, thickness) -> tuple:
-    """(:func:`.vertex_arrays`, the thickness per vertex) where nothing differs between a
-    vertex's corners (normals per vertex, ``thickness`` per corner None or equal at every corner
-    of a vertex: a quarter of the rows of a quad mesh to upload), else (None, None)."""
-    shared = vertex_arrays(mesh)
-    if shared is None or thickness is None:
-        return shared, None
-    upload = vertex_values(thickness, corner_vertices(mesh), len(mesh.vertices))
-    return (None, None) if upload is None else (shared, upload)
-
-
 def slot_batch(
     name: str, obj_eval, mesh, slot: int, props, desc, signature, linked_source=None, wall: bool = False
 ) -> BatchEntry:
@@ -163,10 +152,11 @@ def slot_batch(
         thickness = np.nan_to_num(
             np.clip(np.asarray(thickness, dtype=np.float32), 0.0, 1.0), nan=NAN_PARAMETER
         )
-    shared, upload = _shared_arrays(mesh, thickness) if single and thickness_map is None else (None, None)
+    # one row per vertex where nothing differs between a vertex's corners (thickness included)
+    shared = vertex_arrays(mesh, thickness) if single and thickness_map is None else None
     with_orco = getattr(noise, "orco", False)
     if shared is not None:
-        arrays = shared
+        arrays, upload = shared, shared[3]
         orco = generated.orco_vertices(obj_eval, mesh) if with_orco else None
     else:
         arrays = mesh_arrays(mesh) if single else arrays

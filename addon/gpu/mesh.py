@@ -285,13 +285,14 @@ def _attribute_array(mesh, name: str, domain: str, data_type: str, size: int, dt
     return out
 
 
-def vertex_arrays(mesh):
-    """(positions (V, 3), normals (V, 3), triangles (T, 3) into them, None) of a mesh whose
-    normals are its vertices' (``normals_domain`` POINT: shaded smooth, no sharp edges or custom
-    normals), else None: a batch then shares each vertex between its corners (where its
-    thickness does too, :func:`vertex_values`), a quarter of :func:`mesh_arrays`' per-corner rows
-    for a quad mesh, drawn the same. None also for a mesh without triangles or with loose
-    vertices."""
+def vertex_arrays(mesh, corner_values=None):
+    """(positions (V, 3), normals (V, 3), triangles (T, 3) into them, ``corner_values`` per
+    vertex or None) of a mesh whose normals are its vertices' (``normals_domain`` POINT: shaded
+    smooth, no sharp edges or custom normals), else None: a batch then shares each vertex
+    between its corners, a quarter of :func:`mesh_arrays`' per-corner rows for a quad mesh,
+    drawn the same. None also for a mesh without triangles, with loose vertices, or where two
+    corners of a vertex have different ``corner_values`` (:func:`vertex_values`; checked before
+    the triangles are worked out)."""
     if mesh.normals_domain != "POINT":
         return None
     if len(mesh.loop_triangles) == 0:
@@ -303,11 +304,16 @@ def vertex_arrays(mesh):
     used[loop_vert] = True
     if not used.all():  # loose vertices: the batch's bounds would take them in
         return None
+    values = None
+    if corner_values is not None:
+        values = vertex_values(corner_values, loop_vert, len(mesh.vertices))
+        if values is None:
+            return None
     positions = vertex_positions(mesh)
     normals = np.empty(positions.size, dtype=np.float32)
     mesh.vertex_normals.foreach_get("vector", normals)
     triangles = np.take(loop_vert, triangle_corners(mesh, positions, loop_vert))
-    return positions, normals.reshape(-1, 3), triangles, None
+    return positions, normals.reshape(-1, 3), triangles, values
 
 
 def vertex_values(values, loop_vert, count: int) -> np.ndarray | None:

@@ -367,14 +367,20 @@ def read_orco_attribute(tree, orco_name: str) -> list:
 def _reads_generated(tree) -> bool:
     """Whether a node tree reads Generated coordinates itself or in a group it uses."""
     for node in tree.nodes:
-        if node.bl_idname == "ShaderNodeTexCoord" and node.outputs["Generated"].is_linked:
-            return True
-        if node.bl_idname in _GENERATED_BY_DEFAULT and not node.inputs["Vector"].is_linked:
-            return True
         group = node.node_tree if node.bl_idname == "ShaderNodeGroup" else None
-        if group is not None and _reads_generated(group):
+        if _generated_input(node) is not None or (group is not None and _reads_generated(group)):
             return True
     return False
+
+
+def _generated_input(node):
+    """The sockets a node reads Generated coordinates through: a Texture Coordinate's linked
+    Generated output's links, a texture's unlinked Vector input; else None."""
+    if node.bl_idname == "ShaderNodeTexCoord" and node.outputs["Generated"].is_linked:
+        return [link.to_socket for link in node.outputs["Generated"].links]
+    if node.bl_idname in _GENERATED_BY_DEFAULT and not node.inputs["Vector"].is_linked:
+        return [node.inputs["Vector"]]
+    return None
 
 
 def _rewire(tree, orco_name: str, made: list, copies: dict) -> None:
@@ -383,11 +389,10 @@ def _rewire(tree, orco_name: str, made: list, copies: dict) -> None:
     attribute.attribute_type, attribute.attribute_name = "GEOMETRY", orco_name
     vector = attribute.outputs["Vector"]
     for node in list(tree.nodes):
-        if node.bl_idname == "ShaderNodeTexCoord":
-            for link in list(node.outputs["Generated"].links):
-                tree.links.new(vector, link.to_socket)
-        elif node.bl_idname in _GENERATED_BY_DEFAULT and not node.inputs["Vector"].is_linked:
-            tree.links.new(vector, node.inputs["Vector"])
+        sockets = _generated_input(node)
+        if sockets is not None:
+            for socket in sockets:
+                tree.links.new(vector, socket)
         elif node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
             group = node.node_tree
             if group.name not in copies and _reads_generated(group):
